@@ -1,0 +1,11 @@
+"""Contact sub-models (normal, tangential, rolling, twisting) and their composition."""
+
+from .base import ROLLING_MODELS, NORMAL_MODELS, TANGENTIAL_MODELS, TWISTING_MODELS, SubModel
+from .normal import Hertz, Hooke, Linear
+from .tangential import HistorySpring
+from .rolling import CDT, NoRolling
+from .twisting import NoTwisting
+from .model import ContactModel
+
+__all__ = ["SubModel", "ContactModel", "Hertz", "Hooke", "Linear", "HistorySpring", "NoRolling", "CDT",
+           "NoTwisting", "NORMAL_MODELS", "TANGENTIAL_MODELS", "ROLLING_MODELS", "TWISTING_MODELS"]

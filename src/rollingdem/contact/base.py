@@ -1,0 +1,87 @@
+"""The sub-model contract.
+
+A sub-model is one small class plus one compiled function (DESIGN.md principle 2):
+
+* the class validates and holds the parameters, says how many per-contact history slots it
+  needs (``history_size``), and turns a material pair into a fixed row of floats
+  (``pair_parameters``) that the kernel reads;
+* ``kernel`` is a ``numba.njit`` function with the fixed signature of its slot (see
+  ``rollingdem.contact.signatures``). It allocates nothing and calls no Python.
+
+Subclasses register themselves by ``slot`` and ``name``: adding a model is adding a class, with no
+edit to the engine.
+
+Every pair-parameter row starts with the common slots below; each sub-model's own parameters
+follow at an offset the contact model hands to its kernel.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from ..errors import check_choice
+
+# Common pair-parameter slots, shared by every sub-model.
+P_YOUNG = 0            # E* (Pa)
+P_SHEAR = 1            # G* (Pa)
+P_FRICTION = 2         # mu
+P_ROLLING_FRICTION = 3  # mu_r
+P_ROLLING_DAMPING = 4  # eta_r
+P_RESTITUTION = 5      # e
+N_COMMON = 6
+
+NORMAL_MODELS: dict[str, type] = {}
+TANGENTIAL_MODELS: dict[str, type] = {}
+ROLLING_MODELS: dict[str, type] = {}
+TWISTING_MODELS: dict[str, type] = {}
+_REGISTRIES = {"normal": NORMAL_MODELS, "tangential": TANGENTIAL_MODELS, "rolling": ROLLING_MODELS,
+               "twisting": TWISTING_MODELS}
+
+
+class SubModel:
+    """Base of all contact sub-models."""
+
+    slot: ClassVar[str] = ""
+    name: ClassVar[str] = ""
+    history_size: ClassVar[int] = 0
+    #: (module, function name) of the compiled kernel; the engine generator imports it from there.
+    kernel: ClassVar[tuple[str, str]] = ("", "")
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls.slot and cls.name:
+            _REGISTRIES[cls.slot][cls.name] = cls
+
+    def pair_parameters(self, pair) -> tuple[float, ...]:
+        """Extra per-pair floats after the common slots (default: none)."""
+        return ()
+
+    def parameters(self) -> dict:
+        """The constructor arguments, for case files and checkpoints."""
+        return {}
+
+    def __repr__(self):
+        args = ", ".join(f"{k}={v!r}" for k, v in self.parameters().items())
+        return f"{type(self).__name__}({args})"
+
+    def __eq__(self, other):
+        return type(self) is type(other) and self.parameters() == other.parameters()
+
+    def __hash__(self):
+        return hash((type(self), tuple(sorted(self.parameters().items()))))
+
+
+def make_submodel(slot: str, spec) -> SubModel:
+    """Turn a name, a ``{"model": name, ...}`` mapping or an instance into a sub-model instance."""
+    registry = _REGISTRIES[slot]
+    if isinstance(spec, SubModel):
+        if spec.slot != slot:
+            raise ValueError(f"{slot} model = {spec!r} is a {spec.slot} model")
+        return spec
+    if isinstance(spec, dict):
+        spec = dict(spec)
+        name = spec.pop("model", None)
+        check_choice(f"{slot} model", name, registry)
+        return registry[name](**spec)
+    check_choice(f"{slot} model", spec, registry)
+    return registry[spec]()

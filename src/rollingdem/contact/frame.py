@@ -1,0 +1,68 @@
+"""Carrying per-contact vector state with the contact frame (MODELS.md §11.3, §12 step 1).
+
+A history vector h (tangential spring, rolling spring moment) lives in the tangent plane of the
+contact. When the contact normal turns from n_old to n and the pair spins about n, h is carried
+with the frame:
+
+1. rotate h by the rotation that takes n_old to n (Rodrigues, axis a = n_old x n, c = n_old . n):
+   h' = c h + a x h + a (a . h) / (1 + c);
+2. rotate by the rigid spin angle phi = 1/2 (omega_i + omega_j) . n dt about n;
+3. remove any remaining normal component and rescale to the magnitude before the rotation.
+
+Yade rotates to first order (``ScGeom::rotate``); LAMMPS only projects and rescales; LIGGGHTS does
+neither (the "unrotated history" of MODELS.md §11.3).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def carry_with_frame(hist, k, off, onx, ony, onz, nx, ny, nz, spin_angle):
+    """Carry the 3-vector ``hist[k, off:off+3]`` from frame n_old to n, in place."""
+    hx = hist[k, off]
+    hy = hist[k, off + 1]
+    hz = hist[k, off + 2]
+    mag2 = hx * hx + hy * hy + hz * hz
+    if mag2 == 0.0:
+        return
+    # 1. rotation n_old -> n
+    ax = ony * nz - onz * ny
+    ay = onz * nx - onx * nz
+    az = onx * ny - ony * nx
+    c = onx * nx + ony * ny + onz * nz
+    if c > -0.5:  # a flip of the normal in one step is not a rotation to follow
+        ad = (ax * hx + ay * hy + az * hz) / (1.0 + c)
+        rx = c * hx + (ay * hz - az * hy) + ax * ad
+        ry = c * hy + (az * hx - ax * hz) + ay * ad
+        rz = c * hz + (ax * hy - ay * hx) + az * ad
+        hx, hy, hz = rx, ry, rz
+    # 2. spin about n
+    if spin_angle != 0.0:
+        cs = math.cos(spin_angle)
+        sn = math.sin(spin_angle)
+        nd = nx * hx + ny * hy + nz * hz
+        cx = ny * hz - nz * hy
+        cy = nz * hx - nx * hz
+        cz = nx * hy - ny * hx
+        hx, hy, hz = (hx * cs + cx * sn + nx * nd * (1.0 - cs),
+                      hy * cs + cy * sn + ny * nd * (1.0 - cs),
+                      hz * cs + cz * sn + nz * nd * (1.0 - cs))
+    # 3. project onto the tangent plane and restore the magnitude
+    nd = nx * hx + ny * hy + nz * hz
+    hx -= nd * nx
+    hy -= nd * ny
+    hz -= nd * nz
+    m2 = hx * hx + hy * hy + hz * hz
+    if m2 > 0.0:
+        s = math.sqrt(mag2 / m2)
+        hist[k, off] = hx * s
+        hist[k, off + 1] = hy * s
+        hist[k, off + 2] = hz * s
+    else:
+        hist[k, off] = 0.0
+        hist[k, off + 1] = 0.0
+        hist[k, off + 2] = 0.0

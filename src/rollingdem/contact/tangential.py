@@ -1,0 +1,78 @@
+"""Tangential contact sub-models (MODELS.md §1.2).
+
+Kernel signature (slot "tangential")::
+
+    tangential_force(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle,
+                     vtx, vty, vtz, tangential_stiffness, tangential_damping,
+                     normal_force, dt, p, poff) -> (ftx, fty, ftz, dissipation)
+
+``hist[k, off:off+history_size]`` is the contact's own state; (nx, ny, nz) the current normal,
+(onx, ony, onz) the normal of the previous step, ``spin_angle`` the rigid spin of the pair about n
+during the step; (vtx, vty, vtz) the tangential slip velocity at the contact point; F_t is the
+force on particle i. ``dissipation`` is the energy (J) dissipated during the step.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from .base import P_FRICTION, SubModel
+from .frame import carry_with_frame
+
+
+@njit(cache=True)
+def history_spring(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, vtx, vty, vtz,
+                   kt, gamma_t, normal_force, dt, p, poff):
+    """Tangential spring-dashpot with Coulomb limit.
+
+    xi <- carry(xi) + v_t dt;  F_trial = -k_t xi - gamma_t v_t;
+    if |F_trial| > mu max(F_n, 0): F_t = mu max(F_n, 0) F_trial/|F_trial| and the spring is backed
+    out of it, xi = -(F_t + gamma_t v_t)/k_t (LAMMPS ``tangential mindlin``: the total force,
+    spring and dashpot, never exceeds the Coulomb limit).
+    The spring is carried with the contact frame (rotated, not just projected: MODELS.md §11.3).
+    The limit uses max(F_n, 0), never |F_n|: a contact pulled by its dashpot cannot grip (§11.4).
+    """
+    carry_with_frame(hist, k, off, onx, ony, onz, nx, ny, nz, spin_angle)
+    x0 = hist[k, off]
+    y0 = hist[k, off + 1]
+    z0 = hist[k, off + 2]
+    stored_before = 0.5 * kt * (x0 * x0 + y0 * y0 + z0 * z0)
+    xx = x0 + vtx * dt
+    xy = y0 + vty * dt
+    xz = z0 + vtz * dt
+    fx = -kt * xx - gamma_t * vtx
+    fy = -kt * xy - gamma_t * vty
+    fz = -kt * xz - gamma_t * vtz
+    limit = p[P_FRICTION] * max(normal_force, 0.0)
+    f2 = fx * fx + fy * fy + fz * fz
+    if f2 > limit * limit:
+        if f2 > 0.0:
+            s = limit / math.sqrt(f2)
+            fx *= s
+            fy *= s
+            fz *= s
+        if kt > 0.0:
+            xx = -(fx + gamma_t * vtx) / kt
+            xy = -(fy + gamma_t * vty) / kt
+            xz = -(fz + gamma_t * vtz) / kt
+        else:
+            xx = 0.0
+            xy = 0.0
+            xz = 0.0
+    hist[k, off] = xx
+    hist[k, off + 1] = xy
+    hist[k, off + 2] = xz
+    stored_after = 0.5 * kt * (xx * xx + xy * xy + xz * xz)
+    work_on_contact = -(fx * vtx + fy * vty + fz * vtz) * dt
+    return fx, fy, fz, work_on_contact - (stored_after - stored_before)
+
+
+class HistorySpring(SubModel):
+    """Tangential history spring with Coulomb limit and dashpot (the only tangential model so far)."""
+
+    slot = "tangential"
+    name = "history"
+    history_size = 3
+    kernel = ("rollingdem.contact.tangential", "history_spring")

@@ -1,0 +1,214 @@
+"""Engine state: the arrays the compiled kernel advances, and their capacity management.
+
+Python calls the kernel for K steps at a time; the kernel stops early only at a step boundary,
+when the neighbor list needs more room, and is then called again after the arrays grow (so the
+result does not depend on the initial capacity).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .walls import GEOMETRY_SIZE
+
+I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID = range(6)
+INFO_SIZE = 8
+ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")
+
+
+class EngineState:
+    """Structure of arrays, float64, SI units."""
+
+    def __init__(self, history_size: int):
+        self.history_size = history_size
+        n = 0
+        self.x = np.zeros((n, 3))
+        self.v = np.zeros((n, 3))
+        self.w = np.zeros((n, 3))
+        self.f = np.zeros((n, 3))
+        self.t = np.zeros((n, 3))
+        self.radius = np.zeros(n)
+        self.mass = np.zeros(n)
+        self.inertia = np.zeros(n)
+        self.mat = np.zeros(n, dtype=np.int32)
+        self.energy = np.zeros((n, len(ENERGY_CHANNELS)))
+        self.contacts = np.zeros(n, dtype=np.int64)
+        self.x_ref = np.zeros((n, 3))
+        self.wall_kind = np.zeros(0, dtype=np.int32)
+        self.wall_geom = np.zeros((0, GEOMETRY_SIZE))
+        self.wall_vel = np.zeros((0, 3))
+        self.wall_omega = np.zeros((0, 3))
+        self.wall_mat = np.zeros(0, dtype=np.int32)
+        self.whist = np.zeros((0, history_size))
+        self.info = np.zeros(INFO_SIZE, dtype=np.int64)
+        self.capacity = 0
+        self._allocate_list(16)
+        self._allocate_particle_scratch()
+
+    @property
+    def n(self) -> int:
+        return self.x.shape[0]
+
+    @property
+    def n_walls(self) -> int:
+        return self.wall_kind.shape[0]
+
+    # --- allocation --------------------------------------------------------------------------
+    def _allocate_particle_scratch(self):
+        n = self.n
+        self.nl_start = np.zeros(n + 1, dtype=np.int64)
+        self.tr_start = np.zeros(n + 1, dtype=np.int64)
+        self.new_start = np.zeros(n + 1, dtype=np.int64)
+        self.cell_items = np.zeros(n, dtype=np.int32)
+        self.cell_of = np.zeros(n, dtype=np.int64)
+        self.counts = np.zeros(n, dtype=np.int64)
+        self.cell_start = np.zeros(max(2 * n, 64) + 1, dtype=np.int64)
+
+    def _allocate_list(self, capacity: int, keep: int = 0):
+        h = self.history_size
+        old = (getattr(self, "nl_j", None), getattr(self, "hist", None))
+        self.nl_j = np.zeros(capacity, dtype=np.int32)
+        self.hist = np.zeros((capacity, h))
+        if keep and old[0] is not None:
+            self.nl_j[:keep] = old[0][:keep]
+            self.hist[:keep] = old[1][:keep]
+        self.pair_force = np.zeros((capacity, 3))
+        self.pair_torque_j = np.zeros((capacity, 3))
+        self.tr_k = np.zeros(capacity, dtype=np.int32)
+        self.new_j = np.zeros(capacity, dtype=np.int32)
+        self.new_hist = np.zeros((capacity, h))
+        self.capacity = capacity
+
+    def grow(self, needed: int):
+        keep = int(self.nl_start[-1]) if self.nl_start.size else 0
+        self._allocate_list(int(needed * 1.3) + 16, keep=keep)
+        self.info[I_NEED_REBUILD] = 1
+        if keep:  # the transposed index refers to list entries, which were kept as they were
+            from .neighbors import _transpose
+            _transpose(self.n, self.nl_start, self.nl_j, self.tr_start, self.tr_k)
+
+    @property
+    def list_size(self) -> int:
+        return int(self.nl_start[-1]) if self.nl_start.size else 0
+
+    # --- particles and walls -----------------------------------------------------------------
+    def append_particles(self, x, v, w, radius, mass, inertia, mat):
+        """Append particles; existing indices, list entries and history keep their meaning."""
+        n0 = self.n
+        m = x.shape[0]
+        self.x = np.concatenate([self.x, x])
+        self.v = np.concatenate([self.v, v])
+        self.w = np.concatenate([self.w, w])
+        self.f = np.concatenate([self.f, np.zeros((m, 3))])
+        self.t = np.concatenate([self.t, np.zeros((m, 3))])
+        self.radius = np.concatenate([self.radius, radius])
+        self.mass = np.concatenate([self.mass, mass])
+        self.inertia = np.concatenate([self.inertia, inertia])
+        self.mat = np.concatenate([self.mat, mat.astype(np.int32)])
+        self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
+        self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int64)])
+        self.x_ref = np.concatenate([self.x_ref, x])
+        old_start = self.nl_start
+        wall_hist = self.whist.reshape(n0, self.n_walls, self.history_size) if n0 else None
+        self._allocate_particle_scratch()
+        self.nl_start[: n0 + 1] = old_start[: n0 + 1]
+        self.nl_start[n0 + 1:] = old_start[n0] if n0 else 0
+        whist = np.zeros((self.n, self.n_walls, self.history_size))
+        if wall_hist is not None:
+            whist[:n0] = wall_hist
+        self.whist = whist.reshape(self.n * self.n_walls, self.history_size)
+        self.info[I_NEED_REBUILD] = 1
+        self.info[I_FORCES_VALID] = 0
+        if self.capacity < 8 * self.n:
+            self.grow(8 * self.n)
+
+    def set_walls(self, kinds, geoms, vels, omegas, mats):
+        """Replace the wall arrays; history of walls that stay in place (same slot) is kept."""
+        old_w = self.n_walls
+        new_w = len(kinds)
+        old = self.whist.reshape(self.n, old_w, self.history_size) if self.n and old_w else None
+        self.wall_kind = np.asarray(kinds, dtype=np.int32).reshape(new_w)
+        self.wall_geom = np.asarray(geoms, dtype=np.float64).reshape(new_w, GEOMETRY_SIZE)
+        self.wall_vel = np.asarray(vels, dtype=np.float64).reshape(new_w, 3)
+        self.wall_omega = np.asarray(omegas, dtype=np.float64).reshape(new_w, 3)
+        self.wall_mat = np.asarray(mats, dtype=np.int32).reshape(new_w)
+        whist = np.zeros((self.n, new_w, self.history_size))
+        if old is not None:
+            keep = min(old_w, new_w)
+            whist[:, :keep] = old[:, :keep]
+        self.whist = whist.reshape(self.n * new_w, self.history_size)
+        self.info[I_FORCES_VALID] = 0
+
+    # --- running -------------------------------------------------------------------------------
+    def kernel_args(self, dt, gravity, skin, pair_params):
+        return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
+                pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
+                self.whist, self.nl_start, self.nl_j, self.hist, self.pair_force, self.pair_torque_j, self.tr_start,
+                self.tr_k, self.new_start, self.new_j, self.new_hist, self.cell_start, self.cell_items, self.cell_of,
+                self.counts, self.x_ref, skin, self.energy, self.contacts, self.info)
+
+    def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
+        """Advance exactly ``nsteps`` steps (growing the list arrays as often as needed)."""
+        if self.n == 0:
+            return
+        if self.info[I_FORCES_VALID] == 0:
+            self._evaluate_forces(kernel, dt, gravity, skin, pair_params)
+        remaining = nsteps
+        while remaining > 0:
+            kernel.advance(remaining, *self.kernel_args(dt, gravity, skin, pair_params))
+            remaining -= int(self.info[I_STEPS_DONE])
+            if self.info[I_STATUS] == 1:
+                self.grow(int(self.info[I_NEEDED]))
+
+    def _evaluate_forces(self, kernel, dt, gravity, skin, pair_params):
+        """Forces and torques of the present state, leaving the contact history untouched.
+
+        Rebuilding at unchanged positions is idempotent, so the history saved after one rebuild
+        is exactly the history the evaluation started from.
+        """
+        from .neighbors import rebuild_neighbor_list
+
+        while True:
+            total = rebuild_neighbor_list(self.x, self.radius, skin, self.nl_start, self.nl_j, self.hist,
+                                          self.tr_start, self.tr_k, self.new_start, self.new_j, self.new_hist,
+                                          self.cell_start, self.cell_items, self.cell_of, self.counts, self.x_ref)
+            if total >= 0:
+                break
+            self.grow(-total)
+        saved = (self.hist[:total].copy(), self.whist.copy(), self.energy.copy())
+        while True:
+            self.info[I_FORCES_VALID] = 0
+            kernel.advance(0, *self.kernel_args(dt, gravity, skin, pair_params))
+            if self.info[I_STATUS] == 0:
+                break
+            self.grow(int(self.info[I_NEEDED]))
+        self.hist[:total], self.whist[:], self.energy[:] = saved
+
+    # --- checkpoint ----------------------------------------------------------------------------
+    ARRAYS = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "energy", "contacts", "x_ref",
+              "wall_kind", "wall_geom", "wall_vel", "wall_omega", "wall_mat", "whist", "info", "nl_start",
+              "tr_start")
+
+    def to_arrays(self) -> dict:
+        out = {name: getattr(self, name) for name in self.ARRAYS}
+        total = self.list_size
+        out["nl_j"] = self.nl_j[:total]
+        out["hist"] = self.hist[:total]
+        out["tr_k"] = self.tr_k[:total]
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict, history_size: int) -> "EngineState":
+        st = cls(history_size)
+        for name in cls.ARRAYS:
+            setattr(st, name, np.array(arrays[name]))
+        nl_start = st.nl_start
+        tr_start = st.tr_start
+        st._allocate_particle_scratch()
+        st.nl_start, st.tr_start = nl_start, tr_start
+        total = int(arrays["nl_j"].shape[0])
+        st._allocate_list(max(int(total * 1.3) + 16, 8 * st.n))
+        st.nl_j[:total] = arrays["nl_j"]
+        st.hist[:total] = arrays["hist"]
+        st.tr_k[:total] = arrays["tr_k"]
+        return st

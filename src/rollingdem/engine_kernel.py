@@ -1,0 +1,378 @@
+"""The compiled step loop: neighbor list -> contact forces and torques -> velocity Verlet.
+
+This file is a template. ``rollingdem.contact.model.ContactModel`` writes a copy of it for each
+combination of sub-models, with the lines marked ``# @@`` replaced (which kernels to call, their
+parameter offsets and history slots), and imports that copy; Numba caches it on disk. As it
+stands it is a valid module with the Hertz / history / no rolling / no twisting combination.
+
+Per step (velocity Verlet, forces at half-step velocities as in LIGGGHTS and LAMMPS):
+
+1. rebuild the neighbor list if any particle may move past skin/2 during the step;
+2. v += dt/2 F/m, omega += dt/2 T/I, x += dt v; walls move with their velocity;
+3. pair contacts (one thread per row of the half list): force and torque on i summed per row,
+   force and torque on j stored with the pair;
+4. per particle: gather the pair terms where it is the second partner, wall contacts, gravity;
+   v += dt/2 F/m, omega += dt/2 T/I.
+
+Nothing here allocates or calls Python.
+"""
+
+import math
+
+from numba import njit, prange
+
+from rollingdem.neighbors import rebuild_neighbor_list
+from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
+from rollingdem.contact.tangential import history_spring as tangential_force  # @@TANGENTIAL
+from rollingdem.contact.rolling import no_rolling as rolling_moment  # @@ROLLING
+from rollingdem.contact.twisting import no_twisting as twisting_moment  # @@TWISTING
+
+OFF_NORMAL = 6  # @@OFF_NORMAL
+OFF_TANGENTIAL = 7  # @@OFF_TANGENTIAL
+OFF_ROLLING = 7  # @@OFF_ROLLING
+OFF_TWISTING = 7  # @@OFF_TWISTING
+H_TANGENTIAL = 3  # @@H_TANGENTIAL
+H_ROLLING = 6  # @@H_ROLLING
+H_TWISTING = 6  # @@H_TWISTING
+
+# info slots shared with rollingdem.engine
+I_STEPS_DONE = 0
+I_STATUS = 1
+I_NEEDED = 2
+I_REBUILDS = 3
+I_NEED_REBUILD = 4
+I_FORCES_VALID = 5
+
+WALL_PLANE = 0
+WALL_CYLINDER = 1
+
+INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
+
+
+@njit(cache=True)
+def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j,
+            r_eff, m_eff, inertia_r, p, dt):
+    """One contact: force on i, torque on i, torque on j, dissipated energies (normal, sliding,
+    rolling, twisting). (rvx, rvy, rvz) is the velocity of i's centre relative to j's centre (for a
+    wall: relative to the wall's surface velocity at the contact, with lever_j = 0)."""
+    onx = hist[k, 0]
+    ony = hist[k, 1]
+    onz = hist[k, 2]
+    if onx == 0.0 and ony == 0.0 and onz == 0.0:
+        onx = nx
+        ony = ny
+        onz = nz
+    spin_angle = 0.5 * ((wix + wjx) * nx + (wiy + wjy) * ny + (wiz + wjz) * nz) * dt
+    vn = rvx * nx + rvy * ny + rvz * nz
+    # slip velocity at the contact point: v_c = (v_i - v_j) - (R'_i w_i + R'_j w_j) x n
+    sx = lever_i * wix + lever_j * wjx
+    sy = lever_i * wiy + lever_j * wjy
+    sz = lever_i * wiz + lever_j * wjz
+    vcx = rvx - (sy * nz - sz * ny)
+    vcy = rvy - (sz * nx - sx * nz)
+    vcz = rvz - (sx * ny - sy * nx)
+    vcn = vcx * nx + vcy * ny + vcz * nz
+    vtx = vcx - vcn * nx
+    vty = vcy - vcn * ny
+    vtz = vcz - vcn * nz
+
+    f_el, f_damp, kn, kt, gamma_t = normal_force(overlap, vn, r_eff, m_eff, p, OFF_NORMAL)
+    fn = f_el + f_damp
+    ftx, fty, ftz, e_t = tangential_force(hist, k, H_TANGENTIAL, nx, ny, nz, onx, ony, onz, spin_angle,
+                                          vtx, vty, vtz, kt, gamma_t, fn, dt, p, OFF_TANGENTIAL)
+    dwx = wix - wjx
+    dwy = wiy - wjy
+    dwz = wiz - wjz
+    mx, my, mz, e_r = rolling_moment(hist, k, H_ROLLING, nx, ny, nz, onx, ony, onz, spin_angle, dwx, dwy, dwz,
+                                     kn, kt, f_el, fn, r_eff, inertia_r, dt, p, OFF_ROLLING)
+    m_tw, e_tw = twisting_moment(hist, k, H_TWISTING, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t,
+                                 f_el, fn, dt, p, OFF_TWISTING)
+    hist[k, 0] = nx
+    hist[k, 1] = ny
+    hist[k, 2] = nz
+
+    # torque of F_t at the contact point: -R'_i n x F_t on i, -R'_j n x F_t on j
+    cx = ny * ftz - nz * fty
+    cy = nz * ftx - nx * ftz
+    cz = nx * fty - ny * ftx
+    mx += m_tw * nx
+    my += m_tw * ny
+    mz += m_tw * nz
+    return (fn * nx + ftx, fn * ny + fty, fn * nz + ftz,
+            -lever_i * cx - mx, -lever_i * cy - my, -lever_i * cz - mz,
+            -lever_j * cx + mx, -lever_j * cy + my, -lever_j * cz + mz,
+            -f_damp * vn * dt, e_t, e_r, e_tw)
+
+
+@njit(cache=True, parallel=True)
+def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
+                pair_torque_j, energy, contacts):
+    """Pair contacts, one thread per row: F and T on i summed per row, F and T_j kept per pair."""
+    n = x.shape[0]
+    for i in prange(n):
+        fx = fy = fz = 0.0
+        tx = ty = tz = 0.0
+        en = et = er = etw = 0.0
+        ncontact = 0
+        ri = radius[i]
+        mi = mass[i]
+        for k in range(nl_start[i], nl_start[i + 1]):
+            j = nl_j[k]
+            dx = x[i, 0] - x[j, 0]
+            dy = x[i, 1] - x[j, 1]
+            dz = x[i, 2] - x[j, 2]
+            rj = radius[j]
+            d2 = dx * dx + dy * dy + dz * dz
+            reach = ri + rj
+            if d2 >= reach * reach:
+                if hist[k, 0] != 0.0 or hist[k, 1] != 0.0 or hist[k, 2] != 0.0:
+                    for s in range(hist.shape[1]):
+                        hist[k, s] = 0.0
+                for d in range(3):
+                    pair_force[k, d] = 0.0
+                    pair_torque_j[k, d] = 0.0
+                continue
+            dist = math.sqrt(d2)
+            overlap = reach - dist
+            nx = dx / dist
+            ny = dy / dist
+            nz = dz / dist
+            mj = mass[j]
+            r_eff = ri * rj / reach
+            m_eff = mi * mj / (mi + mj)
+            ai = mi * ri * ri
+            aj = mj * rj * rj
+            inertia_r = INERTIA_R_FACTOR * ai * aj / (ai + aj)
+            res = contact(hist, k, nx, ny, nz, overlap,
+                          v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+                          w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
+                          ri - 0.5 * overlap, rj - 0.5 * overlap, r_eff, m_eff, inertia_r,
+                          pair_params[mat[i], mat[j]], dt)
+            fx += res[0]
+            fy += res[1]
+            fz += res[2]
+            tx += res[3]
+            ty += res[4]
+            tz += res[5]
+            pair_force[k, 0] = res[0]
+            pair_force[k, 1] = res[1]
+            pair_force[k, 2] = res[2]
+            pair_torque_j[k, 0] = res[6]
+            pair_torque_j[k, 1] = res[7]
+            pair_torque_j[k, 2] = res[8]
+            en += res[9]
+            et += res[10]
+            er += res[11]
+            etw += res[12]
+            ncontact += 1
+        f[i, 0] = fx
+        f[i, 1] = fy
+        f[i, 2] = fz
+        t[i, 0] = tx
+        t[i, 1] = ty
+        t[i, 2] = tz
+        energy[i, 0] += en
+        energy[i, 1] += et
+        energy[i, 2] += er
+        energy[i, 3] += etw
+        contacts[i] = ncontact
+
+
+@njit(cache=True)
+def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel, wall_omega,
+                  wall_mat, whist):
+    """All wall contacts of particle i: total force and torque on i, energies, contact count.
+
+    A wall is a partner of infinite radius and mass with a prescribed surface velocity
+    v_wall + omega_wall x (c - point); R* = R_i, m* = m_i, I_r = 1.4 m_i R_i^2 (DESIGN.md principle 4).
+    """
+    fx = fy = fz = 0.0
+    tx = ty = tz = 0.0
+    en = et = er = etw = 0.0
+    ncontact = 0
+    nwall = wall_kind.shape[0]
+    ri = radius[i]
+    mi = mass[i]
+    for wl in range(nwall):
+        kind = wall_kind[wl]
+        k = i * nwall + wl
+        overlap = -1.0
+        nx = ny = nz = 0.0
+        if kind == WALL_PLANE:
+            dist = ((x[i, 0] - wall_geom[wl, 0]) * wall_geom[wl, 3] + (x[i, 1] - wall_geom[wl, 1]) * wall_geom[wl, 4]
+                    + (x[i, 2] - wall_geom[wl, 2]) * wall_geom[wl, 5])
+            overlap = ri - dist
+            nx = wall_geom[wl, 3]
+            ny = wall_geom[wl, 4]
+            nz = wall_geom[wl, 5]
+        elif kind == WALL_CYLINDER:
+            ux = wall_geom[wl, 3]
+            uy = wall_geom[wl, 4]
+            uz = wall_geom[wl, 5]
+            ddx = x[i, 0] - wall_geom[wl, 0]
+            ddy = x[i, 1] - wall_geom[wl, 1]
+            ddz = x[i, 2] - wall_geom[wl, 2]
+            s = ddx * ux + ddy * uy + ddz * uz
+            if s >= wall_geom[wl, 7] and s <= wall_geom[wl, 8]:
+                qx = ddx - s * ux
+                qy = ddy - s * uy
+                qz = ddz - s * uz
+                r = math.sqrt(qx * qx + qy * qy + qz * qz)
+                if r > 0.0:
+                    overlap = r + ri - wall_geom[wl, 6]
+                    nx = -qx / r
+                    ny = -qy / r
+                    nz = -qz / r
+        if overlap <= 0.0:
+            if whist[k, 0] != 0.0 or whist[k, 1] != 0.0 or whist[k, 2] != 0.0:
+                for s2 in range(whist.shape[1]):
+                    whist[k, s2] = 0.0
+            continue
+        # surface velocity of the wall at the contact point c = x_i - (R_i - overlap) n
+        lever = ri - overlap
+        cx = x[i, 0] - lever * nx - wall_geom[wl, 0]
+        cy = x[i, 1] - lever * ny - wall_geom[wl, 1]
+        cz = x[i, 2] - lever * nz - wall_geom[wl, 2]
+        owx = wall_omega[wl, 0]
+        owy = wall_omega[wl, 1]
+        owz = wall_omega[wl, 2]
+        swx = wall_vel[wl, 0] + (owy * cz - owz * cy)
+        swy = wall_vel[wl, 1] + (owz * cx - owx * cz)
+        swz = wall_vel[wl, 2] + (owx * cy - owy * cx)
+        res = contact(whist, k, nx, ny, nz, overlap, v[i, 0] - swx, v[i, 1] - swy, v[i, 2] - swz,
+                      w[i, 0], w[i, 1], w[i, 2], owx, owy, owz, ri - 0.5 * overlap, 0.0,
+                      ri, mi, INERTIA_R_FACTOR * mi * ri * ri, pair_params[mat[i], wall_mat[wl]], dt)
+        fx += res[0]
+        fy += res[1]
+        fz += res[2]
+        tx += res[3]
+        ty += res[4]
+        tz += res[5]
+        en += res[9]
+        et += res[10]
+        er += res[11]
+        etw += res[12]
+        ncontact += 1
+    return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+
+
+@njit(cache=True, parallel=True)
+def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, pair_force,
+           pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy, contacts, x_ref,
+           half_skin):
+    """Per particle: pair terms as second partner, walls, gravity; then the closing half kick
+    (if ``kick``). Returns how many particles may cross skin/2 during the next step."""
+    n = x.shape[0]
+    nexceed = 0
+    for i in prange(n):
+        fx = f[i, 0]
+        fy = f[i, 1]
+        fz = f[i, 2]
+        tx = t[i, 0]
+        ty = t[i, 1]
+        tz = t[i, 2]
+        for m in range(tr_start[i], tr_start[i + 1]):
+            k = tr_k[m]
+            fx -= pair_force[k, 0]
+            fy -= pair_force[k, 1]
+            fz -= pair_force[k, 2]
+            tx += pair_torque_j[k, 0]
+            ty += pair_torque_j[k, 1]
+            tz += pair_torque_j[k, 2]
+        wres = wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel,
+                             wall_omega, wall_mat, whist)
+        mi = mass[i]
+        fx += wres[0] + mi * gravity[0]
+        fy += wres[1] + mi * gravity[1]
+        fz += wres[2] + mi * gravity[2]
+        tx += wres[3]
+        ty += wres[4]
+        tz += wres[5]
+        energy[i, 0] += wres[6]
+        energy[i, 1] += wres[7]
+        energy[i, 2] += wres[8]
+        energy[i, 3] += wres[9]
+        contacts[i] += wres[10]
+        f[i, 0] = fx
+        f[i, 1] = fy
+        f[i, 2] = fz
+        t[i, 0] = tx
+        t[i, 1] = ty
+        t[i, 2] = tz
+        if kick:
+            a = 0.5 * dt / mi
+            b = 0.5 * dt / inertia[i]
+            v[i, 0] += a * fx
+            v[i, 1] += a * fy
+            v[i, 2] += a * fz
+            w[i, 0] += b * tx
+            w[i, 1] += b * ty
+            w[i, 2] += b * tz
+        # may particle i cross skin/2 during the next step?  |x - x_ref| + dt (|v| + dt/2 |F|/m)
+        ex = x[i, 0] - x_ref[i, 0]
+        ey = x[i, 1] - x_ref[i, 1]
+        ez = x[i, 2] - x_ref[i, 2]
+        reach = math.sqrt(ex * ex + ey * ey + ez * ez) + dt * (
+            math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
+            + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / mi)
+        if not reach < half_skin:  # also catches NaN
+            nexceed += 1
+    return nexceed
+
+
+@njit(cache=True, parallel=True)
+def kick_drift(dt, x, v, w, f, t, mass, inertia):
+    n = x.shape[0]
+    for i in prange(n):
+        a = 0.5 * dt / mass[i]
+        b = 0.5 * dt / inertia[i]
+        for d in range(3):
+            v[i, d] += a * f[i, d]
+            w[i, d] += b * t[i, d]
+            x[i, d] += dt * v[i, d]
+
+
+@njit(cache=True)
+def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+            wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+            nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start, tr_k,
+            new_start, new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin,
+            energy, contacts, info):
+    """Advance ``nsteps`` steps. Stops early, at a step boundary, with info[I_STATUS] = 1 and
+    info[I_NEEDED] = the capacity needed, when the neighbor list outgrows its arrays."""
+    half_skin = 0.5 * skin
+    info[I_STATUS] = 0
+    info[I_STEPS_DONE] = 0
+    if info[I_FORCES_VALID] == 0:
+        total = rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
+                                      new_hist, cell_start, cell_items, cell_of, counts, x_ref)
+        if total < 0:
+            info[I_STATUS] = 1
+            info[I_NEEDED] = -total
+            return
+        info[I_REBUILDS] += 1
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
+                    pair_torque_j, energy, contacts)
+        info[I_NEED_REBUILD] = gather(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+                                      tr_start, tr_k, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
+                                      wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+        info[I_FORCES_VALID] = 1
+    for step in range(nsteps):
+        if info[I_NEED_REBUILD] > 0:
+            total = rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
+                                          new_hist, cell_start, cell_items, cell_of, counts, x_ref)
+            if total < 0:
+                info[I_STATUS] = 1
+                info[I_NEEDED] = -total
+                return
+            info[I_REBUILDS] += 1
+        kick_drift(dt, x, v, w, f, t, mass, inertia)
+        for wl in range(wall_kind.shape[0]):
+            for d in range(3):
+                wall_geom[wl, d] += dt * wall_vel[wl, d]
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
+                    pair_torque_j, energy, contacts)
+        info[I_NEED_REBUILD] = gather(dt, True, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+                                      tr_start, tr_k, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
+                                      wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+        info[I_STEPS_DONE] = step + 1

@@ -1,0 +1,83 @@
+"""Error types and parameter checks shared by the whole package.
+
+Every check names the parameter, the value it got and what is allowed, so a bad input is
+refused at the door rather than crashing deep in a compiled kernel.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+
+class ParameterError(ValueError):
+    """A parameter has a value that is not allowed."""
+
+
+class SimulationError(RuntimeError):
+    """A run could not go on (instability, non-finite state, ...)."""
+
+
+def _fmt(value: Any) -> str:
+    return repr(value) if not isinstance(value, float) else f"{value:g}"
+
+
+def check_finite(name: str, value: Any) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} = {value!r} is not a number") from None
+    if not math.isfinite(x):
+        raise ParameterError(f"{name} = {_fmt(x)} is not allowed: must be a finite number")
+    return x
+
+
+def check_positive(name: str, value: Any, unit: str = "") -> float:
+    x = check_finite(name, value)
+    if x <= 0.0:
+        u = f" ({unit})" if unit else ""
+        raise ParameterError(f"{name} = {_fmt(x)} is not allowed: must be > 0{u}")
+    return x
+
+
+def check_non_negative(name: str, value: Any, unit: str = "") -> float:
+    x = check_finite(name, value)
+    if x < 0.0:
+        u = f" ({unit})" if unit else ""
+        raise ParameterError(f"{name} = {_fmt(x)} is not allowed: must be >= 0{u}")
+    return x
+
+
+def check_range(name: str, value: Any, low: float, high: float, *, low_open: bool = False,
+                high_open: bool = False) -> float:
+    x = check_finite(name, value)
+    ok_low = x > low if low_open else x >= low
+    ok_high = x < high if high_open else x <= high
+    if not (ok_low and ok_high):
+        lo = "(" if low_open else "["
+        hi = ")" if high_open else "]"
+        raise ParameterError(f"{name} = {_fmt(x)} is not allowed: must lie in {lo}{low:g}, {high:g}{hi}")
+    return x
+
+
+def check_choice(name: str, value: Any, allowed) -> str:
+    if value not in allowed:
+        raise ParameterError(f"{name} = {value!r} is not known: allowed are {', '.join(map(repr, sorted(allowed)))}")
+    return value
+
+
+def check_vector(name: str, value: Any, *, unit: bool = False) -> tuple[float, float, float]:
+    try:
+        seq = [float(c) for c in value]
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} = {value!r} is not allowed: must be three numbers") from None
+    if len(seq) != 3:
+        raise ParameterError(f"{name} = {value!r} is not allowed: must be three numbers")
+    if not all(math.isfinite(c) for c in seq):
+        raise ParameterError(f"{name} = {value!r} is not allowed: components must be finite")
+    if unit:
+        norm = math.sqrt(sum(c * c for c in seq))
+        if norm == 0.0:
+            raise ParameterError(f"{name} = {value!r} is not allowed: must be a non-zero direction")
+        seq = [c / norm for c in seq]
+    return (seq[0], seq[1], seq[2])

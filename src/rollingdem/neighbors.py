@@ -1,0 +1,237 @@
+"""Cell list and Verlet neighbor list with skin, and contact history carried across rebuilds.
+
+The list is a half list (each pair once, j > i) in CSR form: the neighbors of i are
+``nl_j[nl_start[i]:nl_start[i+1]]``, sorted ascending, holding every j with
+|x_i - x_j| < R_i + R_j + skin at the build. It stays valid while no particle has moved more
+than skin/2 since the build. Per-contact history rows sit beside the list entries; at a rebuild
+they are carried to the new list by merging the two sorted rows of each particle, not by search.
+
+A transposed index (``tr_start``, ``tr_k``) lists, for each particle j, the list entries k in which
+it is the second partner, in ascending i: the per-particle gather of pair forces then runs with
+one writer per particle, in a fixed order (bit-identical results whatever the thread count).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True)
+def _bin_particles(x, cell_size, lo, dims, cell_start, cell_items, cell_of):
+    """Counting sort of particles into cells; items of a cell in ascending particle index."""
+    n = x.shape[0]
+    ncell = dims[0] * dims[1] * dims[2]
+    for c in range(ncell + 1):
+        cell_start[c] = 0
+    for i in range(n):
+        cx = min(max(int((x[i, 0] - lo[0]) / cell_size), 0), dims[0] - 1)
+        cy = min(max(int((x[i, 1] - lo[1]) / cell_size), 0), dims[1] - 1)
+        cz = min(max(int((x[i, 2] - lo[2]) / cell_size), 0), dims[2] - 1)
+        c = (cz * dims[1] + cy) * dims[0] + cx
+        cell_of[i] = c
+        cell_start[c + 1] += 1
+    for c in range(ncell):
+        cell_start[c + 1] += cell_start[c]
+    for i in range(n):
+        c = cell_of[i]
+        cell_items[cell_start[c]] = i
+        cell_start[c] += 1
+    for c in range(ncell, 0, -1):
+        cell_start[c] = cell_start[c - 1]
+    cell_start[0] = 0
+
+
+@njit(cache=True)
+def _grid(x, radius, skin, max_cells):
+    """Bounding box, cell edge >= 2 R_max + skin, and grid dimensions (at most max_cells cells)."""
+    n = x.shape[0]
+    lox = loy = loz = np.inf
+    hix = hiy = hiz = -np.inf
+    rmax = 0.0
+    for i in range(n):
+        lox = min(lox, x[i, 0])
+        loy = min(loy, x[i, 1])
+        loz = min(loz, x[i, 2])
+        hix = max(hix, x[i, 0])
+        hiy = max(hiy, x[i, 1])
+        hiz = max(hiz, x[i, 2])
+        rmax = max(rmax, radius[i])
+    cell = 2.0 * rmax + skin
+    vol = (hix - lox + cell) * (hiy - loy + cell) * (hiz - loz + cell)
+    cell = max(cell, (vol / max_cells) ** (1.0 / 3.0))
+    while True:  # the volume estimate can round the count over the cap
+        nx = max(1, int((hix - lox) / cell) + 1)
+        ny = max(1, int((hiy - loy) / cell) + 1)
+        nz = max(1, int((hiz - loz) / cell) + 1)
+        if nx * ny * nz <= max_cells:
+            break
+        cell *= 1.05
+    return (lox, loy, loz), (nx, ny, nz), cell
+
+
+@njit(cache=True, parallel=True)
+def _count_pairs(x, radius, skin, lo, dims, cell, cell_start, cell_items, cell_of, counts):
+    n = x.shape[0]
+    for i in prange(n):
+        c = cell_of[i]
+        cx = c % dims[0]
+        cy = (c // dims[0]) % dims[1]
+        cz = c // (dims[0] * dims[1])
+        cnt = 0
+        for dz in range(-1, 2):
+            z = cz + dz
+            if z < 0 or z >= dims[2]:
+                continue
+            for dy in range(-1, 2):
+                y = cy + dy
+                if y < 0 or y >= dims[1]:
+                    continue
+                for dx in range(-1, 2):
+                    xx = cx + dx
+                    if xx < 0 or xx >= dims[0]:
+                        continue
+                    cc = (z * dims[1] + y) * dims[0] + xx
+                    for m in range(cell_start[cc], cell_start[cc + 1]):
+                        j = cell_items[m]
+                        if j <= i:
+                            continue
+                        cut = radius[i] + radius[j] + skin
+                        ddx = x[i, 0] - x[j, 0]
+                        ddy = x[i, 1] - x[j, 1]
+                        ddz = x[i, 2] - x[j, 2]
+                        if ddx * ddx + ddy * ddy + ddz * ddz < cut * cut:
+                            cnt += 1
+        counts[i] = cnt
+
+
+@njit(cache=True, parallel=True)
+def _fill_pairs(x, radius, skin, lo, dims, cell, cell_start, cell_items, cell_of, new_start, new_j):
+    n = x.shape[0]
+    for i in prange(n):
+        c = cell_of[i]
+        cx = c % dims[0]
+        cy = (c // dims[0]) % dims[1]
+        cz = c // (dims[0] * dims[1])
+        k = new_start[i]
+        for dz in range(-1, 2):
+            z = cz + dz
+            if z < 0 or z >= dims[2]:
+                continue
+            for dy in range(-1, 2):
+                y = cy + dy
+                if y < 0 or y >= dims[1]:
+                    continue
+                for dx in range(-1, 2):
+                    xx = cx + dx
+                    if xx < 0 or xx >= dims[0]:
+                        continue
+                    cc = (z * dims[1] + y) * dims[0] + xx
+                    for m in range(cell_start[cc], cell_start[cc + 1]):
+                        j = cell_items[m]
+                        if j <= i:
+                            continue
+                        cut = radius[i] + radius[j] + skin
+                        ddx = x[i, 0] - x[j, 0]
+                        ddy = x[i, 1] - x[j, 1]
+                        ddz = x[i, 2] - x[j, 2]
+                        if ddx * ddx + ddy * ddy + ddz * ddz < cut * cut:
+                            new_j[k] = j
+                            k += 1
+        # insertion sort of the row: rows are short
+        a = new_start[i]
+        for p in range(a + 1, k):
+            v = new_j[p]
+            q = p - 1
+            while q >= a and new_j[q] > v:
+                new_j[q + 1] = new_j[q]
+                q -= 1
+            new_j[q + 1] = v
+
+
+@njit(cache=True, parallel=True)
+def _carry_history(n, nl_start, nl_j, hist, new_start, new_j, new_hist):
+    width = hist.shape[1]
+    for i in prange(n):
+        p = nl_start[i]
+        pend = nl_start[i + 1]
+        for q in range(new_start[i], new_start[i + 1]):
+            j = new_j[q]
+            while p < pend and nl_j[p] < j:
+                p += 1
+            if p < pend and nl_j[p] == j:
+                for s in range(width):
+                    new_hist[q, s] = hist[p, s]
+            else:
+                for s in range(width):
+                    new_hist[q, s] = 0.0
+
+
+@njit(cache=True)
+def _transpose(n, nl_start, nl_j, tr_start, tr_k):
+    for i in range(n + 1):
+        tr_start[i] = 0
+    total = nl_start[n]
+    for k in range(total):
+        tr_start[nl_j[k] + 1] += 1
+    for i in range(n):
+        tr_start[i + 1] += tr_start[i]
+    # cursor: reuse the ends, walking i ascending so each row of tr_k is sorted by i
+    for i in range(n):
+        for k in range(nl_start[i], nl_start[i + 1]):
+            j = nl_j[k]
+            tr_k[tr_start[j]] = k
+            tr_start[j] += 1
+    for i in range(n, 0, -1):
+        tr_start[i] = tr_start[i - 1]
+    tr_start[0] = 0
+
+
+@njit(cache=True)
+def rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist,
+                          cell_start, cell_items, cell_of, counts, x_ref):
+    """Rebuild the half list at the current positions, carrying contact history over.
+
+    Returns the number of list entries, or minus the capacity needed when ``nl_j`` is too short
+    (nothing is changed then: the caller grows the arrays and calls again).
+    """
+    n = x.shape[0]
+    if n == 0:
+        nl_start[0] = 0
+        tr_start[0] = 0
+        return 0
+    max_cells = cell_start.shape[0] - 1
+    lo, dims, cell = _grid(x, radius, skin, max_cells)
+    _bin_particles(x, cell, lo, dims, cell_start, cell_items, cell_of)
+    _count_pairs(x, radius, skin, lo, dims, cell, cell_start, cell_items, cell_of, counts)
+    new_start[0] = 0
+    for i in range(n):
+        new_start[i + 1] = new_start[i] + counts[i]
+    total = new_start[n]
+    if total > nl_j.shape[0]:
+        return -total
+    _fill_pairs(x, radius, skin, lo, dims, cell, cell_start, cell_items, cell_of, new_start, new_j)
+    _carry_history(n, nl_start, nl_j, hist, new_start, new_j, new_hist)
+    width = hist.shape[1]
+    for i in range(n + 1):
+        nl_start[i] = new_start[i]
+    for k in range(total):
+        nl_j[k] = new_j[k]
+        for s in range(width):
+            hist[k, s] = new_hist[k, s]
+    _transpose(n, nl_start, nl_j, tr_start, tr_k)
+    for i in range(n):
+        for d in range(3):
+            x_ref[i, d] = x[i, d]
+    return total
+
+
+def brute_force_pairs(x: np.ndarray, radius: np.ndarray, skin: float) -> set[tuple[int, int]]:
+    """All pairs (i < j) with |x_i - x_j| < R_i + R_j + skin, by brute force (for tests)."""
+    d = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
+    cut = radius[:, None] + radius[None, :] + skin
+    i, j = np.nonzero(np.triu(d < cut, k=1))
+    return set(zip(i.tolist(), j.tolist()))
+
+
+__all__ = ["rebuild_neighbor_list", "brute_force_pairs"]

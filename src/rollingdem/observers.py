@@ -1,0 +1,203 @@
+"""Observers: what a run writes while it goes (time series, snapshots, checkpoints).
+
+Each observer has an ``interval`` in simulated seconds (rounded to whole steps) and is called by
+``Simulation.run`` between kernel calls, never inside the compiled loop. Files are flushed as they
+are written, so a run that fails leaves what it had written readable.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from .errors import ParameterError, check_positive
+
+
+class Observer:
+    """Base class: override ``observe`` (and ``start`` / ``finish`` if needed)."""
+
+    def __init__(self, interval: float):
+        self.interval = check_positive("observer interval", interval, "s")
+        self._every = None
+        self._next = None
+
+    def start(self, sim) -> None:
+        self._every = max(1, int(round(self.interval / sim.dt)))
+        self._next = sim.step
+
+    def next_step(self, sim) -> int:
+        return self._next
+
+    def maybe_observe(self, sim, force: bool = False) -> None:
+        """Observe now if due (or if ``force``), once per step even over consecutive runs."""
+        if (force or sim.step >= self._next) and getattr(self, "_last_step", None) != sim.step:
+            self.observe(sim)
+            self._last_step = sim.step
+        if sim.step >= self._next:
+            self._next = sim.step + self._every
+
+    def observe(self, sim) -> None:
+        raise NotImplementedError
+
+    def finish(self, sim, failure=None) -> None:
+        pass
+
+
+class TimeSeries(Observer):
+    """CSV time series: time, kinetic energies, contacts, dissipated energies, chosen particles.
+
+    Columns: ``time, step, kinetic_translational, kinetic_rotational, kinetic_total, contacts,
+    dissipated_normal_damping, dissipated_sliding, dissipated_rolling, dissipated_twisting`` and,
+    for each chosen particle p, ``p{p}_x .. p{p}_z, p{p}_vx .., p{p}_wx .., p{p}_tx ..``
+    (position m, velocity m/s, angular velocity rad/s, torque N m).
+    """
+
+    def __init__(self, path, interval: float, particles=()):
+        super().__init__(interval)
+        self.path = Path(path)
+        self.particles = [int(p) for p in particles]
+        self._file = None
+        self._writer = None
+
+    def columns(self):
+        cols = ["time", "step", "kinetic_translational", "kinetic_rotational", "kinetic_total", "contacts",
+                "dissipated_normal_damping", "dissipated_sliding", "dissipated_rolling", "dissipated_twisting"]
+        for p in self.particles:
+            for q in ("x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "tx", "ty", "tz"):
+                cols.append(f"p{p}_{q}")
+        return cols
+
+    def start(self, sim):
+        super().start(sim)
+        for p in self.particles:
+            if not 0 <= p < sim.n_particles:
+                raise ParameterError(f"time series particle = {p} is not allowed: must be in [0, {sim.n_particles - 1}]")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        exists = self.path.exists() and self.path.stat().st_size > 0
+        self._file = open(self.path, "a", newline="")
+        self._writer = csv.writer(self._file)
+        if not exists:
+            self._writer.writerow(self.columns())
+
+    def observe(self, sim):
+        tr, rot = sim.kinetic_energy()
+        diss = sim.dissipated_energy()
+        row = [repr(sim.time), sim.step, repr(tr), repr(rot), repr(tr + rot), sim.number_of_contacts()]
+        row += [repr(v) for v in diss.values()]
+        for p in self.particles:
+            for arr in (sim.positions, sim.velocities, sim.angular_velocities, sim.torques):
+                row += [repr(float(c)) for c in arr[p]]
+        self._writer.writerow(row)
+        self._file.flush()
+
+    def finish(self, sim, failure=None):
+        if self._file:
+            self._file.close()
+            self._file = None
+
+
+class VTKSnapshots(Observer):
+    """Particle snapshots as VTU files plus a PVD collection that ParaView opens.
+
+    Point data: radius (m), velocity (m/s), angular_velocity (rad/s), material (index), id.
+    """
+
+    def __init__(self, directory, interval: float, prefix: str = "particles"):
+        super().__init__(interval)
+        self.directory = Path(directory)
+        self.prefix = prefix
+        self._entries: list[tuple[float, str]] = []
+
+    def start(self, sim):
+        super().start(sim)
+        self.directory.mkdir(parents=True, exist_ok=True)
+
+    def observe(self, sim):
+        name = f"{self.prefix}_{sim.step:09d}.vtu"
+        write_vtu(self.directory / name, sim.positions, {
+            "radius": sim.radii, "velocity": sim.velocities, "angular_velocity": sim.angular_velocities,
+            "material": sim.material_indices.astype(np.int32), "id": np.arange(sim.n_particles, dtype=np.int32)})
+        self._entries.append((sim.time, name))
+        self._write_pvd()
+
+    def _write_pvd(self):
+        lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+                 "  <Collection>"]
+        for t, name in self._entries:
+            lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(name)}/>')
+        lines += ["  </Collection>", "</VTKFile>", ""]
+        tmp = self.directory / f"{self.prefix}.pvd.tmp"
+        tmp.write_text("\n".join(lines))
+        tmp.replace(self.directory / f"{self.prefix}.pvd")
+
+
+def write_vtu(path, points: np.ndarray, point_data: dict) -> None:
+    """Write points and their point data as a VTU unstructured grid of vertex cells (base64 binary)."""
+    import base64
+
+    n = points.shape[0]
+
+    def data_array(name, arr):
+        arr = np.ascontiguousarray(arr)
+        if arr.dtype == np.uint8:
+            vtype = "UInt8"
+        elif arr.dtype.kind == "f":
+            arr = arr.astype("<f8")
+            vtype = "Float64"
+        elif arr.dtype == np.int64:
+            arr = arr.astype("<i8")
+            vtype = "Int64"
+        else:
+            arr = arr.astype("<i4")
+            vtype = "Int32"
+        comps = 1 if arr.ndim == 1 else arr.shape[1]
+        raw = arr.tobytes()
+        header = np.array([len(raw)], dtype="<u8").tobytes()
+        payload = base64.b64encode(header + raw).decode()
+        nc = f' NumberOfComponents="{comps}"' if comps > 1 else ""
+        return f'        <DataArray type="{vtype}" Name="{name}"{nc} format="binary">{payload}</DataArray>'
+
+    out = ['<?xml version="1.0"?>',
+           '<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">',
+           "  <UnstructuredGrid>", f'    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">', "      <PointData>"]
+    for name, arr in point_data.items():
+        out.append(data_array(name, arr))
+    out += ["      </PointData>", "      <Points>", data_array("Points", points.astype(np.float64)),
+            "      </Points>", "      <Cells>",
+        data_array("connectivity", np.arange(n, dtype=np.int64)),
+        data_array("offsets", np.arange(1, n + 1, dtype=np.int64)),
+        data_array("types", np.ones(n, dtype=np.uint8)),
+        "      </Cells>", "    </Piece>", "  </UnstructuredGrid>", "</VTKFile>", ""]
+    Path(path).write_text("\n".join(out))
+
+
+class Checkpoints(Observer):
+    """Periodic checkpoints ``{prefix}_{step}.npz`` (and ``{prefix}_last.npz``)."""
+
+    def __init__(self, directory, interval: float, prefix: str = "checkpoint", keep_all: bool = False):
+        super().__init__(interval)
+        self.directory = Path(directory)
+        self.prefix = prefix
+        self.keep_all = keep_all
+
+    def observe(self, sim):
+        if self.keep_all:
+            sim.checkpoint(self.directory / f"{self.prefix}_{sim.step:09d}.npz")
+        sim.checkpoint(self.directory / f"{self.prefix}_last.npz")
+
+
+class Callback(Observer):
+    """Calls ``function(sim)`` at every interval (e.g. to record something of your own)."""
+
+    def __init__(self, function, interval: float):
+        super().__init__(interval)
+        self.function = function
+
+    def observe(self, sim):
+        self.function(sim)
+
+
+__all__ = ["Observer", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback", "write_vtu"]

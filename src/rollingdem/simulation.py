@@ -1,0 +1,515 @@
+"""Simulation: the object users hold.
+
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="cdt"), gravity=(0, 0, -9.81))
+    sim.add_material(rd.Material("glass", 63e9, 0.24, 2500, friction=0.5, restitution=0.9))
+    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="glass"))
+    sim.add_particles([[0, 0, 0.01]], radius=0.005, material="glass")
+    sim.run(0.5, observers=[rd.TimeSeries("out/series.csv", interval=1e-3)])
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time as _time
+from pathlib import Path
+
+import numpy as np
+
+from .contact.model import ContactModel
+from .engine import ENERGY_CHANNELS, I_FORCES_VALID, EngineState
+from .errors import ParameterError, SimulationError, check_finite, check_positive, check_vector
+from .materials import Material, MaterialTable
+from .timestep import (HERTZ_FRACTION, RAYLEIGH_FRACTION, SPRING_FRACTION, hertz_contact_time,
+                       rayleigh_time_step, spring_period)
+from .walls import INACTIVE, Wall, wall_from_dict
+
+__version__ = "0.1.0"
+SOLID_SPHERE = 0.4  # I = 2/5 m R^2
+
+
+class Simulation:
+    """A DEM scene of spheres and walls, and its time integration.
+
+    Parameters
+    ----------
+    contact: the contact law (``ContactModel``); default Hertz-Mindlin, history spring, no rolling.
+    gravity: gravitational acceleration (m/s^2), a 3-vector; may be changed between runs.
+    dt: time step (s); default: the largest step the checks allow (0.2 x Rayleigh time, ...).
+    skin: neighbor-list skin (m); default 0.4 x the largest radius.
+    check_timestep: refuse a run whose dt exceeds the stable limit (MODELS.md §2).
+    """
+
+    def __init__(self, contact: ContactModel | None = None, gravity=(0.0, 0.0, -9.81), dt: float | None = None,
+                 skin: float | None = None, check_timestep: bool = True):
+        self.contact = contact if contact is not None else ContactModel()
+        if not isinstance(self.contact, ContactModel):
+            raise ParameterError(f"contact = {contact!r} is not allowed: must be a rollingdem.ContactModel")
+        self.materials = MaterialTable()
+        self.gravity = gravity
+        self._dt = None if dt is None else check_positive("dt", dt, "s")
+        self._skin = None if skin is None else check_positive("skin", skin, "m")
+        self.check_timestep = bool(check_timestep)
+        self._walls: list[Wall] = []
+        self._state = EngineState(self.contact.history_size)
+        self.step = 0
+        self.time = 0.0
+        self._pair_params = None
+
+    # --- scene ---------------------------------------------------------------------------------
+    @property
+    def gravity(self) -> tuple[float, float, float]:
+        return tuple(self._gravity)
+
+    @gravity.setter
+    def gravity(self, value):
+        self._gravity = np.array(check_vector("gravity", value))
+        if hasattr(self, "_state"):
+            self._state.info[I_FORCES_VALID] = 0
+
+    @property
+    def dt(self) -> float:
+        if self._dt is None:
+            self._dt = self.stable_time_step()
+        return self._dt
+
+    @dt.setter
+    def dt(self, value):
+        self._dt = check_positive("dt", value, "s")
+
+    @property
+    def skin(self) -> float:
+        if self._skin is not None:
+            return self._skin
+        return 0.4 * float(self._state.radius.max()) if self.n_particles else 1e-3
+
+    def add_material(self, material: Material) -> int:
+        self._pair_params = None
+        return self.materials.add(material)
+
+    def set_pair(self, a, b, **coefficients) -> None:
+        """Override pair coefficients (friction, rolling_friction, restitution, rolling_damping)."""
+        self.materials.set_pair(a, b, **coefficients)
+        self._pair_params = None
+        self._state.info[I_FORCES_VALID] = 0
+
+    @property
+    def n_particles(self) -> int:
+        return self._state.n
+
+    def add_particles(self, positions, radius, material, velocity=None, angular_velocity=None,
+                      allow_overlap: bool = False) -> np.ndarray:
+        """Add spheres; returns their indices. ``radius`` is a number or one per sphere (m).
+
+        Spheres that overlap each other or a wall are refused unless ``allow_overlap``.
+        """
+        x = np.array(positions, dtype=np.float64, ndmin=2)
+        if x.ndim != 2 or x.shape[1] != 3:
+            raise ParameterError(f"positions with shape {np.shape(positions)} are not allowed: need (N, 3)")
+        m = x.shape[0]
+        bad = ~np.isfinite(x).all(axis=1)
+        if bad.any():
+            k = int(np.nonzero(bad)[0][0])
+            raise ParameterError(f"position of particle {k} = {x[k].tolist()} is not allowed: must be finite")
+        r = np.broadcast_to(np.asarray(radius, dtype=np.float64), (m,)).copy()
+        badr = ~(np.isfinite(r) & (r > 0))
+        if badr.any():
+            k = int(np.nonzero(badr)[0][0])
+            raise ParameterError(f"radius of particle {k} = {r[k]:g} is not allowed: must be > 0 (m)")
+        v = self._vectors("velocity", velocity, m)
+        w = self._vectors("angular_velocity", angular_velocity, m)
+        mat_idx = self.materials.index(material) if not isinstance(material, (list, np.ndarray)) else None
+        if mat_idx is None:
+            mats = np.array([self.materials.index(mm) for mm in material], dtype=np.int32)
+        else:
+            mats = np.full(m, mat_idx, dtype=np.int32)
+        if not allow_overlap:
+            self._check_no_overlap(x, r)
+        density = np.array([self.materials.materials[k].density for k in mats])
+        mass = density * (4.0 / 3.0) * math.pi * r ** 3
+        first = self.n_particles
+        self._state.append_particles(x, v, w, r, mass, SOLID_SPHERE * mass * r ** 2, mats)
+        self._pair_params = None
+        return np.arange(first, first + m)
+
+    @staticmethod
+    def _vectors(name, value, m):
+        if value is None:
+            return np.zeros((m, 3))
+        arr = np.broadcast_to(np.asarray(value, dtype=np.float64), (m, 3)).copy()
+        if not np.isfinite(arr).all():
+            raise ParameterError(f"{name} contains a non-finite value: must be finite")
+        return arr
+
+    def _check_no_overlap(self, x, r, tolerance=1e-12):
+        from scipy.spatial import cKDTree
+
+        allx = np.concatenate([self._state.x, x])
+        allr = np.concatenate([self._state.radius, r])
+        first = self._state.n
+        tree = cKDTree(allx)
+        pairs = tree.query_pairs(2.0 * allr.max())
+        for i, j in sorted(pairs):
+            if max(i, j) < first:
+                continue
+            gap = np.linalg.norm(allx[i] - allx[j]) - allr[i] - allr[j]
+            if gap < -tolerance * (allr[i] + allr[j]):
+                raise ParameterError(f"particles {i} and {j} overlap by {-gap:.3g} m at insertion: "
+                                     "positions must not overlap (pass allow_overlap=True to accept it)")
+        for wl in self._walls:
+            if wl.kind == INACTIVE:
+                continue
+            ov = _wall_overlap(wl, x, r)
+            k = int(np.argmax(ov)) if len(ov) else 0
+            if len(ov) and ov[k] > tolerance * r[k]:
+                raise ParameterError(f"particle {first + k} overlaps wall {self._wall_label(wl)} by {ov[k]:.3g} m "
+                                     "at insertion (pass allow_overlap=True to accept it)")
+
+    def insert(self, region, count: int, radius, material, seed: int = 0, velocity=None,
+               max_attempts: int = 200) -> np.ndarray:
+        """Fill ``region`` (``BoxRegion`` / ``CylinderRegion``) with ``count`` non-overlapping spheres.
+
+        ``radius`` is a number or a distribution (``rd.Uniform``, ``rd.Normal``, ``rd.Discrete``).
+        Reproducible from ``seed``; raises when the region cannot hold them.
+        """
+        from .insertion import fill_region
+
+        x, r = fill_region(region, count, radius, seed=seed, existing_positions=self._state.x,
+                           existing_radii=self._state.radius, walls=[w for w in self._walls if w.kind != INACTIVE],
+                           max_attempts=max_attempts)
+        return self.add_particles(x, r, material, velocity=velocity)
+
+    # --- walls ---------------------------------------------------------------------------------
+    @property
+    def walls(self) -> list[Wall]:
+        return [w for w in self._walls if w.kind != INACTIVE]
+
+    def add_wall(self, wall: Wall) -> Wall:
+        if not isinstance(wall, Wall):
+            raise ParameterError(f"wall = {wall!r} is not allowed: must be a rollingdem.Plane or Cylinder")
+        if wall.material is None:
+            if not len(self.materials):
+                raise ParameterError("wall material = None is not allowed: add a material first or name one")
+            wall.material = self.materials.materials[0].name
+        self.materials.index(wall.material)
+        self._walls.append(wall)
+        self._sync_walls()
+        return wall
+
+    def remove_wall(self, wall: Wall) -> None:
+        """Remove a wall; its contact history is dropped."""
+        if wall not in self._walls:
+            raise ParameterError(f"wall {wall!r} is not part of this simulation")
+        slot = self._walls.index(wall)
+        self._walls[slot] = _Removed()
+        self._sync_walls()
+
+    def set_wall_velocity(self, wall: Wall, velocity=None, angular_velocity=None) -> None:
+        """Give a wall a new prescribed velocity (m/s) and/or surface angular velocity (rad/s)."""
+        if velocity is not None:
+            wall.velocity = check_vector("wall velocity", velocity)
+        if angular_velocity is not None:
+            wall.angular_velocity = check_vector("wall angular_velocity", angular_velocity)
+        self._sync_walls()
+
+    def _wall_label(self, wall):
+        return repr(wall.name) if wall.name else f"#{self._walls.index(wall)} ({type(wall).__name__.lower()})"
+
+    def _sync_walls(self):
+        from .walls import GEOMETRY_SIZE
+
+        kinds, geoms, vels, omegas, mats = [], [], [], [], []
+        for wl in self._walls:
+            kinds.append(wl.kind)
+            geoms.append(wl.geometry() if wl.kind != INACTIVE else np.zeros(GEOMETRY_SIZE))
+            vels.append(wl.velocity)
+            omegas.append(wl.angular_velocity)
+            mats.append(self.materials.index(wl.material) if wl.kind != INACTIVE else 0)
+        self._state.set_walls(kinds, geoms, vels, omegas, mats)
+        self._pair_params = None
+
+    # --- state access --------------------------------------------------------------------------
+    @property
+    def positions(self) -> np.ndarray:
+        return self._state.x
+
+    @property
+    def velocities(self) -> np.ndarray:
+        return self._state.v
+
+    @property
+    def angular_velocities(self) -> np.ndarray:
+        return self._state.w
+
+    @property
+    def forces(self) -> np.ndarray:
+        return self._state.f
+
+    @property
+    def torques(self) -> np.ndarray:
+        return self._state.t
+
+    @property
+    def radii(self) -> np.ndarray:
+        return self._state.radius
+
+    @property
+    def masses(self) -> np.ndarray:
+        return self._state.mass
+
+    @property
+    def material_indices(self) -> np.ndarray:
+        return self._state.mat
+
+    def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
+        """Set translational (m/s) and/or angular (rad/s) velocities of some particles."""
+        idx = np.atleast_1d(np.asarray(indices, dtype=np.int64))
+        if velocity is not None:
+            self._state.v[idx] = self._vectors("velocity", velocity, len(idx))
+        if angular_velocity is not None:
+            self._state.w[idx] = self._vectors("angular_velocity", angular_velocity, len(idx))
+        self._state.info[I_FORCES_VALID] = 0
+
+    def kinetic_energy(self) -> tuple[float, float]:
+        """(translational, rotational) kinetic energy (J)."""
+        st = self._state
+        trans = 0.5 * float(np.dot(st.mass, np.einsum("ij,ij->i", st.v, st.v)))
+        rot = 0.5 * float(np.dot(st.inertia, np.einsum("ij,ij->i", st.w, st.w)))
+        return trans, rot
+
+    def dissipated_energy(self) -> dict[str, float]:
+        """Energy (J) dissipated since the start, by normal damping, sliding, rolling and twisting."""
+        totals = self._state.energy.sum(axis=0)
+        return {name: float(totals[k]) for k, name in enumerate(ENERGY_CHANNELS)}
+
+    def number_of_contacts(self) -> int:
+        return int(self._state.contacts.sum())
+
+    # --- time step -----------------------------------------------------------------------------
+    def time_step_limits(self) -> list[tuple[str, float]]:
+        """Each criterion of MODELS.md §2 that applies: (description, largest allowed dt)."""
+        st = self._state
+        if st.n == 0:
+            return []
+        limits = []
+        normal = self.contact.normal.name
+        params = self.pair_parameters()
+        for k, mat in enumerate(self.materials.materials):
+            sel = st.mat == k
+            if not sel.any():
+                continue
+            rmin = float(st.radius[sel].min())
+            mmin = float(st.mass[sel].min())
+            if normal in ("hertz", "hooke"):
+                t_r = rayleigh_time_step(rmin, mat.density, mat.youngs_modulus, mat.poisson_ratio)
+                limits.append((f"{RAYLEIGH_FRACTION:g} x Rayleigh time {t_r:.4g} s of material {mat.name!r} "
+                               f"(R_min = {rmin:.4g} m)", RAYLEIGH_FRACTION * t_r))
+            row = params[k, k]
+            m_eff = 0.5 * mmin
+            r_eff = 0.5 * rmin
+            if normal == "hertz":
+                vmax = 2.0 * float(np.sqrt((st.v[sel] ** 2).sum(axis=1)).max())
+                if vmax > 0:
+                    t_h = hertz_contact_time(m_eff, r_eff, row[0], vmax)
+                    limits.append((f"Hertz time {t_h:.4g} s / 20 at impact speed {vmax:.3g} m/s", HERTZ_FRACTION * t_h))
+            else:
+                kern = self.contact.normal
+                if normal == "hooke":
+                    vc = kern.characteristic_velocity
+                    e = row[0]
+                    kn = (16 / 15) * math.sqrt(r_eff) * e * (15 * m_eff * vc ** 2 / (16 * math.sqrt(r_eff) * e)) ** 0.2
+                    kt = kern.tangential_stiffness_ratio * kn
+                else:
+                    kn, kt = kern.normal_stiffness, kern.shear_stiffness
+                for label, stiff in (("normal", kn), ("tangential", kt)):
+                    per = spring_period(stiff, m_eff)
+                    limits.append((f"{label} spring period {per:.4g} s / 10", SPRING_FRACTION * per))
+        return limits
+
+    def stable_time_step(self) -> float:
+        """The largest dt all criteria allow (s)."""
+        limits = self.time_step_limits()
+        if not limits:
+            raise ParameterError("dt cannot be chosen automatically before particles are added: give dt")
+        return min(v for _, v in limits)
+
+    def _check_dt(self):
+        if not self.check_timestep:
+            return
+        for label, limit in self.time_step_limits():
+            if self.dt > limit * (1 + 1e-12):
+                raise ParameterError(f"dt = {self.dt:.4g} s exceeds the stable limit {limit:.4g} s "
+                                     f"({label}): choose dt <= {limit:.4g} s, or pass check_timestep=False "
+                                     "to the Simulation to run anyway")
+
+    # --- running -------------------------------------------------------------------------------
+    def pair_parameters(self) -> np.ndarray:
+        if self._pair_params is None:
+            self._pair_params = self.contact.pair_table(self.materials)
+        return self._pair_params
+
+    def run(self, duration: float | None = None, steps: int | None = None, observers=(),
+            progress: bool = False, label: str = "run") -> None:
+        """Advance the scene by ``duration`` seconds (rounded to whole steps) or by ``steps`` steps.
+
+        Observers are called at their intervals; the progress bar shows simulated time, steps/s
+        and time left. A run that goes unstable stops with ``SimulationError`` after the
+        observers have written what they had.
+        """
+        if (duration is None) == (steps is None):
+            raise ParameterError("give exactly one of duration (s) and steps")
+        if steps is None:
+            duration = check_finite("duration", duration)
+            if duration < 0:
+                raise ParameterError(f"duration = {duration:g} is not allowed: must be >= 0 (s)")
+            steps = int(round(duration / self.dt))
+        elif int(steps) < 0:
+            raise ParameterError(f"steps = {steps} is not allowed: must be >= 0")
+        steps = int(steps)
+        self._check_dt()
+        kernel = self.contact.kernel()
+        observers = list(observers)
+        bar = _Progress(self, steps, label) if progress else None
+        end = self.step + steps
+        for ob in observers:
+            ob.start(self)
+        failure = None
+        try:
+            self._check_finite_state()
+            for ob in observers:
+                ob.maybe_observe(self, force=True)
+            chunk = 64
+            while self.step < end:
+                nxt = min([end, self.step + chunk] + [ob.next_step(self) for ob in observers])
+                todo = max(nxt - self.step, 1)
+                tic = _time.perf_counter()
+                self._state.advance(kernel, todo, self.dt, self._gravity, self.skin, self.pair_parameters())
+                elapsed = _time.perf_counter() - tic
+                self.step += todo
+                self.time += todo * self.dt
+                self._check_finite_state()
+                # aim at ~0.25 s of work per call so the progress bar and Ctrl-C stay responsive
+                if elapsed > 0:
+                    chunk = int(min(max(todo * 0.25 / elapsed, 1), 1_000_000))
+                for ob in observers:
+                    ob.maybe_observe(self)
+                if bar:
+                    bar.update(self, todo, elapsed)
+        except SimulationError as err:
+            failure = err
+            raise
+        finally:
+            for ob in observers:
+                ob.finish(self, failure)
+            if bar:
+                bar.close()
+
+    def _check_finite_state(self):
+        st = self._state
+        bad = ~(np.isfinite(st.x).all(axis=1) & np.isfinite(st.v).all(axis=1) & np.isfinite(st.w).all(axis=1))
+        if bad.any():
+            k = int(np.nonzero(bad)[0][0])
+            raise SimulationError(f"the state became non-finite at t = {self.time:.6g} s (step {self.step}), "
+                                  f"particle {k}: the run is unstable; reduce dt (now {self.dt:.4g} s, stable "
+                                  f"estimate {self.stable_time_step():.4g} s) or check the input")
+
+    # --- checkpoint ----------------------------------------------------------------------------
+    def checkpoint(self, path) -> Path:
+        """Write the complete state; ``Simulation.restore(path)`` continues bit for bit."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        meta = {
+            "version": __version__,
+            "contact": self.contact.to_dict(),
+            "materials": self.materials.to_dict(),
+            "gravity": list(self.gravity),
+            "dt": self.dt,
+            "skin": self._skin,
+            "check_timestep": self.check_timestep,
+            "step": self.step,
+            "time": self.time,
+            "walls": [None if wl.kind == INACTIVE else {**wl.describe(), "name": wl.name,
+                                                          "material": self.materials[wl.material].name}
+                      for wl in self._walls],
+        }
+        arrays = self._state.to_arrays()
+        tmp = path.with_name(path.name + ".tmp.npz")
+        np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays)
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def restore(cls, path) -> "Simulation":
+        with np.load(Path(path), allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            arrays = {k: data[k] for k in data.files if k != "meta"}
+        contact = ContactModel.from_dict(meta["contact"])
+        sim = cls(contact=contact, gravity=meta["gravity"], dt=meta["dt"], skin=meta["skin"],
+                  check_timestep=meta["check_timestep"])
+        sim.materials = MaterialTable.from_dict(meta["materials"])
+        for wd in meta["walls"]:
+            if wd is None:
+                sim._walls.append(_Removed())
+            else:
+                wd = dict(wd)
+                mat = wd.pop("material")
+                sim._walls.append(wall_from_dict(wd, mat))
+        sim._state = EngineState.from_arrays(arrays, contact.history_size)
+        for wl, g in zip(sim._walls, sim._state.wall_geom):
+            if wl.kind != INACTIVE:
+                wl.update_from_geometry(g)
+        sim.step = int(meta["step"])
+        sim.time = float(meta["time"])
+        return sim
+
+    def sync_walls_from_engine(self):
+        """Copy moved wall positions from the engine back to the Wall objects."""
+        for wl, g in zip(self._walls, self._state.wall_geom):
+            if wl.kind != INACTIVE:
+                wl.update_from_geometry(g)
+
+
+class _Removed(Wall):
+    kind = INACTIVE
+
+    def __init__(self):
+        super().__init__(None)
+
+
+def _wall_overlap(wall, x, r) -> np.ndarray:
+    g = wall.geometry()
+    if wall.kind == 0:
+        return r - (x - g[0:3]) @ g[3:6]
+    d = x - g[0:3]
+    s = d @ g[3:6]
+    q = d - s[:, None] * g[3:6]
+    ov = np.linalg.norm(q, axis=1) + r - g[6]
+    ov[(s < g[7]) | (s > g[8])] = -1.0
+    return ov
+
+
+class _Progress:
+    """tqdm bar over simulated time with steps/s and time left."""
+
+    def __init__(self, sim, steps, label):
+        from tqdm import tqdm
+
+        self.total_time = steps * sim.dt
+        self.bar = tqdm(total=round(self.total_time, 12), desc=label, unit="s(sim)", unit_scale=False,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.4g}/{total:.4g} s "
+                                   "[{elapsed}<{remaining}{postfix}]")
+        self.done = 0.0
+        self.dt = sim.dt
+        self.steps = 0
+        self.wall = 0.0
+
+    def update(self, sim, todo, elapsed):
+        self.steps += todo
+        self.wall += elapsed
+        inc = todo * self.dt
+        self.done += inc
+        self.bar.set_postfix_str(f"{self.steps / max(self.wall, 1e-9):,.0f} steps/s", refresh=False)
+        self.bar.update(inc)
+
+    def close(self):
+        self.bar.close()

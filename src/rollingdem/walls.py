@@ -1,0 +1,123 @@
+"""Walls: infinite plane and cylinder (particles inside).
+
+A wall is a contact partner of infinite radius and mass with a prescribed velocity
+(MODELS.md §0: R* = R_i, m* = m_i). It can move with a constant velocity, its surface can move
+with an angular velocity (a rotating drum: surface velocity v + omega x (c - point)), and it can be
+removed or given a new velocity between runs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import ParameterError, check_positive, check_vector
+
+PLANE = 0
+CYLINDER = 1
+INACTIVE = -1
+GEOMETRY_SIZE = 9
+
+
+class Wall:
+    """Base class of walls; see ``Plane`` and ``Cylinder``."""
+
+    kind: int = INACTIVE
+
+    def __init__(self, material, velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), name=None):
+        self.material = material
+        self.velocity = check_vector("wall velocity", velocity)
+        self.angular_velocity = check_vector("wall angular_velocity", angular_velocity)
+        self.name = name
+
+    def geometry(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def describe(self) -> dict:
+        raise NotImplementedError
+
+
+class Plane(Wall):
+    """Infinite plane through ``point`` with unit ``normal`` pointing to the particles' side.
+
+    A particle touches it when its centre is closer than its radius to the plane (or behind it):
+    overlap = R - (x - point) . normal.
+    """
+
+    kind = PLANE
+
+    def __init__(self, point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), material=None, velocity=(0.0, 0.0, 0.0),
+                 angular_velocity=(0.0, 0.0, 0.0), name=None):
+        super().__init__(material, velocity, angular_velocity, name)
+        self.point = check_vector("plane point", point)
+        self.normal = check_vector("plane normal", normal, unit=True)
+
+    def geometry(self) -> np.ndarray:
+        g = np.zeros(GEOMETRY_SIZE)
+        g[0:3] = self.point
+        g[3:6] = self.normal
+        return g
+
+    def update_from_geometry(self, g):
+        self.point = tuple(float(c) for c in g[0:3])
+
+    def describe(self) -> dict:
+        return {"type": "plane", "point": list(self.point), "normal": list(self.normal),
+                "velocity": list(self.velocity), "angular_velocity": list(self.angular_velocity)}
+
+
+class Cylinder(Wall):
+    """Cylinder of ``radius`` about the axis through ``point`` along ``axis``; particles inside.
+
+    ``extent`` = (s_min, s_max) limits it along the axis (axial coordinate s = (x - point) . axis,
+    m); None means infinite. There are no end caps: add planes for those.
+    """
+
+    kind = CYLINDER
+
+    def __init__(self, radius, point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), extent=None, material=None,
+                 velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), name=None):
+        super().__init__(material, velocity, angular_velocity, name)
+        self.radius = check_positive("cylinder radius", radius, "m")
+        self.point = check_vector("cylinder point", point)
+        self.axis = check_vector("cylinder axis", axis, unit=True)
+        if extent is None:
+            self.extent = (-math.inf, math.inf)
+        else:
+            try:
+                lo, hi = (float(extent[0]), float(extent[1]))
+            except (TypeError, ValueError, IndexError):
+                raise ParameterError(f"cylinder extent = {extent!r} is not allowed: must be (s_min, s_max)") from None
+            if not lo < hi:
+                raise ParameterError(f"cylinder extent = {extent!r} is not allowed: need s_min < s_max")
+            self.extent = (lo, hi)
+
+    def geometry(self) -> np.ndarray:
+        g = np.zeros(GEOMETRY_SIZE)
+        g[0:3] = self.point
+        g[3:6] = self.axis
+        g[6] = self.radius
+        g[7], g[8] = self.extent
+        return g
+
+    def update_from_geometry(self, g):
+        self.point = tuple(float(c) for c in g[0:3])
+
+    def describe(self) -> dict:
+        return {"type": "cylinder", "radius": self.radius, "point": list(self.point), "axis": list(self.axis),
+                "extent": [self.extent[0], self.extent[1]], "velocity": list(self.velocity),
+                "angular_velocity": list(self.angular_velocity)}
+
+
+def wall_from_dict(d: dict, material) -> Wall:
+    d = dict(d)
+    kind = d.pop("type")
+    if kind == "plane":
+        return Plane(material=material, **d)
+    if kind == "cylinder":
+        ext = d.pop("extent", None)
+        if ext is not None and ext[0] == -math.inf and ext[1] == math.inf:
+            ext = None
+        return Cylinder(material=material, extent=ext, **d)
+    raise ParameterError(f"wall type = {kind!r} is not known: allowed are 'plane', 'cylinder'")

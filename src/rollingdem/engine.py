@@ -11,7 +11,8 @@ import numpy as np
 
 from .walls import GEOMETRY_SIZE
 
-I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID = range(6)
+I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST = range(7)
+STATUS_CAPACITY, STATUS_TOO_FAST = 1, 2
 INFO_SIZE = 8
 ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")
 
@@ -148,17 +149,30 @@ class EngineState:
                 self.counts, self.x_ref, skin, self.energy, self.contacts, self.info)
 
     def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
-        """Advance exactly ``nsteps`` steps (growing the list arrays as often as needed)."""
+        """Advance up to ``nsteps`` steps (growing the list arrays as often as needed).
+
+        Returns (steps done, None) or, when a particle outruns the skin, (steps done, message)."""
         if self.n == 0:
-            return
+            return nsteps, None
         if self.info[I_FORCES_VALID] == 0:
             self._evaluate_forces(kernel, dt, gravity, skin, pair_params)
         remaining = nsteps
         while remaining > 0:
             kernel.advance(remaining, *self.kernel_args(dt, gravity, skin, pair_params))
-            remaining -= int(self.info[I_STEPS_DONE])
-            if self.info[I_STATUS] == 1:
+            done = int(self.info[I_STEPS_DONE])
+            remaining -= done
+            if self.info[I_STATUS] == STATUS_CAPACITY:
                 self.grow(int(self.info[I_NEEDED]))
+            elif self.info[I_STATUS] == STATUS_TOO_FAST:
+                return nsteps - remaining, self._too_fast_message(dt, skin)
+        return nsteps, None
+
+    def _too_fast_message(self, dt, skin):
+        speed = np.sqrt((self.v ** 2).sum(axis=1))
+        k = int(np.nanargmax(speed)) if np.isfinite(speed).any() else 0
+        return (f"particle {k} moves {speed[k] * dt:.3g} m in one step (speed {speed[k]:.3g} m/s, dt = {dt:.3g} s), "
+                f"more than half the neighbor skin ({skin:.3g} m): contacts could be missed. Give a larger skin "
+                f"(> {2 * speed[k] * dt:.3g} m) or a smaller dt; a speed like this often means the run is unstable")
 
     def _evaluate_forces(self, kernel, dt, gravity, skin, pair_params):
         """Forces and torques of the present state, leaving the contact history untouched.
@@ -179,7 +193,7 @@ class EngineState:
         while True:
             self.info[I_FORCES_VALID] = 0
             kernel.advance(0, *self.kernel_args(dt, gravity, skin, pair_params))
-            if self.info[I_STATUS] == 0:
+            if self.info[I_STATUS] != STATUS_CAPACITY:
                 break
             self.grow(int(self.info[I_NEEDED]))
         self.hist[:total], self.whist[:], self.energy[:] = saved

@@ -42,6 +42,10 @@ I_NEEDED = 2
 I_REBUILDS = 3
 I_NEED_REBUILD = 4
 I_FORCES_VALID = 5
+I_TOO_FAST = 6
+
+STATUS_CAPACITY = 1
+STATUS_TOO_FAST = 2
 
 WALL_PLANE = 0
 WALL_CYLINDER = 1
@@ -261,9 +265,11 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
            pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy, contacts, x_ref,
            half_skin):
     """Per particle: pair terms as second partner, walls, gravity; then the closing half kick
-    (if ``kick``). Returns how many particles may cross skin/2 during the next step."""
+    (if ``kick``). Returns how many particles may cross skin/2 during the next step, and how many
+    would do so even from a fresh list (skin too small for their speed)."""
     n = x.shape[0]
     nexceed = 0
+    nfast = 0
     for i in prange(n):
         fx = f[i, 0]
         fy = f[i, 1]
@@ -312,12 +318,13 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
         ex = x[i, 0] - x_ref[i, 0]
         ey = x[i, 1] - x_ref[i, 1]
         ez = x[i, 2] - x_ref[i, 2]
-        reach = math.sqrt(ex * ex + ey * ey + ez * ez) + dt * (
-            math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
-            + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / mi)
-        if not reach < half_skin:  # also catches NaN
+        step_move = dt * (math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
+                          + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / mi)
+        if not math.sqrt(ex * ex + ey * ey + ez * ez) + step_move < half_skin:  # also catches NaN
             nexceed += 1
-    return nexceed
+        if not step_move < half_skin:
+            nfast += 1
+    return nexceed, nfast
 
 
 @njit(cache=True, parallel=True)
@@ -338,8 +345,9 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
             nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start, tr_k,
             new_start, new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin,
             energy, contacts, info):
-    """Advance ``nsteps`` steps. Stops early, at a step boundary, with info[I_STATUS] = 1 and
-    info[I_NEEDED] = the capacity needed, when the neighbor list outgrows its arrays."""
+    """Advance ``nsteps`` steps. Stops early, at a step boundary, with info[I_STATUS] =
+    STATUS_CAPACITY and info[I_NEEDED] = the capacity needed when the neighbor list outgrows its
+    arrays, or STATUS_TOO_FAST when a particle would move more than skin/2 in one step."""
     half_skin = 0.5 * skin
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
@@ -347,22 +355,26 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
         total = rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
                                       new_hist, cell_start, cell_items, cell_of, counts, x_ref)
         if total < 0:
-            info[I_STATUS] = 1
+            info[I_STATUS] = STATUS_CAPACITY
             info[I_NEEDED] = -total
             return
         info[I_REBUILDS] += 1
         pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
                     pair_torque_j, energy, contacts)
-        info[I_NEED_REBUILD] = gather(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+        info[I_NEED_REBUILD], info[I_TOO_FAST] = gather(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
                                       tr_start, tr_k, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
                                       wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
         info[I_FORCES_VALID] = 1
     for step in range(nsteps):
+        if info[I_TOO_FAST] > 0:
+            # even a list built now would not hold for this step: refuse rather than miss contacts
+            info[I_STATUS] = STATUS_TOO_FAST
+            return
         if info[I_NEED_REBUILD] > 0:
             total = rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
                                           new_hist, cell_start, cell_items, cell_of, counts, x_ref)
             if total < 0:
-                info[I_STATUS] = 1
+                info[I_STATUS] = STATUS_CAPACITY
                 info[I_NEEDED] = -total
                 return
             info[I_REBUILDS] += 1
@@ -372,7 +384,7 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
                 wall_geom[wl, d] += dt * wall_vel[wl, d]
         pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
                     pair_torque_j, energy, contacts)
-        info[I_NEED_REBUILD] = gather(dt, True, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+        info[I_NEED_REBUILD], info[I_TOO_FAST] = gather(dt, True, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
                                       tr_start, tr_k, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
                                       wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
         info[I_STEPS_DONE] = step + 1

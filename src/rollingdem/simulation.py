@@ -383,11 +383,14 @@ class Simulation:
                 nxt = min([end, self.step + chunk] + [ob.next_step(self) for ob in observers])
                 todo = max(nxt - self.step, 1)
                 tic = _time.perf_counter()
-                self._state.advance(kernel, todo, self.dt, self._gravity, self.skin, self.pair_parameters())
+                done, problem = self._state.advance(kernel, todo, self.dt, self._gravity, self.skin,
+                                                    self.pair_parameters())
                 elapsed = _time.perf_counter() - tic
-                self.step += todo
-                self.time += todo * self.dt
+                self.step += done
+                self.time += done * self.dt
                 self._check_finite_state()
+                if problem:
+                    raise SimulationError(f"at t = {self.time:.6g} s (step {self.step}): {problem}")
                 # aim at ~0.25 s of work per call so the progress bar and Ctrl-C stay responsive
                 if elapsed > 0:
                     chunk = int(min(max(todo * 0.25 / elapsed, 1), 1_000_000))

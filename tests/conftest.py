@@ -1,0 +1,22 @@
+import numpy as np
+import pytest
+
+import rollingdem as rd
+
+# The seed report's Table 1 material (R = 5 mm spheres): E = 40 MPa, nu = 0.49, rho = 1056 kg/m^3.
+TABLE1 = dict(youngs_modulus=40e6, poisson_ratio=0.49, density=1056.0)
+R = 0.005
+G = 9.81
+
+
+@pytest.fixture
+def table1():
+    def make(name="m", **kw):
+        params = dict(TABLE1, friction=0.8, rolling_friction=0.2, restitution=0.5, rolling_damping=0.3)
+        params.update(kw)
+        return rd.Material(name, **params)
+    return make
+
+
+def sphere_mass(radius=R, density=TABLE1["density"]):
+    return density * 4.0 / 3.0 * np.pi * radius ** 3

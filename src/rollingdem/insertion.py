@@ -29,6 +29,7 @@ MAX_PACKING_FRACTION = 0.55
 """Requests above this packing fraction are refused before any attempt (random insertion tops out
 near 0.3-0.35; even a random close packing is only ~0.64)."""
 
+_DEBUG = False
 _ROUND_CANDIDATES = 8192
 """Lower bound on the number of candidates drawn per round once few spheres are left."""
 
@@ -305,43 +306,79 @@ def _wall_overlap(geom: np.ndarray, kind: int, x: np.ndarray, r: np.ndarray) -> 
     return ov
 
 
-class _CoverGrid:
-    """Background grid of cells that may still hold a free centre (for the smallest radius ``rho0``).
+class _FreeCells:
+    """Cells that may still hold a free centre for the smallest radius ``rho0`` (all cells one size).
 
     A cell is dropped once it lies wholly inside the exclusion ball of one placed sphere j (radius
-    r_j + rho0 about its centre): no centre of any sphere still to place can lie there. Candidates
-    drawn uniformly from the cells left are then uniform over a superset of the free space, as with
-    plain sampling, but far fewer are wasted once the region fills up.
+    r_j + rho0 about its centre), wholly outside where a centre of radius rho0 may lie in the region,
+    or wholly behind a plane wall: no centre of a sphere still to place can lie there. Candidates drawn
+    uniformly from the cells left are uniform over a superset of the free space, as with plain
+    sampling, but far fewer are wasted once the region fills up. Cells start on a dense grid updated
+    after each round; when candidates keep failing, every cell is split in eight and the children are
+    checked against all placed spheres (a list of cells from then on), so that cells covered only by
+    several balls together get dropped too.
     """
 
-    MAX_CELLS = 16_000_000
-    CELL = 0.5
+    MAX_DENSE = 16_000_000  # cells of the first, dense grid
+    MAX_LIST = 2_000_000  # cells after a split
+    CELL = 0.3  # first cell size / rho0
+    MIN_CELL = 0.01  # no split below this cell size / rho0
 
-    def __init__(self, region: Region, rho0: float, rmin: float):
+    def __init__(self, region: Region, rho0: float, walls):
         lo, hi = region.bounds()
-        self.origin = lo + rmin
-        ext = np.maximum(hi - lo - 2.0 * rmin, 0.0)
-        h = self.CELL * rho0  # small next to the exclusion ball (radius >= 2 rho0)
-        h = max(h, float(np.prod(np.maximum(ext, 1e-300)) / self.MAX_CELLS) ** (1.0 / 3.0))
+        self.region = region
+        self.rho0 = rho0
+        self.origin = lo + rho0
+        ext = np.maximum(hi - lo - 2.0 * rho0, 0.0)
+        h = self.CELL * rho0
+        h = max(h, float(np.prod(np.maximum(ext, 1e-300)) / self.MAX_DENSE) ** (1.0 / 3.0))
         self.h = h
         self.shape = np.maximum(np.ceil(ext / h).astype(np.int64), 1)
+        self.planes = [(g[0:3], g[3:6]) for g, kind in walls if kind == 0]
         self.usable = h * math.sqrt(3.0) < 2.0 * rho0  # a cell can fit in an exclusion ball
-        self.active = np.ones(int(np.prod(self.shape)), dtype=bool) if self.usable else None
-        if self.usable and isinstance(region, CylinderRegion):
-            # Drop cells with no point within R - rmin of the axis.
-            cx = self.origin[0] + (np.arange(self.shape[0]) + 0.5) * h - region.center[0]
-            cy = self.origin[1] + (np.arange(self.shape[1]) + 0.5) * h - region.center[1]
-            near = np.maximum(np.abs(cx) - 0.5 * h, 0.0)[:, None] ** 2 + \
-                np.maximum(np.abs(cy) - 0.5 * h, 0.0)[None, :] ** 2
-            keep = near <= (region.radius - rmin) ** 2
-            self.active = np.broadcast_to(keep[:, :, None], tuple(self.shape)).reshape(-1).copy()
-        self.rho0 = rho0
+        self.cells = None  # (M, 3) cell indices once split
+        self.dense = None
+        self._flat = None  # indices of the dense cells left, as of the last sample
+        if self.usable:
+            ax = [self.origin[d] + np.arange(self.shape[d]) * h for d in range(3)]  # cell lower corners
+            keep = np.ones(tuple(self.shape), dtype=bool)
+            if isinstance(region, CylinderRegion):
+                keep &= self._xy_inside(ax[0][:, None], ax[1][None, :], h)[:, :, None]
+            for p, nrm in self.planes:
+                reach = [np.maximum(nrm[d] * (ax[d] - p[d]), nrm[d] * (ax[d] + h - p[d])) for d in range(3)]
+                keep &= reach[0][:, None, None] + reach[1][None, :, None] + reach[2][None, None, :] >= rho0
+            self.dense = keep.reshape(-1)
+
+    def _xy_inside(self, x0, y0, h):
+        """Whether a cell with lower corner (x0, y0) reaches within R - rho0 of the cylinder axis."""
+        reg = self.region
+        cx = np.maximum(np.abs(x0 + 0.5 * h - reg.center[0]) - 0.5 * h, 0.0)
+        cy = np.maximum(np.abs(y0 + 0.5 * h - reg.center[1]) - 0.5 * h, 0.0)
+        return cx ** 2 + cy ** 2 <= (reg.radius - self.rho0) ** 2
+
+    @property
+    def n_cells(self) -> int:
+        return int(self.dense.sum()) if self.cells is None else int(self.cells.shape[0])
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray | None:
+        if self.cells is None:
+            flat = self._flat = np.flatnonzero(self.dense) if self._flat is None else self._flat[self.dense[self._flat]]
+            if flat.size == 0:
+                return None
+            pick = flat[rng.integers(0, flat.size, n)]
+            nx, ny, nz = self.shape
+            ijk = np.stack([pick // (ny * nz), (pick // nz) % ny, pick % nz], axis=1)
+        else:
+            if self.cells.shape[0] == 0:
+                return None
+            ijk = self.cells[rng.integers(0, self.cells.shape[0], n)]
+        return self.origin + (ijk + rng.random((n, 3))) * self.h
 
     def cover(self, x: np.ndarray, r: np.ndarray) -> None:
-        """Drop the cells lying wholly within distance r + rho0 of any of the centres ``x``."""
-        if x.shape[0] == 0:
+        """Dense grid: drop the cells lying wholly within distance r + rho0 of any of the centres ``x``."""
+        if self.cells is not None or x.shape[0] == 0:
             return
-        h, nx, ny, nz = self.h, *self.shape
+        h, (nx, ny, nz) = self.h, self.shape
         rho = r + self.rho0
         m = np.ceil(2.0 * rho / h).astype(np.int64) + 1
         for mm in np.unique(m):
@@ -358,19 +395,53 @@ class _CoverGrid:
                 valid = (c >= 0) & (c < self.shape[None, :, None])
                 far = np.where(valid, far, np.inf)
                 d2 = far[:, 0, :, None, None] + far[:, 1, None, :, None] + far[:, 2, None, None, :]
-                hit = d2 < (rs ** 2)[:, None, None, None]
-                k, i, j, l = np.nonzero(hit)
-                flat = (c[k, 0, i] * ny + c[k, 1, j]) * nz + c[k, 2, l]
-                self.active[flat] = False
+                k, i, j, l = np.nonzero(d2 < (rs ** 2)[:, None, None, None])
+                self.dense[(c[k, 0, i] * ny + c[k, 1, j]) * nz + c[k, 2, l]] = False
 
-    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray | None:
-        cells = np.flatnonzero(self.active)
-        if cells.size == 0:
-            return None
-        pick = cells[rng.integers(0, cells.size, n)]
-        nx, ny, nz = self.shape
-        ijk = np.stack([pick // (ny * nz), (pick // nz) % ny, pick % nz], axis=1)
-        return self.origin + (ijk + rng.random((n, 3))) * self.h
+    def split(self, x: np.ndarray, r: np.ndarray) -> None:
+        """Split every cell in eight (while there are not too many) and keep the cells not covered by
+        the spheres (x, r)."""
+        from scipy.spatial import cKDTree
+
+        if self.cells is None:
+            flat = np.flatnonzero(self.dense)
+            ny, nz = self.shape[1], self.shape[2]
+            cells = np.stack([flat // (ny * nz), (flat // nz) % ny, flat % nz], axis=1)
+        else:
+            cells = self.cells
+        h = self.h
+        if 8 * cells.shape[0] <= self.MAX_LIST and h > self.MIN_CELL * self.rho0:
+            off = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=np.int64)
+        elif self.cells is None:
+            return  # the dense grid is kept up to date already
+        else:
+            off = np.zeros((1, 3), dtype=np.int64)
+        nc = off.shape[0]
+        f = 2 if nc == 8 else 1
+        hc = h / f
+        children = (f * cells[:, None, :] + off[None, :, :]).reshape(-1, 3)
+        lo = self.origin + children * hc
+        keep = np.ones(children.shape[0], dtype=bool)
+        if isinstance(self.region, CylinderRegion):
+            keep &= self._xy_inside(lo[:, 0], lo[:, 1], hc)
+        for p, nrm in self.planes:
+            keep &= np.maximum(nrm * (lo - p), nrm * (lo + hc - p)).sum(axis=1) >= self.rho0
+        if x.shape[0] and cells.shape[0]:
+            # A child wholly inside the ball of radius r_j + rho0 about x_j has its parent's centre
+            # inside that ball too: find the (parent, sphere) pairs once, then test the children.
+            ptree = cKDTree(self.origin + (cells + 0.5) * h)
+            sdm = ptree.sparse_distance_matrix(cKDTree(x), self.rho0 + float(r.max()), output_type="ndarray")
+            if sdm.size:
+                ci, pj = sdm["i"], sdm["j"]
+                rho2 = (r[pj] + self.rho0) ** 2
+                for o in range(nc):
+                    k = ci * nc + o
+                    lc = lo[k]
+                    far = (np.maximum(np.abs(x[pj] - lc), np.abs(x[pj] - lc - hc)) ** 2).sum(axis=1)
+                    keep[k[far < rho2]] = False
+        self.cells = children[keep]
+        self.h = hc
+        self.dense = None
 
 
 def fill_region(region: Region, count: int, radius, seed=0, existing_positions=None, existing_radii=None,
@@ -446,8 +517,8 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
     rho0 = float(r_all.min())
     grid = None
     grid_tried = False
+    split_at = -1  # spheres placed at the last split
     while n_placed < n:
-        n_accepted = 0
         waiting = np.nonzero(~done)[0]  # in placement (size) order
         m = waiting.size
         k = max(1, min(-(-_ROUND_CANDIDATES // m), int((max_attempts - attempts[waiting]).min())))
@@ -524,17 +595,22 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
             new_r[n_new:n_new + acc.size] = rc[acc]
             n_new += acc.size
             n_placed += acc.size
-            n_accepted = acc.size
             if grid is not None:
                 grid.cover(xc[acc], rc[acc])
-        # Once most candidates fail, draw them only from the cells that may still be free.
-        if grid is None and not grid_tried and n_placed < n and n_accepted < 0.25 * max(sph.size, 1):
+        # Once most candidates fail, draw them only from the cells that may still be free, and
+        # split those cells when candidates keep failing.
+        rate = idx.size / max(sph.size, 1)  # share of candidates that were free before this round
+        if _DEBUG: print("round", m, k, sph.size, idx.size, round(rate, 3), int(done.sum()))
+        if n_placed < n and grid is None and not grid_tried and rate < 0.2:
             grid_tried = True
-            g = _CoverGrid(region, rho0, rho0)
+            g = _FreeCells(region, rho0, wall_geom)
             if g.usable:
                 g.cover(fixed_x, fixed_r)
                 g.cover(new_x[:n_new], new_r[:n_new])
                 grid = g
+        elif n_placed < n and grid is not None and rate < 0.1 and n_new > split_at:
+            grid.split(np.concatenate([fixed_x, new_x[:n_new]]), np.concatenate([fixed_r, new_r[:n_new]]))
+            split_at = n_new
 
         failed = ~done & (attempts >= max_attempts)
         if failed.any():

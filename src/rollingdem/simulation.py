@@ -498,7 +498,10 @@ class _Progress:
         from tqdm import tqdm
 
         self.total_time = steps * sim.dt
+        import sys
+
         self.bar = tqdm(total=round(self.total_time, 12), desc=label, unit="s(sim)", unit_scale=False,
+                        mininterval=0.5 if sys.stderr.isatty() else 10.0,
                         bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.4g}/{total:.4g} s "
                                    "[{elapsed}<{remaining}{postfix}]")
         self.done = 0.0
@@ -512,7 +515,7 @@ class _Progress:
         inc = todo * self.dt
         self.done += inc
         self.bar.set_postfix_str(f"{self.steps / max(self.wall, 1e-9):,.0f} steps/s", refresh=False)
-        self.bar.update(inc)
+        self.bar.update(min(inc, self.bar.total - self.bar.n))
 
     def close(self):
         self.bar.close()

@@ -1,0 +1,1 @@
+"""Built-in cases (the seed report's test cases)."""

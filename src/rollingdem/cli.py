@@ -1,0 +1,78 @@
+"""Command line: ``rollingdem run [CASE]``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from .errors import ParameterError, SimulationError
+
+app = typer.Typer(add_completion=False, no_args_is_help=False,
+                  help="rollingdem: DEM simulation of spheres, built around rolling resistance.")
+
+
+def _version(value: bool):
+    if value:
+        from . import __version__
+
+        typer.echo(f"rollingdem {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print the version and exit.")):
+    pass
+
+
+@app.command()
+def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOML). Without it: the built-in "
+                                                         "angle-of-repose case."),
+        out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default: "
+                                           "rollingdem-output/<case name>, made fresh)."),
+        threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
+        progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
+    """Run a case file, or the built-in default case."""
+    from . import casefile
+
+    if threads is not None:
+        import numba
+
+        if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+            typer.echo(f"error: --threads = {threads} is not allowed: must be in [1, {numba.config.NUMBA_NUM_THREADS}]",
+                       err=True)
+            raise typer.Exit(2)
+        numba.set_num_threads(threads)
+    try:
+        spec = casefile.load_case(case if case is not None else casefile.default_case_path())
+        casefile.run_case(spec, out=out, progress=progress, echo=typer.echo)
+    except ParameterError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2)
+    except SimulationError as err:
+        typer.echo(f"error: the run failed: {err}\n(outputs written so far are kept)", err=True)
+        raise typer.Exit(1)
+
+
+@app.command()
+def check(case: Path = typer.Argument(..., help="Case file to validate.")):
+    """Validate a case file without running it."""
+    from . import casefile
+
+    try:
+        spec = casefile.load_case(case)
+        sim = casefile.build_simulation(spec)
+        typer.echo(f"{case}: valid; {sim.n_particles} particles, dt = {sim.dt:.3g} s")
+    except ParameterError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2)
+
+
+def main():
+    app()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,175 @@
+"""Bad input gets a clear error naming the parameter, its value and what is allowed."""
+
+import math
+
+import numpy as np
+import pytest
+
+import rollingdem as rd
+from rollingdem.casefile import load_case
+from conftest import TABLE1, R
+
+
+def material(**kw):
+    params = dict(TABLE1)
+    params.update(kw)
+    return rd.Material("m", **params)
+
+
+@pytest.mark.parametrize("key,value,allowed", [
+    ("youngs_modulus", 0.0, "> 0"), ("youngs_modulus", -1e6, "> 0"),
+    ("density", 0.0, "> 0"), ("density", -5.0, "> 0"),
+    ("poisson_ratio", 0.5, "(-1, 0.5)"), ("poisson_ratio", -1.0, "(-1, 0.5)"), ("poisson_ratio", 0.7, "(-1, 0.5)"),
+    ("restitution", 0.0, "(0, 1]"), ("restitution", 1.2, "(0, 1]"),
+    ("friction", -0.1, ">= 0"), ("rolling_friction", -0.2, ">= 0"), ("rolling_damping", -0.3, ">= 0"),
+    ("youngs_modulus", math.nan, "finite"),
+])
+def test_material_errors_name_parameter_value_and_range(key, value, allowed):
+    with pytest.raises(rd.ParameterError) as err:
+        material(**{key: value})
+    msg = str(err.value)
+    assert key in msg and allowed in msg and f"{value:g}" in msg
+
+
+@pytest.mark.parametrize("radius", [0.0, -0.005, math.nan])
+def test_bad_radius(radius):
+    sim = rd.Simulation(dt=1e-5)
+    sim.add_material(material())
+    with pytest.raises(rd.ParameterError, match="radius of particle 0"):
+        sim.add_particles([[0, 0, 0]], radius, "m")
+
+
+def test_nan_position():
+    sim = rd.Simulation(dt=1e-5)
+    sim.add_material(material())
+    with pytest.raises(rd.ParameterError, match=r"position of particle 1 .* finite"):
+        sim.add_particles([[0, 0, 0], [math.nan, 0, 1]], R, "m")
+
+
+def test_overlapping_insertion_refused():
+    sim = rd.Simulation(dt=1e-5)
+    sim.add_material(material())
+    with pytest.raises(rd.ParameterError, match="particles 0 and 1 overlap"):
+        sim.add_particles([[0, 0, 0], [1.5 * R, 0, 0]], R, "m")
+    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
+    with pytest.raises(rd.ParameterError, match="overlaps wall"):
+        sim.add_particles([[0, 0, 0.5 * R]], R, "m")
+
+
+@pytest.mark.parametrize("slot,name", [("normal", "hretz"), ("rolling", "epsd9"), ("tangential", "nope"),
+                                       ("twisting", "marshal")])
+def test_unknown_model_name(slot, name):
+    with pytest.raises(rd.ParameterError) as err:
+        rd.ContactModel(**{slot: name})
+    assert repr(name) in str(err.value) and "allowed are" in str(err.value)
+
+
+def test_unknown_material_name():
+    sim = rd.Simulation(dt=1e-5)
+    sim.add_material(material())
+    with pytest.raises(rd.ParameterError, match="'steel' is not known: known materials are 'm'"):
+        sim.add_particles([[0, 0, 0]], R, "steel")
+
+
+def test_dt_above_stable_limit_is_refused():
+    sim = rd.Simulation(dt=1e-4)
+    sim.add_material(material())
+    sim.add_particles([[0, 0, 0]], R, "m")
+    # Table 1 material: Rayleigh time 1.4566e-4 s (MODELS.md §13 T8), so the limit is 2.91e-5 s
+    with pytest.raises(rd.ParameterError) as err:
+        sim.run(steps=1)
+    msg = str(err.value)
+    assert "dt = 0.0001 s" in msg and "2.913e-05" in msg and "check_timestep=False" in msg
+    relaxed = rd.Simulation(dt=1e-4, check_timestep=False)
+    relaxed.add_material(material())
+    relaxed.add_particles([[0, 0, 0]], R, "m")
+    relaxed.run(steps=1)  # the override is honoured
+
+
+def test_rayleigh_time_step_matches_models_md():
+    """MODELS.md §13 T8 / §2 worked values, within 1e-4 relative."""
+    assert rd.rayleigh_time_step(0.005, 1056, 40e6, 0.49) == pytest.approx(1.4566e-4, rel=1e-4)
+    assert rd.rayleigh_time_step(0.005, 2500, 10e6, 0.3) == pytest.approx(4.3270e-4, rel=1e-4)
+    assert rd.rayleigh_time_step(0.001, 2500, 70e9, 0.25) == pytest.approx(1.02e-6, rel=5e-3)  # given to 3 digits
+    with pytest.raises(rd.ParameterError, match="radius = -1"):
+        rd.rayleigh_time_step(-1, 2500, 70e9, 0.25)
+
+
+def test_bad_wall_and_gravity():
+    with pytest.raises(rd.ParameterError, match="plane normal"):
+        rd.Plane(normal=(0, 0, 0))
+    with pytest.raises(rd.ParameterError, match="cylinder radius = -0.1"):
+        rd.Cylinder(radius=-0.1)
+    with pytest.raises(rd.ParameterError, match="gravity"):
+        rd.Simulation(gravity=(0, math.nan, 0))
+    with pytest.raises(rd.ParameterError, match="dt = -1"):
+        rd.Simulation(dt=-1)
+
+
+def test_unstable_run_stops_with_clear_error_and_keeps_outputs(tmp_path):
+    """A dt far above the limit (checks off) blows up; the error says so and the series is readable."""
+    import pandas as pd
+
+    sim = rd.Simulation(dt=3e-4, check_timestep=False)
+    sim.add_material(material(restitution=0.9))
+    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
+    sim.add_particles([[0, 0, R * 1.001], [0, 0, 3.01 * R]], R, "m", velocity=[[0, 0, -3], [0, 0, -3]])
+    series = rd.TimeSeries(tmp_path / "s.csv", interval=3e-4)
+    with pytest.raises(rd.SimulationError, match="reduce dt|skin"):
+        sim.run(1.0, observers=[series])
+    assert len(pd.read_csv(tmp_path / "s.csv")) >= 1
+
+
+CASE = """
+name: t
+dt: 1.0e-5
+materials:
+  - {name: m, youngs_modulus: 4.0e7, poisson_ratio: 0.49, density: 1056}
+walls:
+  - {type: plane, material: m}
+particles:
+  - positions: [[0, 0, 0.006]]
+    radius: 0.005
+    material: m
+stages:
+  - {duration: 0.001}
+"""
+
+
+def test_case_file_missing_key(tmp_path):
+    p = tmp_path / "c.yaml"
+    p.write_text(CASE.replace(", density: 1056", ""))
+    with pytest.raises(rd.ParameterError, match=r"key 'materials.0.density': missing"):
+        load_case(p)
+
+
+def test_case_file_misspelled_key(tmp_path):
+    p = tmp_path / "c.yaml"
+    p.write_text(CASE.replace("poisson_ratio", "poison_ratio"))
+    with pytest.raises(rd.ParameterError) as err:
+        load_case(p)
+    assert "materials.0.poison_ratio': not a known key" in str(err.value)
+
+
+def test_case_file_bad_value(tmp_path):
+    p = tmp_path / "c.yaml"
+    p.write_text(CASE.replace("radius: 0.005", "radius: -0.005"))
+    from rollingdem.casefile import build_simulation
+
+    with pytest.raises(rd.ParameterError, match="radius of particle 0 = -0.005"):
+        build_simulation(load_case(p))
+    p.write_text(CASE.replace("dt: 1.0e-5", "dt: fast"))
+    with pytest.raises(rd.ParameterError, match="key 'dt' = \"fast\""):
+        load_case(p)
+
+
+def test_pair_override_validated():
+    sim = rd.Simulation(dt=1e-5)
+    sim.add_material(material())
+    with pytest.raises(rd.ParameterError, match="friction = -1"):
+        sim.set_pair("m", "m", friction=-1)
+    with pytest.raises(rd.ParameterError, match="'stickiness' is not known"):
+        sim.set_pair("m", "m", stickiness=1)
+    sim.set_pair("m", "m", friction=0.3)
+    assert sim.materials.pair(0, 0).friction == 0.3
+    assert np.isclose(sim.pair_parameters()[0, 0, 2], 0.3)

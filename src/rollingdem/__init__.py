@@ -8,6 +8,7 @@ _numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 from .contact import CDT, ContactModel, Hertz, HistorySpring, Hooke, Linear, NoRolling, NoTwisting  # noqa: E402
 from .errors import ParameterError, SimulationError  # noqa: E402
+from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform  # noqa: E402
 from .materials import Material, MaterialTable  # noqa: E402
 from .observers import Callback, Checkpoints, Observer, TimeSeries, VTKSnapshots  # noqa: E402
 from .simulation import Simulation, __version__  # noqa: E402
@@ -17,5 +18,5 @@ from .walls import Cylinder, Plane  # noqa: E402
 __all__ = [
     "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "Hertz", "Hooke", "Linear",
     "HistorySpring", "NoRolling", "CDT", "NoTwisting", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback",
-    "Observer", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
+    "Observer", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "Discrete", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
 ]

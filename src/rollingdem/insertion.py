@@ -320,7 +320,7 @@ class _FreeCells:
     """
 
     MAX_DENSE = 16_000_000  # cells of the first, dense grid
-    MAX_LIST = 2_000_000  # cells after a split
+    MAX_SPLIT = 1_000_000  # most cells split in eight at once
     CELL = 0.3  # first cell size / rho0
     MIN_CELL = 0.01  # no split below this cell size / rho0
 
@@ -410,7 +410,7 @@ class _FreeCells:
         else:
             cells = self.cells
         h = self.h
-        if 8 * cells.shape[0] <= self.MAX_LIST and h > self.MIN_CELL * self.rho0:
+        if cells.shape[0] <= self.MAX_SPLIT and h > self.MIN_CELL * self.rho0:
             off = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=np.int64)
         elif self.cells is None:
             return  # the dense grid is kept up to date already
@@ -419,27 +419,34 @@ class _FreeCells:
         nc = off.shape[0]
         f = 2 if nc == 8 else 1
         hc = h / f
-        children = (f * cells[:, None, :] + off[None, :, :]).reshape(-1, 3)
-        lo = self.origin + children * hc
-        keep = np.ones(children.shape[0], dtype=bool)
-        if isinstance(self.region, CylinderRegion):
-            keep &= self._xy_inside(lo[:, 0], lo[:, 1], hc)
-        for p, nrm in self.planes:
-            keep &= np.maximum(nrm * (lo - p), nrm * (lo + hc - p)).sum(axis=1) >= self.rho0
-        if x.shape[0] and cells.shape[0]:
-            # A child wholly inside the ball of radius r_j + rho0 about x_j has its parent's centre
-            # inside that ball too: find the (parent, sphere) pairs once, then test the children.
-            ptree = cKDTree(self.origin + (cells + 0.5) * h)
-            sdm = ptree.sparse_distance_matrix(cKDTree(x), self.rho0 + float(r.max()), output_type="ndarray")
-            if sdm.size:
-                ci, pj = sdm["i"], sdm["j"]
-                rho2 = (r[pj] + self.rho0) ** 2
-                for o in range(nc):
-                    k = ci * nc + o
-                    lc = lo[k]
-                    far = (np.maximum(np.abs(x[pj] - lc), np.abs(x[pj] - lc - hc)) ** 2).sum(axis=1)
-                    keep[k[far < rho2]] = False
-        self.cells = children[keep]
+        stree = cKDTree(x) if x.shape[0] else None
+        reach = self.rho0 + (float(r.max()) if x.shape[0] else 0.0)
+        kept = []
+        chunk = max(1, 2_000_000 // nc)
+        for a in range(0, cells.shape[0], chunk):
+            par = cells[a:a + chunk]
+            children = (f * par[:, None, :] + off[None, :, :]).reshape(-1, 3)
+            lo = self.origin + children * hc
+            keep = np.ones(children.shape[0], dtype=bool)
+            if isinstance(self.region, CylinderRegion):
+                keep &= self._xy_inside(lo[:, 0], lo[:, 1], hc)
+            for p, nrm in self.planes:
+                keep &= np.maximum(nrm * (lo - p), nrm * (lo + hc - p)).sum(axis=1) >= self.rho0
+            if stree is not None:
+                # A child wholly inside the ball of radius r_j + rho0 about x_j has its parent's
+                # centre inside that ball too: find (parent, sphere) pairs, then test the children.
+                ptree = cKDTree(self.origin + (par + 0.5) * h)
+                sdm = ptree.sparse_distance_matrix(stree, reach, output_type="ndarray")
+                if sdm.size:
+                    ci, pj = sdm["i"], sdm["j"]
+                    xp, rho2 = x[pj], (r[pj] + self.rho0) ** 2
+                    for o in range(nc):
+                        k = ci * nc + o
+                        lc = lo[k]
+                        far = (np.maximum(np.abs(xp - lc), np.abs(xp - lc - hc)) ** 2).sum(axis=1)
+                        keep[k[far < rho2]] = False
+            kept.append(children[keep])
+        self.cells = np.concatenate(kept) if kept else np.zeros((0, 3), dtype=np.int64)
         self.h = hc
         self.dense = None
 
@@ -519,11 +526,10 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
     grid_tried = False
     split_at = -1  # spheres placed at the last split
     while n_placed < n:
-        waiting = np.nonzero(~done)[0]  # in placement (size) order
+        # The largest spheres still waiting (at most _ROUND_CANDIDATES), k candidates each.
+        waiting = np.nonzero(~done)[0][:_ROUND_CANDIDATES]
         m = waiting.size
         k = max(1, min(-(-_ROUND_CANDIDATES // m), int((max_attempts - attempts[waiting]).min())))
-        if m > _ROUND_CANDIDATES:
-            k = 1
         sph = np.repeat(waiting, k)  # candidate -> sphere (sorted index), grouped by sphere in order
         rc = r_sorted[sph]
         attempts[waiting] += k

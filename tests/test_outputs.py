@@ -1,0 +1,109 @@
+"""Outputs a user opens elsewhere: CSV in pandas, VTU/PVD in ParaView (read back with meshio), the CLI."""
+
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+import rollingdem as rd
+from rollingdem.cli import app
+from conftest import R
+
+
+def small_scene(table1):
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="cdt"), dt=1e-5)
+    sim.add_material(table1())
+    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
+    sim.add_particles([[0, 0, R], [3 * R, 0, R]], R, "m", velocity=[[0.1, 0, 0], [0, 0, 0]])  # resting on the plate
+    return sim
+
+
+def test_time_series_csv_and_snapshots(table1, tmp_path):
+    meshio = pytest.importorskip("meshio")
+    sim = small_scene(table1)
+    series = rd.TimeSeries(tmp_path / "series.csv", interval=1e-3, particles=[0])
+    snaps = rd.VTKSnapshots(tmp_path / "vtk", interval=5e-3)
+    sim.run(0.02, observers=[series, snaps])
+    df = pd.read_csv(tmp_path / "series.csv")
+    assert len(df) == 21  # t = 0, 1 ms, ..., 20 ms
+    assert np.allclose(np.diff(df["time"]), 1e-3)
+    # the columns hold what they say: the last row is the present state
+    tr, rot = sim.kinetic_energy()
+    assert df["kinetic_translational"].iloc[-1] == tr and df["kinetic_rotational"].iloc[-1] == rot
+    assert df["p0_x"].iloc[-1] == sim.positions[0, 0] and df["p0_wy"].iloc[-1] == sim.angular_velocities[0, 1]
+    assert df["contacts"].iloc[-1] == sim.number_of_contacts() == 2  # both spheres on the plate
+    state_at_20ms = {"x": sim.positions.copy(), "w": sim.angular_velocities.copy()}
+    # a second run appends without repeating the row at the shared instant
+    sim.run(0.005, observers=[series])
+    df2 = pd.read_csv(tmp_path / "series.csv")
+    assert len(df2) == 26 and df2["time"].is_monotonic_increasing and df2["step"].is_unique
+
+    pvd = ET.parse(tmp_path / "vtk" / "particles.pvd").getroot()
+    files = [d.get("file") for d in pvd.iter("DataSet")]
+    assert len(files) == 5  # 0, 5, 10, 15, 20 ms
+    mesh = meshio.read(tmp_path / "vtk" / files[-1])
+    np.testing.assert_array_equal(mesh.points, state_at_20ms["x"])
+    np.testing.assert_array_equal(mesh.point_data["radius"], sim.radii)
+    np.testing.assert_array_equal(mesh.point_data["angular_velocity"], state_at_20ms["w"])
+    assert mesh.point_data["material"].tolist() == [0, 0]
+
+
+CASE = """
+name: tiny
+dt: 1.0e-5
+materials:
+  - {name: m, youngs_modulus: 4.0e7, poisson_ratio: 0.49, density: 1056, friction: 0.8, rolling_friction: 0.2}
+contact: {normal: hertz, rolling: cdt}
+walls:
+  - {type: plane, name: floor, material: m}
+  - {type: cylinder, name: tube, material: m, radius: 0.02}
+particles:
+  - insert: {type: cylinder, radius: 0.02, z_min: 0.0, z_max: 0.05}
+    count: 20
+    radius: {distribution: uniform, low: 0.003, high: 0.004}
+    material: m
+    seed: 4
+stages:
+  - {name: settle, duration: 0.02}
+  - {name: release, remove_walls: [tube], duration: 0.01}
+output:
+  time_series: {interval: 0.001}
+  snapshots: {interval: 0.01}
+"""
+
+
+def test_cli_runs_a_case_file(tmp_path):
+    case = tmp_path / "tiny.yaml"
+    case.write_text(CASE)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(out), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["steps"] == 3000 and summary["particles"] == 20
+    assert (out / "kinetic_energy.png").stat().st_size > 1000
+    assert len(pd.read_csv(out / "series.csv")) == 31
+    restored = rd.Simulation.restore(out / "final.npz")
+    assert restored.step == 3000 and restored.n_particles == 20 and len(restored.walls) == 1
+
+
+def test_cli_reports_bad_case_clearly(tmp_path):
+    case = tmp_path / "bad.yaml"
+    case.write_text(CASE.replace("count: 20", "cuont: 20"))
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 2
+    assert "particles.0" in result.output and "cuont" in result.output and "not a known key" in result.output
+    assert "count" in result.output and "missing" in result.output
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "nope.yaml")])
+    assert result.exit_code == 2 and "does not exist" in result.output
+
+
+def test_default_case_is_valid():
+    from rollingdem.casefile import build_simulation, default_case_path, load_case
+
+    spec = load_case(default_case_path())
+    sim = build_simulation(spec)
+    assert sim.n_particles == 1000 and sim.dt == 1e-5
+    assert [w.name for w in sim.walls] == ["plate", "tube"]

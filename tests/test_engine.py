@@ -169,6 +169,9 @@ def test_moving_and_removed_walls(table1):
     sim.run(0.1)
     assert sim.velocities[0, 2] == pytest.approx(0.1, rel=0.02)  # carried along
     assert sim.positions[0, 2] == pytest.approx(R + 0.01, abs=2e-4)  # plate moved 0.1 m/s x 0.1 s
+    assert plate.point[2] == pytest.approx(0.01, rel=1e-9)  # the Wall object knows where it is
+    with pytest.raises(rd.ParameterError, match="overlaps wall"):  # so insertion checks the moved plate
+        sim.add_particles([[0.05, 0, 0.008]], R, "m")
     sim.remove_wall(plate)
     z = sim.positions[0, 2]
     sim.run(0.1)

@@ -7,10 +7,12 @@
 first; each sphere gets up to ``max_attempts`` random candidate centres, drawn uniformly from the
 part of the region where its whole body lies inside, and the first candidate that overlaps neither
 an already placed sphere, an existing particle nor a wall is kept. The work is done in rounds: each
-round draws candidates for all spheres still waiting (several per sphere once few are left), checks
-them against everything placed so far with a k-d tree in one vectorized call, and then accepts them
-in order, skipping any that would overlap one accepted earlier in the same round. The result is
-reproducible from ``seed``.
+round draws candidates for the largest spheres still waiting (several per sphere once few are left),
+checks them against everything placed so far with a k-d tree in one vectorized call, and then
+accepts them in order, skipping any that would overlap one accepted earlier in the same round. Once
+candidates fail so often that a sphere might run out of attempts, they are drawn only from the cells
+of a background grid that may still hold a free centre (``_FreeCells``): still uniform over the free
+space, but far fewer are wasted. The result is reproducible from ``seed``.
 
 Random insertion cannot fill a region densely: RSA of equal spheres jams near a packing fraction
 of 0.38 (0.3-0.35 is what is reached in practice with a bounded number of attempts), so a
@@ -29,9 +31,15 @@ MAX_PACKING_FRACTION = 0.55
 """Requests above this packing fraction are refused before any attempt (random insertion tops out
 near 0.3-0.35; even a random close packing is only ~0.64)."""
 
-_DEBUG = False
 _ROUND_CANDIDATES = 8192
-"""Lower bound on the number of candidates drawn per round once few spheres are left."""
+"""Fewest candidates drawn per round once few spheres are left (and most spheres per round)."""
+
+_EXPECT = 10.0
+"""Sampling adapts (free cells, then split cells) once a sphere can expect fewer free candidates than
+this in the attempts it has left."""
+
+_SIZE_BAND = 0.9
+"""A round takes the spheres at least this fraction of the largest one still waiting."""
 
 
 def _fmt(x: float) -> str:
@@ -285,11 +293,11 @@ def as_distribution(radius) -> SizeDistribution:
 
 
 # --- filling -------------------------------------------------------------------------------------
-def _check_count(name, value, allow_zero=False) -> int:
+def _check_count(name, value) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         raise ParameterError(f"{name} = {value!r} is not allowed: must be a positive integer")
     v = int(value)
-    if v < (0 if allow_zero else 1):
+    if v < 1:
         raise ParameterError(f"{name} = {v} is not allowed: must be a positive integer (>= 1)")
     return v
 
@@ -313,16 +321,16 @@ class _FreeCells:
     r_j + rho0 about its centre), wholly outside where a centre of radius rho0 may lie in the region,
     or wholly behind a plane wall: no centre of a sphere still to place can lie there. Candidates drawn
     uniformly from the cells left are uniform over a superset of the free space, as with plain
-    sampling, but far fewer are wasted once the region fills up. Cells start on a dense grid updated
-    after each round; when candidates keep failing, every cell is split in eight and the children are
-    checked against all placed spheres (a list of cells from then on), so that cells covered only by
-    several balls together get dropped too.
+    sampling, but far fewer are wasted once the region fills up. Cells start on a dense grid; when
+    candidates keep failing, every cell left is split in eight and the children are checked against
+    all placed spheres (a list of cells from then on), so that cells covered only by several balls
+    together get dropped too.
     """
 
     MAX_DENSE = 16_000_000  # cells of the first, dense grid
-    MAX_SPLIT = 1_000_000  # most cells split in eight at once
-    CELL = 0.3  # first cell size / rho0
-    MIN_CELL = 0.01  # no split below this cell size / rho0
+    MAX_SPLIT = 400_000  # most cells split in eight at once
+    CELL = 0.4  # first cell size / rho0
+    MIN_CELL = 0.02  # no split below this cell size / rho0
 
     def __init__(self, region: Region, rho0: float, walls):
         lo, hi = region.bounds()
@@ -335,10 +343,13 @@ class _FreeCells:
         self.h = h
         self.shape = np.maximum(np.ceil(ext / h).astype(np.int64), 1)
         self.planes = [(g[0:3], g[3:6]) for g, kind in walls if kind == 0]
-        self.usable = h * math.sqrt(3.0) < 2.0 * rho0  # a cell can fit in an exclusion ball
-        self.cells = None  # (M, 3) cell indices once split
-        self.dense = None
+        # A cell must fit in an exclusion ball, and the region must be at least a cell thick.
+        self.usable = bool(h * math.sqrt(3.0) < 2.0 * rho0 and (ext >= h).all())
+        self.dense = None  # flags of the dense grid, flattened
         self._flat = None  # indices of the dense cells left, as of the last sample
+        self.cells = None  # (M, 3) cell indices once split, their centres' k-d tree, and which are left
+        self.tree = None
+        self.alive = None
         if self.usable:
             ax = [self.origin[d] + np.arange(self.shape[d]) * h for d in range(3)]  # cell lower corners
             keep = np.ones(tuple(self.shape), dtype=bool)
@@ -356,32 +367,46 @@ class _FreeCells:
         cy = np.maximum(np.abs(y0 + 0.5 * h - reg.center[1]) - 0.5 * h, 0.0)
         return cx ** 2 + cy ** 2 <= (reg.radius - self.rho0) ** 2
 
-    @property
-    def n_cells(self) -> int:
-        return int(self.dense.sum()) if self.cells is None else int(self.cells.shape[0])
+    def _left(self) -> np.ndarray:
+        """Indices of the cells left (flat indices of the dense grid, or rows of ``cells``)."""
+        if self.cells is None:
+            self._flat = np.flatnonzero(self.dense) if self._flat is None else self._flat[self.dense[self._flat]]
+            return self._flat
+        return np.flatnonzero(self.alive)
+
+    def _ijk(self, left: np.ndarray) -> np.ndarray:
+        if self.cells is not None:
+            return self.cells[left]
+        ny, nz = self.shape[1], self.shape[2]
+        return np.stack([left // (ny * nz), (left // nz) % ny, left % nz], axis=1)
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray | None:
-        if self.cells is None:
-            flat = self._flat = np.flatnonzero(self.dense) if self._flat is None else self._flat[self.dense[self._flat]]
-            if flat.size == 0:
-                return None
-            pick = flat[rng.integers(0, flat.size, n)]
-            nx, ny, nz = self.shape
-            ijk = np.stack([pick // (ny * nz), (pick // nz) % ny, pick % nz], axis=1)
-        else:
-            if self.cells.shape[0] == 0:
-                return None
-            ijk = self.cells[rng.integers(0, self.cells.shape[0], n)]
+        """n points uniform over the cells left; None when none is left."""
+        left = self._left()
+        if left.size == 0:
+            return None
+        ijk = self._ijk(left[rng.integers(0, left.size, n)])
         return self.origin + (ijk + rng.random((n, 3))) * self.h
 
     def cover(self, x: np.ndarray, r: np.ndarray) -> None:
-        """Dense grid: drop the cells lying wholly within distance r + rho0 of any of the centres ``x``."""
-        if self.cells is not None or x.shape[0] == 0:
+        """Drop the cells lying wholly within distance r + rho0 of any of the centres ``x``."""
+        if x.shape[0] == 0:
             return
-        h, (nx, ny, nz) = self.h, self.shape
-        rho = r + self.rho0
+        h, rho = self.h, r + self.rho0
+        if self.cells is not None:
+            near = self.tree.query_ball_point(x, rho, return_sorted=False)
+            cnt = np.fromiter((len(c) for c in near), dtype=np.int64, count=len(near))
+            if cnt.sum() == 0:
+                return
+            ci = np.concatenate([np.asarray(c, dtype=np.int64) for c in near])
+            pj = np.repeat(np.arange(x.shape[0]), cnt)
+            lc = self.origin + self.cells[ci] * h
+            far = (np.maximum(np.abs(x[pj] - lc), np.abs(x[pj] - lc - h)) ** 2).sum(axis=1)
+            self.alive[ci[far < rho[pj] ** 2]] = False
+            return
+        ny, nz = self.shape[1], self.shape[2]
         m = np.ceil(2.0 * rho / h).astype(np.int64) + 1
-        for mm in np.unique(m):
+        for mm in np.unique(m[m <= 64]):  # (leaving a few cells of a much larger sphere is harmless)
             sel = np.nonzero(m == mm)[0]
             chunk = max(1, 4_000_000 // int(mm) ** 3)
             off = np.arange(mm)
@@ -398,57 +423,49 @@ class _FreeCells:
                 k, i, j, l = np.nonzero(d2 < (rs ** 2)[:, None, None, None])
                 self.dense[(c[k, 0, i] * ny + c[k, 1, j]) * nz + c[k, 2, l]] = False
 
-    def split(self, x: np.ndarray, r: np.ndarray) -> None:
-        """Split every cell in eight (while there are not too many) and keep the cells not covered by
-        the spheres (x, r)."""
+    def split(self, x: np.ndarray, r: np.ndarray) -> bool:
+        """Split every cell left in eight and keep the children not covered by the spheres (x, r).
+
+        Returns False (and does nothing) when there are too many cells or they are small already.
+        """
         from scipy.spatial import cKDTree
 
-        if self.cells is None:
-            flat = np.flatnonzero(self.dense)
-            ny, nz = self.shape[1], self.shape[2]
-            cells = np.stack([flat // (ny * nz), (flat // nz) % ny, flat % nz], axis=1)
-        else:
-            cells = self.cells
-        h = self.h
-        if cells.shape[0] <= self.MAX_SPLIT and h > self.MIN_CELL * self.rho0:
-            off = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=np.int64)
-        elif self.cells is None:
-            return  # the dense grid is kept up to date already
-        else:
-            off = np.zeros((1, 3), dtype=np.int64)
-        nc = off.shape[0]
-        f = 2 if nc == 8 else 1
-        hc = h / f
-        stree = cKDTree(x) if x.shape[0] else None
-        reach = self.rho0 + (float(r.max()) if x.shape[0] else 0.0)
-        kept = []
-        chunk = max(1, 2_000_000 // nc)
-        for a in range(0, cells.shape[0], chunk):
-            par = cells[a:a + chunk]
-            children = (f * par[:, None, :] + off[None, :, :]).reshape(-1, 3)
-            lo = self.origin + children * hc
-            keep = np.ones(children.shape[0], dtype=bool)
-            if isinstance(self.region, CylinderRegion):
-                keep &= self._xy_inside(lo[:, 0], lo[:, 1], hc)
-            for p, nrm in self.planes:
-                keep &= np.maximum(nrm * (lo - p), nrm * (lo + hc - p)).sum(axis=1) >= self.rho0
-            if stree is not None:
-                # A child wholly inside the ball of radius r_j + rho0 about x_j has its parent's
-                # centre inside that ball too: find (parent, sphere) pairs, then test the children.
-                ptree = cKDTree(self.origin + (par + 0.5) * h)
-                sdm = ptree.sparse_distance_matrix(stree, reach, output_type="ndarray")
-                if sdm.size:
-                    ci, pj = sdm["i"], sdm["j"]
-                    xp, rho2 = x[pj], (r[pj] + self.rho0) ** 2
-                    for o in range(nc):
-                        k = ci * nc + o
-                        lc = lo[k]
-                        far = (np.maximum(np.abs(xp - lc), np.abs(xp - lc - hc)) ** 2).sum(axis=1)
-                        keep[k[far < rho2]] = False
-            kept.append(children[keep])
-        self.cells = np.concatenate(kept) if kept else np.zeros((0, 3), dtype=np.int64)
-        self.h = hc
-        self.dense = None
+        left = self._left()
+        if left.size > self.MAX_SPLIT or self.h < 2.0 * self.MIN_CELL * self.rho0:
+            return False
+        par = self._ijk(left)
+        off = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=np.int64)
+        h = 0.5 * self.h
+        children = (2 * par[:, None, :] + off[None, :, :]).reshape(-1, 3)
+        lo = self.origin + children * h
+        keep = np.ones(children.shape[0], dtype=bool)
+        if isinstance(self.region, CylinderRegion):
+            keep &= self._xy_inside(lo[:, 0], lo[:, 1], h)
+        for p, nrm in self.planes:
+            keep &= np.maximum(nrm * (lo - p), nrm * (lo + h - p)).sum(axis=1) >= self.rho0
+        if x.shape[0] and par.shape[0]:
+            # A child wholly inside the ball of radius r_j + rho0 about x_j has its parent's centre
+            # inside that ball too: find the (parent, sphere) pairs, then test the eight children.
+            ptree = cKDTree(self.origin + (par + 0.5) * self.h, balanced_tree=False, compact_nodes=False)
+            sdm = ptree.sparse_distance_matrix(cKDTree(x), self.rho0 + float(r.max()), output_type="ndarray")
+            if sdm.size:
+                ci, pj = sdm["i"], sdm["j"]
+                xp, rho2 = x[pj], (r[pj] + self.rho0) ** 2
+                for o in range(8):
+                    k = ci * 8 + o
+                    lc = lo[k]
+                    far = (np.maximum(np.abs(xp - lc), np.abs(xp - lc - h)) ** 2).sum(axis=1)
+                    keep[k[far < rho2]] = False
+        self.cells = children[keep]
+        self.alive = np.ones(self.cells.shape[0], dtype=bool)
+        self.h = h
+        self.tree = (cKDTree(self.origin + (self.cells + 0.5) * h, balanced_tree=False, compact_nodes=False)
+                     if self.cells.shape[0] else None)
+        if self.tree is None:
+            self.cells = np.zeros((0, 3), dtype=np.int64)
+            self.alive = np.zeros(0, dtype=bool)
+        self.dense = self._flat = None
+        return True
 
 
 def fill_region(region: Region, count: int, radius, seed=0, existing_positions=None, existing_radii=None,
@@ -470,17 +487,23 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
     rng = np.random.default_rng(seed)
 
     # Existing particles.
-    if existing_positions is None:
+    if existing_positions is None or np.size(existing_positions) == 0:
         ex = np.zeros((0, 3))
     else:
-        ex = np.array(existing_positions, dtype=np.float64, ndmin=2).reshape(-1, 3) \
-            if np.size(existing_positions) else np.zeros((0, 3))
+        ex = np.array(existing_positions, dtype=np.float64, ndmin=2)
+        if ex.ndim != 2 or ex.shape[1] != 3:
+            raise ParameterError(f"existing_positions with shape {ex.shape} are not allowed: need (N, 3)")
     if existing_radii is None:
         if ex.shape[0]:
             raise ParameterError("existing_radii = None is not allowed when existing_positions are given")
         er = np.zeros(0)
     else:
-        er = np.broadcast_to(np.asarray(existing_radii, dtype=np.float64), (ex.shape[0],)).copy()
+        er = np.asarray(existing_radii, dtype=np.float64).reshape(-1)
+        if er.size == 1 and ex.shape[0] != 1:
+            er = np.full(ex.shape[0], float(er[0]))
+        if er.shape[0] != ex.shape[0]:
+            raise ParameterError(f"existing_radii with {er.shape[0]} values are not allowed: need one per "
+                                 f"existing position ({ex.shape[0]})")
     if not (np.isfinite(ex).all() and np.isfinite(er).all()):
         raise ParameterError("existing_positions / existing_radii contain a non-finite value: must be finite")
 
@@ -525,11 +548,18 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
     grid = None
     grid_tried = False
     split_at = -1  # spheres placed at the last split
+    full = False
     while n_placed < n:
-        # The largest spheres still waiting (at most _ROUND_CANDIDATES), k candidates each.
+        # The largest spheres still waiting (at most _ROUND_CANDIDATES, and none much smaller than
+        # the largest, so that large spheres are placed before small ones fill the gaps), k
+        # candidates each.
         waiting = np.nonzero(~done)[0][:_ROUND_CANDIDATES]
+        waiting = waiting[r_sorted[waiting] >= _SIZE_BAND * r_sorted[waiting[0]]]
         m = waiting.size
-        k = max(1, min(-(-_ROUND_CANDIDATES // m), int((max_attempts - attempts[waiting]).min())))
+        # At most a tenth of the attempts per round, so that the sampling can adapt (switch to the
+        # free cells, split them) before a sphere runs out of attempts.
+        k = max(1, min(-(-_ROUND_CANDIDATES // m), max_attempts // 10,
+                       int((max_attempts - attempts[waiting]).min())))
         sph = np.repeat(waiting, k)  # candidate -> sphere (sorted index), grouped by sphere in order
         rc = r_sorted[sph]
         attempts[waiting] += k
@@ -538,10 +568,11 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
             ok = np.ones(sph.size, dtype=bool)
         else:
             xc = grid.sample(rng, sph.size)
-            if xc is None:  # no free place left anywhere
+            if xc is None:  # no free place left anywhere: no attempt can succeed
                 attempts[waiting] = max_attempts
                 xc = np.zeros((0, 3))
                 sph, rc = sph[:0], rc[:0]
+                full = True
             ok = region.contains(xc, rc)
         for g, kind in wall_geom:
             ok &= _wall_overlap(g, kind, xc, rc) <= 0.0
@@ -603,29 +634,36 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
             n_placed += acc.size
             if grid is not None:
                 grid.cover(xc[acc], rc[acc])
-        # Once most candidates fail, draw them only from the cells that may still be free, and
-        # split those cells when candidates keep failing.
-        rate = idx.size / max(sph.size, 1)  # share of candidates that were free before this round
-        if _DEBUG: print("round", m, k, sph.size, idx.size, round(rate, 3), int(done.sum()))
-        if n_placed < n and grid is None and not grid_tried and rate < 0.2:
+        # Once candidates fail so often that a sphere might run out of attempts, draw them only
+        # from the cells that may still be free, and split those cells when that is not enough:
+        # ``rate`` is the share of this round's candidates that were free of what was placed
+        # before it, ``expect`` the number of free candidates the sphere with the fewest attempts
+        # left can expect at that rate.
+        rate = idx.size / max(sph.size, 1)
+        expect = rate * (max_attempts - int(attempts[waiting].max()))
+        if n_placed < n and grid is None and not grid_tried and expect < _EXPECT:
             grid_tried = True
             g = _FreeCells(region, rho0, wall_geom)
             if g.usable:
                 g.cover(fixed_x, fixed_r)
                 g.cover(new_x[:n_new], new_r[:n_new])
                 grid = g
-        elif n_placed < n and grid is not None and rate < 0.1 and n_new > split_at:
-            grid.split(np.concatenate([fixed_x, new_x[:n_new]]), np.concatenate([fixed_r, new_r[:n_new]]))
-            split_at = n_new
+        elif n_placed < n and grid is not None and expect < _EXPECT and n_new > split_at:
+            if grid.split(np.concatenate([fixed_x, new_x[:n_new]]), np.concatenate([fixed_r, new_r[:n_new]])):
+                split_at = n_new
 
         failed = ~done & (attempts >= max_attempts)
         if failed.any():
+            if full:
+                why = "no free place is left in it (walls or particles already there may take it all)"
+            else:
+                r_fail = float(r_sorted[np.nonzero(failed)[0][0]])
+                why = f"a sphere of radius {_fmt(r_fail)} m found no free place in {max_attempts} attempts"
             raise ParameterError(
-                f"could place only {n_placed} of {n} spheres in {region!r}: a sphere found no free place in "
-                f"{max_attempts} attempts. The requested packing fraction is {fraction:.3f} (sum of sphere volumes "
-                "/ region volume); random insertion tops out near 0.3-0.35 packing fraction (less with walls or "
-                "particles already in the region): use a larger region or fewer spheres (and let them settle), "
-                "or raise max_attempts")
+                f"could place only {n_placed} of {n} spheres in {region!r}: {why}. The requested packing "
+                f"fraction is {fraction:.3f} (sum of sphere volumes / region volume); random insertion tops out "
+                "near 0.3-0.35 packing fraction (less with walls or particles already in the region): use a "
+                "larger region or fewer spheres (and let them settle), or raise max_attempts")
 
     x_out = np.empty((n, 3))
     x_out[order] = placed_x

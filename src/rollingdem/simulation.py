@@ -118,7 +118,8 @@ class Simulation:
             raise ParameterError(f"radius of particle {k} = {r[k]:g} is not allowed: must be > 0 (m)")
         v = self._vectors("velocity", velocity, m)
         w = self._vectors("angular_velocity", angular_velocity, m)
-        mat_idx = self.materials.index(material) if not isinstance(material, (list, np.ndarray)) else None
+        mat_idx = (self.materials.index(material) if not isinstance(material, (list, tuple, np.ndarray))
+                   else None)
         if mat_idx is None:
             mats = np.array([self.materials.index(mm) for mm in material], dtype=np.int32)
         else:
@@ -144,17 +145,23 @@ class Simulation:
     def _check_no_overlap(self, x, r, tolerance=1e-12):
         from scipy.spatial import cKDTree
 
+        first = self._state.n
         allx = np.concatenate([self._state.x, x])
         allr = np.concatenate([self._state.radius, r])
-        first = self._state.n
         tree = cKDTree(allx)
-        pairs = tree.query_pairs(2.0 * allr.max())
-        for i, j in sorted(pairs):
-            if max(i, j) < first:
+        # each new sphere against every sphere before it within its radius plus the largest radius
+        for k, near in enumerate(tree.query_ball_point(x, r + allr.max())):
+            near = np.asarray(near, dtype=np.int64)
+            i = first + k
+            near = near[near < i]
+            if near.size == 0:
                 continue
-            gap = np.linalg.norm(allx[i] - allx[j]) - allr[i] - allr[j]
-            if gap < -tolerance * (allr[i] + allr[j]):
-                raise ParameterError(f"particles {i} and {j} overlap by {-gap:.3g} m at insertion: "
+            gap = np.linalg.norm(allx[near] - allx[i], axis=1) - allr[near] - allr[i]
+            bad = gap < -tolerance * (allr[near] + allr[i])
+            if bad.any():
+                j = int(near[np.argmax(bad)])
+                g = float(gap[np.argmax(bad)])
+                raise ParameterError(f"particles {min(i, j)} and {max(i, j)} overlap by {-g:.3g} m at insertion: "
                                      "positions must not overlap (pass allow_overlap=True to accept it)")
         for wl in self._walls:
             if wl.kind == INACTIVE:
@@ -174,6 +181,10 @@ class Simulation:
         """
         from .insertion import fill_region
 
+        for mat in (material if isinstance(material, (list, tuple, np.ndarray)) else [material]):
+            self.materials.index(mat)  # an unknown material is refused before a long fill
+        if velocity is not None:
+            self._vectors("velocity", velocity, 1)
         x, r = fill_region(region, count, radius, seed=seed, existing_positions=self._state.x,
                            existing_radii=self._state.radius, walls=[w for w in self._walls if w.kind != INACTIVE],
                            max_attempts=max_attempts)
@@ -402,6 +413,7 @@ class Simulation:
             failure = err
             raise
         finally:
+            self.sync_walls_from_engine()
             for ob in observers:
                 ob.finish(self, failure)
             if bar:

@@ -516,7 +516,6 @@ class _Progress:
                         mininterval=0.5 if sys.stderr.isatty() else 10.0,
                         bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.4g}/{total:.4g} s "
                                    "[{elapsed}<{remaining}{postfix}]")
-        self.done = 0.0
         self.dt = sim.dt
         self.steps = 0
         self.wall = 0.0
@@ -525,7 +524,6 @@ class _Progress:
         self.steps += todo
         self.wall += elapsed
         inc = todo * self.dt
-        self.done += inc
         self.bar.set_postfix_str(f"{self.steps / max(self.wall, 1e-9):,.0f} steps/s", refresh=False)
         self.bar.update(min(inc, self.bar.total - self.bar.n))
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from ..errors import check_choice
+from ..errors import ParameterError, check_choice
 
 # Common pair-parameter slots, shared by every sub-model.
 P_YOUNG = 0            # E* (Pa)
@@ -76,7 +76,7 @@ def make_submodel(slot: str, spec) -> SubModel:
     registry = _REGISTRIES[slot]
     if isinstance(spec, SubModel):
         if spec.slot != slot:
-            raise ValueError(f"{slot} model = {spec!r} is a {spec.slot} model")
+            raise ParameterError(f"{slot} model = {spec!r} is not allowed: it is a {spec.slot} model")
         return spec
     if isinstance(spec, dict):
         spec = dict(spec)

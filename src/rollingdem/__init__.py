@@ -6,7 +6,7 @@ import numba as _numba
 # workqueue behave.
 _numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
-from .contact import CDT, ContactModel, Hertz, HistorySpring, Hooke, Linear, NoRolling, NoTwisting  # noqa: E402
+from .contact import CDT, EPSD, EPSD2, ContactModel, Hertz, HistorySpring, Hooke, Linear, NoRolling, NoTwisting  # noqa: E402,E501
 from .errors import ParameterError, SimulationError  # noqa: E402
 from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform  # noqa: E402
 from .materials import Material, MaterialTable  # noqa: E402
@@ -17,6 +17,6 @@ from .walls import Cylinder, Plane  # noqa: E402
 
 __all__ = [
     "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "Hertz", "Hooke", "Linear",
-    "HistorySpring", "NoRolling", "CDT", "NoTwisting", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback",
+    "HistorySpring", "NoRolling", "CDT", "EPSD", "EPSD2", "NoTwisting", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback",
     "Observer", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "Discrete", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
 ]

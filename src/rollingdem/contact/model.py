@@ -141,7 +141,7 @@ class ContactModel:
         """The compiled engine module for this combination (generated and imported once)."""
         source = self.kernel_source()
         digest = self._dependency_hash(source)
-        names = "_".join(sub.name for sub in self.submodels)
+        names = "_".join(sub.kernel[1] for sub in self.submodels)  # models sharing a kernel share the file
         modname = f"rollingdem_kernel_{names}_{digest}"
         if modname in _LOADED:
             return _LOADED[modname]

@@ -84,11 +84,12 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
     fn = f_el + f_damp
     ftx, fty, ftz, e_t = tangential_force(hist, k, H_TANGENTIAL, nx, ny, nz, onx, ony, onz, spin_angle,
                                           vtx, vty, vtz, kt, gamma_t, fn, dt, p, OFF_TANGENTIAL)
+    mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, H_ROLLING, nx, ny, nz, onx, ony, onz, spin_angle,
+                                                       wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, kn, kt,
+                                                       f_el, fn, r_eff, inertia_r, dt, p, OFF_ROLLING)
     dwx = wix - wjx
     dwy = wiy - wjy
     dwz = wiz - wjz
-    mx, my, mz, e_r = rolling_moment(hist, k, H_ROLLING, nx, ny, nz, onx, ony, onz, spin_angle, dwx, dwy, dwz,
-                                     kn, kt, f_el, fn, r_eff, inertia_r, dt, p, OFF_ROLLING)
     m_tw, e_tw = twisting_moment(hist, k, H_TWISTING, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t,
                                  f_el, fn, dt, p, OFF_TWISTING)
     hist[k, 0] = nx
@@ -99,12 +100,9 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
     cx = ny * ftz - nz * fty
     cy = nz * ftx - nx * ftz
     cz = nx * fty - ny * ftx
-    mx += m_tw * nx
-    my += m_tw * ny
-    mz += m_tw * nz
     return (fn * nx + ftx, fn * ny + fty, fn * nz + ftz,
-            -lever_i * cx - mx, -lever_i * cy - my, -lever_i * cz - mz,
-            -lever_j * cx + mx, -lever_j * cy + my, -lever_j * cz + mz,
+            -lever_i * cx - mix - m_tw * nx, -lever_i * cy - miy - m_tw * ny, -lever_i * cz - miz - m_tw * nz,
+            -lever_j * cx + mjx + m_tw * nx, -lever_j * cy + mjy + m_tw * ny, -lever_j * cz + mjz + m_tw * nz,
             -f_damp * vn * dt, e_t, e_r, e_tw)
 
 

@@ -3,14 +3,17 @@
 Kernel signature (slot "rolling")::
 
     rolling_moment(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle,
-                   dwx, dwy, dwz, normal_stiffness, tangential_stiffness,
-                   force_elastic, force_total, r_eff, inertia_r, dt, p, poff)
-        -> (mx, my, mz, dissipation)
+                   wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, normal_stiffness,
+                   tangential_stiffness, force_elastic, force_total, r_eff, inertia_r, dt, p, poff)
+        -> (mix, miy, miz, mjx, mjy, mjz, dissipation)
 
-(dwx, dwy, dwz) is the full relative rotation rate omega_i - omega_j (omega_i - omega_wall for a
-wall); a model removes the twist part itself. The resistance moment M acts as -M on particle i
-and +M on particle j (MODELS.md §0), so a pure couple. ``inertia_r`` is I_r of seed report eq. 12
-(1.4 m R^2 for a wall). ``dissipation`` is the energy (J) dissipated by the couple in the step.
+(wix, wiy, wiz) and (wjx, wjy, wjz) are the angular velocities of i and of j (of the wall for a
+wall contact, with lever_j = 0); lever_i, lever_j are the distances R' from the centres to the
+contact point. The torque on i is -M_i and on j +M_j. For every objective model M_i = M_j = M,
+a pure couple along (or lagging) dw_r = (omega_i - omega_j) minus its twist part (MODELS.md §0);
+only the non-objective STAR-CCM+ Force Proportional method has M_i != M_j. ``inertia_r`` is I_r of
+seed report eq. 12 (1.4 m R^2 for a wall). ``dissipation`` is the energy (J) the moment removed
+in the step: (M_i . omega_i - M_j . omega_j) dt minus any increase of stored spring energy.
 """
 
 from __future__ import annotations
@@ -19,40 +22,47 @@ import math
 
 from numba import njit
 
-from ..errors import ParameterError, check_non_negative
+from ..errors import ParameterError, check_non_negative, check_positive
 from .base import P_ROLLING_DAMPING, P_ROLLING_FRICTION, SubModel
 from .frame import carry_with_frame
 
 
+@njit(cache=True, inline="always")
+def relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz):
+    """dw_r = dw - (dw . n) n with dw = omega_i - omega_j: the rolling (bending) part of the relative rotation."""
+    dwx = wix - wjx
+    dwy = wiy - wjy
+    dwz = wiz - wjz
+    wn = dwx * nx + dwy * ny + dwz * nz
+    return dwx - wn * nx, dwy - wn * ny, dwz - wn * nz
+
+
 @njit(cache=True)
-def no_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, dwx, dwy, dwz, kn, kt,
-               force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
+def no_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
+               lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """No rolling resistance: M = 0."""
-    return 0.0, 0.0, 0.0, 0.0
+    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
 @njit(cache=True)
-def constant_directional_torque(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, dwx, dwy, dwz, kn, kt,
-                                force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
+def constant_directional_torque(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz,
+                                lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """CDT, Ai et al. (2011) type A; seed report eq. 2; STAR-CCM+ Constant Torque.
 
     M = mu_r R* max(F_n,el, 0) dw_r / |dw_r|, dw_r = dw - (dw . n) n (twist removed), and with the
     optional moment limiter |M| <= f I_r |dw_r| / dt (STAR-CCM+ f = 0.08), so that the torque
     cannot reverse the relative rotation within one step (MODELS.md §11.6).
     """
-    wn = dwx * nx + dwy * ny + dwz * nz
-    rx = dwx - wn * nx
-    ry = dwy - wn * ny
-    rz = dwz - wn * nz
+    rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
     rate = math.sqrt(rx * rx + ry * ry + rz * rz)
     if rate == 0.0:
-        return 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     moment = p[P_ROLLING_FRICTION] * r_eff * max(force_elastic, 0.0)
     limiter = p[poff]
     if limiter > 0.0:
         moment = min(moment, limiter * inertia_r * rate / dt)
     s = moment / rate
-    return s * rx, s * ry, s * rz, moment * rate * dt
+    return s * rx, s * ry, s * rz, s * rx, s * ry, s * rz, moment * rate * dt
 
 
 class NoRolling(SubModel):
@@ -106,8 +116,8 @@ HISTORY_PROJECT = 2       # projected on the tangent plane and rescaled (LAMMPS)
 
 
 @njit(cache=True)
-def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, dwx, dwy, dwz, kn, kt,
-                   force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
+def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
+                   lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """Elastic-plastic spring-dashpot rolling resistance (Ai type C), the unified form of MODELS.md §12.
 
     1. carry the spring moment M_k with the contact frame (or, for parity, not / project only);
@@ -136,10 +146,7 @@ def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, dwx, dwy
     mky = hist[k, off + 1]
     mkz = hist[k, off + 2]
 
-    wn = dwx * nx + dwy * ny + dwz * nz
-    rx = dwx - wn * nx
-    ry = dwy - wn * ny
-    rz = dwz - wn * nz
+    rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
 
     if force_mode == FORCE_ELASTIC:
         f_lim = max(force_elastic, 0.0)
@@ -201,7 +208,7 @@ def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, dwx, dwy
     if k_r > 0.0:
         stored_after = 0.5 * (sx * sx + sy * sy + sz * sz) / k_r
     work = (mx * rx + my * ry + mz * rz) * dt
-    return mx, my, mz, work - (stored_after - stored_before)
+    return mx, my, mz, mx, my, mz, work - (stored_after - stored_before)
 
 
 _PARITY = {
@@ -283,3 +290,164 @@ class EPSD2(_SpringRolling):
 
     def parameters(self):
         return {"parity": self.parity, "slip_damping": self.slip_damping}
+
+
+class EPSD3(_SpringRolling):
+    """LIGGGHTS ``epsd3``: as EPSD with k_r = c k_n mu_r^2 R*^2, c = ``stiffness_coefficient`` (-)."""
+
+    name = "epsd3"
+    parities = (None, "liggghts")
+
+    def __init__(self, stiffness_coefficient=2.25, damping_ratio=None, parity=None, slip_damping=None):
+        super().__init__(parity, slip_damping)
+        self.stiffness_coefficient_value = check_positive("epsd3 stiffness_coefficient", stiffness_coefficient)
+        self.damping_ratio = None if damping_ratio is None else check_non_negative("epsd3 damping_ratio",
+                                                                                    damping_ratio)
+
+    def stiffness_coefficient(self):
+        return self.stiffness_coefficient_value
+
+    def damping_value(self, pair):
+        return -1.0 if self.damping_ratio is None else self.damping_ratio
+
+    def parameters(self):
+        return {"stiffness_coefficient": self.stiffness_coefficient_value, "damping_ratio": self.damping_ratio,
+                "parity": self.parity, "slip_damping": self.slip_damping}
+
+
+class RRLinear(_SpringRolling):
+    """PFC rolling resistance linear model (PFC seed; MODELS.md §5): k_r = k_s R^2 (Iwashita-Oda),
+    moment capped at mu_r R F_n,linear (elastic), no rolling dashpot, moment kept in the contact
+    frame. Meant with the ``linear`` normal model; ``parity="pfc"`` caps the spring only (the same
+    thing here, as there is no dashpot)."""
+
+    name = "rrlinear"
+    parities = (None, "pfc")
+    stiffness_mode = STIFFNESS_TANGENTIAL
+
+    def parameters(self):
+        return {"parity": self.parity}
+
+
+class SDS(_SpringRolling):
+    """LAMMPS ``rolling sds k_roll gamma_roll mu_roll`` (MODELS.md §4): torque stiffness k_roll R*^2,
+    torque damping gamma_roll R*^2, limit mu_r R* F (mu_roll = the pair's rolling_friction).
+    ``parity="lammps"``: |F_n,total| in the limit and project-and-rescale history.
+
+    rolling_stiffness: k_roll (N/m), > 0.  rolling_damping: gamma_roll (N s/m), >= 0.
+    """
+
+    name = "sds"
+    parities = (None, "lammps")
+    stiffness_mode = STIFFNESS_GIVEN
+    damping_mode = DAMPING_GIVEN
+
+    def __init__(self, rolling_stiffness, rolling_damping=0.0, parity=None):
+        super().__init__(parity, None)
+        self.rolling_stiffness = check_positive("sds rolling_stiffness", rolling_stiffness, "N/m")
+        self.rolling_damping = check_non_negative("sds rolling_damping", rolling_damping, "N s/m")
+
+    def stiffness_coefficient(self):
+        return self.rolling_stiffness
+
+    def damping_value(self, pair):
+        return self.rolling_damping
+
+    def parameters(self):
+        return {"rolling_stiffness": self.rolling_stiffness, "rolling_damping": self.rolling_damping,
+                "parity": self.parity}
+
+
+class DisplacementDamping(_SpringRolling):
+    """STAR-CCM+ Displacement Damping (seed 004; MODELS_CONTACTS.md §3.3): spring torque with
+    k_r = mu_r R* F_n / theta_max, so that it mobilises at theta_max, plus an optional viscous
+    damper nu 2 sqrt(I_r k_r), multiplied by f at full mobilisation.
+
+    theta_max: (rad), > 0; STAR's default 0.035.  damping: nu (-), >= 0, 0 = damper off.
+    slip_damping: f (-), >= 0.
+    """
+
+    name = "displacement_damping"
+    parities = (None,)
+    stiffness_mode = STIFFNESS_MOBILISED
+
+    def __init__(self, theta_max=0.035, damping=0.0, slip_damping=1.0):
+        super().__init__(None, slip_damping)
+        self.theta_max = check_positive("displacement_damping theta_max", theta_max, "rad")
+        self.damping = check_non_negative("displacement_damping damping", damping)
+
+    def stiffness_coefficient(self):
+        return self.theta_max
+
+    def damping_value(self, pair):
+        return self.damping
+
+    def parameters(self):
+        return {"theta_max": self.theta_max, "damping": self.damping, "slip_damping": self.slip_damping}
+
+
+@njit(cache=True)
+def force_proportional_moment(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz,
+                              lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
+    """STAR-CCM+ Force Proportional (seed 004, eq. 3275): each particle's own in-plane spin is
+    opposed by mu_r |F_n| |r_c| omega_p / |omega_p|, |r_c| = R' (centre to contact point).
+    Not objective (a rigidly co-rotating pair is braked: MODELS.md §11.1); offered for parity."""
+    f = max(force_elastic, 0.0) * p[P_ROLLING_FRICTION]
+    wn = wix * nx + wiy * ny + wiz * nz
+    ax = wix - wn * nx
+    ay = wiy - wn * ny
+    az = wiz - wn * nz
+    a = math.sqrt(ax * ax + ay * ay + az * az)
+    si = f * lever_i / a if a > 0.0 else 0.0
+    wn = wjx * nx + wjy * ny + wjz * nz
+    bx = wjx - wn * nx
+    by = wjy - wn * ny
+    bz = wjz - wn * nz
+    b = math.sqrt(bx * bx + by * by + bz * bz)
+    sj = -f * lever_j / b if b > 0.0 else 0.0
+    dissipated = (si * a * a - sj * b * b) * dt
+    return si * ax, si * ay, si * az, sj * bx, sj * by, sj * bz, dissipated
+
+
+class ForceProportional(SubModel):
+    """STAR-CCM+ Force Proportional method (its default rolling resistance; STAR's default mu_r 0.001)."""
+
+    slot = "rolling"
+    name = "force_proportional"
+    kernel = ("rollingdem.contact.rolling", "force_proportional_moment")
+
+
+@njit(cache=True)
+def viscous_moment(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz,
+                   lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
+    """Viscous rolling resistance, Ai type B (Zhou et al. 1999 eq. 4): M = c_v F_n (R* |dw_r|) dw_r/|dw_r|
+    = c_v F_n R* dw_r, c_v in s; in the Kratos/Lethe form one more factor R* (c_v in s/m).
+    It vanishes at rest: it cannot hold a static pile (MODELS.md §13 T5)."""
+    rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
+    s = p[poff] * max(force_elastic, 0.0) * r_eff
+    if p[poff + 1] > 0.0:
+        s *= r_eff
+    return s * rx, s * ry, s * rz, s * rx, s * ry, s * rz, s * (rx * rx + ry * ry + rz * rz) * dt
+
+
+class Viscous(SubModel):
+    """Viscous rolling resistance (Ai type B).
+
+    coefficient: c_v (s for form="zhou", s/m for form="kratos"), >= 0.
+    """
+
+    slot = "rolling"
+    name = "viscous"
+    kernel = ("rollingdem.contact.rolling", "viscous_moment")
+
+    def __init__(self, coefficient=0.0, form="zhou"):
+        self.coefficient = check_non_negative("viscous coefficient", coefficient, "s" if form == "zhou" else "s/m")
+        if form not in ("zhou", "kratos"):
+            raise ParameterError(f"viscous form = {form!r} is not known: allowed are 'zhou', 'kratos'")
+        self.form = form
+
+    def pair_parameters(self, pair):
+        return (self.coefficient, 1.0 if self.form == "kratos" else 0.0)
+
+    def parameters(self):
+        return {"coefficient": self.coefficient, "form": self.form}

@@ -7,7 +7,7 @@ import numba as _numba
 _numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 from .contact import (CDT, EPSD, EPSD2, EPSD3, SDS, DisplacementDamping, ForceProportional, RRLinear,  # noqa: E402
-                      Viscous)
+                      Marshall, TwistingSDS, Viscous)
 from .contact import ContactModel, Hertz, HistorySpring, Hooke, Linear, NoRolling, NoTwisting  # noqa: E402,E501
 from .errors import ParameterError, SimulationError  # noqa: E402
 from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform  # noqa: E402
@@ -20,6 +20,6 @@ from .walls import Cylinder, Plane  # noqa: E402
 __all__ = [
     "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "Hertz", "Hooke", "Linear",
     "HistorySpring", "NoRolling", "CDT", "EPSD", "EPSD2", "EPSD3", "RRLinear", "SDS", "DisplacementDamping",
-    "ForceProportional", "Viscous", "NoTwisting", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback",
+    "ForceProportional", "Viscous", "NoTwisting", "Marshall", "TwistingSDS", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback",
     "Observer", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "Discrete", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
 ]

@@ -11,9 +11,12 @@ The twisting moment acts as -m_twist n on particle i and +m_twist n on particle 
 
 from __future__ import annotations
 
+import math
+
 from numba import njit
 
-from .base import SubModel
+from ..errors import check_non_negative, check_positive
+from .base import P_FRICTION, SubModel
 
 
 @njit(cache=True)
@@ -29,3 +32,71 @@ class NoTwisting(SubModel):
     slot = "twisting"
     name = "none"
     kernel = ("rollingdem.contact.twisting", "no_twisting")
+
+
+@njit(cache=True)
+def spring_twisting(hist, k, off, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
+                    force_total, dt, p, poff):
+    """Twisting spring-dashpot-slider (LAMMPS ``twisting sds`` / ``marshall``, MODELS.md §4.8).
+
+    Omega_tw = (omega_i - omega_j) . n;  xi += Omega_tw dt;  M = k_tw xi + gamma_tw Omega_tw;
+    |M| <= mu_tw max(F_n,el, 0), and at the cap the spring is backed out: xi = (M - gamma_tw Omega_tw)/k_tw.
+    Marshall (2009): k_tw = k_t a^2 / 2, gamma_tw = gamma_t a^2 / 2, mu_tw = 2/3 a mu, a = sqrt(R* delta).
+    """
+    spin = dwx * nx + dwy * ny + dwz * nz
+    if p[poff] > 0.0:  # marshall
+        a2 = r_eff * overlap
+        k_tw = 0.5 * kt * a2
+        g_tw = 0.5 * gamma_t * a2
+        limit = (2.0 / 3.0) * math.sqrt(a2) * p[P_FRICTION] * max(force_elastic, 0.0)
+    else:
+        k_tw = p[poff + 1]
+        g_tw = p[poff + 2]
+        limit = p[poff + 3] * max(force_elastic, 0.0)
+    xi = hist[k, off]
+    stored_before = 0.5 * k_tw * xi * xi
+    xi += spin * dt
+    moment = k_tw * xi + g_tw * spin
+    if abs(moment) > limit:
+        moment = limit if moment > 0.0 else -limit
+        xi = (moment - g_tw * spin) / k_tw if k_tw > 0.0 else 0.0
+    hist[k, off] = xi
+    return moment, moment * spin * dt - (0.5 * k_tw * xi * xi - stored_before)
+
+
+class Marshall(SubModel):
+    """Twisting after Marshall (2009), as LAMMPS ``twisting marshall``: constants from the tangential
+    model and the contact radius a = sqrt(R* delta); no parameters of its own."""
+
+    slot = "twisting"
+    name = "marshall"
+    history_size = 1
+    kernel = ("rollingdem.contact.twisting", "spring_twisting")
+
+    def pair_parameters(self, pair):
+        return (1.0, 0.0, 0.0, 0.0)
+
+
+class TwistingSDS(SubModel):
+    """Twisting spring-dashpot-slider with given constants, as LAMMPS ``twisting sds``.
+
+    twisting_stiffness: k_tw (N m/rad), > 0.  twisting_damping: gamma_tw (N m s/rad), >= 0.
+    twisting_friction: mu_tw (m), >= 0: the moment is capped at mu_tw F_n.
+    """
+
+    slot = "twisting"
+    name = "sds"
+    history_size = 1
+    kernel = ("rollingdem.contact.twisting", "spring_twisting")
+
+    def __init__(self, twisting_stiffness, twisting_damping=0.0, twisting_friction=0.0):
+        self.twisting_stiffness = check_positive("twisting sds twisting_stiffness", twisting_stiffness, "N m/rad")
+        self.twisting_damping = check_non_negative("twisting sds twisting_damping", twisting_damping, "N m s/rad")
+        self.twisting_friction = check_non_negative("twisting sds twisting_friction", twisting_friction, "m")
+
+    def pair_parameters(self, pair):
+        return (0.0, self.twisting_stiffness, self.twisting_damping, self.twisting_friction)
+
+    def parameters(self):
+        return {"twisting_stiffness": self.twisting_stiffness, "twisting_damping": self.twisting_damping,
+                "twisting_friction": self.twisting_friction}

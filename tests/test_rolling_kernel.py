@@ -1,0 +1,125 @@
+"""The rolling kernel on its own (MODELS.md §13 T6): frame carrying, the moment limit, objectivity."""
+
+import math
+
+import numpy as np
+import pytest
+
+import rollingdem as rd
+from rollingdem.contact.rolling import spring_rolling
+
+R_EFF = 0.0025
+KN, KT = 2e4, 2e4 * 2 / 7
+F_EL = 1.0
+MU_R = 0.2
+M_MAX = MU_R * R_EFF * F_EL
+I_R = 1.4 * 1e-3 * 0.005 ** 2 / 2
+
+
+def params(model, mu_r=MU_R, eta=0.3):
+    mat = rd.Material("m", 40e6, 0.49, 1056, rolling_friction=mu_r, rolling_damping=eta)
+    cm = rd.ContactModel("hertz", rolling=model)
+    table = rd.MaterialTable()
+    table.add(mat)
+    return cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"]
+
+
+def step(model_params, hist, n, n_old, wi, wj, dt=1e-5, spin=0.0, f_total=None):
+    p, off = model_params
+    res = spring_rolling(hist, 0, 0, n[0], n[1], n[2], n_old[0], n_old[1], n_old[2], spin, wi[0], wi[1], wi[2],
+                         wj[0], wj[1], wj[2], R_EFF, R_EFF, KN, KT, F_EL, F_EL if f_total is None else f_total,
+                         R_EFF, I_R, dt, p, off)
+    return np.array(res[:3]), np.array(res[3:6]), res[6]
+
+
+def load_to_half_limit(model_params, n):
+    """Bend the contact about x (normal z) until the spring holds 0.5 M_m; return the history."""
+    hist = np.zeros((1, 3))
+    k_r = KT * R_EFF ** 2
+    rate = 1.0
+    steps = int(round(0.5 * M_MAX / (k_r * rate * 1e-5)))
+    for _ in range(steps):
+        step(model_params, hist, n, n, (rate, 0, 0), (0, 0, 0))
+    return hist
+
+
+@pytest.mark.parametrize("parity,keeps_frame", [(None, True), ("liggghts", False)])
+def test_frame_rotated_by_90_degrees(parity, keeps_frame):
+    """T6(d): turn a loaded contact by 90 deg about y in 900 steps with no relative rotation. The
+    recommended history turns with it (|M| kept, M . n = 0, M along the rotated direction); the
+    LIGGGHTS-style global history stays put and ends up along the normal: a spurious twist."""
+    p = params(rd.EPSD2(parity=parity))
+    n = np.array([0.0, 0.0, 1.0])
+    hist = load_to_half_limit(p, n)
+    m0 = hist[0].copy()
+    assert np.linalg.norm(m0) == pytest.approx(0.5 * M_MAX, rel=0.01)
+    nsteps = 900
+    for k in range(nsteps):
+        a_old, a_new = math.pi / 2 * k / nsteps, math.pi / 2 * (k + 1) / nsteps
+        n_old = np.array([math.sin(a_old), 0.0, math.cos(a_old)])
+        n_new = np.array([math.sin(a_new), 0.0, math.cos(a_new)])
+        mi, mj, _ = step(p, hist, n_new, n_old, (0, 0, 0), (0, 0, 0))
+    n_end = np.array([1.0, 0.0, 0.0])
+    if keeps_frame:
+        assert np.linalg.norm(mi) == pytest.approx(np.linalg.norm(m0), rel=1e-9)
+        assert abs(mi @ n_end) < 1e-9 * np.linalg.norm(m0)
+        # loaded about x; the 90 deg turn about y carries x to -z, so the moment must now point along -z
+        np.testing.assert_allclose(mi / np.linalg.norm(mi), [0, 0, -1], atol=1e-9)
+    else:
+        assert abs(mi @ n_end) == pytest.approx(np.linalg.norm(m0), rel=1e-9)
+
+
+@pytest.mark.parametrize("model,bounded", [(rd.EPSD(), True), (rd.EPSD(parity="liggghts"), False)])
+def test_moment_never_exceeds_limit_at_onset(model, bounded):
+    """T6(e): a fresh contact with a large relative rotation (200 rad/s). The recommended EPSD caps
+    spring + dashpot at M_m; LIGGGHTS caps only the spring and the dashpot spikes far above."""
+    p = params(model)
+    n = np.array([0.0, 0.0, 1.0])
+    hist = np.zeros((1, 3))
+    worst = 0.0
+    for _ in range(50):
+        mi, mj, _ = step(p, hist, n, n, (200.0, 0, 0), (0, 0, 0))
+        np.testing.assert_array_equal(mi, mj)  # a pure couple
+        worst = max(worst, np.linalg.norm(mi))
+    if bounded:
+        assert worst <= M_MAX * (1 + 1e-12)
+    else:
+        assert worst > 2 * M_MAX
+
+
+@pytest.mark.parametrize("model", ["cdt", "epsd", "epsd2", "epsd3", "rrlinear", "viscous",
+                                   {"model": "sds", "rolling_stiffness": 1e4},
+                                   {"model": "displacement_damping", "damping": 0.3}])
+def test_objectivity_rigid_corotation_gives_no_moment(model):
+    """T6(c): both partners spin with the same omega and the normal turns with them: no moment."""
+    mat = rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2, rolling_damping=0.3)
+    cm = rd.ContactModel("hertz", rolling=model)
+    table = rd.MaterialTable()
+    table.add(mat)
+    p, off = cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"]
+    kern = cm.kernel().rolling_moment
+    hist = np.zeros((1, 3))
+    omega = np.array([3.0, -2.0, 5.0])
+    dt = 1e-4
+    n_old = np.array([0.0, 0.0, 1.0])
+    for _ in range(100):
+        # rotate n by omega dt (rigid rotation of the pair)
+        th = np.linalg.norm(omega) * dt
+        axis = omega / np.linalg.norm(omega)
+        n = (n_old * math.cos(th) + np.cross(axis, n_old) * math.sin(th)
+             + axis * (axis @ n_old) * (1 - math.cos(th)))
+        res = kern(hist, 0, 0, *n, *n_old, 0.5 * 2 * (omega @ n) * dt, *omega, *omega, R_EFF, R_EFF, KN, KT,
+                   F_EL, F_EL, R_EFF, I_R, dt, p, off)
+        assert np.abs(res[:6]).max() == 0.0
+        n_old = n
+
+
+def test_force_proportional_is_not_objective():
+    """The STAR-CCM+ Force Proportional method brakes a rigidly co-rotating pair (MODELS.md §11.1)."""
+    cm = rd.ContactModel("hertz", rolling="force_proportional")
+    table = rd.MaterialTable()
+    table.add(rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2))
+    p, off = cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"]
+    res = cm.kernel().rolling_moment(np.zeros((1, 3)), 0, 0, 0, 0, 1.0, 0, 0, 1.0, 0.0, 3.0, 0, 0, 3.0, 0, 0,
+                                     R_EFF, R_EFF, KN, KT, F_EL, F_EL, R_EFF, I_R, 1e-5, p, off)
+    assert res[0] == pytest.approx(MU_R * F_EL * R_EFF) and res[3] == pytest.approx(-MU_R * F_EL * R_EFF)

@@ -338,6 +338,31 @@ def kick_drift(dt, x, v, w, f, t, mass, inertia):
 
 
 @njit(cache=True)
+def _rebuild(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist, cell_start,
+             cell_items, cell_of, counts, x_ref, info):
+    total = rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
+                                  new_hist, cell_start, cell_items, cell_of, counts, x_ref)
+    if total < 0:
+        info[I_STATUS] = STATUS_CAPACITY
+        info[I_NEEDED] = -total
+        return False
+    info[I_REBUILDS] += 1
+    return True
+
+
+@njit(cache=True)
+def _forces(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
+            wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start, tr_k,
+            x_ref, half_skin, energy, contacts, info):
+    pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
+                pair_torque_j, energy, contacts)
+    info[I_NEED_REBUILD], info[I_TOO_FAST] = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
+                                                    pair_params, tr_start, tr_k, pair_force, pair_torque_j,
+                                                    wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+                                                    energy, contacts, x_ref, half_skin)
+
+
+@njit(cache=True)
 def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
             wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
             nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start, tr_k,
@@ -350,18 +375,12 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
-        total = rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
-                                      new_hist, cell_start, cell_items, cell_of, counts, x_ref)
-        if total < 0:
-            info[I_STATUS] = STATUS_CAPACITY
-            info[I_NEEDED] = -total
+        if not _rebuild(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist,
+                        cell_start, cell_items, cell_of, counts, x_ref, info):
             return
-        info[I_REBUILDS] += 1
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
-                    pair_torque_j, energy, contacts)
-        info[I_NEED_REBUILD], info[I_TOO_FAST] = gather(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-                                      tr_start, tr_k, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
-                                      wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+        _forces(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
+                wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start,
+                tr_k, x_ref, half_skin, energy, contacts, info)
         info[I_FORCES_VALID] = 1
     for step in range(nsteps):
         if info[I_TOO_FAST] > 0:
@@ -369,20 +388,14 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
             info[I_STATUS] = STATUS_TOO_FAST
             return
         if info[I_NEED_REBUILD] > 0:
-            total = rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
-                                          new_hist, cell_start, cell_items, cell_of, counts, x_ref)
-            if total < 0:
-                info[I_STATUS] = STATUS_CAPACITY
-                info[I_NEEDED] = -total
+            if not _rebuild(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist,
+                            cell_start, cell_items, cell_of, counts, x_ref, info):
                 return
-            info[I_REBUILDS] += 1
         kick_drift(dt, x, v, w, f, t, mass, inertia)
         for wl in range(wall_kind.shape[0]):
             for d in range(3):
                 wall_geom[wl, d] += dt * wall_vel[wl, d]
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
-                    pair_torque_j, energy, contacts)
-        info[I_NEED_REBUILD], info[I_TOO_FAST] = gather(dt, True, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-                                      tr_start, tr_k, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
-                                      wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+        _forces(dt, True, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
+                wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start,
+                tr_k, x_ref, half_skin, energy, contacts, info)
         info[I_STEPS_DONE] = step + 1

@@ -26,6 +26,7 @@ import math
 import numpy as np
 
 from .errors import ParameterError, check_finite, check_non_negative, check_positive, check_vector
+from .walls import wall_overlap
 
 MAX_PACKING_FRACTION = 0.55
 """Requests above this packing fraction are refused before any attempt (random insertion tops out
@@ -302,18 +303,6 @@ def _check_count(name, value) -> int:
     return v
 
 
-def _wall_overlap(geom: np.ndarray, kind: int, x: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Overlap (m) of each sphere with a wall; > 0 means overlap (same rule as Simulation.add_particles)."""
-    if kind == 0:
-        return r - (x - geom[0:3]) @ geom[3:6]
-    d = x - geom[0:3]
-    s = d @ geom[3:6]
-    q = d - s[:, None] * geom[3:6]
-    ov = np.linalg.norm(q, axis=1) + r - geom[6]
-    ov[(s < geom[7]) | (s > geom[8])] = -1.0
-    return ov
-
-
 class _FreeCells:
     """Cells that may still hold a free centre for the smallest radius ``rho0`` (all cells one size).
 
@@ -575,7 +564,7 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
                 full = True
             ok = region.contains(xc, rc)
         for g, kind in wall_geom:
-            ok &= _wall_overlap(g, kind, xc, rc) <= 0.0
+            ok &= wall_overlap(g, kind, xc, rc) <= 0.0
         # Against everything placed before this round.
         all_x = np.concatenate([fixed_x, new_x[:n_new]]) if n_new else fixed_x
         all_r = np.concatenate([fixed_r, new_r[:n_new]]) if n_new else fixed_r

@@ -71,14 +71,16 @@ def _grid(x, radius, skin, max_cells):
 
 
 @njit(cache=True, parallel=True)
-def _count_pairs(x, radius, skin, lo, dims, cell, cell_start, cell_items, cell_of, counts):
+def _scan_pairs(x, radius, skin, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, fill):
+    """For each i, the j > i in the 27 surrounding cells with |x_i - x_j| < R_i + R_j + skin: counted
+    into ``counts`` (fill = False) or written, sorted, into its row of ``new_j`` (fill = True)."""
     n = x.shape[0]
     for i in prange(n):
         c = cell_of[i]
         cx = c % dims[0]
         cy = (c // dims[0]) % dims[1]
         cz = c // (dims[0] * dims[1])
-        cnt = 0
+        k = new_start[i] if fill else 0
         for dz in range(-1, 2):
             z = cz + dz
             if z < 0 or z >= dims[2]:
@@ -101,43 +103,12 @@ def _count_pairs(x, radius, skin, lo, dims, cell, cell_start, cell_items, cell_o
                         ddy = x[i, 1] - x[j, 1]
                         ddz = x[i, 2] - x[j, 2]
                         if ddx * ddx + ddy * ddy + ddz * ddz < cut * cut:
-                            cnt += 1
-        counts[i] = cnt
-
-
-@njit(cache=True, parallel=True)
-def _fill_pairs(x, radius, skin, lo, dims, cell, cell_start, cell_items, cell_of, new_start, new_j):
-    n = x.shape[0]
-    for i in prange(n):
-        c = cell_of[i]
-        cx = c % dims[0]
-        cy = (c // dims[0]) % dims[1]
-        cz = c // (dims[0] * dims[1])
-        k = new_start[i]
-        for dz in range(-1, 2):
-            z = cz + dz
-            if z < 0 or z >= dims[2]:
-                continue
-            for dy in range(-1, 2):
-                y = cy + dy
-                if y < 0 or y >= dims[1]:
-                    continue
-                for dx in range(-1, 2):
-                    xx = cx + dx
-                    if xx < 0 or xx >= dims[0]:
-                        continue
-                    cc = (z * dims[1] + y) * dims[0] + xx
-                    for m in range(cell_start[cc], cell_start[cc + 1]):
-                        j = cell_items[m]
-                        if j <= i:
-                            continue
-                        cut = radius[i] + radius[j] + skin
-                        ddx = x[i, 0] - x[j, 0]
-                        ddy = x[i, 1] - x[j, 1]
-                        ddz = x[i, 2] - x[j, 2]
-                        if ddx * ddx + ddy * ddy + ddz * ddz < cut * cut:
-                            new_j[k] = j
+                            if fill:
+                                new_j[k] = j
                             k += 1
+        if not fill:
+            counts[i] = k
+            continue
         # insertion sort of the row: rows are short
         a = new_start[i]
         for p in range(a + 1, k):
@@ -203,14 +174,14 @@ def rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k,
     max_cells = cell_start.shape[0] - 1
     lo, dims, cell = _grid(x, radius, skin, max_cells)
     _bin_particles(x, cell, lo, dims, cell_start, cell_items, cell_of)
-    _count_pairs(x, radius, skin, lo, dims, cell, cell_start, cell_items, cell_of, counts)
+    _scan_pairs(x, radius, skin, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, False)
     new_start[0] = 0
     for i in range(n):
         new_start[i + 1] = new_start[i] + counts[i]
     total = new_start[n]
     if total > nl_j.shape[0]:
         return -total
-    _fill_pairs(x, radius, skin, lo, dims, cell, cell_start, cell_items, cell_of, new_start, new_j)
+    _scan_pairs(x, radius, skin, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, True)
     _carry_history(n, nl_start, nl_j, hist, new_start, new_j, new_hist)
     width = hist.shape[1]
     for i in range(n + 1):

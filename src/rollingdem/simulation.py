@@ -22,7 +22,7 @@ from .errors import ParameterError, SimulationError, check_finite, check_positiv
 from .materials import Material, MaterialTable
 from .timestep import (HERTZ_FRACTION, RAYLEIGH_FRACTION, SPRING_FRACTION, hertz_contact_time,
                        rayleigh_time_step, spring_period)
-from .walls import INACTIVE, Wall, wall_from_dict
+from .walls import INACTIVE, Wall, wall_from_dict, wall_overlap
 
 __version__ = "0.1.0"
 SOLID_SPHERE = 0.4  # I = 2/5 m R^2
@@ -166,7 +166,7 @@ class Simulation:
         for wl in self._walls:
             if wl.kind == INACTIVE:
                 continue
-            ov = _wall_overlap(wl, x, r)
+            ov = wall_overlap(wl.geometry(), wl.kind, x, r)
             k = int(np.argmax(ov)) if len(ov) else 0
             if len(ov) and ov[k] > tolerance * r[k]:
                 raise ParameterError(f"particle {first + k} overlaps wall {self._wall_label(wl)} by {ov[k]:.3g} m "
@@ -489,18 +489,6 @@ class _Removed(Wall):
 
     def __init__(self):
         super().__init__(None)
-
-
-def _wall_overlap(wall, x, r) -> np.ndarray:
-    g = wall.geometry()
-    if wall.kind == 0:
-        return r - (x - g[0:3]) @ g[3:6]
-    d = x - g[0:3]
-    s = d @ g[3:6]
-    q = d - s[:, None] * g[3:6]
-    ov = np.linalg.norm(q, axis=1) + r - g[6]
-    ov[(s < g[7]) | (s > g[8])] = -1.0
-    return ov
 
 
 class _Progress:

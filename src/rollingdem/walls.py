@@ -110,6 +110,24 @@ class Cylinder(Wall):
                 "angular_velocity": list(self.angular_velocity)}
 
 
+def wall_overlap(geometry: np.ndarray, kind: int, x: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Overlap (m) of spheres (centres x, radii r) with a wall; > 0 means they overlap.
+
+    The same rule as the kernel: a plane is a half-space, a cylinder holds particles inside within
+    its axial extent.
+    """
+    if kind == PLANE:
+        return r - (x - geometry[0:3]) @ geometry[3:6]
+    if kind != CYLINDER:
+        return np.full(len(r), -1.0)
+    d = x - geometry[0:3]
+    s = d @ geometry[3:6]
+    q = d - s[:, None] * geometry[3:6]
+    ov = np.linalg.norm(q, axis=1) + r - geometry[6]
+    ov[(s < geometry[7]) | (s > geometry[8])] = -1.0
+    return ov
+
+
 def wall_from_dict(d: dict, material) -> Wall:
     d = dict(d)
     kind = d.pop("type")

@@ -173,3 +173,20 @@ def test_pair_override_validated():
     sim.set_pair("m", "m", friction=0.3)
     assert sim.materials.pair(0, 0).friction == 0.3
     assert np.isclose(sim.pair_parameters()[0, 0, 2], 0.3)
+
+
+def test_rotational_springs_enter_the_time_step_check():
+    """MODELS.md §2: every rolling and twisting spring must be resolved; the Iwashita-Oda spring
+    (k_t R*^2) never limits dt, a stiff LAMMPS sds spring does."""
+    def limits(rolling):
+        sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling=rolling, twisting="marshall"), dt=1e-5)
+        sim.add_material(material(rolling_friction=0.2))
+        sim.add_particles([[0, 0, 0]], R, "m")
+        return sim, dict((label.split(" period")[0], v) for label, v in sim.time_step_limits())
+
+    sim, lim = limits("epsd2")
+    assert lim["rolling spring (epsd2)"] > sim.stable_time_step() == pytest.approx(2.913e-5, rel=1e-3)
+    assert "twisting spring (marshall)" in lim
+    sim, lim = limits({"model": "sds", "rolling_stiffness": 1e9})
+    with pytest.raises(rd.ParameterError, match=r"dt = 1e-05 s exceeds .*rolling spring \(sds\)"):
+        sim.run(steps=1)

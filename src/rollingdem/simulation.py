@@ -323,18 +323,34 @@ class Simulation:
                 if vmax > 0:
                     t_h = hertz_contact_time(m_eff, r_eff, row[0], vmax)
                     limits.append((f"Hertz time {t_h:.4g} s / 20 at impact speed {vmax:.3g} m/s", HERTZ_FRACTION * t_h))
+            kern = self.contact.normal
+            if normal == "hertz":
+                # rotational springs are checked at a generous overlap of 1 % of R_min, where the
+                # Hertz stiffnesses (growing as sqrt(overlap)) are larger than in any sane packing
+                overlap = 0.01 * rmin
+                a = math.sqrt(r_eff * overlap)
+                kn, kt = 4.0 / 3.0 * row[0] * a, 8.0 * row[1] * a
+            elif normal == "hooke":
+                vc = kern.characteristic_velocity
+                e = row[0]
+                kn = (16 / 15) * math.sqrt(r_eff) * e * (15 * m_eff * vc ** 2 / (16 * math.sqrt(r_eff) * e)) ** 0.2
+                kt = kern.tangential_stiffness_ratio * kn
+                overlap = math.sqrt(m_eff / kn)  # peak overlap of an impact at 1 m/s
             else:
-                kern = self.contact.normal
-                if normal == "hooke":
-                    vc = kern.characteristic_velocity
-                    e = row[0]
-                    kn = (16 / 15) * math.sqrt(r_eff) * e * (15 * m_eff * vc ** 2 / (16 * math.sqrt(r_eff) * e)) ** 0.2
-                    kt = kern.tangential_stiffness_ratio * kn
-                else:
-                    kn, kt = kern.normal_stiffness, kern.shear_stiffness
+                kn, kt = kern.normal_stiffness, kern.shear_stiffness
+                overlap = math.sqrt(m_eff / kn)
+            if normal != "hertz":
                 for label, stiff in (("normal", kn), ("tangential", kt)):
                     per = spring_period(stiff, m_eff)
                     limits.append((f"{label} spring period {per:.4g} s / 10", SPRING_FRACTION * per))
+            pair = self.materials.pair(k, k)
+            inertia = SOLID_SPHERE * mmin * rmin ** 2
+            for sub in (self.contact.rolling, self.contact.twisting):
+                k_rot = sub.rotational_stiffness(kn, kt, r_eff, overlap, kn * overlap, pair)
+                if k_rot > 0:
+                    # worst case, centres held: omega^2 = k_rot (1/I_i + 1/I_j)
+                    per = 2.0 * math.pi / math.sqrt(k_rot * 2.0 / inertia)
+                    limits.append((f"{sub.slot} spring ({sub.name}) period {per:.4g} s / 10", SPRING_FRACTION * per))
         return limits
 
     def stable_time_step(self) -> float:

@@ -60,6 +60,12 @@ class SubModel:
         """The constructor arguments, for case files and checkpoints."""
         return {}
 
+    def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force,
+                             pair) -> float:
+        """Stiffness (N m/rad) of this sub-model's rotational spring at the given contact state, for
+        the time-step check (MODELS.md §2); 0 when it has none."""
+        return 0.0
+
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self.parameters().items())
         return f"{type(self).__name__}({args})"

@@ -246,6 +246,16 @@ class _SpringRolling(SubModel):
     def damping_value(self, pair) -> float:
         return 0.0
 
+    def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force, pair):
+        c = self.stiffness_coefficient()
+        if self.stiffness_mode == STIFFNESS_NORMAL:
+            return c * normal_stiffness * pair.rolling_friction ** 2 * r_eff ** 2
+        if self.stiffness_mode == STIFFNESS_TANGENTIAL:
+            return c * tangential_stiffness * r_eff ** 2
+        if self.stiffness_mode == STIFFNESS_GIVEN:
+            return c * r_eff ** 2
+        return pair.rolling_friction * r_eff * normal_force / c
+
     def pair_parameters(self, pair):
         cap, force, history = self._modes
         return (float(self.stiffness_mode), self.stiffness_coefficient(), float(self.damping_mode),

@@ -76,6 +76,9 @@ class Marshall(SubModel):
     def pair_parameters(self, pair):
         return (1.0, 0.0, 0.0, 0.0)
 
+    def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force, pair):
+        return 0.5 * tangential_stiffness * r_eff * overlap
+
 
 class TwistingSDS(SubModel):
     """Twisting spring-dashpot-slider with given constants, as LAMMPS ``twisting sds``.
@@ -96,6 +99,9 @@ class TwistingSDS(SubModel):
 
     def pair_parameters(self, pair):
         return (0.0, self.twisting_stiffness, self.twisting_damping, self.twisting_friction)
+
+    def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force, pair):
+        return self.twisting_stiffness
 
     def parameters(self):
         return {"twisting_stiffness": self.twisting_stiffness, "twisting_damping": self.twisting_damping,

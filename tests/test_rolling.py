@@ -19,12 +19,17 @@ def launch_on_flat(rolling, table1, v0=1.0, duration=0.7):
     x0, t0 = sim.positions[0, 0], sim.time
     sim.set_velocities([0], velocity=(v0, 0, 0), angular_velocity=(0, 0, 0))
     ts, xs, vs = [], [], []
+    launch_dissipation.clear()
     for _ in range(int(round(duration / 1e-4))):
         sim.run(steps=10)
         ts.append(sim.time - t0)
         xs.append(sim.positions[0, 0] - x0)
         vs.append(sim.velocities[0, 0])
+        launch_dissipation.append(sim.dissipated_energy()["rolling"])
     return np.array(ts), np.array(xs), np.array(vs)
+
+
+launch_dissipation: list[float] = []
 
 
 def analytic_t2(v0=1.0):
@@ -56,6 +61,16 @@ def test_epsd_holds_the_sphere_still_after_stopping(table1):
     """The damped spring (eta_r = 0.3) brings the sphere to rest; CDT keeps chattering (§11.6)."""
     ts, xs, vs = launch_on_flat("epsd", table1)
     assert np.abs(vs[ts > 0.6]).max() < 1e-9
+    # T6(a): the energy the rolling couple dissipated (work minus stored spring energy) does not fall.
+    # Measured: the only dip, 0.1 % of the total, is at the end of slip (t1 = 44 ms), where the spring
+    # backed out of the dashpot at the cap (M_k = M - C_r dw_r) hands stored energy back; 0.3 % allowed
+    rolled = np.array(launch_dissipation)
+    assert np.diff(rolled).min() > -3e-3 * rolled[-1]
+    # and at the end it is the kinetic energy lost while rolling: (7/10) m v1^2 of the rolling phase
+    # is shared with sliding only before t1, so the rolling share is at least the rolling-phase energy
+    m = 1056 * 4 / 3 * np.pi * R ** 3
+    v1 = 2.5 * (MU - MU_R) / (3.5 * MU - 2.5 * MU_R)
+    assert rolled[-1] > 0.99 * 0.7 * m * v1 ** 2
     ts, xs, vs = launch_on_flat("cdt", table1)
     assert np.abs(vs[ts > 0.6]).max() > 1e-7
 

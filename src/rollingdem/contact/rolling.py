@@ -126,7 +126,9 @@ def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy
        (f = 1 keeps the damper active at full mobilisation), else M = M_tot, M_k = M_s.
        LIGGGHTS/Ai (CAP_SPRING): the test is on |M_s|; at the cap M = M_m M_s/|M_s| + f C_r dw_r, M_k = M_m M_s/|M_s|;
        below it M = M_s + C_r dw_r, uncapped (the onset spike of §11.5).
-    Dissipation = M . dw_r dt - change of the stored energy |M_k|^2 / (2 k_r).
+    Dissipation: the work of M minus the energy the spring stores (midpoint rule for the elastic
+    trial step, so a purely elastic exchange dissipates only its O(k_r |dw_r|^2 dt^2) residual, never
+    less than zero).
     """
     stiffness_mode = p[poff]
     coefficient = p[poff + 1]
@@ -168,12 +170,10 @@ def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy
         eta = damping if damping >= 0.0 else p[P_ROLLING_DAMPING]
         c_r = eta * 2.0 * math.sqrt(inertia_r * k_r)
 
-    stored_before = 0.0
-    if k_r > 0.0:
-        stored_before = 0.5 * (mkx * mkx + mky * mky + mkz * mkz) / k_r
     sx = mkx + k_r * rx * dt
     sy = mky + k_r * ry * dt
     sz = mkz + k_r * rz * dt
+    trial_x, trial_y, trial_z = sx, sy, sz
     if cap_mode == CAP_TOTAL:
         mx = sx + c_r * rx
         my = sy + c_r * ry
@@ -204,11 +204,14 @@ def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy
     hist[k, off] = sx
     hist[k, off + 1] = sy
     hist[k, off + 2] = sz
-    stored_after = 0.0
+    # The elastic trial step stores exactly the midpoint work 1/2 (M_k + M_trial) . dw_r dt; the rest
+    # of the work done by M, and the spring energy released by the cap, are dissipated.
+    dissipated = ((mx - 0.5 * (mkx + trial_x)) * rx + (my - 0.5 * (mky + trial_y)) * ry
+                  + (mz - 0.5 * (mkz + trial_z)) * rz) * dt
     if k_r > 0.0:
-        stored_after = 0.5 * (sx * sx + sy * sy + sz * sz) / k_r
-    work = (mx * rx + my * ry + mz * rz) * dt
-    return mx, my, mz, mx, my, mz, work - (stored_after - stored_before)
+        dissipated += 0.5 * ((trial_x * trial_x + trial_y * trial_y + trial_z * trial_z)
+                             - (sx * sx + sy * sy + sz * sz)) / k_r
+    return mx, my, mz, mx, my, mz, dissipated
 
 
 _PARITY = {

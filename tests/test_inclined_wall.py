@@ -3,7 +3,6 @@ mu_r >= tan(beta) (MODELS.md §10.1: m g R sin(beta) against mu_r R m g cos(beta
 
 import math
 
-import numpy as np
 import pytest
 
 import rollingdem as rd

@@ -11,11 +11,11 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal, Optional, Union, get_type_hints
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 from .errors import ParameterError
 
@@ -26,15 +26,18 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
-class MaterialSpec(_Strict):
-    name: str
-    youngs_modulus: float
-    poisson_ratio: float
-    density: float
-    friction: float = 0.5
-    rolling_friction: float = 0.0
-    restitution: float = 0.5
-    rolling_damping: float = 0.0
+def _material_spec():
+    """The schema of a material entry, taken from ``Material`` itself (one list of fields and defaults)."""
+    from dataclasses import MISSING, fields
+
+    from .materials import Material
+
+    hints = get_type_hints(Material)
+    spec = {f.name: (hints[f.name], ... if f.default is MISSING else f.default) for f in fields(Material)}
+    return create_model("MaterialSpec", __base__=_Strict, **spec)
+
+
+MaterialSpec = _material_spec()
 
 
 class PairSpec(_Strict):

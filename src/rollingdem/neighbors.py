@@ -18,28 +18,34 @@ from numba import njit, prange
 
 
 @njit(cache=True)
+def _counting_sort(keys, nitems, nkeys, start, items):
+    """Group items 0..nitems-1 by ``keys[item]`` in CSR form (``start``, ``items``); stable, so the
+    items of a group stay in ascending order."""
+    for c in range(nkeys + 1):
+        start[c] = 0
+    for i in range(nitems):
+        start[keys[i] + 1] += 1
+    for c in range(nkeys):
+        start[c + 1] += start[c]
+    for i in range(nitems):  # the group starts serve as cursors ...
+        c = keys[i]
+        items[start[c]] = i
+        start[c] += 1
+    for c in range(nkeys, 0, -1):  # ... and are shifted back afterwards
+        start[c] = start[c - 1]
+    start[0] = 0
+
+
+@njit(cache=True)
 def _bin_particles(x, cell_size, lo, dims, cell_start, cell_items, cell_of):
     """Counting sort of particles into cells; items of a cell in ascending particle index."""
     n = x.shape[0]
-    ncell = dims[0] * dims[1] * dims[2]
-    for c in range(ncell + 1):
-        cell_start[c] = 0
     for i in range(n):
         cx = min(max(int((x[i, 0] - lo[0]) / cell_size), 0), dims[0] - 1)
         cy = min(max(int((x[i, 1] - lo[1]) / cell_size), 0), dims[1] - 1)
         cz = min(max(int((x[i, 2] - lo[2]) / cell_size), 0), dims[2] - 1)
-        c = (cz * dims[1] + cy) * dims[0] + cx
-        cell_of[i] = c
-        cell_start[c + 1] += 1
-    for c in range(ncell):
-        cell_start[c + 1] += cell_start[c]
-    for i in range(n):
-        c = cell_of[i]
-        cell_items[cell_start[c]] = i
-        cell_start[c] += 1
-    for c in range(ncell, 0, -1):
-        cell_start[c] = cell_start[c - 1]
-    cell_start[0] = 0
+        cell_of[i] = (cz * dims[1] + cy) * dims[0] + cx
+    _counting_sort(cell_of, n, dims[0] * dims[1] * dims[2], cell_start, cell_items)
 
 
 @njit(cache=True)
@@ -140,22 +146,8 @@ def _carry_history(n, nl_start, nl_j, hist, new_start, new_j, new_hist):
 
 @njit(cache=True)
 def _transpose(n, nl_start, nl_j, tr_start, tr_k):
-    for i in range(n + 1):
-        tr_start[i] = 0
-    total = nl_start[n]
-    for k in range(total):
-        tr_start[nl_j[k] + 1] += 1
-    for i in range(n):
-        tr_start[i + 1] += tr_start[i]
-    # cursor: reuse the ends, walking i ascending so each row of tr_k is sorted by i
-    for i in range(n):
-        for k in range(nl_start[i], nl_start[i + 1]):
-            j = nl_j[k]
-            tr_k[tr_start[j]] = k
-            tr_start[j] += 1
-    for i in range(n, 0, -1):
-        tr_start[i] = tr_start[i - 1]
-    tr_start[0] = 0
+    """For each particle j, the list entries k with nl_j[k] == j, in ascending k (so ascending i)."""
+    _counting_sort(nl_j, nl_start[n], n, tr_start, tr_k)
 
 
 @njit(cache=True)

@@ -107,3 +107,24 @@ def test_default_case_is_valid():
     sim = build_simulation(spec)
     assert sim.n_particles == 1000 and sim.dt == 1e-5
     assert [w.name for w in sim.walls] == ["plate", "tube"]
+
+
+def test_case_file_selects_rolling_and_twisting_models_with_their_parameters(tmp_path):
+    """Every rolling model and its parity preset are reachable from a case file; a parameter the
+    model does not have is refused with its name, its value and the allowed names."""
+    from rollingdem.casefile import build_simulation, load_case
+
+    case = tmp_path / "models.yaml"
+    contact = ("contact: {normal: hertz, rolling: {model: epsd, parity: liggghts, damping_ratio: 0.1}, "
+               "twisting: marshall}")
+    case.write_text(CASE.replace("contact: {normal: hertz, rolling: cdt}", contact))
+    sim = build_simulation(load_case(case))
+    assert isinstance(sim.contact.rolling, rd.EPSD) and sim.contact.rolling.parity == "liggghts"
+    assert sim.contact.rolling.damping_ratio == 0.1 and isinstance(sim.contact.twisting, rd.Marshall)
+    case.write_text(CASE.replace("rolling: cdt", "rolling: {model: sds, rolling_stifness: 1.0e4}"))
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 2
+    assert "rolling_stifness = 10000.0 is not known" in result.output and "rolling_stiffness" in result.output
+    case.write_text(CASE.replace("rolling: cdt", "rolling: {model: cdt, parity: pfc}"))
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 2 and "cdt parity = 'pfc' is not known" in result.output

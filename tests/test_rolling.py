@@ -46,7 +46,16 @@ def test_analytic_reference_values():
     assert t_stop == pytest.approx(0.50968, abs=1e-5) and s == pytest.approx(0.18836, abs=1e-5)  # MODELS.md §13
 
 
-@pytest.mark.parametrize("rolling,tol", [("cdt", 0.005), ("epsd", 0.005), ("epsd2", 0.01)])
+SLOW = pytest.mark.slow
+
+
+@pytest.mark.parametrize("rolling,tol", [("cdt", 0.005), ("epsd", 0.005), ("epsd2", 0.01),
+                                         pytest.param("epsd3", 0.01, marks=SLOW),
+                                         pytest.param("rrlinear", 0.01, marks=SLOW),
+                                         pytest.param({"model": "sds", "rolling_stiffness": 1e4}, 0.01, marks=SLOW),
+                                         pytest.param({"model": "displacement_damping", "damping": 0.3}, 0.01,
+                                                      marks=SLOW),
+                                         pytest.param({"model": "epsd", "damping_ratio": 0.0}, 0.01, marks=SLOW)])
 def test_rolling_on_flat_stops_where_theory_says(rolling, table1, tol):
     """CDT and (capped-total) EPSD within 0.5 % of the analytic stop, every spring model within 1 %.
     The stop time is read on a 0.1 ms grid (0.02 % of t_stop)."""
@@ -55,6 +64,18 @@ def test_rolling_on_flat_stops_where_theory_says(rolling, table1, tol):
     measured_stop = ts[np.argmax(vs < 1e-3)]  # 1e-3 m/s is 0.7 ms of rolling deceleration before rest
     assert measured_stop == pytest.approx(t_stop, rel=tol)
     assert xs[-1] == pytest.approx(s, rel=tol)
+
+
+def test_liggghts_parity_epsd_stops_short_by_the_dashpot_spike(table1):
+    """MODELS.md §11.5: LIGGGHTS caps only the spring, so at the end of slip the uncapped dashpot
+    adds a moment spike and the sphere stops short (LIGGGHTS: 0.18758 m against 0.18836 m). The
+    parity preset must stop short of the recommended EPSD by more than 0.1 % and land within 0.3 %
+    of LIGGGHTS's distance; 0.3 % because LIGGGHTS's own CDT run already sits 0.13 % short of the
+    analytic distance (0.18811 m), an offset common to its models and not from the rolling law."""
+    _, xs_default, _ = launch_on_flat("epsd", table1)
+    _, xs_parity, _ = launch_on_flat(rd.EPSD(parity="liggghts"), table1)
+    assert xs_parity[-1] < (1 - 1e-3) * xs_default[-1]
+    assert xs_parity[-1] == pytest.approx(0.18758, rel=3e-3)
 
 
 def test_epsd_holds_the_sphere_still_after_stopping(table1):

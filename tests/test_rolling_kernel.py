@@ -123,3 +123,33 @@ def test_force_proportional_is_not_objective():
     res = cm.kernel().rolling_moment(np.zeros((1, 3)), 0, 0, 0, 0, 1.0, 0, 0, 1.0, 0.0, 3.0, 0, 0, 3.0, 0, 0,
                                      R_EFF, R_EFF, KN, KT, F_EL, F_EL, R_EFF, I_R, 1e-5, p, off)
     assert res[0] == pytest.approx(MU_R * F_EL * R_EFF) and res[3] == pytest.approx(-MU_R * F_EL * R_EFF)
+
+
+def cdt_moment(model, n, wi, wj, lever_i=R_EFF, lever_j=R_EFF, r_eff=R_EFF):
+    p, off = params(model)
+    kern = rd.ContactModel("hertz", rolling=model).kernel().rolling_moment
+    res = kern(np.zeros((1, 3)), 0, 0, *n, *n, 0.0, *wi, *wj, lever_i, lever_j, KN, KT, F_EL, F_EL, r_eff, I_R,
+               1e-5, p, off)
+    return np.array(res[:3])
+
+
+def test_liggghts_cdt_normalises_by_the_full_relative_rotation():
+    """MODELS.md §3.2: with a twist equal to the bending rate, LIGGGHTS's CDT moment is
+    M_m |dw_r| / |dw| = M_m / sqrt(2); the documented CDT keeps the full M_m."""
+    n = (0.0, 0.0, 1.0)
+    documented = cdt_moment(rd.CDT(), n, (1.0, 0, 1.0), (0, 0, 0))
+    liggghts = cdt_moment(rd.CDT(parity="liggghts"), n, (1.0, 0, 1.0), (0, 0, 0))
+    np.testing.assert_allclose(documented, [M_MAX, 0, 0], rtol=1e-12)
+    np.testing.assert_allclose(liggghts, [M_MAX / math.sqrt(2), 0, 0], rtol=1e-12)
+
+
+def test_liggghts_cdt_ignores_the_wall_rotation():
+    """A sphere held still on a wall turning about x: the documented CDT resists the relative
+    rotation (M along -x), LIGGGHTS's code sees omega_i = 0 only and gives no moment."""
+    n = (0.0, 0.0, 1.0)
+    radius, overlap = 2 * R_EFF, 1e-6
+    wall = dict(lever_i=radius - overlap, lever_j=0.0, r_eff=radius)
+    documented = cdt_moment(rd.CDT(), n, (0, 0, 0), (2.0, 0, 0), **wall)
+    liggghts = cdt_moment(rd.CDT(parity="liggghts"), n, (0, 0, 0), (2.0, 0, 0), **wall)
+    np.testing.assert_allclose(documented, [-MU_R * radius * F_EL, 0, 0], rtol=1e-12)
+    np.testing.assert_array_equal(liggghts, [0, 0, 0])

@@ -47,11 +47,21 @@ def test_analytic_values():
     assert x_max == pytest.approx(0.104204, abs=2e-6) and t_max == pytest.approx(0.27505, abs=2e-5)
 
 
-@pytest.mark.parametrize("rolling", ["cdt", "epsd", "epsd2"])
+@pytest.mark.parametrize("rolling", ["cdt", "epsd", "epsd2",
+                                     pytest.param("epsd3", marks=pytest.mark.slow),
+                                     pytest.param("rrlinear", marks=pytest.mark.slow),
+                                     pytest.param({"model": "sds", "rolling_stiffness": 2e3}, marks=pytest.mark.slow),
+                                     pytest.param({"model": "displacement_damping", "damping": 0.3},
+                                                  marks=pytest.mark.slow)])
 def test_x_max_and_rest(rolling, table1):
     """x_max within 0.5 % of analytic; EPSD-type springs then hold (drift < 1e-7 m over 1 s)."""
     x_max, t_max = analytic_xmax()
-    ts, xs, drift = roll_up(rolling, table1)
+    # Displacement damping's spring is soft: it mobilises at theta_max = 0.035 rad (0.17 mm of
+    # rolling), omega_r = sqrt(k_r / I_r) = 88 rad/s, and eta = 0.3 settles it as exp(-26 t): after
+    # turning round at the top it still rolls back ~9e-7 m between 0.5 s and 1.5 s. Measured from
+    # 1.5 s, the remaining settling is 1e-11 m, so the 1e-7 m bound tests holding, not settling.
+    hold = 2.2 if isinstance(rolling, dict) and rolling["model"] == "displacement_damping" else 1.2
+    ts, xs, drift = roll_up(rolling, table1, hold=hold)
     assert xs.max() == pytest.approx(x_max, rel=0.005)
     assert ts[np.argmax(xs)] == pytest.approx(t_max, rel=0.01)  # the top is flat: time is less sharp
     if rolling != "cdt":

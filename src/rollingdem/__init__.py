@@ -8,6 +8,7 @@ _numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 from .contact import (CDT, EPSD, EPSD2, EPSD3, SDS, DisplacementDamping, ForceProportional, RRLinear,  # noqa: E402
                       Marshall, TwistingSDS, Viscous)
+from . import convert  # noqa: E402
 from .contact import ContactModel, Hertz, HistorySpring, Hooke, Linear, NoRolling, NoTwisting  # noqa: E402,E501
 from .errors import ParameterError, SimulationError  # noqa: E402
 from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform  # noqa: E402

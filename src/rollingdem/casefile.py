@@ -13,6 +13,8 @@ import time
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union, get_type_hints
 
+import re
+
 import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
@@ -20,6 +22,21 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 from .errors import ParameterError
 
 Vector = tuple[float, float, float]
+
+
+class _YAMLLoader(yaml.SafeLoader):
+    """PyYAML reads YAML 1.1, where 1.0e4 (no exponent sign) is a string; read it as the float
+    every user means (YAML 1.2 rule)."""
+
+
+_YAMLLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                |[-+]?\.(?:inf|Inf|INF)
+                |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
 
 
 class _Strict(BaseModel):
@@ -216,7 +233,7 @@ def load_case(path_or_dict) -> CaseSpec:
 
             data = tomllib.loads(text)
         else:
-            data = yaml.safe_load(text)
+            data = yaml.load(text, Loader=_YAMLLoader)
         if not isinstance(data, dict):
             raise ParameterError(f"case file {source} must hold a mapping of keys, got {type(data).__name__}")
     try:

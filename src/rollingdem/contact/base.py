@@ -17,6 +17,8 @@ follow at an offset the contact model hands to its kernel.
 
 from __future__ import annotations
 
+import inspect
+
 from typing import ClassVar
 
 from ..errors import ParameterError, check_choice
@@ -88,6 +90,11 @@ def make_submodel(slot: str, spec) -> SubModel:
         spec = dict(spec)
         name = spec.pop("model", None)
         check_choice(f"{slot} model", name, registry)
+        allowed = [k for k in inspect.signature(registry[name]).parameters if k != "self"]
+        for key, value in spec.items():
+            if key not in allowed:
+                raise ParameterError(f"{slot} model {name!r}: parameter {key} = {value!r} is not known: "
+                                     f"allowed are {', '.join(allowed) or 'none'}")
         return registry[name](**spec)
     check_choice(f"{slot} model", spec, registry)
     return registry[spec]()

@@ -37,6 +37,19 @@ def relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz):
     return dwx - wn * nx, dwy - wn * ny, dwz - wn * nz
 
 
+@njit(cache=True, inline="always")
+def liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff):
+    """LIGGGHTS 3.8 rotation rates seen by a rolling model (MODELS.md §3.1).
+
+    A wall contact (lever_j = 0, lever_i = R_i - delta) reads omega_i (R_i - delta/2)/(R_i - delta)
+    and never the wall's own angular velocity; a pair is returned unchanged.
+    """
+    if lever_j != 0.0 or lever_i <= 0.0:
+        return wix, wiy, wiz, wjx, wjy, wjz
+    factor = 0.5 * (r_eff + lever_i) / lever_i
+    return factor * wix, factor * wiy, factor * wiz, 0.0, 0.0, 0.0
+
+
 @njit(cache=True)
 def no_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
                lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
@@ -52,12 +65,23 @@ def constant_directional_torque(hist, k, off, nx, ny, nz, onx, ony, onz, spin_an
     M = mu_r R* max(F_n,el, 0) dw_r / |dw_r|, dw_r = dw - (dw . n) n (twist removed), and with the
     optional moment limiter |M| <= f I_r |dw_r| / dt (STAR-CCM+ f = 0.08), so that the torque
     cannot reverse the relative rotation within one step (MODELS.md §11.6).
+    LIGGGHTS parity (p[poff+1] = 1) divides by the full |dw| and projects afterwards, so a twist
+    shrinks the moment by |dw_r|/|dw|, and walls read omega_i (R - delta/2)/(R - delta) without
+    the wall's rotation (MODELS.md §3.2, §12 ``liggghts_cdt``).
     """
+    if p[poff + 1] != 0.0:
+        wix, wiy, wiz, wjx, wjy, wjz = liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff)
     rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
     rate = math.sqrt(rx * rx + ry * ry + rz * rz)
     if rate == 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    moment = p[P_ROLLING_FRICTION] * r_eff * max(force_elastic, 0.0)
+    norm = rate
+    if p[poff + 1] != 0.0:
+        dwx = wix - wjx
+        dwy = wiy - wjy
+        dwz = wiz - wjz
+        norm = math.sqrt(dwx * dwx + dwy * dwy + dwz * dwz)
+    moment = p[P_ROLLING_FRICTION] * r_eff * max(force_elastic, 0.0) * rate / norm
     limiter = p[poff]
     if limiter > 0.0:
         moment = min(moment, limiter * inertia_r * rate / dt)
@@ -80,6 +104,8 @@ class CDT(SubModel):
     ----------
     limiter: moment limiter factor f (-), >= 0; 0 switches it off (LIGGGHTS). With f > 0 the
         moment is capped at f I_r |dw_r| / dt; STAR-CCM+ uses 0.08.
+    parity: None (the seed report's eq. 2 as documented) or "liggghts" (LIGGGHTS 3.8 code:
+        normalised by the full |dw|, wall rotation ignored, MODELS.md §3.2).
 
     CDT chatters at rest (MODELS.md §11.6); it is offered for parity, not as the default.
     """
@@ -88,14 +114,17 @@ class CDT(SubModel):
     name = "cdt"
     kernel = ("rollingdem.contact.rolling", "constant_directional_torque")
 
-    def __init__(self, limiter: float = 0.0):
+    parities = (None, "liggghts")
+
+    def __init__(self, limiter: float = 0.0, parity=None):
         self.limiter = check_non_negative("cdt limiter", limiter)
+        self.parity = check_parity(self.name, parity, self.parities)
 
     def pair_parameters(self, pair):
-        return (self.limiter,)
+        return (self.limiter, 1.0 if self.parity == "liggghts" else 0.0)
 
     def parameters(self):
-        return {"limiter": self.limiter}
+        return {"limiter": self.limiter, "parity": self.parity}
 
 
 # --- spring-type models: one kernel, MODELS.md §12 -----------------------------------------------
@@ -139,6 +168,8 @@ def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy
     force_mode = p[poff + 6]
     history_mode = p[poff + 7]
     mu_r = p[P_ROLLING_FRICTION]
+    if p[poff + 8] != 0.0:
+        wix, wiy, wiz, wjx, wjy, wjz = liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff)
 
     if history_mode == HISTORY_FRAME:
         carry_with_frame(hist, k, off, onx, ony, onz, nx, ny, nz, spin_angle)
@@ -215,12 +246,20 @@ def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy
 
 
 _PARITY = {
-    # parity: (cap mode, force mode, history mode, slip damping f)
-    None: (CAP_TOTAL, FORCE_ELASTIC, HISTORY_FRAME, 1.0),
-    "liggghts": (CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL, 0.0),
-    "lammps": (CAP_TOTAL, FORCE_ABS_TOTAL, HISTORY_PROJECT, 1.0),
-    "pfc": (CAP_SPRING, FORCE_ELASTIC, HISTORY_FRAME, 0.0),
+    # parity: (cap mode, force mode, history mode, LIGGGHTS wall rate, slip damping f)
+    None: (CAP_TOTAL, FORCE_ELASTIC, HISTORY_FRAME, 0, 1.0),
+    "liggghts": (CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL, 1, 0.0),
+    "lammps": (CAP_TOTAL, FORCE_ABS_TOTAL, HISTORY_PROJECT, 0, 1.0),
+    "pfc": (CAP_SPRING, FORCE_ELASTIC, HISTORY_FRAME, 0, 0.0),
 }
+
+
+def check_parity(model_name, parity, allowed):
+    """The parity preset name, or a ParameterError naming the allowed ones."""
+    if parity not in allowed:
+        names = ", ".join(repr(x) for x in allowed)
+        raise ParameterError(f"{model_name} parity = {parity!r} is not known: allowed are {names}")
+    return parity
 
 
 class _SpringRolling(SubModel):
@@ -234,12 +273,9 @@ class _SpringRolling(SubModel):
     damping_mode = DAMPING_RATIO
 
     def __init__(self, parity=None, slip_damping=None):
-        if parity not in self.parities:
-            allowed = ", ".join(repr(x) for x in self.parities)
-            raise ParameterError(f"{self.name} parity = {parity!r} is not known: allowed are {allowed}")
-        self.parity = parity
-        cap, force, history, f = _PARITY[parity]
-        self._modes = (cap, force, history)
+        self.parity = check_parity(self.name, parity, self.parities)
+        cap, force, history, wall_rate, f = _PARITY[parity]
+        self._modes = (cap, force, history, wall_rate)
         self.slip_damping = f if slip_damping is None else check_non_negative(f"{self.name} slip_damping",
                                                                              slip_damping)
 
@@ -260,9 +296,10 @@ class _SpringRolling(SubModel):
         return pair.rolling_friction * r_eff * normal_force / c
 
     def pair_parameters(self, pair):
-        cap, force, history = self._modes
+        cap, force, history, wall_rate = self._modes
         return (float(self.stiffness_mode), self.stiffness_coefficient(), float(self.damping_mode),
-                self.damping_value(pair), self.slip_damping, float(cap), float(force), float(history))
+                self.damping_value(pair), self.slip_damping, float(cap), float(force), float(history),
+                float(wall_rate))
 
 
 class EPSD(_SpringRolling):

@@ -37,14 +37,7 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
     """Run a case file, or the built-in default case."""
     from . import casefile
 
-    if threads is not None:
-        import numba
-
-        if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-            typer.echo(f"error: --threads = {threads} is not allowed: must be in [1, {numba.config.NUMBA_NUM_THREADS}]",
-                       err=True)
-            raise typer.Exit(2)
-        numba.set_num_threads(threads)
+    _set_threads(threads)
     try:
         spec = casefile.load_case(case if case is not None else casefile.default_case_path())
         casefile.run_case(spec, out=out, progress=progress, echo=typer.echo)
@@ -53,6 +46,52 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
         raise typer.Exit(2)
     except SimulationError as err:
         typer.echo(f"error: the run failed: {err}\n(outputs written so far are kept)", err=True)
+        raise typer.Exit(1)
+
+
+def _set_threads(threads):
+    if threads is None:
+        return
+    import numba
+
+    if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+        typer.echo(f"error: --threads = {threads} is not allowed: must be in [1, {numba.config.NUMBA_NUM_THREADS}]",
+                   err=True)
+        raise typer.Exit(2)
+    numba.set_num_threads(threads)
+
+
+@app.command()
+def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-o", help="Output folder."),
+             case: Optional[list[str]] = typer.Option(None, "--case", "-c", help="Run only this case (repeatable): "
+                                                      "inclined-wall, rolling-flat, rolling-slope, angle-of-repose, "
+                                                      "repose-sweep."),
+             model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Only this rolling model in the "
+                                                       "single-sphere cases (repeatable), e.g. epsd, 'cdt (liggghts)'."),
+             quick: bool = typer.Option(False, "--quick", help="Reduced sizes (under 15 minutes on 2 cores)."),
+             threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores; "
+                                                   "single-sphere runs use one)."),
+             progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
+    """Run the seed report's test cases and the repose-angle study; write report.md/.html and results.json.
+
+    Exit status 1 when any check fails its tolerance."""
+    from .validate import run_validation
+
+    _set_threads(threads)
+    try:
+        results = run_validation(out, cases=case, quick=quick, progress=progress, models=model)
+    except ParameterError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2)
+    for r in results:
+        failed = [c for c in r.checks if not c.passed]
+        typer.echo(f"{r.name:16s} {'pass' if r.passed else 'FAIL'}  {len(r.checks) - len(failed)}/{len(r.checks)} "
+                   f"checks, {r.wall_time:.0f} s")
+        for c in failed:
+            typer.echo(f"    {c.model}: {c.quantity} = {c.measured:.6g}, reference {c.reference:.6g} "
+                       f"(tolerance {c.tolerance:g}) {c.source}")
+    typer.echo(f"report: {Path(out) / 'report.md'}")
+    if not all(r.passed for r in results):
         raise typer.Exit(1)
 
 

@@ -1,1 +1,12 @@
-"""Built-in cases (the seed report's test cases)."""
+"""Built-in cases: the seed report's test cases and the PFC repose-angle study.
+
+Each validation case is a function returning a :class:`CaseResult` (table, checks, figures):
+:func:`inclined_wall`, :func:`rolling_flat`, :func:`rolling_slope` (single sphere, every rolling
+model); the pile cases live in :mod:`rollingdem.cases.repose`. ``default.yaml`` is the case
+``rollingdem run`` uses without a file.
+"""
+
+from .results import CaseResult, Check
+from .validation import inclined_wall, rolling_flat, rolling_slope
+
+__all__ = ["CaseResult", "Check", "inclined_wall", "rolling_flat", "rolling_slope"]

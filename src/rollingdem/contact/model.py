@@ -25,6 +25,7 @@ from .base import N_COMMON, SubModel, make_submodel
 HISTORY_FRAME = 3  # the previous contact normal, kept by the engine for every contact
 
 _LOADED: dict[str, object] = {}
+_BY_CLASSES: dict[tuple, object] = {}
 
 
 def kernel_cache_dir() -> Path:
@@ -139,6 +140,14 @@ class ContactModel:
 
     def kernel(self):
         """The compiled engine module for this combination (generated and imported once)."""
+        # the generated code depends on the sub-model classes only, never on their parameter values
+        key = tuple((type(sub), sub.kernel) for sub in self.submodels)
+        if key in _BY_CLASSES:
+            return _BY_CLASSES[key]
+        _BY_CLASSES[key] = module = self._load_kernel()
+        return module
+
+    def _load_kernel(self):
         source = self.kernel_source()
         digest = self._dependency_hash(source)
         names = "_".join(sub.kernel[1] for sub in self.submodels)  # models sharing a kernel share the file

@@ -1,0 +1,60 @@
+"""What a validation case returns: its table, its checks against references, its figures."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+
+@dataclass
+class Check:
+    """One measured value against its reference: passes when |measured - reference| <= tolerance
+    (absolute, in the quantity's unit) or, for ``relative``, <= tolerance |reference|; a one-sided
+    bound uses ``bound`` = "upper" (measured <= reference)."""
+
+    case: str
+    model: str
+    quantity: str
+    measured: float
+    reference: float
+    tolerance: float
+    relative: bool = True
+    bound: str = "two-sided"
+    source: str = ""
+
+    @property
+    def passed(self) -> bool:
+        if not math.isfinite(self.measured):
+            return False
+        if self.bound == "upper":
+            return self.measured <= self.reference
+        allowed = self.tolerance * abs(self.reference) if self.relative else self.tolerance
+        return abs(self.measured - self.reference) <= allowed
+
+    def as_dict(self) -> dict:
+        return {"case": self.case, "model": self.model, "quantity": self.quantity, "measured": self.measured,
+                "reference": self.reference, "tolerance": self.tolerance,
+                "tolerance_kind": "upper bound" if self.bound == "upper" else
+                ("relative" if self.relative else "absolute"),
+                "source": self.source, "pass": self.passed}
+
+
+@dataclass
+class CaseResult:
+    """A validation case's outcome: ``table`` (one row per model or run), ``checks``, ``figures``
+    (PNG paths) and free-form ``notes`` for the report."""
+
+    name: str
+    title: str
+    table: pd.DataFrame
+    checks: list[Check] = field(default_factory=list)
+    figures: list[Path] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    wall_time: float = 0.0
+
+    @property
+    def passed(self) -> bool:
+        return all(c.passed for c in self.checks)

@@ -1,0 +1,121 @@
+"""``rollingdem validate``: run the seed report's cases, compare with theory, write a report.
+
+Writes into ``outdir``: ``report.md`` and ``report.html`` (tables, checks, figures), the PNG
+figures, ``results.json`` (every check: case, model, quantity, measured, reference, tolerance,
+pass) and one CSV table per case. A case that crashes is recorded as failed with its error, and
+the others still run: nothing already measured is lost.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import traceback
+from pathlib import Path
+
+from .cases.results import CaseResult, Check
+from .errors import ParameterError
+
+
+def available_cases() -> dict:
+    """Case name -> function(models=None, quick=False, outdir=None, progress=None) -> CaseResult."""
+    from .cases import validation
+
+    cases = {"inclined-wall": validation.inclined_wall, "rolling-flat": validation.rolling_flat,
+             "rolling-slope": validation.rolling_slope}
+    try:
+        from .cases import repose
+    except ImportError:  # the pile cases need rollingdem.analysis
+        return cases
+    cases.update({"angle-of-repose": repose.angle_of_repose, "repose-sweep": repose.repose_sweep})
+    return cases
+
+
+def run_validation(outdir, cases=None, quick=False, progress=True, models=None) -> list[CaseResult]:
+    """Run the named cases (all by default) and write the report; returns the case results."""
+    available = available_cases()
+    names = list(available) if not cases else list(cases)
+    unknown = [c for c in names if c not in available]
+    if unknown:
+        raise ParameterError(f"case = {', '.join(unknown)} is not known: allowed are {', '.join(available)}")
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    results = []
+    bar = _bar(progress, len(names))
+    for name in names:
+        if bar is not None:
+            bar.set_description(name)
+        tic = time.perf_counter()
+        try:
+            kwargs = {"quick": quick, "outdir": out, "progress": (lambda: bar.refresh()) if bar is not None else None}
+            if models is not None and name in ("inclined-wall", "rolling-flat", "rolling-slope"):
+                kwargs["models"] = models
+            result = available[name](**kwargs)
+        except Exception as err:  # a failed case is a result too: record it and go on
+            result = CaseResult(name, name, _empty_table(), [Check(name, "-", "case ran", float("nan"), 0.0, 0.0,
+                                                                   source=f"{type(err).__name__}: {err}")],
+                                notes=["The case failed:\n\n```\n" + traceback.format_exc() + "```"])
+            result.wall_time = time.perf_counter() - tic
+        results.append(result)
+        result.table.to_csv(out / f"{name}.csv", index=False)
+        write_report(out, results, quick)  # after every case, so an interrupted run keeps what it has
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    return results
+
+
+def _empty_table():
+    import pandas as pd
+    return pd.DataFrame()
+
+
+def _bar(progress, total):
+    if not progress:
+        return None
+    from tqdm import tqdm
+    return tqdm(total=total, unit="case")
+
+
+def write_report(out: Path, results: list[CaseResult], quick: bool) -> None:
+    """``results.json``, ``report.md`` and ``report.html`` for the results so far."""
+    checks = [c.as_dict() for r in results for c in r.checks]
+    summary = {"quick": quick, "passed": all(r.passed for r in results),
+               "cases": {r.name: {"passed": r.passed, "wall_time_s": r.wall_time,
+                                  "figures": [Path(f).name for f in r.figures]} for r in results},
+               "checks": checks}
+    (out / "results.json").write_text(json.dumps(summary, indent=2, default=_json_default))
+    md = [f"# rollingdem validation{' (quick)' if quick else ''}", "",
+          f"{sum(c['pass'] for c in checks)} of {len(checks)} checks pass.", ""]
+    for r in results:
+        md += [f"## {r.title}", "", f"Status: **{'pass' if r.passed else 'FAIL'}**, wall time {r.wall_time:.0f} s.", ""]
+        md += [*r.notes, ""]
+        if len(r.table):
+            md += [r.table.to_markdown(index=False, floatfmt=".6g"), ""]
+        for f in r.figures:
+            md += [f"![{Path(f).stem}]({Path(f).name})", ""]
+        if r.checks:
+            md += ["| model | quantity | measured | reference | tolerance | source | pass |",
+                   "|---|---|---|---|---|---|---|"]
+            for c in r.checks:
+                d = c.as_dict()
+                md.append(f"| {c.model} | {c.quantity} | {c.measured:.6g} | {c.reference:.6g} | "
+                          f"{c.tolerance:g} ({d['tolerance_kind']}) | {c.source} | {'yes' if c.passed else '**NO**'} |")
+            md.append("")
+    text = "\n".join(md)
+    (out / "report.md").write_text(text)
+    from markdown_it import MarkdownIt
+
+    body = MarkdownIt("commonmark").enable("table").render(text)
+    style = ("body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"
+             "font-size:13px}td,th{border:1px solid #ccc;padding:2px 6px}img{max-width:100%}")
+    (out / "report.html").write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>rollingdem "
+                                     f"validation</title><style>{style}</style></head><body>{body}</body></html>")
+
+
+def _json_default(x):
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return str(x)

@@ -1,0 +1,206 @@
+"""rd.analysis: angle of repose of a conical pile, on synthetic piles of known angle.
+
+Synthetic pile (``make_pile``): spheres of radius 2 mm whose centres fill a cone of angle alpha
+and base radius 40 diameters, standing on a first layer on the floor. Centres lie on a square
+lattice of spacing one diameter d in x, y (jittered by +-0.1 d), stacked in columns at spacing d,
+each column shifted up by its own random phase in [0, d) so that the free surface is a random
+envelope (no staircase common to every column, which would bias a line fit over a finite range).
+The tops of the surface particles then lie on a cone of exactly alpha, up to the envelope scatter.
+Variants: Gaussian noise of 0.2 radius on every coordinate; a rough surface (30 % of the surface
+particles removed, bumps: one particle put on top of 5 % of the others); polydisperse radii
+(+-25 %); an off-centre pile with a toe spread 10 diameters further on one side.
+
+Tolerances:
+* angle (cone fit and slice mean) within 0.5 degree of the true angle: the accuracy the issue asks
+  for. Measured on these piles: at most 0.14 degree for the seeds below (printed with ``-s``),
+  at most 0.23 degree (slice mean of a rough 20-degree pile) over 10 seeds of every case.
+* apex within half a radius of the true axis: the surface is resolved at the particle scale (bins
+  one diameter wide), so half a radius means the right particles were chosen; measured < 0.1 radius.
+"""
+
+import json
+
+import matplotlib
+import numpy as np
+import pytest
+
+from rollingdem.analysis import ReposeAngle, default_max_speed, plot_pile, repose_angle, settled
+from rollingdem.errors import ParameterError, SimulationError
+
+matplotlib.use("Agg")
+
+RADIUS = 2e-3  # m
+D = 2 * RADIUS
+N_BASE = 40  # pile base radius in diameters
+TOL_ANGLE = 0.5  # degrees: the issue's requirement
+
+
+def make_pile(alpha_deg, *, radius=RADIUS, n_base=N_BASE, noise=0.0, rough=0.0, bumps=0.0,
+              center=(0.0, 0.0), floor=0.0, poly=0.0, toe=False, seed=0):
+    """Spheres filling a cone of angle alpha_deg (degrees); returns (positions (N, 3) m, radii)."""
+    rng = np.random.default_rng(seed)
+    d = 2 * radius
+    big_r = n_base * d
+    tan_a = np.tan(np.radians(alpha_deg))
+    g = np.arange(-n_base - 11, n_base + 12) * d
+    gx, gy = np.meshgrid(g, g, indexing="ij")
+    cx = gx.ravel() + rng.uniform(-0.1, 0.1, gx.size) * d
+    cy = gy.ravel() + rng.uniform(-0.1, 0.1, gy.size) * d
+    rho = np.hypot(cx, cy)
+    phase = rng.uniform(0.0, d, cx.size)  # random vertical phase of each column
+    room = big_r * tan_a - rho * tan_a - phase  # height available above the column's lowest centre
+    nz = np.where(room >= 0, np.floor(room / d).astype(int) + 1, 0)
+    col = np.repeat(np.arange(cx.size), nz)
+    lev = np.arange(col.size) - np.repeat(np.cumsum(nz) - nz, nz)
+    pos = np.column_stack([cx[col], cy[col], radius + phase[col] + lev * d])
+    base = rho < big_r
+    layers = [np.column_stack([cx[base], cy[base], np.full(base.sum(), radius)]), pos]
+    if toe:  # first-layer spread 10 diameters beyond the cone on the +x side only
+        m = (rho >= big_r) & (rho < big_r + 10 * d) & (cx > 0.3 * big_r)
+        layers.append(np.column_stack([cx[m], cy[m], np.full(m.sum(), radius)]))
+    pos = np.vstack(layers)
+    depth = radius + (big_r - np.hypot(pos[:, 0], pos[:, 1])) * tan_a - pos[:, 2]
+    surf = depth < d
+    keep = ~(surf & (rng.random(len(pos)) < rough))
+    on_top = pos[surf & keep & (rng.random(len(pos)) < bumps)] + [0.0, 0.0, d]
+    pos = np.vstack([pos[keep], on_top])
+    pos += rng.normal(0.0, noise * radius, pos.shape)
+    pos += [center[0], center[1], floor]
+    radii = radius * (1 + poly * rng.uniform(-1, 1, len(pos))) if poly else radius
+    return pos, radii
+
+
+VARIANTS = {
+    "clean": dict(),
+    "noisy": dict(noise=0.2),
+    "rough": dict(noise=0.2, rough=0.3, bumps=0.05),
+    "polydisperse": dict(noise=0.2, poly=0.25),
+}
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+@pytest.mark.parametrize("alpha", [20.0, 30.0, 40.0])
+def test_recovers_known_angle(alpha, variant):
+    pos, radii = make_pile(alpha, seed=int(alpha), **VARIANTS[variant])
+    res = repose_angle(pos, radii)  # centre estimated: the harder, default case
+    print(f"\n{variant:13s} alpha {alpha:4.1f}: cone {res.angle - alpha:+.3f}, slices {res.slice_mean - alpha:+.3f} "
+          f"+- {res.slice_std:.3f} deg, R^2 {res.r_squared:.3f}, {res.surface.sum()} surface particles")
+    assert isinstance(res, ReposeAngle)
+    assert abs(res.angle - alpha) <= TOL_ANGLE
+    assert abs(res.slice_mean - alpha) <= TOL_ANGLE
+    assert res.slice_angles.shape == (8,)
+    # each slice fits 1/8 of the surface, so it scatters more: 1.5 degree (3x the pile tolerance;
+    # worst slice measured over 10 seeds of every case: 0.71 degree, rough 20-degree pile)
+    assert np.all(np.abs(res.slice_angles - alpha) <= 1.5)
+    # the surface mask holds only the envelope: far fewer than all particles, each inside the fit range
+    assert 500 < res.surface.sum() < 0.2 * len(pos)
+    rho = np.hypot(pos[res.surface, 0] - res.apex[0], pos[res.surface, 1] - res.apex[1])
+    assert res.fit_range[0] - RADIUS <= rho.min() and rho.max() <= res.fit_range[1] + RADIUS
+    # the cone explains the surface heights (the envelope scatter is ~d over a height of ~10-30 d)
+    assert res.r_squared > 0.85
+
+
+def test_given_center_and_raised_floor():
+    pos, radii = make_pile(30.0, noise=0.2, center=(1.0, -2.0), floor=0.5, seed=3)
+    res = repose_angle(pos, radii, floor=0.5, center=(1.0, -2.0))
+    assert res.apex[:2] == (1.0, -2.0)  # a given centre is kept, not fitted
+    assert abs(res.angle - 30.0) <= TOL_ANGLE
+    assert abs(res.slice_mean - 30.0) <= TOL_ANGLE
+
+
+@pytest.mark.parametrize("alpha", [20.0, 40.0])
+def test_off_centre_pile_with_asymmetric_toe_is_found(alpha):
+    true_c = np.array([0.05, -0.03])
+    pos, radii = make_pile(alpha, noise=0.2, center=true_c, toe=True, seed=7)
+    # the toe is one-sided enough to matter: the plain centroid misses by more than twice the tolerance
+    assert np.hypot(*(pos[:, :2].mean(axis=0) - true_c)) > RADIUS
+    res = repose_angle(pos, radii)
+    assert np.hypot(res.apex[0] - true_c[0], res.apex[1] - true_c[1]) <= 0.5 * RADIUS
+    assert abs(res.angle - alpha) <= TOL_ANGLE
+    assert abs(res.slice_mean - alpha) <= TOL_ANGLE
+
+
+def test_unsettled_pile_is_refused():
+    pos, radii = make_pile(30.0, n_base=20, seed=1)
+    rng = np.random.default_rng(0)
+    moving = rng.normal(0.0, 0.05, pos.shape)  # m/s: a pile still flowing
+    limit = default_max_speed(radii)
+    assert limit == pytest.approx(1e-3 * np.sqrt(9.81 * D))
+    ok, vmax = settled(moving, radii)
+    assert not ok and vmax > limit
+    with pytest.raises(SimulationError, match=r"not settled.*m/s.*limit.*run the simulation longer"):
+        repose_angle(pos, radii, velocities=moving)
+    # a pile at rest (speeds well under the limit) is measured; a custom limit is honoured
+    still = moving * (0.1 * limit / vmax)
+    assert settled(still, radii)[0]
+    assert abs(repose_angle(pos, radii, velocities=still).angle - 30.0) <= TOL_ANGLE
+    with pytest.raises(SimulationError, match="max_speed = 1e-06"):
+        repose_angle(pos, radii, velocities=still, max_speed=1e-6)
+
+
+@pytest.fixture(scope="module")
+def small_pile():
+    return make_pile(30.0, n_base=20, seed=2)
+
+
+@pytest.mark.parametrize("change, name", [
+    (dict(positions=np.zeros((100, 2))), "positions"),
+    (dict(positions="nan"), "positions"),
+    (dict(positions=np.full((100, 3), np.nan)), "positions"),
+    (dict(positions=np.zeros((5, 3)), radii=1e-3), "positions"),
+    (dict(radii=-1e-3), "radii"),
+    (dict(radii=np.full(7, 1e-3)), "radii"),
+    (dict(radii=np.nan), "radii"),
+    (dict(floor=np.nan), "floor"),
+    (dict(floor=1.0), "floor"),
+    (dict(center=(0.0,)), "center"),
+    (dict(center=(0.0, np.inf)), "center"),
+    (dict(velocities=np.zeros((3, 3))), "velocities"),
+    (dict(max_speed=-1.0), "max_speed"),
+    (dict(max_speed=1e-3), "max_speed"),  # without velocities there is nothing to check
+    (dict(n_slices=0), "n_slices"),
+    (dict(n_slices=2.5), "n_slices"),
+    (dict(n_slices=100000), "n_slices"),  # more slices than surface particles
+    (dict(exclude_apex=0.5), "exclude_apex"),
+    (dict(exclude_apex=-0.01), "exclude_apex"),
+    (dict(exclude_toe=0.7), "exclude_toe"),
+    (dict(exclude_toe=np.nan), "exclude_toe"),
+])
+def test_bad_input_names_the_parameter(small_pile, change, name):
+    pos, radii = small_pile
+    kw = dict(positions=pos, radii=radii)
+    kw.update(change)
+    with pytest.raises(ParameterError, match=name):
+        repose_angle(kw.pop("positions"), kw.pop("radii"), **kw)
+
+
+def test_flat_layer_is_refused():
+    pos, _ = make_pile(30.0, n_base=20, seed=2)
+    pos = pos[pos[:, 2] < 1.5 * RADIUS]  # the first layer only: no cone to fit
+    with pytest.raises(ParameterError, match="positions"):
+        repose_angle(pos, RADIUS)
+
+
+def test_single_slice_and_json(small_pile):
+    pos, radii = small_pile
+    res = repose_angle(pos, radii, n_slices=1)
+    assert res.slice_angles.shape == (1,) and res.slice_std == 0.0
+    d = json.loads(json.dumps(res.as_dict()))
+    assert d["angle"] == res.angle and d["n_surface"] == res.surface.sum() == len(d["surface_indices"])
+    assert len(d["apex"]) == 3 and len(d["fit_range"]) == 2
+
+
+def test_plot_pile_writes_png(tmp_path, small_pile):
+    pos, radii = small_pile
+    res = repose_angle(pos, radii)
+    path = tmp_path / "pile.png"
+    fig = plot_pile(pos, radii, res, path=path)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert path.stat().st_size > 1024
+    assert len(fig.axes) == 1
+    # drawing into a given axes returns that axes' figure
+    from matplotlib.figure import Figure
+    ax = Figure().add_subplot()
+    assert plot_pile(pos, radii, res, ax=ax) is ax.figure
+    with pytest.raises(ParameterError, match="surface"):
+        plot_pile(pos[:-1], radii, res)

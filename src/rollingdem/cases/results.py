@@ -13,7 +13,7 @@ import pandas as pd
 class Check:
     """One measured value against its reference: passes when |measured - reference| <= tolerance
     (absolute, in the quantity's unit) or, for ``relative``, <= tolerance |reference|; a one-sided
-    bound uses ``bound`` = "upper" (measured <= reference)."""
+    bound uses ``bound`` = "upper" (measured <= reference) or "lower" (measured >= reference)."""
 
     case: str
     model: str
@@ -31,13 +31,15 @@ class Check:
             return False
         if self.bound == "upper":
             return self.measured <= self.reference
+        if self.bound == "lower":
+            return self.measured >= self.reference
         allowed = self.tolerance * abs(self.reference) if self.relative else self.tolerance
         return abs(self.measured - self.reference) <= allowed
 
     def as_dict(self) -> dict:
         return {"case": self.case, "model": self.model, "quantity": self.quantity, "measured": self.measured,
                 "reference": self.reference, "tolerance": self.tolerance,
-                "tolerance_kind": "upper bound" if self.bound == "upper" else
+                "tolerance_kind": f"{self.bound} bound" if self.bound in ("upper", "lower") else
                 ("relative" if self.relative else "absolute"),
                 "source": self.source, "pass": self.passed}
 

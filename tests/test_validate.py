@@ -1,0 +1,72 @@
+"""rollingdem validate: checks, the report it writes, its exit status, and the repose statistics."""
+
+import json
+import math
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+import rollingdem as rd
+from rollingdem import validate
+from rollingdem.cases.results import CaseResult, Check
+from rollingdem.cli import app
+
+
+def test_check_tolerances():
+    assert Check("c", "m", "q", 1.004, 1.0, 0.005).passed  # relative
+    assert not Check("c", "m", "q", 1.006, 1.0, 0.005).passed
+    assert Check("c", "m", "q", 0.3, 0.0, 0.5, relative=False).passed
+    assert Check("c", "m", "q", 1e-8, 1e-7, 0.0, bound="upper").passed
+    assert not Check("c", "m", "q", -1.0, 0.0, 0.0, bound="lower").passed
+    assert not Check("c", "m", "q", math.nan, 1.0, 1.0).passed  # a failed measurement never passes
+
+
+def fake_cases(tmp_ok=True):
+    def good(quick=False, outdir=None, progress=None):
+        return CaseResult("good", "A good case", pd.DataFrame({"model": ["x"], "value": [1.0]}),
+                          [Check("good", "x", "value", 1.0, 1.0, 0.01, source="theory")])
+
+    def bad(quick=False, outdir=None, progress=None):
+        raise RuntimeError("the kernel fell over")
+
+    return {"good": good, "bad": bad}
+
+
+def test_report_records_every_check_and_a_crashed_case(tmp_path, monkeypatch):
+    monkeypatch.setattr(validate, "available_cases", fake_cases)
+    results = validate.run_validation(tmp_path, progress=False)
+    assert [r.passed for r in results] == [True, False]
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert data["passed"] is False
+    good = [c for c in data["checks"] if c["case"] == "good"][0]
+    assert good == {"case": "good", "model": "x", "quantity": "value", "measured": 1.0, "reference": 1.0,
+                    "tolerance": 0.01, "tolerance_kind": "relative", "source": "theory", "pass": True}
+    bad = [c for c in data["checks"] if c["case"] == "bad"][0]
+    assert bad["pass"] is False and "the kernel fell over" in bad["source"]
+    assert "the kernel fell over" in (tmp_path / "report.md").read_text()
+    assert "<table>" in (tmp_path / "report.html").read_text()
+
+
+def test_cli_exit_status(tmp_path, monkeypatch):
+    monkeypatch.setattr(validate, "available_cases", fake_cases)
+    ok = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "a"), "--case", "good", "--no-progress"])
+    assert ok.exit_code == 0, ok.output
+    failing = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "b"), "--no-progress"])
+    assert failing.exit_code == 1 and "bad" in failing.output
+    unknown = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "c"), "--case", "nope", "--no-progress"])
+    assert unknown.exit_code == 2 and "case = nope is not known" in unknown.output
+
+
+def test_unknown_model_is_refused():
+    from rollingdem.cases import rolling_flat
+    with pytest.raises(rd.ParameterError, match="models = \\['epsd9'\\] are not known"):
+        rolling_flat(models=["epsd9"])
+
+
+def test_student_t_interval_matches_the_table_value():
+    """Three values 1, 2, 3: mean 2, s = 1, t(0.975, 2 dof) = 4.303 (printed tables): 4.303 / sqrt(3)."""
+    from rollingdem.cases.repose import confidence_interval
+    mean, half = confidence_interval([1.0, 2.0, 3.0, math.nan])
+    assert mean == 2.0 and half == pytest.approx(4.303 / math.sqrt(3), abs=1e-3)
+    assert math.isnan(confidence_interval([5.0])[1])

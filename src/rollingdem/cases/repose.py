@@ -29,7 +29,7 @@ from ..insertion import CylinderRegion
 from ..materials import Material
 from ..simulation import Simulation
 from ..walls import Cylinder, Plane
-from .results import CaseResult, Check
+from .results import CaseResult, Check, pyplot
 from .single_sphere import DT, RADIUS, TABLE1
 
 TUBE_RADIUS_PER_1000 = 0.04  # m: the default case's tube, for 1000 spheres of R = 5 mm
@@ -83,13 +83,6 @@ def pile_run(rolling="epsd", twisting="none", count=1000, friction=TABLE1["frict
                    sim.radii.copy(), sim.velocities.copy(), angle, error)
 
 
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
 REPOSE_MODELS = {"cdt": ("cdt", "none"), "epsd": ("epsd", "none"), "epsd2": ("epsd2", "none"),
                  "epsd + marshall twisting": ("epsd", "marshall")}
 
@@ -132,7 +125,7 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
                                f"{TUBE_RADIUS_PER_1000 * math.sqrt(count / 1000):.3f} m; the tube is removed and the "
                                f"column collapses for {collapse} s. Spin about z: Σ ½ I ω_z²."])
     if outdir is not None:
-        plt = _plt()
+        plt = pyplot()
         fig, ax = plt.subplots(figsize=(8, 4.5))
         for label, r in runs.items():
             ax.semilogy(r.t, r.translational + r.rotational, label=label)
@@ -140,11 +133,7 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
         ax.set_ylabel("total kinetic energy (J)")
         ax.set_title("Case 3: kinetic energy of the collapsing column (report Figure 4)")
         ax.legend()
-        fig.tight_layout()
-        path = Path(outdir) / "angle_of_repose_ke.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        result.figures.append(path)
+        result.add_figure(fig, outdir, "angle_of_repose_ke.png")
         for label, r in runs.items():
             if r.angle is not None:
                 path = Path(outdir) / f"pile_{label.replace(' ', '_').replace('+', 'and')}.png"
@@ -224,7 +213,7 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
                         notes=[f"Model {model!r}; {len(points)} runs; each point is the mean over seeds with a 95 % "
                                "Student-t confidence interval (scipy.stats.t)."])
     if outdir is not None:
-        plt = _plt()
+        plt = pyplot()
         fig, ax = plt.subplots(figsize=(7, 4.5))
         for mu in frictions:
             sub = table[table["mu"] == mu]
@@ -234,11 +223,7 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
         ax.set_ylabel("repose angle (deg)")
         ax.set_title("Repose angle against μr (95 % Student-t intervals)")
         ax.legend()
-        fig.tight_layout()
-        path = Path(outdir) / "repose_sweep.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        result.figures.append(path)
+        result.add_figure(fig, outdir, "repose_sweep.png")
         if len(frictions) >= 2 and len(rolling_frictions) >= 2:
             fig, ax = plt.subplots(figsize=(6.5, 5))
             grid = pivot.to_numpy()
@@ -250,10 +235,6 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
             ax.set_xlabel("sliding friction μ")
             ax.set_ylabel("rolling friction μr")
             ax.set_title("Iso-value map of the repose angle")
-            fig.tight_layout()
-            path = Path(outdir) / "repose_isomap.png"
-            fig.savefig(path, dpi=120)
-            plt.close(fig)
-            result.figures.append(path)
+            result.add_figure(fig, outdir, "repose_isomap.png")
     result.wall_time = time.perf_counter() - tic
     return result

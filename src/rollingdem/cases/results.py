@@ -60,3 +60,24 @@ class CaseResult:
     @property
     def passed(self) -> bool:
         return all(c.passed for c in self.checks)
+
+    def add_figure(self, fig, outdir, name: str) -> Path:
+        """Save ``fig`` as ``outdir/name`` (PNG, 120 dpi), close it and list it in the report."""
+        import matplotlib.pyplot as plt
+
+        path = Path(outdir) / name
+        fig.tight_layout()
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        self.figures.append(path)
+        return path
+
+
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (no display needed), with a 20-colour cycle so that
+    the twelve models of a figure stay distinguishable."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    plt.rcParams["axes.prop_cycle"] = plt.cycler(color=plt.get_cmap("tab20").colors)
+    return plt

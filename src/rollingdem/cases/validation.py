@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from .results import CaseResult, Check
+from .results import CaseResult, Check, pyplot
 from .single_sphere import (CREEPING, DT, G, NO_THRESHOLD, SLOPE, VISCOUS_TAU, analytic_flat, analytic_flat_curve,
                             analytic_slope, creep_speed, critical_rolling_friction, rolling_flat_run,
                             rolling_slope_run, single_thread, stop_time, validation_models, viscous_decay_time)
@@ -39,15 +38,6 @@ def _select(models):
         from ..errors import ParameterError
         raise ParameterError(f"models = {unknown} are not known: allowed are {', '.join(allm)}")
     return {m: allm[m] for m in models}
-
-
-def _figure(path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    # twelve models: a 20-colour cycle keeps every curve distinguishable
-    plt.rcParams["axes.prop_cycle"] = plt.cycler(color=plt.get_cmap("tab20").colors)
-    return plt
 
 
 @single_thread
@@ -84,7 +74,7 @@ def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress
                                "what a sphere rolling from the end of the tilt would reach at that margin. "
                                "The viscous model has no static threshold and is left out."])
     if outdir is not None:
-        plt = _figure(outdir)
+        plt = pyplot()
         fig, ax = plt.subplots(figsize=(7, 4))
         for label in chosen:
             ax.plot(table["beta (deg)"], table[f"{label} / tan"], "o-", label=label, ms=4)
@@ -93,11 +83,7 @@ def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress
         ax.set_ylabel("μr,crit / tan β")
         ax.legend(fontsize=7, ncol=2)
         ax.set_title("Inclined wall: critical rolling friction")
-        path = Path(outdir) / "inclined_wall.png"
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        result.figures.append(path)
+        result.add_figure(fig, outdir, "inclined_wall.png")
     result.wall_time = time.perf_counter() - tic
     return result
 
@@ -140,7 +126,7 @@ def rolling_flat(models=None, quick=False, outdir=None, progress=None) -> CaseRe
                                f"deceleration (5/7) μr g = {5 / 7 * 0.2 * G:.5f} m/s²; stop at {t_ref:.5f} s after "
                                f"{s_ref:.5f} m. Stop time = first sample (0.1 ms grid) with v < 1 mm/s."])
     if outdir is not None:
-        plt = _figure(outdir)
+        plt = pyplot()
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
         t = np.linspace(0, 0.8, 801)
         ax1.plot(t, analytic_flat_curve(t), "k--", lw=2, label="analytic")
@@ -152,11 +138,7 @@ def rolling_flat(models=None, quick=False, outdir=None, progress=None) -> CaseRe
         ax2.set_ylabel("total torque M_y (N m)")
         ax2.set_xlabel("time after launch (s)")
         ax1.set_title("Case 1: rolling on a flat (report Figures 1-2)")
-        fig.tight_layout()
-        path = Path(outdir) / "rolling_flat.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        result.figures.append(path)
+        result.add_figure(fig, outdir, "rolling_flat.png")
     result.wall_time = time.perf_counter() - tic
     return result
 
@@ -195,7 +177,7 @@ def rolling_slope(models=None, quick=False, outdir=None, progress=None) -> CaseR
                         notes=["Back-roll = x_max - final x; creep = mean velocity over the last second (negative: "
                                "down the slope). The viscous model cannot hold a slope (MODELS.md §12)."])
     if outdir is not None:
-        plt = _figure(outdir)
+        plt = pyplot()
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.5))
         for label, traj in runs.items():
             ax1.plot(traj.t, traj.x, lw=1, label=label)
@@ -211,10 +193,6 @@ def rolling_slope(models=None, quick=False, outdir=None, progress=None) -> CaseR
         ax2.set_ylabel("x - analytic x_max (mm)")
         ax2.set_title("zoom: back-roll and creep")
         ax1.set_title("Case 2: rolling up a 10° slope (report Figure 3)")
-        fig.tight_layout()
-        path = Path(outdir) / "rolling_slope.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        result.figures.append(path)
+        result.add_figure(fig, outdir, "rolling_slope.png")
     result.wall_time = time.perf_counter() - tic
     return result

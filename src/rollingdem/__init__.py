@@ -19,7 +19,7 @@ from .timestep import hertz_contact_time, rayleigh_time_step  # noqa: E402
 from .walls import Cylinder, Plane  # noqa: E402
 
 __all__ = [
-    "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "Hertz", "Hooke", "Linear",
+    "convert", "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "Hertz", "Hooke", "Linear",
     "HistorySpring", "NoRolling", "CDT", "EPSD", "EPSD2", "EPSD3", "RRLinear", "SDS", "DisplacementDamping",
     "ForceProportional", "Viscous", "NoTwisting", "Marshall", "TwistingSDS", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback",
     "Observer", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "Discrete", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",

@@ -26,13 +26,19 @@ def contact(rolling):
     return rd.ContactModel(rd.Linear(KN, KS), rolling=rolling)
 
 
+def model_and_material(params, rolling, material, restitution):
+    """The rolling model and the Table-1 material, from a conversion result or given directly."""
+    model = params.model if params is not None else rolling
+    kw = dict(friction=MU, restitution=restitution, **(params.material_kwargs() if params is not None else material))
+    return model, rd.Material("m", **TABLE1, **kw)
+
+
 def on_flat(params: convert.RollingParameters | None = None, rolling=None, **material):
     """T2 on a flat wall: launched at 0.5 m/s with omega = 0; slides, rolls, stops. Returns the
     position and angular velocity history (every 100 steps)."""
-    model = params.model if params is not None else rolling
-    kw = dict(friction=MU, restitution=0.5, **(params.material_kwargs() if params is not None else material))
+    model, mat = model_and_material(params, rolling, material, restitution=0.5)
     sim = rd.Simulation(contact=contact(model), dt=2e-5)
-    sim.add_material(rd.Material("m", **TABLE1, **kw))
+    sim.add_material(mat)
     sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
     sim.add_particles([[0, 0, R]], R, "m")
     sim.run(0.05)
@@ -46,10 +52,9 @@ def on_flat(params: convert.RollingParameters | None = None, rolling=None, **mat
 
 def pair_collisions(params: convert.RollingParameters | None = None, rolling=None, **material):
     """Three equal spheres in zero gravity: oblique collisions with spin (pair contacts only)."""
-    model = params.model if params is not None else rolling
-    kw = dict(friction=MU, restitution=0.7, **(params.material_kwargs() if params is not None else material))
+    model, mat = model_and_material(params, rolling, material, restitution=0.7)
     sim = rd.Simulation(contact=contact(model), gravity=(0, 0, 0), dt=2e-5)
-    sim.add_material(rd.Material("m", **TABLE1, **kw))
+    sim.add_material(mat)
     sim.add_particles([[0, 0, 0], [3 * R, 0.8 * R, 0.2 * R], [-3 * R, -0.5 * R, 0]], R, "m",
                       velocity=[[0, 0, 0], [-0.3, 0, 0], [0.25, 0.05, 0]],
                       angular_velocity=[[0, 0, 0], [0, 40, -30], [20, 0, 50]])

@@ -13,6 +13,8 @@ import time
 import traceback
 from pathlib import Path
 
+import pandas as pd
+
 from .cases.results import CaseResult, Check
 from .errors import ParameterError
 
@@ -47,12 +49,12 @@ def run_validation(outdir, cases=None, quick=False, progress=True, models=None) 
             bar.set_description(name)
         tic = time.perf_counter()
         try:
-            kwargs = {"quick": quick, "outdir": out, "progress": (lambda: bar.refresh()) if bar is not None else None}
+            kwargs = {"quick": quick, "outdir": out, "progress": _run_counter(bar)}
             if models is not None and name in ("inclined-wall", "rolling-flat", "rolling-slope"):
                 kwargs["models"] = models
             result = available[name](**kwargs)
         except Exception as err:  # a failed case is a result too: record it and go on
-            result = CaseResult(name, name, _empty_table(), [Check(name, "-", "case ran", float("nan"), 0.0, 0.0,
+            result = CaseResult(name, name, pd.DataFrame(), [Check(name, "-", "case ran", float("nan"), 0.0, 0.0,
                                                                    source=f"{type(err).__name__}: {err}")],
                                 notes=["The case failed:\n\n```\n" + traceback.format_exc() + "```"])
             result.wall_time = time.perf_counter() - tic
@@ -66,9 +68,16 @@ def run_validation(outdir, cases=None, quick=False, progress=True, models=None) 
     return results
 
 
-def _empty_table():
-    import pandas as pd
-    return pd.DataFrame()
+def _run_counter(bar):
+    """A callback the case calls after each simulation: shows the runs done in the bar."""
+    if bar is None:
+        return None
+    done = [0]
+
+    def tick():
+        done[0] += 1
+        bar.set_postfix(runs=done[0])
+    return tick
 
 
 def _bar(progress, total):

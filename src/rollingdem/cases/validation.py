@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from ..errors import ParameterError
 from .results import CaseResult, Check, pyplot
 from .single_sphere import (CREEPING, DT, G, NO_THRESHOLD, SLOPE, VISCOUS_TAU, analytic_flat, analytic_flat_curve,
                             analytic_slope, creep_speed, critical_rolling_friction, rolling_flat_run,
@@ -35,7 +36,6 @@ def _select(models):
         return allm
     unknown = [m for m in models if m not in allm]
     if unknown:
-        from ..errors import ParameterError
         raise ParameterError(f"models = {unknown} are not known: allowed are {', '.join(allm)}")
     return {m: allm[m] for m in models}
 

@@ -120,6 +120,30 @@ def test_off_centre_pile_with_asymmetric_toe_is_found(alpha):
     assert abs(res.slice_mean - alpha) <= TOL_ANGLE
 
 
+@pytest.mark.parametrize("alpha", [20.0, 30.0])
+def test_spread_monolayer_and_runaway_spheres_are_not_the_pile(alpha):
+    # A collapsed column leaves a monolayer over the floor all around the heap and single spheres
+    # far out. Before the pile radius ignored them (step 3), the largest radius per sector was the
+    # runaways' and the fit range fell outside the heap.
+    pos, radii = make_pile(alpha, n_base=25, noise=0.2, seed=11)
+    rng = np.random.default_rng(5)
+    big_r = 25 * D
+    ring = rng.uniform(big_r, 2.5 * big_r, 4000)  # monolayer out to 2.5 pile radii (overlaps do not matter here)
+    phi = rng.uniform(0, 2 * np.pi, ring.size)
+    far = rng.uniform(3 * big_r, 6 * big_r, 60)  # runaways
+    phf = rng.uniform(0, 2 * np.pi, far.size)
+    # a few spheres resting on the monolayer far out, in a dimple (bottom 0.82 d up)
+    dimer = rng.uniform(1.5 * big_r, 2.5 * big_r, 5)
+    phd = rng.uniform(0, 2 * np.pi, dimer.size)
+    extra = np.vstack([
+        np.column_stack([np.r_[ring, far] * np.cos(np.r_[phi, phf]), np.r_[ring, far] * np.sin(np.r_[phi, phf]),
+                         np.full(ring.size + far.size, RADIUS)]),
+        np.column_stack([dimer * np.cos(phd), dimer * np.sin(phd), np.full(dimer.size, RADIUS + 1.63 * RADIUS)])])
+    res = repose_angle(np.vstack([pos, extra]), RADIUS)
+    assert abs(res.angle - alpha) <= TOL_ANGLE
+    assert abs(res.slice_mean - alpha) <= TOL_ANGLE
+    assert res.fit_range[1] < big_r  # the fit stays on the heap
+
 def test_unsettled_pile_is_refused():
     pos, radii = make_pile(30.0, n_base=20, seed=1)
     rng = np.random.default_rng(0)

@@ -23,11 +23,11 @@ def test_check_tolerances():
 
 
 def fake_cases(tmp_ok=True):
-    def good(quick=False, outdir=None, progress=None):
+    def good(quick=False, outdir=None, progress=None, runner=map):
         return CaseResult("good", "A good case", pd.DataFrame({"model": ["x"], "value": [1.0]}),
                           [Check("good", "x", "value", 1.0, 1.0, 0.01, source="theory")])
 
-    def bad(quick=False, outdir=None, progress=None):
+    def bad(quick=False, outdir=None, progress=None, runner=map):
         raise RuntimeError("the kernel fell over")
 
     return {"good": good, "bad": bad}
@@ -35,7 +35,7 @@ def fake_cases(tmp_ok=True):
 
 def test_report_records_every_check_and_a_crashed_case(tmp_path, monkeypatch):
     monkeypatch.setattr(validate, "available_cases", fake_cases)
-    results = validate.run_validation(tmp_path, progress=False)
+    results = validate.run_validation(tmp_path, progress=False, workers=1)
     assert [r.passed for r in results] == [True, False]
     data = json.loads((tmp_path / "results.json").read_text())
     assert data["passed"] is False
@@ -50,11 +50,11 @@ def test_report_records_every_check_and_a_crashed_case(tmp_path, monkeypatch):
 
 def test_cli_exit_status(tmp_path, monkeypatch):
     monkeypatch.setattr(validate, "available_cases", fake_cases)
-    ok = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "a"), "--case", "good", "--no-progress"])
+    ok = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "a"), "--case", "good", "--no-progress", "-w", "1"])
     assert ok.exit_code == 0, ok.output
-    failing = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "b"), "--no-progress"])
+    failing = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "b"), "--no-progress", "-w", "1"])
     assert failing.exit_code == 1 and "bad" in failing.output
-    unknown = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "c"), "--case", "nope", "--no-progress"])
+    unknown = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "c"), "--case", "nope", "--no-progress", "-w", "1"])
     assert unknown.exit_code == 2 and "case = nope is not known" in unknown.output
 
 

@@ -33,8 +33,12 @@ Method
 3. **Pile radius.** In cylindrical coordinates about the centre,
    :math:`\rho_i = \sqrt{(x_i-x_0)^2 + (y_i-y_0)^2}`, :math:`\theta_i = \operatorname{atan2}`.
    The outer radius :math:`R` is the median, over 16 azimuthal sectors, of each sector's largest
-   :math:`\rho_i + a_i`: a few particles that rolled away, or a toe spread on one side, move only
-   some sectors and not the median.
+   :math:`\rho_i + a_i` among the particles that lie on others, with their bottom at least
+   1.25 mean diameters above the floor, :math:`z_i - a_i - z_f \ge 1.25\,\bar d` (a particle
+   of the second layer sits about 0.8 diameter up): spheres that rolled away and the monolayer
+   that a collapsing column spreads over the floor are not part of the heap. A few particles that
+   stayed on top of others far out, or a toe spread on one side, move only some sectors and not
+   the median. If no particle lies that high, all particles count.
 
 4. **Free surface.** Rings of width :math:`w = \bar d` in :math:`\rho`; ring :math:`k` is cut into
    :math:`n_k = \max(1, \lfloor 2\pi(k + 1/2)\rfloor)` azimuthal bins, so every bin is about one
@@ -104,9 +108,9 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from .errors import ParameterError, SimulationError, check_finite, check_positive, check_range
+from .errors import ParameterError, SimulationError, check_finite, check_non_negative, check_positive, check_range
 
-__all__ = ["ReposeAngle", "default_max_speed", "plot_pile", "repose_angle", "settled"]
+__all__ = ["ReposeAngle", "default_max_speed", "plot_pile", "repose_angle", "settled", "touching"]
 
 #: Fewest particles accepted: a cone fit has up to 4 parameters, and a pile needs several layers.
 MIN_PARTICLES = 20
@@ -118,6 +122,8 @@ MIN_SLICE = 3
 TOE_CLEARANCE = 3.0
 #: Sectors used for the median pile radius.
 _RADIUS_SECTORS = 16
+#: Bottom height above the floor, in mean diameters, of the particles that define the pile radius.
+_LIFTED_LAYERS = 1.25
 #: Fraction of the pile height whose particles locate the centre.
 _TOP_FRACTION = 0.2
 #: Default settling threshold, in units of sqrt(g d).
@@ -277,6 +283,27 @@ def settled(velocities: Any, radii: Any, gravity: float = 9.81, max_speed: float
     return vmax < limit, vmax
 
 
+def touching(positions: Any, radii: Any, gap: float = 0.05) -> np.ndarray:
+    r"""Mask of the particles that touch another one: surface gap below ``gap`` times the smaller radius.
+
+    A sphere that rolled away from the pile and rolls on alone over the floor touches nothing;
+    it does not change the pile, so :func:`settled` may be asked of the others only. Uses a
+    k-d tree (:class:`scipy.spatial.cKDTree`), O(N log N).
+    """
+    from scipy.spatial import cKDTree
+
+    x = _as_positions(positions)
+    a = _as_radii(radii, x.shape[0])
+    gap = check_non_negative("gap", gap)
+    pairs = cKDTree(x).query_pairs(2.0 * float(a.max()) * (1.0 + gap), output_type="ndarray")
+    i, j = pairs[:, 0], pairs[:, 1]
+    near = np.linalg.norm(x[i] - x[j], axis=1) < a[i] + a[j] + gap * np.minimum(a[i], a[j])
+    mask = np.zeros(x.shape[0], dtype=bool)
+    mask[i[near]] = True
+    mask[j[near]] = True
+    return mask
+
+
 # --------------------------------------------------------------------------------------------
 # geometry helpers
 # --------------------------------------------------------------------------------------------
@@ -292,8 +319,10 @@ def _estimate_center(x: np.ndarray, top: np.ndarray, floor: float) -> tuple[floa
     return float(np.dot(w, x[sel, 0]) / w.sum()), float(np.dot(w, x[sel, 1]) / w.sum())
 
 
-def _pile_radius(rho: np.ndarray, theta: np.ndarray, a: np.ndarray) -> float:
-    """Median over azimuthal sectors of the largest rho + a (step 3)."""
+def _pile_radius(rho: np.ndarray, theta: np.ndarray, a: np.ndarray, lifted: np.ndarray) -> float:
+    """Median over azimuthal sectors of the largest rho + a of the particles above the second layer (step 3)."""
+    if lifted.any():
+        rho, theta, a = rho[lifted], theta[lifted], a[lifted]
     sector = np.minimum((theta * (_RADIUS_SECTORS / (2 * np.pi))).astype(np.int64), _RADIUS_SECTORS - 1)
     ext = np.zeros(_RADIUS_SECTORS)
     np.maximum.at(ext, sector, rho + a)
@@ -351,7 +380,7 @@ def _cone_residuals(x: np.ndarray, top: np.ndarray, p: np.ndarray) -> np.ndarray
 def _select_and_fit(x, a, top, floor, c, fixed_center, exclude_apex, exclude_toe, d_mean, p_prev):
     """One pass: surface candidates about centre c, robust cone fit, outlier trim, refit."""
     rho, theta = _polar(x, c)
-    big_r = _pile_radius(rho, theta, a)
+    big_r = _pile_radius(rho, theta, a, x[:, 2] - a - floor >= _LIFTED_LAYERS * d_mean)
     r_lo, r_hi = exclude_apex * big_r, (1.0 - exclude_toe) * big_r
     if p_prev is not None and p_prev[1] > 0:
         # toe limit: where the fitted surface of tops is TOE_CLEARANCE diameters above the floor

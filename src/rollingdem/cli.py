@@ -69,17 +69,19 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
              model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Only this rolling model in the "
                                                        "single-sphere cases (repeatable), e.g. epsd, 'cdt (liggghts)'."),
              quick: bool = typer.Option(False, "--quick", help="Reduced sizes (under 15 minutes on 2 cores)."),
-             threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores; "
-                                                   "single-sphere runs use one)."),
+             workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Simulations side by side, one "
+                                                   "thread each (default: one per core; 1: one after the other here)."),
+             scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address "
+                                                     "(tcp://host:port) to run on an existing cluster."),
              progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
     """Run the seed report's test cases and the repose-angle study; write report.md/.html and results.json.
 
     Exit status 1 when any check fails its tolerance."""
     from .validate import run_validation
 
-    _set_threads(threads)
     try:
-        results = run_validation(out, cases=case, quick=quick, progress=progress, models=model)
+        results = run_validation(out, cases=case, quick=quick, progress=progress, models=model, workers=workers,
+                                 scheduler=scheduler)
     except ParameterError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2)

@@ -14,7 +14,11 @@ Per step (velocity Verlet, forces at half-step velocities as in LIGGGHTS and LAM
 4. per particle: gather the pair terms where it is the second partner, wall contacts, gravity;
    v += dt/2 F/m, omega += dt/2 T/I.
 
-Nothing here allocates or calls Python.
+Nothing here allocates or calls Python. ``contact`` and ``wall_contacts`` are compiled without
+Numba's reference counting (``_nrt=False``): they take arrays but never allocate, and a counted
+call costs atomic increments and decrements of every array argument per contact (+18 % speed on
+a dense bed). The sub-model kernels are inlined into ``contact`` (``inline="always"``); inlining
+``contact`` itself into the parallel loops is faster still but triples the compile time.
 """
 
 import math
@@ -53,7 +57,7 @@ WALL_CYLINDER = 1
 INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j,
             r_eff, m_eff, inertia_r, p, dt):
     """One contact: force on i, torque on i, torque on j, dissipated energies (normal, sliding,
@@ -180,7 +184,7 @@ def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
         contacts[i] = ncontact
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel, wall_omega,
                   wall_mat, whist):
     """All wall contacts of particle i: total force and torque on i, energies, contact count.

@@ -33,8 +33,15 @@ def available_cases() -> dict:
     return cases
 
 
-def run_validation(outdir, cases=None, quick=False, progress=True, models=None) -> list[CaseResult]:
-    """Run the named cases (all by default) and write the report; returns the case results."""
+def run_validation(outdir, cases=None, quick=False, progress=True, models=None, workers=None,
+                   scheduler=None) -> list[CaseResult]:
+    """Run the named cases (all by default) and write the report; returns the case results.
+
+    The independent simulations of a case run side by side on ``workers`` processes (default: one
+    per core; 1 runs them here, one after the other) or on the Dask cluster at ``scheduler``.
+    """
+    from .parallel import runner
+
     available = available_cases()
     names = list(available) if not cases else list(cases)
     unknown = [c for c in names if c not in available]
@@ -42,6 +49,11 @@ def run_validation(outdir, cases=None, quick=False, progress=True, models=None) 
         raise ParameterError(f"case = {', '.join(unknown)} is not known: allowed are {', '.join(available)}")
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
+    with runner(workers=workers, scheduler=scheduler) as mapper:
+        return _run_cases(available, names, out, quick, progress, models, mapper)
+
+
+def _run_cases(available, names, out, quick, progress, models, mapper) -> list[CaseResult]:
     results = []
     bar = _bar(progress, len(names))
     for name in names:
@@ -49,7 +61,7 @@ def run_validation(outdir, cases=None, quick=False, progress=True, models=None) 
             bar.set_description(name)
         tic = time.perf_counter()
         try:
-            kwargs = {"quick": quick, "outdir": out, "progress": _run_counter(bar)}
+            kwargs = {"quick": quick, "outdir": out, "progress": _run_counter(bar), "runner": mapper}
             if models is not None and name in ("inclined-wall", "rolling-flat", "rolling-slope"):
                 kwargs["models"] = models
             result = available[name](**kwargs)

@@ -1,7 +1,9 @@
 """The seed report's single-sphere cases 0-2 for every rolling model, with tables, checks and figures.
 
 Each function returns a :class:`~rollingdem.cases.results.CaseResult`; with ``outdir`` it also
-writes its figures there. ``quick`` trims the grids (fewer angles, coarser bisection).
+writes its figures there. ``quick`` trims the grids (fewer angles, coarser bisection). ``runner``
+maps the independent runs: the built-in ``map`` one after the other here,
+:func:`rollingdem.parallel.runner` side by side in worker processes.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ def _select(models):
 
 
 @single_thread
-def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress=None) -> CaseResult:
+def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress=None, runner=map) -> CaseResult:
     """Case 0: critical mu_r by bisection for every model and angle; Table 2 with the ratio to tan b.
 
     Check: mu_r,crit / tan(beta) within 0.5 % of 1 (the report's LIGGGHTS values are within 1.6 %).
@@ -52,17 +54,25 @@ def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress
         angles = tuple(a for a in angles if a in (4, 20, 35)) or angles[:1]
     rel_tol = 2e-3 if quick else 1e-3
     rows, checks = [], []
+    items = [(beta, label) for beta in angles for label in chosen]
+
+    def one(item):
+        return critical_rolling_friction(chosen[item[1]], item[0], rel_tol=rel_tol)
+
+    found = {}
+    for item, mu_c in zip(items, runner(one, items)):
+        found[item] = mu_c
+        if progress:
+            progress()
     for beta in angles:
         tan_b = math.tan(math.radians(beta))
         row = {"beta (deg)": beta, "tan(beta)": tan_b}
-        for label, model in chosen.items():
-            mu_c = critical_rolling_friction(model, beta, rel_tol=rel_tol)
+        for label in chosen:
+            mu_c = found[beta, label]
             row[label] = mu_c
             row[f"{label} / tan"] = mu_c / tan_b
             checks.append(Check("inclined-wall", label, f"mu_r,crit / tan(beta) at {beta} deg", mu_c / tan_b, 1.0,
                                 0.005, relative=False, source="theory: mu_r,crit = tan(beta)"))
-            if progress:
-                progress()
         if beta in ANGLES:
             for label, values in REPORT_TABLE2.items():
                 row[f"report {label}"] = values[ANGLES.index(beta)]
@@ -89,7 +99,7 @@ def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress
 
 
 @single_thread
-def rolling_flat(models=None, quick=False, outdir=None, progress=None) -> CaseResult:
+def rolling_flat(models=None, quick=False, outdir=None, progress=None, runner=map) -> CaseResult:
     """Case 1: v0 = 1 m/s, omega0 = 0 on a flat. Checks: stop time and distance against the analytic
     0.50968 s / 0.18836 m within 0.5 % for CDT, the recommended EPSD and Force Proportional (the same
     torque on a still wall), 1 % for the other spring models; the LIGGGHTS-parity EPSD within 0.3 %
@@ -98,8 +108,8 @@ def rolling_flat(models=None, quick=False, outdir=None, progress=None) -> CaseRe
     tic = time.perf_counter()
     t1, v1, t_ref, s_ref = analytic_flat()
     rows, checks, runs = [], [], {}
-    for label, model in _select(models).items():
-        traj = rolling_flat_run(model, duration=0.8)
+    chosen = _select(models)
+    for label, traj in zip(chosen, runner(lambda m: rolling_flat_run(m, duration=0.8), chosen.values())):
         runs[label] = traj
         t_stop, dist = stop_time(traj), float(traj.x[-1])
         row = {"model": label, "stop time (s)": t_stop, "distance (m)": dist,
@@ -144,7 +154,7 @@ def rolling_flat(models=None, quick=False, outdir=None, progress=None) -> CaseRe
 
 
 @single_thread
-def rolling_slope(models=None, quick=False, outdir=None, progress=None) -> CaseResult:
+def rolling_slope(models=None, quick=False, outdir=None, progress=None, runner=map) -> CaseResult:
     """Case 2: launched at 1 m/s up a 10 deg slope. Checks: x_max within 0.5 % of the analytic
     0.104204 m (not for the viscous model, which has no such bound); afterwards spring models hold
     (|creep| over the last second < 1e-7 m/s), CDT creeps back at LIGGGHTS's 4.0e-5 m/s (10 %), and
@@ -152,8 +162,8 @@ def rolling_slope(models=None, quick=False, outdir=None, progress=None) -> CaseR
     tic = time.perf_counter()
     x_ref, t_ref = analytic_slope()
     rows, checks, runs = [], [], {}
-    for label, model in _select(models).items():
-        traj = rolling_slope_run(model, duration=2.2)
+    chosen = _select(models)
+    for label, traj in zip(chosen, runner(lambda m: rolling_slope_run(m, duration=2.2), chosen.values())):
         runs[label] = traj
         k = int(np.argmax(traj.x))
         x_max, back, creep = float(traj.x[k]), float(traj.x[k] - traj.x[-1]), creep_speed(traj)

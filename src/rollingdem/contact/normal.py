@@ -82,7 +82,7 @@ def hertz_damping_factor(e: float) -> float:
     return float(brentq(lambda c: hertz_restitution(c) - e, 0.0, hi, xtol=1e-13, rtol=1e-12))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def hertz_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
     """Hertz-Mindlin (no-slip), LIGGGHTS ``normal_model_hertz.h`` / EDEM.
 
@@ -99,7 +99,7 @@ def hertz_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
     return kn * overlap, -gamma_n * normal_velocity, kn, st, gamma_t
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def hooke_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
     """Hooke with stiffness from a characteristic velocity V_c, LIGGGHTS ``normal_model_hooke.h``.
 
@@ -114,7 +114,7 @@ def hooke_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
     return kn * overlap, -gamma_n * normal_velocity, kn, p[off + 2] * kn, gamma_n
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def linear_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
     """PFC-style linear contact with given k_n, k_s and dashpots gamma = 2 zeta sqrt(m* k)."""
     kn = p[off]

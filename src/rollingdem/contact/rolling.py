@@ -50,14 +50,14 @@ def liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff):
     return factor * wix, factor * wiy, factor * wiz, 0.0, 0.0, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def no_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
                lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """No rolling resistance: M = 0."""
     return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def constant_directional_torque(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz,
                                 lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """CDT, Ai et al. (2011) type A; seed report eq. 2; STAR-CCM+ Constant Torque.
@@ -144,7 +144,7 @@ HISTORY_GLOBAL = 1        # never rotated (LIGGGHTS)
 HISTORY_PROJECT = 2       # projected on the tangent plane and rescaled (LAMMPS)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
                    lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """Elastic-plastic spring-dashpot rolling resistance (Ai type C), the unified form of MODELS.md §12.
@@ -436,7 +436,7 @@ class DisplacementDamping(_SpringRolling):
         return {"theta_max": self.theta_max, "damping": self.damping, "slip_damping": self.slip_damping}
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def force_proportional_moment(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz,
                               lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """STAR-CCM+ Force Proportional (seed 004, eq. 3275): each particle's own in-plane spin is
@@ -467,7 +467,7 @@ class ForceProportional(SubModel):
     kernel = ("rollingdem.contact.rolling", "force_proportional_moment")
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def viscous_moment(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz,
                    lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """Viscous rolling resistance, Ai type B (Zhou et al. 1999 eq. 4): M = c_v F_n (R* |dw_r|) dw_r/|dw_r|

@@ -22,7 +22,7 @@ from .base import P_FRICTION, SubModel
 from .frame import carry_with_frame
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def history_spring(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, vtx, vty, vtz,
                    kt, gamma_t, normal_force, dt, p, poff):
     """Tangential spring-dashpot with Coulomb limit.

@@ -19,7 +19,7 @@ from ..errors import check_non_negative, check_positive
 from .base import P_FRICTION, SubModel
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def no_twisting(hist, k, off, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
                 force_total, dt, p, poff):
     """No twisting resistance."""
@@ -34,7 +34,7 @@ class NoTwisting(SubModel):
     kernel = ("rollingdem.contact.twisting", "no_twisting")
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def spring_twisting(hist, k, off, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
                     force_total, dt, p, poff):
     """Twisting spring-dashpot-slider (LAMMPS ``twisting sds`` / ``marshall``, MODELS.md §4.8).

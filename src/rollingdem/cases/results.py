@@ -37,11 +37,11 @@ class Check:
         return abs(self.measured - self.reference) <= allowed
 
     def as_dict(self) -> dict:
-        return {"case": self.case, "model": self.model, "quantity": self.quantity, "measured": self.measured,
-                "reference": self.reference, "tolerance": self.tolerance,
+        return {"case": self.case, "model": self.model, "quantity": self.quantity, "measured": float(self.measured),
+                "reference": float(self.reference), "tolerance": float(self.tolerance),
                 "tolerance_kind": f"{self.bound} bound" if self.bound in ("upper", "lower") else
                 ("relative" if self.relative else "absolute"),
-                "source": self.source, "pass": self.passed}
+                "source": self.source, "pass": bool(self.passed)}
 
 
 @dataclass

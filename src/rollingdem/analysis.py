@@ -178,7 +178,7 @@ class ReposeAngle:
 # input checks
 # --------------------------------------------------------------------------------------------
 
-def _as_positions(positions: Any) -> np.ndarray:
+def _as_positions(positions: Any, min_particles: int = MIN_PARTICLES) -> np.ndarray:
     try:
         x = np.asarray(positions, dtype=np.float64)
     except (TypeError, ValueError):
@@ -190,8 +190,8 @@ def _as_positions(positions: Any) -> np.ndarray:
     if bad.any():
         raise ParameterError(f"positions are not allowed to be NaN or infinite: {int(bad.sum())} rows are, "
                              f"first at index {int(np.flatnonzero(bad)[0])}")
-    if x.shape[0] < MIN_PARTICLES:
-        raise ParameterError(f"positions has {x.shape[0]} particles: at least {MIN_PARTICLES} are needed "
+    if x.shape[0] < min_particles:
+        raise ParameterError(f"positions has {x.shape[0]} particles: at least {min_particles} are needed "
                              "to fit a cone")
     return x
 
@@ -292,7 +292,7 @@ def touching(positions: Any, radii: Any, gap: float = 0.05) -> np.ndarray:
     """
     from scipy.spatial import cKDTree
 
-    x = _as_positions(positions)
+    x = _as_positions(positions, min_particles=0)
     a = _as_radii(radii, x.shape[0])
     gap = check_non_negative("gap", gap)
     pairs = cKDTree(x).query_pairs(2.0 * float(a.max()) * (1.0 + gap), output_type="ndarray")

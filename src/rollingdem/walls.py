@@ -64,7 +64,7 @@ class Plane(Wall):
 
     def describe(self) -> dict:
         return {"type": "plane", "point": list(self.point), "normal": list(self.normal),
-                "velocity": list(self.velocity), "angular_velocity": list(self.angular_velocity)}
+                "velocity": list(self.velocity), "angular_velocity": list(self.angular_velocity), "name": self.name}
 
 
 class Cylinder(Wall):
@@ -107,7 +107,7 @@ class Cylinder(Wall):
     def describe(self) -> dict:
         return {"type": "cylinder", "radius": self.radius, "point": list(self.point), "axis": list(self.axis),
                 "extent": [self.extent[0], self.extent[1]], "velocity": list(self.velocity),
-                "angular_velocity": list(self.angular_velocity)}
+                "angular_velocity": list(self.angular_velocity), "name": self.name}
 
 
 def wall_overlap(geometry: np.ndarray, kind: int, x: np.ndarray, r: np.ndarray) -> np.ndarray:

@@ -98,6 +98,32 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
 
 
 @app.command()
+def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help="column-collapse (default), "
+                                                    "single-particle, dense-bed (repeatable)."),
+          particles: int = typer.Option(20000, "--particles", "-n", help="Spheres in column-collapse and dense-bed."),
+          steps: Optional[int] = typer.Option(None, "--steps", help="Timed steps (default: 10,000 column-collapse, "
+                                              "150,000 single-particle, 2,000 dense-bed)."),
+          threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
+          model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Rolling models of dense-bed "
+                                                    "(repeatable; default: none and every model)."),
+          from_dump: Optional[Path] = typer.Option(None, "--from-dump", help="Start column-collapse from the settled "
+                                                   "state the LIGGGHTS reference input writes (write_dump custom)."),
+          json_out: Optional[Path] = typer.Option(None, "--json", help="Write the results to this JSON file.")):
+    """Time standard scenes: particle-steps per second, where the time goes, memory, compile time."""
+    from . import bench as bench_mod
+
+    _set_threads(threads)
+    try:
+        results = bench_mod.run_bench(scenes=scene or ["column-collapse"], particles=particles, steps=steps,
+                                      threads=threads, from_dump=from_dump, models=model, echo=typer.echo)
+    except ParameterError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2)
+    if json_out is not None:
+        typer.echo(f"json: {bench_mod.write_json(results, json_out)}")
+
+
+@app.command()
 def check(case: Path = typer.Argument(..., help="Case file to validate.")):
     """Validate a case file without running it."""
     from . import casefile

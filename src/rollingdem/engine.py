@@ -70,15 +70,21 @@ class EngineState:
         old = (getattr(self, "nl_j", None), getattr(self, "hist", None))
         self.nl_j = np.zeros(capacity, dtype=np.int32)
         self.hist = np.zeros((capacity, h))
+        self.touch = np.zeros(capacity, dtype=np.uint8)  # entry in contact at the last step
         if keep and old[0] is not None:
             self.nl_j[:keep] = old[0][:keep]
             self.hist[:keep] = old[1][:keep]
+            self.derive_touch(keep)
         self.pair_force = np.zeros((capacity, 3))
         self.pair_torque_j = np.zeros((capacity, 3))
         self.tr_k = np.zeros(capacity, dtype=np.int32)
         self.new_j = np.zeros(capacity, dtype=np.int32)
         self.new_hist = np.zeros((capacity, h))
         self.capacity = capacity
+
+    def derive_touch(self, total: int):
+        """An entry is in contact iff it keeps a contact normal (what the kernel does at a rebuild)."""
+        self.touch[:total] = np.any(self.hist[:total, :3] != 0.0, axis=1)
 
     def grow(self, needed: int):
         keep = int(self.nl_start[-1]) if self.nl_start.size else 0
@@ -144,8 +150,8 @@ class EngineState:
     def kernel_args(self, dt, gravity, skin, pair_params):
         return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
                 pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
-                self.whist, self.nl_start, self.nl_j, self.hist, self.pair_force, self.pair_torque_j, self.tr_start,
-                self.tr_k, self.new_start, self.new_j, self.new_hist, self.cell_start, self.cell_items, self.cell_of,
+                self.whist, self.nl_start, self.nl_j, self.hist, self.touch, self.pair_force, self.pair_torque_j,
+                self.tr_start, self.tr_k, self.new_start, self.new_j, self.new_hist, self.cell_start, self.cell_items, self.cell_of,
                 self.counts, self.x_ref, skin, self.energy, self.contacts, self.info)
 
     def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
@@ -197,6 +203,7 @@ class EngineState:
                 break
             self.grow(int(self.info[I_NEEDED]))
         self.hist[:total], self.whist[:], self.energy[:] = saved
+        self.derive_touch(total)
 
     # --- checkpoint ----------------------------------------------------------------------------
     ARRAYS = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "energy", "contacts", "x_ref",
@@ -224,5 +231,6 @@ class EngineState:
         st._allocate_list(max(int(total * 1.3) + 16, 8 * st.n))
         st.nl_j[:total] = arrays["nl_j"]
         st.hist[:total] = arrays["hist"]
+        st.derive_touch(total)
         st.tr_k[:total] = arrays["tr_k"]
         return st

@@ -111,9 +111,13 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
 
 
 @njit(cache=True, parallel=True)
-def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
+def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
                 pair_torque_j, energy, contacts):
-    """Pair contacts, one thread per row: F and T on i summed per row, F and T_j kept per pair."""
+    """Pair contacts, one thread per row: F and T on i summed per row, F and T_j kept per pair.
+
+    ``touch[k]`` says whether entry k is in contact this step; the pair terms of an entry out of
+    contact are left stale (the gather skips them), so a neighbor out of reach costs a distance
+    test and a one-byte flag, not a history row and two force rows."""
     n = x.shape[0]
     for i in prange(n):
         fx = fy = fz = 0.0
@@ -131,13 +135,12 @@ def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
             d2 = dx * dx + dy * dy + dz * dz
             reach = ri + rj
             if d2 >= reach * reach:
-                if hist[k, 0] != 0.0 or hist[k, 1] != 0.0 or hist[k, 2] != 0.0:
+                if touch[k]:
+                    touch[k] = 0
                     for s in range(hist.shape[1]):
                         hist[k, s] = 0.0
-                for d in range(3):
-                    pair_force[k, d] = 0.0
-                    pair_torque_j[k, d] = 0.0
                 continue
+            touch[k] = 1
             dist = math.sqrt(d2)
             overlap = reach - dist
             nx = dx / dist
@@ -184,7 +187,7 @@ def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
         contacts[i] = ncontact
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel, wall_omega,
                   wall_mat, whist):
     """All wall contacts of particle i: total force and torque on i, energies, contact count.
@@ -263,8 +266,8 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
 
 
 @njit(cache=True, parallel=True)
-def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, pair_force,
-           pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy, contacts, x_ref,
+def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch,
+           pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy, contacts, x_ref,
            half_skin):
     """Per particle: pair terms as second partner, walls, gravity; then the closing half kick
     (if ``kick``). Returns how many particles may cross skin/2 during the next step, and how many
@@ -281,6 +284,8 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
         tz = t[i, 2]
         for m in range(tr_start[i], tr_start[i + 1]):
             k = tr_k[m]
+            if not touch[k]:
+                continue
             fx -= pair_force[k, 0]
             fy -= pair_force[k, 1]
             fz -= pair_force[k, 2]
@@ -342,7 +347,7 @@ def kick_drift(dt, x, v, w, f, t, mass, inertia):
 
 
 @njit(cache=True)
-def _rebuild(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist, cell_start,
+def _rebuild(x, radius, skin, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist, cell_start,
              cell_items, cell_of, counts, x_ref, info):
     total = rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
                                   new_hist, cell_start, cell_items, cell_of, counts, x_ref)
@@ -356,12 +361,12 @@ def _rebuild(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, n
 
 @njit(cache=True)
 def _forces(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
-            wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start, tr_k,
-            x_ref, half_skin, energy, contacts, info):
-    pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, pair_force,
+            wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start,
+            tr_k, x_ref, half_skin, energy, contacts, info):
+    pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
                 pair_torque_j, energy, contacts)
     info[I_NEED_REBUILD], info[I_TOO_FAST] = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                                    pair_params, tr_start, tr_k, pair_force, pair_torque_j,
+                                                    pair_params, tr_start, tr_k, touch, pair_force, pair_torque_j,
                                                     wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
                                                     energy, contacts, x_ref, half_skin)
 
@@ -369,7 +374,7 @@ def _forces(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_p
 @njit(cache=True)
 def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
             wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
-            nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start, tr_k,
+            nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k,
             new_start, new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin,
             energy, contacts, info):
     """Advance ``nsteps`` steps. Stops early, at a step boundary, with info[I_STATUS] =
@@ -379,12 +384,12 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
-        if not _rebuild(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist,
+        if not _rebuild(x, radius, skin, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
                         cell_start, cell_items, cell_of, counts, x_ref, info):
             return
         _forces(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
-                wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start,
-                tr_k, x_ref, half_skin, energy, contacts, info)
+                wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j,
+                tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
         info[I_FORCES_VALID] = 1
     for step in range(nsteps):
         if info[I_TOO_FAST] > 0:
@@ -392,7 +397,7 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
             info[I_STATUS] = STATUS_TOO_FAST
             return
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist,
+            if not _rebuild(x, radius, skin, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
                             cell_start, cell_items, cell_of, counts, x_ref, info):
                 return
         kick_drift(dt, x, v, w, f, t, mass, inertia)
@@ -400,6 +405,6 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
             for d in range(3):
                 wall_geom[wl, d] += dt * wall_vel[wl, d]
         _forces(dt, True, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
-                wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, pair_force, pair_torque_j, tr_start,
-                tr_k, x_ref, half_skin, energy, contacts, info)
+                wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j,
+                tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
         info[I_STEPS_DONE] = step + 1

@@ -1,0 +1,312 @@
+"""``rollingdem bench``: time standard scenes, report particle-steps per second and where the time goes.
+
+Scenes (the performance issue's definitions):
+
+* ``column-collapse``: N spheres of R = 5 mm, the seed report's Table 1 material (E = 40 MPa,
+  nu = 0.49, rho = 1056 kg/m3, mu = 0.8, mu_r = 0.2, eta_r = 0.3, e = 0.5), Hertz-Mindlin with
+  tangential history and EPSD rolling resistance, plate at z = 0, settled 0.6 s in a cylinder of
+  radius 0.125 m sqrt(N / 20,000) (the LIGGGHTS reference input's geometry), then the cylinder is
+  removed and ``steps`` steps of the collapse are timed; dt = 1e-5 s, skin 2 mm. The settled state
+  is cached on disk (``$ROLLINGDEM_CACHE_DIR/bench``), or read from the dump the LIGGGHTS
+  reference input writes (``--from-dump``).
+* ``single-particle``: the rolling-flat case (one sphere, one plane), 150,000 steps: the per-step
+  overhead.
+* ``dense-bed``: the settled column with its cylinder kept, once per rolling model: the cost of
+  each model relative to none.
+
+The figure ``particle_steps_per_s`` never includes compilation: the first call, which compiles or
+loads the kernel from Numba's cache, is timed apart (``compile_s``). The time split comes from
+timing each phase of the step on its own on the final state (contact forces; walls; gravity and
+integration; neighbor search, amortised over the rebuilds of the timed run).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import resource
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ParameterError
+
+SCENES = ("column-collapse", "single-particle", "dense-bed")
+TABLE1 = dict(youngs_modulus=40e6, poisson_ratio=0.49, density=1056.0, friction=0.8, rolling_friction=0.2,
+              restitution=0.5, rolling_damping=0.3)
+RADIUS = 0.005
+DT = 1e-5
+SKIN = 0.002
+COLUMN_RADIUS_20K = 0.125  # m, for 20,000 spheres (LIGGGHTS reference input)
+FILL_HEIGHT = 0.80  # m, top of the insertion region (LIGGGHTS reference input)
+SETTLE = 0.6  # s
+DENSE_BED_MODELS = ("none", "cdt", "epsd", "epsd2", "epsd3", "rrlinear", "sds", "displacement_damping",
+                    "force_proportional", "viscous")
+
+
+@dataclass
+class BenchResult:
+    scene: str
+    model: str
+    particles: int
+    steps: int
+    threads: int
+    wall_s: float
+    particle_steps_per_s: float
+    compile_s: float
+    contacts_per_particle: float
+    neighbors_per_particle: float
+    rebuilds: int
+    split_s_per_step: dict = field(default_factory=dict)
+    peak_rss_mb: float = math.nan
+    state_bytes_per_particle: float = math.nan
+    note: str = ""
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def _cache_dir() -> Path:
+    from .contact.model import kernel_cache_dir
+
+    return kernel_cache_dir().parent / "bench"
+
+
+def _column_simulation(rolling: str = "epsd"):
+    from . import ContactModel, Cylinder, Material, Plane, Simulation
+
+    sim = Simulation(contact=ContactModel("hertz", rolling=rolling), dt=DT, skin=SKIN)
+    sim.add_material(Material("table1", **TABLE1))
+    sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1", name="plate"))
+    return sim
+
+
+def column_radius(particles: int) -> float:
+    return COLUMN_RADIUS_20K * math.sqrt(particles / 20000)
+
+
+def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=print):
+    """The settled column (cylinder still in place), from the disk cache or built now and cached."""
+    from . import Cylinder, CylinderRegion, Simulation, __version__
+
+    path = _cache_dir() / f"column_{particles}_seed{seed}_{rolling}_v{__version__}.npz"
+    if path.exists():
+        return Simulation.restore(path)
+    r_cyl = column_radius(particles)
+    sim = _column_simulation(rolling)
+    sim.add_wall(Cylinder(r_cyl, material="table1", name="cylinder"))
+    echo(f"settling {particles} spheres for {SETTLE} s (cached afterwards in {path.parent}) ...")
+    sim.insert(CylinderRegion(r_cyl, 0.0, FILL_HEIGHT), particles, RADIUS, "table1", seed=seed,
+               velocity=(0.0, 0.0, -0.5))
+    sim.run(SETTLE)
+    sim.checkpoint(path)
+    return sim
+
+
+def column_from_dump(path, rolling: str = "epsd"):
+    """The settled state written by the LIGGGHTS reference input (``write_dump ... custom id type x y z
+    vx vy vz radius``), with the cylinder of the matching radius in place."""
+    from . import Cylinder
+
+    path = Path(path)
+    if not path.exists():
+        raise ParameterError(f"from_dump = {str(path)!r} does not exist: give the dump written by "
+                             "liggghts_in.build (see reference/bench/README.md)")
+    lines = path.read_text().splitlines()
+    try:
+        start = next(k for k, line in enumerate(lines) if line.startswith("ITEM: ATOMS"))
+        cols = lines[start].split()[2:]
+        data = np.loadtxt(lines[start + 1:], ndmin=2)
+        idx = {c: cols.index(c) for c in ("x", "y", "z", "vx", "vy", "vz", "radius")}
+    except (StopIteration, ValueError) as err:
+        raise ParameterError(f"from_dump = {str(path)!r} is not a LIGGGHTS custom dump with columns "
+                             f"x y z vx vy vz radius ({err})") from None
+    x = data[:, [idx["x"], idx["y"], idx["z"]]]
+    v = data[:, [idx["vx"], idx["vy"], idx["vz"]]]
+    sim = _column_simulation(rolling)
+    sim.add_wall(Cylinder(column_radius(len(x)), material="table1", name="cylinder"))
+    sim.add_particles(x, data[:, idx["radius"]], "table1", velocity=v, allow_overlap=True)
+    return sim
+
+
+def _contacts_per_particle(sim) -> tuple[float, float]:
+    """(contacts per particle, each pair counted for both and walls once; neighbors per particle)."""
+    st = sim._state
+    n = st.n
+    rows = np.repeat(np.arange(n), np.diff(st.nl_start[: n + 1]))
+    j = st.nl_j[: st.list_size]
+    d = np.linalg.norm(st.x[rows] - st.x[j], axis=1)
+    pairs = int(np.count_nonzero(d < st.radius[rows] + st.radius[j]))
+    walls = int(st.contacts.sum()) - pairs
+    return (2 * pairs + walls) / n, 2 * st.list_size / n
+
+
+def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
+    """Seconds per step of each phase, each timed on its own on the present state."""
+    from .neighbors import rebuild_neighbor_list
+
+    st = sim._state
+    kernel = sim.contact.kernel()
+    gravity = np.asarray(sim.gravity)
+    args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
+    (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, wall_kind, wall_geom, wall_vel, wall_omega,
+     wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, new_start, new_j, new_hist,
+     cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts, info) = args
+    saved = {name: arr.copy() for name, arr in (("hist", hist), ("touch", touch), ("whist", whist), ("energy", energy), ("f", f),
+                                                ("t", t), ("contacts", contacts), ("x_ref", x_ref))}
+    no_walls = wall_kind[:0]
+
+    def timed(fn):
+        fn()
+        tic = time.perf_counter()
+        for _ in range(repeats):
+            fn()
+        return (time.perf_counter() - tic) / repeats
+
+    split = {
+        "contact forces": timed(lambda: kernel.pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j,
+                                                           hist, touch, pair_force, pair_torque_j, energy,
+                                                           contacts)),
+    }
+    gather_walls = timed(lambda: kernel.gather(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp,
+                                               tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom,
+                                               wall_vel, wall_omega, wall_mat, whist, energy, contacts, x_ref,
+                                               0.5 * skin))
+    gather_plain = timed(lambda: kernel.gather(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp,
+                                               tr_start, tr_k, touch, pair_force, pair_torque_j, no_walls, wall_geom[:0],
+                                               wall_vel[:0], wall_omega[:0], wall_mat[:0], whist, energy,
+                                               contacts, x_ref, 0.5 * skin))
+    kick = timed(lambda: kernel.kick_drift(0.0, x, v, w, f, t, mass, inertia))
+    split["walls"] = max(gather_walls - gather_plain, 0.0)
+    split["integration and gathering"] = gather_plain + kick
+    rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start,
+                                                  new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref))
+    split["neighbor search"] = rebuild * rebuilds / max(steps, 1)
+    for name, arr in saved.items():  # the timing calls must leave the state as it was
+        getattr(st, name)[...] = arr
+    return split
+
+
+def _time_run(sim, steps: int) -> tuple[float, float, int]:
+    """(compile/first-call seconds, timed seconds, rebuilds during the timed steps)."""
+    from .engine_kernel import I_REBUILDS
+
+    tic = time.perf_counter()
+    sim.run(steps=1, progress=False)
+    first = time.perf_counter() - tic
+    before = int(sim._state.info[I_REBUILDS])
+    tic = time.perf_counter()
+    sim.run(steps=steps, progress=False)
+    wall = time.perf_counter() - tic
+    return first, wall, int(sim._state.info[I_REBUILDS]) - before
+
+
+def _result(scene, model, sim, steps, first, wall, rebuilds, threads, note="", split_repeats=20) -> BenchResult:
+    n = sim.n_particles
+    contacts, neighbors = _contacts_per_particle(sim)
+    state_bytes = sum(a.nbytes for a in vars(sim._state).values() if isinstance(a, np.ndarray))
+    return BenchResult(scene=scene, model=model, particles=n, steps=steps, threads=threads, wall_s=wall,
+                       particle_steps_per_s=n * steps / wall, compile_s=first, contacts_per_particle=contacts,
+                       neighbors_per_particle=neighbors, rebuilds=rebuilds,
+                       split_s_per_step=_split(sim, split_repeats, rebuilds, steps),
+                       peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+                       state_bytes_per_particle=state_bytes / n, note=note)
+
+
+def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, echo=print) -> BenchResult:
+    import numba
+
+    threads = threads or numba.get_num_threads()
+    sim = column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo)
+    sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
+    first, wall, rebuilds = _time_run(sim, steps)
+    note = f"settled state from {from_dump}" if from_dump else "settled state from the disk cache"
+    return _result("column-collapse", "epsd", sim, steps, first, wall, rebuilds, threads, note)
+
+
+def single_particle(steps=150000, threads=None, echo=print) -> BenchResult:
+    import numba
+
+    from .cases.single_sphere import sphere_on_wall, validation_models
+
+    threads = threads or numba.get_num_threads()
+    sim = sphere_on_wall(validation_models()["epsd"])
+    sim.set_velocities([0], velocity=(1.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0))
+    first, wall, rebuilds = _time_run(sim, steps)
+    return _result("single-particle", "epsd", sim, steps, first, wall, rebuilds, threads,
+                   "the seed report's case 1: one sphere rolling on a plane")
+
+
+def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS, echo=print) -> list[BenchResult]:
+    """The settled column, cylinder kept, once per rolling model (the same positions and velocities)."""
+    import numba
+
+    from . import Cylinder
+
+    threads = threads or numba.get_num_threads()
+    base = settled_column(particles, echo=echo)
+    results = []
+    for model in models:
+        sim = _column_simulation(model)
+        sim.add_wall(Cylinder(column_radius(particles), material="table1", name="cylinder"))
+        sim.add_particles(base.positions, base.radii, "table1", velocity=base.velocities,
+                          angular_velocity=base.angular_velocities, allow_overlap=True)
+        sim.run(steps=200, progress=False)  # contact history builds up
+        first, wall, rebuilds = _time_run(sim, steps)
+        results.append(_result("dense-bed", model, sim, steps, first, wall, rebuilds, threads))
+    none = next((r for r in results if r.model == "none"), None)
+    if none is not None:
+        for r in results:
+            r.note = f"cost relative to no rolling model: {none.particle_steps_per_s / r.particle_steps_per_s:.3f}"
+    return results
+
+
+def run_bench(scenes=SCENES, particles=20000, steps=None, threads=None, from_dump=None, models=None,
+              echo=print) -> list[BenchResult]:
+    unknown = [s for s in scenes if s not in SCENES]
+    if unknown:
+        raise ParameterError(f"scene = {', '.join(unknown)} is not known: allowed are {', '.join(SCENES)}")
+    if isinstance(particles, bool) or not isinstance(particles, int) or particles < 1:
+        raise ParameterError(f"particles = {particles!r} is not allowed: must be an integer >= 1")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
+        raise ParameterError(f"steps = {steps!r} is not allowed: must be an integer >= 1")
+    if models is not None:
+        bad = [m for m in models if m not in DENSE_BED_MODELS]
+        if bad:
+            raise ParameterError(f"model = {', '.join(bad)} is not known: allowed are {', '.join(DENSE_BED_MODELS)}")
+    results = []
+    for scene in scenes:
+        if scene == "column-collapse":
+            results.append(column_collapse(particles, steps or 10000, threads, from_dump, echo))
+        elif scene == "single-particle":
+            results.append(single_particle(steps or 150000, threads, echo))
+        else:
+            results += dense_bed(particles, steps or 2000, threads, models or DENSE_BED_MODELS, echo)
+        echo(format_row(results[-1]))
+    return results
+
+
+def format_row(r: BenchResult) -> str:
+    split = ", ".join(f"{k} {v * 1e3:.3g} ms" for k, v in r.split_s_per_step.items())
+    return (f"{r.scene:16s} {r.model:20s} N={r.particles:<8d} steps={r.steps:<7d} threads={r.threads} "
+            f"wall {r.wall_s:8.2f} s  {r.particle_steps_per_s / 1e6:7.2f} M particle-steps/s  "
+            f"compile/load {r.compile_s:5.1f} s  contacts/p {r.contacts_per_particle:.2f}  "
+            f"neighbors/p {r.neighbors_per_particle:.2f}  rebuilds {r.rebuilds}  "
+            f"state {r.state_bytes_per_particle:.0f} B/p  peak RSS {r.peak_rss_mb:.0f} MB\n"
+            f"{'':17s}per step: {split}" + (f"\n{'':17s}{r.note}" if r.note else ""))
+
+
+def write_json(results: list[BenchResult], path) -> Path:
+    import platform
+
+    from . import __version__
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
+    doc = {"version": __version__, "machine": platform.machine(), "processor": platform.processor(),
+           "load_average": load, "results": [r.as_dict() for r in results]}
+    path.write_text(json.dumps(doc, indent=2))
+    return path

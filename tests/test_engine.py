@@ -141,18 +141,24 @@ def test_restart_is_bit_identical(table1, tmp_path):
     assert a.dissipated_energy() == c.dissipated_energy()
 
 
-def test_same_result_for_any_thread_count(table1):
-    """Forces are gathered per particle in a fixed order: 1 or 2 threads give the same bits."""
+def test_same_result_for_any_thread_count(table1, monkeypatch):
+    """Forces are gathered per particle in a fixed order: the serial path (small scenes, one
+    thread) and the parallel path on all threads give the same bits."""
+    import rollingdem.engine_kernel as ek
+
     results = []
-    for threads in (1, numba.config.NUMBA_NUM_THREADS):
+    for threads, serial_below in ((1, ek.SERIAL_BELOW), (numba.config.NUMBA_NUM_THREADS, 0)):
         numba.set_num_threads(threads)
+        monkeypatch.setattr(ek, "SERIAL_BELOW", serial_below)
         try:
             sim = cluster(table1, n_side=4)
+            assert sim._state.serial() == (serial_below > 0)
             sim.run(steps=1000)
             results.append(sim.positions.copy())
         finally:
             numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     np.testing.assert_array_equal(results[0], results[1])
+    monkeypatch.undo()
     again = cluster(table1, n_side=4)
     again.run(steps=1000)
     np.testing.assert_array_equal(results[1], again.positions)

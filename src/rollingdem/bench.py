@@ -152,10 +152,12 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     gravity = np.asarray(sim.gravity)
     args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
     (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, wall_kind, wall_geom, wall_vel, wall_omega,
-     wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, new_start, new_j, new_hist,
-     cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts, info) = args
-    saved = {name: arr.copy() for name, arr in (("hist", hist), ("touch", touch), ("whist", whist), ("energy", energy), ("f", f),
-                                                ("t", t), ("contacts", contacts), ("x_ref", x_ref))}
+     wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, new_start, new_j,
+     new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts, info) = args
+    # the timings overwrite these (a rebuild at the present positions gives another list): put them back after
+    saved = {name: getattr(st, name).copy() for name in ("hist", "touch", "whist", "energy", "f", "t", "contacts",
+                                                         "x_ref", "nl_start", "nl_j", "tr_start", "tr_k",
+                                                         "pair_force", "pair_torque_j")}
     no_walls = wall_kind[:0]
 
     def timed(fn):
@@ -165,20 +167,25 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
             fn()
         return (time.perf_counter() - tic) / repeats
 
+    serial = st.serial()  # the paths the engine takes
+    pair_forces = kernel.pair_forces_serial if serial else kernel.pair_forces
+    gather = kernel.gather_serial if serial else kernel.gather
+    kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
     split = {
-        "contact forces": timed(lambda: kernel.pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j,
+        "contact forces": timed(lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j,
                                                            hist, touch, pair_force, pair_torque_j, energy,
                                                            contacts)),
     }
-    gather_walls = timed(lambda: kernel.gather(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp,
+    gather_walls = timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp,
                                                tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom,
                                                wall_vel, wall_omega, wall_mat, whist, energy, contacts, x_ref,
                                                0.5 * skin))
-    gather_plain = timed(lambda: kernel.gather(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp,
-                                               tr_start, tr_k, touch, pair_force, pair_torque_j, no_walls, wall_geom[:0],
+    gather_plain = timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp,
+                                               tr_start, tr_k, touch, pair_force, pair_torque_j, no_walls,
+                                               wall_geom[:0],
                                                wall_vel[:0], wall_omega[:0], wall_mat[:0], whist, energy,
                                                contacts, x_ref, 0.5 * skin))
-    kick = timed(lambda: kernel.kick_drift(0.0, x, v, w, f, t, mass, inertia))
+    kick = timed(lambda: kick_drift(0.0, x, v, w, f, t, mass, inertia))
     split["walls"] = max(gather_walls - gather_plain, 0.0)
     split["integration and gathering"] = gather_plain + kick
     rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start,
@@ -189,13 +196,26 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     return split
 
 
-def _time_run(sim, steps: int) -> tuple[float, float, int]:
-    """(compile/first-call seconds, timed seconds, rebuilds during the timed steps)."""
-    from .engine_kernel import I_REBUILDS
+def compile_time(contact) -> float:
+    """Seconds to compile (cold cache) or load (warm cache) the kernel of ``contact`` in this
+    process: one step of two touching spheres on a plate (both paths of the step compile at once)."""
+    from . import Material, Plane, Simulation
 
     tic = time.perf_counter()
+    sim = Simulation(contact=contact, dt=DT, skin=SKIN)
+    sim.add_material(Material("table1", **TABLE1))
+    sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1"))
+    sim.add_particles([[0, 0, RADIUS], [0, 0, 3 * RADIUS]], RADIUS, "table1")
+    sim.run(steps=1)
+    return time.perf_counter() - tic
+
+
+def _time_run(sim, steps: int) -> tuple[float, float, int]:
+    """(0, timed seconds, rebuilds during the timed steps), after one untimed step."""
+    from .engine_kernel import I_REBUILDS
+
+    first = 0.0
     sim.run(steps=1, progress=False)
-    first = time.perf_counter() - tic
     before = int(sim._state.info[I_REBUILDS])
     tic = time.perf_counter()
     sim.run(steps=steps, progress=False)
@@ -218,10 +238,13 @@ def _result(scene, model, sim, steps, first, wall, rebuilds, threads, note="", s
 def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, echo=print) -> BenchResult:
     import numba
 
+    from . import ContactModel
+
     threads = threads or numba.get_num_threads()
+    first = compile_time(ContactModel("hertz", rolling="epsd"))
     sim = column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo)
     sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
-    first, wall, rebuilds = _time_run(sim, steps)
+    _, wall, rebuilds = _time_run(sim, steps)
     note = f"settled state from {from_dump}" if from_dump else "settled state from the disk cache"
     return _result("column-collapse", "epsd", sim, steps, first, wall, rebuilds, threads, note)
 
@@ -231,10 +254,13 @@ def single_particle(steps=150000, threads=None, echo=print) -> BenchResult:
 
     from .cases.single_sphere import sphere_on_wall, validation_models
 
+    from . import ContactModel
+
     threads = threads or numba.get_num_threads()
+    first = compile_time(ContactModel("hertz", rolling=validation_models()["epsd"]))
     sim = sphere_on_wall(validation_models()["epsd"])
     sim.set_velocities([0], velocity=(1.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0))
-    first, wall, rebuilds = _time_run(sim, steps)
+    _, wall, rebuilds = _time_run(sim, steps)
     return _result("single-particle", "epsd", sim, steps, first, wall, rebuilds, threads,
                    "the seed report's case 1: one sphere rolling on a plane")
 
@@ -243,18 +269,19 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     """The settled column, cylinder kept, once per rolling model (the same positions and velocities)."""
     import numba
 
-    from . import Cylinder
+    from . import ContactModel, Cylinder
 
     threads = threads or numba.get_num_threads()
     base = settled_column(particles, echo=echo)
     results = []
     for model in models:
+        first = compile_time(ContactModel("hertz", rolling=model))
         sim = _column_simulation(model)
         sim.add_wall(Cylinder(column_radius(particles), material="table1", name="cylinder"))
         sim.add_particles(base.positions, base.radii, "table1", velocity=base.velocities,
                           angular_velocity=base.angular_velocities, allow_overlap=True)
         sim.run(steps=200, progress=False)  # contact history builds up
-        first, wall, rebuilds = _time_run(sim, steps)
+        _, wall, rebuilds = _time_run(sim, steps)
         results.append(_result("dense-bed", model, sim, steps, first, wall, rebuilds, threads))
     none = next((r for r in results if r.model == "none"), None)
     if none is not None:

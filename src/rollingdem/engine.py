@@ -151,8 +151,8 @@ class EngineState:
         return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
                 pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
                 self.whist, self.nl_start, self.nl_j, self.hist, self.touch, self.pair_force, self.pair_torque_j,
-                self.tr_start, self.tr_k, self.new_start, self.new_j, self.new_hist, self.cell_start, self.cell_items, self.cell_of,
-                self.counts, self.x_ref, skin, self.energy, self.contacts, self.info)
+                self.tr_start, self.tr_k, self.new_start, self.new_j, self.new_hist, self.cell_start, self.cell_items,
+                self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info)
 
     def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
         """Advance up to ``nsteps`` steps (growing the list arrays as often as needed).
@@ -163,8 +163,9 @@ class EngineState:
         if self.info[I_FORCES_VALID] == 0:
             self._evaluate_forces(kernel, dt, gravity, skin, pair_params)
         remaining = nsteps
+        serial = self.serial()
         while remaining > 0:
-            kernel.advance(remaining, *self.kernel_args(dt, gravity, skin, pair_params))
+            kernel.advance(remaining, serial, *self.kernel_args(dt, gravity, skin, pair_params))
             done = int(self.info[I_STEPS_DONE])
             remaining -= done
             if self.info[I_STATUS] == STATUS_CAPACITY:
@@ -172,6 +173,14 @@ class EngineState:
             elif self.info[I_STATUS] == STATUS_TOO_FAST:
                 return nsteps - remaining, self._too_fast_message(dt, skin)
         return nsteps, None
+
+    def serial(self) -> bool:
+        """Whether the kernel steps on the calling thread (small scene or one thread)."""
+        import numba
+
+        from .engine_kernel import SERIAL_BELOW
+
+        return self.n < SERIAL_BELOW or numba.get_num_threads() == 1
 
     def _too_fast_message(self, dt, skin):
         speed = np.sqrt((self.v ** 2).sum(axis=1))
@@ -198,7 +207,7 @@ class EngineState:
         saved = (self.hist[:total].copy(), self.whist.copy(), self.energy.copy())
         while True:
             self.info[I_FORCES_VALID] = 0
-            kernel.advance(0, *self.kernel_args(dt, gravity, skin, pair_params))
+            kernel.advance(0, self.serial(), *self.kernel_args(dt, gravity, skin, pair_params))
             if self.info[I_STATUS] != STATUS_CAPACITY:
                 break
             self.grow(int(self.info[I_NEEDED]))

@@ -54,6 +54,9 @@ STATUS_TOO_FAST = 2
 WALL_PLANE = 0
 WALL_CYLINDER = 1
 
+# Scenes of fewer particles, or runs on one thread, step on the calling thread: a parallel region's
+# fork/join (~1 us with OpenMP) costs more than it saves there.
+SERIAL_BELOW = 512
 INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
 
 
@@ -110,81 +113,97 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
             -f_damp * vn * dt, e_t, e_r, e_tw)
 
 
-@njit(cache=True, parallel=True)
-def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
-                pair_torque_j, energy, contacts):
-    """Pair contacts, one thread per row: F and T on i summed per row, F and T_j kept per pair.
+@njit(cache=True, inline="always")
+def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+             pair_torque_j, energy, contacts):
+    """Row i of the half list: F and T on i summed over the row, F and T_j kept per pair.
 
     ``touch[k]`` says whether entry k is in contact this step; the pair terms of an entry out of
     contact are left stale (the gather skips them), so a neighbor out of reach costs a distance
     test and a one-byte flag, not a history row and two force rows."""
-    n = x.shape[0]
-    for i in prange(n):
-        fx = fy = fz = 0.0
-        tx = ty = tz = 0.0
-        en = et = er = etw = 0.0
-        ncontact = 0
-        ri = radius[i]
-        mi = mass[i]
-        for k in range(nl_start[i], nl_start[i + 1]):
-            j = nl_j[k]
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
-            rj = radius[j]
-            d2 = dx * dx + dy * dy + dz * dz
-            reach = ri + rj
-            if d2 >= reach * reach:
-                if touch[k]:
-                    touch[k] = 0
-                    for s in range(hist.shape[1]):
-                        hist[k, s] = 0.0
-                continue
-            touch[k] = 1
-            dist = math.sqrt(d2)
-            overlap = reach - dist
-            nx = dx / dist
-            ny = dy / dist
-            nz = dz / dist
-            mj = mass[j]
-            r_eff = ri * rj / reach
-            m_eff = mi * mj / (mi + mj)
-            ai = mi * ri * ri
-            aj = mj * rj * rj
-            inertia_r = INERTIA_R_FACTOR * ai * aj / (ai + aj)
-            res = contact(hist, k, nx, ny, nz, overlap,
-                          v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
-                          w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
-                          ri - 0.5 * overlap, rj - 0.5 * overlap, r_eff, m_eff, inertia_r,
-                          pair_params[mat[i], mat[j]], dt)
-            fx += res[0]
-            fy += res[1]
-            fz += res[2]
-            tx += res[3]
-            ty += res[4]
-            tz += res[5]
-            pair_force[k, 0] = res[0]
-            pair_force[k, 1] = res[1]
-            pair_force[k, 2] = res[2]
-            pair_torque_j[k, 0] = res[6]
-            pair_torque_j[k, 1] = res[7]
-            pair_torque_j[k, 2] = res[8]
-            en += res[9]
-            et += res[10]
-            er += res[11]
-            etw += res[12]
-            ncontact += 1
-        f[i, 0] = fx
-        f[i, 1] = fy
-        f[i, 2] = fz
-        t[i, 0] = tx
-        t[i, 1] = ty
-        t[i, 2] = tz
-        energy[i, 0] += en
-        energy[i, 1] += et
-        energy[i, 2] += er
-        energy[i, 3] += etw
-        contacts[i] = ncontact
+    fx = fy = fz = 0.0
+    tx = ty = tz = 0.0
+    en = et = er = etw = 0.0
+    ncontact = 0
+    ri = radius[i]
+    mi = mass[i]
+    for k in range(nl_start[i], nl_start[i + 1]):
+        j = nl_j[k]
+        dx = x[i, 0] - x[j, 0]
+        dy = x[i, 1] - x[j, 1]
+        dz = x[i, 2] - x[j, 2]
+        rj = radius[j]
+        d2 = dx * dx + dy * dy + dz * dz
+        reach = ri + rj
+        if d2 >= reach * reach:
+            if touch[k]:
+                touch[k] = 0
+                for s in range(hist.shape[1]):
+                    hist[k, s] = 0.0
+            continue
+        touch[k] = 1
+        dist = math.sqrt(d2)
+        overlap = reach - dist
+        nx = dx / dist
+        ny = dy / dist
+        nz = dz / dist
+        mj = mass[j]
+        r_eff = ri * rj / reach
+        m_eff = mi * mj / (mi + mj)
+        ai = mi * ri * ri
+        aj = mj * rj * rj
+        inertia_r = INERTIA_R_FACTOR * ai * aj / (ai + aj)
+        res = contact(hist, k, nx, ny, nz, overlap,
+                      v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+                      w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
+                      ri - 0.5 * overlap, rj - 0.5 * overlap, r_eff, m_eff, inertia_r,
+                      pair_params[mat[i], mat[j]], dt)
+        fx += res[0]
+        fy += res[1]
+        fz += res[2]
+        tx += res[3]
+        ty += res[4]
+        tz += res[5]
+        pair_force[k, 0] = res[0]
+        pair_force[k, 1] = res[1]
+        pair_force[k, 2] = res[2]
+        pair_torque_j[k, 0] = res[6]
+        pair_torque_j[k, 1] = res[7]
+        pair_torque_j[k, 2] = res[8]
+        en += res[9]
+        et += res[10]
+        er += res[11]
+        etw += res[12]
+        ncontact += 1
+    f[i, 0] = fx
+    f[i, 1] = fy
+    f[i, 2] = fz
+    t[i, 0] = tx
+    t[i, 1] = ty
+    t[i, 2] = tz
+    energy[i, 0] += en
+    energy[i, 1] += et
+    energy[i, 2] += er
+    energy[i, 3] += etw
+    contacts[i] = ncontact
+
+
+@njit(cache=True, parallel=True)
+def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                pair_torque_j, energy, contacts):
+    """Pair contacts, one thread per row."""
+    for i in prange(x.shape[0]):
+        pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                 pair_torque_j, energy, contacts)
+
+
+@njit(cache=True)
+def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                       pair_torque_j, energy, contacts):
+    """``pair_forces`` on the calling thread (small scenes: a parallel region costs ~1 us)."""
+    for i in range(x.shape[0]):
+        pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                 pair_torque_j, energy, contacts)
 
 
 @njit(cache=True, inline="always")
@@ -265,85 +284,123 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
     return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
 
 
+@njit(cache=True, inline="always")
+def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
+               touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy,
+               contacts, x_ref, half_skin):
+    """Particle i: pair terms where it is the second partner, walls, gravity; then the closing half
+    kick (if ``kick`` is 1.0; a float, so one compiled version serves both). Returns (1 if i may
+    cross skin/2 during the next step, 1 if it would even from a fresh list: the skin is too small
+    for its speed)."""
+    fx = f[i, 0]
+    fy = f[i, 1]
+    fz = f[i, 2]
+    tx = t[i, 0]
+    ty = t[i, 1]
+    tz = t[i, 2]
+    for m in range(tr_start[i], tr_start[i + 1]):
+        k = tr_k[m]
+        if not touch[k]:
+            continue
+        fx -= pair_force[k, 0]
+        fy -= pair_force[k, 1]
+        fz -= pair_force[k, 2]
+        tx += pair_torque_j[k, 0]
+        ty += pair_torque_j[k, 1]
+        tz += pair_torque_j[k, 2]
+    wres = wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel,
+                         wall_omega, wall_mat, whist)
+    mi = mass[i]
+    fx += wres[0] + mi * gravity[0]
+    fy += wres[1] + mi * gravity[1]
+    fz += wres[2] + mi * gravity[2]
+    tx += wres[3]
+    ty += wres[4]
+    tz += wres[5]
+    energy[i, 0] += wres[6]
+    energy[i, 1] += wres[7]
+    energy[i, 2] += wres[8]
+    energy[i, 3] += wres[9]
+    contacts[i] += wres[10]
+    f[i, 0] = fx
+    f[i, 1] = fy
+    f[i, 2] = fz
+    t[i, 0] = tx
+    t[i, 1] = ty
+    t[i, 2] = tz
+    if kick != 0.0:
+        a = 0.5 * dt / mi
+        b = 0.5 * dt / inertia[i]
+        v[i, 0] += a * fx
+        v[i, 1] += a * fy
+        v[i, 2] += a * fz
+        w[i, 0] += b * tx
+        w[i, 1] += b * ty
+        w[i, 2] += b * tz
+    # may particle i cross skin/2 during the next step?  |x - x_ref| + dt (|v| + dt/2 |F|/m)
+    ex = x[i, 0] - x_ref[i, 0]
+    ey = x[i, 1] - x_ref[i, 1]
+    ez = x[i, 2] - x_ref[i, 2]
+    step_move = dt * (math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
+                      + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / mi)
+    exceed = 0 if math.sqrt(ex * ex + ey * ey + ez * ez) + step_move < half_skin else 1  # NaN: 1
+    fast = 0 if step_move < half_skin else 1
+    return exceed, fast
+
+
 @njit(cache=True, parallel=True)
 def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch,
-           pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy, contacts, x_ref,
-           half_skin):
-    """Per particle: pair terms as second partner, walls, gravity; then the closing half kick
-    (if ``kick``). Returns how many particles may cross skin/2 during the next step, and how many
-    would do so even from a fresh list (skin too small for their speed)."""
-    n = x.shape[0]
+           pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy, contacts,
+           x_ref, half_skin):
+    """``gather_one`` for every particle; returns the counts of its two flags."""
     nexceed = 0
     nfast = 0
-    for i in prange(n):
-        fx = f[i, 0]
-        fy = f[i, 1]
-        fz = f[i, 2]
-        tx = t[i, 0]
-        ty = t[i, 1]
-        tz = t[i, 2]
-        for m in range(tr_start[i], tr_start[i + 1]):
-            k = tr_k[m]
-            if not touch[k]:
-                continue
-            fx -= pair_force[k, 0]
-            fy -= pair_force[k, 1]
-            fz -= pair_force[k, 2]
-            tx += pair_torque_j[k, 0]
-            ty += pair_torque_j[k, 1]
-            tz += pair_torque_j[k, 2]
-        wres = wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel,
-                             wall_omega, wall_mat, whist)
-        mi = mass[i]
-        fx += wres[0] + mi * gravity[0]
-        fy += wres[1] + mi * gravity[1]
-        fz += wres[2] + mi * gravity[2]
-        tx += wres[3]
-        ty += wres[4]
-        tz += wres[5]
-        energy[i, 0] += wres[6]
-        energy[i, 1] += wres[7]
-        energy[i, 2] += wres[8]
-        energy[i, 3] += wres[9]
-        contacts[i] += wres[10]
-        f[i, 0] = fx
-        f[i, 1] = fy
-        f[i, 2] = fz
-        t[i, 0] = tx
-        t[i, 1] = ty
-        t[i, 2] = tz
-        if kick:
-            a = 0.5 * dt / mi
-            b = 0.5 * dt / inertia[i]
-            v[i, 0] += a * fx
-            v[i, 1] += a * fy
-            v[i, 2] += a * fz
-            w[i, 0] += b * tx
-            w[i, 1] += b * ty
-            w[i, 2] += b * tz
-        # may particle i cross skin/2 during the next step?  |x - x_ref| + dt (|v| + dt/2 |F|/m)
-        ex = x[i, 0] - x_ref[i, 0]
-        ey = x[i, 1] - x_ref[i, 1]
-        ez = x[i, 2] - x_ref[i, 2]
-        step_move = dt * (math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
-                          + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / mi)
-        if not math.sqrt(ex * ex + ey * ey + ez * ez) + step_move < half_skin:  # also catches NaN
-            nexceed += 1
-        if not step_move < half_skin:
-            nfast += 1
+    for i in prange(x.shape[0]):
+        exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+                                  tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
+                                  wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+        nexceed += exceed
+        nfast += fast
     return nexceed, nfast
+
+
+@njit(cache=True)
+def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
+                  touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy,
+                  contacts, x_ref, half_skin):
+    """``gather`` on the calling thread."""
+    nexceed = 0
+    nfast = 0
+    for i in range(x.shape[0]):
+        exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+                                  tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
+                                  wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+        nexceed += exceed
+        nfast += fast
+    return nexceed, nfast
+
+
+@njit(cache=True, inline="always")
+def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia):
+    a = 0.5 * dt / mass[i]
+    b = 0.5 * dt / inertia[i]
+    for d in range(3):
+        v[i, d] += a * f[i, d]
+        w[i, d] += b * t[i, d]
+        x[i, d] += dt * v[i, d]
 
 
 @njit(cache=True, parallel=True)
 def kick_drift(dt, x, v, w, f, t, mass, inertia):
-    n = x.shape[0]
-    for i in prange(n):
-        a = 0.5 * dt / mass[i]
-        b = 0.5 * dt / inertia[i]
-        for d in range(3):
-            v[i, d] += a * f[i, d]
-            w[i, d] += b * t[i, d]
-            x[i, d] += dt * v[i, d]
+    """Opening half kick and drift of velocity Verlet."""
+    for i in prange(x.shape[0]):
+        kick_drift_one(i, dt, x, v, w, f, t, mass, inertia)
+
+
+@njit(cache=True)
+def kick_drift_serial(dt, x, v, w, f, t, mass, inertia):
+    for i in range(x.shape[0]):
+        kick_drift_one(i, dt, x, v, w, f, t, mass, inertia)
 
 
 @njit(cache=True)
@@ -360,26 +417,34 @@ def _rebuild(x, radius, skin, nl_start, nl_j, hist, touch, tr_start, tr_k, new_s
 
 
 @njit(cache=True)
-def _forces(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
+def _forces(dt, kick, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
             wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start,
             tr_k, x_ref, half_skin, energy, contacts, info):
-    pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
-                pair_torque_j, energy, contacts)
-    info[I_NEED_REBUILD], info[I_TOO_FAST] = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                                    pair_params, tr_start, tr_k, touch, pair_force, pair_torque_j,
-                                                    wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
-                                                    energy, contacts, x_ref, half_skin)
+    if serial:
+        pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                           pair_torque_j, energy, contacts)
+        exceed, fast = gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+                                     tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
+                                     wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+    else:
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                    pair_torque_j, energy, contacts)
+        exceed, fast = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
+                              tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
+                              wall_mat, whist, energy, contacts, x_ref, half_skin)
+    info[I_NEED_REBUILD] = exceed
+    info[I_TOO_FAST] = fast
 
 
 @njit(cache=True)
-def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-            wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
-            nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k,
-            new_start, new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin,
-            energy, contacts, info):
-    """Advance ``nsteps`` steps. Stops early, at a step boundary, with info[I_STATUS] =
-    STATUS_CAPACITY and info[I_NEEDED] = the capacity needed when the neighbor list outgrows its
-    arrays, or STATUS_TOO_FAST when a particle would move more than skin/2 in one step."""
+def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
+            wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j,
+            tr_start, tr_k, new_start, new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin, energy,
+            contacts, info):
+    """Advance ``nsteps`` steps, on the calling thread if ``serial`` (see ``SERIAL_BELOW``). Stops
+    early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the capacity needed when
+    the neighbor list outgrows its arrays, or STATUS_TOO_FAST when a particle would move more than
+    skin/2 in one step."""
     half_skin = 0.5 * skin
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
@@ -387,9 +452,9 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
         if not _rebuild(x, radius, skin, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
                         cell_start, cell_items, cell_of, counts, x_ref, info):
             return
-        _forces(dt, False, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
-                wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j,
-                tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
+        _forces(dt, 0.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
+                wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force,
+                pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
         info[I_FORCES_VALID] = 1
     for step in range(nsteps):
         if info[I_TOO_FAST] > 0:
@@ -400,11 +465,15 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair
             if not _rebuild(x, radius, skin, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
                             cell_start, cell_items, cell_of, counts, x_ref, info):
                 return
-        kick_drift(dt, x, v, w, f, t, mass, inertia)
+        if serial:
+            kick_drift_serial(dt, x, v, w, f, t, mass, inertia)
+        else:
+            kick_drift(dt, x, v, w, f, t, mass, inertia)
         for wl in range(wall_kind.shape[0]):
             for d in range(3):
                 wall_geom[wl, d] += dt * wall_vel[wl, d]
-        _forces(dt, True, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
-                wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j,
-                tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
+        _forces(dt, 1.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
+                wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force,
+                pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
         info[I_STEPS_DONE] = step + 1
+

@@ -1,0 +1,78 @@
+"""``rollingdem bench``: what it reports, that timing leaves the physics alone, and its refusals."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import rollingdem as rd
+from rollingdem import bench
+from rollingdem.cli import app
+
+
+def test_bench_json_reports_the_scene(tmp_path):
+    out = tmp_path / "b.json"
+    res = CliRunner().invoke(app, ["bench", "--scene", "single-particle", "--steps", "3000", "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    r = doc["results"][0]
+    assert (r["scene"], r["particles"], r["steps"]) == ("single-particle", 1, 3000)
+    # the figure is particle-steps over the timed wall time only (compile/load is reported apart)
+    assert r["particle_steps_per_s"] == pytest.approx(r["particles"] * r["steps"] / r["wall_s"], rel=1e-12)
+    assert r["compile_s"] >= 0 and set(r["split_s_per_step"]) == {"contact forces", "walls",
+                                                                  "integration and gathering", "neighbor search"}
+    # one sphere resting on the plate: exactly one (wall) contact, no neighbors
+    assert r["contacts_per_particle"] == 1.0 and r["neighbors_per_particle"] == 0.0
+
+
+def _bed(table1):
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5, skin=0.002)
+    sim.add_material(table1())
+    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
+    sim.insert(rd.BoxRegion((-0.03, -0.03, 0.0), (0.03, 0.03, 0.06)), 80, 0.005, "m", seed=3)
+    return sim
+
+
+def test_time_split_leaves_the_state_as_it_was(table1):
+    """The split times each phase on the live state; the run must go on as if it had not."""
+    a, b = _bed(table1), _bed(table1)
+    a.run(steps=2000)
+    bench._split(a, repeats=3, rebuilds=1, steps=1)
+    a.run(steps=2000)
+    b.run(steps=4000)
+    assert a.number_of_contacts() > 0
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_array_equal(a.angular_velocities, b.angular_velocities)
+    assert a.dissipated_energy() == b.dissipated_energy()
+
+
+def test_settled_state_from_a_liggghts_dump(tmp_path):
+    dump = tmp_path / "c.dump"
+    dump.write_text("ITEM: TIMESTEP\n60000\nITEM: NUMBER OF ATOMS\n2\nITEM: BOX BOUNDS ff ff ff\n-1 1\n-1 1\n0 1\n"
+                    "ITEM: ATOMS id type x y z vx vy vz radius\n"
+                    "7 1 0.01 0.0 0.005 0.1 0 0 0.005\n3 1 -0.01 0.0 0.005 0 0 -0.2 0.005\n")
+    sim = bench.column_from_dump(dump)
+    np.testing.assert_array_equal(sim.positions, [[0.01, 0.0, 0.005], [-0.01, 0.0, 0.005]])
+    np.testing.assert_array_equal(sim.velocities, [[0.1, 0, 0], [0, 0, -0.2]])
+    assert [w.name for w in sim.walls] == ["plate", "cylinder"]
+    # the cylinder is scaled with sqrt(N) from 0.125 m at 20,000 spheres
+    assert sim.walls[1].radius == pytest.approx(0.125 * np.sqrt(2 / 20000))
+
+
+@pytest.mark.parametrize("args, words", [(["--scene", "nope"], ["scene = nope", "column-collapse"]),
+                                         (["--particles", "0"], ["particles = 0", ">= 1"]),
+                                         (["--scene", "dense-bed", "--model", "magic"], ["model = magic", "epsd"]),
+                                         (["--from-dump", "/nonexistent.dump"], ["does not exist"])])
+def test_bad_bench_input_is_refused(args, words):
+    res = CliRunner().invoke(app, ["bench", *args])
+    assert res.exit_code == 2
+    for w in words:
+        assert w in res.output
+
+
+def test_a_dump_that_is_not_one(tmp_path):
+    bad = tmp_path / "x.dump"
+    bad.write_text("hello\n")
+    with pytest.raises(rd.ParameterError, match="not a LIGGGHTS custom dump"):
+        bench.column_from_dump(bad)

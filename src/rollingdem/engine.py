@@ -175,7 +175,7 @@ class EngineState:
         return nsteps, None
 
     def serial(self) -> bool:
-        """Whether the kernel steps on the calling thread (small scene or one thread)."""
+        """Whether the kernel steps on the calling thread (a small scene, or one Numba thread)."""
         import numba
 
         from .engine_kernel import SERIAL_BELOW

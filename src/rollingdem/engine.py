@@ -3,6 +3,11 @@
 Python calls the kernel for K steps at a time; the kernel stops early only at a step boundary,
 when the neighbor list needs more room, and is then called again after the arrays grow (so the
 result does not depend on the initial capacity).
+
+Particles live in storage slots that are re-sorted in space (Morton order) every ``SORT_EVERY``
+steps in scenes of at least ``SORT_ABOVE`` particles, so that partners in contact sit near each
+other in memory (as LAMMPS's and LIGGGHTS's ``atom_modify sort``). ``ids[slot]`` is the index the
+user knows; the public arrays are returned in that order.
 """
 
 from __future__ import annotations
@@ -14,6 +19,12 @@ from .walls import GEOMETRY_SIZE
 I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST = range(7)
 STATUS_CAPACITY, STATUS_TOO_FAST = 1, 2
 INFO_SIZE = 8
+# Measured (2 threads, epsd): 200,000 spheres stored in random order run at 6.6 M particle-steps/s,
+# re-sorted 10.4 M, lattice order 11.6 M; at 20,000 spheres the state fits in cache and sorting
+# does not pay (13.4 M unsorted, 11.9 M sorted: the two threads' halves of the slots carry
+# unequal work), hence the threshold.
+SORT_ABOVE = 50_000  # particles
+SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
 ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")
 
 
@@ -35,6 +46,9 @@ class EngineState:
         self.energy = np.zeros((n, len(ENERGY_CHANNELS)))
         self.contacts = np.zeros(n, dtype=np.int64)
         self.x_ref = np.zeros((n, 3))
+        self.ids = np.zeros(n, dtype=np.int64)
+        self._slots = None  # slot of each id, once the slots were re-sorted
+        self.steps_since_sort = 0
         self.wall_kind = np.zeros(0, dtype=np.int32)
         self.wall_geom = np.zeros((0, GEOMETRY_SIZE))
         self.wall_vel = np.zeros((0, 3))
@@ -115,6 +129,9 @@ class EngineState:
         self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
         self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int64)])
         self.x_ref = np.concatenate([self.x_ref, x])
+        self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
+        if self._slots is not None:
+            self._slots = np.concatenate([self._slots, np.arange(n0, n0 + m, dtype=np.int64)])
         old_start = self.nl_start
         wall_hist = self.whist.reshape(n0, self.n_walls, self.history_size) if n0 else None
         self._allocate_particle_scratch()
@@ -126,8 +143,8 @@ class EngineState:
         self.whist = whist.reshape(self.n * self.n_walls, self.history_size)
         self.info[I_NEED_REBUILD] = 1
         self.info[I_FORCES_VALID] = 0
-        if self.capacity < 8 * self.n:
-            self.grow(8 * self.n)
+        if self.capacity < 4 * self.n:  # a loose bed's half list holds ~4 entries per particle
+            self.grow(4 * self.n)
 
     def set_walls(self, kinds, geoms, vels, omegas, mats):
         """Replace the wall arrays; history of walls that stay in place (same slot) is kept."""
@@ -146,10 +163,51 @@ class EngineState:
         self.whist = whist.reshape(self.n * new_w, self.history_size)
         self.info[I_FORCES_VALID] = 0
 
+    # --- slots and ids -----------------------------------------------------------------------
+    def slots(self, ids) -> np.ndarray:
+        """Storage slots of the particles with these ids."""
+        ids = np.asarray(ids, dtype=np.int64)
+        return ids if self._slots is None else self._slots[ids]
+
+    def by_id(self, arr: np.ndarray) -> np.ndarray:
+        """A per-particle array in id order (the array itself while the slots are in id order)."""
+        return arr if self._slots is None else arr[self._slots]
+
+    def sort(self, cell_size: float) -> None:
+        """Re-sort the slots in Morton order of the positions; the neighbor list, its history and
+        every per-particle array follow, so the next step computes exactly the same contacts."""
+        from .neighbors import _transpose, spatial_order
+
+        n = self.n
+        perm = spatial_order(self.x, cell_size)  # new slot s holds the particle of old slot perm[s]
+        if np.array_equal(perm, np.arange(n)):
+            return
+        inv = np.empty(n, dtype=np.int64)
+        inv[perm] = np.arange(n)
+        for name in ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts",
+                     "x_ref"):
+            setattr(self, name, np.ascontiguousarray(getattr(self, name)[perm]))
+        if self.n_walls:
+            h = self.history_size
+            self.whist = np.ascontiguousarray(self.whist.reshape(n, self.n_walls, h)[perm].reshape(-1, h))
+        # rows move with their particle; entries keep their order (by partner id) and history
+        old_start = self.nl_start.copy()
+        lengths = np.diff(old_start)[perm]
+        self.nl_start[0] = 0
+        np.cumsum(lengths, out=self.nl_start[1:])
+        total = int(self.nl_start[-1])
+        src = np.repeat(old_start[:-1][perm] - self.nl_start[:-1], lengths) + np.arange(total)
+        self.nl_j[:total] = inv[self.nl_j[src]]
+        self.hist[:total] = self.hist[src]
+        self.touch[:total] = self.touch[src]
+        _transpose(n, self.nl_start, self.nl_j, self.tr_start, self.tr_k)
+        self._slots = np.argsort(self.ids)
+        self.steps_since_sort = 0
+
     # --- running -------------------------------------------------------------------------------
     def kernel_args(self, dt, gravity, skin, pair_params):
         return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
-                pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
+                self.ids, pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
                 self.whist, self.nl_start, self.nl_j, self.hist, self.touch, self.pair_force, self.pair_torque_j,
                 self.tr_start, self.tr_k, self.new_start, self.new_j, self.new_hist, self.cell_start, self.cell_items,
                 self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info)
@@ -162,12 +220,15 @@ class EngineState:
             return nsteps, None
         if self.info[I_FORCES_VALID] == 0:
             self._evaluate_forces(kernel, dt, gravity, skin, pair_params)
+        if self.n >= SORT_ABOVE and self.steps_since_sort >= SORT_EVERY:
+            self.sort(2.0 * float(self.radius.max()) + skin)
         remaining = nsteps
         serial = self.serial()
         while remaining > 0:
             kernel.advance(remaining, serial, *self.kernel_args(dt, gravity, skin, pair_params))
             done = int(self.info[I_STEPS_DONE])
             remaining -= done
+            self.steps_since_sort += done
             if self.info[I_STATUS] == STATUS_CAPACITY:
                 self.grow(int(self.info[I_NEEDED]))
             elif self.info[I_STATUS] == STATUS_TOO_FAST:
@@ -198,7 +259,7 @@ class EngineState:
         from .neighbors import rebuild_neighbor_list
 
         while True:
-            total = rebuild_neighbor_list(self.x, self.radius, skin, self.nl_start, self.nl_j, self.hist,
+            total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j, self.hist,
                                           self.tr_start, self.tr_k, self.new_start, self.new_j, self.new_hist,
                                           self.cell_start, self.cell_items, self.cell_of, self.counts, self.x_ref)
             if total >= 0:
@@ -215,7 +276,7 @@ class EngineState:
         self.derive_touch(total)
 
     # --- checkpoint ----------------------------------------------------------------------------
-    ARRAYS = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "energy", "contacts", "x_ref",
+    ARRAYS = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts", "x_ref",
               "wall_kind", "wall_geom", "wall_vel", "wall_omega", "wall_mat", "whist", "info", "nl_start",
               "tr_start")
 
@@ -231,13 +292,17 @@ class EngineState:
     def from_arrays(cls, arrays: dict, history_size: int) -> "EngineState":
         st = cls(history_size)
         for name in cls.ARRAYS:
+            if name == "ids" and name not in arrays:  # a checkpoint from before the re-sorting
+                arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
             setattr(st, name, np.array(arrays[name]))
+        if not np.array_equal(st.ids, np.arange(st.n)):
+            st._slots = np.argsort(st.ids)
         nl_start = st.nl_start
         tr_start = st.tr_start
         st._allocate_particle_scratch()
         st.nl_start, st.tr_start = nl_start, tr_start
         total = int(arrays["nl_j"].shape[0])
-        st._allocate_list(max(int(total * 1.3) + 16, 8 * st.n))
+        st._allocate_list(max(int(total * 1.3) + 16, 4 * st.n))
         st.nl_j[:total] = arrays["nl_j"]
         st.hist[:total] = arrays["hist"]
         st.derive_touch(total)

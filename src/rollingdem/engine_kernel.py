@@ -410,14 +410,16 @@ def kick_drift_serial(dt, x, v, w, f, t, mass, inertia):
 
 
 @njit(cache=True)
-def _rebuild(x, radius, skin, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist, cell_start,
-             cell_items, cell_of, counts, x_ref, info):
-    total = rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
+def _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
+             cell_start, cell_items, cell_of, counts, x_ref, info):
+    total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
                                   new_hist, cell_start, cell_items, cell_of, counts, x_ref)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY
         info[I_NEEDED] = -total
         return False
+    for k in range(total):  # the entries moved: in contact at the last step <=> a contact normal is kept
+        touch[k] = 1 if (hist[k, 0] != 0.0 or hist[k, 1] != 0.0 or hist[k, 2] != 0.0) else 0
     info[I_REBUILDS] += 1
     return True
 
@@ -443,7 +445,7 @@ def _forces(dt, kick, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat
 
 
 @njit(cache=True)
-def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
+def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
             wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j,
             tr_start, tr_k, new_start, new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin, energy,
             contacts, info):
@@ -455,7 +457,7 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
-        if not _rebuild(x, radius, skin, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
+        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
                         cell_start, cell_items, cell_of, counts, x_ref, info):
             return
         _forces(dt, 0.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
@@ -468,7 +470,7 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
             info[I_STATUS] = STATUS_TOO_FAST
             return
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(x, radius, skin, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
+            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
                             cell_start, cell_items, cell_of, counts, x_ref, info):
                 return
         if serial:

@@ -1,7 +1,9 @@
 """Cell list and Verlet neighbor list with skin, and contact history carried across rebuilds.
 
-The list is a half list (each pair once, j > i) in CSR form: the neighbors of i are
-``nl_j[nl_start[i]:nl_start[i+1]]``, sorted ascending, holding every j with
+The list is a half list in CSR form: each pair once, in the row of the partner with the smaller
+particle id (``ids``: the index the user knows, which a spatial re-sort of the storage slots
+never changes, so neither does which partner of a contact is "i"). The neighbors of slot i are
+``nl_j[nl_start[i]:nl_start[i+1]]``, sorted by ascending id, holding every j with
 |x_i - x_j| < R_i + R_j + skin at the build. It stays valid while no particle has moved more
 than skin/2 since the build. Per-contact history rows sit beside the list entries; at a rebuild
 they are carried to the new list by merging the two sorted rows of each particle, not by search.
@@ -77,9 +79,10 @@ def _grid(x, radius, skin, max_cells):
 
 
 @njit(cache=True, parallel=True)
-def _scan_pairs(x, radius, skin, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, fill):
-    """For each i, the j > i in the 27 surrounding cells with |x_i - x_j| < R_i + R_j + skin: counted
-    into ``counts`` (fill = False) or written, sorted, into its row of ``new_j`` (fill = True)."""
+def _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, fill):
+    """For each i, the j with ids[j] > ids[i] in the 27 surrounding cells with |x_i - x_j| < R_i + R_j
+    + skin: counted into ``counts`` (fill = False) or written, sorted by id, into its row of ``new_j``
+    (fill = True)."""
     n = x.shape[0]
     for i in prange(n):
         c = cell_of[i]
@@ -102,7 +105,7 @@ def _scan_pairs(x, radius, skin, dims, cell_start, cell_items, cell_of, counts, 
                     cc = (z * dims[1] + y) * dims[0] + xx
                     for m in range(cell_start[cc], cell_start[cc + 1]):
                         j = cell_items[m]
-                        if j <= i:
+                        if ids[j] <= ids[i]:
                             continue
                         cut = radius[i] + radius[j] + skin
                         ddx = x[i, 0] - x[j, 0]
@@ -120,21 +123,21 @@ def _scan_pairs(x, radius, skin, dims, cell_start, cell_items, cell_of, counts, 
         for p in range(a + 1, k):
             v = new_j[p]
             q = p - 1
-            while q >= a and new_j[q] > v:
+            while q >= a and ids[new_j[q]] > ids[v]:
                 new_j[q + 1] = new_j[q]
                 q -= 1
             new_j[q + 1] = v
 
 
 @njit(cache=True, parallel=True)
-def _carry_history(n, nl_start, nl_j, hist, new_start, new_j, new_hist):
+def _carry_history(n, ids, nl_start, nl_j, hist, new_start, new_j, new_hist):
     width = hist.shape[1]
     for i in prange(n):
         p = nl_start[i]
         pend = nl_start[i + 1]
         for q in range(new_start[i], new_start[i + 1]):
             j = new_j[q]
-            while p < pend and nl_j[p] < j:
+            while p < pend and ids[nl_j[p]] < ids[j]:
                 p += 1
             if p < pend and nl_j[p] == j:
                 for s in range(width):
@@ -151,7 +154,7 @@ def _transpose(n, nl_start, nl_j, tr_start, tr_k):
 
 
 @njit(cache=True)
-def rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist,
+def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist,
                           cell_start, cell_items, cell_of, counts, x_ref):
     """Rebuild the half list at the current positions, carrying contact history over.
 
@@ -166,15 +169,15 @@ def rebuild_neighbor_list(x, radius, skin, nl_start, nl_j, hist, tr_start, tr_k,
     max_cells = cell_start.shape[0] - 1
     lo, dims, cell = _grid(x, radius, skin, max_cells)
     _bin_particles(x, cell, lo, dims, cell_start, cell_items, cell_of)
-    _scan_pairs(x, radius, skin, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, False)
+    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, False)
     new_start[0] = 0
     for i in range(n):
         new_start[i + 1] = new_start[i] + counts[i]
     total = new_start[n]
     if total > nl_j.shape[0]:
         return -total
-    _scan_pairs(x, radius, skin, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, True)
-    _carry_history(n, nl_start, nl_j, hist, new_start, new_j, new_hist)
+    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, True)
+    _carry_history(n, ids, nl_start, nl_j, hist, new_start, new_j, new_hist)
     width = hist.shape[1]
     for i in range(n + 1):
         nl_start[i] = new_start[i]
@@ -204,7 +207,7 @@ def spatial_order(x: np.ndarray, cell_size: float) -> np.ndarray:
     key = np.zeros(len(x), dtype=np.uint64)
     for bit in range(21):
         for axis in range(3):
-            key |= ((cells[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+            key |= ((cells[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + 2 - axis)
     return np.argsort(key, kind="stable")
 
 

@@ -160,6 +160,7 @@ class Simulation:
             bad = gap < -tolerance * (allr[near] + allr[i])
             if bad.any():
                 j = int(near[np.argmax(bad)])
+                j = int(self._state.ids[j]) if j < first else j  # as the user numbers them
                 g = float(gap[np.argmax(bad)])
                 raise ParameterError(f"particles {min(i, j)} and {max(i, j)} overlap by {-g:.3g} m at insertion: "
                                      "positions must not overlap (pass allow_overlap=True to accept it)")
@@ -243,41 +244,44 @@ class Simulation:
         self._pair_params = None
 
     # --- state access --------------------------------------------------------------------------
+    # Per-particle arrays in the order the particles were added (index k is particle k for good);
+    # the engine stores them re-sorted in space, so these are copies once it has sorted: write
+    # through set_velocities, not into them.
     @property
     def positions(self) -> np.ndarray:
-        return self._state.x
+        return self._state.by_id(self._state.x)
 
     @property
     def velocities(self) -> np.ndarray:
-        return self._state.v
+        return self._state.by_id(self._state.v)
 
     @property
     def angular_velocities(self) -> np.ndarray:
-        return self._state.w
+        return self._state.by_id(self._state.w)
 
     @property
     def forces(self) -> np.ndarray:
-        return self._state.f
+        return self._state.by_id(self._state.f)
 
     @property
     def torques(self) -> np.ndarray:
-        return self._state.t
+        return self._state.by_id(self._state.t)
 
     @property
     def radii(self) -> np.ndarray:
-        return self._state.radius
+        return self._state.by_id(self._state.radius)
 
     @property
     def masses(self) -> np.ndarray:
-        return self._state.mass
+        return self._state.by_id(self._state.mass)
 
     @property
     def material_indices(self) -> np.ndarray:
-        return self._state.mat
+        return self._state.by_id(self._state.mat)
 
     def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
         """Set translational (m/s) and/or angular (rad/s) velocities of some particles."""
-        idx = np.atleast_1d(np.asarray(indices, dtype=np.int64))
+        idx = self._state.slots(np.atleast_1d(np.asarray(indices, dtype=np.int64)))
         if velocity is not None:
             self._state.v[idx] = self._vectors("velocity", velocity, len(idx))
         if angular_velocity is not None:
@@ -442,7 +446,7 @@ class Simulation:
         st = self._state
         bad = ~(np.isfinite(st.x).all(axis=1) & np.isfinite(st.v).all(axis=1) & np.isfinite(st.w).all(axis=1))
         if bad.any():
-            k = int(np.nonzero(bad)[0][0])
+            k = int(st.ids[np.nonzero(bad)[0][0]])
             raise SimulationError(f"the state became non-finite at t = {self.time:.6g} s (step {self.step}), "
                                   f"particle {k}: the run is unstable; reduce dt (now {self.dt:.4g} s, stable "
                                   f"estimate {self.stable_time_step():.4g} s) or check the input")

@@ -99,10 +99,11 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
 
 @app.command()
 def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help="column-collapse (default), "
-                                                    "single-particle, dense-bed (repeatable)."),
-          particles: int = typer.Option(20000, "--particles", "-n", help="Spheres in column-collapse and dense-bed."),
+                                                    "single-particle, dense-bed, slab (repeatable)."),
+          particles: int = typer.Option(20000, "--particles", "-n", help="Spheres in column-collapse, dense-bed "
+                                                        "and slab."),
           steps: Optional[int] = typer.Option(None, "--steps", help="Timed steps (default: 10,000 column-collapse, "
-                                              "150,000 single-particle, 2,000 dense-bed)."),
+                                              "150,000 single-particle, 2,000 dense-bed, 1,000 slab)."),
           threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
           model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Rolling models of dense-bed "
                                                     "(repeatable; default: none and every model)."),

@@ -1,7 +1,7 @@
 """The pile cases of rollingdem validate at their quick sizes (slow: minutes each).
 
-They assert the cases' own physics checks: EPSD's kinetic energy (spin about the vertical apart)
-ends two decades below CDT's chatter floor, a twisting model removes the spin, and the repose
+They assert the cases' own physics checks: EPSD's translational kinetic energy ends two decades
+below CDT's chatter floor, a twisting model removes the spin, and the repose
 angle grows with mu and mu_r. The default suite covers the pieces: the angle measurement on
 synthetic piles (test_analysis.py), the statistics and the report (test_validate.py).
 """

@@ -144,16 +144,21 @@ def _without_spin(r: PileRun) -> np.ndarray:
     return r.translational + r.rotational - r.spin_vertical
 
 
-def _final_mean(r: PileRun) -> float:
-    return float(np.mean(_without_spin(r)[r.t > r.t[-1] - FINAL_WINDOW]))
+def _final_mean(r: PileRun, energy=None) -> float:
+    """Mean over the last FINAL_WINDOW s of ``energy`` (default: all but the spin about z)."""
+    return float(np.mean((_without_spin(r) if energy is None else energy)[r.t > r.t[-1] - FINAL_WINDOW]))
 
 
 def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=None, runner=map) -> CaseResult:
     """Case 3 for CDT, EPSD, EPSD2 and EPSD with twisting resistance; the tube is removed at once.
 
-    Checks (MODELS.md §11.6 and the report's Figure 4): EPSD's final kinetic energy is below 1e-3
-    of CDT's (CDT chatters at rest, EPSD comes to rest to numerical accuracy); with a twisting
-    model the final spin energy about the vertical is below 1 % of that without. ``runner`` maps
+    Checks (MODELS.md §11.6 and the report's Figure 4): EPSD's final translational kinetic energy
+    is below 1e-2 of CDT's (CDT chatters at rest, EPSD comes to rest to numerical accuracy); with a
+    twisting model the final spin energy about the vertical is below 1 % of that without. The
+    check is on translation because no rolling model resists every spin: a sphere held at two
+    contacts spins freely about the line through them, whatever its tilt, until a twisting model
+    stops it, and how much such spin a collapse leaves is chance (1e-10 to 2e-9 J in quick piles
+    of one seed, against 1e-9 J of CDT chatter). ``runner`` maps
     the runs (``map`` here, :func:`rollingdem.parallel.runner` side by side).
     """
     tic = time.perf_counter()
@@ -177,6 +182,7 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
                      "final KE rotational (J)": r.rotational[-1], "of which spin about z (J)": r.spin_vertical[-1],
                      "final KE without spin about z (J)": _without_spin(r)[-1],
                      f"its mean over the last {FINAL_WINDOW} s (J)": _final_mean(r),
+                     f"KE translational, mean over the last {FINAL_WINDOW} s (J)": _final_mean(r, r.translational),
                      "settled at (s)": r.settled_at,
                      "repose angle (deg)": r.angle.angle if r.angle else math.nan,
                      "slice mean ± sd (deg)": (f"{r.angle.slice_mean:.2f} ± {r.angle.slice_std:.2f}"
@@ -187,8 +193,9 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
     if "cdt" in runs and "epsd" in runs:
         # CDT's torque flips every step at rest: a floor of chatter that EPSD does not have. Two
         # decades apart, on the mean over the last FINAL_WINDOW s (single samples scatter by 10x).
-        ratio = _final_mean(runs["epsd"]) / max(_final_mean(runs["cdt"]), 1e-300)
-        checks.append(Check("angle-of-repose", "epsd", f"KE without spin about z / CDT's, mean over the last "
+        ratio = (_final_mean(runs["epsd"], runs["epsd"].translational)
+                 / max(_final_mean(runs["cdt"], runs["cdt"].translational), 1e-300))
+        checks.append(Check("angle-of-repose", "epsd", f"translational KE / CDT's, mean over the last "
                             f"{FINAL_WINDOW} s", ratio, 1e-2, 0.0, bound="upper",
                             source="report Figure 4: CDT keeps chattering, EPSD comes to rest"))
     if "epsd" in runs and "epsd + marshall twisting" in runs:
@@ -201,8 +208,9 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
                                f"radius {tube:.3f} m into a column about {height:.3f} m high; the tube is removed at "
                                f"once and the column collapses for {collapse} s. Spin about z: Σ ½ I ω_z². "
                                "Without a twisting model a sphere resting on the plate keeps any spin about the "
-                               "vertical (LIGGGHTS does the same): that energy is counted apart, and the EPSD/CDT "
-                               "comparison of the report's Figure 4 is made on the rest."])
+                               "vertical (LIGGGHTS does the same), and a sphere held at two contacts any spin about "
+                               "the line through them: no rolling model resists these, so the EPSD/CDT comparison "
+                               "of the report's Figure 4 is made on the translational energy."])
     if outdir is not None:
         plt = pyplot()
         fig, ax = plt.subplots(figsize=(8, 4.5))

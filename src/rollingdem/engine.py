@@ -43,8 +43,8 @@ class EngineState:
         self.mass = np.zeros(n)
         self.inertia = np.zeros(n)
         self.mat = np.zeros(n, dtype=np.int32)
-        self.energy = np.zeros(len(ENERGY_CHANNELS))  # J dissipated since the start, per channel
-        self.contacts = np.zeros(1, dtype=np.int64)  # open contacts at the last step
+        self.energy = np.zeros((n, len(ENERGY_CHANNELS)))
+        self.contacts = np.zeros(n, dtype=np.int64)
         self.x_ref = np.zeros((n, 3))
         self.ids = np.zeros(n, dtype=np.int64)
         self._slots = None  # slot of each id, once the slots were re-sorted
@@ -126,6 +126,8 @@ class EngineState:
         self.mass = np.concatenate([self.mass, mass])
         self.inertia = np.concatenate([self.inertia, inertia])
         self.mat = np.concatenate([self.mat, mat.astype(np.int32)])
+        self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
+        self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int64)])
         self.x_ref = np.concatenate([self.x_ref, x])
         self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
         if self._slots is not None:
@@ -182,7 +184,8 @@ class EngineState:
             return
         inv = np.empty(n, dtype=np.int64)
         inv[perm] = np.arange(n)
-        for name in ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "x_ref"):
+        for name in ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts",
+                     "x_ref"):
             setattr(self, name, np.ascontiguousarray(getattr(self, name)[perm]))
         if self.n_walls:
             h = self.history_size
@@ -288,12 +291,9 @@ class EngineState:
     @classmethod
     def from_arrays(cls, arrays: dict, history_size: int) -> "EngineState":
         st = cls(history_size)
-        if "ids" not in arrays:  # a checkpoint from before the re-sorting
-            arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
-        if np.ndim(arrays["energy"]) == 2:  # ... and before the totals: per-particle energies and contacts
-            arrays = {**arrays, "energy": np.sum(arrays["energy"], axis=0),
-                      "contacts": np.array([np.sum(arrays["contacts"])], dtype=np.int64)}
         for name in cls.ARRAYS:
+            if name == "ids" and name not in arrays:  # a checkpoint from before the re-sorting
+                arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
             setattr(st, name, np.array(arrays[name]))
         if not np.array_equal(st.ids, np.arange(st.n)):
             st._slots = np.argsort(st.ids)

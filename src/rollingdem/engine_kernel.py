@@ -121,10 +121,8 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
 
 @njit(cache=True, inline="always")
 def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
-             pair_torque_j):
-    """Row i of the half list: F and T on i summed over the row, F and T_j kept per pair. Returns
-    the energies dissipated in the row's contacts (normal damping, sliding, rolling, twisting) and
-    their number.
+             pair_torque_j, energy, contacts):
+    """Row i of the half list: F and T on i summed over the row, F and T_j kept per pair.
 
     ``touch[k]`` says whether entry k is in contact this step; the pair terms of an entry out of
     contact are left stale (the gather skips them), so a neighbor out of reach costs a distance
@@ -189,52 +187,29 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
     t[i, 0] = tx
     t[i, 1] = ty
     t[i, 2] = tz
-    return en, et, er, etw, ncontact
+    energy[i, 0] += en
+    energy[i, 1] += et
+    energy[i, 2] += er
+    energy[i, 3] += etw
+    contacts[i] = ncontact
 
 
 @njit(cache=True, parallel=True)
 def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
                 pair_torque_j, energy, contacts):
-    """Pair contacts, one thread per row; the step's dissipated energies are added to ``energy``
-    (4 channels) and the number of pair contacts is written to ``contacts[0]``: totals, not
-    per-particle arrays, which would cost 80 bytes of memory traffic per particle and step."""
-    en = et = er = etw = 0.0
-    ncontact = 0
+    """Pair contacts, one thread per row."""
     for i in prange(x.shape[0]):
-        a, b, c, d, m = pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch,
-                                 pair_force, pair_torque_j)
-        en += a
-        et += b
-        er += c
-        etw += d
-        ncontact += m
-    add_totals(energy, contacts, en, et, er, etw, ncontact, False)
+        pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                 pair_torque_j, energy, contacts)
 
 
 @njit(cache=True, parallel=True)
 def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
                        pair_torque_j, energy, contacts):
     """``pair_forces`` on the calling thread (see ``SERIAL_BELOW``)."""
-    en = et = er = etw = 0.0
-    ncontact = 0
     for i in range(x.shape[0]):
-        a, b, c, d, m = pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch,
-                                 pair_force, pair_torque_j)
-        en += a
-        et += b
-        er += c
-        etw += d
-        ncontact += m
-    add_totals(energy, contacts, en, et, er, etw, ncontact, False)
-
-
-@njit(cache=True, inline="always")
-def add_totals(energy, contacts, en, et, er, etw, ncontact, more):
-    energy[0] += en
-    energy[1] += et
-    energy[2] += er
-    energy[3] += etw
-    contacts[0] = contacts[0] + ncontact if more else ncontact
+        pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                 pair_torque_j, energy, contacts)
 
 
 @njit(cache=True, inline="always")
@@ -317,12 +292,12 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
 
 @njit(cache=True, inline="always")
 def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-               touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, x_ref,
-               half_skin):
+               touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy,
+               contacts, x_ref, half_skin):
     """Particle i: pair terms where it is the second partner, walls, gravity; then the closing half
     kick (if ``kick`` is 1.0; a float, so one compiled version serves both). Returns (1 if i may
     cross skin/2 during the next step, 1 if it would even from a fresh list: the skin is too small
-    for its speed, and the energies dissipated and the number of its wall contacts)."""
+    for its speed)."""
     fx = f[i, 0]
     fy = f[i, 1]
     fz = f[i, 2]
@@ -348,6 +323,11 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
     tx += wres[3]
     ty += wres[4]
     tz += wres[5]
+    energy[i, 0] += wres[6]
+    energy[i, 1] += wres[7]
+    energy[i, 2] += wres[8]
+    energy[i, 3] += wres[9]
+    contacts[i] += wres[10]
     f[i, 0] = fx
     f[i, 1] = fy
     f[i, 2] = fz
@@ -371,32 +351,22 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
                       + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / mi)
     exceed = 0 if math.sqrt(ex * ex + ey * ey + ez * ez) + step_move < half_skin else 1  # NaN: 1
     fast = 0 if step_move < half_skin else 1
-    return exceed, fast, wres[6], wres[7], wres[8], wres[9], wres[10]
+    return exceed, fast
 
 
 @njit(cache=True, parallel=True)
 def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch,
            pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy, contacts,
            x_ref, half_skin):
-    """``gather_one`` for every particle; adds the wall energies and contacts to the totals and
-    returns the counts of its two flags."""
+    """``gather_one`` for every particle; returns the counts of its two flags."""
     nexceed = 0
     nfast = 0
-    en = et = er = etw = 0.0
-    nwall = 0
     for i in prange(x.shape[0]):
-        exceed, fast, a, b, c, d, m = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                                 pair_params, tr_start, tr_k, touch, pair_force, pair_torque_j,
-                                                 wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, x_ref,
-                                                 half_skin)
+        exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+                                  tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
+                                  wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
         nexceed += exceed
         nfast += fast
-        en += a
-        et += b
-        er += c
-        etw += d
-        nwall += m
-    add_totals(energy, contacts, en, et, er, etw, nwall, True)
     return nexceed, nfast
 
 
@@ -407,21 +377,12 @@ def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
     """``gather`` on the calling thread."""
     nexceed = 0
     nfast = 0
-    en = et = er = etw = 0.0
-    nwall = 0
     for i in range(x.shape[0]):
-        exceed, fast, a, b, c, d, m = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                                 pair_params, tr_start, tr_k, touch, pair_force, pair_torque_j,
-                                                 wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, x_ref,
-                                                 half_skin)
+        exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+                                  tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
+                                  wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
         nexceed += exceed
         nfast += fast
-        en += a
-        et += b
-        er += c
-        etw += d
-        nwall += m
-    add_totals(energy, contacts, en, et, er, etw, nwall, True)
     return nexceed, nfast
 
 

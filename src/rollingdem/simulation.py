@@ -297,11 +297,11 @@ class Simulation:
 
     def dissipated_energy(self) -> dict[str, float]:
         """Energy (J) dissipated since the start, by normal damping, sliding, rolling and twisting."""
-        totals = self._state.energy
+        totals = self._state.energy.sum(axis=0)
         return {name: float(totals[k]) for k, name in enumerate(ENERGY_CHANNELS)}
 
     def number_of_contacts(self) -> int:
-        return int(self._state.contacts[0])
+        return int(self._state.contacts.sum())
 
     # --- time step -----------------------------------------------------------------------------
     def time_step_limits(self) -> list[tuple[str, float]]:

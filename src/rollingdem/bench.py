@@ -81,7 +81,7 @@ def _cache_dir() -> Path:
 
 
 def _column_simulation(rolling: str = "epsd"):
-    from . import ContactModel, Cylinder, Material, Plane, Simulation
+    from . import ContactModel, Material, Plane, Simulation
 
     sim = Simulation(contact=ContactModel("hertz", rolling=rolling), dt=DT, skin=SKIN)
     sim.add_material(Material("table1", **TABLE1))
@@ -114,8 +114,6 @@ def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=pr
 def column_from_dump(path, rolling: str = "epsd"):
     """The settled state written by the LIGGGHTS reference input (``write_dump ... custom id type x y z
     vx vy vz radius``), with the cylinder of the matching radius in place."""
-    from . import Cylinder
-
     path = Path(path)
     if not path.exists():
         raise ParameterError(f"from_dump = {str(path)!r} does not exist: give the dump written by "
@@ -129,11 +127,18 @@ def column_from_dump(path, rolling: str = "epsd"):
     except (StopIteration, ValueError) as err:
         raise ParameterError(f"from_dump = {str(path)!r} is not a LIGGGHTS custom dump with columns "
                              f"x y z vx vy vz radius ({err})") from None
-    x = data[:, [idx["x"], idx["y"], idx["z"]]]
-    v = data[:, [idx["vx"], idx["vy"], idx["vz"]]]
+    return _column_from_state(rolling, data[:, [idx["x"], idx["y"], idx["z"]]], data[:, idx["radius"]],
+                              data[:, [idx["vx"], idx["vy"], idx["vz"]]])
+
+
+def _column_from_state(rolling, positions, radii, velocities, angular_velocities=None):
+    """A column scene (plate, cylinder scaled to the count) holding the given spheres as they are."""
+    from . import Cylinder
+
     sim = _column_simulation(rolling)
-    sim.add_wall(Cylinder(column_radius(len(x)), material="table1", name="cylinder"))
-    sim.add_particles(x, data[:, idx["radius"]], "table1", velocity=v, allow_overlap=True)
+    sim.add_wall(Cylinder(column_radius(len(positions)), material="table1", name="cylinder"))
+    sim.add_particles(positions, radii, "table1", velocity=velocities, angular_velocity=angular_velocities,
+                      allow_overlap=True)
     return sim
 
 
@@ -164,7 +169,6 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     saved = {name: getattr(st, name).copy() for name in ("hist", "touch", "whist", "energy", "f", "t", "contacts",
                                                          "x_ref", "nl_start", "nl_j", "tr_start", "tr_k",
                                                          "pair_force", "pair_torque_j")}
-    no_walls = wall_kind[:0]
 
     def timed(fn):
         """Seconds per call: the fastest of 5 blocks of ``repeats`` calls (on a shared machine the
@@ -182,25 +186,22 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     pair_forces = kernel.pair_forces_serial if serial else kernel.pair_forces
     gather = kernel.gather_serial if serial else kernel.gather
     kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
-    split = {
-        "contact forces": timed(lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j,
-                                                           hist, touch, pair_force, pair_torque_j, energy,
-                                                           contacts)),
-    }
-    gather_walls = timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp,
-                                               tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom,
-                                               wall_vel, wall_omega, wall_mat, whist, energy, contacts, x_ref,
-                                               0.5 * skin))
-    gather_plain = timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp,
-                                               tr_start, tr_k, touch, pair_force, pair_torque_j, no_walls,
-                                               wall_geom[:0],
-                                               wall_vel[:0], wall_omega[:0], wall_mat[:0], whist, energy,
-                                               contacts, x_ref, 0.5 * skin))
+    split = {"contact forces": timed(lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j,
+                                                         hist, touch, pair_force, pair_torque_j, energy, contacts))}
+
+    def gather_with(kind, geom, vel, omega, wmat):
+        return timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
+                                    touch, pair_force, pair_torque_j, kind, geom, vel, omega, wmat, whist, energy,
+                                    contacts, x_ref, 0.5 * skin))
+
+    gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)
+    gather_plain = gather_with(wall_kind[:0], wall_geom[:0], wall_vel[:0], wall_omega[:0], wall_mat[:0])
     kick = timed(lambda: kick_drift(0.0, x, v, w, f, t, mass, inertia))
     split["walls"] = max(gather_walls - gather_plain, 0.0)
     split["integration and gathering"] = gather_plain + kick
-    rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, new_start,
-                                                  new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref))
+    rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k,
+                                                  new_start, new_j, new_hist, cell_start, cell_items, cell_of,
+                                                  counts, x_ref))
     split["neighbor search"] = rebuild * rebuilds / max(steps, 1)
     for name, arr in saved.items():  # the timing calls must leave the state as it was
         getattr(st, name)[...] = arr
@@ -221,25 +222,24 @@ def compile_time(contact) -> float:
     return time.perf_counter() - tic
 
 
-def _time_run(sim, steps: int) -> tuple[float, float, int]:
-    """(0, timed seconds, rebuilds during the timed steps), after one untimed step."""
+def _time_run(sim, steps: int) -> tuple[float, int]:
+    """(timed seconds, rebuilds during the timed steps), after one untimed step."""
     from .engine_kernel import I_REBUILDS
 
-    first = 0.0
     sim.run(steps=1, progress=False)
     before = int(sim._state.info[I_REBUILDS])
     tic = time.perf_counter()
     sim.run(steps=steps, progress=False)
     wall = time.perf_counter() - tic
-    return first, wall, int(sim._state.info[I_REBUILDS]) - before
+    return wall, int(sim._state.info[I_REBUILDS]) - before
 
 
-def _result(scene, model, sim, steps, first, wall, rebuilds, threads, note="", split_repeats=20) -> BenchResult:
+def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="", split_repeats=20) -> BenchResult:
     n = sim.n_particles
     contacts, neighbors = _contacts_per_particle(sim)
     state_bytes = sum(a.nbytes for a in vars(sim._state).values() if isinstance(a, np.ndarray))
     return BenchResult(scene=scene, model=model, particles=n, steps=steps, threads=threads, wall_s=wall,
-                       particle_steps_per_s=n * steps / wall, compile_s=first, contacts_per_particle=contacts,
+                       particle_steps_per_s=n * steps / wall, compile_s=compile_s, contacts_per_particle=contacts,
                        neighbors_per_particle=neighbors, rebuilds=rebuilds,
                        split_s_per_step=_split(sim, split_repeats, rebuilds, steps),
                        peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
@@ -252,27 +252,26 @@ def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, 
     from . import ContactModel
 
     threads = threads or numba.get_num_threads()
-    first = compile_time(ContactModel("hertz", rolling="epsd"))
+    compile_s = compile_time(ContactModel("hertz", rolling="epsd"))
     sim = column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo)
     sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
-    _, wall, rebuilds = _time_run(sim, steps)
+    wall, rebuilds = _time_run(sim, steps)
     note = f"settled state from {from_dump}" if from_dump else "settled state from the disk cache"
-    return _result("column-collapse", "epsd", sim, steps, first, wall, rebuilds, threads, note)
+    return _result("column-collapse", "epsd", sim, steps, compile_s, wall, rebuilds, threads, note)
 
 
 def single_particle(steps=150000, threads=None, echo=print) -> BenchResult:
     import numba
 
+    from . import ContactModel
     from .cases.single_sphere import sphere_on_wall, validation_models
 
-    from . import ContactModel
-
     threads = threads or numba.get_num_threads()
-    first = compile_time(ContactModel("hertz", rolling=validation_models()["epsd"]))
+    compile_s = compile_time(ContactModel("hertz", rolling=validation_models()["epsd"]))
     sim = sphere_on_wall(validation_models()["epsd"])
     sim.set_velocities([0], velocity=(1.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0))
-    _, wall, rebuilds = _time_run(sim, steps)
-    return _result("single-particle", "epsd", sim, steps, first, wall, rebuilds, threads,
+    wall, rebuilds = _time_run(sim, steps)
+    return _result("single-particle", "epsd", sim, steps, compile_s, wall, rebuilds, threads,
                    "the seed report's case 1: one sphere rolling on a plane")
 
 
@@ -286,7 +285,7 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     """
     import numba
 
-    from . import ContactModel, Cylinder
+    from . import ContactModel
     from .cases.single_sphere import validation_models
 
     threads = threads or numba.get_num_threads()
@@ -296,10 +295,7 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     for model in models:
         spec = specs.get(model, model)
         compiles[model] = compile_time(ContactModel("hertz", rolling=spec))
-        sim = _column_simulation(spec)
-        sim.add_wall(Cylinder(column_radius(particles), material="table1", name="cylinder"))
-        sim.add_particles(base.positions, base.radii, "table1", velocity=base.velocities,
-                          angular_velocity=base.angular_velocities, allow_overlap=True)
+        sim = _column_from_state(spec, base.positions, base.radii, base.velocities, base.angular_velocities)
         sim.run(steps=1, progress=False)
         sims[model] = sim
     # the models take turns, so that a disturbance of the shared machine hits them alike
@@ -311,7 +307,7 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     results = []
     for model, sim in sims.items():
         contacts = _contacts_per_particle(sim)[0]
-        _, wall, rebuilds = _time_run(sim, steps)
+        wall, rebuilds = _time_run(sim, steps)
         r = _result("dense-bed", model, sim, steps, compiles[model], wall, rebuilds, threads)
         t = force_pass[model]
         r.note = f"identical state: contact forces + walls {t * 1e3:.3f} ms/step at {contacts:.2f} contacts/particle"
@@ -327,7 +323,7 @@ def slab(particles=20000, steps=1000, threads=None, echo=print) -> BenchResult:
     from . import ContactModel
 
     threads = threads or numba.get_num_threads()
-    first = compile_time(ContactModel("hertz", rolling="epsd"))
+    compile_s = compile_time(ContactModel("hertz", rolling="epsd"))
     side = max(1, int(round(math.sqrt(particles / SLAB_LAYERS))))
     grid = np.stack(np.meshgrid(np.arange(side), np.arange(side), np.arange(SLAB_LAYERS), indexing="ij"),
                     -1).reshape(-1, 3)[:particles]
@@ -335,8 +331,8 @@ def slab(particles=20000, steps=1000, threads=None, echo=print) -> BenchResult:
     x = grid * 2.02 * RADIUS + (0.0, 0.0, 1.01 * RADIUS) + rng.uniform(-0.005, 0.005, grid.shape) * RADIUS
     sim = _column_simulation("epsd")
     sim.add_particles(x, RADIUS, "table1", velocity=rng.uniform(-0.05, 0.05, x.shape))
-    _, wall, rebuilds = _time_run(sim, steps)
-    return _result("slab", "epsd", sim, steps, first, wall, rebuilds, threads,
+    wall, rebuilds = _time_run(sim, steps)
+    return _result("slab", "epsd", sim, steps, compile_s, wall, rebuilds, threads,
                    f"{SLAB_LAYERS} lattice layers falling onto a plate")
 
 

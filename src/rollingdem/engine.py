@@ -246,7 +246,7 @@ class EngineState:
     def _too_fast_message(self, dt, skin):
         speed = np.sqrt((self.v ** 2).sum(axis=1))
         k = int(np.nanargmax(speed)) if np.isfinite(speed).any() else 0
-        return (f"particle {k} moves {speed[k] * dt:.3g} m in one step (speed {speed[k]:.3g} m/s, dt = {dt:.3g} s), "
+        return (f"particle {int(self.ids[k])} moves {speed[k] * dt:.3g} m in one step (speed {speed[k]:.3g} m/s, dt = {dt:.3g} s), "
                 f"more than half the neighbor skin ({skin:.3g} m): contacts could be missed. Give a larger skin "
                 f"(> {2 * speed[k] * dt:.3g} m) or a smaller dt; a speed like this often means the run is unstable")
 
@@ -259,9 +259,10 @@ class EngineState:
         from .neighbors import rebuild_neighbor_list
 
         while True:
-            total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j, self.hist,
-                                          self.tr_start, self.tr_k, self.new_start, self.new_j, self.new_hist,
-                                          self.cell_start, self.cell_items, self.cell_of, self.counts, self.x_ref)
+            total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j,
+                                          self.hist, self.tr_start, self.tr_k, self.new_start, self.new_j,
+                                          self.new_hist, self.cell_start, self.cell_items, self.cell_of, self.counts,
+                                          self.x_ref)
             if total >= 0:
                 break
             self.grow(-total)
@@ -291,9 +292,9 @@ class EngineState:
     @classmethod
     def from_arrays(cls, arrays: dict, history_size: int) -> "EngineState":
         st = cls(history_size)
+        if "ids" not in arrays:  # a checkpoint from before the re-sorting
+            arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
         for name in cls.ARRAYS:
-            if name == "ids" and name not in arrays:  # a checkpoint from before the re-sorting
-                arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
             setattr(st, name, np.array(arrays[name]))
         if not np.array_equal(st.ids, np.arange(st.n)):
             st._slots = np.argsort(st.ids)

@@ -14,11 +14,13 @@ Per step (velocity Verlet, forces at half-step velocities as in LIGGGHTS and LAM
 4. per particle: gather the pair terms where it is the second partner, wall contacts, gravity;
    v += dt/2 F/m, omega += dt/2 T/I.
 
-Nothing here allocates or calls Python. ``contact`` and ``wall_contacts`` are compiled without
-Numba's reference counting (``_nrt=False``): they take arrays but never allocate, and a counted
-call costs atomic increments and decrements of every array argument per contact (+18 % speed on
-a dense bed). The sub-model kernels are inlined into ``contact`` (``inline="always"``); inlining
-``contact`` itself into the parallel loops is faster still but triples the compile time.
+Nothing here allocates or calls Python. ``contact`` is compiled without Numba's reference
+counting (``_nrt=False``): it takes arrays but never allocates, and a counted call costs atomic
+increments and decrements of every array argument per contact (+18 % speed on a dense bed). The
+sub-model kernels are inlined into ``contact`` (``inline="always"``), and the per-particle bodies
+(``pair_row``, ``gather_one`` with ``wall_contacts``, ``kick_drift_one``) into a parallel and a
+serial driver each; inlining ``contact`` itself into the pair loop is 8 % faster but costs 9 s
+more compile time per kernel.
 """
 
 import math
@@ -56,10 +58,11 @@ STATUS_TOO_FAST = 2
 WALL_PLANE = 0
 WALL_CYLINDER = 1
 
-# Scenes of fewer particles step on the calling thread: a parallel region's fork/join (~1 us with
-# OpenMP, 3 per step) costs more than it saves there. The ``*_serial`` loops are compiled with
-# parallel=True but use range, not prange: no threads start, and Numba's parallel pipeline makes
-# them 2-4x faster than a plain njit of the same code (measured on the 20,000-sphere collapse).
+# Scenes of fewer particles, and runs on one Numba thread, step on the calling thread: a parallel
+# region's fork/join (~1 us with OpenMP, 3 per step) costs more than it saves there. The
+# ``*_serial`` loops are compiled with parallel=True but use range, not prange: no threads start,
+# and Numba's parallel pipeline makes them 2-4x faster than a plain njit of the same code
+# (measured on the 20,000-sphere collapse).
 SERIAL_BELOW = 512
 warnings.filterwarnings("ignore", message="(?s).*parallel=True.*no transformation for parallel execution",
                         category=NumbaPerformanceWarning)
@@ -450,15 +453,15 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
             tr_start, tr_k, new_start, new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin, energy,
             contacts, info):
     """Advance ``nsteps`` steps, on the calling thread if ``serial`` (see ``SERIAL_BELOW``). Stops
-    early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the capacity needed when
-    the neighbor list outgrows its arrays, or STATUS_TOO_FAST when a particle would move more than
-    skin/2 in one step."""
+    early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the
+    capacity needed when the neighbor list outgrows its arrays, or STATUS_TOO_FAST when a particle
+    would move more than skin/2 in one step."""
     half_skin = 0.5 * skin
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
-        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
-                        cell_start, cell_items, cell_of, counts, x_ref, info):
+        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j,
+                        new_hist, cell_start, cell_items, cell_of, counts, x_ref, info):
             return
         _forces(dt, 0.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
                 wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force,
@@ -470,8 +473,8 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
             info[I_STATUS] = STATUS_TOO_FAST
             return
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
-                            cell_start, cell_items, cell_of, counts, x_ref, info):
+            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j,
+                            new_hist, cell_start, cell_items, cell_of, counts, x_ref, info):
                 return
         if serial:
             kick_drift_serial(dt, x, v, w, f, t, mass, inertia)

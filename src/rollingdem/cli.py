@@ -1,4 +1,4 @@
-"""Command line: ``rollingdem run [CASE]``."""
+"""Command line: ``rollingdem run | validate | bench | sweep | calibrate | check``."""
 
 from __future__ import annotations
 
@@ -122,6 +122,72 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
         raise typer.Exit(2)
     if json_out is not None:
         typer.echo(f"json: {bench_mod.write_json(results, json_out)}")
+
+
+@app.command()
+def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML): case, fixed, grid | points | "
+                                                      "sample, seeds."),
+          out: Path = typer.Option(Path("rollingdem-sweep"), "--out", "-o", help="Output folder: runs.csv (one row "
+                                   "per run, appended as runs finish; rerunning skips the rows there), summary.csv/png."),
+          workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Worker processes (default: cores // "
+                                                "threads; 1: one after the other in this process)."),
+          threads: int = typer.Option(1, "--threads", "-t", help="Numba threads per run."),
+          scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address "
+                                                  "(tcp://host:port) of an existing cluster."),
+          retry_failed: bool = typer.Option(False, "--retry-failed", help="Run again the runs recorded as failed."),
+          progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
+    """Run a case over a grid, list or Latin-hypercube sample of parameters and seeds, on Dask.
+
+    Exit status 1 when any run failed (its error is in runs.csv; the others still ran)."""
+    from .sweep import run_sweep
+
+    try:
+        result = run_sweep(sweep_file, out, workers=workers, scheduler=scheduler, threads=threads, progress=progress,
+                           retry_failed=retry_failed, echo=typer.echo)
+    except ParameterError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2)
+    for f in result.figures:
+        typer.echo(f"figure: {f}")
+    failed = result.table[result.table["status"] == "failed"]
+    for _, row in failed.head(5).iterrows():
+        typer.echo(f"    failed {row['run_id']}: {str(row['error']).splitlines()[0]}", err=True)
+    if len(failed):
+        raise typer.Exit(1)
+
+
+@app.command()
+def calibrate(case: str = typer.Option(..., "--case", "-c", help="rolling-flat, inclined-wall or angle-of-repose."),
+              target: float = typer.Option(..., "--target", help="Measured value of the observable (e.g. a repose "
+                                           "angle in degrees)."),
+              uncertainty: float = typer.Option(0.0, "--uncertainty", "-u", help="Standard uncertainty (one sigma) "
+                                                "of the target."),
+              fix: Optional[list[str]] = typer.Option(None, "--fix", help="NAME=VALUE held fixed (repeatable), e.g. "
+                                                      "mu=0.5, model=epsd."),
+              free: str = typer.Option("mur", "--free", help="The parameter to find: NAME or NAME=LOW:HIGH."),
+              observable: Optional[str] = typer.Option(None, "--observable", help="Observable to match (default: "
+                                                       "the case's: angle, distance, critical_angle)."),
+              seeds: Optional[int] = typer.Option(None, "--seeds", help="Runs per point (default 3 for a random "
+                                                  "case, 1 for a deterministic one)."),
+              coarse: int = typer.Option(5, "--coarse", help="Points of the first sweep over the range."),
+              refine: int = typer.Option(4, "--refine", help="Points added per refinement round."),
+              rounds: int = typer.Option(2, "--rounds", help="Refinement rounds."),
+              out: Path = typer.Option(Path("rollingdem-calibration"), "--out", "-o", help="Output folder."),
+              workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Worker processes."),
+              scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address."),
+              progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
+    """Find the free parameter whose simulated observable matches a measured target, with a 95 % interval."""
+    from .calibration import calibrate as run_calibration, parse_assignments, parse_free
+
+    try:
+        result = run_calibration(case, target, uncertainty, fix=parse_assignments(fix, "fix"), free=parse_free(free),
+                                 observable=observable, seeds=seeds, coarse=coarse, refine=refine, rounds=rounds,
+                                 out=out, workers=workers, scheduler=scheduler, progress=progress, echo=typer.echo)
+    except ParameterError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2)
+    typer.echo(f"figure: {result.figures[0]}")
+    typer.echo(f"result: {Path(out) / 'calibration.json'}")
 
 
 @app.command()

@@ -1,12 +1,13 @@
 """Run independent simulations side by side on Dask.
 
-A runner is a context manager that yields ``map(func, items)``: an iterator over ``func(item)`` in
-the order of ``items``. Each simulation is single-threaded in its worker (Numba threads per task
-are set to ``threads``), so ``workers`` x ``threads`` should not exceed the cores: a run of a few
-thousand spheres gains little from a second thread, and two runs side by side use both cores fully.
+A runner is a context manager that yields a :class:`Mapper`: ``mapper(func, items)`` iterates
+over ``func(item)`` in the order of ``items``, ``mapper.as_completed(func, items)`` as the runs
+finish. Each task runs on ``threads`` Numba threads (default 1) and the default worker count is
+cores // threads, so the cores are filled without oversubscription: a run of a few thousand
+spheres gains little from a second thread, and two runs side by side use both cores fully.
 
-* ``workers=1`` and no scheduler: plain in-process ``map``, no Dask (tests, debugging).
-* default: a ``dask.distributed.LocalCluster`` of one process per core.
+* ``workers=1`` and no scheduler: in this process, no Dask (tests, debugging).
+* default: a ``dask.distributed.LocalCluster`` of cores // threads worker processes.
 * ``scheduler="tcp://host:port"``: an existing Dask cluster (dask-jobqueue, Kubernetes, ...).
 """
 
@@ -19,7 +20,7 @@ from typing import Any, Callable, Iterable, Iterator
 
 from .errors import ParameterError
 
-__all__ = ["default_workers", "runner"]
+__all__ = ["Mapper", "completed", "default_workers", "runner"]
 
 
 def default_workers() -> int:
@@ -44,17 +45,66 @@ class _Task:
         return self.func(item)
 
 
+class Mapper:
+    """What :func:`runner` yields. ``mapper(func, items)``: results in the order of ``items``;
+    ``mapper.as_completed(func, items)``: ``(index, result)`` pairs as the runs finish, where a run
+    Dask itself could not finish (its worker died ``allowed-failures`` times, default 3) comes as
+    ``(index, exception)``. A run whose worker dies once is rerun on another worker by the scheduler."""
+
+    def __init__(self, client=None, threads: int = 1):
+        self.client = client
+        self.threads = threads
+
+    @property
+    def workers(self) -> int:
+        """Worker processes the runs are spread over (1 without Dask)."""
+        if self.client is None:
+            return 1
+        return max(1, len(self.client.scheduler_info().get("workers", {})))
+
+    def __call__(self, func: Callable, items: Iterable[Any]) -> Iterator[Any]:
+        task = _Task(func, self.threads)
+        if self.client is None:
+            return map(task, items)
+        futures = self.client.map(task, list(items), pure=False)
+        return (fut.result() for fut in futures)
+
+    def as_completed(self, func: Callable, items: Iterable[Any]) -> Iterator[tuple[int, Any]]:
+        task = _Task(func, self.threads)
+        items = list(items)
+        if self.client is None:
+            for i, item in enumerate(items):
+                yield i, task(item)
+            return
+        from dask.distributed import as_completed
+
+        futures = self.client.map(task, items, pure=False)
+        index = {fut.key: i for i, fut in enumerate(futures)}
+        for fut in as_completed(futures):
+            try:
+                result = fut.result()
+            except Exception as err:  # KilledWorker, a lost scheduler: the run did not finish
+                result = err
+            yield index[fut.key], result
+
+
+def completed(mapper, func: Callable, items: Iterable[Any]) -> Iterator[tuple[int, Any]]:
+    """``(index, result)`` as runs finish, for a :class:`Mapper` or any plain ``map``-like callable."""
+    if hasattr(mapper, "as_completed"):
+        return mapper.as_completed(func, items)
+    return enumerate(mapper(func, list(items)))
+
+
 @contextmanager
-def runner(workers: int | None = None, scheduler: str | None = None, threads: int = 1) -> Iterator[Callable]:
-    """Context manager yielding ``map(func, items)`` (results in input order) over Dask workers."""
+def runner(workers: int | None = None, scheduler: str | None = None, threads: int = 1) -> Iterator[Mapper]:
+    """Context manager yielding a :class:`Mapper` over Dask workers (or here, for one worker)."""
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ParameterError(f"workers = {workers!r} is not allowed: must be an integer >= 1")
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
         raise ParameterError(f"threads = {threads!r} is not allowed: must be an integer >= 1")
-    if scheduler is None and (workers or default_workers()) == 1:
-        def serial(func: Callable, items: Iterable[Any]):
-            return map(_Task(func, threads), items)
-        yield serial
+    workers = workers or max(1, default_workers() // threads)  # fill the cores, no oversubscription
+    if scheduler is None and workers == 1:
+        yield Mapper(None, threads)
         return
     try:
         from dask.distributed import Client, LocalCluster
@@ -62,22 +112,16 @@ def runner(workers: int | None = None, scheduler: str | None = None, threads: in
         raise ParameterError("parallel runs need dask.distributed: pip install 'dask[distributed]'") from err
     cluster = None
     if scheduler is None:
-        cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=logging.ERROR)
         client = Client(cluster)
     else:
         try:
             client = Client(scheduler, timeout="20s")
         except (OSError, TimeoutError) as err:
             raise ParameterError(f"scheduler = {scheduler!r}: no Dask scheduler answers there ({err})") from None
-
-    def dask_map(func: Callable, items: Iterable[Any]):
-        futures = client.map(_Task(func, threads), list(items), pure=False)
-        for fut in futures:
-            yield fut.result()
-
     try:
-        yield dask_map
+        yield Mapper(client, threads)
     finally:
         client.close()
         if cluster is not None:

@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import math
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,7 +23,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..analysis import ReposeAngle, default_max_speed, plot_pile, repose_angle, touching
+from ..analysis import ReposeAngle, confidence_interval, default_max_speed, plot_pile, repose_angle, touching
 from ..contact.model import ContactModel
 from ..insertion import CylinderRegion, Uniform
 from ..materials import Material
@@ -68,7 +69,8 @@ class PileRun:
 def pile_run(rolling="epsd", twisting="none", count=3000, friction=TABLE1["friction"],
              rolling_friction=TABLE1["rolling_friction"], seed=1, collapse=1.0, max_collapse=3.0, sample=0.01,
              normal="hertz", polydispersity=POLYDISPERSITY, aspect=1.0, lift_speed=None,
-             youngs_modulus=TABLE1["youngs_modulus"], dt=DT, label=None) -> PileRun:
+             youngs_modulus=TABLE1["youngs_modulus"], dt=DT, restitution=TABLE1["restitution"],
+             rolling_damping=TABLE1["rolling_damping"], label=None) -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
     Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
@@ -87,7 +89,8 @@ def pile_run(rolling="epsd", twisting="none", count=3000, friction=TABLE1["frict
     tube_radius, height = column_size(count, RADIUS, polydispersity, aspect)
     sim = Simulation(contact=ContactModel(normal, rolling=rolling, twisting=twisting), dt=dt)
     sim.add_material(Material("m", **dict(TABLE1, youngs_modulus=youngs_modulus, friction=friction,
-                                          rolling_friction=rolling_friction)))
+                                          rolling_friction=rolling_friction, restitution=restitution,
+                                          rolling_damping=rolling_damping)))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m", name="plate"))
     tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material="m", name="tube"))
     fill = height * PACKING / INSERT_PACKING
@@ -232,24 +235,14 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
     return result
 
 
-def confidence_interval(values, level=0.95) -> tuple[float, float]:
-    """(mean, half-width) of the Student-t confidence interval of the mean; half-width NaN for one value."""
-    v = np.asarray([x for x in values if math.isfinite(x)], dtype=float)
-    if len(v) == 0:
-        return math.nan, math.nan
-    if len(v) < 2:
-        return float(v.mean()), math.nan
-    half = stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v))
-    return float(v.mean()), float(half)
-
-
 def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", frictions=None, rolling_frictions=None,
                  seeds=None, count=None, lift_speed=SWEEP_LIFT_SPEED, runner=map) -> CaseResult:
     """The PFC repose-angle study: angle against mu_r for each mu, seeds per point, 95 % intervals.
 
-    As in the PFC example the tube is lifted (``lift_speed``, m/s). ``runner`` maps a function
-    over the grid points (the built-in ``map`` runs them here; :func:`rollingdem.parallel.runner`
-    side by side or on a Dask cluster). Trend checks: the angle grows with mu (at every mu_r) and
+    As in the PFC example the tube is lifted (``lift_speed``, m/s). The runs go through
+    :func:`rollingdem.sweep.run_sweep` (case ``angle-of-repose``) into ``outdir/repose-sweep-runs``,
+    so a rerun with the same ``outdir`` skips the runs already finished; ``runner`` maps them (the
+    built-in ``map`` here; :func:`rollingdem.parallel.runner` side by side or on a Dask cluster). Trend checks: the angle grows with mu (at every mu_r) and
     with mu_r (between the smallest and largest mu_r), and for the smaller mu it reaches a plateau
     once mu_r > mu (those points agree within their intervals plus 1 degree).
     """
@@ -259,23 +252,21 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
     seeds = seeds or ((1, 2) if quick else (1, 2, 3))
     count = count or (QUICK_SWEEP if quick else FULL_SWEEP)
     max_collapse = 2.6 if quick else 3.5
-    points = [(mu, mur, seed) for mu in frictions for mur in rolling_frictions for seed in seeds]
+    from ..sweep import SweepSpec, run_sweep
 
-    def one(point):
-        mu, mur, seed = point
-        run = pile_run(model, count=count, friction=mu, rolling_friction=mur, seed=seed, lift_speed=lift_speed,
-                       youngs_modulus=SWEEP_YOUNGS_MODULUS, dt=SWEEP_DT, sample=0.02, max_collapse=max_collapse)
-        a = run.angle
-        return {"angle (deg)": a.angle if a else math.nan, "slice sd (deg)": a.slice_std if a else math.nan,
-                "cone fit R²": a.r_squared if a else math.nan, "settled at (s)": run.settled_at,
-                "wall time (s)": run.wall_time, "note": run.angle_error[:120]}
-
-    measured = []
-    for m in runner(one, points):
-        measured.append(m)
-        if progress:
-            progress()
-    raw = pd.concat([pd.DataFrame(points, columns=["mu", "mu_r", "seed"]), pd.DataFrame(measured)], axis=1)
+    spec = SweepSpec(case="angle-of-repose", grid={"mu": list(frictions), "mur": list(rolling_frictions)},
+                     seeds=list(seeds), fixed={"model": model, "count": count, "lift_speed": lift_speed,
+                                               "youngs_modulus": SWEEP_YOUNGS_MODULUS, "dt": SWEEP_DT,
+                                               "max_collapse": max_collapse})
+    # the runs table of rollingdem.sweep: rerunning the case with the same outdir skips finished runs
+    where = Path(outdir) / "repose-sweep-runs" if outdir is not None else Path(tempfile.mkdtemp(prefix="repose-"))
+    swept = run_sweep(spec, where, mapper=runner, progress=False, summary=False, on_run=progress)
+    raw = swept.table.rename(columns={"mur": "mu_r", "angle": "angle (deg)", "slice_std": "slice sd (deg)",
+                                      "r_squared": "cone fit R²", "settled_at": "settled at (s)",
+                                      "wall_time_s": "wall time (s)"})
+    raw = raw[["mu", "mu_r", "seed", "angle (deg)", "slice sd (deg)", "cone fit R²", "settled at (s)",
+               "wall time (s)", "status", "note", "error"]].sort_values(["mu", "mu_r", "seed"])
+    points = list(zip(raw["mu"], raw["mu_r"], raw["seed"]))
     rows = []
     for (mu, mur), grp in raw.groupby(["mu", "mu_r"]):
         mean, half = confidence_interval(grp["angle (deg)"])

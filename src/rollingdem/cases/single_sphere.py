@@ -179,13 +179,14 @@ def creep_speed(traj: Trajectory, last=1.0) -> float:
 
 
 # --- case 0: inclined wall -------------------------------------------------------------------------
-def speed_down_incline(rolling, mu_r, beta_deg, tilt_time=0.3, hold=0.3) -> float:
+def speed_down_incline(rolling, mu_r, beta_deg, tilt_time=0.3, hold=0.3, material=None) -> float:
     """Mean speed (m/s) down a wall tilted to beta, over the last 0.1 s.
 
     Gravity is tilted to beta over ``tilt_time`` in 1000 small steps (a sudden tilt makes an
     undamped rolling spring overshoot to twice the static moment and slip), then held ``hold`` s.
+    ``material`` overrides Table 1 entries (``mu_r`` wins over its rolling_friction).
     """
-    sim = sphere_on_wall(rolling, settle=0.05, material={"rolling_friction": mu_r})
+    sim = sphere_on_wall(rolling, settle=0.05, material=dict(material or {}, rolling_friction=mu_r))
     steps = max(int(round(tilt_time / DT / 1000)), 1)
     for k in range(1, 1001):
         b = math.radians(beta_deg) * k / 1000

@@ -1,0 +1,228 @@
+"""Cases as functions ``run(params) -> observables``: what sweeps and calibration call.
+
+This is the contract GrainLearning and Optuna use: a case takes a flat mapping of named
+parameters (SI units, angles in degrees) and returns a flat mapping of named observables. Every
+parameter has a default, a check and, where calibration may vary it, a default range.
+
+* ``rolling-flat``: the seed report's case 1 (one sphere launched at ``v0`` with omega = 0 on a
+  flat). Observables: ``distance`` (m) and ``stop_time`` (s). Analytic (MODELS.md §13 T2):
+  s = v0 t1 - mu g t1^2 / 2 + 7 v1^2 / (10 mu_r g), deterministic (the seed is unused).
+* ``inclined-wall``: the report's case 0 turned round: for a given mu_r, the wall inclination at
+  which the sphere starts to roll, by bisection. Observable ``critical_angle`` (deg); theory:
+  beta_crit = atan(mu_r) (m g R sin b = mu_r R m g cos b). Deterministic.
+* ``angle-of-repose``: spheres settle in a tube on a plate, the tube is lifted (or removed) and the
+  pile's angle is measured (:func:`rollingdem.cases.repose.pile_run`,
+  :func:`rollingdem.analysis.repose_angle`). Observables: ``angle`` (deg), ``slice_std`` (deg),
+  ``r_squared``, ``settled_at`` (s). The seed sets the random insertion.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from ..errors import ParameterError, check_choice, check_finite
+
+__all__ = ["CASES", "SweepCase", "Parameter", "get_case", "resolve_rolling"]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A named case parameter: default, allowed interval (``low``/``high``, open or closed) or
+    choices, unit, and the range calibration searches by default."""
+
+    name: str
+    default: Any
+    description: str
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    integer: bool = False
+    choice: str = ""  # "rolling" or "twisting": a model name
+    calibration_range: tuple[float, float] | None = None
+
+    def check(self, value: Any) -> Any:
+        """The value as the case uses it, or ParameterError naming the parameter and what is allowed."""
+        if self.choice:
+            if not isinstance(value, str):
+                raise ParameterError(f"{self.name} = {value!r} is not allowed: must be a {self.choice} model name")
+            if self.choice == "rolling":
+                resolve_rolling(value, self.name)
+            else:
+                from ..contact import TWISTING_MODELS
+
+                check_choice(self.name, value, TWISTING_MODELS)
+            return value
+        if self.integer:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or float(value) != int(value):
+                raise ParameterError(f"{self.name} = {value!r} is not allowed: must be an integer")
+            value = int(value)
+        else:
+            if isinstance(value, bool):
+                raise ParameterError(f"{self.name} = {value!r} is not a number")
+            value = check_finite(self.name, value)
+        bad_low = self.low is not None and (value <= self.low if self.low_open else value < self.low)
+        bad_high = self.high is not None and value > self.high
+        if bad_low or bad_high:
+            lo = "-inf" if self.low is None else f"{self.low:g}"
+            hi = "inf" if self.high is None else f"{self.high:g}"
+            unit = f" {self.unit}" if self.unit else ""
+            raise ParameterError(f"{self.name} = {value!r} is not allowed: must lie in "
+                                 f"{'(' if self.low_open or self.low is None else '['}{lo}, {hi}"
+                                 f"{']' if self.high is not None else ')'}{unit}")
+        return value
+
+
+@dataclass(frozen=True)
+class SweepCase:
+    """A case as a function of named parameters: ``run(params) -> {observable: value}``."""
+
+    name: str
+    run: Callable[[dict], dict]
+    parameters: tuple[Parameter, ...]
+    observables: dict[str, str]  # name -> unit and meaning
+    default_observable: str
+    stochastic: bool  # does the seed change the result?
+    description: str = ""
+    by_name: dict = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "by_name", {p.name: p for p in self.parameters})
+
+    def resolve(self, params: dict) -> dict:
+        """Defaults filled in and every value checked; unknown names refused."""
+        unknown = [k for k in params if k not in self.by_name]
+        if unknown:
+            raise ParameterError(f"parameter = {unknown[0]!r} is not known for case {self.name!r}: allowed are "
+                                 f"{', '.join(self.by_name)}")
+        return {p.name: p.check(params[p.name]) if p.name in params else p.default for p in self.parameters}
+
+
+def resolve_rolling(name: str, what: str = "model"):
+    """A rolling model by name: a key of ``rollingdem.contact.ROLLING_MODELS`` ("epsd", "cdt", ...)
+    or a label of the validation tables ("epsd (liggghts)", "cdt (limiter 0.08)", ...)."""
+    from ..contact import ROLLING_MODELS
+    from .single_sphere import validation_models
+
+    labels = validation_models()
+    if name in labels:
+        return labels[name]
+    check_choice(what, name, set(ROLLING_MODELS) | set(labels))
+    return name
+
+
+def _material(p: dict) -> dict:
+    return {"friction": p["mu"], "rolling_friction": p["mur"], "rolling_damping": p["eta_r"], "restitution": p["e"]}
+
+
+# --- rolling-flat ----------------------------------------------------------------------------------
+def rolling_flat(params: dict) -> dict:
+    """Case 1 as a function: stop distance (m) and time (s) of a sphere launched at v0."""
+    from .single_sphere import analytic_flat, rolling_flat_run, stop_time
+
+    p = CASES["rolling-flat"].resolve(params)
+    # record until 1.3x the analytic stop (at least 0.3 s after it): the sphere must be seen to stop
+    t_stop = analytic_flat(p["v0"], p["mu"], p["mur"])[2]
+    traj = rolling_flat_run(resolve_rolling(p["model"]), duration=1.3 * t_stop + 0.3, v0=p["v0"],
+                            material=_material(p))
+    return {"distance": float(traj.x[-1]), "stop_time": stop_time(traj)}
+
+
+# --- inclined-wall ---------------------------------------------------------------------------------
+def inclined_wall(params: dict) -> dict:
+    """The inclination (deg) at which the sphere starts to roll, by bisection over beta in
+    [beta_low, beta_high] to a relative width ``rel_tol`` in tan(beta); NaN when it holds at
+    beta_high or rolls at beta_low."""
+    from .single_sphere import rolling_threshold_speed, speed_down_incline
+
+    p = CASES["inclined-wall"].resolve(params)
+    if p["beta_low"] >= p["beta_high"]:
+        raise ParameterError(f"beta_low = {p['beta_low']} is not allowed: must be below beta_high = {p['beta_high']}")
+    model, material = resolve_rolling(p["model"]), _material(p)
+
+    def rolls(beta):
+        # the threshold of a quarter of rel_tol above critical keeps the classification bias below the bracket
+        return (speed_down_incline(model, p["mur"], beta, material=material)
+                > rolling_threshold_speed(beta, 0.25 * p["rel_tol"]))
+
+    lo, hi = p["beta_low"], p["beta_high"]
+    if rolls(lo) or not rolls(hi):
+        return {"critical_angle": math.nan}
+    while math.tan(math.radians(hi)) - math.tan(math.radians(lo)) > p["rel_tol"] * math.tan(math.radians(lo)):
+        mid = 0.5 * (lo + hi)
+        if rolls(mid):
+            hi = mid
+        else:
+            lo = mid
+    return {"critical_angle": 0.5 * (lo + hi)}
+
+
+# --- angle-of-repose -------------------------------------------------------------------------------
+def angle_of_repose(params: dict) -> dict:
+    """A pile from a lifted tube and its measured angle (NaN with a note when it cannot be fitted)."""
+    from .repose import pile_run
+
+    p = CASES["angle-of-repose"].resolve(params)
+    run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], friction=p["mu"],
+                   rolling_friction=p["mur"], seed=p["seed"], lift_speed=p["lift_speed"] or None,
+                   youngs_modulus=p["youngs_modulus"], dt=p["dt"], sample=0.02, max_collapse=p["max_collapse"],
+                   polydispersity=p["polydispersity"], restitution=p["e"], rolling_damping=p["eta_r"])
+    a = run.angle
+    return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
+            "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
+            "note": run.angle_error[:200]}
+
+
+def _common(mu=0.8, mur=0.2, mur_range=(0.02, 1.0), mur_low_open=False):
+    return (Parameter("model", "epsd", "rolling resistance model (rollingdem.contact.ROLLING_MODELS or a "
+                                       "validation label such as 'epsd (liggghts)')", choice="rolling"),
+            Parameter("mu", mu, "sliding friction coefficient", low=0.0, low_open=True, calibration_range=(0.1, 1.0)),
+            Parameter("mur", mur, "rolling friction coefficient", low=0.0, low_open=mur_low_open,
+                      calibration_range=mur_range),
+            Parameter("eta_r", 0.3, "rolling viscous damping ratio", low=0.0, high=1.0, calibration_range=(0.0, 1.0)),
+            Parameter("e", 0.5, "coefficient of restitution", low=0.0, high=1.0, low_open=True,
+                      calibration_range=(0.1, 0.9)),
+            Parameter("seed", 1, "random seed (insertion)", low=0, integer=True))
+
+
+CASES: dict[str, SweepCase] = {
+    "rolling-flat": SweepCase(
+        "rolling-flat", rolling_flat,
+        _common(mur_range=(0.05, 0.6), mur_low_open=True)
+        + (Parameter("v0", 1.0, "launch speed", "m/s", low=0.0, low_open=True, high=10.0),),
+        {"distance": "m, from launch to rest", "stop_time": "s, first sample below 1 mm/s"}, "distance",
+        stochastic=False, description="one Table-1 sphere launched at v0 on a flat (report case 1)"),
+    "inclined-wall": SweepCase(
+        "inclined-wall", inclined_wall,
+        _common(mur_range=(0.05, 0.7), mur_low_open=True)
+        + (Parameter("beta_low", 0.5, "lower end of the bisection bracket", "deg", low=0.0, low_open=True, high=89.0),
+           Parameter("beta_high", 45.0, "upper end of the bisection bracket", "deg", low=0.0, low_open=True,
+                     high=89.0),
+           Parameter("rel_tol", 2e-3, "bisection width, relative in tan(beta)", low=1e-5, high=0.1)),
+        {"critical_angle": "deg, theory atan(mu_r)"}, "critical_angle", stochastic=False,
+        description="critical inclination for a given mu_r (report case 0)"),
+    "angle-of-repose": SweepCase(
+        "angle-of-repose", angle_of_repose,
+        _common(mu=0.5, mur=0.2, mur_range=(0.05, 0.6))
+        + (Parameter("twisting", "none", "twisting model (rollingdem.contact.TWISTING_MODELS)", choice="twisting"),
+           Parameter("count", 2000, "spheres", low=50, integer=True),
+           Parameter("lift_speed", 0.2, "tube lift speed (0: removed at once)", "m/s", low=0.0),
+           Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
+           Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
+           Parameter("max_collapse", 3.0, "longest collapse before the pile counts as unsettled", "s", low=0.0,
+                     low_open=True),
+           Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p), R = 5 mm", low=0.0, high=0.9)),
+        {"angle": "deg, cone fit (rollingdem.analysis.repose_angle)", "slice_std": "deg, spread over azimuthal slices",
+         "r_squared": "cone fit R²", "settled_at": "s after the tube is removed", "note": "why no angle"},
+        "angle", stochastic=True,
+        description="pile from a lifted tube, repose angle by cone fit (report case 3 / PFC study)"),
+}
+
+
+def get_case(name: str) -> SweepCase:
+    """The sweepable case ``name``, or ParameterError listing the known ones."""
+    if name not in CASES:
+        raise ParameterError(f"case = {name!r} is not known: allowed are {', '.join(CASES)}")
+    return CASES[name]

@@ -170,3 +170,20 @@ def test_example_sweep_file_is_valid():
     spec = load_sweep(Path(__file__).parents[1] / "examples" / "sweep_rolling_flat.yaml")
     assert len(expand(spec)) >= 4
     assert len(expand(load_sweep(Path(__file__).parents[1] / "examples" / "sweep_repose.yaml"))) == 12
+
+
+def test_validation_repose_sweep_runs_through_the_sweep_table(tmp_path):
+    """The PFC study of rollingdem validate writes its runs to a sweep table and, rerun on the
+    same folder, runs nothing again. One pile of 600 spheres (mu = 0.6, mu_r = 0.4): a pile of
+    frictional spheres with rolling resistance stands between 10 and 40 degrees (PFC study)."""
+    from rollingdem.cases.repose import repose_sweep
+
+    kwargs = dict(outdir=tmp_path, count=600, frictions=(0.6,), rolling_frictions=(0.4,), seeds=(1,))
+    first = repose_sweep(**kwargs)
+    table = tmp_path / "repose-sweep-runs" / "runs.csv"
+    rows = pd.read_csv(table)
+    assert len(rows) == 1 and rows["status"].iloc[0] == "ok"
+    assert 10.0 < first.table["angle mean (deg)"].iloc[0] < 40.0
+    again = repose_sweep(**kwargs)
+    assert pd.read_csv(table).equals(rows)  # nothing ran again
+    assert again.table["angle mean (deg)"].iloc[0] == first.table["angle mean (deg)"].iloc[0]

@@ -282,14 +282,14 @@ def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) 
 
     ci = [confidence_interval(pd.to_numeric(ok[ok[result.parameter] == v][result.observable], errors="coerce"))[1]
           for v in stats["x"]]
-    ax.errorbar(stats["x"], stats["mean"], yerr=np.nan_to_num(ci), fmt="o", ms=4, capsize=3,
+    ax.errorbar(stats["x"], stats["mean"], yerr=np.nan_to_num(ci), fmt="o", ms=4, capsize=3, color="tab:blue",
                 label="mean over seeds, 95 % CI")
-    ax.plot(stats["x"], g, "-", color="C2", label="monotone surrogate")
-    ax.axhspan(result.target - 1.96 * result.uncertainty, result.target + 1.96 * result.uncertainty, color="C1",
+    ax.plot(stats["x"], g, "-", color="tab:green", label="monotone surrogate")
+    ax.axhspan(result.target - 1.96 * result.uncertainty, result.target + 1.96 * result.uncertainty, color="tab:orange",
                alpha=0.15)
-    ax.axhline(result.target, color="C1", lw=1, label=f"target {result.target:g} ± 1.96 × {result.uncertainty:g}")
-    ax.axvspan(result.low, result.high, color="C3", alpha=0.12)
-    ax.axvline(result.value, color="C3", lw=1.2, label=f"{result.parameter} = {result.value:.4g} "
+    ax.axhline(result.target, color="tab:orange", lw=1, label=f"target {result.target:g} ± 1.96 × {result.uncertainty:g}")
+    ax.axvspan(result.low, result.high, color="tab:red", alpha=0.12)
+    ax.axvline(result.value, color="tab:red", lw=1.2, label=f"{result.parameter} = {result.value:.4g} "
                                                        f"[{result.low:.4g}, {result.high:.4g}]")
     ax.set_xlabel(result.parameter)
     ax.set_ylabel(f"{result.observable} ({get_case(result.case).observables[result.observable].split(',')[0]})")

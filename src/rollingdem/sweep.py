@@ -368,6 +368,7 @@ def summarize(table: pd.DataFrame, case: SweepCase, swept: list[str], out: Path 
         fig, axes = plt.subplots(1, len(numeric), figsize=(5.5 * len(numeric), 4.2), squeeze=False)
         groups = summary.groupby(others, sort=True) if others else [((), summary)]
         for ax, o in zip(axes[0], numeric):
+            ax.set_prop_cycle(color=plt.get_cmap("tab10").colors)  # distinct neighbours, unlike tab20's pairs
             for label, grp in groups:
                 label = label if isinstance(label, tuple) else (label,)
                 grp = grp.sort_values(x)

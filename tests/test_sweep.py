@@ -187,3 +187,10 @@ def test_validation_repose_sweep_runs_through_the_sweep_table(tmp_path):
     again = repose_sweep(**kwargs)
     assert pd.read_csv(table).equals(rows)  # nothing ran again
     assert again.table["angle mean (deg)"].iloc[0] == first.table["angle mean (deg)"].iloc[0]
+
+
+def test_toml_sweep_file_and_a_missing_file(tmp_path):
+    (tmp_path / "s.toml").write_text('case = "rolling-flat"\nseeds = 2\n[grid]\nmur = [0.2, 0.3]\n')
+    assert len(expand(load_sweep(tmp_path / "s.toml"))) == 4
+    with pytest.raises(rd.ParameterError, match="sweep file .*nope.yaml does not exist"):
+        load_sweep(tmp_path / "nope.yaml")

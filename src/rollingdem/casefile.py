@@ -218,24 +218,29 @@ def _format_validation_error(err: ValidationError, source: str) -> str:
     return "\n".join(lines)
 
 
+def read_mapping(path_or_dict, what: str = "case file") -> tuple[dict, str]:
+    """(data, source name) of a YAML file, a TOML file (by extension) or a mapping."""
+    if isinstance(path_or_dict, dict):
+        return path_or_dict, "<dict>"
+    path = Path(path_or_dict)
+    source = str(path)
+    if not path.exists():
+        raise ParameterError(f"{what} {source} does not exist")
+    text = path.read_text()
+    if path.suffix.lower() == ".toml":
+        import tomllib
+
+        data = tomllib.loads(text)
+    else:
+        data = yaml.load(text, Loader=_YAMLLoader)
+    if not isinstance(data, dict):
+        raise ParameterError(f"{what} {source} must hold a mapping of keys, got {type(data).__name__}")
+    return data, source
+
+
 def load_case(path_or_dict) -> CaseSpec:
     """Read and validate a case file (YAML, or TOML by extension) or a mapping."""
-    if isinstance(path_or_dict, dict):
-        data, source = path_or_dict, "<dict>"
-    else:
-        path = Path(path_or_dict)
-        source = str(path)
-        if not path.exists():
-            raise ParameterError(f"case file {source} does not exist")
-        text = path.read_text()
-        if path.suffix.lower() == ".toml":
-            import tomllib
-
-            data = tomllib.loads(text)
-        else:
-            data = yaml.load(text, Loader=_YAMLLoader)
-        if not isinstance(data, dict):
-            raise ParameterError(f"case file {source} must hold a mapping of keys, got {type(data).__name__}")
+    data, source = read_mapping(path_or_dict)
     try:
         return CaseSpec.model_validate(data)
     except ValidationError as err:

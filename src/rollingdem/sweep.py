@@ -103,25 +103,9 @@ def load_sweep(source) -> SweepSpec:
     """Read and check a sweep file (YAML, TOML by extension) or a mapping; ParameterError on bad input."""
     if isinstance(source, SweepSpec):
         return source
-    if isinstance(source, dict):
-        data, name = source, "<dict>"
-    else:
-        path = Path(source)
-        name = str(path)
-        if not path.exists():
-            raise ParameterError(f"sweep file {name} does not exist")
-        text = path.read_text()
-        if path.suffix.lower() == ".toml":
-            import tomllib
+    from .casefile import read_mapping
 
-            data = tomllib.loads(text)
-        else:
-            from .casefile import _YAMLLoader
-            import yaml
-
-            data = yaml.load(text, Loader=_YAMLLoader)
-        if not isinstance(data, dict):
-            raise ParameterError(f"sweep file {name} is not a mapping of keys (case, fixed, grid, ...)")
+    data, name = read_mapping(source, "sweep file")
     try:
         spec = SweepSpec.model_validate(data)
     except ValidationError as err:

@@ -164,6 +164,9 @@ class ContactModel:
         sys.modules[modname] = module
         spec.loader.exec_module(module)
         _LOADED[modname] = module
+        from .precompile import start_helper
+
+        start_helper(self, module)  # a cold kernel compiles on two cores
         return module
 
     # --- (de)serialisation ----------------------------------------------------------------------

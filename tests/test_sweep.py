@@ -194,3 +194,18 @@ def test_toml_sweep_file_and_a_missing_file(tmp_path):
     assert len(expand(load_sweep(tmp_path / "s.toml"))) == 4
     with pytest.raises(rd.ParameterError, match="sweep file .*nope.yaml does not exist"):
         load_sweep(tmp_path / "nope.yaml")
+
+
+def test_sweep_on_an_existing_cluster_by_its_scheduler_address(tmp_path):
+    """--scheduler: the runs go to a cluster the user started (here a LocalCluster of 1 worker)."""
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
+        res = run_sweep({"case": "rolling-flat", "grid": {"mur": [0.3, 0.4]}}, tmp_path,
+                        scheduler=cluster.scheduler_address, progress=False)
+    assert res.ran == 2 and res.ok
+    assert res.table.sort_values("mur")["distance"].tolist() == pytest.approx(
+        [analytic_flat(1.0, 0.8, m)[3] for m in (0.3, 0.4)], rel=0.01)
+    with pytest.raises(rd.ParameterError, match="no Dask scheduler answers"):
+        run_sweep({"case": "rolling-flat", "grid": {"mur": [0.5]}}, tmp_path / "x", scheduler="tcp://127.0.0.1:9",
+                  progress=False)

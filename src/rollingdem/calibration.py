@@ -9,7 +9,8 @@ calibrate``) proceeds as follows, with every run going through :func:`rollingdem
    regression (scipy.optimize.isotonic_regression, weighted by the runs per point, in the
    direction of the Spearman trend) and interpolated linearly;
 3. ``rounds`` refinements of ``refine`` points each inside the bracket where the surrogate
-   crosses the target;
+   crosses the target, widened to where the seed scatter alone leaves the answer (the bootstrap
+   of step 4 without the target's uncertainty), so a noisy case does not crowd its points;
 4. the estimate x* = surrogate^-1(target), and its 95 % interval from a parametric bootstrap:
    each replicate draws the point means from their seed spread (pooled standard deviation,
    Student t with the pooled degrees of freedom, divided by sqrt(runs)) and the target from
@@ -212,8 +213,13 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
             s = np.sign(g - target) * (1 if increasing else -1)
             k = max(int(np.argmax(s >= 0)), 1)  # first point at or past the target
             a, b = x[max(k - 1, 0)], x[k]
+            # where the seed scatter alone leaves the answer (a deterministic case: nowhere but the
+            # bracket), so that a noisy case does not crowd its new points into a narrow bracket
+            s_lo, s_hi, _ = _bootstrap(x, stats["mean"].to_numpy(), stats["count"].to_numpy(float),
+                                       stats["std"].to_numpy(), increasing, target, 0.0, 500)
+            a, b = max(min(a, s_lo), lo), min(max(b, s_hi), hi)
             new = np.linspace(a, b, refine + 2)[1:-1]
-            say(f"round {r + 1}: {observable} crosses {target:g} between {name} = {a:.5g} and {b:.5g}")
+            say(f"round {r + 1}: refining {name} in [{a:.5g}, {b:.5g}], where {observable} crosses {target:g}")
             sweep(xs + list(new), m)
             xs += list(new)
     stats = _point_stats(table, name, observable)

@@ -112,8 +112,14 @@ def runner(workers: int | None = None, scheduler: str | None = None, threads: in
         raise ParameterError("parallel runs need dask.distributed: pip install 'dask[distributed]'") from err
     cluster = None
     if scheduler is None:
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.ERROR)
+        import dask
+
+        # a worker that goes quiet for minutes (a laptop asleep, a stopped job) is not dead: the
+        # default 5-minute time-to-live would restart its run from the beginning; a dead worker
+        # process is seen by its nanny at once anyway
+        with dask.config.set({"distributed.scheduler.worker-ttl": "2h"}):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=logging.ERROR)
         client = Client(cluster)
     else:
         try:

@@ -74,13 +74,13 @@ def test_neighbor_list_equals_brute_force(seed, skin, shuffled):
     if shuffled:
         st.ids = rng.permutation(n).astype(np.int64)
     ids = st.ids
-    args = (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start, st.tr_k, st.new_start, st.new_j,
-            st.new_hist, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref)
+    args = (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start, st.tr_k, st.cell_start,
+            st.cell_items, st.cell_of, st.counts, st.x_ref)
     total = rebuild_neighbor_list(*args)
     if total < 0:
         st.grow(-total)
-        args = (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start, st.tr_k, st.new_start,
-                st.new_j, st.new_hist, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref)
+        args = (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start, st.tr_k, st.cell_start,
+                st.cell_items, st.cell_of, st.counts, st.x_ref)
         total = rebuild_neighbor_list(*args)
     rows = [(i, int(st.nl_j[k])) for i in range(n) for k in range(st.nl_start[i], st.nl_start[i + 1])]
     assert all(ids[j] > ids[i] for i, j in rows)
@@ -107,6 +107,45 @@ def settled_trio(table1, skin):
     sim.run(steps=4000)
     sim.set_velocities([2], velocity=(0.05, 0.01, 0), angular_velocity=(0, 5, 0))
     return sim
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_rebuild_carries_each_contacts_history_in_place_and_drops_lost_pairs(seed):
+    """The in-place carry: every pair listed before and after a rebuild keeps its history row bit
+    for bit, a new pair starts from zeros, and a contact whose pair left the list (positions moved
+    from outside) is dropped without disturbing its neighbors' rows."""
+    rng = np.random.default_rng(seed)
+    n, skin = 300, 2e-3
+    x = rng.uniform(0, 0.05, (n, 3))
+    radius = rng.uniform(0.001, 0.003, n)
+    st = EngineState(history_size=6)
+    st.append_particles(x, np.zeros_like(x), np.zeros_like(x), radius, np.ones(n), np.ones(n), np.zeros(n, np.int32))
+    st.ids = rng.permutation(n).astype(np.int64)
+
+    def rebuild():
+        args = (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start, st.tr_k, st.cell_start,
+                st.cell_items, st.cell_of, st.counts, st.x_ref)
+        total = rebuild_neighbor_list(*args)
+        if total < 0:
+            st.grow(-total)
+            total = rebuild()
+        return total
+
+    def by_pair(total):
+        return {(int(st.ids[i]), int(st.ids[st.nl_j[k]])): st.hist[k].copy()
+                for i in range(n) for k in range(st.nl_start[i], st.nl_start[i + 1])}
+
+    total = rebuild()
+    # about half the entries carry a history (a contact normal and values), the rest zeros
+    active = rng.random(total) < 0.5
+    st.hist[:total] = np.where(active[:, None], rng.uniform(-1, 1, (total, 6)) + 2.0, 0.0)
+    before = by_pair(total)
+    st.x[rng.random(n) < 0.3] += rng.uniform(-0.01, 0.01, (3,))  # some particles jump: pairs come and go
+    after = by_pair(rebuild())
+    kept = set(before) & set(after)
+    assert len(kept) > 50 and len(set(after) - set(before)) > 10 and len(set(before) - set(after)) > 10
+    for pair, row in after.items():
+        np.testing.assert_array_equal(row, before[pair] if pair in before else np.zeros(6))
 
 
 def test_history_survives_rebuilds(table1):
@@ -262,8 +301,7 @@ def test_contact_flags_follow_the_history_across_rebuilds(table1):
         sim.run(steps=500)
         st = sim._state
         kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.hist, st.touch, st.tr_start,
-                        st.tr_k, st.new_start, st.new_j, st.new_hist, st.cell_start, st.cell_items, st.cell_of,
-                        st.counts, st.x_ref, st.info)
+                        st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info)
         total = st.list_size
         in_contact = np.any(st.hist[:total, :3] != 0.0, axis=1)
         np.testing.assert_array_equal(st.touch[:total].astype(bool), in_contact)

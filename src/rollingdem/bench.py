@@ -163,8 +163,8 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     gravity = np.asarray(sim.gravity)
     args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
     (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
-     wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, new_start, new_j,
-     new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts, info) = args
+     wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, cell_start, cell_items,
+     cell_of, counts, x_ref, skin, energy, contacts, info) = args
     # the timings overwrite these (a rebuild at the present positions gives another list): put them back after
     saved = {name: getattr(st, name).copy() for name in ("hist", "touch", "whist", "energy", "f", "t", "contacts",
                                                          "x_ref", "nl_start", "nl_j", "tr_start", "tr_k",
@@ -200,8 +200,7 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     split["walls"] = max(gather_walls - gather_plain, 0.0)
     split["integration and gathering"] = gather_plain + kick
     rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k,
-                                                  new_start, new_j, new_hist, cell_start, cell_items, cell_of,
-                                                  counts, x_ref))
+                                                  cell_start, cell_items, cell_of, counts, x_ref))
     split["neighbor search"] = rebuild * rebuilds / max(steps, 1)
     for name, arr in saved.items():  # the timing calls must leave the state as it was
         getattr(st, name)[...] = arr

@@ -19,6 +19,9 @@ from .walls import GEOMETRY_SIZE
 I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST = range(7)
 STATUS_CAPACITY, STATUS_TOO_FAST = 1, 2
 INFO_SIZE = 8
+# list capacity = entries needed x this (129 bytes per entry): growing costs a reallocation and one
+# more counting pass of the neighbor search, so a small margin is cheap
+LIST_MARGIN = 1.15
 # Measured (2 threads, epsd): 200,000 spheres stored in random order run at 6.6 M particle-steps/s,
 # re-sorted 10.4 M, lattice order 11.6 M; at 20,000 spheres the state fits in cache and sorting
 # does not pay (13.4 M unsorted, 11.9 M sorted: the two threads' halves of the slots carry
@@ -73,7 +76,6 @@ class EngineState:
         n = self.n
         self.nl_start = np.zeros(n + 1, dtype=np.int64)
         self.tr_start = np.zeros(n + 1, dtype=np.int64)
-        self.new_start = np.zeros(n + 1, dtype=np.int64)
         self.cell_items = np.zeros(n, dtype=np.int32)
         self.cell_of = np.zeros(n, dtype=np.int64)
         self.counts = np.zeros(n, dtype=np.int64)
@@ -92,8 +94,6 @@ class EngineState:
         self.pair_force = np.zeros((capacity, 3))
         self.pair_torque_j = np.zeros((capacity, 3))
         self.tr_k = np.zeros(capacity, dtype=np.int32)
-        self.new_j = np.zeros(capacity, dtype=np.int32)
-        self.new_hist = np.zeros((capacity, h))
         self.capacity = capacity
 
     def derive_touch(self, total: int):
@@ -102,7 +102,7 @@ class EngineState:
 
     def grow(self, needed: int):
         keep = int(self.nl_start[-1]) if self.nl_start.size else 0
-        self._allocate_list(int(needed * 1.3) + 16, keep=keep)
+        self._allocate_list(int(needed * LIST_MARGIN) + 16, keep=keep)
         self.info[I_NEED_REBUILD] = 1
         if keep:  # the transposed index refers to list entries, which were kept as they were
             from .neighbors import _transpose
@@ -143,8 +143,8 @@ class EngineState:
         self.whist = whist.reshape(self.n * self.n_walls, self.history_size)
         self.info[I_NEED_REBUILD] = 1
         self.info[I_FORCES_VALID] = 0
-        if self.capacity < 4 * self.n:  # a loose bed's half list holds ~4 entries per particle
-            self.grow(4 * self.n)
+        if self.capacity < 3 * self.n:  # a settled bed's half list holds ~4 entries per particle
+            self.grow(3 * self.n)
 
     def set_walls(self, kinds, geoms, vels, omegas, mats):
         """Replace the wall arrays; history of walls that stay in place (same slot) is kept."""
@@ -209,7 +209,7 @@ class EngineState:
         return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
                 self.ids, pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
                 self.whist, self.nl_start, self.nl_j, self.hist, self.touch, self.pair_force, self.pair_torque_j,
-                self.tr_start, self.tr_k, self.new_start, self.new_j, self.new_hist, self.cell_start, self.cell_items,
+                self.tr_start, self.tr_k, self.cell_start, self.cell_items,
                 self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info)
 
     def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
@@ -260,8 +260,8 @@ class EngineState:
 
         while True:
             total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j,
-                                          self.hist, self.tr_start, self.tr_k, self.new_start, self.new_j,
-                                          self.new_hist, self.cell_start, self.cell_items, self.cell_of, self.counts,
+                                          self.hist, self.tr_start, self.tr_k, self.cell_start, self.cell_items,
+                                          self.cell_of, self.counts,
                                           self.x_ref)
             if total >= 0:
                 break
@@ -303,7 +303,7 @@ class EngineState:
         st._allocate_particle_scratch()
         st.nl_start, st.tr_start = nl_start, tr_start
         total = int(arrays["nl_j"].shape[0])
-        st._allocate_list(max(int(total * 1.3) + 16, 4 * st.n))
+        st._allocate_list(max(int(total * LIST_MARGIN) + 16, 3 * st.n))
         st.nl_j[:total] = arrays["nl_j"]
         st.hist[:total] = arrays["hist"]
         st.derive_touch(total)

@@ -413,10 +413,10 @@ def kick_drift_serial(dt, x, v, w, f, t, mass, inertia):
 
 
 @njit(cache=True)
-def _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j, new_hist,
-             cell_start, cell_items, cell_of, counts, x_ref, info):
-    total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j,
-                                  new_hist, cell_start, cell_items, cell_of, counts, x_ref)
+def _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start, cell_items, cell_of,
+             counts, x_ref, info):
+    total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, cell_start,
+                                  cell_items, cell_of, counts, x_ref)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY
         info[I_NEEDED] = -total
@@ -450,8 +450,7 @@ def _forces(dt, kick, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat
 @njit(cache=True)
 def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
             wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j,
-            tr_start, tr_k, new_start, new_j, new_hist, cell_start, cell_items, cell_of, counts, x_ref, skin, energy,
-            contacts, info):
+            tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts, info):
     """Advance ``nsteps`` steps, on the calling thread if ``serial`` (see ``SERIAL_BELOW``). Stops
     early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the
     capacity needed when the neighbor list outgrows its arrays, or STATUS_TOO_FAST when a particle
@@ -460,8 +459,8 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
-        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j,
-                        new_hist, cell_start, cell_items, cell_of, counts, x_ref, info):
+        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
+                        cell_items, cell_of, counts, x_ref, info):
             return
         _forces(dt, 0.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
                 wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force,
@@ -473,8 +472,8 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
             info[I_STATUS] = STATUS_TOO_FAST
             return
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, new_start, new_j,
-                            new_hist, cell_start, cell_items, cell_of, counts, x_ref, info):
+            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
+                            cell_items, cell_of, counts, x_ref, info):
                 return
         if serial:
             kick_drift_serial(dt, x, v, w, f, t, mass, inertia)

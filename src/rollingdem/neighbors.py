@@ -6,7 +6,8 @@ never changes, so neither does which partner of a contact is "i"). The neighbors
 ``nl_j[nl_start[i]:nl_start[i+1]]``, sorted by ascending id, holding every j with
 |x_i - x_j| < R_i + R_j + skin at the build. It stays valid while no particle has moved more
 than skin/2 since the build. Per-contact history rows sit beside the list entries; at a rebuild
-they are carried to the new list by merging the two sorted rows of each particle, not by search.
+they are carried to the new list by merging the two sorted rows of each particle, not by search,
+in place (no second history buffer: 72 bytes per list entry less).
 
 A transposed index (``tr_start``, ``tr_k``) lists, for each particle j, the list entries k in which
 it is the second partner, in ascending i: the per-particle gather of pair forces then runs with
@@ -81,8 +82,8 @@ def _grid(x, radius, skin, max_cells):
 @njit(cache=True, parallel=True)
 def _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, fill):
     """For each i, the j with ids[j] > ids[i] in the 27 surrounding cells with |x_i - x_j| < R_i + R_j
-    + skin: counted into ``counts`` (fill = False) or written, sorted by id, into its row of ``new_j``
-    (fill = True)."""
+    + skin: counted into ``counts`` (fill = False, the other arrays untouched) or written, sorted by
+    id, into its row of ``new_j`` (fill = True)."""
     n = x.shape[0]
     for i in prange(n):
         c = cell_of[i]
@@ -129,22 +130,70 @@ def _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, cou
             new_j[q + 1] = v
 
 
-@njit(cache=True, parallel=True)
-def _carry_history(n, ids, nl_start, nl_j, hist, new_start, new_j, new_hist):
+@njit(cache=True)
+def _compact_history(n, nl_start, nl_j, hist, act_start, act_j):
+    """Move the history rows of the contacts (a kept contact normal) to the front of ``hist``, in
+    list order, their partners into ``act_j`` and each row's range into ``act_start``. In place:
+    a row only ever moves to a lower index."""
     width = hist.shape[1]
-    for i in prange(n):
-        p = nl_start[i]
-        pend = nl_start[i + 1]
-        for q in range(new_start[i], new_start[i + 1]):
-            j = new_j[q]
-            while p < pend and ids[nl_j[p]] < ids[j]:
-                p += 1
-            if p < pend and nl_j[p] == j:
-                for s in range(width):
-                    new_hist[q, s] = hist[p, s]
+    c = 0
+    for i in range(n):
+        act_start[i] = c
+        for k in range(nl_start[i], nl_start[i + 1]):
+            if hist[k, 0] != 0.0 or hist[k, 1] != 0.0 or hist[k, 2] != 0.0:
+                if c != k:
+                    for s in range(width):
+                        hist[c, s] = hist[k, s]
+                act_j[c] = nl_j[k]
+                c += 1
+    act_start[n] = c
+
+
+@njit(cache=True)
+def _drop_lost_contacts(n, ids, nl_start, nl_j, hist, act_start, act_j):
+    """Remove the compacted contacts whose pair is not in the new list (only after the positions
+    were changed from outside: a contact of the last step is always within the cutoff plus skin).
+    In place, moving rows down only."""
+    width = hist.shape[1]
+    out = 0
+    for i in range(n):
+        q = nl_start[i]
+        qend = nl_start[i + 1]
+        first = out
+        for c in range(act_start[i], act_start[i + 1]):
+            j = act_j[c]
+            while q < qend and ids[nl_j[q]] < ids[j]:
+                q += 1
+            if q < qend and nl_j[q] == j:
+                if out != c:
+                    act_j[out] = j
+                    for s in range(width):
+                        hist[out, s] = hist[c, s]
+                out += 1
+        act_start[i] = first
+    act_start[n] = out
+
+
+@njit(cache=True)
+def _spread_history(n, ids, nl_start, nl_j, hist, act_start, act_j):
+    """Put the compacted history rows at their entries of the new list, zeros elsewhere.
+
+    In place, from the last entry down: every compacted row maps to a distinct new entry at an index
+    at least its own, in the same order, so when entry q is written every row not yet read sits at
+    an index below q, or at q itself when q is its entry (read before written)."""
+    width = hist.shape[1]
+    for i in range(n - 1, -1, -1):
+        c = act_start[i + 1] - 1
+        cend = act_start[i]
+        for q in range(nl_start[i + 1] - 1, nl_start[i] - 1, -1):
+            if c >= cend and act_j[c] == nl_j[q]:
+                if c != q:
+                    for s in range(width):
+                        hist[q, s] = hist[c, s]
+                c -= 1
             else:
                 for s in range(width):
-                    new_hist[q, s] = 0.0
+                    hist[q, s] = 0.0
 
 
 @njit(cache=True)
@@ -154,12 +203,15 @@ def _transpose(n, nl_start, nl_j, tr_start, tr_k):
 
 
 @njit(cache=True)
-def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, new_start, new_j, new_hist,
-                          cell_start, cell_items, cell_of, counts, x_ref):
+def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, cell_start, cell_items,
+                          cell_of, counts, x_ref):
     """Rebuild the half list at the current positions, carrying contact history over.
 
     Returns the number of list entries, or minus the capacity needed when ``nl_j`` is too short
-    (nothing is changed then: the caller grows the arrays and calls again).
+    (nothing is changed then: the caller grows the arrays and calls again). The history moves in
+    place, without a second buffer: the contacts' rows are compacted to the front (their partners
+    and row ranges parked in ``tr_k`` and ``tr_start``, which the transpose rebuilds afterwards),
+    the new list is written over the old, and the rows are spread to their new entries.
     """
     n = x.shape[0]
     if n == 0:
@@ -169,22 +221,19 @@ def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, 
     max_cells = cell_start.shape[0] - 1
     lo, dims, cell = _grid(x, radius, skin, max_cells)
     _bin_particles(x, cell, lo, dims, cell_start, cell_items, cell_of)
-    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, False)
-    new_start[0] = 0
+    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, False)
+    total = 0
     for i in range(n):
-        new_start[i + 1] = new_start[i] + counts[i]
-    total = new_start[n]
+        total += counts[i]
     if total > nl_j.shape[0]:
         return -total
-    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, True)
-    _carry_history(n, ids, nl_start, nl_j, hist, new_start, new_j, new_hist)
-    width = hist.shape[1]
-    for i in range(n + 1):
-        nl_start[i] = new_start[i]
-    for k in range(total):
-        nl_j[k] = new_j[k]
-        for s in range(width):
-            hist[k, s] = new_hist[k, s]
+    _compact_history(n, nl_start, nl_j, hist, tr_start, tr_k)
+    nl_start[0] = 0
+    for i in range(n):
+        nl_start[i + 1] = nl_start[i] + counts[i]
+    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, True)
+    _drop_lost_contacts(n, ids, nl_start, nl_j, hist, tr_start, tr_k)
+    _spread_history(n, ids, nl_start, nl_j, hist, tr_start, tr_k)
     _transpose(n, nl_start, nl_j, tr_start, tr_k)
     for i in range(n):
         for d in range(3):

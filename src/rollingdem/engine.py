@@ -143,6 +143,7 @@ class EngineState:
         self.whist = whist.reshape(self.n * self.n_walls, self.history_size)
         self.info[I_NEED_REBUILD] = 1
         self.info[I_FORCES_VALID] = 0
+        self.steps_since_sort = SORT_EVERY  # the new particles come in the user's order: sort at the next run
         if self.capacity < 3 * self.n:  # a settled bed's half list holds ~4 entries per particle
             self.grow(3 * self.n)
 

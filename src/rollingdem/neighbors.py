@@ -175,7 +175,7 @@ def _drop_lost_contacts(n, ids, nl_start, nl_j, hist, act_start, act_j):
 
 
 @njit(cache=True)
-def _spread_history(n, ids, nl_start, nl_j, hist, act_start, act_j):
+def _spread_history(n, nl_start, nl_j, hist, act_start, act_j):
     """Put the compacted history rows at their entries of the new list, zeros elsewhere.
 
     In place, from the last entry down: every compacted row maps to a distinct new entry at an index
@@ -233,7 +233,7 @@ def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, 
         nl_start[i + 1] = nl_start[i] + counts[i]
     _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, True)
     _drop_lost_contacts(n, ids, nl_start, nl_j, hist, tr_start, tr_k)
-    _spread_history(n, ids, nl_start, nl_j, hist, tr_start, tr_k)
+    _spread_history(n, nl_start, nl_j, hist, tr_start, tr_k)
     _transpose(n, nl_start, nl_j, tr_start, tr_k)
     for i in range(n):
         for d in range(3):

@@ -70,3 +70,27 @@ def test_student_t_interval_matches_the_table_value():
     mean, half = confidence_interval([1.0, 2.0, 3.0, math.nan])
     assert mean == 2.0 and half == pytest.approx(4.303 / math.sqrt(3), abs=1e-3)
     assert math.isnan(confidence_interval([5.0])[1])
+
+
+def test_repose_trend_checks_use_the_measured_points():
+    """A pile at mu_r = 0 that did not settle has no angle: the trend checks compare the measured
+    points, pass on a rising table, fail on a falling one, and fail when nothing is measured."""
+    import pandas as pd
+
+    from rollingdem.cases.repose import sweep_checks
+
+    def table(angles):
+        rows = [{"mu": mu, "mu_r": mur, "angle mean (deg)": a, "95 % CI ± (deg)": 0.5}
+                for (mu, mur), a in angles.items()]
+        return pd.DataFrame(rows)
+
+    rising = {(0.2, 0.0): math.nan, (0.2, 0.1): 15.0, (0.2, 0.4): 20.0, (0.2, 0.8): 20.4,
+              (0.6, 0.0): 12.0, (0.6, 0.1): 18.0, (0.6, 0.4): 26.0, (0.6, 0.8): 30.0}
+    checks, _ = sweep_checks(table(rising), (0.2, 0.6), "rrlinear")
+    assert all(c.passed for c in checks), [c.as_dict() for c in checks]
+    grows = [c for c in checks if "at mu=0.2" in c.quantity][0]
+    assert grows.measured == pytest.approx(5.4) and "mu_r=0.1)" in grows.quantity
+    falling = {**rising, (0.6, 0.8): 10.0}
+    assert not all(c.passed for c in sweep_checks(table(falling), (0.2, 0.6), "rrlinear")[0])
+    empty = {k: math.nan for k in rising}
+    assert not any(c.passed for c in sweep_checks(table(empty), (0.2, 0.6), "rrlinear")[0])

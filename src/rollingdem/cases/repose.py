@@ -235,6 +235,41 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
     return result
 
 
+def sweep_checks(table: pd.DataFrame, frictions, model: str) -> tuple[list[Check], pd.DataFrame]:
+    """The PFC study's trend checks on the per-point table (mu, mu_r, angle mean, 95 % CI): the angle
+    grows with mu and with mu_r, and for each mu reaches a plateau once mu_r > mu. Points without an
+    angle (a pile that did not settle or was too flat) are left out; a check with nothing to compare
+    fails. Returns the checks and the (mu_r x mu) table of mean angles."""
+    checks = []
+    pivot = table.pivot(index="mu_r", columns="mu", values="angle mean (deg)")
+    if len(frictions) >= 2:
+        lo, hi = min(frictions), max(frictions)
+        # averaged over mu_r (at small mu_r the spheres roll and mu matters less than the seed scatter),
+        # over those where both piles have an angle: without rolling resistance a pile may not settle
+        # (its spheres roll away); none leaves NaN, a failed check
+        diff = (pivot[hi] - pivot[lo]).dropna()
+        checks.append(Check("repose-sweep", model, f"angle(mu={hi}) - angle(mu={lo}), mean over the {len(diff)} "
+                            "mu_r with both measured (deg)", float(diff.mean()) if len(diff) else math.nan, 0.0, 0.0,
+                            bound="lower", source="PFC: the angle grows with mu"))
+    for mu in frictions:
+        measured = pivot[mu].dropna()
+        first, last = (measured.index[0], measured.index[-1]) if len(measured) >= 2 else (math.nan, math.nan)
+        checks.append(Check("repose-sweep", model, f"angle(mu_r={last}) - angle(mu_r={first}) at mu={mu}, the "
+                            "largest and smallest mu_r with an angle (deg)",
+                            float(measured.iloc[-1] - measured.iloc[0]) if len(measured) >= 2 else math.nan, 0.0, 0.0,
+                            bound="lower", source="PFC: the angle grows with mu_r"))
+    for mu in frictions:
+        above = table[(table["mu"] == mu) & (table["mu_r"] > mu)]
+        if len(above) >= 2:
+            # plateau: beyond mu_r = mu the points agree within their intervals plus 1 degree
+            angle = above["angle mean (deg)"]
+            spread = float(angle.max(skipna=False) - angle.min(skipna=False))
+            allowed = 1.0 + float(np.nan_to_num(above["95 % CI ± (deg)"]).max())
+            checks.append(Check("repose-sweep", model, f"spread of the angle for mu_r > mu = {mu} (deg)", spread,
+                                allowed, 0.0, bound="upper", source="PFC: a plateau once mu_r exceeds mu"))
+    return checks, pivot
+
+
 def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", frictions=None, rolling_frictions=None,
                  seeds=None, count=None, lift_speed=SWEEP_LIFT_SPEED, runner=map) -> CaseResult:
     """The PFC repose-angle study: angle against mu_r for each mu, seeds per point, 95 % intervals.
@@ -273,27 +308,7 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
         rows.append({"mu": mu, "mu_r": mur, "angle mean (deg)": mean, "95 % CI ± (deg)": half,
                      "seeds": len(grp), "measured": int(grp["angle (deg)"].notna().sum())})
     table = pd.DataFrame(rows)
-    checks = []
-    pivot = table.pivot(index="mu_r", columns="mu", values="angle mean (deg)")
-    if len(frictions) >= 2:
-        lo, hi = min(frictions), max(frictions)
-        # averaged over mu_r: at small mu_r the spheres roll and mu matters less than the seed scatter
-        checks.append(Check("repose-sweep", model, f"angle(mu={hi}) - angle(mu={lo}), mean over mu_r (deg)",
-                            float((pivot[hi] - pivot[lo]).mean(skipna=False)), 0.0, 0.0, bound="lower",
-                            source="PFC: the angle grows with mu"))
-    for mu in frictions:
-        checks.append(Check("repose-sweep", model, f"angle(mu_r={pivot.index[-1]}) - angle(mu_r={pivot.index[0]}) "
-                            f"at mu={mu} (deg)", float(pivot[mu].iloc[-1] - pivot[mu].iloc[0]), 0.0, 0.0,
-                            bound="lower", source="PFC: the angle grows with mu_r"))
-    for mu in frictions:
-        above = table[(table["mu"] == mu) & (table["mu_r"] > mu)]
-        if len(above) >= 2:
-            # plateau: beyond mu_r = mu the points agree within their intervals plus 1 degree
-            angle = above["angle mean (deg)"]
-            spread = float(angle.max(skipna=False) - angle.min(skipna=False))
-            allowed = 1.0 + float(np.nan_to_num(above["95 % CI ± (deg)"]).max())
-            checks.append(Check("repose-sweep", model, f"spread of the angle for mu_r > mu = {mu} (deg)", spread,
-                                allowed, 0.0, bound="upper", source="PFC: a plateau once mu_r exceeds mu"))
+    checks, pivot = sweep_checks(table, frictions, model)
     notes = [f"Model {model!r}, {count} spheres of R = 5 mm ± {POLYDISPERSITY:.0%} per run, {len(points)} runs; "
              "each point is the mean over seeds with a 95 % Student-t confidence interval (scipy.stats.t). "
              f"As in the PFC example the tube is lifted, at {lift_speed} m/s. Table 1 material but E = "

@@ -314,7 +314,8 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
              f"As in the PFC example the tube is lifted, at {lift_speed} m/s. Table 1 material but E = "
              f"{SWEEP_YOUNGS_MODULUS / 1e6:g} MPa, dt = {SWEEP_DT:g} s: the angle of a pile of non-cohesive "
              "spheres does not depend on their stiffness while overlaps stay small (here below 1 % of d at rest), "
-             "and the softer spheres allow a 2.5x larger time step. One row per run: repose_sweep_runs.csv."]
+             "and the softer spheres allow a 2.5x larger time step. One row per run: repose_sweep_runs.csv; the sweep "
+             "table repose-sweep-runs/runs.csv lets a rerun on the same folder skip the piles already done."]
     if quick:
         notes.append(f"Quick: mu = 0.4 and 0.8 instead of the PFC's 0.2 and 0.6 and mu_r = 0.2 and 0.8, two seeds, "
                      f"so no plateau check. A pile of {count} spheres at mu = 0.2 or mu_r < 0.1 spreads to under four "

@@ -80,6 +80,8 @@ def test_a_target_out_of_reach_is_refused_with_the_range_found(tmp_path):
     ({"fix": {"mur": 0.2}}, ["both fixed and free"]),
     ({"fix": {"muu": 0.2}}, ["muu", "not known"]),
     ({"observable": "angle"}, ["observable = 'angle'", "distance"]),
+    ({"seeds": 0}, ["seeds = 0"]),
+    ({"fix": {"model": "epsdx"}}, ["model = 'epsdx'", "allowed"]),
 ])
 def test_bad_calibration_input_is_refused(kwargs, words, tmp_path):
     args = dict(case="rolling-flat", target=0.2, out=tmp_path, workers=1, progress=False)

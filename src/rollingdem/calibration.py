@@ -148,7 +148,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
     import time
 
     from .parallel import runner
-    from .sweep import SweepSpec, run_sweep
+    from .sweep import load_sweep, run_sweep
 
     tic = time.perf_counter()
     sc = get_case(case)
@@ -186,11 +186,11 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
             raise ParameterError(f"{k} = {v!r} is not allowed: must be an integer >= {n_min}")
     seeds = seeds if seeds is not None else (3 if sc.stochastic else 1)
     out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-calibrate-"))
-    SweepSpec(case=case, fixed=fix, points=[{name: lo}], seeds=seeds)  # refuse bad input before any run
+    first = load_sweep({"case": case, "fixed": fix, "points": [{name: lo}], "seeds": seeds})  # refuse bad input now
     say = echo or (lambda *_: None)
 
     def sweep(xs, m):
-        spec = SweepSpec(case=case, fixed=fix, points=[{name: float(x)} for x in xs], seeds=seeds)
+        spec = load_sweep({"case": case, "fixed": fix, "points": [{name: float(x)} for x in xs], "seeds": seeds})
         return run_sweep(spec, out, mapper=m, progress=progress, summary=False).table
 
     with runner(workers=workers, scheduler=scheduler, threads=threads) as m:
@@ -229,8 +229,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
     lo95, hi95, outside = _bootstrap(x, means, counts, stats["std"].to_numpy(), increasing, target, uncertainty,
                                      bootstrap)
     result = Calibration(case, name, observable, target, uncertainty, value, lo95, hi95, fix,
-                         runs=int(len(table)), points=len(x), seeds=list(SweepSpec(case=case, points=[{}],
-                                                                                    seeds=seeds).seed_list),
+                         runs=int(len(table)), points=len(x), seeds=first.seed_list,
                          direction="increasing" if increasing else "decreasing", outside_fraction=outside,
                          wall_time=time.perf_counter() - tic, table=table)
     _figure(result, stats, g, out)

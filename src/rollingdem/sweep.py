@@ -109,7 +109,7 @@ def load_sweep(source) -> SweepSpec:
     try:
         spec = SweepSpec.model_validate(data)
     except ValidationError as err:
-        lines = [f"sweep file {name} is not valid:"]
+        lines = ["the sweep is not valid:" if name == "<dict>" else f"sweep file {name} is not valid:"]
         for e in err.errors():
             loc = ".".join(str(p) for p in e["loc"])
             if e["type"] == "extra_forbidden":

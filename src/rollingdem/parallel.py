@@ -95,13 +95,18 @@ def completed(mapper, func: Callable, items: Iterable[Any]) -> Iterator[tuple[in
     return enumerate(mapper(func, list(items)))
 
 
-@contextmanager
-def runner(workers: int | None = None, scheduler: str | None = None, threads: int = 1) -> Iterator[Mapper]:
-    """Context manager yielding a :class:`Mapper` over Dask workers (or here, for one worker)."""
+def check_workers(workers: int | None, threads: int) -> None:
+    """ParameterError unless ``workers`` (None: the default) and ``threads`` are integers >= 1."""
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ParameterError(f"workers = {workers!r} is not allowed: must be an integer >= 1")
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
         raise ParameterError(f"threads = {threads!r} is not allowed: must be an integer >= 1")
+
+
+@contextmanager
+def runner(workers: int | None = None, scheduler: str | None = None, threads: int = 1) -> Iterator[Mapper]:
+    """Context manager yielding a :class:`Mapper` over Dask workers (or here, for one worker)."""
+    check_workers(workers, threads)
     workers = workers or max(1, default_workers() // threads)  # fill the cores, no oversubscription
     if scheduler is None and workers == 1:
         yield Mapper(None, threads)

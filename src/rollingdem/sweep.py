@@ -258,8 +258,9 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     ``retry_failed`` runs again the runs the table records as failed; ``on_run()`` is called after
     each run is written.
     """
-    from .parallel import completed, runner
+    from .parallel import check_workers, completed, runner
 
+    check_workers(workers, threads)
     spec = load_sweep(spec)
     case = get_case(spec.case)
     out = Path(out)

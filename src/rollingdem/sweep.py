@@ -326,8 +326,9 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
 def summarize(table: pd.DataFrame, case: SweepCase, swept: list[str], out: Path | None = None,
               result: SweepResult | None = None) -> pd.DataFrame:
     """Mean and 95 % interval over seeds of every numeric observable per point; with ``out``,
-    ``summary.csv`` and ``summary.png`` (each observable against the first swept parameter, one
-    line per value of the others)."""
+    ``summary.csv`` and ``summary.png``: each observable against the first swept parameter, one
+    line per value of the others, or for a sample (no two points on a line) the case's main
+    observable against each swept parameter."""
     ok = table[table["status"] == "ok"]
     numeric = [o for o in case.observables if o in ok and pd.api.types.is_numeric_dtype(ok[o])]
     rows = []
@@ -350,20 +351,32 @@ def summarize(table: pd.DataFrame, case: SweepCase, swept: list[str], out: Path 
 
         plt = pyplot()
         x, others = keys[0], keys[1:]
-        fig, axes = plt.subplots(1, len(numeric), figsize=(5.5 * len(numeric), 4.2), squeeze=False)
-        groups = summary.groupby(others, sort=True) if others else [((), summary)]
-        for ax, o in zip(axes[0], numeric):
-            ax.set_prop_cycle(color=plt.get_cmap("tab10").colors)  # distinct neighbours, unlike tab20's pairs
-            for label, grp in groups:
-                label = label if isinstance(label, tuple) else (label,)
-                grp = grp.sort_values(x)
-                name = ", ".join(f"{k} = {v}" for k, v in zip(others, label)) or None
-                ax.errorbar(grp[x], grp[f"{o} mean"], yerr=grp[f"{o} 95% CI"].fillna(0.0), marker="o", ms=4,
-                            capsize=3, label=name)
-            ax.set_xlabel(x)
-            ax.set_ylabel(f"{o} ({case.observables[o].split(',')[0]})")
-            if others and len(summary.groupby(others)) <= 12:
-                ax.legend(fontsize=7)
+        scattered = bool(others) and summary.groupby(others).size().max() == 1  # a sample: no two points share a line
+        if scattered:
+            # one panel per swept parameter, the case's main observable against it
+            o = case.default_observable if case.default_observable in numeric else numeric[0]
+            fig, axes = plt.subplots(1, len(keys), figsize=(5.5 * len(keys), 4.2), squeeze=False)
+            for ax, k in zip(axes[0], keys):
+                ax.errorbar(summary[k], summary[f"{o} mean"], yerr=summary[f"{o} 95% CI"].fillna(0.0), fmt="o", ms=4,
+                            capsize=3)
+                ax.set_xlabel(k)
+                ax.set_ylabel(f"{o} ({case.observables[o].split(',')[0]})")
+        else:
+            fig, axes = plt.subplots(1, len(numeric), figsize=(5.5 * len(numeric), 4.2), squeeze=False)
+            groups = summary.groupby(others, sort=True) if others else [((), summary)]
+            for ax, o in zip(axes[0], numeric):
+                ax.set_prop_cycle(color=plt.get_cmap("tab10").colors)  # distinct neighbours, unlike tab20's pairs
+                for label, grp in groups:
+                    label = label if isinstance(label, tuple) else (label,)
+                    grp = grp.sort_values(x)
+                    name = ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
+                                     for k, v in zip(others, label)) or None
+                    ax.errorbar(grp[x], grp[f"{o} mean"], yerr=grp[f"{o} 95% CI"].fillna(0.0), marker="o", ms=4,
+                                capsize=3, label=name)
+                ax.set_xlabel(x)
+                ax.set_ylabel(f"{o} ({case.observables[o].split(',')[0]})")
+                if others and len(summary.groupby(others)) <= 12:
+                    ax.legend(fontsize=7)
         fig.suptitle(f"{case.name}: mean over seeds, 95 % Student-t interval")
         fig.tight_layout()
         path = Path(out) / "summary.png"

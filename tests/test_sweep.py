@@ -98,7 +98,7 @@ def test_a_failing_run_is_recorded_and_the_others_go_on(tmp_path):
 def test_killing_a_worker_mid_sweep_still_yields_every_row_exactly_once(tmp_path):
     """The CLI on a 2-worker LocalCluster; once the first row is in, one worker process is killed
     (SIGKILL). Its run is rerun by the scheduler on the other worker or the restarted one."""
-    psutil = pytest.importorskip("psutil")
+    import psutil
     (tmp_path / "sweep.yaml").write_text(
         "case: rolling-flat\nfixed: {model: epsd}\ngrid:\n  mur: [0.05, 0.06, 0.07, 0.08, 0.09, 0.1, 0.11, 0.12]\n")
     out = tmp_path / "out"

@@ -40,7 +40,7 @@ from .analysis import confidence_interval
 from .cases.observables import SweepCase, get_case
 from .errors import ParameterError
 
-__all__ = ["SweepSpec", "SweepResult", "load_sweep", "expand", "run_sweep", "summarize", "confidence_interval"]
+__all__ = ["SweepSpec", "SweepResult", "load_sweep", "expand", "run_sweep", "summarize"]
 
 TABLE = "runs.csv"
 BOOKKEEPING = ("run_id", "case", "status")

@@ -27,7 +27,7 @@ def test_bench_json_reports_the_scene(tmp_path):
 
 
 def _bed(table1):
-    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5, skin=0.002)
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5, skin=0.002, track_energy=True)
     sim.add_material(table1())
     sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
     sim.insert(rd.BoxRegion((-0.03, -0.03, 0.0), (0.03, 0.03, 0.06)), 80, 0.005, "m", seed=3)

@@ -13,7 +13,8 @@ from conftest import R
 def cluster(table1, n_side=5, rolling="cdt", seed=1, gravity=(0, 0, 0), speed=0.3, spacing=2.05):
     """A cube of n_side^3 spheres with random velocities and spins, close enough to collide."""
     rng = np.random.default_rng(seed)
-    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling=rolling), gravity=gravity, dt=2e-6)
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling=rolling), gravity=gravity, dt=2e-6,
+                        track_energy=True)
     sim.add_material(table1())
     g = np.arange(n_side) * spacing * R
     x = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
@@ -244,7 +245,7 @@ def test_cylinder_wall_holds_particles(table1):
 
 
 def _bed(table1, n=600, seed=5):
-    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5, skin=0.002)
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5, skin=0.002, track_energy=True)
     sim.add_material(table1())
     sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
     sim.insert(rd.BoxRegion((-0.06, -0.06, 0.0), (0.06, 0.06, 0.12)), n, 0.005, "m", seed=seed)

@@ -8,7 +8,8 @@ from conftest import R
 
 
 def spin_on_plate(twisting, table1, duration=0.3):
-    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd", twisting=twisting), dt=1e-5)
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd", twisting=twisting), dt=1e-5,
+                        track_energy=True)
     sim.add_material(table1())
     sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
     sim.add_particles([[0, 0, R]], R, "m")

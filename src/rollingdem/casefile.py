@@ -347,7 +347,7 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
         raise
     finally:
         summary.update({"time": sim.time, "steps": sim.step, "wall_seconds": time.perf_counter() - tic,
-                        "kinetic_energy": sum(sim.kinetic_energy()), "dissipated": sim.dissipated_energy(),
+                        "kinetic_energy": sum(sim.kinetic_energy()), "dissipated": sim.dissipated_energy() if sim.track_energy else None,
                         "status": "ok" if failure is None else f"failed: {failure}"})
         sim.checkpoint(outdir / "final.npz")
         (outdir / "summary.json").write_text(json.dumps(summary, indent=2))

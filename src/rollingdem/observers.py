@@ -72,6 +72,7 @@ class TimeSeries(Observer):
 
     def start(self, sim):
         super().start(sim)
+        sim.track_energy = True  # the dissipated-energy columns
         for p in self.particles:
             if not 0 <= p < sim.n_particles:
                 raise ParameterError(f"time series particle = {p} is not allowed: must be in [0, {sim.n_particles - 1}]")

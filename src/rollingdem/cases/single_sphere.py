@@ -77,7 +77,7 @@ CREEPING = ("cdt", "cdt (liggghts)", "cdt (limiter 0.08)", "force_proportional",
 
 def sphere_on_wall(rolling, settle=0.2, material=None, gravity=(0.0, 0.0, -G)) -> Simulation:
     """One Table-1 sphere settled on a horizontal wall at z = 0 for ``settle`` seconds."""
-    sim = Simulation(contact=ContactModel("hertz", rolling=rolling), gravity=gravity, dt=DT)
+    sim = Simulation(contact=ContactModel("hertz", rolling=rolling), gravity=gravity, dt=DT, track_energy=True)
     sim.add_material(Material("table1", **dict(TABLE1, **(material or {}))))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1"))
     sim.add_particles([[0, 0, RADIUS]], RADIUS, "table1")

@@ -7,7 +7,8 @@ with the frame:
 1. rotate h by the rotation that takes n_old to n (Rodrigues, axis a = n_old x n, c = n_old . n):
    h' = c h + a x h + a (a . h) / (1 + c);
 2. rotate by the rigid spin angle phi = 1/2 (omega_i + omega_j) . n dt about n;
-3. remove any remaining normal component and rescale to the magnitude before the rotation.
+3. if a normal component remains beyond round-off (|h . n| > 1e-12 |h|), remove it and rescale to the
+   magnitude before the rotation.
 
 Yade rotates to first order (``ScGeom::rotate``); LAMMPS only projects and rescales; LIGGGHTS does
 neither (the "unrotated history" of MODELS.md §11.3).
@@ -21,6 +22,9 @@ from numba import njit
 
 
 SERIES_ANGLE = 1e-3  # rad: below it the series are exact to round-off
+# (|h . n| / |h|)^2 below which h counts as tangent: 1e-12 relative, far above the round-off of the
+# rotations (1e-16) and far below any normal part a flip or a projection-only carry leaves
+TANGENT_TOLERANCE2 = 1e-24
 
 
 @njit(cache=True, inline="always")
@@ -64,8 +68,16 @@ def carry_with_frame(hist, k, off, onx, ony, onz, nx, ny, nz, spin_angle):
         hx, hy, hz = (hx * cs + cx * sn + nx * nd * (1.0 - cs),
                       hy * cs + cy * sn + ny * nd * (1.0 - cs),
                       hz * cs + cz * sn + nz * nd * (1.0 - cs))
-    # 3. project onto the tangent plane and restore the magnitude
+    # 3. project onto the tangent plane and restore the magnitude. After the exact rotations of 1 and 2
+    # a tangent h stays tangent to round-off, and the rescale factor would be 1 + O(eps): skip the
+    # sqrt and division unless the normal part is real (a flip, a projection-only carry, a vector
+    # stored off the plane); LAMMPS's rolling sds makes the same test before it rescales.
     nd = nx * hx + ny * hy + nz * hz
+    if nd * nd <= TANGENT_TOLERANCE2 * mag2:
+        hist[k, off] = hx
+        hist[k, off + 1] = hy
+        hist[k, off + 2] = hz
+        return
     hx -= nd * nx
     hy -= nd * ny
     hz -= nd * nz

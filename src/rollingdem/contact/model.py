@@ -104,7 +104,7 @@ class ContactModel:
         return table
 
     # --- kernel -----------------------------------------------------------------------------
-    def kernel_source(self) -> str:
+    def kernel_source(self, track_energy: bool = False) -> str:
         from .. import engine_kernel
 
         template = Path(engine_kernel.__file__).read_text()
@@ -119,6 +119,8 @@ class ContactModel:
                     alias = {"NORMAL": "normal_force", "TANGENTIAL": "tangential_force",
                              "ROLLING": "rolling_moment", "TWISTING": "twisting_moment"}[tag]
                     line = f"from {module} import {func} as {alias}"
+                elif tag == "TRACK_ENERGY":
+                    line = f"TRACK_ENERGY = {int(bool(track_energy))}"
                 else:
                     line = f"{tag} = {lay[tag]}"
             out.append(line)
@@ -138,17 +140,18 @@ class ContactModel:
         h.update(numba.__version__.encode())
         return h.hexdigest()[:16]
 
-    def kernel(self):
-        """The compiled engine module for this combination (generated and imported once)."""
+    def kernel(self, track_energy: bool = False):
+        """The compiled engine module for this combination (generated and imported once); with
+        ``track_energy`` the one that also sums the dissipated energies."""
         # the generated code depends on the sub-model classes only, never on their parameter values
-        key = tuple((type(sub), sub.kernel) for sub in self.submodels)
+        key = tuple((type(sub), sub.kernel) for sub in self.submodels) + (bool(track_energy),)
         if key in _BY_CLASSES:
             return _BY_CLASSES[key]
-        _BY_CLASSES[key] = module = self._load_kernel()
+        _BY_CLASSES[key] = module = self._load_kernel(bool(track_energy))
         return module
 
-    def _load_kernel(self):
-        source = self.kernel_source()
+    def _load_kernel(self, track_energy: bool):
+        source = self.kernel_source(track_energy)
         digest = self._dependency_hash(source)
         names = "_".join(sub.kernel[1] for sub in self.submodels)  # models sharing a kernel share the file
         modname = f"rollingdem_kernel_{names}_{digest}"
@@ -166,7 +169,7 @@ class ContactModel:
         _LOADED[modname] = module
         from .precompile import start_helper
 
-        start_helper(self, module)  # a cold kernel compiles on two cores
+        start_helper(self, module, track_energy)  # a cold kernel compiles on two cores
         return module
 
     # --- (de)serialisation ----------------------------------------------------------------------

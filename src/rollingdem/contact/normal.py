@@ -87,16 +87,15 @@ def hertz_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
     """Hertz-Mindlin (no-slip), LIGGGHTS ``normal_model_hertz.h`` / EDEM.
 
     a = sqrt(R* delta); S_n = 2 E* a; k_n = 4/3 E* a; F_el = k_n delta;
-    S_t = 8 G* a; gamma_n = c sqrt(S_n m*); gamma_t = c sqrt(S_t m*).
+    S_t = 8 G* a; gamma_n = c sqrt(S_n m*); gamma_t = c sqrt(S_t m*) = gamma_n sqrt(4 G*/E*)
+    (the last factor is a pair parameter: one square root per contact fewer).
     """
     a = math.sqrt(r_eff * overlap)
     sn = 2.0 * p[P_YOUNG] * a
     kn = (4.0 / 3.0) * p[P_YOUNG] * a
     st = 8.0 * p[P_SHEAR] * a
-    c = p[off]
-    gamma_n = c * math.sqrt(sn * m_eff)
-    gamma_t = c * math.sqrt(st * m_eff)
-    return kn * overlap, -gamma_n * normal_velocity, kn, st, gamma_t
+    gamma_n = p[off] * math.sqrt(sn * m_eff)
+    return kn * overlap, -gamma_n * normal_velocity, kn, st, gamma_n * p[off + 1]
 
 
 @njit(cache=True, inline="always")
@@ -147,7 +146,8 @@ class Hertz(SubModel):
         return hertz_damping_factor(float(e))
 
     def pair_parameters(self, pair):
-        return (self.damping_factor(pair.restitution),)
+        return (self.damping_factor(pair.restitution),
+                math.sqrt(4.0 * pair.effective_shear_modulus / pair.effective_youngs_modulus))
 
     def parameters(self):
         return {"damping": self.damping}

@@ -43,7 +43,7 @@ def is_cached(module, function: str = "gather") -> bool:
     return any(next(iter(p.rglob(pattern)), None) is not None for p in places if p.exists())
 
 
-def start_helper(contact, module):
+def start_helper(contact, module, track_energy: bool = False):
     """Start the helper for ``module`` (the kernel of ``contact``) if it would help; returns the
     process or None."""
     if os.environ.get("ROLLINGDEM_PRECOMPILE", "1") == "0" or _cores() < 2 or is_cached(module):
@@ -58,11 +58,11 @@ def start_helper(contact, module):
         return None
     env = dict(os.environ, ROLLINGDEM_PRECOMPILE="0")
     return subprocess.Popen([sys.executable, "-m", "rollingdem.contact.precompile", json.dumps(contact.to_dict()),
-                             str(lock)], env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                             str(lock), str(int(track_energy))], env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
 
 
-def _compile(contact_dict: dict) -> None:
+def _compile(contact_dict: dict, track_energy: bool = False) -> None:
     """Type the helper's functions on a one-sphere state and compile them into the cache."""
     import numba
 
@@ -71,12 +71,12 @@ def _compile(contact_dict: dict) -> None:
     from ..walls import Plane
     from .model import ContactModel
 
-    sim = Simulation(contact=ContactModel.from_dict(contact_dict), dt=1e-6)
+    sim = Simulation(contact=ContactModel.from_dict(contact_dict), dt=1e-6, track_energy=track_energy)
     sim.add_material(Material("m", youngs_modulus=1e7, poisson_ratio=0.3, density=1000.0, friction=0.5,
                               rolling_friction=0.1, restitution=0.5, rolling_damping=0.1))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
     sim.add_particles([[0.0, 0.0, 0.01]], 0.01, "m")
-    st, kernel = sim._state, sim.contact.kernel()
+    st, kernel = sim._state, sim.kernel()
     dt, kick, half_skin = 1e-6, 1.0, 1e-3
     pp = sim.pair_parameters()
     args = {
@@ -94,7 +94,7 @@ def _compile(contact_dict: dict) -> None:
 
 if __name__ == "__main__":
     try:
-        _compile(json.loads(sys.argv[1]))
+        _compile(json.loads(sys.argv[1]), len(sys.argv) > 3 and sys.argv[3] == "1")
     finally:
         try:
             os.unlink(sys.argv[2])

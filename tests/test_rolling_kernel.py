@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
+from rollingdem.contact.frame import contact_frame
 from rollingdem.contact.rolling import spring_rolling
 
 R_EFF = 0.0025
@@ -26,7 +27,8 @@ def params(model, mu_r=MU_R, eta=0.3):
 
 def step(model_params, hist, n, n_old, wi, wj, dt=1e-5, spin=0.0, f_total=None):
     p, off = model_params
-    res = spring_rolling(hist, 0, 0, n[0], n[1], n[2], n_old[0], n_old[1], n_old[2], spin, wi[0], wi[1], wi[2],
+    frame = contact_frame(n_old[0], n_old[1], n_old[2], n[0], n[1], n[2], spin)
+    res = spring_rolling(hist, 0, 0, n[0], n[1], n[2], frame, wi[0], wi[1], wi[2],
                          wj[0], wj[1], wj[2], R_EFF, R_EFF, KN, KT, F_EL, F_EL if f_total is None else f_total,
                          R_EFF, I_R, dt, p, off)
     return np.array(res[:3]), np.array(res[3:6]), res[6]
@@ -108,7 +110,7 @@ def test_objectivity_rigid_corotation_gives_no_moment(model):
         axis = omega / np.linalg.norm(omega)
         n = (n_old * math.cos(th) + np.cross(axis, n_old) * math.sin(th)
              + axis * (axis @ n_old) * (1 - math.cos(th)))
-        res = kern(hist, 0, 0, *n, *n_old, 0.5 * 2 * (omega @ n) * dt, *omega, *omega, R_EFF, R_EFF, KN, KT,
+        res = kern(hist, 0, 0, *n, contact_frame(*n_old, *n, 0.5 * 2 * (omega @ n) * dt), *omega, *omega, R_EFF, R_EFF, KN, KT,
                    F_EL, F_EL, R_EFF, I_R, dt, p, off)
         assert np.abs(res[:6]).max() == 0.0
         n_old = n
@@ -120,7 +122,8 @@ def test_force_proportional_is_not_objective():
     table = rd.MaterialTable()
     table.add(rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2))
     p, off = cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"]
-    res = cm.kernel().rolling_moment(np.zeros((1, 3)), 0, 0, 0, 0, 1.0, 0, 0, 1.0, 0.0, 3.0, 0, 0, 3.0, 0, 0,
+    res = cm.kernel().rolling_moment(np.zeros((1, 3)), 0, 0, 0, 0, 1.0, contact_frame(0, 0, 1.0, 0, 0, 1.0, 0.0),
+                                     3.0, 0, 0, 3.0, 0, 0,
                                      R_EFF, R_EFF, KN, KT, F_EL, F_EL, R_EFF, I_R, 1e-5, p, off)
     assert res[0] == pytest.approx(MU_R * F_EL * R_EFF) and res[3] == pytest.approx(-MU_R * F_EL * R_EFF)
 
@@ -128,7 +131,7 @@ def test_force_proportional_is_not_objective():
 def cdt_moment(model, n, wi, wj, lever_i=R_EFF, lever_j=R_EFF, r_eff=R_EFF):
     p, off = params(model)
     kern = rd.ContactModel("hertz", rolling=model).kernel().rolling_moment
-    res = kern(np.zeros((1, 3)), 0, 0, *n, *n, 0.0, *wi, *wj, lever_i, lever_j, KN, KT, F_EL, F_EL, r_eff, I_R,
+    res = kern(np.zeros((1, 3)), 0, 0, *n, contact_frame(*n, *n, 0.0), *wi, *wj, lever_i, lever_j, KN, KT, F_EL, F_EL, r_eff, I_R,
                1e-5, p, off)
     return np.array(res[:3])
 

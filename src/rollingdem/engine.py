@@ -161,6 +161,7 @@ class EngineState:
         if old is not None:
             keep = min(old_w, new_w)
             whist[:, :keep] = old[:, :keep]
+        whist[:, self.wall_kind < 0] = 0.0  # a removed wall's springs go with it (the kernel skips its slot)
         self.whist = whist.reshape(self.n * new_w, self.history_size)
         self.info[I_FORCES_VALID] = 0
 

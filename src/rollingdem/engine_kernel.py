@@ -38,6 +38,7 @@ from numba import njit, prange
 from numba.core.errors import NumbaPerformanceWarning
 
 from rollingdem.neighbors import rebuild_neighbor_list
+from rollingdem.contact.frame import contact_frame
 from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
 from rollingdem.contact.tangential import history_spring as tangential_force  # @@TANGENTIAL
 from rollingdem.contact.rolling import no_rolling as rolling_moment  # @@ROLLING
@@ -107,9 +108,10 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
 
     f_el, f_damp, kn, kt, gamma_t = normal_force(overlap, vn, r_eff, m_eff, p, OFF_NORMAL)
     fn = f_el + f_damp
-    ftx, fty, ftz, e_t = tangential_force(hist, k, H_TANGENTIAL, nx, ny, nz, onx, ony, onz, spin_angle,
+    frame = contact_frame(onx, ony, onz, nx, ny, nz, spin_angle)
+    ftx, fty, ftz, e_t = tangential_force(hist, k, H_TANGENTIAL, nx, ny, nz, frame,
                                           vtx, vty, vtz, kt, gamma_t, fn, dt, p, OFF_TANGENTIAL)
-    mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, H_ROLLING, nx, ny, nz, onx, ony, onz, spin_angle,
+    mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, H_ROLLING, nx, ny, nz, frame,
                                                        wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, kn, kt,
                                                        f_el, fn, r_eff, inertia_r, dt, p, OFF_ROLLING)
     dwx = wix - wjx
@@ -244,6 +246,8 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
     mi = mass[i]
     for wl in range(nwall):
         kind = wall_kind[wl]
+        if kind < 0:  # removed (rollingdem.walls.INACTIVE): its history was cleared at removal
+            continue
         k = i * nwall + wl
         overlap = -1.0
         nx = ny = nz = 0.0

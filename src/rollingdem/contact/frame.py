@@ -12,6 +12,9 @@ with the frame:
 
 Yade rotates to first order (``ScGeom::rotate``); LAMMPS only projects and rescales; LIGGGHTS does
 neither (the "unrotated history" of MODELS.md §11.3).
+
+The scalars of the frame change (a, c, 1/(1+c), cos phi, sin phi) are computed once per contact
+and step (``contact_frame``) and shared by its history vectors.
 """
 
 from __future__ import annotations
@@ -39,39 +42,65 @@ def cos_sin(phi):
 
 
 @njit(cache=True, inline="always")
-def carry_with_frame(hist, k, off, onx, ony, onz, nx, ny, nz, spin_angle):
-    """Carry the 3-vector ``hist[k, off:off+3]`` from frame n_old to n, in place."""
+def contact_frame(onx, ony, onz, nx, ny, nz, spin_angle):
+    """The step's frame change, shared by every history vector of the contact: (n, a = n_old x n,
+    c = n_old . n, 1/(1+c), cos phi, sin phi). A flip of the normal (c <= -1/2) is not a rotation
+    to follow: a = 0, c = 1 (step 1 is then the identity and step 3 projects)."""
+    ax = ony * nz - onz * ny
+    ay = onz * nx - onx * nz
+    az = onx * ny - ony * nx
+    c = onx * nx + ony * ny + onz * nz
+    if c <= -0.5:
+        ax = ay = az = 0.0
+        c = 1.0
+    cs, sn = cos_sin(spin_angle)
+    return nx, ny, nz, ax, ay, az, c, 1.0 / (1.0 + c), cs, sn
+
+
+@njit(cache=True, inline="always")
+def carry_with_frame(hist, k, off, frame):
+    """Carry the 3-vector ``hist[k, off:off+3]`` through the frame change ``frame`` (``contact_frame``), in place."""
     hx = hist[k, off]
     hy = hist[k, off + 1]
     hz = hist[k, off + 2]
     mag2 = hx * hx + hy * hy + hz * hz
     if mag2 == 0.0:
         return
+    nx, ny, nz, ax, ay, az, c, inv_1pc, cs, sn = frame
     # 1. rotation n_old -> n
-    ax = ony * nz - onz * ny
-    ay = onz * nx - onx * nz
-    az = onx * ny - ony * nx
-    c = onx * nx + ony * ny + onz * nz
-    if c > -0.5:  # a flip of the normal in one step is not a rotation to follow
-        ad = (ax * hx + ay * hy + az * hz) / (1.0 + c)
-        rx = c * hx + (ay * hz - az * hy) + ax * ad
-        ry = c * hy + (az * hx - ax * hz) + ay * ad
-        rz = c * hz + (ax * hy - ay * hx) + az * ad
-        hx, hy, hz = rx, ry, rz
+    ad = (ax * hx + ay * hy + az * hz) * inv_1pc
+    rx = c * hx + (ay * hz - az * hy) + ax * ad
+    ry = c * hy + (az * hx - ax * hz) + ay * ad
+    rz = c * hz + (ax * hy - ay * hx) + az * ad
     # 2. spin about n
-    if spin_angle != 0.0:
-        cs, sn = cos_sin(spin_angle)
-        nd = nx * hx + ny * hy + nz * hz
-        cx = ny * hz - nz * hy
-        cy = nz * hx - nx * hz
-        cz = nx * hy - ny * hx
-        hx, hy, hz = (hx * cs + cx * sn + nx * nd * (1.0 - cs),
-                      hy * cs + cy * sn + ny * nd * (1.0 - cs),
-                      hz * cs + cz * sn + nz * nd * (1.0 - cs))
-    # 3. project onto the tangent plane and restore the magnitude. After the exact rotations of 1 and 2
-    # a tangent h stays tangent to round-off, and the rescale factor would be 1 + O(eps): skip the
-    # sqrt and division unless the normal part is real (a flip, a projection-only carry, a vector
-    # stored off the plane); LAMMPS's rolling sds makes the same test before it rescales.
+    nd = nx * rx + ny * ry + nz * rz
+    cx = ny * rz - nz * ry
+    cy = nz * rx - nx * rz
+    cz = nx * ry - ny * rx
+    hx = rx * cs + cx * sn + nx * nd * (1.0 - cs)
+    hy = ry * cs + cy * sn + ny * nd * (1.0 - cs)
+    hz = rz * cs + cz * sn + nz * nd * (1.0 - cs)
+    _store_tangent(hist, k, off, nx, ny, nz, hx, hy, hz, mag2)
+
+
+@njit(cache=True, inline="always")
+def project_onto_plane(hist, k, off, nx, ny, nz):
+    """LAMMPS's carry: remove the normal part of ``hist[k, off:off+3]`` and restore its magnitude."""
+    hx = hist[k, off]
+    hy = hist[k, off + 1]
+    hz = hist[k, off + 2]
+    mag2 = hx * hx + hy * hy + hz * hz
+    if mag2 != 0.0:
+        _store_tangent(hist, k, off, nx, ny, nz, hx, hy, hz, mag2)
+
+
+@njit(cache=True, inline="always")
+def _store_tangent(hist, k, off, nx, ny, nz, hx, hy, hz, mag2):
+    """3. store h, projected onto the tangent plane and rescaled to |h|^2 = mag2 if it has a normal
+    part beyond round-off. After the exact rotations a tangent h stays tangent to round-off and the
+    rescale factor would be 1 + O(eps): the sqrt and division are skipped unless the normal part is
+    real (a flip, a projection-only carry, a vector stored off the plane); LAMMPS's rolling sds
+    makes the same test before it rescales."""
     nd = nx * hx + ny * hy + nz * hz
     if nd * nd <= TANGENT_TOLERANCE2 * mag2:
         hist[k, off] = hx

@@ -2,11 +2,12 @@
 
 Kernel signature (slot "rolling")::
 
-    rolling_moment(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle,
+    rolling_moment(hist, k, off, nx, ny, nz, frame,
                    wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, normal_stiffness,
                    tangential_stiffness, force_elastic, force_total, r_eff, inertia_r, dt, p, poff)
         -> (mix, miy, miz, mjx, mjy, mjz, dissipation)
 
+``frame`` is the step's change of the contact frame (see ``rollingdem.contact.tangential``).
 (wix, wiy, wiz) and (wjx, wjy, wjz) are the angular velocities of i and of j (of the wall for a
 wall contact, with lever_j = 0); lever_i, lever_j are the distances R' from the centres to the
 contact point. The torque on i is -M_i and on j +M_j. For every objective model M_i = M_j = M,
@@ -24,7 +25,7 @@ from numba import njit
 
 from ..errors import ParameterError, check_non_negative, check_positive
 from .base import P_ROLLING_DAMPING, P_ROLLING_FRICTION, SubModel
-from .frame import carry_with_frame
+from .frame import carry_with_frame, project_onto_plane
 
 
 @njit(cache=True, inline="always")
@@ -51,14 +52,14 @@ def liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff):
 
 
 @njit(cache=True, inline="always")
-def no_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
+def no_rolling(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
                lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """No rolling resistance: M = 0."""
     return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
 @njit(cache=True, inline="always")
-def constant_directional_torque(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz,
+def constant_directional_torque(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
                                 lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """CDT, Ai et al. (2011) type A; seed report eq. 2; STAR-CCM+ Constant Torque.
 
@@ -145,7 +146,7 @@ HISTORY_PROJECT = 2       # projected on the tangent plane and rescaled (LAMMPS)
 
 
 @njit(cache=True, inline="always")
-def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
+def spring_rolling(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
                    lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """Elastic-plastic spring-dashpot rolling resistance (Ai type C), the unified form of MODELS.md §12.
 
@@ -172,9 +173,9 @@ def spring_rolling(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy
         wix, wiy, wiz, wjx, wjy, wjz = liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff)
 
     if history_mode == HISTORY_FRAME:
-        carry_with_frame(hist, k, off, onx, ony, onz, nx, ny, nz, spin_angle)
+        carry_with_frame(hist, k, off, frame)
     elif history_mode == HISTORY_PROJECT:
-        carry_with_frame(hist, k, off, nx, ny, nz, nx, ny, nz, 0.0)
+        project_onto_plane(hist, k, off, nx, ny, nz)
     mkx = hist[k, off]
     mky = hist[k, off + 1]
     mkz = hist[k, off + 2]
@@ -437,7 +438,7 @@ class DisplacementDamping(_SpringRolling):
 
 
 @njit(cache=True, inline="always")
-def force_proportional_moment(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz,
+def force_proportional_moment(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
                               lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """STAR-CCM+ Force Proportional (seed 004, eq. 3275): each particle's own in-plane spin is
     opposed by mu_r |F_n| |r_c| omega_p / |omega_p|, |r_c| = R' (centre to contact point).
@@ -468,7 +469,7 @@ class ForceProportional(SubModel):
 
 
 @njit(cache=True, inline="always")
-def viscous_moment(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, wix, wiy, wiz, wjx, wjy, wjz,
+def viscous_moment(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
                    lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff):
     """Viscous rolling resistance, Ai type B (Zhou et al. 1999 eq. 4): M = c_v F_n (R* |dw_r|) dw_r/|dw_r|
     = c_v F_n R* dw_r, c_v in s; in the Kratos/Lethe form one more factor R* (c_v in s/m).

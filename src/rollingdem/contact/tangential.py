@@ -2,14 +2,14 @@
 
 Kernel signature (slot "tangential")::
 
-    tangential_force(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle,
+    tangential_force(hist, k, off, nx, ny, nz, frame,
                      vtx, vty, vtz, tangential_stiffness, tangential_damping,
                      normal_force, dt, p, poff) -> (ftx, fty, ftz, dissipation)
 
-``hist[k, off:off+history_size]`` is the contact's own state; (nx, ny, nz) the current normal,
-(onx, ony, onz) the normal of the previous step, ``spin_angle`` the rigid spin of the pair about n
-during the step; (vtx, vty, vtz) the tangential slip velocity at the contact point; F_t is the
-force on particle i. ``dissipation`` is the energy (J) dissipated during the step.
+``hist[k, off:off+history_size]`` is the contact's own state; (nx, ny, nz) the current normal;
+``frame`` the change of the contact frame during the step (``rollingdem.contact.frame.contact_frame``:
+the turn of the normal and the rigid spin of the pair about it), for ``carry_with_frame``;
+(vtx, vty, vtz) the tangential slip velocity at the contact point; F_t is the force on particle i. ``dissipation`` is the energy (J) dissipated during the step.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from .frame import carry_with_frame
 
 
 @njit(cache=True, inline="always")
-def history_spring(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, vtx, vty, vtz,
+def history_spring(hist, k, off, nx, ny, nz, frame, vtx, vty, vtz,
                    kt, gamma_t, normal_force, dt, p, poff):
     """Tangential spring-dashpot with Coulomb limit.
 
@@ -34,7 +34,7 @@ def history_spring(hist, k, off, nx, ny, nz, onx, ony, onz, spin_angle, vtx, vty
     The spring is carried with the contact frame (rotated, not just projected: MODELS.md §11.3).
     The limit uses max(F_n, 0), never |F_n|: a contact pulled by its dashpot cannot grip (§11.4).
     """
-    carry_with_frame(hist, k, off, onx, ony, onz, nx, ny, nz, spin_angle)
+    carry_with_frame(hist, k, off, frame)
     x0 = hist[k, off]
     y0 = hist[k, off + 1]
     z0 = hist[k, off + 2]

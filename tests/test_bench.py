@@ -60,6 +60,17 @@ def test_settled_state_from_a_liggghts_dump(tmp_path):
     assert sim.walls[1].radius == pytest.approx(0.125 * np.sqrt(2 / 20000))
 
 
+def test_slab_dump_for_the_peers_is_the_slab(tmp_path):
+    """The dump the LIGGGHTS slab input reads holds the bench's slab state to the 10 digits written
+    (relative 5e-10 at most)."""
+    x, v = bench.slab_state(300)
+    assert len(x) == 300 and x[:, 2].min() > bench.RADIUS  # every sphere starts above the plate
+    sim = bench.column_from_dump(bench.write_liggghts_dump(tmp_path / "s.dump", x, v, bench.RADIUS))
+    np.testing.assert_allclose(sim.positions, x, rtol=5e-10, atol=0)
+    np.testing.assert_allclose(sim.velocities, v, rtol=5e-10, atol=0)
+    np.testing.assert_array_equal(sim.radii, bench.RADIUS)
+
+
 @pytest.mark.parametrize("args, words", [(["--scene", "nope"], ["scene = nope", "column-collapse"]),
                                          (["--particles", "0"], ["particles = 0", ">= 1"]),
                                          (["--scene", "dense-bed", "--model", "magic"], ["model = magic", "epsd"]),

@@ -321,6 +321,32 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     return results
 
 
+def slab_state(particles: int) -> tuple[np.ndarray, np.ndarray]:
+    """(positions, velocities) of the slab scene: a jittered cubic lattice of spacing 2.02 R,
+    ``SLAB_LAYERS`` layers, just above the plate; velocities uniform in +-5 cm/s (seeded)."""
+    side = max(1, math.ceil(math.sqrt(particles / SLAB_LAYERS)))  # enough lattice sites for every sphere
+    grid = np.stack(np.meshgrid(np.arange(side), np.arange(side), np.arange(SLAB_LAYERS), indexing="ij"),
+                    -1).reshape(-1, 3)[:particles]
+    rng = np.random.default_rng(0)
+    x = grid * 2.02 * RADIUS + (0.0, 0.0, 1.01 * RADIUS) + rng.uniform(-0.005, 0.005, grid.shape) * RADIUS
+    return x, rng.uniform(-0.05, 0.05, x.shape)
+
+
+def write_liggghts_dump(path, positions, velocities, radius: float) -> Path:
+    """A LIGGGHTS/LAMMPS text dump (timestep 0; columns id type x y z vx vy vz radius) that the
+    reference inputs read with ``read_dump``: the peers start from the identical state."""
+    path = Path(path)
+    n = len(positions)
+    lo, hi = positions.min(axis=0) - 2 * radius, positions.max(axis=0) + 2 * radius
+    with open(path, "w") as fh:
+        fh.write(f"ITEM: TIMESTEP\n0\nITEM: NUMBER OF ATOMS\n{n}\nITEM: BOX BOUNDS ff ff ff\n")
+        fh.write("".join(f"{a:.10g} {b:.10g}\n" for a, b in zip(lo, hi)))
+        fh.write("ITEM: ATOMS id type x y z vx vy vz radius\n")
+        np.savetxt(fh, np.column_stack([np.arange(1, n + 1), np.ones(n), positions, velocities, np.full(n, radius)]),
+                   fmt=["%d", "%d"] + ["%.10g"] * 7)
+    return path
+
+
 def slab(particles=20000, steps=1000, threads=None, echo=print) -> BenchResult:
     import numba
 
@@ -328,13 +354,9 @@ def slab(particles=20000, steps=1000, threads=None, echo=print) -> BenchResult:
 
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"))
-    side = max(1, int(round(math.sqrt(particles / SLAB_LAYERS))))
-    grid = np.stack(np.meshgrid(np.arange(side), np.arange(side), np.arange(SLAB_LAYERS), indexing="ij"),
-                    -1).reshape(-1, 3)[:particles]
-    rng = np.random.default_rng(0)
-    x = grid * 2.02 * RADIUS + (0.0, 0.0, 1.01 * RADIUS) + rng.uniform(-0.005, 0.005, grid.shape) * RADIUS
+    x, v = slab_state(particles)
     sim = _column_simulation("epsd")
-    sim.add_particles(x, RADIUS, "table1", velocity=rng.uniform(-0.05, 0.05, x.shape))
+    sim.add_particles(x, RADIUS, "table1", velocity=v)
     wall, rebuilds = _time_run(sim, steps)
     return _result("slab", "epsd", sim, steps, compile_s, wall, rebuilds, threads,
                    f"{SLAB_LAYERS} lattice layers falling onto a plate")

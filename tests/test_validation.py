@@ -56,6 +56,17 @@ def test_overlapping_insertion_refused():
         sim.add_particles([[0, 0, 0.5 * R]], R, "m")
 
 
+def test_coincident_centres_stop_with_the_reason():
+    """allow_overlap lets spheres overlap, but two at one centre have no contact normal: the run
+    stops at its first step and names both (the kernel's 0/0 becomes NaN, never a crash)."""
+    sim = rd.Simulation(dt=1e-5)
+    sim.add_material(material())
+    sim.add_particles([[0, 0, 0], [3 * R, 0, 0], [0, 0, 0]], R, "m", allow_overlap=True)
+    with pytest.raises(rd.SimulationError, match="particle 0 is not finite.*shares its centre with particle 2"):
+        sim.run(steps=5)
+    assert sim.step == 0
+
+
 @pytest.mark.parametrize("slot,name", [("normal", "hretz"), ("rolling", "epsd9"), ("tangential", "nope"),
                                        ("twisting", "marshal")])
 def test_unknown_model_name(slot, name):

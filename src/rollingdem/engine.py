@@ -246,6 +246,13 @@ class EngineState:
         return self.n < SERIAL_BELOW or numba.get_num_threads() == 1
 
     def _too_fast_message(self, dt, skin):
+        bad = ~(np.isfinite(self.f).all(axis=1) & np.isfinite(self.t).all(axis=1))
+        if bad.any():  # the flag also counts a NaN force: say what it is
+            k = int(np.nonzero(bad)[0][0])
+            same = np.nonzero((self.x == self.x[k]).all(axis=1))[0]
+            why = (f"it shares its centre with particle {int(self.ids[same[same != k][0]])}: the contact normal is "
+                   "undefined; remove one of them" if len(same) > 1 else "the run is unstable or the input holds a NaN")
+            return f"the force on particle {int(self.ids[k])} is not finite at this step ({why})"
         speed = np.sqrt((self.v ** 2).sum(axis=1))
         k = int(np.nanargmax(speed)) if np.isfinite(speed).any() else 0
         return (f"particle {int(self.ids[k])} moves {speed[k] * dt:.3g} m in one step (speed {speed[k]:.3g} m/s, dt = {dt:.3g} s), "

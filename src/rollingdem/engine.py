@@ -58,6 +58,7 @@ class EngineState:
         self.wall_omega = np.zeros((0, 3))
         self.wall_mat = np.zeros(0, dtype=np.int32)
         self.whist = np.zeros((0, history_size))
+        self.wtouch = np.zeros(0, dtype=np.uint8)
         self.info = np.zeros(INFO_SIZE, dtype=np.int64)
         self.capacity = 0
         self._allocate_list(16)
@@ -100,6 +101,12 @@ class EngineState:
         """An entry is in contact iff it keeps a contact normal (what the kernel does at a rebuild)."""
         self.touch[:total] = np.any(self.hist[:total, :3] != 0.0, axis=1)
 
+    def derive_wall_touch(self):
+        """``wtouch[i * n_walls + w]``: whether particle i touched wall w at the last step (it keeps a
+        contact normal). The kernel tests this byte, not the history row, for a sphere away from a
+        wall: 1 byte instead of a cache line per sphere and wall and step."""
+        self.wtouch = np.ascontiguousarray(np.any(self.whist[:, :3] != 0.0, axis=1), dtype=np.uint8)
+
     def grow(self, needed: int):
         keep = int(self.nl_start[-1]) if self.nl_start.size else 0
         self._allocate_list(int(needed * LIST_MARGIN) + 16, keep=keep)
@@ -141,6 +148,7 @@ class EngineState:
         if wall_hist is not None:
             whist[:n0] = wall_hist
         self.whist = whist.reshape(self.n * self.n_walls, self.history_size)
+        self.derive_wall_touch()
         self.info[I_NEED_REBUILD] = 1
         self.info[I_FORCES_VALID] = 0
         self.steps_since_sort = SORT_EVERY  # the new particles come in the user's order: sort at the next run
@@ -163,6 +171,7 @@ class EngineState:
             whist[:, :keep] = old[:, :keep]
         whist[:, self.wall_kind < 0] = 0.0  # a removed wall's springs go with it (the kernel skips its slot)
         self.whist = whist.reshape(self.n * new_w, self.history_size)
+        self.derive_wall_touch()
         self.info[I_FORCES_VALID] = 0
 
     # --- slots and ids -----------------------------------------------------------------------
@@ -192,6 +201,7 @@ class EngineState:
         if self.n_walls:
             h = self.history_size
             self.whist = np.ascontiguousarray(self.whist.reshape(n, self.n_walls, h)[perm].reshape(-1, h))
+            self.derive_wall_touch()
         # rows move with their particle; entries keep their order (by partner id) and history
         old_start = self.nl_start.copy()
         lengths = np.diff(old_start)[perm]
@@ -210,7 +220,7 @@ class EngineState:
     def kernel_args(self, dt, gravity, skin, pair_params):
         return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
                 self.ids, pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
-                self.whist, self.nl_start, self.nl_j, self.hist, self.touch, self.pair_force, self.pair_torque_j,
+                self.whist, self.wtouch, self.nl_start, self.nl_j, self.hist, self.touch, self.pair_force, self.pair_torque_j,
                 self.tr_start, self.tr_k, self.cell_start, self.cell_items,
                 self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info)
 
@@ -284,6 +294,7 @@ class EngineState:
             self.grow(int(self.info[I_NEEDED]))
         self.hist[:total], self.whist[:], self.energy[:] = saved
         self.derive_touch(total)
+        self.derive_wall_touch()
 
     # --- checkpoint ----------------------------------------------------------------------------
     ARRAYS = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts", "x_ref",
@@ -316,5 +327,6 @@ class EngineState:
         st.nl_j[:total] = arrays["nl_j"]
         st.hist[:total] = arrays["hist"]
         st.derive_touch(total)
+        st.derive_wall_touch()
         st.tr_k[:total] = arrays["tr_k"]
         return st

@@ -175,8 +175,7 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
         ai = mi * ri * ri
         aj = mj * rj * rj
         inertia_r = INERTIA_R_FACTOR * ai * aj / (ai + aj)
-        res = contact(hist, k, nx, ny, nz, overlap,
-                      v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+        res = contact(hist, k, nx, ny, nz, overlap, v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
                       w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
                       ri - 0.5 * overlap, rj - 0.5 * overlap, r_eff, m_eff, inertia_r,
                       pair_params[mat[i], mat[j]], dt)
@@ -231,7 +230,7 @@ def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_sta
 
 @njit(cache=True, inline="always")
 def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel, wall_omega,
-                  wall_mat, whist):
+                  wall_mat, whist, wtouch):
     """All wall contacts of particle i: total force and torque on i, energies, contact count.
 
     A wall is a partner of infinite radius and mass with a prescribed surface velocity
@@ -277,10 +276,12 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
                     ny = -qy / r
                     nz = -qz / r
         if overlap <= 0.0:
-            if whist[k, 0] != 0.0 or whist[k, 1] != 0.0 or whist[k, 2] != 0.0:
+            if wtouch[k]:  # the contact just ended: its springs go (a byte, not the history row)
+                wtouch[k] = 0
                 for s2 in range(whist.shape[1]):
                     whist[k, s2] = 0.0
             continue
+        wtouch[k] = 1
         # surface velocity of the wall at the contact point c = x_i - (R_i - overlap) n
         lever = ri - overlap
         cx = x[i, 0] - lever * nx - wall_geom[wl, 0]
@@ -311,8 +312,8 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
 
 @njit(cache=True, inline="always")
 def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-               touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy,
-               contacts, x_ref, half_skin):
+               touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+               wtouch, energy, contacts, x_ref, half_skin):
     """Particle i: pair terms where it is the second partner, walls, gravity; then the closing half
     kick (if ``kick`` is 1.0; a float, so one compiled version serves both). Returns (1 if i may
     cross skin/2 during the next step, 1 if it would even from a fresh list: the skin is too small
@@ -334,7 +335,7 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
         ty += pair_torque_j[k, 1]
         tz += pair_torque_j[k, 2]
     wres = wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel,
-                         wall_omega, wall_mat, whist)
+                         wall_omega, wall_mat, whist, wtouch)
     mi = mass[i]
     fx += wres[0] + mi * gravity[0]
     fy += wres[1] + mi * gravity[1]
@@ -376,15 +377,15 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch,
-           pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy, contacts,
-           x_ref, half_skin):
+           pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch,
+           energy, contacts, x_ref, half_skin):
     """``gather_one`` for every particle; returns the counts of its two flags."""
     nexceed = 0
     nfast = 0
     for i in prange(x.shape[0]):
         exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
                                   tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
-                                  wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+                                  wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
         nexceed += exceed
         nfast += fast
     return nexceed, nfast
@@ -392,15 +393,15 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                  touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, energy,
-                  contacts, x_ref, half_skin):
+                  touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat,
+                  whist, wtouch, energy, contacts, x_ref, half_skin):
     """``gather`` on the calling thread."""
     nexceed = 0
     nfast = 0
     for i in range(x.shape[0]):
         exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
                                   tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
-                                  wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+                                  wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
         nexceed += exceed
         nfast += fast
     return nexceed, nfast
@@ -446,28 +447,29 @@ def _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, 
 
 @njit(cache=True)
 def _forces(dt, kick, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
-            wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start,
-            tr_k, x_ref, half_skin, energy, contacts, info):
+            wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
+            pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info):
     if serial:
         pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
                            pair_torque_j, energy, contacts)
         exceed, fast = gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
                                      tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
-                                     wall_omega, wall_mat, whist, energy, contacts, x_ref, half_skin)
+                                     wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
     else:
         pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
                     pair_torque_j, energy, contacts)
         exceed, fast = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
                               tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
-                              wall_mat, whist, energy, contacts, x_ref, half_skin)
+                              wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
     info[I_NEED_REBUILD] = exceed
     info[I_TOO_FAST] = fast
 
 
 @njit(cache=True)
 def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
-            wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force, pair_torque_j,
-            tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts, info):
+            wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
+            pair_torque_j, tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts,
+            info):
     """Advance ``nsteps`` steps, on the calling thread if ``serial`` (see ``SERIAL_BELOW``). Stops
     early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the
     capacity needed when the neighbor list outgrows its arrays, or STATUS_TOO_FAST when a particle
@@ -480,7 +482,7 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
                         cell_items, cell_of, counts, x_ref, info):
             return
         _forces(dt, 0.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
-                wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force,
+                wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
                 pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
         info[I_FORCES_VALID] = 1
     for step in range(nsteps):
@@ -500,7 +502,7 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
             for d in range(3):
                 wall_geom[wl, d] += dt * wall_vel[wl, d]
         _forces(dt, 1.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
-                wall_geom, wall_vel, wall_omega, wall_mat, whist, nl_start, nl_j, hist, touch, pair_force,
+                wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
                 pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
         info[I_STEPS_DONE] = step + 1
 

@@ -58,8 +58,8 @@ def start_helper(contact, module, track_energy: bool = False):
         return None
     env = dict(os.environ, ROLLINGDEM_PRECOMPILE="0")
     return subprocess.Popen([sys.executable, "-m", "rollingdem.contact.precompile", json.dumps(contact.to_dict()),
-                             str(lock), str(int(track_energy))], env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+                             str(lock), str(int(track_energy))], env=env, stdin=subprocess.DEVNULL,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
 def _compile(contact_dict: dict, track_energy: bool = False) -> None:
@@ -82,7 +82,8 @@ def _compile(contact_dict: dict, track_energy: bool = False) -> None:
     args = {
         "gather": (dt, kick, sim._gravity, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.inertia, st.mat, pp,
                    st.tr_start, st.tr_k, st.touch, st.pair_force, st.pair_torque_j, st.wall_kind, st.wall_geom,
-                   st.wall_vel, st.wall_omega, st.wall_mat, st.whist, st.energy, st.contacts, st.x_ref, half_skin),
+                   st.wall_vel, st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy, st.contacts, st.x_ref,
+                   half_skin),
         "kick_drift": (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia),
         "pair_forces": (dt, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.mat, pp, st.nl_start, st.nl_j,
                         st.hist, st.touch, st.pair_force, st.pair_torque_j, st.energy, st.contacts),

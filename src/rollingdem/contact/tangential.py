@@ -9,7 +9,8 @@ Kernel signature (slot "tangential")::
 ``hist[k, off:off+history_size]`` is the contact's own state; (nx, ny, nz) the current normal;
 ``frame`` the change of the contact frame during the step (``rollingdem.contact.frame.contact_frame``:
 the turn of the normal and the rigid spin of the pair about it), for ``carry_with_frame``;
-(vtx, vty, vtz) the tangential slip velocity at the contact point; F_t is the force on particle i. ``dissipation`` is the energy (J) dissipated during the step.
+(vtx, vty, vtz) the tangential slip velocity at the contact point; F_t is the force on particle i.
+``dissipation`` is the energy (J) dissipated during the step.
 """
 
 from __future__ import annotations

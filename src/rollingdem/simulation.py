@@ -420,9 +420,9 @@ class Simulation:
         end = self.step + steps
         for ob in observers:
             ob.start(self)
-        kernel = self.kernel()  # after the observers: a TimeSeries turns on track_energy
         failure = None
         try:
+            kernel = self.kernel()  # after the observers start: a TimeSeries turns on track_energy
             self._check_finite_state()
             for ob in observers:
                 ob.maybe_observe(self, force=True)

@@ -48,6 +48,23 @@ def test_report_records_every_check_and_a_crashed_case(tmp_path, monkeypatch):
     assert "<table>" in (tmp_path / "report.html").read_text()
 
 
+def test_cases_run_one_at_a_time_make_one_report(tmp_path, monkeypatch):
+    """``--case`` runs into the same folder add up: the second keeps the first's checks, table and
+    figures in results.json and report.md; running a case again replaces its earlier result."""
+    monkeypatch.setattr(validate, "available_cases", fake_cases)
+    validate.run_validation(tmp_path, cases=["good"], progress=False, workers=1)
+    validate.run_validation(tmp_path, cases=["bad"], progress=False, workers=1)
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert sorted(data["cases"]) == ["bad", "good"] and data["passed"] is False
+    assert [c["case"] for c in data["checks"]].count("good") == 1
+    report = (tmp_path / "report.md").read_text()
+    assert "the kernel fell over" in report and "| x | value |" in report
+    validate.run_validation(tmp_path, cases=["good"], progress=False, workers=1, quick=True)
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert [c["case"] for c in data["checks"]].count("good") == 1 and data["quick"] is False  # 'bad' was full
+    assert "(full)" in (tmp_path / "report.md").read_text()
+
+
 def test_cli_exit_status(tmp_path, monkeypatch):
     monkeypatch.setattr(validate, "available_cases", fake_cases)
     ok = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "a"), "--case", "good", "--no-progress", "-w", "1"])

@@ -3,11 +3,14 @@
 Writes into ``outdir``: ``report.md`` and ``report.html`` (tables, checks, figures), the PNG
 figures, ``results.json`` (every check: case, model, quantity, measured, reference, tolerance,
 pass) and one CSV table per case. A case that crashes is recorded as failed with its error, and
-the others still run: nothing already measured is lost.
+the others still run: nothing already measured is lost. Each case's outcome is also kept in
+``cases/NAME.json``, so cases run one at a time into the same folder (``--case``, maybe across
+days) make one report: a case run again replaces its earlier result, the others stay.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 import traceback
@@ -72,7 +75,9 @@ def _run_cases(available, names, out, quick, progress, models, mapper) -> list[C
             result.wall_time = time.perf_counter() - tic
         results.append(result)
         result.table.to_csv(out / f"{name}.csv", index=False)
-        write_report(out, results, quick)  # after every case, so an interrupted run keeps what it has
+        _save_case(out, result, quick)
+        merged = _with_earlier_cases(out, results, list(available), quick)
+        write_report(out, merged, quick and not any(r.title.endswith("(full)") for r in merged))  # after every case
         if bar is not None:
             bar.update(1)
     if bar is not None:
@@ -97,6 +102,47 @@ def _bar(progress, total):
         return None
     from tqdm import tqdm
     return tqdm(total=total, unit="case")
+
+
+def _save_case(out: Path, r: CaseResult, quick: bool) -> None:
+    folder = out / "cases"
+    folder.mkdir(exist_ok=True)
+    data = {"name": r.name, "title": r.title, "quick": quick, "wall_time": r.wall_time, "notes": r.notes,
+            "figures": [Path(f).name for f in r.figures], "checks": [dataclasses.asdict(c) for c in r.checks]}
+    tmp = folder / f"{r.name}.json.tmp"
+    tmp.write_text(json.dumps(data, indent=1, default=_json_default))
+    tmp.replace(folder / f"{r.name}.json")
+
+
+def _load_case(out: Path, name: str, quick: bool) -> CaseResult | None:
+    """A case result an earlier run saved into this folder (None if there is none or it is
+    unreadable); its title says "(quick)" or "(full)" when its size differs from this run's."""
+    try:
+        data = json.loads((out / "cases" / f"{name}.json").read_text())
+    except (OSError, ValueError):
+        return None
+    try:
+        table = pd.read_csv(out / f"{name}.csv")
+    except (OSError, pd.errors.EmptyDataError):  # a case that failed has no table
+        table = pd.DataFrame()
+    title = data["title"]
+    if bool(data.get("quick")) != quick:
+        title += " (quick)" if data.get("quick") else " (full)"
+    return CaseResult(data["name"], title, table, [Check(**c) for c in data["checks"]],
+                      [out / f for f in data["figures"]], list(data["notes"]), float(data["wall_time"]))
+
+
+def _with_earlier_cases(out: Path, results: list[CaseResult], order: list[str], quick: bool) -> list[CaseResult]:
+    """This run's case results and, for the cases it did not run, those an earlier run saved here,
+    in the order of ``order``."""
+    done = {r.name: r for r in results}
+    names = order + sorted(p.stem for p in (out / "cases").glob("*.json") if p.stem not in order)
+    merged = []
+    for name in names:
+        r = done.get(name) or _load_case(out, name, quick)
+        if r is not None:
+            merged.append(r)
+    return merged + [r for r in results if r.name not in names]
 
 
 def write_report(out: Path, results: list[CaseResult], quick: bool) -> None:

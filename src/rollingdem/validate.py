@@ -137,12 +137,8 @@ def _with_earlier_cases(out: Path, results: list[CaseResult], order: list[str], 
     in the order of ``order``."""
     done = {r.name: r for r in results}
     names = order + sorted(p.stem for p in (out / "cases").glob("*.json") if p.stem not in order)
-    merged = []
-    for name in names:
-        r = done.get(name) or _load_case(out, name, quick)
-        if r is not None:
-            merged.append(r)
-    return merged + [r for r in results if r.name not in names]
+    merged = (done.get(name) or _load_case(out, name, quick) for name in names)
+    return [r for r in merged if r is not None]  # this run's cases are saved under cases/: all in names
 
 
 def write_report(out: Path, results: list[CaseResult], quick: bool) -> None:

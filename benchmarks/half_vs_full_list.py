@@ -1,0 +1,119 @@
+"""Half list vs full list, measured (issue 5): python benchmarks/half_vs_full_list.py MODEL THREADS [DUMP]
+
+The engine keeps a half list: each contact is computed once, its force and j-torque are kept per pair,
+and a second pass gathers them onto the second partner (conflict-free, no atomics). The alternative is
+a full list with one writer per particle: every contact is computed from both sides (twice the contact
+work, each side with its own copy of the history), in one pass, with no gather. This builds the full
+list and its history from the engine's half list on the same state (the 20,000-sphere collapse, 200
+steps after the cylinder is lifted; the LIGGGHTS-settled state if DUMP is given), checks that both
+give the same forces to round-off, and prints: half ms, full ms, full/half, best of 7 x 20 force passes
+(walls and gravity included in both)."""
+import time, sys, numpy as np, numba
+from numba import njit, prange
+from rollingdem import bench
+rolling = sys.argv[1] if len(sys.argv) > 1 else "epsd"
+nthreads = int(sys.argv[2]) if len(sys.argv) > 2 else 1
+numba.set_num_threads(nthreads)
+if len(sys.argv) > 3:
+    sim = bench.column_from_dump(sys.argv[3], rolling=rolling)
+else:
+    sim = bench.settled_column(20000, rolling=rolling)
+sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
+sim.run(200*sim.dt)
+st = sim._state
+K = sim.kernel()
+a = st.kernel_args(sim.dt, np.asarray(sim.gravity), sim.skin, sim.pair_parameters())
+(dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
+ wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, cell_start, cell_items,
+ cell_of, counts, x_ref, skin, energy, contacts, info) = a
+n = x.shape[0]
+nent = nl_start[n]
+owner = np.repeat(np.arange(n), np.diff(nl_start[:n+1]))
+# full list: row i = its half row, then the entries where it is the second partner
+fl_start = np.zeros(n + 1, np.int64)
+rows_j, rows_h = [], []
+for i in range(n):
+    ks = np.arange(nl_start[i], nl_start[i+1])
+    ms = tr_k[tr_start[i]:tr_start[i+1]]
+    rows_j.append(np.concatenate([nl_j[ks], owner[ms]]))
+    hh = np.concatenate([hist[ks], -hist[ms]])  # j's view: normal and springs flip
+    rows_h.append(hh)
+    fl_start[i+1] = fl_start[i] + len(ks) + len(ms)
+fl_j = np.concatenate(rows_j).astype(nl_j.dtype)
+fhist = np.ascontiguousarray(np.concatenate(rows_h))
+ftouch = (np.abs(fhist[:, :3]).sum(1) > 0).astype(touch.dtype)
+contact = K.contact
+IRF = K.INERTIA_R_FACTOR
+
+@njit(inline="always")
+def full_row(i, dt, x, v, w, f, t, radius, mass, mat, pp, fl_start, fl_j, hist, touch, contacts):
+    fx = fy = fz = tx = ty = tz = 0.0
+    nc = 0
+    ri = radius[i]; mi = mass[i]
+    for k in range(fl_start[i], fl_start[i + 1]):
+        j = fl_j[k]
+        dx = x[i, 0] - x[j, 0]; dy = x[i, 1] - x[j, 1]; dz = x[i, 2] - x[j, 2]
+        rj = radius[j]
+        d2 = dx * dx + dy * dy + dz * dz
+        reach = ri + rj
+        if d2 >= reach * reach:
+            if touch[k]:
+                touch[k] = 0
+                for s in range(hist.shape[1]):
+                    hist[k, s] = 0.0
+            continue
+        touch[k] = 1
+        dist = np.sqrt(d2); overlap = reach - dist; inv = 1.0 / dist
+        nx = dx * inv; ny = dy * inv; nz = dz * inv
+        mj = mass[j]
+        ai = mi * ri * ri; aj = mj * rj * rj
+        res = contact(hist, k, nx, ny, nz, overlap, v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+                      w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
+                      ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, mi * mj / (mi + mj),
+                      IRF * ai * aj / (ai + aj), pp[mat[i], mat[j]], dt)
+        fx += res[0]; fy += res[1]; fz += res[2]
+        tx += res[3]; ty += res[4]; tz += res[5]
+        nc += 1
+    f[i, 0] = fx; f[i, 1] = fy; f[i, 2] = fz
+    t[i, 0] = tx; t[i, 1] = ty; t[i, 2] = tz
+    contacts[i] = nc
+
+@njit(parallel=True, error_model="numpy", fastmath={"contract"})
+def full_par(dt, x, v, w, f, t, radius, mass, mat, pp, fl_start, fl_j, hist, touch, contacts):
+    for i in prange(x.shape[0]):
+        full_row(i, dt, x, v, w, f, t, radius, mass, mat, pp, fl_start, fl_j, hist, touch, contacts)
+
+@njit(parallel=True, error_model="numpy", fastmath={"contract"})
+def full_ser(dt, x, v, w, f, t, radius, mass, mat, pp, fl_start, fl_j, hist, touch, contacts):
+    for i in range(x.shape[0]):
+        full_row(i, dt, x, v, w, f, t, radius, mass, mat, pp, fl_start, fl_j, hist, touch, contacts)
+
+ser = nthreads == 1
+empty_tr = np.zeros_like(tr_start)
+h0 = hist.copy(); fh0 = fhist.copy(); t0 = touch.copy(); ft0 = ftouch.copy()
+def half():
+    (K.pair_forces_serial if ser else K.pair_forces)(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j, hist, touch,
+                                                     pair_force, pair_torque_j, energy, contacts)
+    (K.gather_serial if ser else K.gather)(0.0 * dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
+        touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+        contacts, x_ref, 0.5 * skin)
+def full():
+    (full_ser if ser else full_par)(dt, x, v, w, f, t, radius, mass, mat, pp, fl_start, fl_j, fhist, ftouch, contacts)
+    (K.gather_serial if ser else K.gather)(0.0 * dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, empty_tr, tr_k,
+        touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+        contacts, x_ref, 0.5 * skin)
+# check: forces agree
+hist[...] = h0; touch[...] = t0; half(); fa = f.copy(); ta = t.copy()
+fhist[...] = fh0; ftouch[...] = ft0; full(); fb = f.copy(); tb = t.copy()
+print("entries half", nent, "full", fl_start[n], "max |dF|/max|F|", np.abs(fa - fb).max() / np.abs(fa).max(),
+      "max |dT|/max|T|", np.abs(ta - tb).max() / np.abs(ta).max(), file=sys.stderr)
+res = {"half": [], "full": []}
+for rep in range(7):
+    for name, fn in (("half", half), ("full", full)):
+        hist[...] = h0; touch[...] = t0; fhist[...] = fh0; ftouch[...] = ft0
+        tic = time.perf_counter()
+        for _ in range(20):
+            fn()
+        res[name].append((time.perf_counter() - tic) / 20)
+h = min(res["half"]) * 1e3; fu = min(res["full"]) * 1e3
+print(f"{h:.3f} {fu:.3f} {fu/h:.3f}")

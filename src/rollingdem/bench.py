@@ -160,7 +160,15 @@ def _contacts_per_particle(sim) -> tuple[float, float]:
 
 
 def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
-    """Seconds per step of each phase, each timed on its own on the present state."""
+    """Seconds per step of each phase, each timed on its own on the present state (with the
+    engine's schedule of the parallel loops)."""
+    from .engine import parallel_chunks
+
+    with parallel_chunks():
+        return _split_timed(sim, repeats, rebuilds, steps)
+
+
+def _split_timed(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     from .neighbors import rebuild_neighbor_list
 
     st = sim._state
@@ -201,7 +209,7 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
 
     gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)
     gather_plain = gather_with(wall_kind[:0], wall_geom[:0], wall_vel[:0], wall_omega[:0], wall_mat[:0])
-    kick = timed(lambda: kick_drift(0.0, x, v, w, f, t, mass, inertia))
+    kick = timed(lambda: kick_drift(0.0, x, v, w, f, t, mass, inertia, x_ref, 0.5 * skin))
     split["walls"] = max(gather_walls - gather_plain, 0.0)
     split["integration and gathering"] = gather_plain + kick
     rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k,

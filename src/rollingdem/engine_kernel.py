@@ -7,12 +7,20 @@ stands it is a valid module with the Hertz / history / no rolling / no twisting 
 
 Per step (velocity Verlet, forces at half-step velocities as in LIGGGHTS and LAMMPS):
 
-1. rebuild the neighbor list if any particle may move past skin/2 during the step;
-2. v += dt/2 F/m, omega += dt/2 T/I, x += dt v; walls move with their velocity;
+1. v += dt/2 F/m, omega += dt/2 T/I, x += dt v; walls move with their velocity;
+2. rebuild the neighbor list if any particle has moved skin/2 or more since the last build (the
+   test LAMMPS makes after its drift);
 3. pair contacts (one thread per row of the half list): force and torque on i summed per row,
    force and torque on j stored with the pair;
 4. per particle: gather the pair terms where it is the second partner, wall contacts, gravity;
    v += dt/2 F/m, omega += dt/2 T/I.
+
+Inside a chunk of steps, 4 and the next step's 1 are one pass over the particles (the closing half
+kick and the next opening half kick and drift use the same F, so the arithmetic is that of two
+passes, bit for bit): one pass and one parallel region fewer per step. The last step of a chunk
+stops after 4, so between chunks positions and velocities are at the same time, as observers and
+checkpoints want. ``info[I_DRIFTED]`` says that a chunk stopped between 1 and 3 (only when the
+list arrays must grow): the next call goes on from 2.
 
 Nothing here allocates or calls Python. ``contact`` is compiled without Numba's reference
 counting (``_nrt=False``): it takes arrays but never allocates, and a counted call costs atomic
@@ -61,6 +69,7 @@ I_REBUILDS = 3
 I_NEED_REBUILD = 4
 I_FORCES_VALID = 5
 I_TOO_FAST = 6
+I_DRIFTED = 7
 
 STATUS_CAPACITY = 1
 STATUS_TOO_FAST = 2
@@ -315,9 +324,11 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
                touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
                wtouch, energy, contacts, x_ref, half_skin):
     """Particle i: pair terms where it is the second partner, walls, gravity; then the closing half
-    kick (if ``kick`` is 1.0; a float, so one compiled version serves both). Returns (1 if i may
-    cross skin/2 during the next step, 1 if it would even from a fresh list: the skin is too small
-    for its speed)."""
+    kick if ``kick`` is 1.0 or more and, if it is 2.0, the next step's opening half kick and drift
+    (a float, so one compiled version serves all; one argument, as a call of more than 30 is one
+    that Numba cannot inline). Returns (1 if i drifted to skin/2 or more from
+    where the list was built, 1 if its next drift would move it skin/2 or more: the skin is too small
+    for its speed; it is then not drifted)."""
     fx = f[i, 0]
     fy = f[i, 1]
     fz = f[i, 2]
@@ -355,7 +366,7 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
     t[i, 0] = tx
     t[i, 1] = ty
     t[i, 2] = tz
-    if kick != 0.0:
+    if kick >= 1.0:
         a = 0.5 * dt / mi
         b = 0.5 * dt / inertia[i]
         v[i, 0] += a * fx
@@ -364,14 +375,26 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
         w[i, 0] += b * tx
         w[i, 1] += b * ty
         w[i, 2] += b * tz
-    # may particle i cross skin/2 during the next step?  |x - x_ref| + dt (|v| + dt/2 |F|/m)
-    ex = x[i, 0] - x_ref[i, 0]
-    ey = x[i, 1] - x_ref[i, 1]
-    ez = x[i, 2] - x_ref[i, 2]
+    # the next drift, dt |v + dt/2 F/m| <= dt (|v| + dt/2 |F|/m): more than skin/2?
     step_move = dt * (math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
                       + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / mi)
-    exceed = 0 if math.sqrt(ex * ex + ey * ey + ez * ez) + step_move < half_skin else 1  # NaN: 1
-    fast = 0 if step_move < half_skin else 1
+    exceed = 0
+    fast = 0 if step_move < half_skin else 1  # NaN: 1
+    if kick == 2.0 and fast == 0:  # the next step's opening half kick and drift (kick_drift_one)
+        a = 0.5 * dt / mi
+        b = 0.5 * dt / inertia[i]
+        v[i, 0] += a * fx
+        v[i, 1] += a * fy
+        v[i, 2] += a * fz
+        w[i, 0] += b * tx
+        w[i, 1] += b * ty
+        w[i, 2] += b * tz
+        for d in range(3):
+            x[i, d] += dt * v[i, d]
+        ex = x[i, 0] - x_ref[i, 0]
+        ey = x[i, 1] - x_ref[i, 1]
+        ez = x[i, 2] - x_ref[i, 2]
+        exceed = 0 if ex * ex + ey * ey + ez * ez < half_skin * half_skin else 1
     return exceed, fast
 
 
@@ -408,26 +431,62 @@ def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
 
 
 @njit(cache=True, inline="always")
-def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia):
+def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
+    """Opening half kick and drift of particle i; 1 if it is now skin/2 or more from where the list
+    was built (NaN: 1)."""
     a = 0.5 * dt / mass[i]
     b = 0.5 * dt / inertia[i]
     for d in range(3):
         v[i, d] += a * f[i, d]
         w[i, d] += b * t[i, d]
         x[i, d] += dt * v[i, d]
+    ex = x[i, 0] - x_ref[i, 0]
+    ey = x[i, 1] - x_ref[i, 1]
+    ez = x[i, 2] - x_ref[i, 2]
+    return 0 if ex * ex + ey * ey + ez * ez < half_skin * half_skin else 1
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def kick_drift(dt, x, v, w, f, t, mass, inertia):
-    """Opening half kick and drift of velocity Verlet."""
+def kick_drift(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
+    """Opening half kick and drift of velocity Verlet; the count of particles now skin/2 or more
+    from where the list was built."""
+    nexceed = 0
     for i in prange(x.shape[0]):
-        kick_drift_one(i, dt, x, v, w, f, t, mass, inertia)
+        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
+    return nexceed
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def kick_drift_serial(dt, x, v, w, f, t, mass, inertia):
+def kick_drift_serial(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
+    nexceed = 0
     for i in range(x.shape[0]):
-        kick_drift_one(i, dt, x, v, w, f, t, mass, inertia)
+        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
+    return nexceed
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
+def undo_drift(dt, x, v, w, f, t, mass, inertia, half_skin):
+    """Take back the opening half kick and drift that ``gather_one`` made, to round-off, in the
+    particles it made them in (all but those it found too fast, by the same test on the velocity
+    before the kick). Only when a chunk stops because a particle is too fast, so that the state
+    it leaves is at one time."""
+    for i in range(x.shape[0]):
+        a = 0.5 * dt / mass[i]
+        vx = v[i, 0] - a * f[i, 0]
+        vy = v[i, 1] - a * f[i, 1]
+        vz = v[i, 2] - a * f[i, 2]
+        step_move = dt * (math.sqrt(vx * vx + vy * vy + vz * vz)
+                          + 0.5 * dt * math.sqrt(f[i, 0] ** 2 + f[i, 1] ** 2 + f[i, 2] ** 2) / mass[i])
+        if not step_move < half_skin:
+            continue
+        b = 0.5 * dt / inertia[i]
+        for d in range(3):
+            x[i, d] -= dt * v[i, d]
+        v[i, 0] = vx
+        v[i, 1] = vy
+        v[i, 2] = vz
+        for d in range(3):
+            w[i, d] -= b * t[i, d]
 
 
 @njit(cache=True)
@@ -478,31 +537,49 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
+        info[I_DRIFTED] = 0
         if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
                         cell_items, cell_of, counts, x_ref, info):
             return
         _forces(dt, 0.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
                 wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
                 pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
+        info[I_NEED_REBUILD] = 0
         info[I_FORCES_VALID] = 1
     for step in range(nsteps):
-        if info[I_TOO_FAST] > 0:
-            # even a list built now would not hold for this step: refuse rather than miss contacts
-            info[I_STATUS] = STATUS_TOO_FAST
-            return
+        if info[I_DRIFTED] == 0:
+            if info[I_TOO_FAST] > 0:
+                # even a list built now would not hold for this step: refuse rather than miss contacts
+                info[I_STATUS] = STATUS_TOO_FAST
+                return
+            if serial:
+                exceed = kick_drift_serial(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
+            else:
+                exceed = kick_drift(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
+            info[I_NEED_REBUILD] += exceed
+            for wl in range(wall_kind.shape[0]):
+                for d in range(3):
+                    wall_geom[wl, d] += dt * wall_vel[wl, d]
+            info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
             if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
                             cell_items, cell_of, counts, x_ref, info):
-                return
-        if serial:
-            kick_drift_serial(dt, x, v, w, f, t, mass, inertia)
-        else:
-            kick_drift(dt, x, v, w, f, t, mass, inertia)
-        for wl in range(wall_kind.shape[0]):
-            for d in range(3):
-                wall_geom[wl, d] += dt * wall_vel[wl, d]
-        _forces(dt, 1.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
+                return  # drifted: the call after the arrays grow goes on from here
+            info[I_NEED_REBUILD] = 0
+        drift = step + 1 < nsteps
+        kick = 2.0 if drift else 1.0
+        _forces(dt, kick, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
                 wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
                 pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info)
         info[I_STEPS_DONE] = step + 1
-
+        info[I_DRIFTED] = 0
+        if drift:
+            if info[I_TOO_FAST] > 0:
+                undo_drift(dt, x, v, w, f, t, mass, inertia, half_skin)
+                info[I_STATUS] = STATUS_TOO_FAST
+                return
+            # the next step's drift is made: its walls move with it
+            for wl in range(wall_kind.shape[0]):
+                for d in range(3):
+                    wall_geom[wl, d] += dt * wall_vel[wl, d]
+            info[I_DRIFTED] = 1

@@ -84,7 +84,7 @@ def _compile(contact_dict: dict, track_energy: bool = False) -> None:
                    st.tr_start, st.tr_k, st.touch, st.pair_force, st.pair_torque_j, st.wall_kind, st.wall_geom,
                    st.wall_vel, st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy, st.contacts, st.x_ref,
                    half_skin),
-        "kick_drift": (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia),
+        "kick_drift": (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia, st.x_ref, half_skin),
         "pair_forces": (dt, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.mat, pp, st.nl_start, st.nl_j,
                         st.hist, st.touch, st.pair_force, st.pair_torque_j, st.energy, st.contacts),
     }

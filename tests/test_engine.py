@@ -334,3 +334,29 @@ def test_contact_flags_follow_the_history_across_rebuilds(table1):
         np.testing.assert_array_equal(st.touch[:total].astype(bool), in_contact)
         checked += int(in_contact.sum())
     assert checked > 100
+
+
+def test_list_growth_in_mid_step_changes_nothing(table1):
+    """The list arrays grow when a rebuild finds them too small; that rebuild comes after the step's
+    drift, so the kernel stops mid-step and the call after the growth goes on from there, without
+    drifting again. A loose cube of spheres squeezed inwards outgrows its list during the run; it must
+    end bit-identical to the same run started with room to spare."""
+    def run(capacity):
+        sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=2e-6, gravity=(0, 0, 0))
+        sim.add_material(table1())
+        g = np.arange(6) * 2.5 * R  # beyond the cutoff 2 R + skin: the list starts empty
+        x = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+        sim.add_particles(x, R, "m", velocity=-40.0 * (x - x.mean(0)))  # a cube squeezed inwards
+        sim.run(steps=1)
+        st = sim._state
+        st.grow(capacity or st.list_size)  # the list after the first step, kept, in arrays this big
+        first = st.capacity
+        sim.run(steps=5000)
+        return sim, first, st.capacity
+
+    small, first, grown = run(None)
+    roomy, roomy_first, roomy_last = run(100_000)
+    assert grown > first and roomy_last == roomy_first
+    assert np.array_equal(small.positions, roomy.positions)
+    assert np.array_equal(small.velocities, roomy.velocities)
+    assert np.array_equal(small.angular_velocities, roomy.angular_velocities)

@@ -131,6 +131,28 @@ def test_unstable_run_stops_with_clear_error_and_keeps_outputs(tmp_path):
     assert len(pd.read_csv(tmp_path / "s.csv")) >= 1
 
 
+def test_too_fast_mid_chunk_leaves_a_state_at_one_time():
+    """A sphere in free fall outruns the skin in the middle of one run call (one kernel chunk).
+    The step loop drifts the next step in the same pass as it closes the last one, so the stop must
+    take that drift back: positions and velocities are left at the last whole step. Velocity Verlet
+    is exact for a constant force, so z = z0 - g t^2/2 and v = -g t there, to round-off (1e-12 m
+    and 1e-12 m/s over 10^3 steps: the undo adds one rounding per component)."""
+    g, dt, skin = 9.81, 2e-5, 1e-5
+    sim = rd.Simulation(dt=dt, skin=skin)
+    sim.add_material(material())
+    z0 = 10.0
+    sim.add_particles([[0, 0, z0]], R, "m")
+    # the stop comes once dt (|v| + dt g / 2) >= skin/2, i.e. after about skin / (2 g dt^2) steps
+    expected = math.ceil((0.5 * skin / dt - 0.5 * dt * g) / (g * dt))
+    with pytest.raises(rd.SimulationError, match="half the neighbor skin"):
+        sim.run(steps=2 * expected)
+    steps = sim.step
+    assert abs(steps - expected) <= 1
+    t = steps * dt
+    assert sim.positions[0, 2] == pytest.approx(z0 - 0.5 * g * t * t, abs=1e-12)
+    assert sim.velocities[0, 2] == pytest.approx(-g * t, abs=1e-12)
+
+
 CASE = """
 name: t
 dt: 1.0e-5

@@ -328,7 +328,7 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
     (a float, so one compiled version serves all; one argument, as a call of more than 30 is one
     that Numba cannot inline). Returns (1 if i drifted to skin/2 or more from
     where the list was built, 1 if its next drift would move it skin/2 or more: the skin is too small
-    for its speed; it is then not drifted)."""
+    for its speed)."""
     fx = f[i, 0]
     fy = f[i, 1]
     fz = f[i, 2]
@@ -380,7 +380,9 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
                       + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / mi)
     exceed = 0
     fast = 0 if step_move < half_skin else 1  # NaN: 1
-    if kick == 2.0 and fast == 0:  # the next step's opening half kick and drift (kick_drift_one)
+    # the next step's opening half kick and drift (kick_drift_one), also when i is too fast (the
+    # chunk then stops and undo_drift takes them back), but not when i is not finite
+    if kick == 2.0 and step_move - step_move == 0.0:
         a = 0.5 * dt / mi
         b = 0.5 * dt / inertia[i]
         v[i, 0] += a * fx
@@ -465,11 +467,11 @@ def kick_drift_serial(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def undo_drift(dt, x, v, w, f, t, mass, inertia, half_skin):
+def undo_drift(dt, x, v, w, f, t, mass, inertia):
     """Take back the opening half kick and drift that ``gather_one`` made, to round-off, in the
-    particles it made them in (all but those it found too fast, by the same test on the velocity
-    before the kick). Only when a chunk stops because a particle is too fast, so that the state
-    it leaves is at one time."""
+    particles it made them in: all whose state is finite (the same test, on the velocity before
+    the kick). Only when a chunk stops because a particle is too fast, so that the state it leaves
+    is at one time."""
     for i in range(x.shape[0]):
         a = 0.5 * dt / mass[i]
         vx = v[i, 0] - a * f[i, 0]
@@ -477,7 +479,7 @@ def undo_drift(dt, x, v, w, f, t, mass, inertia, half_skin):
         vz = v[i, 2] - a * f[i, 2]
         step_move = dt * (math.sqrt(vx * vx + vy * vy + vz * vz)
                           + 0.5 * dt * math.sqrt(f[i, 0] ** 2 + f[i, 1] ** 2 + f[i, 2] ** 2) / mass[i])
-        if not step_move < half_skin:
+        if step_move - step_move != 0.0:  # inf or NaN: not drifted
             continue
         b = 0.5 * dt / inertia[i]
         for d in range(3):
@@ -575,7 +577,7 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
         info[I_DRIFTED] = 0
         if drift:
             if info[I_TOO_FAST] > 0:
-                undo_drift(dt, x, v, w, f, t, mass, inertia, half_skin)
+                undo_drift(dt, x, v, w, f, t, mass, inertia)
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
             # the next step's drift is made: its walls move with it

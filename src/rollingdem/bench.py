@@ -160,15 +160,7 @@ def _contacts_per_particle(sim) -> tuple[float, float]:
 
 
 def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
-    """Seconds per step of each phase, each timed on its own on the present state (with the
-    engine's schedule of the parallel loops)."""
-    from .engine import parallel_chunks
-
-    with parallel_chunks():
-        return _split_timed(sim, repeats, rebuilds, steps)
-
-
-def _split_timed(sim, repeats: int, rebuilds: int, steps: int) -> dict:
+    """Seconds per step of each phase, each timed on its own on the present state."""
     from .neighbors import rebuild_neighbor_list
 
     st = sim._state

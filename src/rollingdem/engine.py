@@ -12,8 +12,6 @@ user knows; the public arrays are returned in that order.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 import numpy as np
 
 from .walls import GEOMETRY_SIZE
@@ -30,26 +28,7 @@ LIST_MARGIN = 1.15
 # unequal work), hence the threshold.
 SORT_ABOVE = 50_000  # particles
 SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
-# The parallel loops hand out particles to threads in chunks of this many, as threads come free
-# (OpenMP's dynamic schedule), not in one equal block per thread: the work per particle varies (a
-# row in contact costs ~20x one that is not), and with equal blocks the faster thread waited at
-# each loop's end, long enough to fall asleep (see GOMP_SPINCOUNT in __init__). Measured on the
-# 20,000-sphere collapse, 2 threads: 1.13-1.15x (chunks of 64 to 1024 alike). Results do not
-# change: each particle is computed whole by one thread, in a fixed order.
-PARALLEL_CHUNK = 256
 ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")
-
-
-@contextmanager
-def parallel_chunks(chunk: int = PARALLEL_CHUNK):
-    """Parallel loops launched from this thread hand out ``chunk`` particles at a time."""
-    import numba
-
-    previous = numba.set_parallel_chunksize(chunk)
-    try:
-        yield
-    finally:
-        numba.set_parallel_chunksize(previous)
 
 
 class EngineState:
@@ -257,16 +236,15 @@ class EngineState:
             self.sort(2.0 * float(self.radius.max()) + skin)
         remaining = nsteps
         serial = self.serial()
-        with parallel_chunks():
-            while remaining > 0:
-                kernel.advance(remaining, serial, *self.kernel_args(dt, gravity, skin, pair_params))
-                done = int(self.info[I_STEPS_DONE])
-                remaining -= done
-                self.steps_since_sort += done
-                if self.info[I_STATUS] == STATUS_CAPACITY:
-                    self.grow(int(self.info[I_NEEDED]))
-                elif self.info[I_STATUS] == STATUS_TOO_FAST:
-                    return nsteps - remaining, self._too_fast_message(dt, skin)
+        while remaining > 0:
+            kernel.advance(remaining, serial, *self.kernel_args(dt, gravity, skin, pair_params))
+            done = int(self.info[I_STEPS_DONE])
+            remaining -= done
+            self.steps_since_sort += done
+            if self.info[I_STATUS] == STATUS_CAPACITY:
+                self.grow(int(self.info[I_NEEDED]))
+            elif self.info[I_STATUS] == STATUS_TOO_FAST:
+                return nsteps - remaining, self._too_fast_message(dt, skin)
         return nsteps, None
 
     def serial(self) -> bool:

@@ -111,3 +111,40 @@ def test_repose_trend_checks_use_the_measured_points():
     assert not all(c.passed for c in sweep_checks(table(falling), (0.2, 0.6), "rrlinear")[0])
     empty = {k: math.nan for k in rising}
     assert not any(c.passed for c in sweep_checks(table(empty), (0.2, 0.6), "rrlinear")[0])
+
+
+def test_repose_sweep_runs_creeping_piles_again_longer(tmp_path, monkeypatch):
+    """A pile still creeping at max_collapse is run again to RETRY_COLLAPSE times it, and its
+    angle enters the table; a pile without rolling resistance (it never settles) is not; a rerun
+    on the same folder runs nothing. Stand-in piles: one at mu_r settles after 1 + 3 mu_r s, so
+    mu_r = 1 needs 4 s (> 3.5 s, the full sweep's limit; < 7 s)."""
+    from types import SimpleNamespace
+
+    from rollingdem.cases import repose
+
+    calls = []
+
+    def fake_pile(rolling, twisting, rolling_friction, max_collapse, seed, **kw):
+        calls.append((rolling_friction, seed, max_collapse))
+        settle = 1.0 + 3.0 * rolling_friction if rolling_friction > 0 else math.inf
+        if settle > max_collapse:
+            return SimpleNamespace(angle=None, settled_at=math.nan,
+                                   angle_error=f"the pile did not settle within {max_collapse} s")
+        return SimpleNamespace(angle=SimpleNamespace(angle=10.0 + 20.0 * rolling_friction + 0.1 * seed,
+                                                     slice_std=0.5, r_squared=0.95),
+                               settled_at=settle, angle_error="")
+
+    monkeypatch.setattr(repose, "pile_run", fake_pile)
+    args = dict(frictions=(0.2, 0.6), rolling_frictions=(0.0, 0.5, 1.0), seeds=(1, 2), count=1000,
+                outdir=tmp_path)
+    result = repose.repose_sweep(**args)
+    assert len(calls) == 12 + 4  # the grid, then mu_r = 1 at both mu and both seeds, to 7 s
+    assert sorted(c for c in calls if c[2] == 7.0) == [(1.0, 1, 7.0), (1.0, 1, 7.0), (1.0, 2, 7.0), (1.0, 2, 7.0)]
+    table = result.table.set_index(["mu", "mu_r"])
+    assert table.loc[(0.6, 1.0), "measured"] == 2
+    assert table.loc[(0.6, 1.0), "angle mean (deg)"] == pytest.approx(30.15)
+    assert table.loc[(0.2, 0.0), "measured"] == 0
+    assert any("run again to 7 s" in n for n in result.notes)
+    calls.clear()
+    repose.repose_sweep(**args)
+    assert calls == []

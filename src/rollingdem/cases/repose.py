@@ -133,6 +133,7 @@ def pile_run(rolling="epsd", twisting="none", count=3000, friction=TABLE1["frict
 
 QUICK_PILE, FULL_PILE = 1000, 10000  # spheres in case 3
 QUICK_SWEEP, FULL_SWEEP = 2000, 10000  # spheres per run of the PFC study
+RETRY_COLLAPSE = 2.0  # a sweep pile not settled by max_collapse runs again to this many times it
 SWEEP_LIFT_SPEED = 0.2  # m/s, the tube in the PFC study
 SWEEP_YOUNGS_MODULUS = 5e6  # Pa: softer than Table 1, for a 2.5x larger time step (see repose_sweep)
 SWEEP_DT = 2.5e-5  # s
@@ -296,7 +297,20 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
     # the runs table of rollingdem.sweep: rerunning the case with the same outdir skips finished runs
     where = Path(outdir) / "repose-sweep-runs" if outdir is not None else Path(tempfile.mkdtemp(prefix="repose-"))
     swept = run_sweep(spec, where, mapper=runner, progress=False, summary=False, on_run=progress)
-    raw = swept.table.rename(columns={"mur": "mu_r", "angle": "angle (deg)", "slice_std": "slice sd (deg)",
+    table, retried = swept.table, 0
+    # A pile still creeping at max_collapse (high mu and mu_r creep longest) is run again from its
+    # start to RETRY_COLLAPSE times that: the same trajectory, continued (a pile that settled stops
+    # there, so a longer limit would change no other run). Without rolling resistance the spheres
+    # roll away over the plate and never settle: those are not run again.
+    creeping = table[table["angle"].isna() & (table["mur"] > 0)
+                     & table["note"].fillna("").str.contains("did not settle")]
+    for (mu, mur), grp in creeping.groupby(["mu", "mur"]):
+        again = SweepSpec(case=spec.case, grid={"mu": [mu], "mur": [mur]}, seeds=sorted(int(x) for x in grp["seed"]),
+                          fixed=dict(spec.fixed, max_collapse=RETRY_COLLAPSE * max_collapse))
+        redone = run_sweep(again, where, mapper=runner, progress=False, summary=False, on_run=progress).table
+        table = pd.concat([table.drop(grp.index), redone], ignore_index=True)
+        retried += len(grp)
+    raw = table.rename(columns={"mur": "mu_r", "angle": "angle (deg)", "slice_std": "slice sd (deg)",
                                       "r_squared": "cone fit R²", "settled_at": "settled at (s)",
                                       "wall_time_s": "wall time (s)"})
     raw = raw[["mu", "mu_r", "seed", "angle (deg)", "slice sd (deg)", "cone fit R²", "settled at (s)",
@@ -316,6 +330,9 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
              "spheres does not depend on their stiffness while overlaps stay small (here below 1 % of d at rest), "
              "and the softer spheres allow a 2.5x larger time step. One row per run: repose_sweep_runs.csv; the sweep "
              "table repose-sweep-runs/runs.csv lets a rerun on the same folder skip the piles already done."]
+    if retried:
+        notes.append(f"{retried} pile(s) with rolling resistance had not settled after {max_collapse:g} s of collapse "
+                     f"and were run again to {RETRY_COLLAPSE * max_collapse:g} s (see 'settled at').")
     if quick:
         notes.append(f"Quick: mu = 0.4 and 0.8 instead of the PFC's 0.2 and 0.6 and mu_r = 0.2 and 0.8, two seeds, "
                      f"so no plateau check. A pile of {count} spheres at mu = 0.2 or mu_r < 0.1 spreads to under four "

@@ -330,6 +330,11 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
              "spheres does not depend on their stiffness while overlaps stay small (here below 1 % of d at rest), "
              "and the softer spheres allow a 2.5x larger time step. One row per run: repose_sweep_runs.csv; the sweep "
              "table repose-sweep-runs/runs.csv lets a rerun on the same folder skip the piles already done."]
+    compute = float(np.nansum(raw["wall time (s)"]))
+    if compute > 0:
+        notes.append(f"The {len(raw)} piles of the table took {compute / 3600:.2f} h of compute (the sum of their "
+                     "wall times); the case's wall time is that of this invocation, which skips the piles "
+                     "already in the table.")
     if retried:
         notes.append(f"{retried} pile(s) with rolling resistance had not settled after {max_collapse:g} s of collapse "
                      f"and were run again to {RETRY_COLLAPSE * max_collapse:g} s (see 'settled at').")

@@ -375,29 +375,20 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
         w[i, 0] += b * tx
         w[i, 1] += b * ty
         w[i, 2] += b * tz
-    # the next drift, dt |v + dt/2 F/m| <= dt (|v| + dt/2 |F|/m): more than skin/2?
-    step_move = dt * (math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
-                      + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / mi)
+    step_move = next_drift_bound(dt, v[i, 0], v[i, 1], v[i, 2], fx, fy, fz, mi)
     exceed = 0
     fast = 0 if step_move < half_skin else 1  # NaN: 1
-    # the next step's opening half kick and drift (kick_drift_one), also when i is too fast (the
-    # chunk then stops and undo_drift takes them back), but not when i is not finite
+    # the next step's opening half kick and drift, also when i is too fast (the chunk then stops
+    # and undo_drift takes them back), but not when i is not finite
     if kick == 2.0 and step_move - step_move == 0.0:
-        a = 0.5 * dt / mi
-        b = 0.5 * dt / inertia[i]
-        v[i, 0] += a * fx
-        v[i, 1] += a * fy
-        v[i, 2] += a * fz
-        w[i, 0] += b * tx
-        w[i, 1] += b * ty
-        w[i, 2] += b * tz
-        for d in range(3):
-            x[i, d] += dt * v[i, d]
-        ex = x[i, 0] - x_ref[i, 0]
-        ey = x[i, 1] - x_ref[i, 1]
-        ez = x[i, 2] - x_ref[i, 2]
-        exceed = 0 if ex * ex + ey * ey + ez * ez < half_skin * half_skin else 1
+        exceed = kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
     return exceed, fast
+
+
+@njit(cache=True, inline="always")
+def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
+    """dt (|v| + dt/2 |F|/m) >= dt |v + dt/2 F/m|, the length of the next drift."""
+    return dt * (math.sqrt(vx * vx + vy * vy + vz * vz) + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / m)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
@@ -469,26 +460,31 @@ def kick_drift_serial(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def undo_drift(dt, x, v, w, f, t, mass, inertia):
     """Take back the opening half kick and drift that ``gather_one`` made, to round-off, in the
-    particles it made them in: all whose state is finite (the same test, on the velocity before
-    the kick). Only when a chunk stops because a particle is too fast, so that the state it leaves
-    is at one time."""
+    particles it made them in: all whose state is finite (the test of ``next_drift_bound``, on the
+    velocity before the kick). Only when a chunk stops because a particle is too fast, so that the
+    state it leaves is at one time."""
     for i in range(x.shape[0]):
         a = 0.5 * dt / mass[i]
         vx = v[i, 0] - a * f[i, 0]
         vy = v[i, 1] - a * f[i, 1]
         vz = v[i, 2] - a * f[i, 2]
-        step_move = dt * (math.sqrt(vx * vx + vy * vy + vz * vz)
-                          + 0.5 * dt * math.sqrt(f[i, 0] ** 2 + f[i, 1] ** 2 + f[i, 2] ** 2) / mass[i])
+        step_move = next_drift_bound(dt, vx, vy, vz, f[i, 0], f[i, 1], f[i, 2], mass[i])
         if step_move - step_move != 0.0:  # inf or NaN: not drifted
             continue
         b = 0.5 * dt / inertia[i]
         for d in range(3):
             x[i, d] -= dt * v[i, d]
+            w[i, d] -= b * t[i, d]
         v[i, 0] = vx
         v[i, 1] = vy
         v[i, 2] = vz
+
+
+@njit(cache=True, inline="always")
+def move_walls(dt, wall_geom, wall_vel):
+    for wl in range(wall_geom.shape[0]):
         for d in range(3):
-            w[i, d] -= b * t[i, d]
+            wall_geom[wl, d] += dt * wall_vel[wl, d]
 
 
 @njit(cache=True)
@@ -559,9 +555,7 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
             else:
                 exceed = kick_drift(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
             info[I_NEED_REBUILD] += exceed
-            for wl in range(wall_kind.shape[0]):
-                for d in range(3):
-                    wall_geom[wl, d] += dt * wall_vel[wl, d]
+            move_walls(dt, wall_geom, wall_vel)
             info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
             if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
@@ -580,8 +574,5 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
                 undo_drift(dt, x, v, w, f, t, mass, inertia)
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
-            # the next step's drift is made: its walls move with it
-            for wl in range(wall_kind.shape[0]):
-                for d in range(3):
-                    wall_geom[wl, d] += dt * wall_vel[wl, d]
+            move_walls(dt, wall_geom, wall_vel)  # with the next step's drift, made in the gather
             info[I_DRIFTED] = 1

@@ -302,8 +302,7 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
     # start to RETRY_COLLAPSE times that: the same trajectory, continued (a pile that settled stops
     # there, so a longer limit would change no other run). Without rolling resistance the spheres
     # roll away over the plate and never settle: those are not run again.
-    creeping = table[table["angle"].isna() & (table["mur"] > 0)
-                     & table["note"].fillna("").str.contains("did not settle")]
+    creeping = table[(table["status"] == "ok") & table["settled_at"].isna() & (table["mur"] > 0)]
     for (mu, mur), grp in creeping.groupby(["mu", "mur"]):
         again = SweepSpec(case=spec.case, grid={"mu": [mu], "mur": [mur]}, seeds=sorted(int(x) for x in grp["seed"]),
                           fixed=dict(spec.fixed, max_collapse=RETRY_COLLAPSE * max_collapse))

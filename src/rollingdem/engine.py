@@ -217,12 +217,28 @@ class EngineState:
         self.steps_since_sort = 0
 
     # --- running -------------------------------------------------------------------------------
+    def contact_blocks(self):
+        """The per-thread block buffers of the pair pass (``engine_kernel.pair_rows``): (threads, columns
+        x CONTACT_BLOCK) floats and (threads, 3, CONTACT_BLOCK) lane indices, about 30 KB per thread;
+        made again when the number of Numba threads changes. Scratch space, never part of the state."""
+        import numba
+
+        from .engine_kernel import CONTACT_BLOCK, N_INPUTS, N_RESULTS
+
+        threads = numba.get_num_threads()
+        columns = self.history_size + N_INPUTS + 2 * N_RESULTS
+        if getattr(self, "_blocks", None) is None or self._blocks.shape != (threads, columns * CONTACT_BLOCK):
+            self._blocks = np.zeros((threads, columns * CONTACT_BLOCK))
+            self._lanes = np.zeros((threads, 3, CONTACT_BLOCK), dtype=np.int64)
+        return self._blocks, self._lanes
+
     def kernel_args(self, dt, gravity, skin, pair_params):
         return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
                 self.ids, pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
                 self.whist, self.wtouch, self.nl_start, self.nl_j, self.hist, self.touch, self.pair_force, self.pair_torque_j,
                 self.tr_start, self.tr_k, self.cell_start, self.cell_items,
-                self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info)
+                self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info,
+                *self.contact_blocks())
 
     def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
         """Advance up to ``nsteps`` steps (growing the list arrays as often as needed).

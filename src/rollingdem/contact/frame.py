@@ -31,29 +31,50 @@ TANGENT_TOLERANCE2 = 1e-24
 
 
 @njit(cache=True, inline="always")
+def series_cos_sin(phi):
+    """(cos phi, sin phi) by their Taylor series to phi^4 and phi^5, for |phi| < ``SERIES_ANGLE``:
+    the first omitted terms (phi^6/720, phi^7/5040) are below 2e-21 relative, so exact to round-off."""
+    p2 = phi * phi
+    return (1.0 - 0.5 * p2 * (1.0 - p2 / 12.0), phi * (1.0 - p2 / 6.0 * (1.0 - 0.05 * p2)))
+
+
+@njit(cache=True, inline="always")
 def cos_sin(phi):
-    """(cos phi, sin phi); for |phi| < 1e-3 rad by their Taylor series to phi^4 and phi^5, whose
-    first omitted terms (phi^6/720, phi^7/5040) are below 2e-21 relative: exact to round-off, and
-    no libm call for the tiny spin angle of a contact in one time step."""
+    """(cos phi, sin phi): ``series_cos_sin`` below ``SERIES_ANGLE`` (no libm call for the tiny spin
+    angle of a contact in one time step), libm above."""
     if abs(phi) < SERIES_ANGLE:
-        p2 = phi * phi
-        return (1.0 - 0.5 * p2 * (1.0 - p2 / 12.0), phi * (1.0 - p2 / 6.0 * (1.0 - 0.05 * p2)))
+        return series_cos_sin(phi)
     return math.cos(phi), math.sin(phi)
+
+
+@njit(cache=True, inline="always")
+def _frame_axis(onx, ony, onz, nx, ny, nz):
+    """(a = n_old x n, c = n_old . n); a flip of the normal (c <= -1/2) is not a rotation to
+    follow: a = 0, c = 1 (step 1 is then the identity and step 3 projects). Selects, no branches."""
+    flip = onx * nx + ony * ny + onz * nz <= -0.5
+    ax = 0.0 if flip else ony * nz - onz * ny
+    ay = 0.0 if flip else onz * nx - onx * nz
+    az = 0.0 if flip else onx * ny - ony * nx
+    c = 1.0 if flip else onx * nx + ony * ny + onz * nz
+    return ax, ay, az, c
 
 
 @njit(cache=True, inline="always")
 def contact_frame(onx, ony, onz, nx, ny, nz, spin_angle):
     """The step's frame change, shared by every history vector of the contact: (n, a = n_old x n,
-    c = n_old . n, 1/(1+c), cos phi, sin phi). A flip of the normal (c <= -1/2) is not a rotation
-    to follow: a = 0, c = 1 (step 1 is then the identity and step 3 projects)."""
-    ax = ony * nz - onz * ny
-    ay = onz * nx - onx * nz
-    az = onx * ny - ony * nx
-    c = onx * nx + ony * ny + onz * nz
-    if c <= -0.5:
-        ax = ay = az = 0.0
-        c = 1.0
+    c = n_old . n, 1/(1+c), cos phi, sin phi); see ``_frame_axis`` for a flipped normal."""
+    ax, ay, az, c = _frame_axis(onx, ony, onz, nx, ny, nz)
     cs, sn = cos_sin(spin_angle)
+    return nx, ny, nz, ax, ay, az, c, 1.0 / (1.0 + c), cs, sn
+
+
+@njit(cache=True, inline="always")
+def contact_frame_series(onx, ony, onz, nx, ny, nz, spin_angle):
+    """``contact_frame`` for |spin_angle| < ``SERIES_ANGLE`` only, without a branch or a call, so
+    that a loop over many contacts can be vectorised (the caller sends larger angles to
+    ``contact_frame``)."""
+    ax, ay, az, c = _frame_axis(onx, ony, onz, nx, ny, nz)
+    cs, sn = series_cos_sin(spin_angle)
     return nx, ny, nz, ax, ay, az, c, 1.0 / (1.0 + c), cs, sn
 
 

@@ -86,7 +86,8 @@ def _compile(contact_dict: dict, track_energy: bool = False) -> None:
                    half_skin),
         "kick_drift": (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia, st.x_ref, half_skin),
         "pair_forces": (dt, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.mat, pp, st.nl_start, st.nl_j,
-                        st.hist, st.touch, st.pair_force, st.pair_torque_j, st.energy, st.contacts),
+                        st.hist, st.touch, st.pair_force, st.pair_torque_j, st.energy, st.contacts,
+                        *st.contact_blocks()),
     }
     for name in HELPER_FUNCTIONS:
         if not is_cached(kernel, name):

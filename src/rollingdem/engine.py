@@ -220,15 +220,18 @@ class EngineState:
     def contact_blocks(self):
         """The per-thread block buffers of the pair pass (``engine_kernel.pair_rows``): (threads, columns
         x CONTACT_BLOCK) floats and (threads, 3, CONTACT_BLOCK) lane indices, about 30 KB per thread;
-        made again when the number of Numba threads changes. Scratch space, never part of the state."""
+        made again when the number of Numba threads changes. Scratch space, never part of the state.
+        Empty (0 columns) when the spheres are not all of one material: the pair pass then computes
+        one contact at a time."""
         import numba
 
         from .engine_kernel import CONTACT_BLOCK, N_INPUTS, N_RESULTS
 
         threads = numba.get_num_threads()
-        columns = self.history_size + N_INPUTS + 2 * N_RESULTS
-        if getattr(self, "_blocks", None) is None or self._blocks.shape != (threads, columns * CONTACT_BLOCK):
-            self._blocks = np.zeros((threads, columns * CONTACT_BLOCK))
+        one_material = self.n == 0 or bool((self.mat[:self.n] == self.mat[0]).all())
+        width = (self.history_size + N_INPUTS + 2 * N_RESULTS) * CONTACT_BLOCK if one_material else 0
+        if getattr(self, "_blocks", None) is None or self._blocks.shape != (threads, width):
+            self._blocks = np.zeros((threads, width))
             self._lanes = np.zeros((threads, 3, CONTACT_BLOCK), dtype=np.int64)
         return self._blocks, self._lanes
 

@@ -219,12 +219,11 @@ def block_contacts(block, p, dt):
 
 
 @njit(cache=True, inline="always")
-def flush_block(count, pair, nmat, block, lanes, dt, f, t, pair_params, hist, pair_force, pair_torque_j, energy,
-                contacts):
-    """Compute a block of ``count`` contacts (all of material pair ``pair``) and scatter the results:
+def flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts):
+    """Compute a block of ``count`` contacts (material pair parameters ``p``) and scatter the results:
     history rows back, F and T_j kept per entry, F and T added to row i in the order of its entries
     (the order the scalar loop summed them in)."""
-    block_contacts(block, pair_params[pair // nmat, pair % nmat], dt)
+    block_contacts(block, p, dt)
     nslot = hist.shape[1]
     for n in range(count):
         k = lanes[0, n]
@@ -255,21 +254,102 @@ def flush_block(count, pair, nmat, block, lanes, dt, f, t, pair_params, hist, pa
 
 
 @njit(cache=True, inline="always")
+def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+             pair_torque_j, energy, contacts):
+    """Row i of the half list, one contact at a time through the scalar ``contact`` (spheres of more
+    than one material, see ``pair_rows``)."""
+    fx = fy = fz = 0.0
+    tx = ty = tz = 0.0
+    en = et = er = etw = 0.0
+    ncontact = 0
+    ri = radius[i]
+    mi = mass[i]
+    for k in range(nl_start[i], nl_start[i + 1]):
+        j = nl_j[k]
+        dx = x[i, 0] - x[j, 0]
+        dy = x[i, 1] - x[j, 1]
+        dz = x[i, 2] - x[j, 2]
+        rj = radius[j]
+        d2 = dx * dx + dy * dy + dz * dz
+        reach = ri + rj
+        if d2 >= reach * reach:
+            if touch[k]:
+                touch[k] = 0
+                for s in range(hist.shape[1]):
+                    hist[k, s] = 0.0
+            continue
+        touch[k] = 1
+        dist = math.sqrt(d2)
+        overlap = reach - dist
+        inv_dist = 1.0 / dist
+        nx = dx * inv_dist
+        ny = dy * inv_dist
+        nz = dz * inv_dist
+        mj = mass[j]
+        r_eff = ri * rj / reach
+        m_eff = mi * mj / (mi + mj)
+        ai = mi * ri * ri
+        aj = mj * rj * rj
+        inertia_r = INERTIA_R_FACTOR * ai * aj / (ai + aj)
+        res = contact(hist, k, nx, ny, nz, overlap, v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+                      w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
+                      ri - 0.5 * overlap, rj - 0.5 * overlap, r_eff, m_eff, inertia_r,
+                      pair_params[mat[i], mat[j]], dt)
+        fx += res[0]
+        fy += res[1]
+        fz += res[2]
+        tx += res[3]
+        ty += res[4]
+        tz += res[5]
+        pair_force[k, 0] = res[0]
+        pair_force[k, 1] = res[1]
+        pair_force[k, 2] = res[2]
+        pair_torque_j[k, 0] = res[6]
+        pair_torque_j[k, 1] = res[7]
+        pair_torque_j[k, 2] = res[8]
+        en += res[9]
+        et += res[10]
+        er += res[11]
+        etw += res[12]
+        ncontact += 1
+    f[i, 0] = fx
+    f[i, 1] = fy
+    f[i, 2] = fz
+    t[i, 0] = tx
+    t[i, 1] = ty
+    t[i, 2] = tz
+    if TRACK_ENERGY:
+        energy[i, 0] += en
+        energy[i, 1] += et
+        energy[i, 2] += er
+        energy[i, 3] += etw
+    contacts[i] = ncontact
+
+
+@njit(cache=True, inline="always")
 def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
               pair_torque_j, energy, contacts, block, lanes):
     """Rows lo..hi-1 of the half list: F and T on i summed over the row, F and T_j kept per pair.
 
     The distance tests run here; the contacts found are queued into ``block`` (their inputs and a
-    copy of their history rows) and computed ``CONTACT_BLOCK`` at a time by ``block_contacts``. A
+    copy of their history rows) and computed ``CONTACT_BLOCK`` at a time by ``block_contacts``.
+    A block's lanes share one parameter vector, so this is for spheres of one material (walls may
+    have others). With an empty ``block`` (the engine gives one when the spheres' materials differ)
+    the rows go through ``pair_row`` instead: a block per run of contacts of one material pair
+    would cost a whole block's computation per run, 15 scalar contacts for a block of one. A
     contact whose spin angle in the step is ``SERIES_ANGLE`` or more (|omega| dt >= 1e-3: rare) is
     computed at once by the scalar ``contact``, which has libm's cos and sin, and keeps its lane.
     ``touch[k]`` says whether entry k is in contact this step; the pair terms of an entry out of
     contact are left stale (the gather skips them), so a neighbor out of reach costs a distance
     test and a one-byte flag, not a history row and two force rows."""
-    nmat = pair_params.shape[0]
+    if block.shape[0] == 0:
+        for i in range(lo, hi):
+            pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                     pair_torque_j, energy, contacts)
+        return
     nslot = hist.shape[1]
+    p = pair_params[mat[lo], mat[lo]] if hi > lo else pair_params[0, 0]
     count = 0
-    pair = -1
     for i in range(lo, hi):
         for d in range(3):
             f[i, d] = 0.0
@@ -292,12 +372,9 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
                         hist[k, s] = 0.0
                 continue
             touch[k] = 1
-            here = mat[i] * nmat + mat[j]
-            if count == CONTACT_BLOCK or (count > 0 and here != pair):
-                flush_block(count, pair, nmat, block, lanes, dt, f, t, pair_params, hist, pair_force, pair_torque_j,
-                            energy, contacts)
+            if count == CONTACT_BLOCK:
+                flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts)
                 count = 0
-            pair = here
             n = count
             count += 1
             dist = math.sqrt(d2)
@@ -339,7 +416,7 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
             if lanes[2, n]:
                 res = contact(hist, k, inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5], inputs[6],
                               inputs[7], inputs[8], inputs[9], inputs[10], inputs[11], inputs[12], inputs[13],
-                              inputs[14], inputs[15], inputs[16], inputs[17], pair_params[mat[i], mat[j]], dt)
+                              inputs[14], inputs[15], inputs[16], inputs[17], p, dt)
                 block[(B_SCALAR + 0) * CONTACT_BLOCK + n] = res[0]
                 block[(B_SCALAR + 1) * CONTACT_BLOCK + n] = res[1]
                 block[(B_SCALAR + 2) * CONTACT_BLOCK + n] = res[2]
@@ -354,8 +431,7 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
                 block[(B_SCALAR + 11) * CONTACT_BLOCK + n] = res[11]
                 block[(B_SCALAR + 12) * CONTACT_BLOCK + n] = res[12]
     if count > 0:
-        flush_block(count, pair, nmat, block, lanes, dt, f, t, pair_params, hist, pair_force, pair_torque_j, energy,
-                    contacts)
+        flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})

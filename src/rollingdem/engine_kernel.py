@@ -10,8 +10,10 @@ Per step (velocity Verlet, forces at half-step velocities as in LIGGGHTS and LAM
 1. v += dt/2 F/m, omega += dt/2 T/I, x += dt v; walls move with their velocity;
 2. rebuild the neighbor list if any particle has moved skin/2 or more since the last build (the
    test LAMMPS makes after its drift);
-3. pair contacts (one thread per row of the half list): force and torque on i summed per row,
-   force and torque on j stored with the pair;
+3. pair contacts (each thread a contiguous range of rows of the half list): force and torque on
+   i summed per row, force and torque on j stored with the pair. The distance tests find the
+   contacts, which are queued and computed 64 at a time, one per SIMD lane (``pair_rows``,
+   ``block_contacts``); with spheres of several materials, one at a time (``pair_row``);
 4. per particle: gather the pair terms where it is the second partner, wall contacts, gravity;
    v += dt/2 F/m, omega += dt/2 T/I.
 
@@ -26,9 +28,10 @@ Nothing here allocates or calls Python. ``contact`` is compiled without Numba's 
 counting (``_nrt=False``): it takes arrays but never allocates, and a counted call costs atomic
 increments and decrements of every array argument per contact (+18 % speed on a dense bed). The
 sub-model kernels are inlined into ``contact`` (``inline="always"``), and the per-particle bodies
-(``pair_row``, ``gather_one`` with ``wall_contacts``, ``kick_drift_one``) into a parallel and a
-serial driver each; inlining ``contact`` itself into the pair loop is 8 % faster but costs 9 s
-more compile time per kernel.
+(``pair_rows``, ``gather_one`` with ``wall_contacts``, ``kick_drift_one``) into a parallel and a
+serial driver each; inlining ``contact`` itself into the scalar pair loop is 3-8 % faster but
+costs 9-19 s more compile time per kernel. ``block_contacts`` is one function of its own (its
+vector loop compiles in about 4 s).
 
 ``TRACK_ENERGY`` (0 or 1, a compile-time constant of the generated copy) says whether the energies
 dissipated per contact are summed: with 0 their arithmetic is dead code and the compiler drops it

@@ -221,7 +221,7 @@ def block_contacts(block, p, dt):
         block[(B_OUT + 12) * CONTACT_BLOCK + n] = res[12]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts):
     """Compute a block of ``count`` contacts (material pair parameters ``p``) and scatter the results:
     history rows back, F and T_j kept per entry, F and T added to row i in the order of its entries
@@ -329,7 +329,7 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
     contacts[i] = ncontact
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
               pair_torque_j, energy, contacts, block, lanes):
     """Rows lo..hi-1 of the half list: F and T on i summed over the row, F and T_j kept per pair.

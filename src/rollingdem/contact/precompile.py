@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-HELPER_FUNCTIONS = ("gather", "kick_drift", "pair_forces")  # the ones the step loop types last
+HELPER_FUNCTIONS = ("block_contacts", "gather", "kick_drift", "pair_forces")  # the step loop types them last
 LOCK_STALE_S = 600.0
 
 
@@ -80,6 +80,7 @@ def _compile(contact_dict: dict, track_energy: bool = False) -> None:
     dt, kick, half_skin = 1e-6, 1.0, 1e-3
     pp = sim.pair_parameters()
     args = {
+        "block_contacts": (st.contact_blocks()[0][0], pp[0, 0], dt),
         "gather": (dt, kick, sim._gravity, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.inertia, st.mat, pp,
                    st.tr_start, st.tr_k, st.touch, st.pair_force, st.pair_torque_j, st.wall_kind, st.wall_geom,
                    st.wall_vel, st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy, st.contacts, st.x_ref,

@@ -256,6 +256,42 @@ def flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_
         contacts[i] += 1
 
 
+NO_INPUTS = (0.0,) * 18
+
+
+@njit(cache=True, inline="always")
+def entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch):
+    """Entry k (row i) of the half list: (whether the spheres touch, j, the 18 inputs of ``contact``
+    after ``hist`` and k). An entry that stops touching has its flag and history cleared."""
+    j = nl_j[k]
+    dx = x[i, 0] - x[j, 0]
+    dy = x[i, 1] - x[j, 1]
+    dz = x[i, 2] - x[j, 2]
+    ri = radius[i]
+    rj = radius[j]
+    d2 = dx * dx + dy * dy + dz * dz
+    reach = ri + rj
+    if d2 >= reach * reach:
+        if touch[k]:
+            touch[k] = 0
+            for s in range(hist.shape[1]):
+                hist[k, s] = 0.0
+        return False, j, NO_INPUTS
+    touch[k] = 1
+    dist = math.sqrt(d2)
+    overlap = reach - dist
+    inv_dist = 1.0 / dist
+    mi = mass[i]
+    mj = mass[j]
+    ai = mi * ri * ri
+    aj = mj * rj * rj
+    return True, j, (dx * inv_dist, dy * inv_dist, dz * inv_dist, overlap,
+                     v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+                     w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
+                     ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, mi * mj / (mi + mj),
+                     INERTIA_R_FACTOR * ai * aj / (ai + aj))
+
+
 @njit(cache=True, inline="always")
 def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
              pair_torque_j, energy, contacts):
@@ -265,39 +301,12 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
     tx = ty = tz = 0.0
     en = et = er = etw = 0.0
     ncontact = 0
-    ri = radius[i]
-    mi = mass[i]
     for k in range(nl_start[i], nl_start[i + 1]):
-        j = nl_j[k]
-        dx = x[i, 0] - x[j, 0]
-        dy = x[i, 1] - x[j, 1]
-        dz = x[i, 2] - x[j, 2]
-        rj = radius[j]
-        d2 = dx * dx + dy * dy + dz * dz
-        reach = ri + rj
-        if d2 >= reach * reach:
-            if touch[k]:
-                touch[k] = 0
-                for s in range(hist.shape[1]):
-                    hist[k, s] = 0.0
+        touching, j, g = entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch)
+        if not touching:
             continue
-        touch[k] = 1
-        dist = math.sqrt(d2)
-        overlap = reach - dist
-        inv_dist = 1.0 / dist
-        nx = dx * inv_dist
-        ny = dy * inv_dist
-        nz = dz * inv_dist
-        mj = mass[j]
-        r_eff = ri * rj / reach
-        m_eff = mi * mj / (mi + mj)
-        ai = mi * ri * ri
-        aj = mj * rj * rj
-        inertia_r = INERTIA_R_FACTOR * ai * aj / (ai + aj)
-        res = contact(hist, k, nx, ny, nz, overlap, v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
-                      w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
-                      ri - 0.5 * overlap, rj - 0.5 * overlap, r_eff, m_eff, inertia_r,
-                      pair_params[mat[i], mat[j]], dt)
+        res = contact(hist, k, g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], g[8], g[9], g[10], g[11], g[12],
+                      g[13], g[14], g[15], g[16], g[17], pair_params[mat[i], mat[j]], dt)
         fx += res[0]
         fy += res[1]
         fz += res[2]
@@ -358,39 +367,15 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
             f[i, d] = 0.0
             t[i, d] = 0.0
         contacts[i] = 0
-        ri = radius[i]
-        mi = mass[i]
         for k in range(nl_start[i], nl_start[i + 1]):
-            j = nl_j[k]
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
-            rj = radius[j]
-            d2 = dx * dx + dy * dy + dz * dz
-            reach = ri + rj
-            if d2 >= reach * reach:
-                if touch[k]:
-                    touch[k] = 0
-                    for s in range(nslot):
-                        hist[k, s] = 0.0
+            touching, j, inputs = entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch)
+            if not touching:
                 continue
-            touch[k] = 1
             if count == CONTACT_BLOCK:
                 flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts)
                 count = 0
             n = count
             count += 1
-            dist = math.sqrt(d2)
-            overlap = reach - dist
-            inv_dist = 1.0 / dist
-            mj = mass[j]
-            ai = mi * ri * ri
-            aj = mj * rj * rj
-            inputs = (dx * inv_dist, dy * inv_dist, dz * inv_dist, overlap,
-                      v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
-                      w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
-                      ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, mi * mj / (mi + mj),
-                      INERTIA_R_FACTOR * ai * aj / (ai + aj))
             block[(B_IN + 0) * CONTACT_BLOCK + n] = inputs[0]
             block[(B_IN + 1) * CONTACT_BLOCK + n] = inputs[1]
             block[(B_IN + 2) * CONTACT_BLOCK + n] = inputs[2]

@@ -36,6 +36,7 @@ class EngineState:
 
     def __init__(self, history_size: int):
         self.history_size = history_size
+        self._blocks = self._lanes = None  # scratch of the pair pass, see contact_blocks
         n = 0
         self.x = np.zeros((n, 3))
         self.v = np.zeros((n, 3))
@@ -230,7 +231,7 @@ class EngineState:
         threads = numba.get_num_threads()
         one_material = self.n == 0 or bool((self.mat[:self.n] == self.mat[0]).all())
         width = (self.history_size + N_INPUTS + 2 * N_RESULTS) * CONTACT_BLOCK if one_material else 0
-        if getattr(self, "_blocks", None) is None or self._blocks.shape != (threads, width):
+        if self._blocks is None or self._blocks.shape != (threads, width):
             self._blocks = np.zeros((threads, width))
             self._lanes = np.zeros((threads, 3, CONTACT_BLOCK), dtype=np.int64)
         return self._blocks, self._lanes

@@ -43,34 +43,18 @@ fl_j = np.concatenate(rows_j).astype(nl_j.dtype)
 fhist = np.ascontiguousarray(np.concatenate(rows_h))
 ftouch = (np.abs(fhist[:, :3]).sum(1) > 0).astype(touch.dtype)
 contact = K.contact
-IRF = K.INERTIA_R_FACTOR
+entry_inputs = K.entry_inputs  # the engine's distance test and contact inputs
 
 @njit(inline="always")
 def full_row(i, dt, x, v, w, f, t, radius, mass, mat, pp, fl_start, fl_j, hist, touch, contacts):
     fx = fy = fz = tx = ty = tz = 0.0
     nc = 0
-    ri = radius[i]; mi = mass[i]
     for k in range(fl_start[i], fl_start[i + 1]):
-        j = fl_j[k]
-        dx = x[i, 0] - x[j, 0]; dy = x[i, 1] - x[j, 1]; dz = x[i, 2] - x[j, 2]
-        rj = radius[j]
-        d2 = dx * dx + dy * dy + dz * dz
-        reach = ri + rj
-        if d2 >= reach * reach:
-            if touch[k]:
-                touch[k] = 0
-                for s in range(hist.shape[1]):
-                    hist[k, s] = 0.0
+        touching, j, g = entry_inputs(i, k, x, v, w, radius, mass, fl_j, hist, touch)
+        if not touching:
             continue
-        touch[k] = 1
-        dist = np.sqrt(d2); overlap = reach - dist; inv = 1.0 / dist
-        nx = dx * inv; ny = dy * inv; nz = dz * inv
-        mj = mass[j]
-        ai = mi * ri * ri; aj = mj * rj * rj
-        res = contact(hist, k, nx, ny, nz, overlap, v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
-                      w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
-                      ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, mi * mj / (mi + mj),
-                      IRF * ai * aj / (ai + aj), pp[mat[i], mat[j]], dt)
+        res = contact(hist, k, g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], g[8], g[9], g[10], g[11], g[12],
+                      g[13], g[14], g[15], g[16], g[17], pp[mat[i], mat[j]], dt)
         fx += res[0]; fy += res[1]; fz += res[2]
         tx += res[3]; ty += res[4]; tz += res[5]
         nc += 1

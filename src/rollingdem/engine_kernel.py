@@ -104,6 +104,23 @@ warnings.filterwarnings("ignore", message="(?s).*parallel=True.*no transformatio
 INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
 
 
+@njit(cache=True, inline="always")
+def stored_normal(hist, k, nx, ny, nz):
+    """The contact normal of the last step, kept in ``hist[k, 0:3]``; n itself for a new contact
+    (nothing stored yet). Selects, no branch."""
+    onx = hist[k, 0]
+    ony = hist[k, 1]
+    onz = hist[k, 2]
+    fresh = onx == 0.0 and ony == 0.0 and onz == 0.0
+    return (nx if fresh else onx), (ny if fresh else ony), (nz if fresh else onz)
+
+
+@njit(cache=True, inline="always")
+def spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt):
+    """phi = 1/2 (omega_i + omega_j) . n dt: the pair's rigid spin about n in the step."""
+    return 0.5 * ((wix + wjx) * nx + (wiy + wjy) * ny + (wiz + wjz) * nz) * dt
+
+
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j,
             r_eff, m_eff, inertia_r, p, dt):
@@ -113,12 +130,13 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
     onx = hist[k, 0]
     ony = hist[k, 1]
     onz = hist[k, 2]
+    # ``stored_normal`` with a branch: its selects give the same values, but move the compiler's
+    # fused multiply-adds, and the scalar path would change at round-off
     if onx == 0.0 and ony == 0.0 and onz == 0.0:
         onx = nx
         ony = ny
         onz = nz
-    spin_angle = 0.5 * ((wix + wjx) * nx + (wiy + wjy) * ny + (wiz + wjz) * nz) * dt
-    frame = contact_frame(onx, ony, onz, nx, ny, nz, spin_angle)
+    frame = contact_frame(onx, ony, onz, nx, ny, nz, spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt))
     return contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz,
                             lever_i, lever_j, r_eff, m_eff, inertia_r, p, dt)
 
@@ -127,16 +145,10 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
 def contact_series(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j,
             r_eff, m_eff, inertia_r, p, dt):
     """``contact`` for a spin angle below ``SERIES_ANGLE``, with selects instead of branches, so that
-    ``block_contacts`` vectorises (the stored normal is read as in ``contact``)."""
-    onx = hist[k, 0]
-    ony = hist[k, 1]
-    onz = hist[k, 2]
-    fresh = onx == 0.0 and ony == 0.0 and onz == 0.0
-    onx = nx if fresh else onx
-    ony = ny if fresh else ony
-    onz = nz if fresh else onz
-    spin_angle = 0.5 * ((wix + wjx) * nx + (wiy + wjy) * ny + (wiz + wjz) * nz) * dt
-    frame = contact_frame_series(onx, ony, onz, nx, ny, nz, spin_angle)
+    ``block_contacts`` vectorises."""
+    onx, ony, onz = stored_normal(hist, k, nx, ny, nz)
+    frame = contact_frame_series(onx, ony, onz, nx, ny, nz,
+                                 spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt))
     return contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz,
                             lever_i, lever_j, r_eff, m_eff, inertia_r, p, dt)
 
@@ -399,9 +411,9 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
                 block[s * CONTACT_BLOCK + n] = hist[k, s]
             lanes[0, n] = k
             lanes[1, n] = i
-            spin_angle = 0.5 * ((inputs[7] + inputs[10]) * inputs[0] + (inputs[8] + inputs[11]) * inputs[1]
-                                + (inputs[9] + inputs[12]) * inputs[2]) * dt
-            lanes[2, n] = 0 if abs(spin_angle) < SERIES_ANGLE else 1
+            phi = spin_angle(inputs[0], inputs[1], inputs[2], inputs[7], inputs[8], inputs[9], inputs[10],
+                             inputs[11], inputs[12], dt)
+            lanes[2, n] = 0 if abs(phi) < SERIES_ANGLE else 1
             if lanes[2, n]:
                 res = contact(hist, k, inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5], inputs[6],
                               inputs[7], inputs[8], inputs[9], inputs[10], inputs[11], inputs[12], inputs[13],

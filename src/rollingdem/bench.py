@@ -213,16 +213,20 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     return split
 
 
-def compile_time(contact) -> float:
+def compile_time(contact, spheres: int = 2) -> float:
     """Seconds to compile (cold cache) or load (warm cache) the kernel of ``contact`` in this
-    process: one step of two touching spheres on a plate (both paths of the step compile at once)."""
+    process, for the step loop a scene of ``spheres`` spheres takes (``advance_serial`` below
+    ``SERIAL_BELOW`` spheres or on one thread, ``advance`` on threads otherwise): one step of the
+    spheres on a plate, two of them stacked (a pair contact and a wall contact)."""
     from . import Material, Plane, Simulation
 
     tic = time.perf_counter()
     sim = Simulation(contact=contact, dt=DT, skin=SKIN)
     sim.add_material(Material("table1", **TABLE1))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1"))
-    sim.add_particles([[0, 0, RADIUS], [0, 0, 3 * RADIUS]], RADIUS, "table1")
+    row = np.arange(max(spheres - 2, 0)) + 1  # apart from the stack and each other, on the plate
+    rest = np.column_stack([3 * RADIUS * (row % 64), 3 * RADIUS * (row // 64), np.full(len(row), RADIUS)])
+    sim.add_particles(np.vstack([[[0, 0, RADIUS], [0, 0, 3 * RADIUS]], rest]), RADIUS, "table1")
     sim.run(steps=1)
     return time.perf_counter() - tic
 
@@ -257,7 +261,7 @@ def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, 
     from . import ContactModel
 
     threads = threads or numba.get_num_threads()
-    compile_s = compile_time(ContactModel("hertz", rolling="epsd"))
+    compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
     sim = column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo)
     sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
     wall, rebuilds = _time_run(sim, steps)
@@ -299,7 +303,7 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     sims, compiles = {}, {}
     for model in models:
         spec = specs.get(model, model)
-        compiles[model] = compile_time(ContactModel("hertz", rolling=spec))
+        compiles[model] = compile_time(ContactModel("hertz", rolling=spec), particles)
         sim = _column_from_state(spec, base.positions, base.radii, base.velocities, base.angular_velocities)
         sim.run(steps=1, progress=False)
         sims[model] = sim
@@ -354,7 +358,7 @@ def slab(particles=20000, steps=1000, threads=None, echo=print) -> BenchResult:
     from . import ContactModel
 
     threads = threads or numba.get_num_threads()
-    compile_s = compile_time(ContactModel("hertz", rolling="epsd"))
+    compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
     x, v = slab_state(particles)
     sim = _column_simulation("epsd")
     sim.add_particles(x, RADIUS, "table1", velocity=v)

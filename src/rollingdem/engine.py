@@ -255,9 +255,9 @@ class EngineState:
         if self.n >= SORT_ABOVE and self.steps_since_sort >= SORT_EVERY:
             self.sort(2.0 * float(self.radius.max()) + skin)
         remaining = nsteps
-        serial = self.serial()
+        step_loop = self.step_loop(kernel)
         while remaining > 0:
-            kernel.advance(remaining, serial, *self.kernel_args(dt, gravity, skin, pair_params))
+            step_loop(remaining, *self.kernel_args(dt, gravity, skin, pair_params))
             done = int(self.info[I_STEPS_DONE])
             remaining -= done
             self.steps_since_sort += done
@@ -274,6 +274,10 @@ class EngineState:
         from .engine_kernel import SERIAL_BELOW
 
         return self.n < SERIAL_BELOW or numba.get_num_threads() == 1
+
+    def step_loop(self, kernel):
+        """The kernel's step loop for this scene: ``advance_serial`` or ``advance`` (threads)."""
+        return kernel.advance_serial if self.serial() else kernel.advance
 
     def _too_fast_message(self, dt, skin):
         bad = ~(np.isfinite(self.f).all(axis=1) & np.isfinite(self.t).all(axis=1))
@@ -308,7 +312,7 @@ class EngineState:
         saved = (self.hist[:total].copy(), self.whist.copy(), self.energy.copy())
         while True:
             self.info[I_FORCES_VALID] = 0
-            kernel.advance(0, self.serial(), *self.kernel_args(dt, gravity, skin, pair_params))
+            self.step_loop(kernel)(0, *self.kernel_args(dt, gravity, skin, pair_params))
             if self.info[I_STATUS] != STATUS_CAPACITY:
                 break
             self.grow(int(self.info[I_NEEDED]))

@@ -27,11 +27,16 @@ list arrays must grow): the next call goes on from 2.
 Nothing here allocates or calls Python. ``contact`` is compiled without Numba's reference
 counting (``_nrt=False``): it takes arrays but never allocates, and a counted call costs atomic
 increments and decrements of every array argument per contact (+18 % speed on a dense bed). The
-sub-model kernels are inlined into ``contact`` (``inline="always"``), and the per-particle bodies
-(``pair_rows``, ``gather_one`` with ``wall_contacts``, ``kick_drift_one``) into a parallel and a
-serial driver each; inlining ``contact`` itself into the scalar pair loop is 3-8 % faster but
-costs 9-19 s more compile time per kernel. ``block_contacts`` is one function of its own (its
-vector loop compiles in about 4 s).
+sub-model kernels are inlined into ``contact`` and into ``block_contacts`` (``inline="always"``).
+The per-particle bodies are functions of their own (``pair_rows``, ``gather_rows``), each called
+by a parallel driver and a serial one, and there are two step loops, ``advance`` (threads) and
+``advance_serial`` (the generator writes it from ``advance``): a run compiles only the loop and
+the drivers it takes. What costs compile time in Numba: each function compiled on its own emits
+the machine code of all it calls once more, and each level of ``inline="always"`` copies the
+inlined body again (the pair pass and the gather are called from the loop directly, and
+``block_contacts`` calls ``contact_in_frame`` directly, for that reason). A cold kernel compiles
+on two processes (``rollingdem.contact.precompile``); inlining ``contact`` itself into the
+scalar pair loop is 3-8 % faster but costs 9-19 s more compile time per kernel.
 
 ``TRACK_ENERGY`` (0 or 1, a compile-time constant of the generated copy) says whether the energies
 dissipated per contact are summed: with 0 their arithmetic is dead code and the compiler drops it
@@ -45,6 +50,7 @@ change at round-off only; no reassociation, and NaN and inf keep their meaning).
 import math
 import warnings
 
+import numpy as np
 from numba import njit, prange
 from numba.np.arrayobj import reshape_unchecked
 from numba.core.errors import NumbaPerformanceWarning
@@ -99,6 +105,7 @@ WALL_CYLINDER = 1
 # and Numba's parallel pipeline makes them 2-4x faster than a plain njit of the same code
 # (measured on the 20,000-sphere collapse).
 SERIAL_BELOW = 512
+GATHER_RUN = 256  # particles per call of gather_rows: the call is negligible, the threads stay balanced
 warnings.filterwarnings("ignore", message="(?s).*parallel=True.*no transformation for parallel execution",
                         category=NumbaPerformanceWarning)
 INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
@@ -137,18 +144,6 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
         ony = ny
         onz = nz
     frame = contact_frame(onx, ony, onz, nx, ny, nz, spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt))
-    return contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz,
-                            lever_i, lever_j, r_eff, m_eff, inertia_r, p, dt)
-
-
-@njit(cache=True, inline="always")
-def contact_series(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j,
-            r_eff, m_eff, inertia_r, p, dt):
-    """``contact`` for a spin angle below ``SERIES_ANGLE``, with selects instead of branches, so that
-    ``block_contacts`` vectorises."""
-    onx, ony, onz = stored_normal(hist, k, nx, ny, nz)
-    frame = contact_frame_series(onx, ony, onz, nx, ny, nz,
-                                 spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt))
     return contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz,
                             lever_i, lever_j, r_eff, m_eff, inertia_r, p, dt)
 
@@ -199,7 +194,9 @@ def contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wi
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def block_contacts(block, p, dt):
-    """All ``CONTACT_BLOCK`` lanes of a block buffer through ``contact_series``, one contact per lane.
+    """All ``CONTACT_BLOCK`` lanes of a block buffer through the contact law, one contact per lane:
+    ``contact`` for a spin angle below ``SERIES_ANGLE``, with selects instead of branches and the
+    frame's cos and sin from their series (no libm call), so that the loop vectorises.
 
     Every access is to ``block`` at offsets known when compiling (its history columns are viewed as
     ``hist[lane, slot]`` with constant strides), so LLVM can prove the lanes independent without
@@ -207,18 +204,29 @@ def block_contacts(block, p, dt):
     53-75 ns for the scalar ``contact``, see docs/performance.md). Lanes past the block's count hold
     stale inputs: they are computed (NaN results included) and ignored, and ``pair_rows`` writes a
     lane's inputs and history anew before it is used again. So every contact goes through the same
-    vector code whatever block it falls in, and results do not depend on the number of threads."""
+    vector code whatever block it falls in, and results do not depend on the number of threads.
+    ``contact_in_frame`` is called here, not through a helper of its own: each level of Numba's
+    inlining copies the whole inlined body again (2 s of compile per level)."""
     hist = reshape_unchecked(block, (CONTACT_BLOCK, BLOCK_COLUMNS), (8, 8 * CONTACT_BLOCK))
     for n in range(CONTACT_BLOCK):
-        res = contact_series(hist, n, block[(B_IN + 0) * CONTACT_BLOCK + n], block[(B_IN + 1) * CONTACT_BLOCK + n],
-                             block[(B_IN + 2) * CONTACT_BLOCK + n], block[(B_IN + 3) * CONTACT_BLOCK + n],
-                             block[(B_IN + 4) * CONTACT_BLOCK + n], block[(B_IN + 5) * CONTACT_BLOCK + n],
-                             block[(B_IN + 6) * CONTACT_BLOCK + n], block[(B_IN + 7) * CONTACT_BLOCK + n],
-                             block[(B_IN + 8) * CONTACT_BLOCK + n], block[(B_IN + 9) * CONTACT_BLOCK + n],
-                             block[(B_IN + 10) * CONTACT_BLOCK + n], block[(B_IN + 11) * CONTACT_BLOCK + n],
-                             block[(B_IN + 12) * CONTACT_BLOCK + n], block[(B_IN + 13) * CONTACT_BLOCK + n],
-                             block[(B_IN + 14) * CONTACT_BLOCK + n], block[(B_IN + 15) * CONTACT_BLOCK + n],
-                             block[(B_IN + 16) * CONTACT_BLOCK + n], block[(B_IN + 17) * CONTACT_BLOCK + n], p, dt)
+        nx = block[(B_IN + 0) * CONTACT_BLOCK + n]
+        ny = block[(B_IN + 1) * CONTACT_BLOCK + n]
+        nz = block[(B_IN + 2) * CONTACT_BLOCK + n]
+        wix = block[(B_IN + 7) * CONTACT_BLOCK + n]
+        wiy = block[(B_IN + 8) * CONTACT_BLOCK + n]
+        wiz = block[(B_IN + 9) * CONTACT_BLOCK + n]
+        wjx = block[(B_IN + 10) * CONTACT_BLOCK + n]
+        wjy = block[(B_IN + 11) * CONTACT_BLOCK + n]
+        wjz = block[(B_IN + 12) * CONTACT_BLOCK + n]
+        onx, ony, onz = stored_normal(hist, n, nx, ny, nz)
+        phi = spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt)
+        frame = contact_frame_series(onx, ony, onz, nx, ny, nz, phi)
+        res = contact_in_frame(hist, n, frame, nx, ny, nz, block[(B_IN + 3) * CONTACT_BLOCK + n],
+                               block[(B_IN + 4) * CONTACT_BLOCK + n], block[(B_IN + 5) * CONTACT_BLOCK + n],
+                               block[(B_IN + 6) * CONTACT_BLOCK + n], wix, wiy, wiz, wjx, wjy, wjz,
+                               block[(B_IN + 13) * CONTACT_BLOCK + n], block[(B_IN + 14) * CONTACT_BLOCK + n],
+                               block[(B_IN + 15) * CONTACT_BLOCK + n], block[(B_IN + 16) * CONTACT_BLOCK + n],
+                               block[(B_IN + 17) * CONTACT_BLOCK + n], p, dt)
         block[(B_OUT + 0) * CONTACT_BLOCK + n] = res[0]
         block[(B_OUT + 1) * CONTACT_BLOCK + n] = res[1]
         block[(B_OUT + 2) * CONTACT_BLOCK + n] = res[2]
@@ -374,7 +382,7 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
         return
     nslot = hist.shape[1]
     p = pair_params[mat[lo], mat[lo]] if hi > lo else pair_params[0, 0]
-    count = 0
+    count = np.int64(0)  # not a literal 0, which would compile flush_block a second time
     for i in range(lo, hi):
         for d in range(3):
             f[i, d] = 0.0
@@ -450,8 +458,8 @@ def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
 def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
                        pair_torque_j, energy, contacts, blocks, lanes):
     """``pair_forces`` on the calling thread (see ``SERIAL_BELOW``)."""
-    for b in range(1):
-        pair_rows(0, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch,
+    for b in range(1):  # lo = b, not 0: a literal 0 would compile pair_rows a second time
+        pair_rows(b, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch,
                   pair_force, pair_torque_j, energy, contacts, blocks[b], lanes[b])
 
 
@@ -609,17 +617,36 @@ def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
     return dt * (math.sqrt(vx * vx + vy * vy + vz * vz) + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / m)
 
 
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
+                touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+                wtouch, energy, contacts, x_ref, half_skin):
+    """``gather_one`` for particles lo..hi-1; returns the counts of its two flags. One function
+    for both drivers, as ``pair_rows``: compiled once (the walls' contact law with it)."""
+    nexceed = 0
+    nfast = 0
+    for i in range(lo, hi):
+        exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+                                  tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
+                                  wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
+        nexceed += exceed
+        nfast += fast
+    return nexceed, nfast
+
+
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch,
            pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch,
            energy, contacts, x_ref, half_skin):
-    """``gather_one`` for every particle; returns the counts of its two flags."""
+    """``gather_rows`` on runs of ``GATHER_RUN`` particles, shared out among the threads."""
+    n = x.shape[0]
     nexceed = 0
     nfast = 0
-    for i in prange(x.shape[0]):
-        exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-                                  tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
-                                  wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
+    for b in prange((n + GATHER_RUN - 1) // GATHER_RUN):
+        exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, x, v, w, f, t,
+                                   radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch, pair_force,
+                                   pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+                                   wtouch, energy, contacts, x_ref, half_skin)
         nexceed += exceed
         nfast += fast
     return nexceed, nfast
@@ -630,14 +657,12 @@ def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
                   touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat,
                   whist, wtouch, energy, contacts, x_ref, half_skin):
     """``gather`` on the calling thread."""
-    nexceed = 0
-    nfast = 0
-    for i in range(x.shape[0]):
-        exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-                                  tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
-                                  wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
-        nexceed += exceed
-        nfast += fast
+    nexceed = nfast = 0
+    for b in range(1):  # lo = b, not a literal 0: see pair_forces_serial
+        nexceed, nfast = gather_rows(b, x.shape[0], dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
+                                     pair_params, tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind,
+                                     wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts,
+                                     x_ref, half_skin)
     return nexceed, nfast
 
 
@@ -720,32 +745,13 @@ def _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, 
     return True
 
 
-@njit(cache=True)
-def _forces(dt, kick, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
-            wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
-            pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info, blocks, lanes):
-    if serial:
-        pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
-                           pair_torque_j, energy, contacts, blocks, lanes)
-        exceed, fast = gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-                                     tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
-                                     wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
-    else:
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
-                    pair_torque_j, energy, contacts, blocks, lanes)
-        exceed, fast = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                              tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
-                              wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
-    info[I_NEED_REBUILD] = exceed
-    info[I_TOO_FAST] = fast
-
-
-@njit(cache=True)
-def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
+@njit(cache=True)  # @@SERIAL_COPY
+def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
             wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
             pair_torque_j, tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts,
             info, blocks, lanes):
-    """Advance ``nsteps`` steps, on the calling thread if ``serial`` (see ``SERIAL_BELOW``). Stops
+    """Advance ``nsteps`` steps: ``advance`` on Numba's threads, ``advance_serial`` (the same loop
+    with the ``*_serial`` passes, written by the kernel generator) on the calling thread. Stops
     early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the
     capacity needed when the neighbor list outgrows its arrays, or STATUS_TOO_FAST when a particle
     would move more than skin/2 in one step."""
@@ -757,9 +763,15 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
         if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
                         cell_items, cell_of, counts, x_ref, info):
             return
-        _forces(dt, 0.0, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
-                wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
-                pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info, blocks, lanes)
+        # the pair pass and the gather are called here and in the loop, not through one function:
+        # a call of more than 30 arguments cannot be inlined, and a function of its own would
+        # compile the whole kernel once more (1 s of a cold compile)
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                    pair_torque_j, energy, contacts, blocks, lanes)
+        exceed, fast = gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
+                              tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
+                              wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
+        info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
         info[I_FORCES_VALID] = 1
     for step in range(nsteps):
@@ -768,10 +780,7 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
                 # even a list built now would not hold for this step: refuse rather than miss contacts
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
-            if serial:
-                exceed = kick_drift_serial(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
-            else:
-                exceed = kick_drift(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
+            exceed = kick_drift(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
             info[I_NEED_REBUILD] += exceed
             move_walls(dt, wall_geom, wall_vel)
             info[I_DRIFTED] = 1
@@ -782,9 +791,13 @@ def advance(nsteps, serial, dt, gravity, x, v, w, f, t, radius, mass, inertia, m
             info[I_NEED_REBUILD] = 0
         drift = step + 1 < nsteps
         kick = 2.0 if drift else 1.0
-        _forces(dt, kick, serial, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind,
-                wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
-                pair_torque_j, tr_start, tr_k, x_ref, half_skin, energy, contacts, info, blocks, lanes)
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                    pair_torque_j, energy, contacts, blocks, lanes)
+        exceed, fast = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
+                              tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
+                              wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
+        info[I_NEED_REBUILD] = exceed
+        info[I_TOO_FAST] = fast
         info[I_STEPS_DONE] = step + 1
         info[I_DRIFTED] = 0
         if drift:

@@ -225,7 +225,9 @@ def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, 
     max_cells = cell_start.shape[0] - 1
     lo, dims, cell = _grid(x, radius, skin, max_cells)
     _bin_particles(x, cell, lo, dims, cell_start, cell_items, cell_of)
-    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, False)
+    # np.bool_, not a literal False/True: a literal compiles _scan_pairs once per value (1.5 s more
+    # of a cold compile, and the rebuild no faster: 16.6 and 16.1 ms on the 20,000-sphere column)
+    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, np.bool_(False))
     total = 0
     for i in range(n):
         total += counts[i]
@@ -235,7 +237,7 @@ def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, 
     nl_start[0] = 0
     for i in range(n):
         nl_start[i + 1] = nl_start[i] + counts[i]
-    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, True)
+    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, np.bool_(True))
     _drop_lost_contacts(n, ids, nl_start, nl_j, hist, tr_start, tr_k)
     _spread_history(n, nl_start, nl_j, hist, tr_start, tr_k)
     _transpose(n, nl_start, nl_j, tr_start, tr_k)

@@ -302,7 +302,7 @@ class Simulation:
 
     def kernel(self):
         """The compiled engine module this simulation steps with."""
-        return self.contact.kernel(self.track_energy)
+        return self.contact.kernel(self.track_energy, serial=self._state.serial())
 
     def dissipated_energy(self) -> dict[str, float]:
         """Energy (J) dissipated while ``track_energy`` was on, by normal damping, sliding, rolling

@@ -6,6 +6,11 @@ those imports, parameter offsets and history slots filled in, and imported; Numb
 then works as for any module (closures over jitted functions would defeat it, DESIGN.md
 principle 9). The file name carries a hash of every source it depends on, so an edited sub-model
 never runs with a stale kernel.
+
+The step loop is written once, for the parallel passes; each function tagged ``@@SERIAL_COPY`` is
+written a second time with the ``*_serial`` passes (``advance_serial``). Two step loops, not one
+with a ``serial`` flag: Numba types and compiles every function a loop can call, so one loop would
+compile both sets of passes for a run that takes one (a cold compile 4-5 s longer).
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ import hashlib
 import importlib.util
 import inspect
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -23,6 +29,9 @@ import numpy as np
 from .base import N_COMMON, SubModel, make_submodel
 
 HISTORY_FRAME = 3  # the previous contact normal, kept by the engine for every contact
+
+SERIAL_PASSES = ("advance", "pair_forces", "gather", "kick_drift")  # name -> name_serial
+_SERIAL_NAME = re.compile(r"\b(" + "|".join(SERIAL_PASSES) + r")\(")
 
 _LOADED: dict[str, object] = {}
 _BY_CLASSES: dict[tuple, object] = {}
@@ -112,7 +121,7 @@ class ContactModel:
         out = []
         for line in template.splitlines():
             tag = line.rsplit("# @@", 1)[1].strip() if "# @@" in line else ""
-            if tag and tag.isupper():
+            if tag and tag.isupper() and tag != "SERIAL_COPY":
                 if tag in ("NORMAL", "TANGENTIAL", "ROLLING", "TWISTING"):
                     sub = getattr(self, tag.lower())
                     module, func = sub.kernel
@@ -124,7 +133,7 @@ class ContactModel:
                 else:
                     line = f"{tag} = {lay[tag]}"
             out.append(line)
-        return "\n".join(out) + "\n"
+        return "\n".join(out + _serial_copies(out)) + "\n"
 
     def _dependency_hash(self, source: str) -> str:
         import numba
@@ -140,14 +149,20 @@ class ContactModel:
         h.update(numba.__version__.encode())
         return h.hexdigest()[:16]
 
-    def kernel(self, track_energy: bool = False):
+    def kernel(self, track_energy: bool = False, serial: bool | None = None):
         """The compiled engine module for this combination (generated and imported once); with
-        ``track_energy`` the one that also sums the dissipated energies."""
+        ``track_energy`` the one that also sums the dissipated energies. With ``serial`` (the step
+        loop the run takes: ``advance_serial`` if True, ``advance`` if False) a step loop not yet
+        in the cache is compiled on two cores now (``rollingdem.contact.precompile``)."""
         # the generated code depends on the sub-model classes only, never on their parameter values
         key = tuple((type(sub), sub.kernel) for sub in self.submodels) + (bool(track_energy),)
-        if key in _BY_CLASSES:
-            return _BY_CLASSES[key]
-        _BY_CLASSES[key] = module = self._load_kernel(bool(track_energy))
+        module = _BY_CLASSES.get(key)
+        if module is None:
+            _BY_CLASSES[key] = module = self._load_kernel(bool(track_energy))
+        if serial is not None:
+            from .precompile import prepare
+
+            prepare(self, module, bool(track_energy), bool(serial))
         return module
 
     def _load_kernel(self, track_energy: bool):
@@ -167,9 +182,6 @@ class ContactModel:
         sys.modules[modname] = module
         spec.loader.exec_module(module)
         _LOADED[modname] = module
-        from .precompile import start_helper
-
-        start_helper(self, module, track_energy)  # a cold kernel compiles on two cores
         return module
 
     # --- (de)serialisation ----------------------------------------------------------------------
@@ -194,3 +206,17 @@ class _DummyPair:
     rolling_friction = 0.1
     restitution = 0.5
     rolling_damping = 0.0
+
+
+def _serial_copies(lines: list[str]) -> list[str]:
+    """The functions tagged ``@@SERIAL_COPY`` again, calling the ``*_serial`` passes."""
+    copies, inside = [], False
+    for line in lines:
+        if line.rstrip().endswith("# @@SERIAL_COPY"):
+            inside = True
+            copies += ["", ""]
+        elif inside and line and not line[0].isspace() and not line.startswith(("def ", ")")):
+            inside = False
+        if inside:
+            copies.append(_SERIAL_NAME.sub(r"\1_serial(", line.replace("  # @@SERIAL_COPY", "")))
+    return copies

@@ -1,15 +1,20 @@
 """Compile a new engine kernel on two cores instead of one.
 
-A kernel that is not yet in the on-disk cache costs about 22 s of Numba compilation, one function
-after the other: the neighbor search (5 s), the serial contact and gather loops, then the parallel
-ones, then the step loop. While this process compiles the first of them, a helper process
-compiles the parallel gather (with the wall contacts, 4.7 s plus the contact law it needs), the
-parallel drift and the parallel pair loop, and stores them in Numba's cache; when this process
-reaches them it loads them from there. Numba writes its cache files atomically (a temporary file,
-then ``os.replace``), so two processes compiling the same function at once only duplicate work.
+A kernel that is not yet in Numba's on-disk cache costs about 25 s of compilation on one core:
+Numba types a function's callees one after the other, each compiled in full before the next. The
+step loop a run takes (``advance`` on threads, ``advance_serial`` on the calling thread) is
+therefore prepared in two processes before its first call, when it is not cached yet
+(``prepare``, from ``ContactModel.kernel``). A helper process compiles the scalar contact law,
+the neighbor search and the gather (with the walls' contacts) into Numba's cache, printing each
+name as it is done; meanwhile this process compiles the vectorised contact block, the pair pass
+(once the helper's contact law, which the pair pass calls, is in the cache) and the drift. When
+the helper is done, the step loop's first call finds every pass in the cache and compiles only
+the loop itself. Nothing is computed twice in the usual case; if the helper fails or is slow,
+this process compiles what is missing itself, with the same result. Numba writes its cache
+files atomically (a temporary file, then ``os.replace``).
 
-The helper starts only when the kernel's gather is not cached, more than one core is available,
-no other helper is compiling this kernel (a lock file, stale after 10 minutes) and
+The helper starts only when the step loop is not cached, more than one core is available, no
+other process is preparing this kernel (a lock file, stale after 10 minutes) and
 ``ROLLINGDEM_PRECOMPILE`` is not ``0``.
 """
 
@@ -17,13 +22,26 @@ from __future__ import annotations
 
 import json
 import os
+import selectors
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-HELPER_FUNCTIONS = ("block_contacts", "gather", "kick_drift", "pair_forces")  # the step loop types them last
 LOCK_STALE_S = 600.0
+HELPER_WAIT_S = 600.0  # the longest this process waits for the helper before compiling alone
+_PREPARED: set[tuple[str, bool]] = set()
+
+
+def plans(serial: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(the helper's functions, this process's functions), each list in the order compiled."""
+    sfx = "_serial" if serial else ""
+    helper = ("contact", "rebuild_neighbor_list", "gather_rows", "gather" + sfx)
+    main = ("block_contacts", "pair_forces" + sfx, "kick_drift" + sfx, "undo_drift")
+    return helper, main
+
+
+NEEDS = {"pair_forces": "contact", "pair_forces_serial": "contact"}  # main's function -> the helper's it calls
 
 
 def _cores() -> int:
@@ -34,70 +52,124 @@ def _cores() -> int:
 
 
 def is_cached(module, function: str = "gather") -> bool:
-    """Whether Numba's cache holds ``module.function`` (its index file exists)."""
-    path = Path(module.__file__)
-    pattern = f"{path.stem}.{function}-*.nbi"
-    places = [path.parent / "__pycache__"]
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        places.append(Path(os.environ["NUMBA_CACHE_DIR"]))
-    return any(next(iter(p.rglob(pattern)), None) is not None for p in places if p.exists())
+    """Whether Numba's cache holds ``module.function`` (its index file exists where Numba looks:
+    the function may live in another module, as the neighbor search does)."""
+    from numba.core.caching import FunctionCache
+
+    return Path(FunctionCache(getattr(module, function).py_func)._cache_file._index_path).exists()
 
 
-def start_helper(contact, module, track_energy: bool = False):
-    """Start the helper for ``module`` (the kernel of ``contact``) if it would help; returns the
-    process or None."""
-    if os.environ.get("ROLLINGDEM_PRECOMPILE", "1") == "0" or _cores() < 2 or is_cached(module):
-        return None
-    lock = Path(module.__file__).with_suffix(".precompile.lock")
-    try:
-        if lock.exists() and time.time() - lock.stat().st_mtime > LOCK_STALE_S:
-            lock.unlink()
-        fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        os.close(fd)
-    except OSError:  # another helper is at it, or the folder is read-only
-        return None
-    env = dict(os.environ, ROLLINGDEM_PRECOMPILE="0")
-    return subprocess.Popen([sys.executable, "-m", "rollingdem.contact.precompile", json.dumps(contact.to_dict()),
-                             str(lock), str(int(track_energy))], env=env, stdin=subprocess.DEVNULL,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-
-
-def _compile(contact_dict: dict, track_energy: bool = False) -> None:
-    """Type the helper's functions on a one-sphere state and compile them into the cache."""
+def signatures(module, contact, track_energy: bool = False) -> dict:
+    """Argument types of every function the plans name, as the engine calls them (taken from the
+    state of a one-sphere scene: types do not depend on the number of particles)."""
     import numba
 
     from ..materials import Material
     from ..simulation import Simulation
     from ..walls import Plane
-    from .model import ContactModel
 
-    sim = Simulation(contact=ContactModel.from_dict(contact_dict), dt=1e-6, track_energy=track_energy)
+    sim = Simulation(contact=contact, dt=1e-6, track_energy=track_energy)
     sim.add_material(Material("m", youngs_modulus=1e7, poisson_ratio=0.3, density=1000.0, friction=0.5,
                               rolling_friction=0.1, restitution=0.5, rolling_damping=0.1))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
     sim.add_particles([[0.0, 0.0, 0.01]], 0.01, "m")
-    st, kernel = sim._state, sim.kernel()
-    dt, kick, half_skin = 1e-6, 1.0, 1e-3
+    st = sim._state
+    dt, kick, half_skin, skin = 1e-6, 1.0, 1e-3, 2e-3
     pp = sim.pair_parameters()
+    blocks, lanes = st.contact_blocks()
+    pair = (dt, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.mat, pp, st.nl_start, st.nl_j, st.hist,
+            st.touch, st.pair_force, st.pair_torque_j, st.energy, st.contacts)
+    gather = (dt, kick, sim._gravity, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.inertia, st.mat, pp,
+              st.tr_start, st.tr_k, st.touch, st.pair_force, st.pair_torque_j, st.wall_kind, st.wall_geom,
+              st.wall_vel, st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy, st.contacts, st.x_ref,
+              half_skin)
+    drift = (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia, st.x_ref, half_skin)
     args = {
-        "block_contacts": (st.contact_blocks()[0][0], pp[0, 0], dt),
-        "gather": (dt, kick, sim._gravity, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.inertia, st.mat, pp,
-                   st.tr_start, st.tr_k, st.touch, st.pair_force, st.pair_torque_j, st.wall_kind, st.wall_geom,
-                   st.wall_vel, st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy, st.contacts, st.x_ref,
-                   half_skin),
-        "kick_drift": (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia, st.x_ref, half_skin),
-        "pair_forces": (dt, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.mat, pp, st.nl_start, st.nl_j,
-                        st.hist, st.touch, st.pair_force, st.pair_torque_j, st.energy, st.contacts,
-                        *st.contact_blocks()),
+        "contact": (st.hist, 0) + (0.0,) * 18 + (pp[0, 0], dt),
+        "block_contacts": (blocks[0], pp[0, 0], dt),
+        "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start,
+                                  st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref),
+        "pair_forces": pair + (blocks, lanes), "pair_forces_serial": pair + (blocks, lanes),
+        "gather_rows": (0, 1) + gather, "gather": gather, "gather_serial": gather,
+        "kick_drift": drift, "kick_drift_serial": drift,
+        "undo_drift": drift[:-2],
     }
-    for name in HELPER_FUNCTIONS:
-        if not is_cached(kernel, name):
-            getattr(kernel, name).compile(tuple(numba.typeof(a) for a in args[name]))
+    return {name: tuple(numba.typeof(a) for a in values) for name, values in args.items()}
+
+
+def compile_into_cache(module, name: str, sigs: dict) -> None:
+    if not is_cached(module, name):
+        getattr(module, name).compile(sigs[name])
+
+
+def prepare(contact, module, track_energy: bool, serial: bool) -> bool:
+    """Compile the passes of ``module``'s step loop for ``serial`` on two cores (see above), if it
+    would help, and return True; otherwise return False, and the first call compiles them on
+    this core."""
+    loop = "advance_serial" if serial else "advance"
+    if (module.__name__, serial) in _PREPARED:
+        return False
+    _PREPARED.add((module.__name__, serial))
+    if os.environ.get("ROLLINGDEM_PRECOMPILE", "1") == "0" or _cores() < 2 or is_cached(module, loop):
+        return False
+    lock = Path(module.__file__).with_suffix(".precompile.lock")
+    try:
+        if lock.exists() and time.time() - lock.stat().st_mtime > LOCK_STALE_S:
+            lock.unlink()
+        os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except OSError:  # another process is preparing it, or the folder is read-only
+        return False
+    env = dict(os.environ, ROLLINGDEM_PRECOMPILE="0")
+    helper = subprocess.Popen([sys.executable, "-m", "rollingdem.contact.precompile", json.dumps(contact.to_dict()),
+                               str(lock), str(int(track_energy)), str(int(serial))], env=env, stdin=subprocess.DEVNULL,
+                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    done: set[str] = set()
+    try:
+        sigs = signatures(module, contact, track_energy)
+        for name in plans(serial)[1]:
+            if name in NEEDS:
+                _wait(helper, done, NEEDS[name])
+            compile_into_cache(module, name, sigs)
+        _wait(helper, done, None)
+    finally:
+        if helper.poll() is None:
+            helper.kill()
+        helper.wait()
+        helper.stdout.close()
+    return True
+
+
+def _wait(helper, done: set[str], name: str | None) -> None:
+    """Read the helper's progress until ``name`` is done (None: until it exits), at most
+    ``HELPER_WAIT_S``."""
+    deadline = time.monotonic() + HELPER_WAIT_S
+    with selectors.DefaultSelector() as sel:
+        sel.register(helper.stdout, selectors.EVENT_READ)
+        while name is None or name not in done:
+            left = deadline - time.monotonic()
+            if left <= 0 or not sel.select(left):
+                return
+            line = helper.stdout.readline()
+            if not line:  # the helper exited
+                return
+            done.add(line.strip())
+
+
+def _helper(contact_dict: dict, track_energy: bool, serial: bool) -> None:
+    """The helper's part of the plan, each name printed when it is in the cache."""
+    from .model import ContactModel
+
+    contact = ContactModel.from_dict(contact_dict)
+    module = contact.kernel(track_energy)
+    sigs = signatures(module, contact, track_energy)
+    for name in plans(serial)[0]:
+        compile_into_cache(module, name, sigs)
+        print(name, flush=True)
 
 
 if __name__ == "__main__":
     try:
-        _compile(json.loads(sys.argv[1]), len(sys.argv) > 3 and sys.argv[3] == "1")
+        _helper(json.loads(sys.argv[1]), sys.argv[3] == "1", sys.argv[4] == "1")
     finally:
         try:
             os.unlink(sys.argv[2])

@@ -22,15 +22,15 @@ def params(model, mu_r=MU_R, eta=0.3):
     cm = rd.ContactModel("hertz", rolling=model)
     table = rd.MaterialTable()
     table.add(mat)
-    return cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"]
+    return cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"], cm.rolling.kernel_modes()
 
 
 def step(model_params, hist, n, n_old, wi, wj, dt=1e-5, spin=0.0, f_total=None):
-    p, off = model_params
+    p, off, modes = model_params
     frame = contact_frame(n_old[0], n_old[1], n_old[2], n[0], n[1], n[2], spin)
     res = spring_rolling(hist, 0, 0, n[0], n[1], n[2], frame, wi[0], wi[1], wi[2],
                          wj[0], wj[1], wj[2], R_EFF, R_EFF, KN, KT, F_EL, F_EL if f_total is None else f_total,
-                         R_EFF, I_R, dt, p, off)
+                         R_EFF, I_R, dt, p, off, modes)
     return np.array(res[:3]), np.array(res[3:6]), res[6]
 
 
@@ -98,7 +98,7 @@ def test_objectivity_rigid_corotation_gives_no_moment(model):
     cm = rd.ContactModel("hertz", rolling=model)
     table = rd.MaterialTable()
     table.add(mat)
-    p, off = cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"]
+    p, off, modes = cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"], cm.rolling.kernel_modes()
     kern = cm.kernel().rolling_moment
     hist = np.zeros((1, 3))
     omega = np.array([3.0, -2.0, 5.0])
@@ -111,7 +111,7 @@ def test_objectivity_rigid_corotation_gives_no_moment(model):
         n = (n_old * math.cos(th) + np.cross(axis, n_old) * math.sin(th)
              + axis * (axis @ n_old) * (1 - math.cos(th)))
         res = kern(hist, 0, 0, *n, contact_frame(*n_old, *n, 0.5 * 2 * (omega @ n) * dt), *omega, *omega, R_EFF, R_EFF, KN, KT,
-                   F_EL, F_EL, R_EFF, I_R, dt, p, off)
+                   F_EL, F_EL, R_EFF, I_R, dt, p, off, modes)
         assert np.abs(res[:6]).max() == 0.0
         n_old = n
 
@@ -121,18 +121,18 @@ def test_force_proportional_is_not_objective():
     cm = rd.ContactModel("hertz", rolling="force_proportional")
     table = rd.MaterialTable()
     table.add(rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2))
-    p, off = cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"]
+    p, off, modes = cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"], cm.rolling.kernel_modes()
     res = cm.kernel().rolling_moment(np.zeros((1, 3)), 0, 0, 0, 0, 1.0, contact_frame(0, 0, 1.0, 0, 0, 1.0, 0.0),
                                      3.0, 0, 0, 3.0, 0, 0,
-                                     R_EFF, R_EFF, KN, KT, F_EL, F_EL, R_EFF, I_R, 1e-5, p, off)
+                                     R_EFF, R_EFF, KN, KT, F_EL, F_EL, R_EFF, I_R, 1e-5, p, off, modes)
     assert res[0] == pytest.approx(MU_R * F_EL * R_EFF) and res[3] == pytest.approx(-MU_R * F_EL * R_EFF)
 
 
 def cdt_moment(model, n, wi, wj, lever_i=R_EFF, lever_j=R_EFF, r_eff=R_EFF):
-    p, off = params(model)
+    p, off, modes = params(model)
     kern = rd.ContactModel("hertz", rolling=model).kernel().rolling_moment
     res = kern(np.zeros((1, 3)), 0, 0, *n, contact_frame(*n, *n, 0.0), *wi, *wj, lever_i, lever_j, KN, KT, F_EL, F_EL, r_eff, I_R,
-               1e-5, p, off)
+               1e-5, p, off, modes)
     return np.array(res[:3])
 
 
@@ -156,3 +156,17 @@ def test_liggghts_cdt_ignores_the_wall_rotation():
     liggghts = cdt_moment(rd.CDT(parity="liggghts"), n, (0, 0, 0), (2.0, 0, 0), **wall)
     np.testing.assert_allclose(documented, [-MU_R * radius * F_EL, 0, 0], rtol=1e-12)
     np.testing.assert_array_equal(liggghts, [0, 0, 0])
+
+
+def test_parity_presets_compile_their_switches_as_constants():
+    """The spring models' parity switches are constants of the generated kernel (the vector loop
+    then computes only the branches taken): one kernel per preset, shared by the models of one
+    preset; the class's own switches (stiffness, damping) stay in the parameter row."""
+    from rollingdem.contact.rolling import CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL
+
+    default = rd.ContactModel("hertz", rolling="epsd").kernel()
+    assert rd.ContactModel("hertz", rolling="epsd2").kernel() is default
+    liggghts = rd.ContactModel("hertz", rolling=rd.EPSD(parity="liggghts")).kernel()
+    assert liggghts is not default
+    assert liggghts.ROLLING_MODES == (CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL, 1)
+    assert rd.ContactModel("hertz", rolling=rd.EPSD2(parity="liggghts")).kernel() is liggghts

@@ -70,6 +70,7 @@ H_TANGENTIAL = 3  # @@H_TANGENTIAL
 H_ROLLING = 6  # @@H_ROLLING
 H_TWISTING = 6  # @@H_TWISTING
 TRACK_ENERGY = 1  # @@TRACK_ENERGY
+ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
 
 # Block buffers of the pair pass (see ``pair_rows``): CONTACT_BLOCK lanes per column; the columns
@@ -171,7 +172,8 @@ def contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wi
                                           vtx, vty, vtz, kt, gamma_t, fn, dt, p, OFF_TANGENTIAL)
     mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, H_ROLLING, nx, ny, nz, frame,
                                                        wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, kn, kt,
-                                                       f_el, fn, r_eff, inertia_r, dt, p, OFF_ROLLING)
+                                                       f_el, fn, r_eff, inertia_r, dt, p, OFF_ROLLING,
+                                                       ROLLING_MODES)
     dwx = wix - wjx
     dwy = wiy - wjy
     dwz = wiz - wjz

@@ -64,6 +64,11 @@ class SubModel:
         """The constructor arguments, for case files and checkpoints."""
         return {}
 
+    def kernel_modes(self) -> tuple[int, ...]:
+        """Integer switches fixed when the kernel is compiled (default: none), passed to the
+        rolling kernel as ``modes``; each distinct tuple is a kernel of its own."""
+        return ()
+
     def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force,
                              pair) -> float:
         """Stiffness (N m/rad) of this sub-model's rotational spring at the given contact state, for

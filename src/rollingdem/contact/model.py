@@ -130,6 +130,8 @@ class ContactModel:
                     line = f"from {module} import {func} as {alias}"
                 elif tag == "TRACK_ENERGY":
                     line = f"TRACK_ENERGY = {int(bool(track_energy))}"
+                elif tag == "ROLLING_MODES":
+                    line = f"ROLLING_MODES = {tuple(int(m) for m in self.rolling.kernel_modes())!r}"
                 else:
                     line = f"{tag} = {lay[tag]}"
             out.append(line)
@@ -154,8 +156,10 @@ class ContactModel:
         ``track_energy`` the one that also sums the dissipated energies. With ``serial`` (the step
         loop the run takes: ``advance_serial`` if True, ``advance`` if False) a step loop not yet
         in the cache is compiled on two cores now (``rollingdem.contact.precompile``)."""
-        # the generated code depends on the sub-model classes only, never on their parameter values
-        key = tuple((type(sub), sub.kernel) for sub in self.submodels) + (bool(track_energy),)
+        # the generated code depends on the sub-model classes and the rolling model's compile-time
+        # switches only, never on parameter values
+        key = (tuple((type(sub), sub.kernel) for sub in self.submodels) + (bool(track_energy),)
+               + tuple(self.rolling.kernel_modes()))
         module = _BY_CLASSES.get(key)
         if module is None:
             _BY_CLASSES[key] = module = self._load_kernel(bool(track_energy))

@@ -5,9 +5,10 @@ Numba types a function's callees one after the other, each compiled in full befo
 step loop a run takes (``advance`` on threads, ``advance_serial`` on the calling thread) is
 therefore prepared in two processes before its first call, when it is not cached yet
 (``prepare``, from ``ContactModel.kernel``). A helper process compiles the scalar contact law,
-the neighbor search and the gather (with the walls' contacts) into Numba's cache, printing each
-name as it is done; meanwhile this process compiles the vectorised contact block, the pair pass
-(once the helper's contact law, which the pair pass calls, is in the cache) and the drift. When
+the gather's per-particle body (with the walls' contacts) and the neighbor search into Numba's
+cache, printing each name as it is done; meanwhile this process compiles the vectorised contact
+block, the drift, the pair pass (once the helper's contact law, which it calls, is in the
+cache) and the gather's driver (once its body is cached). When
 the helper is done, the step loop's first call finds every pass in the cache and compiles only
 the loop itself. Nothing is computed twice in the usual case; if the helper fails or is slow,
 this process compiles what is missing itself, with the same result. Numba writes its cache
@@ -36,12 +37,15 @@ _PREPARED: set[tuple[str, bool]] = set()
 def plans(serial: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """(the helper's functions, this process's functions), each list in the order compiled."""
     sfx = "_serial" if serial else ""
-    helper = ("contact", "rebuild_neighbor_list", "gather_rows", "gather" + sfx)
-    main = ("block_contacts", "pair_forces" + sfx, "kick_drift" + sfx, "undo_drift")
+    helper = ("contact", "gather_rows", "rebuild_neighbor_list")
+    # the drift before the pair pass: it needs nothing of the helper's, which is still starting
+    main = ("block_contacts", "kick_drift" + sfx, "undo_drift", "pair_forces" + sfx, "gather" + sfx)
     return helper, main
 
 
-NEEDS = {"pair_forces": "contact", "pair_forces_serial": "contact"}  # main's function -> the helper's it calls
+# main's function -> the helper's that it calls, which this process waits for
+NEEDS = {"pair_forces": "contact", "pair_forces_serial": "contact", "gather": "gather_rows",
+         "gather_serial": "gather_rows"}
 
 
 def _cores() -> int:

@@ -216,15 +216,18 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
 def compile_time(contact, spheres: int = 2) -> float:
     """Seconds to compile (cold cache) or load (warm cache) the kernel of ``contact`` in this
     process, for the step loop a scene of ``spheres`` spheres takes (``advance_serial`` below
-    ``SERIAL_BELOW`` spheres or on one thread, ``advance`` on threads otherwise): one step of the
-    spheres on a plate, two of them stacked (a pair contact and a wall contact)."""
+    ``SERIAL_BELOW`` spheres or on one thread, ``advance`` on threads otherwise): one step of 2
+    (or ``SERIAL_BELOW``) spheres on a plate, two of them stacked (a pair contact and a wall
+    contact)."""
     from . import Material, Plane, Simulation
+    from .engine_kernel import SERIAL_BELOW
 
     tic = time.perf_counter()
     sim = Simulation(contact=contact, dt=DT, skin=SKIN)
     sim.add_material(Material("table1", **TABLE1))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1"))
-    row = np.arange(max(spheres - 2, 0)) + 1  # apart from the stack and each other, on the plate
+    spheres = 2 if spheres < SERIAL_BELOW else SERIAL_BELOW  # as many as the path needs
+    row = np.arange(spheres - 2) + 1  # apart from the stack and each other, on the plate
     rest = np.column_stack([3 * RADIUS * (row % 64), 3 * RADIUS * (row // 64), np.full(len(row), RADIUS)])
     sim.add_particles(np.vstack([[[0, 0, RADIUS], [0, 0, 3 * RADIUS]], rest]), RADIUS, "table1")
     sim.run(steps=1)

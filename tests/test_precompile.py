@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -28,6 +29,34 @@ def test_no_helper_for_a_cached_step_loop_or_when_switched_off(monkeypatch):
     monkeypatch.setattr(precompile, "_PREPARED", set())
     monkeypatch.setenv("ROLLINGDEM_PRECOMPILE", "0")
     assert not prepare(contact, kernel, False, False)
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="the helper runs only with a second core")
+def test_a_failing_head_start_does_not_fail_the_run(monkeypatch):
+    """The plan is only a head start: if it fails, the run compiles (here: loads) by itself, gives
+    the same result, and the helper's lock is gone."""
+    contact = ContactModel("hertz", rolling="cdt")
+
+    def run():
+        sim = rd.Simulation(contact=contact, dt=1e-6)
+        sim.add_material(rd.Material("m", youngs_modulus=1e7, poisson_ratio=0.3, density=1000.0))
+        sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
+        sim.add_particles([[0, 0, 0.0099]], 0.01, "m", allow_overlap=True)
+        sim.run(steps=20)
+        return sim.positions.copy()
+
+    before = run()
+    kernel = contact.kernel()
+
+    def no_scene(*args, **kwargs):
+        raise RuntimeError("no scene")
+
+    monkeypatch.setattr(precompile, "_PREPARED", set())
+    monkeypatch.setattr(precompile, "is_cached", lambda module, function="gather": False)
+    monkeypatch.setattr(precompile, "signatures", no_scene)
+    assert prepare(contact, kernel, False, True)
+    assert not list(Path(kernel.__file__).parent.glob(Path(kernel.__file__).stem + ".precompile.lock"))
+    assert (run() == before).all()
 
 
 @pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="the helper runs only with a second core")

@@ -135,11 +135,14 @@ def prepare(contact, module, track_energy: bool, serial: bool) -> bool:
                 _wait(helper, done, NEEDS[name])
             compile_into_cache(module, name, sigs)
         _wait(helper, done, None)
+    except Exception:  # only a head start: the run's first call compiles what is missing, and raises there
+        pass
     finally:
         if helper.poll() is None:
-            helper.kill()
+            helper.kill()  # killed, it cannot remove its lock: this process does
         helper.wait()
         helper.stdout.close()
+        lock.unlink(missing_ok=True)
     return True
 
 

@@ -126,15 +126,15 @@ def prepare(contact, module, track_energy: bool, serial: bool) -> bool:
     env = dict(os.environ, ROLLINGDEM_PRECOMPILE="0")
     helper = subprocess.Popen([sys.executable, "-m", "rollingdem.contact.precompile", json.dumps(contact.to_dict()),
                                str(lock), str(int(track_energy)), str(int(serial))], env=env, stdin=subprocess.DEVNULL,
-                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    done: set[str] = set()
+                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, bufsize=0)
+    progress = _Progress(helper)
     try:
         sigs = signatures(module, contact, track_energy)
         for name in plans(serial)[1]:
             if name in NEEDS:
-                _wait(helper, done, NEEDS[name])
+                progress.wait(NEEDS[name])
             compile_into_cache(module, name, sigs)
-        _wait(helper, done, None)
+        progress.wait(None)
     except Exception:  # only a head start: the run's first call compiles what is missing, and raises there
         pass
     finally:
@@ -146,20 +146,30 @@ def prepare(contact, module, track_energy: bool, serial: bool) -> bool:
     return True
 
 
-def _wait(helper, done: set[str], name: str | None) -> None:
-    """Read the helper's progress until ``name`` is done (None: until it exits), at most
-    ``HELPER_WAIT_S``."""
-    deadline = time.monotonic() + HELPER_WAIT_S
-    with selectors.DefaultSelector() as sel:
-        sel.register(helper.stdout, selectors.EVENT_READ)
-        while name is None or name not in done:
-            left = deadline - time.monotonic()
-            if left <= 0 or not sel.select(left):
-                return
-            line = helper.stdout.readline()
-            if not line:  # the helper exited
-                return
-            done.add(line.strip())
+class _Progress:
+    """The names the helper has reported done, read from its unbuffered pipe (a buffered reader
+    could hold a finished name back until the helper writes again)."""
+
+    def __init__(self, helper):
+        self.helper = helper
+        self.done: set[str] = set()
+        self._pending = b""
+
+    def wait(self, name: str | None) -> None:
+        """Until ``name`` is done (None: until the helper exits), at most ``HELPER_WAIT_S``."""
+        deadline = time.monotonic() + HELPER_WAIT_S
+        fd = self.helper.stdout.fileno()
+        with selectors.DefaultSelector() as sel:
+            sel.register(fd, selectors.EVENT_READ)
+            while name is None or name not in self.done:
+                left = deadline - time.monotonic()
+                if left <= 0 or not sel.select(left):
+                    return
+                chunk = os.read(fd, 4096)
+                if not chunk:  # the helper exited
+                    return
+                *lines, self._pending = (self._pending + chunk).split(b"\n")
+                self.done.update(line.decode().strip() for line in lines)
 
 
 def _helper(contact_dict: dict, track_energy: bool, serial: bool) -> None:

@@ -331,7 +331,8 @@ def test_contact_flags_follow_the_history_across_rebuilds(table1):
         sim.run(steps=500)
         st = sim._state
         kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.hist, st.touch, st.tr_start,
-                        st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info)
+                        st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info, st.ready,
+                        st.ready_row, st.contact_blocks()[0].shape[0])
         total = st.list_size
         in_contact = np.any(st.hist[:total, :3] != 0.0, axis=1)
         np.testing.assert_array_equal(st.touch[:total].astype(bool), in_contact)

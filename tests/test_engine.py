@@ -331,8 +331,7 @@ def test_contact_flags_follow_the_history_across_rebuilds(table1):
         sim.run(steps=500)
         st = sim._state
         kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.hist, st.touch, st.tr_start,
-                        st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info, st.ready,
-                        st.ready_row, st.contact_blocks()[0].shape[0])
+                        st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info)
         total = st.list_size
         in_contact = np.any(st.hist[:total, :3] != 0.0, axis=1)
         np.testing.assert_array_equal(st.touch[:total].astype(bool), in_contact)
@@ -423,70 +422,3 @@ def test_spheres_of_several_materials_are_computed_one_contact_at_a_time(table1)
     sim.add_particles([[1.0, 1.0, 1.0]], R, "other")
     blocks, _ = sim._state.contact_blocks()
     assert blocks.shape[1] == 0
-
-
-def test_fused_step_equals_pair_pass_then_gather(table1):
-    """The step loop computes the pair terms and gathers them in one pass (``step_forces``): each
-    chunk's thread gathers a particle as soon as the last row that holds it is done, the particles
-    reached from two chunks after all chunks (``neighbors.gather_order``). It must leave exactly
-    what the two passes one after the other leave (``pair_forces`` then ``gather``): each
-    particle's sums run in the same order, so bit for bit, and a particle gathered before one of
-    its rows is computed would differ by O(1). The order's invariant is checked on its own: a
-    particle gathered inside a chunk is reached only by rows of that chunk, none after its key."""
-    sim = _bed(table1, n=600, seed=3)
-    sim.run(0.1)  # spheres landing on the plane and on each other
-    st = sim._state
-    st.sort(2 * R + sim.skin)  # Morton order, as at 10^6 spheres: some rows reach far slots
-    sim.run(steps=1)
-    assert sim.number_of_contacts() > 200
-    kernel = sim.kernel()
-    nchunk = 3  # independent of the thread count
-    blocks0, lanes0 = st.contact_blocks()
-    n = st.n
-    copies = []
-    for _ in range(2):
-        copy = {name: np.array(a, copy=True) for name, a in vars(st).items() if isinstance(a, np.ndarray)}
-        copy["blocks"] = np.zeros((nchunk, blocks0.shape[1]))
-        copy["lanes"] = np.zeros((nchunk,) + lanes0.shape[1:], dtype=np.int64)
-        copies.append(copy)
-    a, b = copies
-    pp, dt, gravity, half_skin = sim.pair_parameters(), sim.dt, np.asarray(sim.gravity), 0.5 * sim.skin
-
-    def gather_args(s):
-        return (s["tr_start"], s["tr_k"], s["touch"], s["pair_force"], s["pair_torque_j"], s["wall_kind"],
-                s["wall_geom"], s["wall_vel"], s["wall_omega"], s["wall_mat"], s["whist"], s["wtouch"], s["energy"],
-                s["contacts"], s["x_ref"], half_skin)
-
-    def body(s):
-        return (s["x"], s["v"], s["w"], s["f"], s["t"], s["radius"], s["mass"])
-
-    kernel.pair_forces(dt, *body(a), a["mat"], pp, a["nl_start"], a["nl_j"], a["hist"], a["touch"], a["pair_force"],
-                       a["pair_torque_j"], a["energy"], a["contacts"], a["blocks"], a["lanes"])
-    separate = kernel.gather(dt, 2.0, gravity, *body(a), a["inertia"], a["mat"], pp, *gather_args(a),
-                             np.arange(n, dtype=np.int32))
-    kernel._order(b["nl_start"], b["nl_j"], b["cell_start"], b["cell_of"], b["counts"], b["info"], b["ready"],
-                  b["ready_row"], nchunk)
-    ready, key = b["ready"][:n], b["ready_row"][:n]
-    assert sorted(ready.tolist()) == list(range(n)) and np.all(np.diff(key) >= 0)
-    deferred = int((key == n).sum())
-    assert 0 < deferred < n // 2  # both kinds present
-    chunk_of = lambda r: np.searchsorted([(c + 1) * n // nchunk for c in range(nchunk)], r, side="right")
-    rows_of = [[i] for i in range(n)]
-    for i in range(n):
-        for j in b["nl_j"][b["nl_start"][i]:b["nl_start"][i + 1]]:
-            rows_of[j].append(i)
-    for p, k in zip(ready, key):
-        if k < n:
-            assert max(rows_of[p]) == k and len({chunk_of(r) for r in rows_of[p]}) == 1
-        else:
-            assert len({chunk_of(r) for r in rows_of[p]}) > 1
-    for step_forces in (kernel.step_forces, kernel.step_forces_serial):
-        s = {name: arr.copy() for name, arr in b.items()}
-        fused = step_forces(dt, 2.0, gravity, *body(s), s["inertia"], s["mat"], pp, s["nl_start"], s["nl_j"],
-                            s["hist"], s["touch"], s["pair_force"], s["pair_torque_j"], s["tr_start"], s["tr_k"],
-                            *gather_args(s)[5:],
-                            s["ready"], s["ready_row"], s["blocks"], s["lanes"])
-        assert tuple(fused) == tuple(separate)
-        for name in ("x", "v", "w", "f", "t", "hist", "touch", "whist", "wtouch", "pair_force", "pair_torque_j",
-                     "energy", "contacts"):
-            np.testing.assert_array_equal(s[name], a[name], err_msg=name)

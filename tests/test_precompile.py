@@ -23,7 +23,7 @@ def test_no_helper_for_a_cached_step_loop_or_when_switched_off(monkeypatch):
     sim.add_particles([[0, 0, 0.01]], 0.01, "m")
     sim.run(steps=1)  # one sphere: the serial step loop
     kernel = contact.kernel()
-    assert is_cached(kernel, "step_forces_serial") and is_cached(kernel, "advance_serial")
+    assert is_cached(kernel, "gather_serial") and is_cached(kernel, "advance_serial")
     monkeypatch.setattr(precompile, "_PREPARED", set())
     assert not prepare(contact, kernel, False, True)
     monkeypatch.setattr(precompile, "_PREPARED", set())
@@ -94,4 +94,4 @@ def test_a_cold_kernel_compiles_on_two_processes_with_the_same_result(tmp_path):
     names = {p.name.split(".")[1].split("-")[0] for p in (tmp_path / "n1").rglob("*.nbi")}
     helper, main = precompile.plans(serial=False)
     assert set(helper) | set(main) | {"advance"} <= names
-    assert "advance_serial" not in names and "step_forces_serial" not in names
+    assert "advance_serial" not in names and "gather_serial" not in names

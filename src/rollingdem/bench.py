@@ -169,7 +169,7 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
     (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
      wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, cell_start,
-     cell_items, cell_of, counts, x_ref, skin, energy, contacts, info, ready, ready_row, blocks, lanes) = args
+     cell_items, cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
     # the timings overwrite these (a rebuild at the present positions gives another list): put them back after
     saved = {name: getattr(st, name).copy() for name in ("hist", "touch", "whist", "wtouch", "energy", "f", "t",
                                                          "contacts", "x_ref", "nl_start", "nl_j", "tr_start", "tr_k",
@@ -198,7 +198,7 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     def gather_with(kind, geom, vel, omega, wmat):
         return timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
                                     touch, pair_force, pair_torque_j, kind, geom, vel, omega, wmat, whist, wtouch,
-                                    energy, contacts, x_ref, 0.5 * skin, ready))
+                                    energy, contacts, x_ref, 0.5 * skin))
 
     gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)
     gather_plain = gather_with(wall_kind[:0], wall_geom[:0], wall_vel[:0], wall_omega[:0], wall_mat[:0])

@@ -16,9 +16,9 @@ import numpy as np
 
 from .walls import GEOMETRY_SIZE
 
-I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST, I_DRIFTED, I_CHUNKS = range(9)
+I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST, I_DRIFTED = range(8)
 STATUS_CAPACITY, STATUS_TOO_FAST = 1, 2
-INFO_SIZE = 9
+INFO_SIZE = 8
 # list capacity = entries needed x this (129 bytes per entry): growing costs a reallocation and one
 # more counting pass of the neighbor search, so a small margin is cheap
 LIST_MARGIN = 1.15
@@ -82,11 +82,6 @@ class EngineState:
         self.cell_of = np.zeros(n, dtype=np.int64)
         self.counts = np.zeros(n, dtype=np.int64)
         self.cell_start = np.zeros(max(2 * n, 64) + 1, dtype=np.int64)
-        # the fused step's gather order (neighbors.gather_order), made again by the kernel whenever
-        # the list changes: I_CHUNKS = 0 says it is out of date
-        self.ready = np.zeros(n, dtype=np.int32)
-        self.ready_row = np.zeros(n, dtype=np.int32)
-        self.info[I_CHUNKS] = 0
 
     def _allocate_list(self, capacity: int, keep: int = 0):
         h = self.history_size
@@ -117,7 +112,6 @@ class EngineState:
         keep = int(self.nl_start[-1]) if self.nl_start.size else 0
         self._allocate_list(int(needed * LIST_MARGIN) + 16, keep=keep)
         self.info[I_NEED_REBUILD] = 1
-        self.info[I_CHUNKS] = 0
         if keep:  # the transposed index refers to list entries, which were kept as they were
             from .neighbors import _transpose
             _transpose(self.n, self.nl_start, self.nl_j, self.tr_start, self.tr_k)
@@ -220,7 +214,6 @@ class EngineState:
         self.hist[:total] = self.hist[src]
         self.touch[:total] = self.touch[src]
         _transpose(n, self.nl_start, self.nl_j, self.tr_start, self.tr_k)
-        self.info[I_CHUNKS] = 0
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
 
@@ -249,7 +242,7 @@ class EngineState:
                 self.whist, self.wtouch, self.nl_start, self.nl_j, self.hist, self.touch, self.pair_force, self.pair_torque_j,
                 self.tr_start, self.tr_k, self.cell_start, self.cell_items,
                 self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info,
-                self.ready, self.ready_row, *self.contact_blocks())
+                *self.contact_blocks())
 
     def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
         """Advance up to ``nsteps`` steps (growing the list arrays as often as needed).
@@ -316,7 +309,6 @@ class EngineState:
             if total >= 0:
                 break
             self.grow(-total)
-        self.info[I_CHUNKS] = 0
         saved = (self.hist[:total].copy(), self.whist.copy(), self.energy.copy())
         while True:
             self.info[I_FORCES_VALID] = 0
@@ -348,9 +340,6 @@ class EngineState:
             arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
         for name in cls.ARRAYS:
             setattr(st, name, np.array(arrays[name]))
-        info = np.zeros(INFO_SIZE, dtype=np.int64)  # a checkpoint may come from before the later slots
-        info[:min(INFO_SIZE, st.info.size)] = st.info[:INFO_SIZE]
-        st.info = info
         if not np.array_equal(st.ids, np.arange(st.n)):
             st._slots = np.argsort(st.ids)
         nl_start = st.nl_start

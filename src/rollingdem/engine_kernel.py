@@ -55,7 +55,7 @@ from numba import njit, prange
 from numba.np.arrayobj import reshape_unchecked
 from numba.core.errors import NumbaPerformanceWarning
 
-from rollingdem.neighbors import gather_order, rebuild_neighbor_list
+from rollingdem.neighbors import rebuild_neighbor_list
 from rollingdem.contact.frame import SERIES_ANGLE, contact_frame, contact_frame_series
 from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
 from rollingdem.contact.tangential import history_spring as tangential_force  # @@TANGENTIAL
@@ -93,7 +93,6 @@ I_NEED_REBUILD = 4
 I_FORCES_VALID = 5
 I_TOO_FAST = 6
 I_DRIFTED = 7
-I_CHUNKS = 8  # the number of chunks gather_order was made for (0: to be made)
 
 STATUS_CAPACITY = 1
 STATUS_TOO_FAST = 2
@@ -108,7 +107,6 @@ WALL_CYLINDER = 1
 # (measured on the 20,000-sphere collapse).
 SERIAL_BELOW = 512
 GATHER_RUN = 256  # particles per call of gather_rows: the call is negligible, the threads stay balanced
-ROW_TILE = 128  # rows per pair_rows call in the fused step: a gather follows each, its data still in cache
 warnings.filterwarnings("ignore", message="(?s).*parallel=True.*no transformation for parallel execution",
                         category=NumbaPerformanceWarning)
 INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
@@ -364,12 +362,9 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def pair_rows(lo, hi, count, finish, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch,
-              pair_force, pair_torque_j, energy, contacts, block, lanes):
+def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+              pair_torque_j, energy, contacts, block, lanes):
     """Rows lo..hi-1 of the half list: F and T on i summed over the row, F and T_j kept per pair.
-    Returns the number of contacts left queued in ``block`` (``count`` of them were queued when it
-    was called): with ``finish`` the block is computed at the end and none are left; without, the
-    rows from ``lanes[1, 0]`` on are not complete yet (the fused step goes on with the next rows).
 
     The distance tests run here; the contacts found are queued into ``block`` (their inputs and a
     copy of their history rows) and computed ``CONTACT_BLOCK`` at a time by ``block_contacts``.
@@ -386,9 +381,10 @@ def pair_rows(lo, hi, count, finish, dt, x, v, w, f, t, radius, mass, mat, pair_
         for i in range(lo, hi):
             pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
                      pair_torque_j, energy, contacts)
-        return count
+        return
     nslot = hist.shape[1]
     p = pair_params[mat[lo], mat[lo]] if hi > lo else pair_params[0, 0]
+    count = np.int64(0)  # not a literal 0, which would compile flush_block a second time
     for i in range(lo, hi):
         for d in range(3):
             f[i, d] = 0.0
@@ -445,21 +441,18 @@ def pair_rows(lo, hi, count, finish, dt, x, v, w, f, t, radius, mass, mat, pair_
                 block[(B_SCALAR + 10) * CONTACT_BLOCK + n] = res[10]
                 block[(B_SCALAR + 11) * CONTACT_BLOCK + n] = res[11]
                 block[(B_SCALAR + 12) * CONTACT_BLOCK + n] = res[12]
-    if finish and count > 0:
+    if count > 0:
         flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts)
-        count = 0
-    return count
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
                 pair_torque_j, energy, contacts, blocks, lanes):
-    """Pair contacts: each thread a contiguous range of rows, with its own block buffer (the pass
-    on its own, as ``rollingdem bench`` times it; the step loop runs it fused, ``step_forces``)."""
+    """Pair contacts: each thread a contiguous range of rows, with its own block buffer."""
     n = x.shape[0]
     nblock = blocks.shape[0]
     for b in prange(nblock):
-        pair_rows(b * n // nblock, (b + 1) * n // nblock, np.int64(0), np.bool_(True), dt, x, v, w, f, t, radius, mass, mat, pair_params,
+        pair_rows(b * n // nblock, (b + 1) * n // nblock, dt, x, v, w, f, t, radius, mass, mat, pair_params,
                   nl_start, nl_j, hist, touch, pair_force, pair_torque_j, energy, contacts, blocks[b], lanes[b])
 
 
@@ -468,8 +461,8 @@ def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_sta
                        pair_torque_j, energy, contacts, blocks, lanes):
     """``pair_forces`` on the calling thread (see ``SERIAL_BELOW``)."""
     for b in range(1):  # lo = b, not 0: a literal 0 would compile pair_rows a second time
-        pair_rows(b, x.shape[0], np.int64(0), np.bool_(True), dt, x, v, w, f, t, radius, mass, mat, pair_params,
-                  nl_start, nl_j, hist, touch, pair_force, pair_torque_j, energy, contacts, blocks[b], lanes[b])
+        pair_rows(b, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch,
+                  pair_force, pair_torque_j, energy, contacts, blocks[b], lanes[b])
 
 
 @njit(cache=True, inline="always")
@@ -627,15 +620,14 @@ def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def gather_rows(order, lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
+                touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
                 wtouch, energy, contacts, x_ref, half_skin):
-    """``gather_one`` for particles order[lo..hi-1]; returns the counts of its two flags. One
-    function for all drivers, as ``pair_rows``: compiled once (the walls' contact law with it)."""
+    """``gather_one`` for particles lo..hi-1; returns the counts of its two flags. One function
+    for both drivers, as ``pair_rows``: compiled once (the walls' contact law with it)."""
     nexceed = 0
     nfast = 0
-    for m in range(lo, hi):
-        i = order[m]
+    for i in range(lo, hi):
         exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
                                   tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
                                   wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
@@ -647,14 +639,13 @@ def gather_rows(order, lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, i
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch,
            pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch,
-           energy, contacts, x_ref, half_skin, ready):
-    """``gather_rows`` on runs of ``GATHER_RUN`` particles (in the order ``ready``, any permutation),
-    shared out among the threads: the pass on its own, as ``rollingdem bench`` times it."""
+           energy, contacts, x_ref, half_skin):
+    """``gather_rows`` on runs of ``GATHER_RUN`` particles, shared out among the threads."""
     n = x.shape[0]
     nexceed = 0
     nfast = 0
     for b in prange((n + GATHER_RUN - 1) // GATHER_RUN):
-        exceed, fast = gather_rows(ready, b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, x, v, w, f, t,
+        exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, x, v, w, f, t,
                                    radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch, pair_force,
                                    pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
                                    wtouch, energy, contacts, x_ref, half_skin)
@@ -666,118 +657,15 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
                   touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat,
-                  whist, wtouch, energy, contacts, x_ref, half_skin, ready):
+                  whist, wtouch, energy, contacts, x_ref, half_skin):
     """``gather`` on the calling thread."""
     nexceed = nfast = 0
     for b in range(1):  # lo = b, not a literal 0: see pair_forces_serial
-        nexceed, nfast = gather_rows(ready, b, x.shape[0], dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
+        nexceed, nfast = gather_rows(b, x.shape[0], dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
                                      pair_params, tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind,
                                      wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts,
                                      x_ref, half_skin)
     return nexceed, nfast
-
-
-@njit(cache=True, inline="always")
-def first_at_least(sorted_keys, value):
-    """The first index m with sorted_keys[m] >= value (binary search)."""
-    lo = 0
-    hi = sorted_keys.shape[0]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if sorted_keys[mid] < value:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
-@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def step_chunk(c, nchunk, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, nl_start, nl_j,
-               hist, touch, pair_force, pair_torque_j, tr_start, tr_k, wall_kind, wall_geom, wall_vel, wall_omega,
-               wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin, ready, ready_row, block, lanes):
-    """Chunk c of the fused step: its rows ``ROW_TILE`` at a time, each tile followed by the gather
-    of the particles of this chunk that it completed (``neighbors.gather_order``), while their
-    data and pair terms are still in cache. Returns the counts of the gather's two flags."""
-    n = x.shape[0]
-    lo = c * n // nchunk
-    hi = (c + 1) * n // nchunk
-    m = first_at_least(ready_row, lo)
-    count = np.int64(0)
-    nexceed = 0
-    nfast = 0
-    for tile in range(lo, hi, ROW_TILE):
-        tile_end = min(tile + ROW_TILE, hi)
-        count = pair_rows(tile, tile_end, count, tile_end == hi, dt, x, v, w, f, t, radius, mass, mat, pair_params,
-                          nl_start, nl_j, hist, touch, pair_force, pair_torque_j, energy, contacts, block, lanes)
-        complete = lanes[1, 0] if count > 0 else tile_end  # the rows before it are done
-        end = m
-        while end < n and ready_row[end] < complete:
-            end += 1
-        if end > m:
-            exceed, fast = gather_rows(ready, m, end, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                       pair_params, tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind,
-                                       wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts,
-                                       x_ref, half_skin)
-            nexceed += exceed
-            nfast += fast
-            m = end
-    return nexceed, nfast
-
-
-@njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def step_forces(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, nl_start, nl_j, hist,
-                touch, pair_force, pair_torque_j, tr_start, tr_k, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat,
-                whist, wtouch, energy, contacts, x_ref, half_skin, ready, ready_row, blocks, lanes):
-    """The pair pass and the gather of one step, fused: each thread its chunk of rows and the
-    particles those rows alone reach (``step_chunk``), then the particles reached from two chunks
-    (``gather_order``), in runs shared out among the threads. Each particle's sums are made in the
-    same order as by ``pair_forces`` then ``gather``, so the results are the same bit for bit; the
-    particles' data is read once per step instead of twice (at 10^6 spheres the step is bound by
-    memory traffic). Returns the counts of the gather's two flags."""
-    n = x.shape[0]
-    nchunk = blocks.shape[0]
-    nexceed = 0
-    nfast = 0
-    for c in prange(nchunk):
-        exceed, fast = step_chunk(c, nchunk, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                  pair_params, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k,
-                                  wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
-                                  contacts, x_ref, half_skin, ready, ready_row, blocks[c], lanes[c])
-        nexceed += exceed
-        nfast += fast
-    later = first_at_least(ready_row, n)
-    for b in prange((n - later + GATHER_RUN - 1) // GATHER_RUN):
-        exceed, fast = gather_rows(ready, later + b * GATHER_RUN, min(later + (b + 1) * GATHER_RUN, n), dt, kick,
-                                   gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                                   touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
-                                   wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
-        nexceed += exceed
-        nfast += fast
-    return nexceed, nfast
-
-
-@njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def step_forces_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, nl_start, nl_j,
-                       hist, touch, pair_force, pair_torque_j, tr_start, tr_k, wall_kind, wall_geom, wall_vel,
-                       wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin, ready, ready_row,
-                       blocks, lanes):
-    """``step_forces`` on the calling thread, the chunks one after the other."""
-    n = x.shape[0]
-    nchunk = blocks.shape[0]
-    nexceed = 0
-    nfast = 0
-    for c in range(nchunk):
-        exceed, fast = step_chunk(c, nchunk, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                  pair_params, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k,
-                                  wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
-                                  contacts, x_ref, half_skin, ready, ready_row, blocks[c], lanes[c])
-        nexceed += exceed
-        nfast += fast
-    later = first_at_least(ready_row, n)
-    exceed, fast = gather_rows(ready, later, n, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                               pair_params, tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom,
-                               wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
-    return nexceed + exceed, nfast + fast
 
 
 @njit(cache=True, inline="always")
@@ -846,7 +734,7 @@ def move_walls(dt, wall_geom, wall_vel):
 
 @njit(cache=True)
 def _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start, cell_items, cell_of,
-             counts, x_ref, info, ready, ready_row, nchunk):
+             counts, x_ref, info):
     total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, cell_start,
                                   cell_items, cell_of, counts, x_ref)
     if total < 0:
@@ -855,44 +743,36 @@ def _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, 
         return False
     for k in range(total):  # the entries moved: in contact at the last step <=> a contact normal is kept
         touch[k] = 1 if (hist[k, 0] != 0.0 or hist[k, 1] != 0.0 or hist[k, 2] != 0.0) else 0
-    _order(nl_start, nl_j, cell_start, cell_of, counts, info, ready, ready_row, nchunk)
     info[I_REBUILDS] += 1
     return True
-
-
-@njit(cache=True)
-def _order(nl_start, nl_j, cell_start, cell_of, counts, info, ready, ready_row, nchunk):
-    """The fused step's gather order for ``nchunk`` chunks (the cell arrays are its scratch: the
-    next rebuild makes them again)."""
-    gather_order(ready.shape[0], nl_start, nl_j, nchunk, cell_of, counts, cell_start, ready, ready_row)
-    info[I_CHUNKS] = nchunk
 
 
 @njit(cache=True)  # @@SERIAL_COPY
 def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
             wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
             pair_torque_j, tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts,
-            info, ready, ready_row, blocks, lanes):
+            info, blocks, lanes):
     """Advance ``nsteps`` steps: ``advance`` on Numba's threads, ``advance_serial`` (the same loop
     with the ``*_serial`` passes, written by the kernel generator) on the calling thread. Stops
     early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the
     capacity needed when the neighbor list outgrows its arrays, or STATUS_TOO_FAST when a particle
     would move more than skin/2 in one step."""
     half_skin = 0.5 * skin
-    nchunk = blocks.shape[0]
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
-    if info[I_CHUNKS] != nchunk:  # the list was changed outside, or the thread count
-        _order(nl_start, nl_j, cell_start, cell_of, counts, info, ready, ready_row, nchunk)
     if info[I_FORCES_VALID] == 0:
         info[I_DRIFTED] = 0
         if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
-                        cell_items, cell_of, counts, x_ref, info, ready, ready_row, nchunk):
+                        cell_items, cell_of, counts, x_ref, info):
             return
-        exceed, fast = step_forces(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-                                   nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, wall_kind,
-                                   wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref,
-                                   half_skin, ready, ready_row, blocks, lanes)
+        # the pair pass and the gather are called here and in the loop, not through one function:
+        # a call of more than 30 arguments cannot be inlined, and a function of its own would
+        # compile the whole kernel once more (1 s of a cold compile)
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                    pair_torque_j, energy, contacts, blocks, lanes)
+        exceed, fast = gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
+                              tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
+                              wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
         info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
         info[I_FORCES_VALID] = 1
@@ -908,15 +788,16 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids,
             info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
             if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
-                            cell_items, cell_of, counts, x_ref, info, ready, ready_row, nchunk):
+                            cell_items, cell_of, counts, x_ref, info):
                 return  # drifted: the call after the arrays grow goes on from here
             info[I_NEED_REBUILD] = 0
         drift = step + 1 < nsteps
         kick = 2.0 if drift else 1.0
-        exceed, fast = step_forces(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-                                   nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, wall_kind,
-                                   wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref,
-                                   half_skin, ready, ready_row, blocks, lanes)
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+                    pair_torque_j, energy, contacts, blocks, lanes)
+        exceed, fast = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
+                              tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
+                              wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
         info[I_NEED_REBUILD] = exceed
         info[I_TOO_FAST] = fast
         info[I_STEPS_DONE] = step + 1

@@ -207,41 +207,6 @@ def _transpose(n, nl_start, nl_j, tr_start, tr_k):
 
 
 @njit(cache=True)
-def gather_order(n, nl_start, nl_j, nchunk, first_row, key, start, ready, ready_row):
-    """The order in which the fused step (``engine_kernel.step_forces``) gathers the particles.
-
-    The step gives each of ``nchunk`` threads a contiguous range of rows, chunk c the rows
-    [c n / nchunk, (c+1) n / nchunk). A particle's gather (its pair terms summed, its kick and
-    drift) may run once every row that holds it is computed: its own row and the rows in which it
-    is the second partner. Nothing else reads or writes it in the step. A particle whose rows all
-    lie in one chunk is gathered by that chunk's thread, as soon as the last of them (``key``) is
-    done, while its data is still in cache; the others (a chunk's rows reach particles of the next
-    chunk at its edge, and a few pairs are far apart in storage) are gathered after all chunks,
-    with key ``n``. ``ready`` lists the particles in ascending key (stable), ``ready_row`` their
-    keys. ``first_row``, ``key`` and ``start`` (at least n + 2 long) are scratch."""
-    for i in range(n):
-        first_row[i] = i
-        key[i] = i
-    for i in range(n):
-        for k in range(nl_start[i], nl_start[i + 1]):
-            j = nl_j[k]
-            first_row[j] = min(first_row[j], i)
-            key[j] = max(key[j], i)
-    for i in range(n):
-        # chunk of row r: the c with c n // nchunk <= r < (c + 1) n // nchunk
-        c_first = first_row[i] * nchunk // n
-        while c_first * n // nchunk > first_row[i]:
-            c_first -= 1
-        while (c_first + 1) * n // nchunk <= first_row[i]:
-            c_first += 1
-        if key[i] >= (c_first + 1) * n // nchunk:
-            key[i] = n
-    _counting_sort(key, n, n + 1, start, ready)
-    for m in range(n):
-        ready_row[m] = key[ready[m]]
-
-
-@njit(cache=True)
 def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, cell_start, cell_items,
                           cell_of, counts, x_ref):
     """Rebuild the half list at the current positions, carrying contact history over.

@@ -30,7 +30,7 @@ from .base import N_COMMON, SubModel, make_submodel
 
 HISTORY_FRAME = 3  # the previous contact normal, kept by the engine for every contact
 
-SERIAL_PASSES = ("advance", "pair_forces", "gather", "kick_drift", "step_forces")  # name -> name_serial
+SERIAL_PASSES = ("advance", "pair_forces", "gather", "kick_drift")  # name -> name_serial
 _SERIAL_NAME = re.compile(r"\b(" + "|".join(SERIAL_PASSES) + r")\(")
 
 _LOADED: dict[str, object] = {}

@@ -37,14 +37,15 @@ _PREPARED: set[tuple[str, bool]] = set()
 def plans(serial: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """(the helper's functions, this process's functions), each list in the order compiled."""
     sfx = "_serial" if serial else ""
-    helper = ("contact", "gather_rows", "rebuild_neighbor_list", "gather_order")
+    helper = ("contact", "gather_rows", "rebuild_neighbor_list")
     # the drift before the pair pass: it needs nothing of the helper's, which is still starting
-    main = ("block_contacts", "kick_drift" + sfx, "undo_drift", "pair_rows", "step_chunk", "step_forces" + sfx)
+    main = ("block_contacts", "kick_drift" + sfx, "undo_drift", "pair_forces" + sfx, "gather" + sfx)
     return helper, main
 
 
 # main's function -> the helper's that it calls, which this process waits for
-NEEDS = {"pair_rows": "contact", "step_chunk": "gather_rows"}
+NEEDS = {"pair_forces": "contact", "pair_forces_serial": "contact", "gather": "gather_rows",
+         "gather_serial": "gather_rows"}
 
 
 def _cores() -> int:
@@ -54,7 +55,7 @@ def _cores() -> int:
         return os.cpu_count() or 1
 
 
-def is_cached(module, function: str = "advance") -> bool:
+def is_cached(module, function: str = "gather") -> bool:
     """Whether Numba's cache holds ``module.function`` (its index file exists where Numba looks:
     the function may live in another module, as the neighbor search does)."""
     from numba.core.caching import FunctionCache
@@ -87,20 +88,13 @@ def signatures(module, contact, track_energy: bool = False) -> dict:
               st.wall_vel, st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy, st.contacts, st.x_ref,
               half_skin)
     drift = (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia, st.x_ref, half_skin)
-    fused = (dt, kick, sim._gravity, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.inertia, st.mat, pp,
-             st.nl_start, st.nl_j, st.hist, st.touch, st.pair_force, st.pair_torque_j, st.tr_start, st.tr_k,
-             st.wall_kind, st.wall_geom, st.wall_vel, st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy,
-             st.contacts, st.x_ref, half_skin, st.ready, st.ready_row)
     args = {
         "contact": (st.hist, 0) + (0.0,) * 18 + (pp[0, 0], dt),
         "block_contacts": (blocks[0], pp[0, 0], dt),
         "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start,
                                   st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref),
-        "gather_order": (0, st.nl_start, st.nl_j, 0, st.cell_of, st.counts, st.cell_start, st.ready, st.ready_row),
-        "pair_rows": (0, 1, 0, True) + pair + (blocks[0], lanes[0]),
-        "step_chunk": (0, 1) + fused + (blocks[0], lanes[0]),
-        "step_forces": fused + (blocks, lanes), "step_forces_serial": fused + (blocks, lanes),
-        "gather_rows": (st.ready, 0, 1) + gather,
+        "pair_forces": pair + (blocks, lanes), "pair_forces_serial": pair + (blocks, lanes),
+        "gather_rows": (0, 1) + gather, "gather": gather, "gather_serial": gather,
         "kick_drift": drift, "kick_drift_serial": drift,
         "undo_drift": drift[:-2],
     }

@@ -58,7 +58,9 @@ def _set_threads(threads):
         typer.echo(f"error: --threads = {threads} is not allowed: must be in [1, {numba.config.NUMBA_NUM_THREADS}]",
                    err=True)
         raise typer.Exit(2)
-    numba.set_num_threads(threads)
+    from .threads import fix_threads
+
+    fix_threads(threads)  # what the user asked for, whatever the machine's load
 
 
 @app.command()

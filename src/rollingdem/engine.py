@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .threads import ThreadGovernor
 from .walls import GEOMETRY_SIZE
 
 I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST, I_DRIFTED = range(8)
@@ -48,7 +49,7 @@ class EngineState:
         self.inertia = np.zeros(n)
         self.mat = np.zeros(n, dtype=np.int32)
         self.energy = np.zeros((n, len(ENERGY_CHANNELS)))
-        self.contacts = np.zeros(n, dtype=np.int64)
+        self.contacts = np.zeros(n, dtype=np.int32)  # contacts per sphere: int32 is plenty, 4 B/p less
         self.x_ref = np.zeros((n, 3))
         self.ids = np.zeros(n, dtype=np.int64)
         self._slots = None  # slot of each id, once the slots were re-sorted
@@ -79,9 +80,10 @@ class EngineState:
         self.nl_start = np.zeros(n + 1, dtype=np.int64)
         self.tr_start = np.zeros(n + 1, dtype=np.int64)
         self.cell_items = np.zeros(n, dtype=np.int32)
-        self.cell_of = np.zeros(n, dtype=np.int64)
-        self.counts = np.zeros(n, dtype=np.int64)
-        self.cell_start = np.zeros(max(2 * n, 64) + 1, dtype=np.int64)
+        # rebuild scratch, int32 (16 B/p less than int64): at most max(2 n, 64) cells, n spheres
+        self.cell_of = np.zeros(n, dtype=np.int32)
+        self.counts = np.zeros(n, dtype=np.int32)
+        self.cell_start = np.zeros(max(2 * n, 64) + 1, dtype=np.int32)
 
     def _allocate_list(self, capacity: int, keep: int = 0):
         h = self.history_size
@@ -135,7 +137,7 @@ class EngineState:
         self.inertia = np.concatenate([self.inertia, inertia])
         self.mat = np.concatenate([self.mat, mat.astype(np.int32)])
         self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
-        self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int64)])
+        self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int32)])
         self.x_ref = np.concatenate([self.x_ref, x])
         self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
         if self._slots is not None:
@@ -254,18 +256,32 @@ class EngineState:
             self._evaluate_forces(kernel, dt, gravity, skin, pair_params)
         if self.n >= SORT_ABOVE and self.steps_since_sort >= SORT_EVERY:
             self.sort(2.0 * float(self.radius.max()) + skin)
+        import numba
+
         remaining = nsteps
         step_loop = self.step_loop(kernel)
-        while remaining > 0:
-            step_loop(remaining, *self.kernel_args(dt, gravity, skin, pair_params))
-            done = int(self.info[I_STEPS_DONE])
-            remaining -= done
-            self.steps_since_sort += done
-            if self.info[I_STATUS] == STATUS_CAPACITY:
-                self.grow(int(self.info[I_NEEDED]))
-            elif self.info[I_STATUS] == STATUS_TOO_FAST:
-                return nsteps - remaining, self._too_fast_message(dt, skin)
+        governor = self.governor()
+        governor.begin(numba.get_num_threads(), parallel=step_loop is kernel.advance)
+        try:
+            while remaining > 0:
+                step_loop(governor.segment(remaining), *self.kernel_args(dt, gravity, skin, pair_params))
+                done = int(self.info[I_STEPS_DONE])
+                governor.done(done)
+                remaining -= done
+                self.steps_since_sort += done
+                if self.info[I_STATUS] == STATUS_CAPACITY:
+                    self.grow(int(self.info[I_NEEDED]))
+                elif self.info[I_STATUS] == STATUS_TOO_FAST:
+                    return nsteps - remaining, self._too_fast_message(dt, skin)
+        finally:
+            governor.close()
         return nsteps, None
+
+    def governor(self):
+        """The thread governor of this state's runs (``rollingdem.threads``), made when first used."""
+        if getattr(self, "_governor", None) is None:
+            self._governor = ThreadGovernor()
+        return self._governor
 
     def serial(self) -> bool:
         """Whether the kernel steps on the calling thread (a small scene, or one Numba thread)."""
@@ -340,6 +356,7 @@ class EngineState:
             arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
         for name in cls.ARRAYS:
             setattr(st, name, np.array(arrays[name]))
+        st.contacts = st.contacts.astype(np.int32)  # int64 in checkpoints of before 2026-12-02
         if not np.array_equal(st.ids, np.arange(st.n)):
             st._slots = np.argsort(st.ids)
         nl_start = st.nl_start

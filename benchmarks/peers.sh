@@ -2,7 +2,8 @@
 # Side-by-side timing of the column-collapse scene (20,000 spheres, 10,000 steps) on the identical
 # settled state: LIGGGHTS (EPSD), LAMMPS (rolling sds) and rollingdem (EPSD), alternating, ROUNDS
 # rounds, 1 and 2 processes/threads. Needs: apt-get install liggghts lammps openmpi-bin.
-# usage: benchmarks/peers.sh WORKDIR [ROUNDS]   (WORKDIR gets the inputs, the dump and the logs)
+# usage: [NPS="2 1"] benchmarks/peers.sh WORKDIR [ROUNDS]   (WORKDIR gets the inputs, the dump and the logs;
+# NPS: the process/thread counts of each round)
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 work="$1"; rounds="${2:-3}"
@@ -14,7 +15,7 @@ if [ ! -f column20k.dump ]; then
 fi
 [ -f column20k.data ] || python3 dump2data.py column20k.dump column20k.data
 for r in $(seq "$rounds"); do
-  for np_ in 2 1; do
+  for np_ in ${NPS:-2 1}; do
     $M -np $np_ liggghts -in liggghts_in.run -var rf epsd -var dump column20k.dump -var nsteps 10000 \
       -log "lig_np${np_}_r$r.log" > /dev/null
     echo "round $r liggghts np=$np_ $(grep 'Loop time' "lig_np${np_}_r$r.log")"

@@ -77,6 +77,7 @@ def test_governor_follows_the_load_and_gives_the_threads_back(monkeypatch):
     m.run(0.5)
     g.done(steps)
     assert g.threads == 2
+    assert g.steps_on == {2: th.FIRST_SEGMENT + steps, 1: steps}  # what the bench reports
     g.close()
     # one thread given, the serial loop, or --threads: all steps in one call
     for given, parallel, fixed in ((1, True, False), (2, False, False), (2, True, True)):

@@ -239,6 +239,7 @@ def _time_run(sim, steps: int) -> tuple[float, int]:
     from .engine_kernel import I_REBUILDS
 
     sim.run(steps=1, progress=False)
+    sim._state.governor().steps_on.clear()
     before = int(sim._state.info[I_REBUILDS])
     tic = time.perf_counter()
     sim.run(steps=steps, progress=False)
@@ -250,6 +251,10 @@ def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="
     n = sim.n_particles
     contacts, neighbors = _contacts_per_particle(sim)
     state_bytes = sum(a.nbytes for a in vars(sim._state).values() if isinstance(a, np.ndarray))
+    steps_on = sim._state.governor().steps_on
+    if set(steps_on) - {threads}:  # the governor took threads away while other processes were busy
+        shares = ", ".join(f"{k} thread{'s' if k > 1 else ''} for {s} steps" for k, s in sorted(steps_on.items(), reverse=True))
+        note = (note + "; " if note else "") + f"other processes were busy: {shares}"
     return BenchResult(scene=scene, model=model, particles=n, steps=steps, threads=threads, wall_s=wall,
                        particle_steps_per_s=n * steps / wall, compile_s=compile_s, contacts_per_particle=contacts,
                        neighbors_per_particle=neighbors, rebuilds=rebuilds,

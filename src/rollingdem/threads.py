@@ -81,6 +81,7 @@ class ThreadGovernor:
         self.given = self.threads = None
         self.active = False
         self.rate = None  # steps per second of the last segment
+        self.steps_on = {}  # steps made on each thread count, while active
         self._window = None  # (wall, busy ticks, own CPU seconds) where the measurement began
         self._start = 0.0
 
@@ -112,6 +113,7 @@ class ThreadGovernor:
         if not self.active or self._window is None:
             return
         now = self.clock()
+        self.steps_on[self.threads] = self.steps_on.get(self.threads, 0) + steps
         if steps > 0 and now > self._start:
             self.rate = steps / (now - self._start)
         wall0, ticks0, own0 = self._window

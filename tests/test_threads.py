@@ -36,7 +36,7 @@ class FakeMachine:
 
 def governor(machine, cores=2):
     g = th.ThreadGovernor(clock=machine.clock, ticks=machine.ticks, own_cpu=machine.own_cpu)
-    g.cpus, g.hz = list(range(cores)), 100
+    g.cpus, g.hz = set(range(cores)), 100
     return g
 
 

@@ -253,7 +253,8 @@ def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="
     state_bytes = sum(a.nbytes for a in vars(sim._state).values() if isinstance(a, np.ndarray))
     steps_on = sim._state.governor().steps_on
     if set(steps_on) - {threads}:  # the governor took threads away while other processes were busy
-        shares = ", ".join(f"{k} thread{'s' if k > 1 else ''} for {s} steps" for k, s in sorted(steps_on.items(), reverse=True))
+        shares = ", ".join(f"{k} thread{'s' if k > 1 else ''} for {s} steps"
+                           for k, s in sorted(steps_on.items(), reverse=True))
         note = (note + "; " if note else "") + f"other processes were busy: {shares}"
     return BenchResult(scene=scene, model=model, particles=n, steps=steps, threads=threads, wall_s=wall,
                        particle_steps_per_s=n * steps / wall, compile_s=compile_s, contacts_per_particle=contacts,

@@ -53,6 +53,7 @@ class EngineState:
         self.x_ref = np.zeros((n, 3))
         self.ids = np.zeros(n, dtype=np.int64)
         self._slots = None  # slot of each id, once the slots were re-sorted
+        self._governor = None  # made by governor() when first used
         self.steps_since_sort = 0
         self.wall_kind = np.zeros(0, dtype=np.int32)
         self.wall_geom = np.zeros((0, GEOMETRY_SIZE))
@@ -279,7 +280,7 @@ class EngineState:
 
     def governor(self):
         """The thread governor of this state's runs (``rollingdem.threads``), made when first used."""
-        if getattr(self, "_governor", None) is None:
+        if self._governor is None:
             self._governor = ThreadGovernor()
         return self._governor
 

@@ -70,12 +70,12 @@ class ThreadGovernor:
 
     def __init__(self, clock=time.perf_counter, ticks=None, own_cpu=None):
         try:
-            self.cpus = sorted(os.sched_getaffinity(0))
+            self.cpus = set(os.sched_getaffinity(0))
         except AttributeError:  # not Linux
-            self.cpus = list(range(os.cpu_count() or 1))
+            self.cpus = set(range(os.cpu_count() or 1))
         self.hz = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
         self.clock = clock
-        self.ticks = ticks or (lambda: _cpu_ticks(set(self.cpus)))
+        self.ticks = ticks or (lambda: _cpu_ticks(self.cpus))
         self.own_cpu = own_cpu or (lambda: sum(os.times()[:2]))
         self.readable = self.ticks() is not None
         self.given = self.threads = None

@@ -120,3 +120,26 @@ def test_run_on_changing_threads_is_bit_identical(table1, monkeypatch):
     assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
     for name in ("positions", "velocities", "angular_velocities"):
         np.testing.assert_array_equal(getattr(sim, name), getattr(ref, name), err_msg=name)
+
+
+def test_on_off_environment_variables_refuse_other_values(monkeypatch):
+    """"1" on, "0" off, unset the default; a value such as "yes" is refused, naming the variable
+    and its value, rather than read silently as on: at import for ROLLINGDEM_ADAPTIVE_THREADS."""
+    import subprocess
+    import sys
+
+    from rollingdem.errors import ParameterError, env_switch
+
+    name = "ROLLINGDEM_PRECOMPILE"
+    monkeypatch.delenv(name, raising=False)
+    assert env_switch(name) is True and env_switch(name, default=False) is False
+    for value, on in (("1", True), ("0", False)):
+        monkeypatch.setenv(name, value)
+        assert env_switch(name) is on
+    monkeypatch.setenv(name, "no")
+    with pytest.raises(ParameterError, match=f"{name} = 'no' is not allowed: must be 0"):
+        env_switch(name)
+    monkeypatch.setenv("ROLLINGDEM_ADAPTIVE_THREADS", "yes")
+    out = subprocess.run([sys.executable, "-c", "import rollingdem"], capture_output=True, text=True)
+    assert out.returncode != 0
+    assert "ROLLINGDEM_ADAPTIVE_THREADS = 'yes' is not allowed" in out.stderr

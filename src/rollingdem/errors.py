@@ -7,6 +7,7 @@ refused at the door rather than crashing deep in a compiled kernel.
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 
@@ -16,6 +17,17 @@ class ParameterError(ValueError):
 
 class SimulationError(RuntimeError):
     """A run could not go on (instability, non-finite state, ...)."""
+
+
+def env_switch(name: str, default: bool = True) -> bool:
+    """An on/off environment variable (``ROLLINGDEM_PRECOMPILE``, ...): "1" on, "0" off, unset
+    ``default``; anything else is refused with the variable's name and value."""
+    value = os.environ.get(name)
+    if value is None:
+        return default
+    if value not in ("0", "1"):
+        raise ParameterError(f"environment variable {name} = {value!r} is not allowed: must be 0 (off) or 1 (on)")
+    return value == "1"
 
 
 def _fmt(value: Any) -> str:

@@ -24,10 +24,12 @@ from __future__ import annotations
 import os
 import time
 
+from .errors import env_switch
+
 SEGMENT_S = 0.5  # seconds per segment: a kernel call costs ~0.1 ms
 DECIDE_S = 0.2  # shortest segment that decides: /proc/stat counts in ticks of 10 ms per core
 FIRST_SEGMENT = 20  # steps, to measure the rate
-_fixed = os.environ.get("ROLLINGDEM_ADAPTIVE_THREADS", "1") == "0"
+_fixed = not env_switch("ROLLINGDEM_ADAPTIVE_THREADS")
 
 
 def fix_threads(threads: int) -> None:

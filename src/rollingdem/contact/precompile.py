@@ -29,6 +29,8 @@ import sys
 import time
 from pathlib import Path
 
+from ..errors import env_switch
+
 LOCK_STALE_S = 600.0
 HELPER_WAIT_S = 600.0  # the longest this process waits for the helper before compiling alone
 _PREPARED: set[tuple[str, bool]] = set()
@@ -114,7 +116,7 @@ def prepare(contact, module, track_energy: bool, serial: bool) -> bool:
     if (module.__name__, serial) in _PREPARED:
         return False
     _PREPARED.add((module.__name__, serial))
-    if os.environ.get("ROLLINGDEM_PRECOMPILE", "1") == "0" or _cores() < 2 or is_cached(module, loop):
+    if not env_switch("ROLLINGDEM_PRECOMPILE") or _cores() < 2 or is_cached(module, loop):
         return False
     lock = Path(module.__file__).with_suffix(".precompile.lock")
     try:

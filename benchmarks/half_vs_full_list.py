@@ -24,7 +24,7 @@ st = sim._state
 K = sim.kernel()
 a = st.kernel_args(sim.dt, np.asarray(sim.gravity), sim.skin, sim.pair_parameters())
 (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
- wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, cell_start, cell_items,
+ wall_mat, whist, wtouch, nl_start, nl_j, nl_i, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, cell_start, cell_items,
  cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes) = a
 n = x.shape[0]
 nent = nl_start[n]
@@ -76,15 +76,15 @@ ser = nthreads == 1
 empty_tr = np.zeros_like(tr_start)
 h0 = hist.copy(); fh0 = fhist.copy(); t0 = touch.copy(); ft0 = ftouch.copy()
 def half():
-    (K.pair_forces_serial if ser else K.pair_forces)(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j, hist, touch,
+    (K.pair_forces_serial if ser else K.pair_forces)(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j, nl_i, hist, touch,
                                                      pair_force, pair_torque_j, energy, contacts, blocks, lanes)
     (K.gather_serial if ser else K.gather)(0.0 * dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
-        touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+        nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
         contacts, x_ref, 0.5 * skin)
 def full():
     (full_ser if ser else full_par)(dt, x, v, w, f, t, radius, mass, mat, pp, fl_start, fl_j, fhist, ftouch, contacts)
     (K.gather_serial if ser else K.gather)(0.0 * dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, empty_tr, tr_k,
-        touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+        nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
         contacts, x_ref, 0.5 * skin)
 # check: forces agree
 hist[...] = h0; touch[...] = t0; half(); fa = f.copy(); ta = t.copy()

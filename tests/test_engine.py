@@ -330,7 +330,7 @@ def test_contact_flags_follow_the_history_across_rebuilds(table1):
     for _ in range(20):
         sim.run(steps=500)
         st = sim._state
-        kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.hist, st.touch, st.tr_start,
+        kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.nl_i, st.hist, st.touch, st.tr_start,
                         st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info)
         total = st.list_size
         in_contact = np.any(st.hist[:total, :3] != 0.0, axis=1)

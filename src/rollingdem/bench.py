@@ -168,7 +168,7 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     gravity = np.asarray(sim.gravity)
     args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
     (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
-     wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, cell_start,
+     wall_mat, whist, wtouch, nl_start, nl_j, nl_i, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, cell_start,
      cell_items, cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
     # the timings overwrite these (a rebuild at the present positions gives another list): put them back after
     saved = {name: getattr(st, name).copy() for name in ("hist", "touch", "whist", "wtouch", "energy", "f", "t",
@@ -191,13 +191,13 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     pair_forces = kernel.pair_forces_serial if serial else kernel.pair_forces
     gather = kernel.gather_serial if serial else kernel.gather
     kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
-    split = {"contact forces": timed(lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j,
+    split = {"contact forces": timed(lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j, nl_i,
                                                          hist, touch, pair_force, pair_torque_j, energy, contacts,
                                                          blocks, lanes))}
 
     def gather_with(kind, geom, vel, omega, wmat):
         return timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
-                                    touch, pair_force, pair_torque_j, kind, geom, vel, omega, wmat, whist, wtouch,
+                                    nl_j, touch, pair_force, pair_torque_j, kind, geom, vel, omega, wmat, whist, wtouch,
                                     energy, contacts, x_ref, 0.5 * skin))
 
     gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .neighbors import list_rows
 from .threads import ThreadGovernor
 from .walls import GEOMETRY_SIZE
 
@@ -90,11 +91,13 @@ class EngineState:
         h = self.history_size
         old = (getattr(self, "nl_j", None), getattr(self, "hist", None))
         self.nl_j = np.zeros(capacity, dtype=np.int32)
+        self.nl_i = np.zeros(capacity, dtype=np.int32)  # the row of each entry (neighbors.list_rows)
         self.hist = np.zeros((capacity, h))
         self.touch = np.zeros(capacity, dtype=np.uint8)  # entry in contact at the last step
         if keep and old[0] is not None:
             self.nl_j[:keep] = old[0][:keep]
             self.hist[:keep] = old[1][:keep]
+            list_rows(self.n, self.nl_start, self.nl_i)
             self.derive_touch(keep)
         self.pair_force = np.zeros((capacity, 3))
         self.pair_torque_j = np.zeros((capacity, 3))
@@ -217,32 +220,34 @@ class EngineState:
         self.hist[:total] = self.hist[src]
         self.touch[:total] = self.touch[src]
         _transpose(n, self.nl_start, self.nl_j, self.tr_start, self.tr_k)
+        list_rows(n, self.nl_start, self.nl_i)
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
 
     # --- running -------------------------------------------------------------------------------
     def contact_blocks(self):
         """The per-thread block buffers of the pair pass (``engine_kernel.pair_rows``): (threads, columns
-        x CONTACT_BLOCK) floats and (threads, 3, CONTACT_BLOCK) lane indices, about 30 KB per thread;
+        x CONTACT_BLOCK) floats and (threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK) lane indices (the
+        block's entries and a tile's candidate entries), about 38 KB per thread;
         made again when the number of Numba threads changes. Scratch space, never part of the state.
         Empty (0 columns) when the spheres are not all of one material: the pair pass then computes
         one contact at a time."""
         import numba
 
-        from .engine_kernel import CONTACT_BLOCK, N_INPUTS, N_RESULTS
+        from .engine_kernel import CONTACT_BLOCK, LANE_HITS, N_INPUTS, N_RESULTS, TILE_ROWS
 
         threads = numba.get_num_threads()
         one_material = self.n == 0 or bool((self.mat[:self.n] == self.mat[0]).all())
         width = (self.history_size + N_INPUTS + 2 * N_RESULTS) * CONTACT_BLOCK if one_material else 0
         if self._blocks is None or self._blocks.shape != (threads, width):
             self._blocks = np.zeros((threads, width))
-            self._lanes = np.zeros((threads, 3, CONTACT_BLOCK), dtype=np.int64)
+            self._lanes = np.zeros((threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK), dtype=np.int64)
         return self._blocks, self._lanes
 
     def kernel_args(self, dt, gravity, skin, pair_params):
         return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
                 self.ids, pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
-                self.whist, self.wtouch, self.nl_start, self.nl_j, self.hist, self.touch, self.pair_force, self.pair_torque_j,
+                self.whist, self.wtouch, self.nl_start, self.nl_j, self.nl_i, self.hist, self.touch, self.pair_force, self.pair_torque_j,
                 self.tr_start, self.tr_k, self.cell_start, self.cell_items,
                 self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info,
                 *self.contact_blocks())
@@ -371,4 +376,5 @@ class EngineState:
         st.derive_touch(total)
         st.derive_wall_touch()
         st.tr_k[:total] = arrays["tr_k"]
+        list_rows(st.n, st.nl_start, st.nl_i)
         return st

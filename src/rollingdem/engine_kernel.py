@@ -55,7 +55,7 @@ from numba import njit, prange
 from numba.np.arrayobj import reshape_unchecked
 from numba.core.errors import NumbaPerformanceWarning
 
-from rollingdem.neighbors import rebuild_neighbor_list
+from rollingdem.neighbors import list_rows, rebuild_neighbor_list
 from rollingdem.contact.frame import SERIES_ANGLE, contact_frame, contact_frame_series
 from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
 from rollingdem.contact.tangential import history_spring as tangential_force  # @@TANGENTIAL
@@ -77,6 +77,12 @@ HISTORY_SIZE = 6  # @@HISTORY_SIZE
 # are the history slots, the 18 inputs of ``contact``, its 13 results, and the 13 results of a
 # contact computed by the scalar ``contact`` instead.
 CONTACT_BLOCK = 64
+BLOCK_SHIFT = 6  # log2(CONTACT_BLOCK)
+# rows of a thread's ``lanes`` (int64, CONTACT_BLOCK wide): 0-2 the block's entries, rows and series
+# flags; from LANE_HITS on, the candidate entries of a tile of the list (``candidate_entries``)
+LANE_HITS = 3
+TILE_ROWS = 16  # a tile of 1024 entries
+CANDIDATE_SLACK = 1.0 + 1e-12
 N_INPUTS = 18
 N_RESULTS = 13
 B_IN = HISTORY_SIZE
@@ -316,6 +322,27 @@ def entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch):
 
 
 @njit(cache=True, inline="always")
+def candidate_entries(k0, k1, x, radius, nl_j, nl_i, touch, lanes):
+    """Entries k0..k1-1 whose spheres may touch now or touched at the last step, in ascending k, into
+    the rows ``LANE_HITS..`` of ``lanes``; returns their count. One flat loop without branches
+    over the entries of many rows (``nl_i`` gives each entry's row): a loop per row mispredicts
+    its exit once per row, which cost more than the distance tests themselves (rows hold ~4
+    entries). The test is looser than ``entry_inputs``' by a relative 1e-12, so that an entry
+    on the edge (which the two may round differently) is still given to ``entry_inputs`` to decide."""
+    nhit = 0
+    for k in range(k0, k1):
+        i = nl_i[k]
+        j = nl_j[k]
+        dx = x[i, 0] - x[j, 0]
+        dy = x[i, 1] - x[j, 1]
+        dz = x[i, 2] - x[j, 2]
+        reach = radius[i] + radius[j]
+        lanes[LANE_HITS + (nhit >> BLOCK_SHIFT), nhit & (CONTACT_BLOCK - 1)] = k
+        nhit += (dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (touch[k] != 0)
+    return nhit
+
+
+@njit(cache=True, inline="always")
 def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
              pair_torque_j, energy, contacts):
     """Row i of the half list, one contact at a time through the scalar ``contact`` (spheres of more
@@ -362,7 +389,7 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
               pair_torque_j, energy, contacts, block, lanes):
     """Rows lo..hi-1 of the half list: F and T on i summed over the row, F and T_j kept per pair.
 
@@ -390,7 +417,13 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
             f[i, d] = 0.0
             t[i, d] = 0.0
         contacts[i] = 0
-        for k in range(nl_start[i], nl_start[i + 1]):
+    tile = (lanes.shape[0] - LANE_HITS) * CONTACT_BLOCK
+    kend = nl_start[hi]
+    for k0 in range(nl_start[lo], kend, tile):
+        nhit = candidate_entries(k0, min(k0 + tile, kend), x, radius, nl_j, nl_i, touch, lanes)
+        for e in range(nhit):
+            k = lanes[LANE_HITS + (e >> BLOCK_SHIFT), e & (CONTACT_BLOCK - 1)]
+            i = nl_i[k]
             touching, j, inputs = entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch)
             if not touching:
                 continue
@@ -446,22 +479,22 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
                 pair_torque_j, energy, contacts, blocks, lanes):
     """Pair contacts: each thread a contiguous range of rows, with its own block buffer."""
     n = x.shape[0]
     nblock = blocks.shape[0]
     for b in prange(nblock):
         pair_rows(b * n // nblock, (b + 1) * n // nblock, dt, x, v, w, f, t, radius, mass, mat, pair_params,
-                  nl_start, nl_j, hist, touch, pair_force, pair_torque_j, energy, contacts, blocks[b], lanes[b])
+                  nl_start, nl_j, nl_i, hist, touch, pair_force, pair_torque_j, energy, contacts, blocks[b], lanes[b])
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
                        pair_torque_j, energy, contacts, blocks, lanes):
     """``pair_forces`` on the calling thread (see ``SERIAL_BELOW``)."""
     for b in range(1):  # lo = b, not 0: a literal 0 would compile pair_rows a second time
-        pair_rows(b, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch,
+        pair_rows(b, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch,
                   pair_force, pair_torque_j, energy, contacts, blocks[b], lanes[b])
 
 
@@ -548,10 +581,9 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
 
 
 @njit(cache=True, inline="always")
-def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-               touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
-               wtouch, energy, contacts, x_ref, half_skin):
-    """Particle i: pair terms where it is the second partner, walls, gravity; then the closing half
+def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
+               wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin):
+    """Particle i, its pair terms gathered (``gather_rows``): walls, gravity; then the closing half
     kick if ``kick`` is 1.0 or more and, if it is 2.0, the next step's opening half kick and drift
     (a float, so one compiled version serves all; one argument, as a call of more than 30 is one
     that Numba cannot inline). Returns (1 if i drifted to skin/2 or more from
@@ -563,16 +595,6 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
     tx = t[i, 0]
     ty = t[i, 1]
     tz = t[i, 2]
-    for m in range(tr_start[i], tr_start[i + 1]):
-        k = tr_k[m]
-        if not touch[k]:
-            continue
-        fx -= pair_force[k, 0]
-        fy -= pair_force[k, 1]
-        fz -= pair_force[k, 2]
-        tx += pair_torque_j[k, 0]
-        ty += pair_torque_j[k, 1]
-        tz += pair_torque_j[k, 2]
     wres = wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel,
                          wall_omega, wall_mat, whist, wtouch)
     mi = mass[i]
@@ -621,23 +643,38 @@ def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+                nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
                 wtouch, energy, contacts, x_ref, half_skin):
-    """``gather_one`` for particles lo..hi-1; returns the counts of its two flags. One function
-    for both drivers, as ``pair_rows``: compiled once (the walls' contact law with it)."""
+    """Particles lo..hi-1: the pair terms where each is the second partner, subtracted from (F) and
+    added to (T) its row sums in ascending entry order, then ``gather_one``; returns the counts of
+    its two flags. One function for both drivers, as ``pair_rows``: compiled once (the walls'
+    contact law with it). The pair terms are one flat loop over the transposed entries of all
+    lo..hi-1 (the partner of entry k is ``nl_j[k]``), not a loop per particle, whose exit would be
+    mispredicted once per particle, as in the pair pass (``candidate_entries``)."""
+    for m in range(tr_start[lo], tr_start[hi]):
+        k = tr_k[m]
+        if not touch[k]:
+            continue
+        j = nl_j[k]
+        f[j, 0] -= pair_force[k, 0]
+        f[j, 1] -= pair_force[k, 1]
+        f[j, 2] -= pair_force[k, 2]
+        t[j, 0] += pair_torque_j[k, 0]
+        t[j, 1] += pair_torque_j[k, 1]
+        t[j, 2] += pair_torque_j[k, 2]
     nexceed = 0
     nfast = 0
     for i in range(lo, hi):
         exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-                                  tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel,
-                                  wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
+                                  wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+                                  contacts, x_ref, half_skin)
         nexceed += exceed
         nfast += fast
     return nexceed, nfast
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch,
+def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, touch,
            pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch,
            energy, contacts, x_ref, half_skin):
     """``gather_rows`` on runs of ``GATHER_RUN`` particles, shared out among the threads."""
@@ -646,7 +683,7 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
     nfast = 0
     for b in prange((n + GATHER_RUN - 1) // GATHER_RUN):
         exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, x, v, w, f, t,
-                                   radius, mass, inertia, mat, pair_params, tr_start, tr_k, touch, pair_force,
+                                   radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, touch, pair_force,
                                    pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
                                    wtouch, energy, contacts, x_ref, half_skin)
         nexceed += exceed
@@ -656,14 +693,14 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                  touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat,
+                  nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat,
                   whist, wtouch, energy, contacts, x_ref, half_skin):
     """``gather`` on the calling thread."""
     nexceed = nfast = 0
     for b in range(1):  # lo = b, not a literal 0: see pair_forces_serial
         nexceed, nfast = gather_rows(b, x.shape[0], dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                     pair_params, tr_start, tr_k, touch, pair_force, pair_torque_j, wall_kind,
-                                     wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts,
+                                     pair_params, tr_start, tr_k, nl_j, touch, pair_force, pair_torque_j,
+                                     wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts,
                                      x_ref, half_skin)
     return nexceed, nfast
 
@@ -733,7 +770,7 @@ def move_walls(dt, wall_geom, wall_vel):
 
 
 @njit(cache=True)
-def _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start, cell_items, cell_of,
+def _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, hist, touch, tr_start, tr_k, cell_start, cell_items, cell_of,
              counts, x_ref, info):
     total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, cell_start,
                                   cell_items, cell_of, counts, x_ref)
@@ -743,13 +780,14 @@ def _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, 
         return False
     for k in range(total):  # the entries moved: in contact at the last step <=> a contact normal is kept
         touch[k] = 1 if (hist[k, 0] != 0.0 or hist[k, 1] != 0.0 or hist[k, 2] != 0.0) else 0
+    list_rows(x.shape[0], nl_start, nl_i)
     info[I_REBUILDS] += 1
     return True
 
 
 @njit(cache=True)  # @@SERIAL_COPY
 def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
-            wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, hist, touch, pair_force,
+            wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, nl_i, hist, touch, pair_force,
             pair_torque_j, tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts,
             info, blocks, lanes):
     """Advance ``nsteps`` steps: ``advance`` on Numba's threads, ``advance_serial`` (the same loop
@@ -762,16 +800,16 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids,
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
         info[I_DRIFTED] = 0
-        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
+        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, hist, touch, tr_start, tr_k, cell_start,
                         cell_items, cell_of, counts, x_ref, info):
             return
         # the pair pass and the gather are called here and in the loop, not through one function:
         # a call of more than 30 arguments cannot be inlined, and a function of its own would
         # compile the whole kernel once more (1 s of a cold compile)
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
                     pair_torque_j, energy, contacts, blocks, lanes)
         exceed, fast = gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                              tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
+                              tr_k, nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
                               wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
         info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
@@ -787,16 +825,16 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids,
             move_walls(dt, wall_geom, wall_vel)
             info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, hist, touch, tr_start, tr_k, cell_start,
+            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, hist, touch, tr_start, tr_k, cell_start,
                             cell_items, cell_of, counts, x_ref, info):
                 return  # drifted: the call after the arrays grow goes on from here
             info[I_NEED_REBUILD] = 0
         drift = step + 1 < nsteps
         kick = 2.0 if drift else 1.0
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
                     pair_torque_j, energy, contacts, blocks, lanes)
         exceed, fast = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                              tr_k, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
+                              tr_k, nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
                               wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
         info[I_NEED_REBUILD] = exceed
         info[I_TOO_FAST] = fast

@@ -207,6 +207,15 @@ def _transpose(n, nl_start, nl_j, tr_start, tr_k):
 
 
 @njit(cache=True)
+def list_rows(n, nl_start, nl_i):
+    """``nl_i[k]``: the row (first partner) of list entry k, so that a loop can run over the
+    entries of many rows as one flat range (the pair pass's distance tests)."""
+    for i in range(n):
+        for k in range(nl_start[i], nl_start[i + 1]):
+            nl_i[k] = i
+
+
+@njit(cache=True)
 def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, cell_start, cell_items,
                           cell_of, counts, x_ref):
     """Rebuild the half list at the current positions, carrying contact history over.
@@ -274,4 +283,4 @@ def brute_force_pairs(x: np.ndarray, radius: np.ndarray, skin: float) -> set[tup
     return set(zip(i.tolist(), j.tolist()))
 
 
-__all__ = ["rebuild_neighbor_list", "brute_force_pairs", "spatial_order"]
+__all__ = ["rebuild_neighbor_list", "list_rows", "brute_force_pairs", "spatial_order"]

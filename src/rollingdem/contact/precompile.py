@@ -83,10 +83,10 @@ def signatures(module, contact, track_energy: bool = False) -> dict:
     dt, kick, half_skin, skin = 1e-6, 1.0, 1e-3, 2e-3
     pp = sim.pair_parameters()
     blocks, lanes = st.contact_blocks()
-    pair = (dt, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.mat, pp, st.nl_start, st.nl_j, st.hist,
+    pair = (dt, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.mat, pp, st.nl_start, st.nl_j, st.nl_i, st.hist,
             st.touch, st.pair_force, st.pair_torque_j, st.energy, st.contacts)
     gather = (dt, kick, sim._gravity, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.inertia, st.mat, pp,
-              st.tr_start, st.tr_k, st.touch, st.pair_force, st.pair_torque_j, st.wall_kind, st.wall_geom,
+              st.tr_start, st.tr_k, st.nl_j, st.touch, st.pair_force, st.pair_torque_j, st.wall_kind, st.wall_geom,
               st.wall_vel, st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy, st.contacts, st.x_ref,
               half_skin)
     drift = (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia, st.x_ref, half_skin)

@@ -1,5 +1,7 @@
 """Engine invariants: equal and opposite forces, momentum, neighbor list, history, restart, determinism."""
 
+import json
+
 import numba
 import numpy as np
 import pytest
@@ -260,6 +262,65 @@ def test_moving_and_removed_walls(table1):
     sim.run(0.1)
     # free flight from v = 0.1 m/s: z + 0.1 t - g t^2 / 2 (contact had only elastic forces at launch)
     assert sim.positions[0, 2] == pytest.approx(z + 0.01 - 0.5 * 9.81 * 0.01, abs=5e-5)
+
+
+def _sticking_on_second_wall(table1):
+    """A sphere held by static friction on a plate (wall 2 of 2) under gravity tilted 10 deg, far
+    from a plate above it (wall 1): its tangential spring with the plate is loaded."""
+    g = 9.81
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=2e-6,
+                        gravity=(g * np.sin(np.radians(10)), 0.0, -g * np.cos(np.radians(10))))
+    sim.add_material(table1())
+    far = sim.add_wall(rd.Plane(point=(0, 0, 0.5), normal=(0, 0, -1), material="m", name="far"))
+    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m", name="plate"))
+    sim.add_particles([[0, 0, R]], R, "m")
+    sim.run(0.02)
+    return sim, far
+
+
+def test_removed_wall_leaves_the_engine_and_the_others_keep_their_history(table1):
+    """Removing a wall drops its per-sphere slot (memory and the gather's test of it) and moves the
+    history of the walls after it with them. The far wall never touched the sphere, so the run
+    goes on exactly as if it were still there (same sums in the same order): bit for bit. A reset
+    plate spring would let the sphere slip until the spring rebuilds (6e-7 m in 1 ms)."""
+    sim, far = _sticking_on_second_wall(table1)
+    kept, _ = _sticking_on_second_wall(table1)
+    st = sim._state
+    spring = st.whist.reshape(1, 2, -1)[0, 1].copy()
+    assert np.abs(spring[3:6]).max() > 0  # the tangential spring holds the sphere
+    sim.remove_wall(far)
+    assert st.n_walls == 1 and st.whist.shape[0] == 1
+    np.testing.assert_array_equal(st.whist[0], spring)
+    # any change of the walls re-evaluates the forces at the present state; a change that is none
+    kept.set_wall_velocity(kept.walls[0], velocity=(0.0, 0.0, 0.0))
+    sim.run(0.001)
+    kept.run(0.001)
+    np.testing.assert_array_equal(sim.positions, kept.positions)
+    np.testing.assert_array_equal(sim.angular_velocities, kept.angular_velocities)
+    assert [w.name for w in sim.walls] == ["plate"]
+
+
+def test_checkpoint_that_kept_a_removed_wall_restores_without_it(table1, tmp_path):
+    """Checkpoints of before 2026-12-02 kept a removed wall's slot (kind -1) in the wall arrays."""
+    sim, far = _sticking_on_second_wall(table1)
+    spring = sim._state.whist.reshape(1, 2, -1)[0, 1].copy()
+    path = sim.checkpoint(tmp_path / "old.npz")
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    meta = json.loads(str(arrays["meta"]))
+    meta["walls"][0] = None
+    arrays["meta"] = np.array(json.dumps(meta))
+    arrays["wall_kind"] = arrays["wall_kind"].copy()
+    arrays["wall_kind"][0] = -1
+    np.savez(path, **arrays)
+    back = rd.Simulation.restore(path)
+    assert back._state.n_walls == 1
+    np.testing.assert_array_equal(back._state.whist[0], spring)
+    assert [w.name for w in back.walls] == ["plate"]
+    back.run(0.001)
+    sim.set_wall_velocity(sim.walls[0], velocity=(0.0, 0.0, 0.0))  # forces re-evaluated, as at removal
+    sim.run(0.001)  # the far wall still in place: it never touched the sphere
+    np.testing.assert_array_equal(back.positions, sim.positions)
 
 
 def test_cylinder_wall_holds_particles(table1):

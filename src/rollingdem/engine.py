@@ -162,8 +162,9 @@ class EngineState:
         if self.capacity < 3 * self.n:  # a settled bed's half list holds ~4 entries per particle
             self.grow(3 * self.n)
 
-    def set_walls(self, kinds, geoms, vels, omegas, mats):
-        """Replace the wall arrays; history of walls that stay in place (same slot) is kept."""
+    def set_walls(self, kinds, geoms, vels, omegas, mats, carry):
+        """Replace the wall arrays. ``carry[w]``: the slot that new wall w had before (its contact
+        history goes with it), or -1 for a new wall."""
         old_w = self.n_walls
         new_w = len(kinds)
         old = self.whist.reshape(self.n, old_w, self.history_size) if self.n and old_w else None
@@ -174,9 +175,9 @@ class EngineState:
         self.wall_mat = np.asarray(mats, dtype=np.int32).reshape(new_w)
         whist = np.zeros((self.n, new_w, self.history_size))
         if old is not None:
-            keep = min(old_w, new_w)
-            whist[:, :keep] = old[:, :keep]
-        whist[:, self.wall_kind < 0] = 0.0  # a removed wall's springs go with it (the kernel skips its slot)
+            for new_slot, old_slot in enumerate(carry):
+                if old_slot >= 0:
+                    whist[:, new_slot] = old[:, old_slot]
         self.whist = whist.reshape(self.n * new_w, self.history_size)
         self.derive_wall_touch()
         self.info[I_FORCES_VALID] = 0

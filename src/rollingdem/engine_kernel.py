@@ -515,8 +515,6 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
     mi = mass[i]
     for wl in range(nwall):
         kind = wall_kind[wl]
-        if kind < 0:  # removed (rollingdem.walls.INACTIVE): its history was cleared at removal
-            continue
         k = i * nwall + wl
         overlap = -1.0
         nx = ny = nz = 0.0

@@ -56,6 +56,7 @@ class Simulation:
         self.check_timestep = bool(check_timestep)
         self.track_energy = bool(track_energy)
         self._walls: list[Wall] = []
+        self._engine_walls: list[Wall] = []  # the walls in place, in the engine's order
         self._state = EngineState(self.contact.history_size)
         self.step = 0
         self.time = 0.0
@@ -236,16 +237,16 @@ class Simulation:
         return repr(wall.name) if wall.name else f"#{self._walls.index(wall)} ({type(wall).__name__.lower()})"
 
     def _sync_walls(self):
-        from .walls import GEOMETRY_SIZE
-
-        kinds, geoms, vels, omegas, mats = [], [], [], [], []
-        for wl in self._walls:
-            kinds.append(wl.kind)
-            geoms.append(wl.geometry() if wl.kind != INACTIVE else np.zeros(GEOMETRY_SIZE))
-            vels.append(wl.velocity)
-            omegas.append(wl.angular_velocity)
-            mats.append(self.materials.index(wl.material) if wl.kind != INACTIVE else 0)
-        self._state.set_walls(kinds, geoms, vels, omegas, mats)
+        """Give the engine the walls in place. A removed wall keeps its place in ``_walls`` (labels
+        and checkpoints number walls as the user added them) but not in the engine, whose
+        per-sphere wall history would otherwise keep a row per sphere for it (72 B per sphere
+        with EPSD) and whose gather would test it for every sphere at every step."""
+        active = self.walls
+        carry = [next((k for k, old in enumerate(self._engine_walls) if old is wl), -1) for wl in active]
+        self._state.set_walls([wl.kind for wl in active], [wl.geometry() for wl in active],
+                              [wl.velocity for wl in active], [wl.angular_velocity for wl in active],
+                              [self.materials.index(wl.material) for wl in active], carry)
+        self._engine_walls = active
         self._pair_params = None
 
     # --- state access --------------------------------------------------------------------------
@@ -508,18 +509,22 @@ class Simulation:
                 mat = wd.pop("material")
                 sim._walls.append(wall_from_dict(wd, mat))
         sim._state = EngineState.from_arrays(arrays, contact.history_size)
-        for wl, g in zip(sim._walls, sim._state.wall_geom):
-            if wl.kind != INACTIVE:
-                wl.update_from_geometry(g)
+        st = sim._state
+        in_place = np.flatnonzero(st.wall_kind != INACTIVE)
+        if len(in_place) < len(st.wall_kind):  # a checkpoint of before 2026-12-02 keeps removed walls
+            st.set_walls(st.wall_kind[in_place], st.wall_geom[in_place], st.wall_vel[in_place],
+                         st.wall_omega[in_place], st.wall_mat[in_place], in_place.tolist())
+        sim._engine_walls = sim.walls
+        for wl, g in zip(sim._engine_walls, sim._state.wall_geom):
+            wl.update_from_geometry(g)
         sim.step = int(meta["step"])
         sim.time = float(meta["time"])
         return sim
 
     def sync_walls_from_engine(self):
         """Copy moved wall positions from the engine back to the Wall objects."""
-        for wl, g in zip(self._walls, self._state.wall_geom):
-            if wl.kind != INACTIVE:
-                wl.update_from_geometry(g)
+        for wl, g in zip(self._engine_walls, self._state.wall_geom):
+            wl.update_from_geometry(g)
 
 
 class _Removed(Wall):

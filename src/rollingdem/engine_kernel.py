@@ -51,7 +51,7 @@ import math
 import warnings
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, uint32, uint64
 from numba.np.arrayobj import reshape_unchecked
 from numba.core.errors import NumbaPerformanceWarning
 
@@ -72,6 +72,10 @@ H_TWISTING = 6  # @@H_TWISTING
 TRACK_ENERGY = 1  # @@TRACK_ENERGY
 ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
+
+# Indices in the hot loops are cast to unsigned integers (``uint64(k)``, ``uint32(nl_j[k])``): Numba
+# gives every signed index Python's wraparound for negative values, a compare and a select per
+# index, which cost 40 % of the candidate loop (7.3 -> 4.2 ns per entry).
 
 # Block buffers of the pair pass (see ``pair_rows``): CONTACT_BLOCK lanes per column; the columns
 # are the history slots, the 18 inputs of ``contact``, its 13 results, and the 13 results of a
@@ -258,8 +262,8 @@ def flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_
     block_contacts(block, p, dt)
     nslot = hist.shape[1]
     for n in range(count):
-        k = lanes[0, n]
-        i = lanes[1, n]
+        k = uint64(lanes[0, n])
+        i = uint64(lanes[1, n])
         out = B_SCALAR if lanes[2, n] else B_OUT  # the scalar contact already wrote its history row
         if not lanes[2, n]:
             for s in range(nslot):
@@ -292,7 +296,7 @@ NO_INPUTS = (0.0,) * 18
 def entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch):
     """Entry k (row i) of the half list: (whether the spheres touch, j, the 18 inputs of ``contact``
     after ``hist`` and k). An entry that stops touching has its flag and history cleared."""
-    j = nl_j[k]
+    j = uint32(nl_j[k])
     dx = x[i, 0] - x[j, 0]
     dy = x[i, 1] - x[j, 1]
     dz = x[i, 2] - x[j, 2]
@@ -329,17 +333,18 @@ def candidate_entries(k0, k1, x, radius, nl_j, nl_i, touch, lanes):
     its exit once per row, which cost more than the distance tests themselves (rows hold ~4
     entries). The test is looser than ``entry_inputs``' by a relative 1e-12, so that an entry
     on the edge (which the two may round differently) is still given to ``entry_inputs`` to decide."""
-    nhit = 0
-    for k in range(k0, k1):
-        i = nl_i[k]
-        j = nl_j[k]
+    nhit = uint64(0)
+    for kk in range(k0, k1):
+        k = uint64(kk)
+        i = uint32(nl_i[k])
+        j = uint32(nl_j[k])
         dx = x[i, 0] - x[j, 0]
         dy = x[i, 1] - x[j, 1]
         dz = x[i, 2] - x[j, 2]
         reach = radius[i] + radius[j]
-        lanes[LANE_HITS + (nhit >> BLOCK_SHIFT), nhit & (CONTACT_BLOCK - 1)] = k
-        nhit += (dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (touch[k] != 0)
-    return nhit
+        lanes[uint64(LANE_HITS) + (nhit >> uint64(BLOCK_SHIFT)), nhit & uint64(CONTACT_BLOCK - 1)] = kk
+        nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (touch[k] != 0))
+    return np.int64(nhit)
 
 
 @njit(cache=True, inline="always")
@@ -422,8 +427,8 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
     for k0 in range(nl_start[lo], kend, tile):
         nhit = candidate_entries(k0, min(k0 + tile, kend), x, radius, nl_j, nl_i, touch, lanes)
         for e in range(nhit):
-            k = lanes[LANE_HITS + (e >> BLOCK_SHIFT), e & (CONTACT_BLOCK - 1)]
-            i = nl_i[k]
+            k = uint64(lanes[LANE_HITS + (e >> BLOCK_SHIFT), e & (CONTACT_BLOCK - 1)])
+            i = uint32(nl_i[k])
             touching, j, inputs = entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch)
             if not touching:
                 continue
@@ -458,7 +463,7 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
                              inputs[11], inputs[12], dt)
             lanes[2, n] = 0 if abs(phi) < SERIES_ANGLE else 1
             if lanes[2, n]:
-                res = contact(hist, k, inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5], inputs[6],
+                res = contact(hist, np.int64(k), inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5], inputs[6],
                               inputs[7], inputs[8], inputs[9], inputs[10], inputs[11], inputs[12], inputs[13],
                               inputs[14], inputs[15], inputs[16], inputs[17], p, dt)
                 block[(B_SCALAR + 0) * CONTACT_BLOCK + n] = res[0]
@@ -515,7 +520,7 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
     mi = mass[i]
     for wl in range(nwall):
         kind = wall_kind[wl]
-        k = i * nwall + wl
+        k = i * uint64(nwall) + uint64(wl)
         overlap = -1.0
         nx = ny = nz = 0.0
         if kind == WALL_PLANE:
@@ -561,7 +566,7 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
         swx = wall_vel[wl, 0] + (owy * cz - owz * cy)
         swy = wall_vel[wl, 1] + (owz * cx - owx * cz)
         swz = wall_vel[wl, 2] + (owx * cy - owy * cx)
-        res = contact(whist, k, nx, ny, nz, overlap, v[i, 0] - swx, v[i, 1] - swy, v[i, 2] - swz,
+        res = contact(whist, np.int64(k), nx, ny, nz, overlap, v[i, 0] - swx, v[i, 1] - swy, v[i, 2] - swz,
                       w[i, 0], w[i, 1], w[i, 2], owx, owy, owz, ri - 0.5 * overlap, 0.0,
                       ri, mi, INERTIA_R_FACTOR * mi * ri * ri, pair_params[mat[i], wall_mat[wl]], dt)
         fx += res[0]
@@ -650,10 +655,10 @@ def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia,
     lo..hi-1 (the partner of entry k is ``nl_j[k]``), not a loop per particle, whose exit would be
     mispredicted once per particle, as in the pair pass (``candidate_entries``)."""
     for m in range(tr_start[lo], tr_start[hi]):
-        k = tr_k[m]
+        k = uint32(tr_k[uint64(m)])
         if not touch[k]:
             continue
-        j = nl_j[k]
+        j = uint32(nl_j[k])
         f[j, 0] -= pair_force[k, 0]
         f[j, 1] -= pair_force[k, 1]
         f[j, 2] -= pair_force[k, 2]
@@ -662,8 +667,8 @@ def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia,
         t[j, 2] += pair_torque_j[k, 2]
     nexceed = 0
     nfast = 0
-    for i in range(lo, hi):
-        exceed, fast = gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
+    for q in range(lo, hi):
+        exceed, fast = gather_one(uint64(q), dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
                                   wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
                                   contacts, x_ref, half_skin)
         nexceed += exceed

@@ -262,30 +262,31 @@ def flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_
     block_contacts(block, p, dt)
     nslot = hist.shape[1]
     for n in range(count):
+        un = uint64(n)
         k = uint64(lanes[0, n])
         i = uint64(lanes[1, n])
         out = B_SCALAR if lanes[2, n] else B_OUT  # the scalar contact already wrote its history row
         if not lanes[2, n]:
             for s in range(nslot):
-                hist[k, s] = block[s * CONTACT_BLOCK + n]
-        r0 = block[(out + 0) * CONTACT_BLOCK + n]
-        r1 = block[(out + 1) * CONTACT_BLOCK + n]
-        r2 = block[(out + 2) * CONTACT_BLOCK + n]
+                hist[k, s] = block[uint64(s * CONTACT_BLOCK) + un]
+        r0 = block[uint64((out + 0) * CONTACT_BLOCK) + un]
+        r1 = block[uint64((out + 1) * CONTACT_BLOCK) + un]
+        r2 = block[uint64((out + 2) * CONTACT_BLOCK) + un]
         f[i, 0] += r0
         f[i, 1] += r1
         f[i, 2] += r2
-        t[i, 0] += block[(out + 3) * CONTACT_BLOCK + n]
-        t[i, 1] += block[(out + 4) * CONTACT_BLOCK + n]
-        t[i, 2] += block[(out + 5) * CONTACT_BLOCK + n]
+        t[i, 0] += block[uint64((out + 3) * CONTACT_BLOCK) + un]
+        t[i, 1] += block[uint64((out + 4) * CONTACT_BLOCK) + un]
+        t[i, 2] += block[uint64((out + 5) * CONTACT_BLOCK) + un]
         pair_force[k, 0] = r0
         pair_force[k, 1] = r1
         pair_force[k, 2] = r2
-        pair_torque_j[k, 0] = block[(out + 6) * CONTACT_BLOCK + n]
-        pair_torque_j[k, 1] = block[(out + 7) * CONTACT_BLOCK + n]
-        pair_torque_j[k, 2] = block[(out + 8) * CONTACT_BLOCK + n]
+        pair_torque_j[k, 0] = block[uint64((out + 6) * CONTACT_BLOCK) + un]
+        pair_torque_j[k, 1] = block[uint64((out + 7) * CONTACT_BLOCK) + un]
+        pair_torque_j[k, 2] = block[uint64((out + 8) * CONTACT_BLOCK) + un]
         if TRACK_ENERGY:
             for c in range(4):
-                energy[i, c] += block[(out + 9 + c) * CONTACT_BLOCK + n]
+                energy[i, c] += block[uint64((out + 9 + c) * CONTACT_BLOCK) + un]
         contacts[i] += 1
 
 
@@ -436,27 +437,28 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
                 flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts)
                 count = 0
             n = count
+            un = uint64(n)
             count += 1
-            block[(B_IN + 0) * CONTACT_BLOCK + n] = inputs[0]
-            block[(B_IN + 1) * CONTACT_BLOCK + n] = inputs[1]
-            block[(B_IN + 2) * CONTACT_BLOCK + n] = inputs[2]
-            block[(B_IN + 3) * CONTACT_BLOCK + n] = inputs[3]
-            block[(B_IN + 4) * CONTACT_BLOCK + n] = inputs[4]
-            block[(B_IN + 5) * CONTACT_BLOCK + n] = inputs[5]
-            block[(B_IN + 6) * CONTACT_BLOCK + n] = inputs[6]
-            block[(B_IN + 7) * CONTACT_BLOCK + n] = inputs[7]
-            block[(B_IN + 8) * CONTACT_BLOCK + n] = inputs[8]
-            block[(B_IN + 9) * CONTACT_BLOCK + n] = inputs[9]
-            block[(B_IN + 10) * CONTACT_BLOCK + n] = inputs[10]
-            block[(B_IN + 11) * CONTACT_BLOCK + n] = inputs[11]
-            block[(B_IN + 12) * CONTACT_BLOCK + n] = inputs[12]
-            block[(B_IN + 13) * CONTACT_BLOCK + n] = inputs[13]
-            block[(B_IN + 14) * CONTACT_BLOCK + n] = inputs[14]
-            block[(B_IN + 15) * CONTACT_BLOCK + n] = inputs[15]
-            block[(B_IN + 16) * CONTACT_BLOCK + n] = inputs[16]
-            block[(B_IN + 17) * CONTACT_BLOCK + n] = inputs[17]
+            block[uint64((B_IN + 0) * CONTACT_BLOCK) + un] = inputs[0]
+            block[uint64((B_IN + 1) * CONTACT_BLOCK) + un] = inputs[1]
+            block[uint64((B_IN + 2) * CONTACT_BLOCK) + un] = inputs[2]
+            block[uint64((B_IN + 3) * CONTACT_BLOCK) + un] = inputs[3]
+            block[uint64((B_IN + 4) * CONTACT_BLOCK) + un] = inputs[4]
+            block[uint64((B_IN + 5) * CONTACT_BLOCK) + un] = inputs[5]
+            block[uint64((B_IN + 6) * CONTACT_BLOCK) + un] = inputs[6]
+            block[uint64((B_IN + 7) * CONTACT_BLOCK) + un] = inputs[7]
+            block[uint64((B_IN + 8) * CONTACT_BLOCK) + un] = inputs[8]
+            block[uint64((B_IN + 9) * CONTACT_BLOCK) + un] = inputs[9]
+            block[uint64((B_IN + 10) * CONTACT_BLOCK) + un] = inputs[10]
+            block[uint64((B_IN + 11) * CONTACT_BLOCK) + un] = inputs[11]
+            block[uint64((B_IN + 12) * CONTACT_BLOCK) + un] = inputs[12]
+            block[uint64((B_IN + 13) * CONTACT_BLOCK) + un] = inputs[13]
+            block[uint64((B_IN + 14) * CONTACT_BLOCK) + un] = inputs[14]
+            block[uint64((B_IN + 15) * CONTACT_BLOCK) + un] = inputs[15]
+            block[uint64((B_IN + 16) * CONTACT_BLOCK) + un] = inputs[16]
+            block[uint64((B_IN + 17) * CONTACT_BLOCK) + un] = inputs[17]
             for s in range(nslot):
-                block[s * CONTACT_BLOCK + n] = hist[k, s]
+                block[uint64(s * CONTACT_BLOCK) + un] = hist[k, s]
             lanes[0, n] = k
             lanes[1, n] = i
             phi = spin_angle(inputs[0], inputs[1], inputs[2], inputs[7], inputs[8], inputs[9], inputs[10],
@@ -466,19 +468,19 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
                 res = contact(hist, np.int64(k), inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5], inputs[6],
                               inputs[7], inputs[8], inputs[9], inputs[10], inputs[11], inputs[12], inputs[13],
                               inputs[14], inputs[15], inputs[16], inputs[17], p, dt)
-                block[(B_SCALAR + 0) * CONTACT_BLOCK + n] = res[0]
-                block[(B_SCALAR + 1) * CONTACT_BLOCK + n] = res[1]
-                block[(B_SCALAR + 2) * CONTACT_BLOCK + n] = res[2]
-                block[(B_SCALAR + 3) * CONTACT_BLOCK + n] = res[3]
-                block[(B_SCALAR + 4) * CONTACT_BLOCK + n] = res[4]
-                block[(B_SCALAR + 5) * CONTACT_BLOCK + n] = res[5]
-                block[(B_SCALAR + 6) * CONTACT_BLOCK + n] = res[6]
-                block[(B_SCALAR + 7) * CONTACT_BLOCK + n] = res[7]
-                block[(B_SCALAR + 8) * CONTACT_BLOCK + n] = res[8]
-                block[(B_SCALAR + 9) * CONTACT_BLOCK + n] = res[9]
-                block[(B_SCALAR + 10) * CONTACT_BLOCK + n] = res[10]
-                block[(B_SCALAR + 11) * CONTACT_BLOCK + n] = res[11]
-                block[(B_SCALAR + 12) * CONTACT_BLOCK + n] = res[12]
+                block[uint64((B_SCALAR + 0) * CONTACT_BLOCK) + un] = res[0]
+                block[uint64((B_SCALAR + 1) * CONTACT_BLOCK) + un] = res[1]
+                block[uint64((B_SCALAR + 2) * CONTACT_BLOCK) + un] = res[2]
+                block[uint64((B_SCALAR + 3) * CONTACT_BLOCK) + un] = res[3]
+                block[uint64((B_SCALAR + 4) * CONTACT_BLOCK) + un] = res[4]
+                block[uint64((B_SCALAR + 5) * CONTACT_BLOCK) + un] = res[5]
+                block[uint64((B_SCALAR + 6) * CONTACT_BLOCK) + un] = res[6]
+                block[uint64((B_SCALAR + 7) * CONTACT_BLOCK) + un] = res[7]
+                block[uint64((B_SCALAR + 8) * CONTACT_BLOCK) + un] = res[8]
+                block[uint64((B_SCALAR + 9) * CONTACT_BLOCK) + un] = res[9]
+                block[uint64((B_SCALAR + 10) * CONTACT_BLOCK) + un] = res[10]
+                block[uint64((B_SCALAR + 11) * CONTACT_BLOCK) + un] = res[11]
+                block[uint64((B_SCALAR + 12) * CONTACT_BLOCK) + un] = res[12]
     if count > 0:
         flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts)
 

@@ -79,9 +79,12 @@ def main():
 
     state = bench._cache_dir() / "profile_state.npz"
     bench.settled_column(20000).checkpoint(state)  # from the bench's cache of settled states
+    # ROLLINGDEM_PRECOMPILE=0: every kernel compiled in the sampled process (a helper's would be
+    # loaded from the cache, without the object code that maps the samples)
     env = dict(os.environ, ROLLINGDEM_PROFILE_CHILD="1", PROFILE_OUT=str(OUT), ROLLINGDEM_PROFILE_STATE=str(state),
-               ROLLINGDEM_CACHE_DIR=str(OUT / "kernels"))
+               ROLLINGDEM_CACHE_DIR=str(OUT / "kernels"), ROLLINGDEM_PRECOMPILE="0")
     data = OUT / "perf.data"
+    OUT.mkdir(parents=True, exist_ok=True)
     subprocess.run(["perf", "record", "-F", "2000", "-o", str(data), sys.executable, __file__,
                     str(STEPS), str(THREADS), str(SKIP)], env=env, check=True)
     maps = {}

@@ -17,7 +17,7 @@ one writer per particle, in a fixed order (bit-identical results whatever the th
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, uint32, uint64
 
 
 @njit(cache=True)
@@ -109,7 +109,7 @@ def _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, cou
                 first = cell_start[row + max(cx - 1, 0)]
                 last = cell_start[row + min(cx + 1, dims[0] - 1) + 1]
                 for m in range(first, last):
-                    j = cell_items[m]
+                    j = uint32(cell_items[uint64(m)])  # unsigned: no wraparound test per index
                     cut = ri + radius[j] + skin
                     ddx = xi - x[j, 0]
                     ddy = yi - x[j, 1]

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .neighbors import list_rows
+from .neighbors import _transpose, list_rows
 from .threads import ThreadGovernor
 from .walls import GEOMETRY_SIZE
 
@@ -97,7 +97,6 @@ class EngineState:
         if keep and old[0] is not None:
             self.nl_j[:keep] = old[0][:keep]
             self.hist[:keep] = old[1][:keep]
-            list_rows(self.n, self.nl_start, self.nl_i)
             self.derive_touch(keep)
         self.pair_force = np.zeros((capacity, 3))
         self.pair_torque_j = np.zeros((capacity, 3))
@@ -118,9 +117,14 @@ class EngineState:
         keep = int(self.nl_start[-1]) if self.nl_start.size else 0
         self._allocate_list(int(needed * LIST_MARGIN) + 16, keep=keep)
         self.info[I_NEED_REBUILD] = 1
-        if keep:  # the transposed index refers to list entries, which were kept as they were
-            from .neighbors import _transpose
-            _transpose(self.n, self.nl_start, self.nl_j, self.tr_start, self.tr_k)
+        if keep:  # the list's entries were kept as they were; their indices are made anew
+            self.index_list()
+
+    def index_list(self):
+        """The indices derived from the list (``nl_start``, ``nl_j``): the transposed index (``tr_start``,
+        ``tr_k``) and each entry's row (``nl_i``), as the kernel makes them at a rebuild."""
+        _transpose(self.n, self.nl_start, self.nl_j, self.tr_start, self.tr_k)
+        list_rows(self.n, self.nl_start, self.nl_i)
 
     @property
     def list_size(self) -> int:
@@ -195,7 +199,7 @@ class EngineState:
     def sort(self, cell_size: float) -> None:
         """Re-sort the slots in Morton order of the positions; the neighbor list, its history and
         every per-particle array follow, so the next step computes exactly the same contacts."""
-        from .neighbors import _transpose, spatial_order
+        from .neighbors import spatial_order
 
         n = self.n
         perm = spatial_order(self.x, cell_size)  # new slot s holds the particle of old slot perm[s]
@@ -220,8 +224,7 @@ class EngineState:
         self.nl_j[:total] = inv[self.nl_j[src]]
         self.hist[:total] = self.hist[src]
         self.touch[:total] = self.touch[src]
-        _transpose(n, self.nl_start, self.nl_j, self.tr_start, self.tr_k)
-        list_rows(n, self.nl_start, self.nl_i)
+        self.index_list()
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
 
@@ -376,6 +379,5 @@ class EngineState:
         st.hist[:total] = arrays["hist"]
         st.derive_touch(total)
         st.derive_wall_touch()
-        st.tr_k[:total] = arrays["tr_k"]
-        list_rows(st.n, st.nl_start, st.nl_i)
+        st.index_list()  # the checkpoint's tr_k too, made again (as it was written)
         return st

@@ -399,8 +399,8 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
               pair_torque_j, energy, contacts, block, lanes):
     """Rows lo..hi-1 of the half list: F and T on i summed over the row, F and T_j kept per pair.
 
-    The distance tests run here; the contacts found are queued into ``block`` (their inputs and a
-    copy of their history rows) and computed ``CONTACT_BLOCK`` at a time by ``block_contacts``.
+    The distance tests run a tile of the list at a time (``candidate_entries``); the contacts found
+    are queued into ``block`` (their inputs and a copy of their history rows) and computed ``CONTACT_BLOCK`` at a time by ``block_contacts``.
     A block's lanes share one parameter vector, so this is for spheres of one material (walls may
     have others). With an empty ``block`` (the engine gives one when the spheres' materials differ)
     the rows go through ``pair_row`` instead: a block per run of contacts of one material pair

@@ -209,6 +209,19 @@ def test_energy_bookkeeping_changes_no_trajectory(table1, tmp_path):
         ref = getattr(tracked, name)
         np.testing.assert_allclose(getattr(plain, name), ref, rtol=0, atol=1e-9 * np.abs(ref).max())
     assert tracked.dissipated_energy()["normal_damping"] > 0
+    # untracked, the state holds no energy sums (32 B per sphere); turned on mid-run, they start
+    # at zero: the sums over the next 1500 steps are the tracked run's growth over them (the same
+    # collisions, to the 1e-9 above; 1e-6 leaves room for the difference of two sums)
+    assert plain._state.energy.shape[0] == 0
+    before = tracked.dissipated_energy()
+    plain.track_energy = True
+    tracked.run(steps=1500)
+    plain.run(steps=1500)
+    assert plain._state.energy.shape == (plain.n_particles, 4)
+    for channel, value in tracked.dissipated_energy().items():
+        grown = value - before[channel]
+        assert plain.dissipated_energy()[channel] == pytest.approx(grown, rel=1e-6, abs=1e-15)
+    assert plain.dissipated_energy()["normal_damping"] > 0
     fresh = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"))
     with pytest.raises(rd.ParameterError, match="track_energy"):
         fresh.dissipated_energy()

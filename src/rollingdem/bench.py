@@ -165,6 +165,7 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
 
     st = sim._state
     kernel = sim.kernel()
+    st.energy_for(kernel)
     gravity = np.asarray(sim.gravity)
     args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
     (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import SimulationError
 from .neighbors import _transpose, list_rows
 from .threads import ThreadGovernor
 from .walls import GEOMETRY_SIZE
@@ -28,6 +29,7 @@ LIST_MARGIN = 1.15
 # re-sorted 10.4 M, lattice order 11.6 M; at 20,000 spheres the state fits in cache and sorting
 # does not pay (13.4 M unsorted, 11.9 M sorted: the two threads' halves of the slots carry
 # unequal work), hence the threshold.
+MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start and tr_k are int32
 SORT_ABOVE = 50_000  # particles
 SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
 ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")
@@ -49,7 +51,9 @@ class EngineState:
         self.mass = np.zeros(n)
         self.inertia = np.zeros(n)
         self.mat = np.zeros(n, dtype=np.int32)
-        self.energy = np.zeros((n, len(ENERGY_CHANNELS)))
+        # the dissipated energies, (n, 4) once a kernel that sums them ran (``energy_for``), else
+        # (0, 4): a kernel without TRACK_ENERGY never touches it (32 B/p saved)
+        self.energy = np.zeros((0, len(ENERGY_CHANNELS)))
         self.contacts = np.zeros(n, dtype=np.int32)  # contacts per sphere: int32 is plenty, 4 B/p less
         self.x_ref = np.zeros((n, 3))
         self.ids = np.zeros(n, dtype=np.int64)
@@ -79,8 +83,9 @@ class EngineState:
     # --- allocation --------------------------------------------------------------------------
     def _allocate_particle_scratch(self):
         n = self.n
-        self.nl_start = np.zeros(n + 1, dtype=np.int64)
-        self.tr_start = np.zeros(n + 1, dtype=np.int64)
+        # row starts, int32 as the entry indices in tr_k (the list holds < 2**31 entries, see grow)
+        self.nl_start = np.zeros(n + 1, dtype=np.int32)
+        self.tr_start = np.zeros(n + 1, dtype=np.int32)
         self.cell_items = np.zeros(n, dtype=np.int32)
         # rebuild scratch, int32 (16 B/p less than int64): at most max(2 n, 64) cells, n spheres
         self.cell_of = np.zeros(n, dtype=np.int32)
@@ -114,8 +119,12 @@ class EngineState:
         self.wtouch = np.ascontiguousarray(np.any(self.whist[:, :3] != 0.0, axis=1), dtype=np.uint8)
 
     def grow(self, needed: int):
+        if needed > MAX_ENTRIES:
+            raise SimulationError(f"the neighbor list needs {needed} entries ({needed / max(self.n, 1):.1f} per "
+                                  f"particle), more than the {MAX_ENTRIES} one process holds (int32 indices): run "
+                                  "fewer particles per process, or a smaller neighbor skin")
         keep = int(self.nl_start[-1]) if self.nl_start.size else 0
-        self._allocate_list(int(needed * LIST_MARGIN) + 16, keep=keep)
+        self._allocate_list(min(int(needed * LIST_MARGIN) + 16, MAX_ENTRIES), keep=keep)
         self.info[I_NEED_REBUILD] = 1
         if keep:  # the list's entries were kept as they were; their indices are made anew
             self.index_list()
@@ -144,7 +153,8 @@ class EngineState:
         self.mass = np.concatenate([self.mass, mass])
         self.inertia = np.concatenate([self.inertia, inertia])
         self.mat = np.concatenate([self.mat, mat.astype(np.int32)])
-        self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
+        if len(self.energy):
+            self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
         self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int32)])
         self.x_ref = np.concatenate([self.x_ref, x])
         self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
@@ -209,7 +219,8 @@ class EngineState:
         inv[perm] = np.arange(n)
         for name in ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts",
                      "x_ref"):
-            setattr(self, name, np.ascontiguousarray(getattr(self, name)[perm]))
+            if len(getattr(self, name)) == n:  # energy may be unallocated
+                setattr(self, name, np.ascontiguousarray(getattr(self, name)[perm]))
         if self.n_walls:
             h = self.history_size
             self.whist = np.ascontiguousarray(self.whist.reshape(n, self.n_walls, h)[perm].reshape(-1, h))
@@ -262,6 +273,7 @@ class EngineState:
         Returns (steps done, None) or, when a particle outruns the skin, (steps done, message)."""
         if self.n == 0:
             return nsteps, None
+        self.energy_for(kernel)
         if self.info[I_FORCES_VALID] == 0:
             self._evaluate_forces(kernel, dt, gravity, skin, pair_params)
         if self.n >= SORT_ABOVE and self.steps_since_sort >= SORT_EVERY:
@@ -286,6 +298,12 @@ class EngineState:
         finally:
             governor.close()
         return nsteps, None
+
+    def energy_for(self, kernel):
+        """Allocate the energy sums (zero) for a kernel that adds to them: without, it would write
+        out of bounds (Numba does not check)."""
+        if kernel.TRACK_ENERGY and self.energy.shape[0] != self.n:
+            self.energy = np.zeros((self.n, len(ENERGY_CHANNELS)))
 
     def governor(self):
         """The thread governor of this state's runs (``rollingdem.threads``), made when first used."""
@@ -327,6 +345,7 @@ class EngineState:
         """
         from .neighbors import rebuild_neighbor_list
 
+        self.energy_for(kernel)
         while True:
             total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j,
                                           self.hist, self.tr_start, self.tr_k, self.cell_start, self.cell_items,
@@ -367,12 +386,14 @@ class EngineState:
         for name in cls.ARRAYS:
             setattr(st, name, np.array(arrays[name]))
         st.contacts = st.contacts.astype(np.int32)  # int64 in checkpoints of before 2026-12-02
+        if not st.energy.any():  # nothing summed (checkpoints of before 2026-12-02 kept the zeros)
+            st.energy = np.zeros((0, len(ENERGY_CHANNELS)))
         if not np.array_equal(st.ids, np.arange(st.n)):
             st._slots = np.argsort(st.ids)
         nl_start = st.nl_start
         tr_start = st.tr_start
         st._allocate_particle_scratch()
-        st.nl_start, st.tr_start = nl_start, tr_start
+        st.nl_start, st.tr_start = nl_start.astype(np.int32), tr_start.astype(np.int32)  # int64 before 2026-12-02
         total = int(arrays["nl_j"].shape[0])
         st._allocate_list(max(int(total * LIST_MARGIN) + 16, 3 * st.n))
         st.nl_j[:total] = arrays["nl_j"]

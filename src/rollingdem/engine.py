@@ -25,11 +25,11 @@ INFO_SIZE = 8
 # list capacity = entries needed x this (129 bytes per entry): growing costs a reallocation and one
 # more counting pass of the neighbor search, so a small margin is cheap
 LIST_MARGIN = 1.15
+MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start and tr_k are int32
 # Measured (2 threads, epsd): 200,000 spheres stored in random order run at 6.6 M particle-steps/s,
 # re-sorted 10.4 M, lattice order 11.6 M; at 20,000 spheres the state fits in cache and sorting
 # does not pay (13.4 M unsorted, 11.9 M sorted: the two threads' halves of the slots carry
 # unequal work), hence the threshold.
-MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start and tr_k are int32
 SORT_ABOVE = 50_000  # particles
 SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
 ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")
@@ -345,7 +345,6 @@ class EngineState:
         """
         from .neighbors import rebuild_neighbor_list
 
-        self.energy_for(kernel)
         while True:
             total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j,
                                           self.hist, self.tr_start, self.tr_k, self.cell_start, self.cell_items,

@@ -8,7 +8,7 @@ import pytest
 
 import rollingdem as rd
 from rollingdem.engine import I_REBUILDS, EngineState
-from rollingdem.neighbors import brute_force_pairs, rebuild_neighbor_list
+from rollingdem.neighbors import POOL_GROUP, brute_force_pairs
 from conftest import R
 
 
@@ -80,14 +80,7 @@ def test_neighbor_list_equals_brute_force(seed, skin, shuffled):
     if shuffled:
         st.ids = rng.permutation(n).astype(np.int64)
     ids = st.ids
-    args = (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start, st.tr_k, st.cell_start,
-            st.cell_items, st.cell_of, st.counts, st.x_ref)
-    total = rebuild_neighbor_list(*args)
-    if total < 0:
-        st.grow(-total)
-        args = (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start, st.tr_k, st.cell_start,
-                st.cell_items, st.cell_of, st.counts, st.x_ref)
-        total = rebuild_neighbor_list(*args)
+    total = st.rebuild_list(skin)
     rows = [(i, int(st.nl_j[k])) for i in range(n) for k in range(st.nl_start[i], st.nl_start[i + 1])]
     assert all(ids[j] > ids[i] for i, j in rows)
     listed = {(min(i, j), max(i, j)) for i, j in rows}
@@ -128,26 +121,18 @@ def test_rebuild_carries_each_contacts_history_in_place_and_drops_lost_pairs(see
     st.append_particles(x, np.zeros_like(x), np.zeros_like(x), radius, np.ones(n), np.ones(n), np.zeros(n, np.int32))
     st.ids = rng.permutation(n).astype(np.int64)
 
-    def rebuild():
-        args = (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.hist, st.tr_start, st.tr_k, st.cell_start,
-                st.cell_items, st.cell_of, st.counts, st.x_ref)
-        total = rebuild_neighbor_list(*args)
-        if total < 0:
-            st.grow(-total)
-            total = rebuild()
-        return total
-
     def by_pair(total):
-        return {(int(st.ids[i]), int(st.ids[st.nl_j[k]])): st.hist[k].copy()
-                for i in range(n) for k in range(st.nl_start[i], st.nl_start[i + 1])}
+        hist = st.entry_history()
+        return {(int(st.ids[i]), int(st.ids[st.nl_j[k]])): hist[k] for i in range(n)
+                for k in range(st.nl_start[i], st.nl_start[i + 1])}
 
-    total = rebuild()
+    total = st.rebuild_list(skin)
     # about half the entries carry a history (a contact normal and values), the rest zeros
     active = rng.random(total) < 0.5
-    st.hist[:total] = np.where(active[:, None], rng.uniform(-1, 1, (total, 6)) + 2.0, 0.0)
+    st.set_entry_history(np.where(active[:, None], rng.uniform(-1, 1, (total, 6)) + 2.0, 0.0))
     before = by_pair(total)
     st.x[rng.random(n) < 0.3] += rng.uniform(-0.01, 0.01, (3,))  # some particles jump: pairs come and go
-    after = by_pair(rebuild())
+    after = by_pair(st.rebuild_list(skin))
     kept = set(before) & set(after)
     assert len(kept) > 50 and len(set(after) - set(before)) > 10 and len(set(before) - set(after)) > 10
     for pair, row in after.items():
@@ -175,7 +160,7 @@ def test_contact_history_dropped_when_contact_opens(table1):
     assert sim.number_of_contacts() == 0 and sim.velocities[1, 0] > 0  # they bounced apart
     st = sim._state
     assert st.list_size == 1  # still neighbors within the skin ...
-    assert np.all(st.hist[0] == 0.0)  # ... but the tangential spring of the closed contact is gone
+    assert st.slot[0] == -1 and np.all(st.entry_history() == 0.0)  # ... but the closed contact's springs are gone
 
 
 def test_restart_is_bit_identical(table1, tmp_path):
@@ -347,8 +332,8 @@ def test_cylinder_wall_holds_particles(table1):
     assert np.abs(sim.velocities[0]).max() < 1e-3
 
 
-def _bed(table1, n=600, seed=5):
-    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5, skin=0.002, track_energy=True)
+def _bed(table1, n=600, seed=5, skin=0.002):
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5, skin=skin, track_energy=True)
     sim.add_material(table1())
     sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
     sim.insert(rd.BoxRegion((-0.06, -0.06, 0.0), (0.06, 0.06, 0.12)), n, 0.005, "m", seed=seed)
@@ -393,24 +378,70 @@ def test_spatial_resort_keeps_particles_history_and_physics(table1, monkeypatch,
     np.testing.assert_array_equal(again.positions, mixed.positions)
 
 
-def test_contact_flags_follow_the_history_across_rebuilds(table1):
-    """Right after a rebuild an entry is flagged in contact exactly when it keeps a contact normal;
-    a stale flag (entries move at a rebuild) would leave the spring of a contact that opens in the
+def pool_rows(st):
+    """Check the contact pool's bookkeeping (``rollingdem.neighbors``) and return, per group, (the
+    rows of its contacts in list order, its free rows, its first row): each contact has a row of
+    its own among its group's rows, below the group's next unused row; the free list holds the
+    group's other rows below it, so no row is lost and none is shared."""
+    n, total = st.n, st.list_size
+    slot = st.slot[:total]
+    out = []
+    for g in range(len(st.groups)):
+        first, last = st.nl_start[min(g * POOL_GROUP, n)], st.nl_start[min((g + 1) * POOL_GROUP, n)]
+        rows = slot[first:last][slot[first:last] >= 0]
+        fill = int(st.groups[g, 1])
+        free, r = [], int(st.groups[g, 0])
+        while r >= 0:
+            free.append(r)
+            r = int(st.pool[r, 0])
+        assert first <= fill <= last
+        assert all(first <= r < fill for r in [*rows.tolist(), *free])
+        assert len(set(rows.tolist()) | set(free)) == len(rows) + len(free) == fill - first
+        out.append((rows, free, first))
+    return out
+
+
+def test_pool_rows_packed_in_list_order_after_a_rebuild(table1):
+    """Right after a rebuild each group's contacts sit at the front of its rows in list order, with
+    no free row, and an entry has a row exactly when its contact keeps a contact normal; a
+    stale row (entries move at a rebuild) would leave the spring of a contact that opens in the
     next step behind, and a later contact of the same pair would start pre-loaded."""
-    sim = _bed(table1, n=300, seed=2)
+    sim = _bed(table1, n=800, seed=2)  # 4 groups of the pool
     sim.run(0.08)  # the first spheres land
     kernel = sim.contact.kernel()
     checked = 0
     for _ in range(20):
         sim.run(steps=500)
         st = sim._state
-        kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.nl_i, st.hist, st.touch, st.tr_start,
-                        st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info)
+        kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.nl_i, st.pool, st.slot, st.groups,
+                        st.tr_start, st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info)
+        for rows, free, first in pool_rows(st):
+            np.testing.assert_array_equal(rows, first + np.arange(len(rows)))
+            assert free == []
         total = st.list_size
-        in_contact = np.any(st.hist[:total, :3] != 0.0, axis=1)
-        np.testing.assert_array_equal(st.touch[:total].astype(bool), in_contact)
+        in_contact = np.any(st.entry_history()[:, :3] != 0.0, axis=1)
+        np.testing.assert_array_equal(st.slot[:total] >= 0, in_contact)
         checked += int(in_contact.sum())
     assert checked > 100
+
+
+def test_pool_rows_reused_between_rebuilds(table1):
+    """With a skin so large that the list is never rebuilt, contacts open and close for thousands
+    of steps: each one that opens takes a row of its group (a freed one first), each one that
+    closes frees its row, and the bookkeeping holds throughout; the run is bit for bit the run that
+    rebuilds its list (and so packs its rows anew) every few steps."""
+    lazy = _bed(table1, n=600, seed=4, skin=0.03)
+    eager = _bed(table1, n=600, seed=4, skin=1.2e-4)
+    reused = 0
+    for _ in range(12):
+        lazy.run(steps=400)
+        eager.run(steps=400)
+        reused += sum(len(free) for _, free, _ in pool_rows(lazy._state))
+        pool_rows(eager._state)
+    assert lazy._state.info[I_REBUILDS] <= 2 and eager._state.info[I_REBUILDS] > 100
+    assert reused > 0  # some contacts closed and left rows to their free lists
+    np.testing.assert_array_equal(lazy.positions, eager.positions)
+    np.testing.assert_array_equal(lazy.angular_velocities, eager.angular_velocities)
 
 
 def test_list_growth_in_mid_step_changes_nothing(table1):

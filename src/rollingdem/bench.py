@@ -169,12 +169,12 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     gravity = np.asarray(sim.gravity)
     args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
     (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
-     wall_mat, whist, wtouch, nl_start, nl_j, nl_i, hist, touch, pair_force, pair_torque_j, tr_start, tr_k, cell_start,
-     cell_items, cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
+     wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k, cell_start, cell_items, cell_of,
+     counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
     # the timings overwrite these (a rebuild at the present positions gives another list): put them back after
-    saved = {name: getattr(st, name).copy() for name in ("hist", "touch", "whist", "wtouch", "energy", "f", "t",
-                                                         "contacts", "x_ref", "nl_start", "nl_j", "tr_start", "tr_k",
-                                                         "pair_force", "pair_torque_j")}
+    saved = {name: getattr(st, name).copy() for name in ("pool", "slot", "groups", "whist", "wtouch", "energy", "f",
+                                                         "t", "contacts", "x_ref", "nl_start", "nl_j", "nl_i",
+                                                         "tr_start", "tr_k")}
 
     def timed(fn):
         """Seconds per call: the fastest of 5 blocks of ``repeats`` calls (on a shared machine the
@@ -193,21 +193,20 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     gather = kernel.gather_serial if serial else kernel.gather
     kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
     split = {"contact forces": timed(lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j, nl_i,
-                                                         hist, touch, pair_force, pair_torque_j, energy, contacts,
-                                                         blocks, lanes))}
+                                                         pool, slot, groups, energy, contacts, blocks, lanes))}
 
     def gather_with(kind, geom, vel, omega, wmat):
         return timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
-                                    nl_j, touch, pair_force, pair_torque_j, kind, geom, vel, omega, wmat, whist, wtouch,
-                                    energy, contacts, x_ref, 0.5 * skin))
+                                    nl_j, slot, pool, kind, geom, vel, omega, wmat, whist, wtouch, energy, contacts,
+                                    x_ref, 0.5 * skin))
 
     gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)
     gather_plain = gather_with(wall_kind[:0], wall_geom[:0], wall_vel[:0], wall_omega[:0], wall_mat[:0])
     kick = timed(lambda: kick_drift(0.0, x, v, w, f, t, mass, inertia, x_ref, 0.5 * skin))
     split["walls"] = max(gather_walls - gather_plain, 0.0)
     split["integration and gathering"] = gather_plain + kick
-    rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k,
-                                                  cell_start, cell_items, cell_of, counts, x_ref))
+    rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups,
+                                                  tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref))
     split["neighbor search"] = rebuild * rebuilds / max(steps, 1)
     for name, arr in saved.items():  # the timing calls must leave the state as it was
         getattr(st, name)[...] = arr

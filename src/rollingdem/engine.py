@@ -15,17 +15,18 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import SimulationError
-from .neighbors import _transpose, list_rows
+from .neighbors import PAIR_TERMS, POOL_GROUP, _transpose, list_rows, rebuild_neighbor_list
 from .threads import ThreadGovernor
 from .walls import GEOMETRY_SIZE
 
 I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST, I_DRIFTED = range(8)
 STATUS_CAPACITY, STATUS_TOO_FAST = 1, 2
 INFO_SIZE = 8
-# list capacity = entries needed x this (129 bytes per entry): growing costs a reallocation and one
-# more counting pass of the neighbor search, so a small margin is cheap
+# list capacity = entries needed x this (16 bytes per entry and a pool row of 8 (history + 6) bytes,
+# 136 with EPSD): growing costs a reallocation and one more counting pass of the neighbor search,
+# so a small margin is cheap
 LIST_MARGIN = 1.15
-MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start and tr_k are int32
+MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start, tr_k and slot are int32
 # Measured (2 threads, epsd): 200,000 spheres stored in random order run at 6.6 M particle-steps/s,
 # re-sorted 10.4 M, lattice order 11.6 M; at 20,000 spheres the state fits in cache and sorting
 # does not pay (13.4 M unsorted, 11.9 M sorted: the two threads' halves of the slots carry
@@ -91,26 +92,63 @@ class EngineState:
         self.cell_of = np.zeros(n, dtype=np.int32)
         self.counts = np.zeros(n, dtype=np.int32)
         self.cell_start = np.zeros(max(2 * n, 64) + 1, dtype=np.int32)
+        # the contact pool's groups (rollingdem.neighbors): head of the free list, next unused row; a
+        # rebuild sets them
+        self.groups = np.zeros(((n + POOL_GROUP - 1) // POOL_GROUP, 2), dtype=np.int32)
+        self.groups[:, 0] = -1
 
     def _allocate_list(self, capacity: int, keep: int = 0):
-        h = self.history_size
-        old = (getattr(self, "nl_j", None), getattr(self, "hist", None))
+        old = (getattr(self, "nl_j", None), getattr(self, "pool", None), getattr(self, "slot", None))
         self.nl_j = np.zeros(capacity, dtype=np.int32)
         self.nl_i = np.zeros(capacity, dtype=np.int32)  # the row of each entry (neighbors.list_rows)
-        self.hist = np.zeros((capacity, h))
-        self.touch = np.zeros(capacity, dtype=np.uint8)  # entry in contact at the last step
+        # contact rows (history, F_ij, T_j) and each entry's row, -1 out of contact (rollingdem.neighbors):
+        # the rows in use lie below the list's length, so the first ``keep`` rows are all there is
+        self.pool = np.zeros((capacity, self.history_size + PAIR_TERMS))
+        self.slot = np.full(capacity, -1, dtype=np.int32)
         if keep and old[0] is not None:
             self.nl_j[:keep] = old[0][:keep]
-            self.hist[:keep] = old[1][:keep]
-            self.derive_touch(keep)
-        self.pair_force = np.zeros((capacity, 3))
-        self.pair_torque_j = np.zeros((capacity, 3))
+            self.pool[:keep] = old[1][:keep]
+            self.slot[:keep] = old[2][:keep]
         self.tr_k = np.zeros(capacity, dtype=np.int32)
         self.capacity = capacity
 
-    def derive_touch(self, total: int):
-        """An entry is in contact iff it keeps a contact normal (what the kernel does at a rebuild)."""
-        self.touch[:total] = np.any(self.hist[:total, :3] != 0.0, axis=1)
+    def entry_history(self) -> np.ndarray:
+        """The contact history of each list entry, (entries, history_size), zeros out of contact (the
+        layout of checkpoints)."""
+        total = self.list_size
+        hist = np.zeros((total, self.history_size))
+        rows = self.slot[:total]
+        touching = rows >= 0
+        hist[touching] = self.pool[rows[touching], :self.history_size]
+        return hist
+
+    def set_entry_history(self, hist: np.ndarray):
+        """Put a history per list entry (``entry_history``'s layout) into the pool, as a rebuild
+        leaves it: an entry is in contact iff it keeps a contact normal, each group's contacts at
+        the front of its rows in list order. Needs ``nl_i`` (``index_list``)."""
+        total = self.list_size
+        touching = np.nonzero(np.any(hist[:total, :3] != 0.0, axis=1))[0]
+        group = self.nl_i[touching] // POOL_GROUP
+        first_entry = self.nl_start[np.minimum(np.arange(len(self.groups)) * POOL_GROUP, self.n)]
+        rank = np.arange(len(touching)) - np.searchsorted(group, group)  # in its group, in list order
+        rows = first_entry[group] + rank
+        self.slot[:total] = -1
+        self.slot[touching] = rows
+        self.pool[rows, :self.history_size] = hist[touching]
+        self.groups[:, 0] = -1
+        self.groups[:, 1] = first_entry + np.bincount(group, minlength=len(self.groups))
+
+    def rebuild_list(self, skin: float) -> int:
+        """Rebuild the neighbor list at the present positions, carrying the contacts over (the
+        arrays grow as needed); returns its number of entries."""
+        while True:
+            total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j, self.nl_i,
+                                          self.pool, self.slot, self.groups, self.tr_start, self.tr_k, self.cell_start,
+                                          self.cell_items, self.cell_of, self.counts, self.x_ref)
+            if total >= 0:
+                list_rows(self.n, self.nl_start, self.nl_i)
+                return total
+            self.grow(-total)
 
     def derive_wall_touch(self):
         """``wtouch[i * n_walls + w]``: whether particle i touched wall w at the last step (it keeps a
@@ -226,6 +264,7 @@ class EngineState:
             self.whist = np.ascontiguousarray(self.whist.reshape(n, self.n_walls, h)[perm].reshape(-1, h))
             self.derive_wall_touch()
         # rows move with their particle; entries keep their order (by partner id) and history
+        hist = self.entry_history()
         old_start = self.nl_start.copy()
         lengths = np.diff(old_start)[perm]
         self.nl_start[0] = 0
@@ -233,9 +272,8 @@ class EngineState:
         total = int(self.nl_start[-1])
         src = np.repeat(old_start[:-1][perm] - self.nl_start[:-1], lengths) + np.arange(total)
         self.nl_j[:total] = inv[self.nl_j[src]]
-        self.hist[:total] = self.hist[src]
-        self.touch[:total] = self.touch[src]
         self.index_list()
+        self.set_entry_history(hist[src])
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
 
@@ -262,7 +300,7 @@ class EngineState:
     def kernel_args(self, dt, gravity, skin, pair_params):
         return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
                 self.ids, pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
-                self.whist, self.wtouch, self.nl_start, self.nl_j, self.nl_i, self.hist, self.touch, self.pair_force, self.pair_torque_j,
+                self.whist, self.wtouch, self.nl_start, self.nl_j, self.nl_i, self.pool, self.slot, self.groups,
                 self.tr_start, self.tr_k, self.cell_start, self.cell_items,
                 self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info,
                 *self.contact_blocks())
@@ -340,28 +378,19 @@ class EngineState:
     def _evaluate_forces(self, kernel, dt, gravity, skin, pair_params):
         """Forces and torques of the present state, leaving the contact history untouched.
 
-        Rebuilding at unchanged positions is idempotent, so the history saved after one rebuild
-        is exactly the history the evaluation started from.
+        Rebuilding at unchanged positions is idempotent, so the contacts saved after one rebuild
+        are exactly those the evaluation started from.
         """
-        from .neighbors import rebuild_neighbor_list
-
-        while True:
-            total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j,
-                                          self.hist, self.tr_start, self.tr_k, self.cell_start, self.cell_items,
-                                          self.cell_of, self.counts,
-                                          self.x_ref)
-            if total >= 0:
-                break
-            self.grow(-total)
-        saved = (self.hist[:total].copy(), self.whist.copy(), self.energy.copy())
+        total = self.rebuild_list(skin)
+        saved = (self.pool[:total].copy(), self.slot[:total].copy(), self.groups.copy(), self.whist.copy(),
+                 self.energy.copy())
         while True:
             self.info[I_FORCES_VALID] = 0
             self.step_loop(kernel)(0, *self.kernel_args(dt, gravity, skin, pair_params))
             if self.info[I_STATUS] != STATUS_CAPACITY:
                 break
             self.grow(int(self.info[I_NEEDED]))
-        self.hist[:total], self.whist[:], self.energy[:] = saved
-        self.derive_touch(total)
+        self.pool[:total], self.slot[:total], self.groups[:], self.whist[:], self.energy[:] = saved
         self.derive_wall_touch()
 
     # --- checkpoint ----------------------------------------------------------------------------
@@ -373,7 +402,7 @@ class EngineState:
         out = {name: getattr(self, name) for name in self.ARRAYS}
         total = self.list_size
         out["nl_j"] = self.nl_j[:total]
-        out["hist"] = self.hist[:total]
+        out["hist"] = self.entry_history()
         out["tr_k"] = self.tr_k[:total]
         return out
 
@@ -396,8 +425,7 @@ class EngineState:
         total = int(arrays["nl_j"].shape[0])
         st._allocate_list(max(int(total * LIST_MARGIN) + 16, 3 * st.n))
         st.nl_j[:total] = arrays["nl_j"]
-        st.hist[:total] = arrays["hist"]
-        st.derive_touch(total)
         st.derive_wall_touch()
         st.index_list()  # the checkpoint's tr_k too, made again (as it was written)
+        st.set_entry_history(arrays["hist"])
         return st

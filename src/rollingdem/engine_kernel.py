@@ -55,7 +55,7 @@ from numba import njit, prange, uint32, uint64
 from numba.np.arrayobj import reshape_unchecked
 from numba.core.errors import NumbaPerformanceWarning
 
-from rollingdem.neighbors import list_rows, rebuild_neighbor_list
+from rollingdem.neighbors import POOL_GROUP, free_row, list_rows, rebuild_neighbor_list, take_row
 from rollingdem.contact.frame import SERIES_ANGLE, contact_frame, contact_frame_series
 from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
 from rollingdem.contact.tangential import history_spring as tangential_force  # @@TANGENTIAL
@@ -89,6 +89,9 @@ TILE_ROWS = 16  # a tile of 1024 entries
 CANDIDATE_SLACK = 1.0 + 1e-12
 N_INPUTS = 18
 N_RESULTS = 13
+# columns of a contact's pool row (``rollingdem.neighbors``) after its history: F on i, T on j
+P_FORCE = HISTORY_SIZE
+P_TORQUE_J = HISTORY_SIZE + 3
 B_IN = HISTORY_SIZE
 B_OUT = B_IN + N_INPUTS
 B_SCALAR = B_OUT + N_RESULTS
@@ -255,20 +258,19 @@ def block_contacts(block, p, dt):
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts):
+def flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts):
     """Compute a block of ``count`` contacts (material pair parameters ``p``) and scatter the results:
-    history rows back, F and T_j kept per entry, F and T added to row i in the order of its entries
-    (the order the scalar loop summed them in)."""
+    history back to each contact's pool row, F and T_j beside it, F and T added to row i in the
+    order of its entries (the order the scalar loop summed them in)."""
     block_contacts(block, p, dt)
-    nslot = hist.shape[1]
     for n in range(count):
         un = uint64(n)
-        k = uint64(lanes[0, n])
+        k = uint64(lanes[0, n])  # the contact's pool row
         i = uint64(lanes[1, n])
         out = B_SCALAR if lanes[2, n] else B_OUT  # the scalar contact already wrote its history row
         if not lanes[2, n]:
-            for s in range(nslot):
-                hist[k, s] = block[uint64(s * CONTACT_BLOCK) + un]
+            for s in range(HISTORY_SIZE):
+                pool[k, s] = block[uint64(s * CONTACT_BLOCK) + un]
         r0 = block[uint64((out + 0) * CONTACT_BLOCK) + un]
         r1 = block[uint64((out + 1) * CONTACT_BLOCK) + un]
         r2 = block[uint64((out + 2) * CONTACT_BLOCK) + un]
@@ -278,12 +280,12 @@ def flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_
         t[i, 0] += block[uint64((out + 3) * CONTACT_BLOCK) + un]
         t[i, 1] += block[uint64((out + 4) * CONTACT_BLOCK) + un]
         t[i, 2] += block[uint64((out + 5) * CONTACT_BLOCK) + un]
-        pair_force[k, 0] = r0
-        pair_force[k, 1] = r1
-        pair_force[k, 2] = r2
-        pair_torque_j[k, 0] = block[uint64((out + 6) * CONTACT_BLOCK) + un]
-        pair_torque_j[k, 1] = block[uint64((out + 7) * CONTACT_BLOCK) + un]
-        pair_torque_j[k, 2] = block[uint64((out + 8) * CONTACT_BLOCK) + un]
+        pool[k, P_FORCE] = r0
+        pool[k, P_FORCE + 1] = r1
+        pool[k, P_FORCE + 2] = r2
+        pool[k, P_TORQUE_J] = block[uint64((out + 6) * CONTACT_BLOCK) + un]
+        pool[k, P_TORQUE_J + 1] = block[uint64((out + 7) * CONTACT_BLOCK) + un]
+        pool[k, P_TORQUE_J + 2] = block[uint64((out + 8) * CONTACT_BLOCK) + un]
         if TRACK_ENERGY:
             for c in range(4):
                 energy[i, c] += block[uint64((out + 9 + c) * CONTACT_BLOCK) + un]
@@ -294,9 +296,10 @@ NO_INPUTS = (0.0,) * 18
 
 
 @njit(cache=True, inline="always")
-def entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch):
-    """Entry k (row i) of the half list: (whether the spheres touch, j, the 18 inputs of ``contact``
-    after ``hist`` and k). An entry that stops touching has its flag and history cleared."""
+def entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, slot, groups):
+    """Entry k (row i) of the half list: (whether the spheres touch, j, the contact's pool row, the
+    18 inputs of ``contact`` after ``pool`` and the row). A contact that starts takes a pool row of
+    its group (history zeroed); one that ends gives its row back (``rollingdem.neighbors``)."""
     j = uint32(nl_j[k])
     dx = x[i, 0] - x[j, 0]
     dy = x[i, 1] - x[j, 1]
@@ -305,13 +308,15 @@ def entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch):
     rj = radius[j]
     d2 = dx * dx + dy * dy + dz * dz
     reach = ri + rj
+    row = slot[k]
     if d2 >= reach * reach:
-        if touch[k]:
-            touch[k] = 0
-            for s in range(hist.shape[1]):
-                hist[k, s] = 0.0
-        return False, j, NO_INPUTS
-    touch[k] = 1
+        if row >= 0:
+            free_row(pool, groups, uint64(i) // uint64(POOL_GROUP), row)
+            slot[k] = -1
+        return False, j, row, NO_INPUTS
+    if row < 0:
+        row = take_row(pool, groups, uint64(i) // uint64(POOL_GROUP), HISTORY_SIZE)
+        slot[k] = row
     dist = math.sqrt(d2)
     overlap = reach - dist
     inv_dist = 1.0 / dist
@@ -319,7 +324,7 @@ def entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch):
     mj = mass[j]
     ai = mi * ri * ri
     aj = mj * rj * rj
-    return True, j, (dx * inv_dist, dy * inv_dist, dz * inv_dist, overlap,
+    return True, j, row, (dx * inv_dist, dy * inv_dist, dz * inv_dist, overlap,
                      v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
                      w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
                      ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, mi * mj / (mi + mj),
@@ -327,7 +332,7 @@ def entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch):
 
 
 @njit(cache=True, inline="always")
-def candidate_entries(k0, k1, x, radius, nl_j, nl_i, touch, lanes):
+def candidate_entries(k0, k1, x, radius, nl_j, nl_i, slot, lanes):
     """Entries k0..k1-1 whose spheres may touch now or touched at the last step, in ascending k, into
     the rows ``LANE_HITS..`` of ``lanes``; returns their count. One flat loop without branches
     over the entries of many rows (``nl_i`` gives each entry's row): a loop per row mispredicts
@@ -344,13 +349,13 @@ def candidate_entries(k0, k1, x, radius, nl_j, nl_i, touch, lanes):
         dz = x[i, 2] - x[j, 2]
         reach = radius[i] + radius[j]
         lanes[uint64(LANE_HITS) + (nhit >> uint64(BLOCK_SHIFT)), nhit & uint64(CONTACT_BLOCK - 1)] = kk
-        nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (touch[k] != 0))
+        nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (slot[k] >= 0))
     return np.int64(nhit)
 
 
 @njit(cache=True, inline="always")
-def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
-             pair_torque_j, energy, contacts):
+def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, pool, slot, groups, energy,
+             contacts):
     """Row i of the half list, one contact at a time through the scalar ``contact`` (spheres of more
     than one material, see ``pair_rows``)."""
     fx = fy = fz = 0.0
@@ -358,10 +363,10 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
     en = et = er = etw = 0.0
     ncontact = 0
     for k in range(nl_start[i], nl_start[i + 1]):
-        touching, j, g = entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch)
+        touching, j, row, g = entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, slot, groups)
         if not touching:
             continue
-        res = contact(hist, k, g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], g[8], g[9], g[10], g[11], g[12],
+        res = contact(pool, row, g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], g[8], g[9], g[10], g[11], g[12],
                       g[13], g[14], g[15], g[16], g[17], pair_params[mat[i], mat[j]], dt)
         fx += res[0]
         fy += res[1]
@@ -369,12 +374,12 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
         tx += res[3]
         ty += res[4]
         tz += res[5]
-        pair_force[k, 0] = res[0]
-        pair_force[k, 1] = res[1]
-        pair_force[k, 2] = res[2]
-        pair_torque_j[k, 0] = res[6]
-        pair_torque_j[k, 1] = res[7]
-        pair_torque_j[k, 2] = res[8]
+        pool[row, P_FORCE] = res[0]
+        pool[row, P_FORCE + 1] = res[1]
+        pool[row, P_FORCE + 2] = res[2]
+        pool[row, P_TORQUE_J] = res[6]
+        pool[row, P_TORQUE_J + 1] = res[7]
+        pool[row, P_TORQUE_J + 2] = res[8]
         en += res[9]
         et += res[10]
         er += res[11]
@@ -395,8 +400,8 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
-              pair_torque_j, energy, contacts, block, lanes):
+def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups,
+              energy, contacts, block, lanes):
     """Rows lo..hi-1 of the half list: F and T on i summed over the row, F and T_j kept per pair.
 
     The distance tests run a tile of the list at a time (``candidate_entries``); the contacts found
@@ -407,15 +412,14 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
     would cost a whole block's computation per run, 15 scalar contacts for a block of one. A
     contact whose spin angle in the step is ``SERIES_ANGLE`` or more (|omega| dt >= 1e-3: rare) is
     computed at once by the scalar ``contact``, which has libm's cos and sin, and keeps its lane.
-    ``touch[k]`` says whether entry k is in contact this step; the pair terms of an entry out of
-    contact are left stale (the gather skips them), so a neighbor out of reach costs a distance
-    test and a one-byte flag, not a history row and two force rows."""
+    ``slot[k]`` is entry k's pool row while it is in contact, -1 otherwise (the gather skips those),
+    so a neighbor out of reach costs a distance test and an int, not a history row and two force
+    rows. ``lo`` and ``hi`` are whole groups of the pool (``POOL_GROUP`` rows), or ``hi`` = n."""
     if block.shape[0] == 0:
         for i in range(lo, hi):
-            pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, hist, touch, pair_force,
-                     pair_torque_j, energy, contacts)
+            pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, pool, slot, groups, energy,
+                     contacts)
         return
-    nslot = hist.shape[1]
     p = pair_params[mat[lo], mat[lo]] if hi > lo else pair_params[0, 0]
     count = np.int64(0)  # not a literal 0, which would compile flush_block a second time
     for i in range(lo, hi):
@@ -426,15 +430,15 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
     tile = (lanes.shape[0] - LANE_HITS) * CONTACT_BLOCK
     kend = nl_start[hi]
     for k0 in range(nl_start[lo], kend, tile):
-        nhit = candidate_entries(k0, min(k0 + tile, kend), x, radius, nl_j, nl_i, touch, lanes)
+        nhit = candidate_entries(k0, min(k0 + tile, kend), x, radius, nl_j, nl_i, slot, lanes)
         for e in range(nhit):
             k = uint64(lanes[LANE_HITS + (e >> BLOCK_SHIFT), e & (CONTACT_BLOCK - 1)])
             i = uint32(nl_i[k])
-            touching, j, inputs = entry_inputs(i, k, x, v, w, radius, mass, nl_j, hist, touch)
+            touching, j, row, inputs = entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, slot, groups)
             if not touching:
                 continue
             if count == CONTACT_BLOCK:
-                flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts)
+                flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts)
                 count = 0
             n = count
             un = uint64(n)
@@ -457,15 +461,16 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
             block[uint64((B_IN + 15) * CONTACT_BLOCK) + un] = inputs[15]
             block[uint64((B_IN + 16) * CONTACT_BLOCK) + un] = inputs[16]
             block[uint64((B_IN + 17) * CONTACT_BLOCK) + un] = inputs[17]
-            for s in range(nslot):
-                block[uint64(s * CONTACT_BLOCK) + un] = hist[k, s]
-            lanes[0, n] = k
+            urow = uint64(row)
+            for s in range(HISTORY_SIZE):
+                block[uint64(s * CONTACT_BLOCK) + un] = pool[urow, s]
+            lanes[0, n] = row
             lanes[1, n] = i
             phi = spin_angle(inputs[0], inputs[1], inputs[2], inputs[7], inputs[8], inputs[9], inputs[10],
                              inputs[11], inputs[12], dt)
             lanes[2, n] = 0 if abs(phi) < SERIES_ANGLE else 1
             if lanes[2, n]:
-                res = contact(hist, np.int64(k), inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5], inputs[6],
+                res = contact(pool, np.int64(row), inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5], inputs[6],
                               inputs[7], inputs[8], inputs[9], inputs[10], inputs[11], inputs[12], inputs[13],
                               inputs[14], inputs[15], inputs[16], inputs[17], p, dt)
                 block[uint64((B_SCALAR + 0) * CONTACT_BLOCK) + un] = res[0]
@@ -482,27 +487,29 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
                 block[uint64((B_SCALAR + 11) * CONTACT_BLOCK) + un] = res[11]
                 block[uint64((B_SCALAR + 12) * CONTACT_BLOCK) + un] = res[12]
     if count > 0:
-        flush_block(count, block, lanes, dt, f, t, p, hist, pair_force, pair_torque_j, energy, contacts)
+        flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
-                pair_torque_j, energy, contacts, blocks, lanes):
-    """Pair contacts: each thread a contiguous range of rows, with its own block buffer."""
+def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups, energy,
+                contacts, blocks, lanes):
+    """Pair contacts: each thread a contiguous range of whole pool groups, with its own block buffer."""
     n = x.shape[0]
     nblock = blocks.shape[0]
+    ngroups = (n + POOL_GROUP - 1) // POOL_GROUP
     for b in prange(nblock):
-        pair_rows(b * n // nblock, (b + 1) * n // nblock, dt, x, v, w, f, t, radius, mass, mat, pair_params,
-                  nl_start, nl_j, nl_i, hist, touch, pair_force, pair_torque_j, energy, contacts, blocks[b], lanes[b])
+        pair_rows(min(b * ngroups // nblock * POOL_GROUP, n), min((b + 1) * ngroups // nblock * POOL_GROUP, n), dt,
+                  x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups, energy,
+                  contacts, blocks[b], lanes[b])
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
-                       pair_torque_j, energy, contacts, blocks, lanes):
+def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups,
+                       energy, contacts, blocks, lanes):
     """``pair_forces`` on the calling thread (see ``SERIAL_BELOW``)."""
     for b in range(1):  # lo = b, not 0: a literal 0 would compile pair_rows a second time
-        pair_rows(b, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch,
-                  pair_force, pair_torque_j, energy, contacts, blocks[b], lanes[b])
+        pair_rows(b, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot,
+                  groups, energy, contacts, blocks[b], lanes[b])
 
 
 @njit(cache=True, inline="always")
@@ -648,8 +655,8 @@ def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
-                wtouch, energy, contacts, x_ref, half_skin):
+                nl_j, slot, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+                contacts, x_ref, half_skin):
     """Particles lo..hi-1: the pair terms where each is the second partner, subtracted from (F) and
     added to (T) its row sums in ascending entry order, then ``gather_one``; returns the counts of
     its two flags. One function for both drivers, as ``pair_rows``: compiled once (the walls'
@@ -658,15 +665,17 @@ def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia,
     mispredicted once per particle, as in the pair pass (``candidate_entries``)."""
     for m in range(tr_start[lo], tr_start[hi]):
         k = uint32(tr_k[uint64(m)])
-        if not touch[k]:
+        row = slot[k]
+        if row < 0:
             continue
+        r = uint64(row)
         j = uint32(nl_j[k])
-        f[j, 0] -= pair_force[k, 0]
-        f[j, 1] -= pair_force[k, 1]
-        f[j, 2] -= pair_force[k, 2]
-        t[j, 0] += pair_torque_j[k, 0]
-        t[j, 1] += pair_torque_j[k, 1]
-        t[j, 2] += pair_torque_j[k, 2]
+        f[j, 0] -= pool[r, P_FORCE]
+        f[j, 1] -= pool[r, P_FORCE + 1]
+        f[j, 2] -= pool[r, P_FORCE + 2]
+        t[j, 0] += pool[r, P_TORQUE_J]
+        t[j, 1] += pool[r, P_TORQUE_J + 1]
+        t[j, 2] += pool[r, P_TORQUE_J + 2]
     nexceed = 0
     nfast = 0
     for q in range(lo, hi):
@@ -679,18 +688,18 @@ def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia,
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, touch,
-           pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch,
-           energy, contacts, x_ref, half_skin):
+def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, slot,
+           pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref,
+           half_skin):
     """``gather_rows`` on runs of ``GATHER_RUN`` particles, shared out among the threads."""
     n = x.shape[0]
     nexceed = 0
     nfast = 0
     for b in prange((n + GATHER_RUN - 1) // GATHER_RUN):
         exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, x, v, w, f, t,
-                                   radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, touch, pair_force,
-                                   pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
-                                   wtouch, energy, contacts, x_ref, half_skin)
+                                   radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, slot, pool,
+                                   wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+                                   contacts, x_ref, half_skin)
         nexceed += exceed
         nfast += fast
     return nexceed, nfast
@@ -698,15 +707,14 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                  nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat,
-                  whist, wtouch, energy, contacts, x_ref, half_skin):
+                  nl_j, slot, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+                  contacts, x_ref, half_skin):
     """``gather`` on the calling thread."""
     nexceed = nfast = 0
     for b in range(1):  # lo = b, not a literal 0: see pair_forces_serial
         nexceed, nfast = gather_rows(b, x.shape[0], dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                     pair_params, tr_start, tr_k, nl_j, touch, pair_force, pair_torque_j,
-                                     wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts,
-                                     x_ref, half_skin)
+                                     pair_params, tr_start, tr_k, nl_j, slot, pool, wall_kind, wall_geom, wall_vel,
+                                     wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
     return nexceed, nfast
 
 
@@ -775,16 +783,14 @@ def move_walls(dt, wall_geom, wall_vel):
 
 
 @njit(cache=True)
-def _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, hist, touch, tr_start, tr_k, cell_start, cell_items, cell_of,
-             counts, x_ref, info):
-    total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, hist, tr_start, tr_k, cell_start,
-                                  cell_items, cell_of, counts, x_ref)
+def _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k, cell_start, cell_items,
+             cell_of, counts, x_ref, info):
+    total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k,
+                                  cell_start, cell_items, cell_of, counts, x_ref)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY
         info[I_NEEDED] = -total
         return False
-    for k in range(total):  # the entries moved: in contact at the last step <=> a contact normal is kept
-        touch[k] = 1 if (hist[k, 0] != 0.0 or hist[k, 1] != 0.0 or hist[k, 2] != 0.0) else 0
     list_rows(x.shape[0], nl_start, nl_i)
     info[I_REBUILDS] += 1
     return True
@@ -792,9 +798,8 @@ def _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, hist, touch, tr_start, 
 
 @njit(cache=True)  # @@SERIAL_COPY
 def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
-            wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, nl_i, hist, touch, pair_force,
-            pair_torque_j, tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts,
-            info, blocks, lanes):
+            wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, slot, groups, tr_start,
+            tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes):
     """Advance ``nsteps`` steps: ``advance`` on Numba's threads, ``advance_serial`` (the same loop
     with the ``*_serial`` passes, written by the kernel generator) on the calling thread. Stops
     early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the
@@ -805,17 +810,17 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids,
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
         info[I_DRIFTED] = 0
-        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, hist, touch, tr_start, tr_k, cell_start,
+        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k, cell_start,
                         cell_items, cell_of, counts, x_ref, info):
             return
         # the pair pass and the gather are called here and in the loop, not through one function:
         # a call of more than 30 arguments cannot be inlined, and a function of its own would
         # compile the whole kernel once more (1 s of a cold compile)
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
-                    pair_torque_j, energy, contacts, blocks, lanes)
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups,
+                    energy, contacts, blocks, lanes)
         exceed, fast = gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                              tr_k, nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
-                              wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
+                              tr_k, nl_j, slot, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+                              wtouch, energy, contacts, x_ref, half_skin)
         info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
         info[I_FORCES_VALID] = 1
@@ -830,17 +835,17 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids,
             move_walls(dt, wall_geom, wall_vel)
             info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, hist, touch, tr_start, tr_k, cell_start,
-                            cell_items, cell_of, counts, x_ref, info):
+            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k,
+                            cell_start, cell_items, cell_of, counts, x_ref, info):
                 return  # drifted: the call after the arrays grow goes on from here
             info[I_NEED_REBUILD] = 0
         drift = step + 1 < nsteps
         kick = 2.0 if drift else 1.0
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, hist, touch, pair_force,
-                    pair_torque_j, energy, contacts, blocks, lanes)
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups,
+                    energy, contacts, blocks, lanes)
         exceed, fast = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                              tr_k, nl_j, touch, pair_force, pair_torque_j, wall_kind, wall_geom, wall_vel, wall_omega,
-                              wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
+                              tr_k, nl_j, slot, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+                              wtouch, energy, contacts, x_ref, half_skin)
         info[I_NEED_REBUILD] = exceed
         info[I_TOO_FAST] = fast
         info[I_STEPS_DONE] = step + 1

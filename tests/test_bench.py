@@ -87,3 +87,14 @@ def test_a_dump_that_is_not_one(tmp_path):
     bad.write_text("hello\n")
     with pytest.raises(rd.ParameterError, match="not a LIGGGHTS custom dump"):
         bench.column_from_dump(bad)
+
+
+def test_scaling_scene_times_two_slabs_in_turn(monkeypatch):
+    """The scaling scene steps a small and a large slab through the same steps, chunk by chunk, and
+    its figure is the ratio of their costs per particle-step over the whole run."""
+    monkeypatch.setattr(bench, "SCALING_SMALL", 300)
+    small, large = bench.scaling(particles=1200, steps=12, threads=1, echo=lambda *a: None)
+    assert (small.particles, large.particles) == (300, 1200) and small.steps == large.steps == 12
+    assert small.scene == large.scene == "slab"
+    whole = (large.wall_s / large.particles) / (small.wall_s / small.particles)
+    assert f"cost per particle-step {whole:.2f}x that at 300" in large.note

@@ -16,6 +16,10 @@ Scenes (the performance issue's definitions):
 * ``slab``: N spheres on a jittered cubic lattice (spacing 2.02 R, 8 layers) on a plate, falling
   onto it with random velocities of 5 cm/s, EPSD: the cost per particle-step against N without a
   settle first (a settled column of 10^6 spheres takes hours to build on 2 cores).
+* ``scaling``: the slab at 20,000 and at N spheres (default 10^6) in one process, stepped in turn
+  ``SCALING_CHUNKS`` times, so both pass through the same simulated times and the same moments of
+  a shared machine's load: the cost per particle-step at N against 20,000 (the performance issue
+  asks for at most 1.3x).
 
 Every scene runs as a Simulation does by default: without summing the dissipated energies
 (``track_energy=False``), as LIGGGHTS and LAMMPS, which do not count them either.
@@ -39,7 +43,10 @@ import numpy as np
 
 from .errors import ParameterError
 
-SCENES = ("column-collapse", "single-particle", "dense-bed", "slab")
+SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling")
+SCALING_SMALL = 20000
+SCALING_LARGE = 1_000_000
+SCALING_CHUNKS = 6
 SLAB_LAYERS = 8
 SPLIT_REPEATS = 4
 SPLIT_ROUNDS = 5
@@ -368,20 +375,62 @@ def slab(particles=20000, steps=1000, threads=None, echo=print) -> BenchResult:
 
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
-    x, v = slab_state(particles)
-    sim = _column_simulation("epsd")
-    sim.add_particles(x, RADIUS, "table1", velocity=v)
+    sim = _slab_simulation(particles)
     wall, rebuilds = _time_run(sim, steps)
     return _result("slab", "epsd", sim, steps, compile_s, wall, rebuilds, threads,
                    f"{SLAB_LAYERS} lattice layers falling onto a plate")
 
 
-def run_bench(scenes=SCENES, particles=20000, steps=None, threads=None, from_dump=None, models=None,
+def _slab_simulation(particles: int):
+    x, v = slab_state(particles)
+    sim = _column_simulation("epsd")
+    sim.add_particles(x, RADIUS, "table1", velocity=v)
+    return sim
+
+
+def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print) -> list[BenchResult]:
+    """The slab at ``SCALING_SMALL`` and at ``particles`` spheres, each timed over ``steps`` steps
+    in ``SCALING_CHUNKS`` chunks taken in turn; the note of the second gives its cost per
+    particle-step against the first, over the whole run and chunk by chunk."""
+    import numba
+
+    from . import ContactModel
+
+    from .engine_kernel import I_REBUILDS
+
+    threads = threads or numba.get_num_threads()
+    compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
+    sims = [_slab_simulation(SCALING_SMALL), _slab_simulation(particles)]
+    for sim in sims:  # the list built (and the large slab sorted in space) before the timing
+        sim.run(steps=1, progress=False)
+        sim._state.governor().steps_on.clear()
+    walls = np.zeros((2, SCALING_CHUNKS))
+    rebuilds = [0, 0]
+    for c in range(SCALING_CHUNKS):
+        todo = steps * (c + 1) // SCALING_CHUNKS - steps * c // SCALING_CHUNKS
+        for s, sim in enumerate(sims):
+            before = int(sim._state.info[I_REBUILDS])
+            tic = time.perf_counter()
+            sim.run(steps=todo, progress=False)
+            walls[s, c] = time.perf_counter() - tic
+            rebuilds[s] += int(sim._state.info[I_REBUILDS]) - before
+    ratios = (walls[1] / sims[1].n_particles) / (walls[0] / sims[0].n_particles)
+    whole = (walls[1].sum() / sims[1].n_particles) / (walls[0].sum() / sims[0].n_particles)
+    results = [_result("slab", "epsd", sim, steps, compile_s, float(walls[s].sum()), rebuilds[s], threads,
+                       f"{SLAB_LAYERS} lattice layers falling onto a plate; in {SCALING_CHUNKS} chunks, in turn "
+                       f"with the slab of {sims[1 - s].n_particles} spheres")
+               for s, sim in enumerate(sims)]
+    results[1].note += (f": cost per particle-step {whole:.2f}x that at {SCALING_SMALL} (chunk by chunk "
+                        f"{', '.join(f'{r:.2f}' for r in ratios)}; median {np.median(ratios):.2f}x)")
+    return results
+
+
+def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump=None, models=None,
               echo=print) -> list[BenchResult]:
     unknown = [s for s in scenes if s not in SCENES]
     if unknown:
         raise ParameterError(f"scene = {', '.join(unknown)} is not known: allowed are {', '.join(SCENES)}")
-    if isinstance(particles, bool) or not isinstance(particles, int) or particles < 1:
+    if particles is not None and (isinstance(particles, bool) or not isinstance(particles, int) or particles < 1):
         raise ParameterError(f"particles = {particles!r} is not allowed: must be an integer >= 1")
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
         raise ParameterError(f"steps = {steps!r} is not allowed: must be an integer >= 1")
@@ -392,13 +441,17 @@ def run_bench(scenes=SCENES, particles=20000, steps=None, threads=None, from_dum
     results = []
     for scene in scenes:
         if scene == "column-collapse":
-            results.append(column_collapse(particles, steps or 10000, threads, from_dump, echo))
+            results.append(column_collapse(particles or 20000, steps or 10000, threads, from_dump, echo))
         elif scene == "single-particle":
             results.append(single_particle(steps or 150000, threads, echo))
         elif scene == "slab":
-            results.append(slab(particles, steps or 1000, threads, echo))
+            results.append(slab(particles or 20000, steps or 1000, threads, echo))
+        elif scene == "scaling":
+            pair = scaling(particles or SCALING_LARGE, steps or 300, threads, echo)
+            echo(format_row(pair[0]))
+            results += pair
         else:
-            results += dense_bed(particles, steps or 2000, threads, models or DENSE_BED_MODELS, echo)
+            results += dense_bed(particles or 20000, steps or 2000, threads, models or DENSE_BED_MODELS, echo)
         echo(format_row(results[-1]))
     return results
 

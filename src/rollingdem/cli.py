@@ -101,11 +101,13 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
 
 @app.command()
 def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help="column-collapse (default), "
-                                                    "single-particle, dense-bed, slab (repeatable)."),
-          particles: int = typer.Option(20000, "--particles", "-n", help="Spheres in column-collapse, dense-bed "
-                                                        "and slab."),
+                                                    "single-particle, dense-bed, slab, scaling (repeatable)."),
+          particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Spheres in column-collapse, "
+                                                  "dense-bed and slab (default 20,000), and the large slab of "
+                                                  "scaling (default 1,000,000; the small one has 20,000)."),
           steps: Optional[int] = typer.Option(None, "--steps", help="Timed steps (default: 10,000 column-collapse, "
-                                              "150,000 single-particle, 2,000 dense-bed, 1,000 slab)."),
+                                              "150,000 single-particle, 2,000 dense-bed, 1,000 slab, 300 "
+                                              "scaling)."),
           threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
           model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Rolling models of dense-bed "
                                                     "(repeatable; default: none and every model)."),

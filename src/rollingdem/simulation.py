@@ -341,7 +341,8 @@ class Simulation:
             m_eff = 0.5 * mmin
             r_eff = 0.5 * rmin
             if normal == "hertz":
-                vmax = 2.0 * float(np.sqrt((st.v[sel] ** 2).sum(axis=1)).max())
+                speed = np.sqrt((st.v[sel] ** 2).sum(axis=1))
+                vmax = 2.0 * float(speed[np.isfinite(speed)].max(initial=0.0))  # a non-finite v is reported apart
                 if vmax > 0:
                     t_h = hertz_contact_time(m_eff, r_eff, row[0], vmax)
                     limits.append((f"Hertz time {t_h:.4g} s / 20 at impact speed {vmax:.3g} m/s", HERTZ_FRACTION * t_h))
@@ -415,6 +416,7 @@ class Simulation:
         elif int(steps) < 0:
             raise ParameterError(f"steps = {steps} is not allowed: must be >= 0")
         steps = int(steps)
+        self._check_finite_state()  # first: a non-finite state would make the dt check's message a riddle
         self._check_dt()
         observers = list(observers)
         bar = _Progress(self, steps, label) if progress else None
@@ -424,7 +426,6 @@ class Simulation:
         failure = None
         try:
             kernel = self.kernel()  # after the observers start: a TimeSeries turns on track_energy
-            self._check_finite_state()
             for ob in observers:
                 ob.maybe_observe(self, force=True)
             chunk = 64
@@ -459,6 +460,11 @@ class Simulation:
 
     def _check_finite_state(self):
         st = self._state
+        # the sum of the state is finite when every value is (a finite sum that overflows only leads
+        # to the exact test): one pass, no temporaries; it runs after every call of the kernel, and
+        # at 10^6 spheres the exact test costs 50 ms, a call ~0.25 s, the sums 3 ms
+        if math.isfinite(float(st.x.sum()) + float(st.v.sum()) + float(st.w.sum())):
+            return
         bad = ~(np.isfinite(st.x).all(axis=1) & np.isfinite(st.v).all(axis=1) & np.isfinite(st.w).all(axis=1))
         if bad.any():
             k = int(st.ids[np.nonzero(bad)[0][0]])

@@ -7,8 +7,16 @@ work, each side with its own copy of the history), in one pass, with no gather. 
 list and its history from the engine's half list on the same state (the 20,000-sphere collapse, 200
 steps after the cylinder is lifted; the LIGGGHTS-settled state if DUMP is given), checks that both
 give the same forces to round-off, and prints: half ms, full ms, full/half, best of 7 x 20 force passes
-(walls and gravity included in both)."""
+(walls and gravity included in both).
+
+It was written for the per-entry history rows of commit ae2afde and earlier (``git worktree add
+/tmp/ae2afde ae2afde`` and run it there with PYTHONPATH=/tmp/ae2afde/src): the contact pool that
+replaced them (``rollingdem.neighbors``) changes the half list's cost, not the comparison's answer
+(the full list does every contact twice)."""
 import time, sys, numpy as np, numba
+import rollingdem.engine
+if hasattr(rollingdem.engine.EngineState(6), "pool"):
+    sys.exit("half_vs_full_list.py measures the per-entry history layout of commit ae2afde: run it from a checkout of it")
 from numba import njit, prange
 from rollingdem import bench
 rolling = sys.argv[1] if len(sys.argv) > 1 else "epsd"

@@ -82,7 +82,7 @@ HISTORY_SIZE = 6  # @@HISTORY_SIZE
 # contact computed by the scalar ``contact`` instead.
 CONTACT_BLOCK = 64
 BLOCK_SHIFT = 6  # log2(CONTACT_BLOCK)
-# rows of a thread's ``lanes`` (int64, CONTACT_BLOCK wide): 0-2 the block's entries, rows and series
+# rows of a thread's ``lanes`` (int64, CONTACT_BLOCK wide): 0-2 the block's pool rows, list rows and series
 # flags; from LANE_HITS on, the candidate entries of a tile of the list (``candidate_entries``)
 LANE_HITS = 3
 TILE_ROWS = 16  # a tile of 1024 entries
@@ -265,12 +265,12 @@ def flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts):
     block_contacts(block, p, dt)
     for n in range(count):
         un = uint64(n)
-        k = uint64(lanes[0, n])  # the contact's pool row
+        row = uint64(lanes[0, n])  # the contact's pool row
         i = uint64(lanes[1, n])
         out = B_SCALAR if lanes[2, n] else B_OUT  # the scalar contact already wrote its history row
         if not lanes[2, n]:
             for s in range(HISTORY_SIZE):
-                pool[k, s] = block[uint64(s * CONTACT_BLOCK) + un]
+                pool[row, s] = block[uint64(s * CONTACT_BLOCK) + un]
         r0 = block[uint64((out + 0) * CONTACT_BLOCK) + un]
         r1 = block[uint64((out + 1) * CONTACT_BLOCK) + un]
         r2 = block[uint64((out + 2) * CONTACT_BLOCK) + un]
@@ -280,12 +280,12 @@ def flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts):
         t[i, 0] += block[uint64((out + 3) * CONTACT_BLOCK) + un]
         t[i, 1] += block[uint64((out + 4) * CONTACT_BLOCK) + un]
         t[i, 2] += block[uint64((out + 5) * CONTACT_BLOCK) + un]
-        pool[k, P_FORCE] = r0
-        pool[k, P_FORCE + 1] = r1
-        pool[k, P_FORCE + 2] = r2
-        pool[k, P_TORQUE_J] = block[uint64((out + 6) * CONTACT_BLOCK) + un]
-        pool[k, P_TORQUE_J + 1] = block[uint64((out + 7) * CONTACT_BLOCK) + un]
-        pool[k, P_TORQUE_J + 2] = block[uint64((out + 8) * CONTACT_BLOCK) + un]
+        pool[row, P_FORCE] = r0
+        pool[row, P_FORCE + 1] = r1
+        pool[row, P_FORCE + 2] = r2
+        pool[row, P_TORQUE_J] = block[uint64((out + 6) * CONTACT_BLOCK) + un]
+        pool[row, P_TORQUE_J + 1] = block[uint64((out + 7) * CONTACT_BLOCK) + un]
+        pool[row, P_TORQUE_J + 2] = block[uint64((out + 8) * CONTACT_BLOCK) + un]
         if TRACK_ENERGY:
             for c in range(4):
                 energy[i, c] += block[uint64((out + 9 + c) * CONTACT_BLOCK) + un]

@@ -513,6 +513,41 @@ def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_sta
 
 
 @njit(cache=True, inline="always")
+def wall_overlap(i, wl, x, ri, wall_kind, wall_geom):
+    """(overlap, n) of sphere i (radius ri) and wall wl; overlap -1 where the wall cannot touch it
+    (past a cylinder's ends, or on its axis)."""
+    kind = wall_kind[wl]
+    overlap = -1.0
+    nx = ny = nz = 0.0
+    if kind == WALL_PLANE:
+        dist = ((x[i, 0] - wall_geom[wl, 0]) * wall_geom[wl, 3] + (x[i, 1] - wall_geom[wl, 1]) * wall_geom[wl, 4]
+                + (x[i, 2] - wall_geom[wl, 2]) * wall_geom[wl, 5])
+        overlap = ri - dist
+        nx = wall_geom[wl, 3]
+        ny = wall_geom[wl, 4]
+        nz = wall_geom[wl, 5]
+    elif kind == WALL_CYLINDER:
+        ux = wall_geom[wl, 3]
+        uy = wall_geom[wl, 4]
+        uz = wall_geom[wl, 5]
+        ddx = x[i, 0] - wall_geom[wl, 0]
+        ddy = x[i, 1] - wall_geom[wl, 1]
+        ddz = x[i, 2] - wall_geom[wl, 2]
+        s = ddx * ux + ddy * uy + ddz * uz
+        if s >= wall_geom[wl, 7] and s <= wall_geom[wl, 8]:
+            qx = ddx - s * ux
+            qy = ddy - s * uy
+            qz = ddz - s * uz
+            r = math.sqrt(qx * qx + qy * qy + qz * qz)
+            if r > 0.0:
+                overlap = r + ri - wall_geom[wl, 6]
+                nx = -qx / r
+                ny = -qy / r
+                nz = -qz / r
+    return overlap, nx, ny, nz
+
+
+@njit(cache=True, inline="always")
 def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel, wall_omega,
                   wall_mat, whist, wtouch):
     """All wall contacts of particle i: total force and torque on i, energies, contact count.
@@ -527,36 +562,17 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
     nwall = wall_kind.shape[0]
     ri = radius[i]
     mi = mass[i]
+    # most spheres touch no wall and had no wall contact: a first loop of the bare tests lets them
+    # skip the contact loop (whose call of ``contact`` keeps every sphere's loop heavy: 7 ns a
+    # sphere on the collapse, where 1.7 % touch the plate)
+    need = False
     for wl in range(nwall):
-        kind = wall_kind[wl]
+        need |= (wall_overlap(i, wl, x, ri, wall_kind, wall_geom)[0] > 0.0) | (wtouch[i * uint64(nwall) + uint64(wl)] != 0)
+    if not need:
+        return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+    for wl in range(nwall):
         k = i * uint64(nwall) + uint64(wl)
-        overlap = -1.0
-        nx = ny = nz = 0.0
-        if kind == WALL_PLANE:
-            dist = ((x[i, 0] - wall_geom[wl, 0]) * wall_geom[wl, 3] + (x[i, 1] - wall_geom[wl, 1]) * wall_geom[wl, 4]
-                    + (x[i, 2] - wall_geom[wl, 2]) * wall_geom[wl, 5])
-            overlap = ri - dist
-            nx = wall_geom[wl, 3]
-            ny = wall_geom[wl, 4]
-            nz = wall_geom[wl, 5]
-        elif kind == WALL_CYLINDER:
-            ux = wall_geom[wl, 3]
-            uy = wall_geom[wl, 4]
-            uz = wall_geom[wl, 5]
-            ddx = x[i, 0] - wall_geom[wl, 0]
-            ddy = x[i, 1] - wall_geom[wl, 1]
-            ddz = x[i, 2] - wall_geom[wl, 2]
-            s = ddx * ux + ddy * uy + ddz * uz
-            if s >= wall_geom[wl, 7] and s <= wall_geom[wl, 8]:
-                qx = ddx - s * ux
-                qy = ddy - s * uy
-                qz = ddz - s * uz
-                r = math.sqrt(qx * qx + qy * qy + qz * qz)
-                if r > 0.0:
-                    overlap = r + ri - wall_geom[wl, 6]
-                    nx = -qx / r
-                    ny = -qy / r
-                    nz = -qz / r
+        overlap, nx, ny, nz = wall_overlap(i, wl, x, ri, wall_kind, wall_geom)
         if overlap <= 0.0:
             if wtouch[k]:  # the contact just ended: its springs go (a byte, not the history row)
                 wtouch[k] = 0

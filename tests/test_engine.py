@@ -160,7 +160,7 @@ def test_contact_history_dropped_when_contact_opens(table1):
     assert sim.number_of_contacts() == 0 and sim.velocities[1, 0] > 0  # they bounced apart
     st = sim._state
     assert st.list_size == 1  # still neighbors within the skin ...
-    assert st.slot[0] == -1 and np.all(st.entry_history() == 0.0)  # ... but the closed contact's springs are gone
+    assert st.contact_row[0] == -1 and np.all(st.entry_history() == 0.0)  # ... but the closed contact's springs are gone
 
 
 def test_restart_is_bit_identical(table1, tmp_path):
@@ -384,11 +384,11 @@ def pool_rows(st):
     its own among its group's rows, below the group's next unused row; the free list holds the
     group's other rows below it, so no row is lost and none is shared."""
     n, total = st.n, st.list_size
-    slot = st.slot[:total]
+    rows_of = st.contact_row[:total]
     out = []
     for g in range(len(st.groups)):
         first, last = st.nl_start[min(g * POOL_GROUP, n)], st.nl_start[min((g + 1) * POOL_GROUP, n)]
-        rows = slot[first:last][slot[first:last] >= 0]
+        rows = rows_of[first:last][rows_of[first:last] >= 0]
         fill = int(st.groups[g, 1])
         free, r = [], int(st.groups[g, 0])
         while r >= 0:
@@ -413,14 +413,15 @@ def test_pool_rows_packed_in_list_order_after_a_rebuild(table1):
     for _ in range(20):
         sim.run(steps=500)
         st = sim._state
-        kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.nl_i, st.pool, st.slot, st.groups,
+        kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.nl_i, st.pool, st.contact_row,
+                        st.groups,
                         st.tr_start, st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info)
         for rows, free, first in pool_rows(st):
             np.testing.assert_array_equal(rows, first + np.arange(len(rows)))
             assert free == []
         total = st.list_size
         in_contact = np.any(st.entry_history()[:, :3] != 0.0, axis=1)
-        np.testing.assert_array_equal(st.slot[:total] >= 0, in_contact)
+        np.testing.assert_array_equal(st.contact_row[:total] >= 0, in_contact)
         checked += int(in_contact.sum())
     assert checked > 100
 

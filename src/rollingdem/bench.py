@@ -176,10 +176,11 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     gravity = np.asarray(sim.gravity)
     args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
     (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
-     wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k, cell_start, cell_items, cell_of,
+     wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k, cell_start, cell_items, cell_of,
      counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
     # the timings overwrite these (a rebuild at the present positions gives another list): put them back after
-    saved = {name: getattr(st, name).copy() for name in ("pool", "slot", "groups", "whist", "wtouch", "energy", "f",
+    saved = {name: getattr(st, name).copy() for name in ("pool", "contact_row", "groups", "whist", "wtouch",
+                                                         "energy", "f",
                                                          "t", "contacts", "x_ref", "nl_start", "nl_j", "nl_i",
                                                          "tr_start", "tr_k")}
 
@@ -200,11 +201,11 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     gather = kernel.gather_serial if serial else kernel.gather
     kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
     split = {"contact forces": timed(lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j, nl_i,
-                                                         pool, slot, groups, energy, contacts, blocks, lanes))}
+                                                         pool, contact_row, groups, energy, contacts, blocks, lanes))}
 
     def gather_with(kind, geom, vel, omega, wmat):
         return timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
-                                    nl_j, slot, pool, kind, geom, vel, omega, wmat, whist, wtouch, energy, contacts,
+                                    nl_j, contact_row, pool, kind, geom, vel, omega, wmat, whist, wtouch, energy, contacts,
                                     x_ref, 0.5 * skin))
 
     gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)
@@ -212,7 +213,7 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     kick = timed(lambda: kick_drift(0.0, x, v, w, f, t, mass, inertia, x_ref, 0.5 * skin))
     split["walls"] = max(gather_walls - gather_plain, 0.0)
     split["integration and gathering"] = gather_plain + kick
-    rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups,
+    rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups,
                                                   tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref))
     split["neighbor search"] = rebuild * rebuilds / max(steps, 1)
     for name, arr in saved.items():  # the timing calls must leave the state as it was

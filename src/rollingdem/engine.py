@@ -26,7 +26,7 @@ INFO_SIZE = 8
 # 136 with EPSD): growing costs a reallocation and one more counting pass of the neighbor search,
 # so a small margin is cheap
 LIST_MARGIN = 1.15
-MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start, tr_k and slot are int32
+MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start, tr_k and contact_row are int32
 # Measured (2 threads, epsd): 200,000 spheres stored in random order run at 6.6 M particle-steps/s,
 # re-sorted 10.4 M, lattice order 11.6 M; at 20,000 spheres the state fits in cache and sorting
 # does not pay (13.4 M unsorted, 11.9 M sorted: the two threads' halves of the slots carry
@@ -98,17 +98,17 @@ class EngineState:
         self.groups[:, 0] = -1
 
     def _allocate_list(self, capacity: int, keep: int = 0):
-        old = (getattr(self, "nl_j", None), getattr(self, "pool", None), getattr(self, "slot", None))
+        old = (getattr(self, "nl_j", None), getattr(self, "pool", None), getattr(self, "contact_row", None))
         self.nl_j = np.zeros(capacity, dtype=np.int32)
         self.nl_i = np.zeros(capacity, dtype=np.int32)  # the row of each entry (neighbors.list_rows)
         # contact rows (history, F_ij, T_j) and each entry's row, -1 out of contact (rollingdem.neighbors):
         # the rows in use lie below the list's length, so the first ``keep`` rows are all there is
         self.pool = np.zeros((capacity, self.history_size + PAIR_TERMS))
-        self.slot = np.full(capacity, -1, dtype=np.int32)
+        self.contact_row = np.full(capacity, -1, dtype=np.int32)
         if keep and old[0] is not None:
             self.nl_j[:keep] = old[0][:keep]
             self.pool[:keep] = old[1][:keep]
-            self.slot[:keep] = old[2][:keep]
+            self.contact_row[:keep] = old[2][:keep]
         self.tr_k = np.zeros(capacity, dtype=np.int32)
         self.capacity = capacity
 
@@ -117,7 +117,7 @@ class EngineState:
         layout of checkpoints)."""
         total = self.list_size
         hist = np.zeros((total, self.history_size))
-        rows = self.slot[:total]
+        rows = self.contact_row[:total]
         touching = rows >= 0
         hist[touching] = self.pool[rows[touching], :self.history_size]
         return hist
@@ -132,8 +132,8 @@ class EngineState:
         first_entry = self.nl_start[np.minimum(np.arange(len(self.groups)) * POOL_GROUP, self.n)]
         rank = np.arange(len(touching)) - np.searchsorted(group, group)  # in its group, in list order
         rows = first_entry[group] + rank
-        self.slot[:total] = -1
-        self.slot[touching] = rows
+        self.contact_row[:total] = -1
+        self.contact_row[touching] = rows
         self.pool[rows, :self.history_size] = hist[touching]
         self.groups[:, 0] = -1
         self.groups[:, 1] = first_entry + np.bincount(group, minlength=len(self.groups))
@@ -143,7 +143,7 @@ class EngineState:
         arrays grow as needed); returns its number of entries."""
         while True:
             total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j, self.nl_i,
-                                          self.pool, self.slot, self.groups, self.tr_start, self.tr_k, self.cell_start,
+                                          self.pool, self.contact_row, self.groups, self.tr_start, self.tr_k, self.cell_start,
                                           self.cell_items, self.cell_of, self.counts, self.x_ref)
             if total >= 0:
                 list_rows(self.n, self.nl_start, self.nl_i)
@@ -300,7 +300,7 @@ class EngineState:
     def kernel_args(self, dt, gravity, skin, pair_params):
         return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
                 self.ids, pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
-                self.whist, self.wtouch, self.nl_start, self.nl_j, self.nl_i, self.pool, self.slot, self.groups,
+                self.whist, self.wtouch, self.nl_start, self.nl_j, self.nl_i, self.pool, self.contact_row, self.groups,
                 self.tr_start, self.tr_k, self.cell_start, self.cell_items,
                 self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info,
                 *self.contact_blocks())
@@ -382,7 +382,7 @@ class EngineState:
         are exactly those the evaluation started from.
         """
         total = self.rebuild_list(skin)
-        saved = (self.pool[:total].copy(), self.slot[:total].copy(), self.groups.copy(), self.whist.copy(),
+        saved = (self.pool[:total].copy(), self.contact_row[:total].copy(), self.groups.copy(), self.whist.copy(),
                  self.energy.copy())
         while True:
             self.info[I_FORCES_VALID] = 0
@@ -390,7 +390,7 @@ class EngineState:
             if self.info[I_STATUS] != STATUS_CAPACITY:
                 break
             self.grow(int(self.info[I_NEEDED]))
-        self.pool[:total], self.slot[:total], self.groups[:], self.whist[:], self.energy[:] = saved
+        self.pool[:total], self.contact_row[:total], self.groups[:], self.whist[:], self.energy[:] = saved
         self.derive_wall_touch()
 
     # --- checkpoint ----------------------------------------------------------------------------

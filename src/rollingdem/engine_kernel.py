@@ -296,7 +296,7 @@ NO_INPUTS = (0.0,) * 18
 
 
 @njit(cache=True, inline="always")
-def entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, slot, groups):
+def entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, contact_row, groups):
     """Entry k (row i) of the half list: (whether the spheres touch, j, the contact's pool row, the
     18 inputs of ``contact`` after ``pool`` and the row). A contact that starts takes a pool row of
     its group (history zeroed); one that ends gives its row back (``rollingdem.neighbors``)."""
@@ -308,15 +308,15 @@ def entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, slot, groups):
     rj = radius[j]
     d2 = dx * dx + dy * dy + dz * dz
     reach = ri + rj
-    row = slot[k]
+    row = contact_row[k]
     if d2 >= reach * reach:
         if row >= 0:
             free_row(pool, groups, uint64(i) // uint64(POOL_GROUP), row)
-            slot[k] = -1
+            contact_row[k] = -1
         return False, j, row, NO_INPUTS
     if row < 0:
         row = take_row(pool, groups, uint64(i) // uint64(POOL_GROUP), HISTORY_SIZE)
-        slot[k] = row
+        contact_row[k] = row
     dist = math.sqrt(d2)
     overlap = reach - dist
     inv_dist = 1.0 / dist
@@ -332,7 +332,7 @@ def entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, slot, groups):
 
 
 @njit(cache=True, inline="always")
-def candidate_entries(k0, k1, x, radius, nl_j, nl_i, slot, lanes):
+def candidate_entries(k0, k1, x, radius, nl_j, nl_i, contact_row, lanes):
     """Entries k0..k1-1 whose spheres may touch now or touched at the last step, in ascending k, into
     the rows ``LANE_HITS..`` of ``lanes``; returns their count. One flat loop without branches
     over the entries of many rows (``nl_i`` gives each entry's row): a loop per row mispredicts
@@ -349,12 +349,12 @@ def candidate_entries(k0, k1, x, radius, nl_j, nl_i, slot, lanes):
         dz = x[i, 2] - x[j, 2]
         reach = radius[i] + radius[j]
         lanes[uint64(LANE_HITS) + (nhit >> uint64(BLOCK_SHIFT)), nhit & uint64(CONTACT_BLOCK - 1)] = kk
-        nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (slot[k] >= 0))
+        nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (contact_row[k] >= 0))
     return np.int64(nhit)
 
 
 @njit(cache=True, inline="always")
-def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, pool, slot, groups, energy,
+def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, pool, contact_row, groups, energy,
              contacts):
     """Row i of the half list, one contact at a time through the scalar ``contact`` (spheres of more
     than one material, see ``pair_rows``)."""
@@ -363,7 +363,7 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
     en = et = er = etw = 0.0
     ncontact = 0
     for k in range(nl_start[i], nl_start[i + 1]):
-        touching, j, row, g = entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, slot, groups)
+        touching, j, row, g = entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, contact_row, groups)
         if not touching:
             continue
         res = contact(pool, row, g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], g[8], g[9], g[10], g[11], g[12],
@@ -400,8 +400,8 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups,
-              energy, contacts, block, lanes):
+def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row,
+              groups, energy, contacts, block, lanes):
     """Rows lo..hi-1 of the half list: F and T on i summed over the row, F and T_j kept per pair.
 
     The distance tests run a tile of the list at a time (``candidate_entries``); the contacts found
@@ -412,13 +412,13 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
     would cost a whole block's computation per run, 15 scalar contacts for a block of one. A
     contact whose spin angle in the step is ``SERIES_ANGLE`` or more (|omega| dt >= 1e-3: rare) is
     computed at once by the scalar ``contact``, which has libm's cos and sin, and keeps its lane.
-    ``slot[k]`` is entry k's pool row while it is in contact, -1 otherwise (the gather skips those),
+    ``contact_row[k]`` is entry k's pool row while it is in contact, -1 otherwise (the gather skips those),
     so a neighbor out of reach costs a distance test and an int, not a history row and two force
     rows. ``lo`` and ``hi`` are whole groups of the pool (``POOL_GROUP`` rows), or ``hi`` = n."""
     if block.shape[0] == 0:
         for i in range(lo, hi):
-            pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, pool, slot, groups, energy,
-                     contacts)
+            pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, pool, contact_row, groups,
+                     energy, contacts)
         return
     p = pair_params[mat[lo], mat[lo]] if hi > lo else pair_params[0, 0]
     count = np.int64(0)  # not a literal 0, which would compile flush_block a second time
@@ -430,11 +430,11 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
     tile = (lanes.shape[0] - LANE_HITS) * CONTACT_BLOCK
     kend = nl_start[hi]
     for k0 in range(nl_start[lo], kend, tile):
-        nhit = candidate_entries(k0, min(k0 + tile, kend), x, radius, nl_j, nl_i, slot, lanes)
+        nhit = candidate_entries(k0, min(k0 + tile, kend), x, radius, nl_j, nl_i, contact_row, lanes)
         for e in range(nhit):
             k = uint64(lanes[LANE_HITS + (e >> BLOCK_SHIFT), e & (CONTACT_BLOCK - 1)])
             i = uint32(nl_i[k])
-            touching, j, row, inputs = entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, slot, groups)
+            touching, j, row, inputs = entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, contact_row, groups)
             if not touching:
                 continue
             if count == CONTACT_BLOCK:
@@ -470,8 +470,8 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
                              inputs[11], inputs[12], dt)
             lanes[2, n] = 0 if abs(phi) < SERIES_ANGLE else 1
             if lanes[2, n]:
-                res = contact(pool, np.int64(row), inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5], inputs[6],
-                              inputs[7], inputs[8], inputs[9], inputs[10], inputs[11], inputs[12], inputs[13],
+                res = contact(pool, np.int64(row), inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5],
+                              inputs[6], inputs[7], inputs[8], inputs[9], inputs[10], inputs[11], inputs[12], inputs[13],
                               inputs[14], inputs[15], inputs[16], inputs[17], p, dt)
                 block[uint64((B_SCALAR + 0) * CONTACT_BLOCK) + un] = res[0]
                 block[uint64((B_SCALAR + 1) * CONTACT_BLOCK) + un] = res[1]
@@ -491,25 +491,25 @@ def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_star
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups, energy,
-                contacts, blocks, lanes):
+def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row, groups,
+                energy, contacts, blocks, lanes):
     """Pair contacts: each thread a contiguous range of whole pool groups, with its own block buffer."""
     n = x.shape[0]
     nblock = blocks.shape[0]
     ngroups = (n + POOL_GROUP - 1) // POOL_GROUP
     for b in prange(nblock):
         pair_rows(min(b * ngroups // nblock * POOL_GROUP, n), min((b + 1) * ngroups // nblock * POOL_GROUP, n), dt,
-                  x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups, energy,
+                  x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row, groups, energy,
                   contacts, blocks[b], lanes[b])
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups,
-                       energy, contacts, blocks, lanes):
+def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row,
+                       groups, energy, contacts, blocks, lanes):
     """``pair_forces`` on the calling thread (see ``SERIAL_BELOW``)."""
     for b in range(1):  # lo = b, not 0: a literal 0 would compile pair_rows a second time
-        pair_rows(b, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot,
-                  groups, energy, contacts, blocks[b], lanes[b])
+        pair_rows(b, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool,
+                  contact_row, groups, energy, contacts, blocks[b], lanes[b])
 
 
 @njit(cache=True, inline="always")
@@ -567,7 +567,8 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
     # sphere on the collapse, where 1.7 % touch the plate)
     need = False
     for wl in range(nwall):
-        need |= (wall_overlap(i, wl, x, ri, wall_kind, wall_geom)[0] > 0.0) | (wtouch[i * uint64(nwall) + uint64(wl)] != 0)
+        overlap = wall_overlap(i, wl, x, ri, wall_kind, wall_geom)[0]
+        need |= (overlap > 0.0) | (wtouch[i * uint64(nwall) + uint64(wl)] != 0)
     if not need:
         return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
     for wl in range(nwall):
@@ -671,7 +672,7 @@ def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                nl_j, slot, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+                nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
                 contacts, x_ref, half_skin):
     """Particles lo..hi-1: the pair terms where each is the second partner, subtracted from (F) and
     added to (T) its row sums in ascending entry order, then ``gather_one``; returns the counts of
@@ -681,7 +682,7 @@ def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia,
     mispredicted once per particle, as in the pair pass (``candidate_entries``)."""
     for m in range(tr_start[lo], tr_start[hi]):
         k = uint32(tr_k[uint64(m)])
-        row = slot[k]
+        row = contact_row[k]
         if row < 0:
             continue
         r = uint64(row)
@@ -704,7 +705,7 @@ def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia,
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, slot,
+def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, contact_row,
            pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref,
            half_skin):
     """``gather_rows`` on runs of ``GATHER_RUN`` particles, shared out among the threads."""
@@ -713,7 +714,7 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
     nfast = 0
     for b in prange((n + GATHER_RUN - 1) // GATHER_RUN):
         exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, x, v, w, f, t,
-                                   radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, slot, pool,
+                                   radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, contact_row, pool,
                                    wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
                                    contacts, x_ref, half_skin)
         nexceed += exceed
@@ -723,13 +724,13 @@ def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_pa
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                  nl_j, slot, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
+                  nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
                   contacts, x_ref, half_skin):
     """``gather`` on the calling thread."""
     nexceed = nfast = 0
     for b in range(1):  # lo = b, not a literal 0: see pair_forces_serial
         nexceed, nfast = gather_rows(b, x.shape[0], dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                     pair_params, tr_start, tr_k, nl_j, slot, pool, wall_kind, wall_geom, wall_vel,
+                                     pair_params, tr_start, tr_k, nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel,
                                      wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
     return nexceed, nfast
 
@@ -799,9 +800,9 @@ def move_walls(dt, wall_geom, wall_vel):
 
 
 @njit(cache=True)
-def _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k, cell_start, cell_items,
-             cell_of, counts, x_ref, info):
-    total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k,
+def _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k, cell_start,
+             cell_items, cell_of, counts, x_ref, info):
+    total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k,
                                   cell_start, cell_items, cell_of, counts, x_ref)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY
@@ -814,7 +815,7 @@ def _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_
 
 @njit(cache=True)  # @@SERIAL_COPY
 def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
-            wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, slot, groups, tr_start,
+            wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start,
             tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes):
     """Advance ``nsteps`` steps: ``advance`` on Numba's threads, ``advance_serial`` (the same loop
     with the ``*_serial`` passes, written by the kernel generator) on the calling thread. Stops
@@ -826,16 +827,16 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids,
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
         info[I_DRIFTED] = 0
-        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k, cell_start,
-                        cell_items, cell_of, counts, x_ref, info):
+        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k,
+                        cell_start, cell_items, cell_of, counts, x_ref, info):
             return
         # the pair pass and the gather are called here and in the loop, not through one function:
         # a call of more than 30 arguments cannot be inlined, and a function of its own would
         # compile the whole kernel once more (1 s of a cold compile)
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups,
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row, groups,
                     energy, contacts, blocks, lanes)
         exceed, fast = gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                              tr_k, nl_j, slot, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+                              tr_k, nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
                               wtouch, energy, contacts, x_ref, half_skin)
         info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
@@ -851,16 +852,16 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids,
             move_walls(dt, wall_geom, wall_vel)
             info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k,
+            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k,
                             cell_start, cell_items, cell_of, counts, x_ref, info):
                 return  # drifted: the call after the arrays grow goes on from here
             info[I_NEED_REBUILD] = 0
         drift = step + 1 < nsteps
         kick = 2.0 if drift else 1.0
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, slot, groups,
+        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row, groups,
                     energy, contacts, blocks, lanes)
         exceed, fast = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                              tr_k, nl_j, slot, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
+                              tr_k, nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
                               wtouch, energy, contacts, x_ref, half_skin)
         info[I_NEED_REBUILD] = exceed
         info[I_TOO_FAST] = fast

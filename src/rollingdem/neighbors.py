@@ -8,7 +8,7 @@ never changes, so neither does which partner of a contact is "i"). The neighbors
 than skin/2 since the build.
 
 The contacts' rows (history, then the pair terms F_ij and T_j of the step) are kept apart from
-the entries, in a pool: ``slot[k]`` is the pool row of entry k, -1 when its spheres did not touch
+the entries, in a pool: ``contact_row[k]`` is the pool row of entry k, -1 when its spheres did not touch
 at the last step. Most entries are not in contact (9 % in a falling slab, 5 % in a collapsing
 column, 2/3 in a dense bed): rows kept beside every entry would leave the contacts' rows scattered
 one or two cache lines apart, and a scene too large for the cache would read whole lines for a
@@ -173,8 +173,8 @@ def _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, cou
 
 
 @njit(cache=True)
-def _compact_contacts(n, nl_start, nl_j, slot, pool, act_start, act_j, target):
-    """Move the contact rows of ``pool`` (entries k with ``slot[k] >= 0``) to its front, in list
+def _compact_contacts(n, nl_start, nl_j, contact_row, pool, act_start, act_j, target):
+    """Move the contact rows of ``pool`` (entries k with ``contact_row[k] >= 0``) to its front, in list
     order, their partners into ``act_j`` and each row's range into ``act_start``; returns their
     count. In place: the rows are permuted along the cycles of the permutation, one swap per row
     put in its place, with ``target`` (one int per row; the list's ``nl_i``, which the rebuild
@@ -188,7 +188,7 @@ def _compact_contacts(n, nl_start, nl_j, slot, pool, act_start, act_j, target):
     for i in range(n):
         act_start[i] = c
         for k in range(nl_start[i], nl_start[i + 1]):
-            s = slot[k]
+            s = contact_row[k]
             if s >= 0:
                 target[s] = c
                 act_j[c] = nl_j[k]
@@ -233,8 +233,8 @@ def _drop_lost_contacts(n, ids, nl_start, nl_j, pool, act_start, act_j):
 
 
 @njit(cache=True)
-def _place_contacts(n, nl_start, nl_j, slot, pool, act_start, act_j, groups):
-    """Give each compacted contact its entry of the new list (``slot``, -1 for the entries out of
+def _place_contacts(n, nl_start, nl_j, contact_row, pool, act_start, act_j, groups):
+    """Give each compacted contact its entry of the new list (``contact_row``, -1 for the entries out of
     contact) and its row at the front of its group's rows, in list order; each group's free list
     empty and its next unused row after its contacts.
 
@@ -252,21 +252,21 @@ def _place_contacts(n, nl_start, nl_j, slot, pool, act_start, act_j, groups):
         g = i // POOL_GROUP
         for q in range(nl_start[i], nl_start[i + 1]):
             if c < cend and act_j[c] == nl_j[q]:
-                slot[q] = c
+                contact_row[q] = c
                 c += 1
                 groups[g, 1] += 1
             else:
-                slot[q] = -1
+                contact_row[q] = -1
     for g in range(ngroups - 1, -1, -1):
         p = groups[g, 1]
         for q in range(nl_start[min((g + 1) * POOL_GROUP, n)] - 1, nl_start[g * POOL_GROUP] - 1, -1):
-            c = slot[q]
+            c = contact_row[q]
             if c >= 0:
                 p -= 1
                 if p != c:
                     for s in range(width):
                         pool[p, s] = pool[c, s]
-                slot[q] = p
+                contact_row[q] = p
 
 
 @njit(cache=True)
@@ -285,8 +285,8 @@ def list_rows(n, nl_start, nl_i):
 
 
 @njit(cache=True)
-def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot, groups, tr_start, tr_k, cell_start,
-                          cell_items, cell_of, counts, x_ref):
+def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k,
+                          cell_start, cell_items, cell_of, counts, x_ref):
     """Rebuild the half list at the current positions, carrying contact history over.
 
     Returns the number of list entries, or minus the capacity needed when ``nl_j`` is too short
@@ -312,13 +312,13 @@ def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, slot
         total += counts[i]
     if total > nl_j.shape[0]:
         return -total
-    _compact_contacts(n, nl_start, nl_j, slot, pool, tr_start, tr_k, nl_i)
+    _compact_contacts(n, nl_start, nl_j, contact_row, pool, tr_start, tr_k, nl_i)
     nl_start[0] = 0
     for i in range(n):
         nl_start[i + 1] = nl_start[i] + counts[i]
     _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, np.bool_(True))
     _drop_lost_contacts(n, ids, nl_start, nl_j, pool, tr_start, tr_k)
-    _place_contacts(n, nl_start, nl_j, slot, pool, tr_start, tr_k, groups)
+    _place_contacts(n, nl_start, nl_j, contact_row, pool, tr_start, tr_k, groups)
     _transpose(n, nl_start, nl_j, tr_start, tr_k)
     for i in range(n):
         for d in range(3):

@@ -84,15 +84,15 @@ def signatures(module, contact, track_energy: bool = False) -> dict:
     pp = sim.pair_parameters()
     blocks, lanes = st.contact_blocks()
     pair = (dt, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.mat, pp, st.nl_start, st.nl_j, st.nl_i, st.pool,
-            st.slot, st.groups, st.energy, st.contacts)
+            st.contact_row, st.groups, st.energy, st.contacts)
     gather = (dt, kick, sim._gravity, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.inertia, st.mat, pp,
-              st.tr_start, st.tr_k, st.nl_j, st.slot, st.pool, st.wall_kind, st.wall_geom, st.wall_vel,
+              st.tr_start, st.tr_k, st.nl_j, st.contact_row, st.pool, st.wall_kind, st.wall_geom, st.wall_vel,
               st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy, st.contacts, st.x_ref, half_skin)
     drift = (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia, st.x_ref, half_skin)
     args = {
         "contact": (st.pool, 0) + (0.0,) * 18 + (pp[0, 0], dt),
         "block_contacts": (blocks[0], pp[0, 0], dt),
-        "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.nl_i, st.pool, st.slot,
+        "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.nl_i, st.pool, st.contact_row,
                                   st.groups, st.tr_start, st.tr_k, st.cell_start, st.cell_items, st.cell_of,
                                   st.counts, st.x_ref),
         "pair_forces": pair + (blocks, lanes), "pair_forces_serial": pair + (blocks, lanes),

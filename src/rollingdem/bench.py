@@ -176,13 +176,12 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     gravity = np.asarray(sim.gravity)
     args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
     (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
-     wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k, cell_start, cell_items, cell_of,
-     counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
+     wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k, cell_start, cell_items,
+     cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
     # the timings overwrite these (a rebuild at the present positions gives another list): put them back after
     saved = {name: getattr(st, name).copy() for name in ("pool", "contact_row", "groups", "whist", "wtouch",
-                                                         "energy", "f",
-                                                         "t", "contacts", "x_ref", "nl_start", "nl_j", "nl_i",
-                                                         "tr_start", "tr_k")}
+                                                         "energy", "f", "t", "contacts", "x_ref", "nl_start", "nl_j",
+                                                         "nl_i", "tr_start", "tr_k")}
 
     def timed(fn):
         """Seconds per call: the fastest of 5 blocks of ``repeats`` calls (on a shared machine the
@@ -205,8 +204,8 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
 
     def gather_with(kind, geom, vel, omega, wmat):
         return timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
-                                    nl_j, contact_row, pool, kind, geom, vel, omega, wmat, whist, wtouch, energy, contacts,
-                                    x_ref, 0.5 * skin))
+                                    nl_j, contact_row, pool, kind, geom, vel, omega, wmat, whist, wtouch, energy,
+                                    contacts, x_ref, 0.5 * skin))
 
     gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)
     gather_plain = gather_with(wall_kind[:0], wall_geom[:0], wall_vel[:0], wall_omega[:0], wall_mat[:0])
@@ -242,17 +241,27 @@ def compile_time(contact, spheres: int = 2) -> float:
     return time.perf_counter() - tic
 
 
-def _time_run(sim, steps: int) -> tuple[float, int]:
-    """(timed seconds, rebuilds during the timed steps), after one untimed step."""
-    from .engine_kernel import I_REBUILDS
-
+def _warm_up(sim) -> None:
+    """One untimed step (the list built, a large scene sorted in space), the governor's count cleared."""
     sim.run(steps=1, progress=False)
     sim._state.governor().steps_on.clear()
+
+
+def _timed_steps(sim, steps: int) -> tuple[float, int]:
+    """(seconds, neighbor rebuilds) of ``steps`` steps."""
+    from .engine_kernel import I_REBUILDS
+
     before = int(sim._state.info[I_REBUILDS])
     tic = time.perf_counter()
     sim.run(steps=steps, progress=False)
     wall = time.perf_counter() - tic
     return wall, int(sim._state.info[I_REBUILDS]) - before
+
+
+def _time_run(sim, steps: int) -> tuple[float, int]:
+    """(timed seconds, rebuilds during the timed steps), after one untimed step."""
+    _warm_up(sim)
+    return _timed_steps(sim, steps)
 
 
 def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="", split_repeats=20) -> BenchResult:
@@ -402,24 +411,18 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print) -> lis
 
     from . import ContactModel
 
-    from .engine_kernel import I_REBUILDS
-
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
     sims = [_slab_simulation(SCALING_SMALL), _slab_simulation(particles)]
-    for sim in sims:  # the list built (and the large slab sorted in space) before the timing
-        sim.run(steps=1, progress=False)
-        sim._state.governor().steps_on.clear()
+    for sim in sims:
+        _warm_up(sim)
     walls = np.zeros((2, SCALING_CHUNKS))
     rebuilds = [0, 0]
     for c in range(SCALING_CHUNKS):
         todo = steps * (c + 1) // SCALING_CHUNKS - steps * c // SCALING_CHUNKS
         for s, sim in enumerate(sims):
-            before = int(sim._state.info[I_REBUILDS])
-            tic = time.perf_counter()
-            sim.run(steps=todo, progress=False)
-            walls[s, c] = time.perf_counter() - tic
-            rebuilds[s] += int(sim._state.info[I_REBUILDS]) - before
+            walls[s, c], done = _timed_steps(sim, todo)
+            rebuilds[s] += done
     ratios = (walls[1] / sims[1].n_particles) / (walls[0] / sims[0].n_particles)
     whole = (walls[1].sum() / sims[1].n_particles) / (walls[0].sum() / sims[0].n_particles)
     results = [_result("slab", "epsd", sim, steps, compile_s, float(walls[s].sum()), rebuilds[s], threads,

@@ -143,8 +143,8 @@ class EngineState:
         arrays grow as needed); returns its number of entries."""
         while True:
             total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j, self.nl_i,
-                                          self.pool, self.contact_row, self.groups, self.tr_start, self.tr_k, self.cell_start,
-                                          self.cell_items, self.cell_of, self.counts, self.x_ref)
+                                          self.pool, self.contact_row, self.groups, self.tr_start, self.tr_k,
+                                          self.cell_start, self.cell_items, self.cell_of, self.counts, self.x_ref)
             if total >= 0:
                 list_rows(self.n, self.nl_start, self.nl_i)
                 return total

@@ -174,12 +174,12 @@ def _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, cou
 
 @njit(cache=True)
 def _compact_contacts(n, nl_start, nl_j, contact_row, pool, act_start, act_j, target):
-    """Move the contact rows of ``pool`` (entries k with ``contact_row[k] >= 0``) to its front, in list
-    order, their partners into ``act_j`` and each row's range into ``act_start``; returns their
-    count. In place: the rows are permuted along the cycles of the permutation, one swap per row
-    put in its place, with ``target`` (one int per row; the list's ``nl_i``, which the rebuild
-    makes anew) saying where each row goes. Every row in use lies below the list's length, as each
-    group's rows lie among its own entries."""
+    """Move the contact rows of ``pool`` (entries k with ``contact_row[k] >= 0``) to its front, in
+    list order, their partners into ``act_j`` and each row's range into ``act_start``. In place:
+    the rows are permuted along the cycles of the permutation, one swap per row put in its place,
+    with ``target`` (one int per row; the list's ``nl_i``, which the rebuild makes anew) saying
+    where each row goes. Every row in use lies below the list's length, as each group's rows lie
+    among its own entries."""
     width = pool.shape[1] - PAIR_TERMS
     used = nl_start[n]
     for s in range(used):
@@ -204,7 +204,6 @@ def _compact_contacts(n, nl_start, nl_j, contact_row, pool, act_start, act_j, ta
             target[s] = target[t]
             target[t] = t
             t = target[s]
-    return c
 
 
 @njit(cache=True)

@@ -366,7 +366,7 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
         touching, j, row, g = entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, contact_row, groups)
         if not touching:
             continue
-        res = contact(pool, row, g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], g[8], g[9], g[10], g[11], g[12],
+        res = contact(pool, np.int64(row), g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], g[8], g[9], g[10], g[11], g[12],
                       g[13], g[14], g[15], g[16], g[17], pair_params[mat[i], mat[j]], dt)
         fx += res[0]
         fy += res[1]

@@ -271,7 +271,7 @@ def _place_contacts(n, nl_start, nl_j, contact_row, pool, act_start, act_j, grou
 @njit(cache=True)
 def _transpose(n, nl_start, nl_j, tr_start, tr_k):
     """For each particle j, the list entries k with nl_j[k] == j, in ascending k (so ascending i)."""
-    _counting_sort(nl_j, nl_start[n], n, tr_start, tr_k)
+    _counting_sort(nl_j, np.int64(nl_start[n]), n, tr_start, tr_k)  # int64 as the binning's: one compile
 
 
 @njit(cache=True)

@@ -49,7 +49,8 @@ SCALING_LARGE = 1_000_000
 SCALING_CHUNKS = 6
 SLAB_LAYERS = 8
 SPLIT_REPEATS = 4
-SPLIT_ROUNDS = 9
+SPLIT_ROUNDS = 25
+FORCE_PASS_CALLS = 3
 TABLE1 = dict(youngs_modulus=40e6, poisson_ratio=0.49, density=1056.0, friction=0.8, rolling_friction=0.2,
               restitution=0.5, rolling_damping=0.3)
 RADIUS = 0.005
@@ -166,58 +167,99 @@ def _contacts_per_particle(sim) -> tuple[float, float]:
     return (2 * pairs + walls) / n, 2 * st.list_size / n
 
 
+class _Phases:
+    """Each pass of the step as a call on the present state of ``sim`` (the timings overwrite the
+    contacts' rows, the forces and, for the neighbor search, the list: ``restore`` puts them back)."""
+
+    def __init__(self, sim):
+        from .neighbors import rebuild_neighbor_list
+
+        st = sim._state
+        self.state = st
+        kernel = sim.kernel()
+        st.energy_for(kernel)
+        gravity = np.asarray(sim.gravity)
+        args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
+        (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
+         wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k, cell_start, cell_items,
+         cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
+        self.saved = {name: getattr(st, name).copy() for name in ("pool", "contact_row", "groups", "whist", "wtouch",
+                                                                  "energy", "f", "t", "contacts", "x_ref", "nl_start",
+                                                                  "nl_j", "nl_i", "tr_start", "tr_k")}
+        serial = st.serial()  # the paths the engine takes
+        pair_forces = kernel.pair_forces_serial if serial else kernel.pair_forces
+        gather = kernel.gather_serial if serial else kernel.gather
+        kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
+
+        def gather_with(kind, geom, vel, omega, wmat):
+            return lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
+                                  nl_j, contact_row, pool, kind, geom, vel, omega, wmat, whist, wtouch, energy,
+                                  contacts, x_ref, 0.5 * skin)
+
+        self.pair = lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j, nl_i, pool,
+                                        contact_row, groups, energy, contacts, blocks, lanes)
+        self.gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)
+        self.gather_plain = gather_with(wall_kind[:0], wall_geom[:0], wall_vel[:0], wall_omega[:0], wall_mat[:0])
+        self.kick = lambda: kick_drift(0.0, x, v, w, f, t, mass, inertia, x_ref, 0.5 * skin)
+        self.rebuild = lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row,
+                                                     groups, tr_start, tr_k, cell_start, cell_items, cell_of, counts,
+                                                     x_ref)
+
+    def restore(self) -> None:
+        for name, arr in self.saved.items():
+            getattr(self.state, name)[...] = arr
+
+
+def _seconds_per_call(fn, repeats: int, blocks: int = 5) -> float:
+    """The fastest of ``blocks`` blocks of ``repeats`` calls, per call (on a shared machine the
+    fastest block is the one least disturbed by other work), after one call untimed."""
+    fn()
+    best = math.inf
+    for _ in range(blocks):
+        tic = time.perf_counter()
+        for _ in range(repeats):
+            fn()
+        best = min(best, (time.perf_counter() - tic) / repeats)
+    return best
+
+
 def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     """Seconds per step of each phase, each timed on its own on the present state."""
-    from .neighbors import rebuild_neighbor_list
-
-    st = sim._state
-    kernel = sim.kernel()
-    st.energy_for(kernel)
-    gravity = np.asarray(sim.gravity)
-    args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
-    (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
-     wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k, cell_start, cell_items,
-     cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
-    # the timings overwrite these (a rebuild at the present positions gives another list): put them back after
-    saved = {name: getattr(st, name).copy() for name in ("pool", "contact_row", "groups", "whist", "wtouch",
-                                                         "energy", "f", "t", "contacts", "x_ref", "nl_start", "nl_j",
-                                                         "nl_i", "tr_start", "tr_k")}
-
-    def timed(fn):
-        """Seconds per call: the fastest of 5 blocks of ``repeats`` calls (on a shared machine the
-        fastest block is the one least disturbed by other work)."""
-        fn()
-        best = math.inf
-        for _ in range(5):
-            tic = time.perf_counter()
-            for _ in range(repeats):
-                fn()
-            best = min(best, (time.perf_counter() - tic) / repeats)
-        return best
-
-    serial = st.serial()  # the paths the engine takes
-    pair_forces = kernel.pair_forces_serial if serial else kernel.pair_forces
-    gather = kernel.gather_serial if serial else kernel.gather
-    kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
-    split = {"contact forces": timed(lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j, nl_i,
-                                                         pool, contact_row, groups, energy, contacts, blocks, lanes))}
-
-    def gather_with(kind, geom, vel, omega, wmat):
-        return timed(lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
-                                    nl_j, contact_row, pool, kind, geom, vel, omega, wmat, whist, wtouch, energy,
-                                    contacts, x_ref, 0.5 * skin))
-
-    gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)
-    gather_plain = gather_with(wall_kind[:0], wall_geom[:0], wall_vel[:0], wall_omega[:0], wall_mat[:0])
-    kick = timed(lambda: kick_drift(0.0, x, v, w, f, t, mass, inertia, x_ref, 0.5 * skin))
+    ph = _Phases(sim)
+    split = {"contact forces": _seconds_per_call(ph.pair, repeats)}
+    gather_walls = _seconds_per_call(ph.gather_walls, repeats)
+    gather_plain = _seconds_per_call(ph.gather_plain, repeats)
     split["walls"] = max(gather_walls - gather_plain, 0.0)
-    split["integration and gathering"] = gather_plain + kick
-    rebuild = timed(lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups,
-                                                  tr_start, tr_k, cell_start, cell_items, cell_of, counts, x_ref))
-    split["neighbor search"] = rebuild * rebuilds / max(steps, 1)
-    for name, arr in saved.items():  # the timing calls must leave the state as it was
-        getattr(st, name)[...] = arr
+    split["integration and gathering"] = gather_plain + _seconds_per_call(ph.kick, repeats)
+    split["neighbor search"] = _seconds_per_call(ph.rebuild, repeats) * rebuilds / max(steps, 1)
+    ph.restore()  # the timing calls must leave the state as it was
     return split
+
+
+def _force_pass_costs(sims: dict, rounds: int) -> dict:
+    """Seconds per step of the contact-force and wall passes of each simulation, per round.
+
+    The simulations take turns call by call (a pass is a few ms), so that the shared machine's
+    slow spells, which last from milliseconds to seconds, fall on all of them alike. In a round
+    each pass of each simulation is timed ``FORCE_PASS_CALLS`` times and its fastest call counts;
+    the wall pass is a gather with the walls less one without them."""
+    phases = {name: _Phases(sim) for name, sim in sims.items()}
+    for ph in phases.values():  # one untimed call of each
+        ph.pair(), ph.gather_walls(), ph.gather_plain()
+    costs = {name: [] for name in sims}
+    for _ in range(rounds):
+        best = {name: [math.inf] * 3 for name in sims}
+        for _ in range(FORCE_PASS_CALLS):
+            for name, ph in phases.items():
+                for p, fn in enumerate((ph.pair, ph.gather_walls, ph.gather_plain)):
+                    tic = time.perf_counter()
+                    fn()
+                    best[name][p] = min(best[name][p], time.perf_counter() - tic)
+        for name, (pair, walls, plain) in best.items():
+            costs[name].append(pair + max(walls - plain, 0.0))
+    for ph in phases.values():
+        ph.restore()
+    return costs
 
 
 def compile_time(contact, spheres: int = 2) -> float:
@@ -333,14 +375,9 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
         sim = _column_from_state(spec, base.positions, base.radii, base.velocities, base.angular_velocities)
         sim.run(steps=1, progress=False)
         sims[model] = sim
-    # the models take turns, so that a disturbance of the shared machine hits them alike; a model's
-    # cost against none is the median of the rounds' ratios (a slow spell of the machine that
-    # outlasts a round spoils one ratio, where it could spoil the minimum of one model alone)
-    rounds = {model: [] for model in models}
-    for _ in range(SPLIT_ROUNDS):
-        for model, sim in sims.items():
-            split = _split(sim, SPLIT_REPEATS, 0, 1)
-            rounds[model].append(split["contact forces"] + split["walls"])
+    # a model's cost against none is the median of the rounds' ratios: a slow spell of the machine
+    # that outlasts a round spoils one ratio, where it could spoil the minimum of one model alone
+    rounds = _force_pass_costs(sims, SPLIT_ROUNDS)
     force_pass = {model: min(times) for model, times in rounds.items()}
     results = []
     for model, sim in sims.items():

@@ -12,7 +12,10 @@ checks them against everything placed so far with a k-d tree in one vectorized c
 accepts them in order, skipping any that would overlap one accepted earlier in the same round. Once
 candidates fail so often that a sphere might run out of attempts, they are drawn only from the cells
 of a background grid that may still hold a free centre (``_FreeCells``): still uniform over the free
-space, but far fewer are wasted. The result is reproducible from ``seed``.
+space, but far fewer are wasted. A region too large for that grid at its finest cells (more than
+``_FreeCells.MAX_DENSE`` cells, ~65,000 spheres of one size at a packing fraction of 0.27) is filled
+in slabs across its longest axis, in ``SLAB_PASSES`` passes with shifted seams (``_slab_plan``):
+10^6 spheres in the bench's column take ~50 s. The result is reproducible from ``seed``.
 
 Random insertion cannot fill a region densely: RSA of equal spheres jams near a packing fraction
 of 0.38 (0.3-0.35 is what is reached in practice with a bounded number of attempts), so a
@@ -466,8 +469,6 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
     ``walls`` (``Plane`` / ``Cylinder``). Each sphere gets up to ``max_attempts`` random candidate
     positions. Same ``seed``, same result. Returns (positions (count, 3), radii (count,)).
     """
-    from scipy.spatial import cKDTree
-
     if not isinstance(region, Region):
         raise ParameterError(f"region = {region!r} is not allowed: must be a BoxRegion or CylinderRegion")
     n = _check_count("count", count)
@@ -513,7 +514,86 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
                              "that can be asked of random insertion, which tops out near 0.3-0.35 packing "
                              "fraction: use a larger region or fewer spheres (and let them settle)")
 
+    x_out = np.empty((n, 3))
+    placed, why = 0, None
+    known = np.zeros(n, dtype=bool)  # the new spheres placed so far
+    for sub, idx in _slab_plan(region, float(r_all.min()), rmax, n):
+        # each slab sees everything placed before it as existing particles
+        known_x = np.concatenate([ex, x_out[known]])
+        known_r = np.concatenate([er, r_all[known]])
+        x_sub, done, why = _fill(sub, r_all[idx], rng, known_x, known_r, wall_geom, max_attempts)
+        placed += done
+        if why is not None:
+            break
+        x_out[idx] = x_sub
+        known[idx] = True
+    if why is not None:
+        raise ParameterError(
+            f"could place only {placed} of {n} spheres in {region!r}: {why}. The requested packing "
+            f"fraction is {fraction:.3f} (sum of sphere volumes / region volume); random insertion tops out "
+            "near 0.3-0.35 packing fraction (less with walls or particles already in the region): use a "
+            "larger region or fewer spheres (and let them settle), or raise max_attempts")
+    return x_out, r_all.copy()
+
+
+SLAB_PASSES = 4
+"""Passes over the slabs of a large region, each with a quarter of the spheres and its seams a
+quarter of a slab higher (``_slab_plan``)."""
+
+
+def _slab_plan(region: Region, rho0: float, rmax: float, n: int) -> list[tuple[Region, np.ndarray]]:
+    """(sub-region, indices of the spheres it takes) in the order to fill them: ``[(region, all)]``
+    when the free-cell grid of the whole region at its finest cell size (``_FreeCells.CELL`` rho0)
+    holds at most ``_FreeCells.MAX_DENSE`` cells. A larger region's grid would have cells too
+    coarse to be dropped as covered, and insertion of 10^6 spheres ran out of attempts at a packing
+    fraction of 0.24; it is cut across its longest axis (z for a cylinder) into slabs small enough.
+
+    Neighbouring slabs overlap by 2 rmax, so that the centres a sphere of radius rmax may take
+    tile the region's exactly. A slab filled before its neighbour packs denser against their seam
+    (as random insertion does against any wall: ~10 % more centres in the diameter below the seam
+    and ~10 % fewer above it, measured at a packing fraction of 0.27). So the spheres go in
+    ``SLAB_PASSES`` passes, each over all the slabs with an equal share of the spheres, the seams of
+    each pass shifted by 1/SLAB_PASSES of a slab: each seam is met at a quarter of the density."""
+    lo, hi = region.bounds()
+    h = _FreeCells.CELL * rho0
+    ext = np.maximum(hi - lo - 2.0 * rho0, h)
+    axis = 2 if isinstance(region, CylinderRegion) else int(np.argmax(hi - lo))
+    across = float(np.prod(np.delete(ext, axis))) / h ** 2  # cells in a layer one cell thick
+    length = float(hi[axis] - lo[axis]) - 2.0 * rmax  # the centres' range for the largest sphere
+    per_slab = _FreeCells.MAX_DENSE / across * h - 2.0 * (rmax - rho0)  # the most a slab's centres may span
+    if across * ext[axis] / h <= _FreeCells.MAX_DENSE or per_slab <= 0.0 or length <= 0.0:
+        return [(region, np.arange(n))]  # (too wide across to help: one coarse grid, as before)
+    k = math.ceil(length / per_slab)
+    plan = []
+    for p, share in enumerate(np.array_split(np.arange(n), SLAB_PASSES)):
+        inner = (np.arange(1 if p == 0 else 0, k) + p / SLAB_PASSES) * length / k
+        seams = np.concatenate([[0.0], inner, [length]])
+        # spheres per slab in proportion to the centres' range, by largest remainders
+        want = share.size * np.diff(seams) / length
+        count = np.floor(want).astype(np.int64)
+        count[np.argsort(count - want)[:share.size - count.sum()]] += 1
+        for s_lo, s_hi, idx in zip(seams[:-1], seams[1:], np.split(share, np.cumsum(count)[:-1])):
+            if idx.size == 0:
+                continue
+            z_lo, z_hi = lo[axis] + s_lo, lo[axis] + s_hi + 2.0 * rmax
+            if isinstance(region, CylinderRegion):
+                plan.append((CylinderRegion(region.radius, z_lo, z_hi, region.center), idx))
+            else:
+                b_lo, b_hi = lo.copy(), hi.copy()
+                b_lo[axis], b_hi[axis] = z_lo, z_hi
+                plan.append((BoxRegion(b_lo, b_hi), idx))
+    return plan
+
+
+def _fill(region: Region, r_all: np.ndarray, rng, ex: np.ndarray, er: np.ndarray, wall_geom, max_attempts: int):
+    """Random sequential addition of spheres of radii ``r_all`` into ``region`` (see ``fill_region``).
+    Returns (positions in the order of ``r_all``, spheres placed, None), or (None, spheres placed,
+    why) when one ran out of attempts."""
+    from scipy.spatial import cKDTree
+
     # Only existing particles that can touch a sphere in the region matter.
+    rmax = float(r_all.max())
+    n = r_all.shape[0]
     lo, hi = region.bounds()
     if ex.shape[0]:
         gap = np.maximum(lo - ex, 0.0) + np.maximum(ex - hi, 0.0)
@@ -648,12 +728,8 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
             else:
                 r_fail = float(r_sorted[np.nonzero(failed)[0][0]])
                 why = f"a sphere of radius {_fmt(r_fail)} m found no free place in {max_attempts} attempts"
-            raise ParameterError(
-                f"could place only {n_placed} of {n} spheres in {region!r}: {why}. The requested packing "
-                f"fraction is {fraction:.3f} (sum of sphere volumes / region volume); random insertion tops out "
-                "near 0.3-0.35 packing fraction (less with walls or particles already in the region): use a "
-                "larger region or fewer spheres (and let them settle), or raise max_attempts")
+            return None, n_placed, why
 
     x_out = np.empty((n, 3))
     x_out[order] = placed_x
-    return x_out, r_all.copy()
+    return x_out, n_placed, None

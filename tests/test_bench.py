@@ -98,3 +98,17 @@ def test_scaling_scene_times_two_slabs_in_turn(monkeypatch):
     assert small.scene == large.scene == "slab"
     whole = (large.wall_s / large.particles) / (small.wall_s / small.particles)
     assert f"cost per particle-step {whole:.2f}x that at 300" in large.note
+
+
+def test_collapse_scaling_scene_times_two_collapses_in_turn(monkeypatch, tmp_path):
+    """collapse-scaling does the same with the column-collapse: two settled columns (here barely
+    settled, from a cache in tmp_path), each with its cylinder removed."""
+    monkeypatch.setattr(bench, "SCALING_SMALL", 300)
+    monkeypatch.setattr(bench, "SETTLE", 0.002)
+    monkeypatch.setattr(bench, "_cache_dir", lambda: tmp_path)
+    small, large = bench.run_bench(["collapse-scaling"], particles=1200, steps=12, threads=1, echo=lambda *a: None)
+    assert (small.particles, large.particles) == (300, 1200) and small.steps == large.steps == 12
+    assert small.scene == large.scene == "column-collapse"
+    assert len(list(tmp_path.glob("column_*.npz"))) == 2  # both settled states cached
+    whole = (large.wall_s / large.particles) / (small.wall_s / small.particles)
+    assert f"cost per particle-step {whole:.2f}x that at 300" in large.note

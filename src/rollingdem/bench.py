@@ -43,7 +43,7 @@ import numpy as np
 
 from .errors import ParameterError
 
-SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling")
+SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling")
 SCALING_SMALL = 20000
 SCALING_LARGE = 1_000_000
 SCALING_CHUNKS = 6
@@ -330,8 +330,11 @@ def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, 
 
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
-    sim = column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo)
-    sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
+    if from_dump:
+        sim = column_from_dump(from_dump)
+        sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
+    else:
+        sim = _collapse_simulation(particles, echo)
     wall, rebuilds = _time_run(sim, steps)
     note = f"settled state from {from_dump}" if from_dump else "settled state from the disk cache"
     return _result("column-collapse", "epsd", sim, steps, compile_s, wall, rebuilds, threads, note)
@@ -440,9 +443,17 @@ def _slab_simulation(particles: int):
     return sim
 
 
-def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print) -> list[BenchResult]:
-    """The slab at ``SCALING_SMALL`` and at ``particles`` spheres, each timed over ``steps`` steps
-    in ``SCALING_CHUNKS`` chunks taken in turn; the note of the second gives its cost per
+def _collapse_simulation(particles: int, echo=print):
+    """The settled column of ``particles`` spheres with its cylinder removed (the collapse)."""
+    sim = settled_column(particles, echo=echo)
+    sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
+    return sim
+
+
+def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene="slab") -> list[BenchResult]:
+    """The ``scene`` ("slab", or "column-collapse" from the settled columns of the disk cache) at
+    ``SCALING_SMALL`` and at ``particles`` spheres, each timed over ``steps`` steps in
+    ``SCALING_CHUNKS`` chunks taken in turn; the note of the second gives its cost per
     particle-step against the first, over the whole run and chunk by chunk."""
     import numba
 
@@ -450,7 +461,12 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print) -> lis
 
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
-    sims = [_slab_simulation(SCALING_SMALL), _slab_simulation(particles)]
+    if scene == "slab":
+        sims = [_slab_simulation(SCALING_SMALL), _slab_simulation(particles)]
+        what = f"{SLAB_LAYERS} lattice layers falling onto a plate"
+    else:
+        sims = [_collapse_simulation(SCALING_SMALL, echo), _collapse_simulation(particles, echo)]
+        what = "the settled column's collapse (cylinder radius scaled with sqrt(N))"
     for sim in sims:
         _warm_up(sim)
     walls = np.zeros((2, SCALING_CHUNKS))
@@ -462,9 +478,9 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print) -> lis
             rebuilds[s] += done
     ratios = (walls[1] / sims[1].n_particles) / (walls[0] / sims[0].n_particles)
     whole = (walls[1].sum() / sims[1].n_particles) / (walls[0].sum() / sims[0].n_particles)
-    results = [_result("slab", "epsd", sim, steps, compile_s, float(walls[s].sum()), rebuilds[s], threads,
-                       f"{SLAB_LAYERS} lattice layers falling onto a plate; in {SCALING_CHUNKS} chunks, in turn "
-                       f"with the slab of {sims[1 - s].n_particles} spheres")
+    results = [_result(scene, "epsd", sim, steps, compile_s, float(walls[s].sum()), rebuilds[s], threads,
+                       f"{what}; in {SCALING_CHUNKS} chunks, in turn with the scene of {sims[1 - s].n_particles} "
+                       "spheres")
                for s, sim in enumerate(sims)]
     results[1].note += (f": cost per particle-step {whole:.2f}x that at {SCALING_SMALL} (chunk by chunk "
                         f"{', '.join(f'{r:.2f}' for r in ratios)}; median {np.median(ratios):.2f}x)")
@@ -492,8 +508,9 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
             results.append(single_particle(steps or 150000, threads, echo))
         elif scene == "slab":
             results.append(slab(particles or 20000, steps or 1000, threads, echo))
-        elif scene == "scaling":
-            pair = scaling(particles or SCALING_LARGE, steps or 300, threads, echo)
+        elif scene in ("scaling", "collapse-scaling"):
+            pair = scaling(particles or SCALING_LARGE, steps or 300, threads, echo,
+                           "slab" if scene == "scaling" else "column-collapse")
             echo(format_row(pair[0]))
             results += pair
         else:

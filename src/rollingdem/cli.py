@@ -101,8 +101,9 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
 
 @app.command()
 def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help="column-collapse (default), "
-                                                    "single-particle, dense-bed, slab, scaling (the slab at 20,000 and N spheres in turn), collapse-scaling (the "
-                                                    "column-collapse likewise; settling the column of 10^6 spheres once takes ~1 h on 2 cores) "
+                                                    "single-particle, dense-bed, slab, scaling (the slab at 20,000 and N "
+                                                    "spheres in turn), collapse-scaling (the column-collapse likewise; "
+                                                    "settling the column of 10^6 spheres once takes 2-3 h on 2 cores) "
                                                     "(repeatable)."),
           particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Spheres in column-collapse, "
                                                   "dense-bed and slab (default 20,000), and the large scene of "

@@ -47,6 +47,22 @@ def test_time_split_leaves_the_state_as_it_was(table1):
     assert a.dissipated_energy() == b.dissipated_energy()
 
 
+def test_force_pass_costs_leave_the_states_as_they_were(table1):
+    """dense-bed times the models' force passes call by call on their live states; each run must go
+    on as if it had not been timed, and every round gives a positive cost for every model."""
+    a, b, c = _bed(table1), _bed(table1), _bed(table1)
+    for sim in (a, b, c):
+        sim.run(steps=2000)
+    costs = bench._force_pass_costs({"a": a, "b": b}, rounds=2)
+    assert set(costs) == {"a", "b"} and all(len(v) == 2 and min(v) > 0 for v in costs.values())
+    for sim in (a, b, c):
+        sim.run(steps=2000)
+    for sim in (a, b):
+        np.testing.assert_array_equal(sim.positions, c.positions)
+        np.testing.assert_array_equal(sim.angular_velocities, c.angular_velocities)
+        assert sim.dissipated_energy() == c.dissipated_energy()
+
+
 def test_settled_state_from_a_liggghts_dump(tmp_path):
     dump = tmp_path / "c.dump"
     dump.write_text("ITEM: TIMESTEP\n60000\nITEM: NUMBER OF ATOMS\n2\nITEM: BOX BOUNDS ff ff ff\n-1 1\n-1 1\n0 1\n"

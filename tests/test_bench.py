@@ -128,3 +128,38 @@ def test_collapse_scaling_scene_times_two_collapses_in_turn(monkeypatch, tmp_pat
     assert len(list(tmp_path.glob("column_*.npz"))) == 2  # both settled states cached
     whole = (large.wall_s / large.particles) / (small.wall_s / small.particles)
     assert f"cost per particle-step {whole:.2f}x that at 300" in large.note
+
+
+def test_an_interrupted_settle_resumes_from_its_checkpoint(monkeypatch, tmp_path):
+    """A long settle (hours for 10^6 spheres) is checkpointed every SETTLE_CHECKPOINT s; stopped
+    after its first checkpoint and called again, it resumes there, and the settled state is the
+    same bit for bit as that of a settle run through in one go (a checkpoint continues bit for bit)."""
+    monkeypatch.setattr(bench, "SETTLE", 0.01)
+    monkeypatch.setattr(bench, "SETTLE_CHECKPOINT", 1.0)
+    monkeypatch.setattr(bench, "_cache_dir", lambda: tmp_path / "whole")
+    whole = bench.settled_column(300, echo=lambda *a: None)
+
+    monkeypatch.setattr(bench, "SETTLE_CHECKPOINT", 0.004)
+    monkeypatch.setattr(bench, "_cache_dir", lambda: tmp_path / "parts")
+    real_run = rd.Simulation.run
+    calls = []
+
+    def stop_at_the_second_part(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real_run(self, *args, **kwargs)
+
+    monkeypatch.setattr(rd.Simulation, "run", stop_at_the_second_part)
+    with pytest.raises(KeyboardInterrupt):
+        bench.settled_column(300, echo=lambda *a: None)
+    partial = list((tmp_path / "parts").glob("*_partial.npz"))
+    assert len(partial) == 1 and not list((tmp_path / "parts").glob("column_300_seed1_epsd_v*[0-9].npz"))
+    monkeypatch.setattr(rd.Simulation, "run", real_run)
+    said = []
+    resumed = bench.settled_column(300, echo=said.append)
+    assert "resuming" in said[0] and "t = 0.004" in said[0]
+    assert not partial[0].exists()
+    assert resumed.step == whole.step == 1000
+    np.testing.assert_array_equal(resumed.positions, whole.positions)
+    np.testing.assert_array_equal(resumed.angular_velocities, whole.angular_velocities)

@@ -59,6 +59,7 @@ SKIN = 0.002
 COLUMN_RADIUS_20K = 0.125  # m, for 20,000 spheres (LIGGGHTS reference input)
 FILL_HEIGHT = 0.80  # m, top of the insertion region (LIGGGHTS reference input)
 SETTLE = 0.6  # s
+SETTLE_CHECKPOINT = 0.05  # s of settling between checkpoints of a settle in progress
 DENSE_BED_MODELS = ("none", "cdt", "epsd", "epsd2", "epsd3", "rrlinear", "sds", "displacement_damping",
                     "force_proportional", "viscous")
 
@@ -116,11 +117,24 @@ def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=pr
     r_cyl = column_radius(particles)
     sim = _column_simulation(rolling)
     sim.add_wall(Cylinder(r_cyl, material="table1", name="cylinder"))
-    echo(f"settling {particles} spheres for {SETTLE} s (cached afterwards in {path.parent}) ...")
-    sim.insert(CylinderRegion(r_cyl, 0.0, FILL_HEIGHT), particles, RADIUS, "table1", seed=seed,
-               velocity=(0.0, 0.0, -0.5))
-    sim.run(SETTLE)
+    # a long settle (2-3 h for 10^6 spheres on 2 cores) is checkpointed as it goes, and an
+    # interrupted one resumes from its last checkpoint
+    partial = path.with_name(path.stem + "_partial.npz")
+    if partial.exists():
+        sim = Simulation.restore(partial)
+        echo(f"resuming the settling of {particles} spheres at t = {sim.time:.3f} of {SETTLE} s ({partial}) ...")
+    else:
+        echo(f"settling {particles} spheres for {SETTLE} s (cached afterwards in {path.parent}) ...")
+        sim.insert(CylinderRegion(r_cyl, 0.0, FILL_HEIGHT), particles, RADIUS, "table1", seed=seed,
+                   velocity=(0.0, 0.0, -0.5))
+    total = round(SETTLE / sim.dt)
+    chunk = max(1, round(SETTLE_CHECKPOINT / sim.dt))
+    while sim.step < total:
+        sim.run(steps=min(chunk, total - sim.step))
+        if sim.step < total:
+            sim.checkpoint(partial)
     sim.checkpoint(path)
+    partial.unlink(missing_ok=True)
     return sim
 
 

@@ -48,8 +48,7 @@ SCALING_SMALL = 20000
 SCALING_LARGE = 1_000_000
 SCALING_CHUNKS = 6
 SLAB_LAYERS = 8
-SPLIT_REPEATS = 4
-SPLIT_ROUNDS = 25
+FORCE_PASS_ROUNDS = 25
 FORCE_PASS_CALLS = 3
 TABLE1 = dict(youngs_modulus=40e6, poisson_ratio=0.49, density=1056.0, friction=0.8, rolling_friction=0.2,
               restitution=0.5, rolling_damping=0.3)
@@ -114,9 +113,6 @@ def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=pr
         sim = Simulation.restore(path)
         sim.track_energy = False  # the scene as a user runs it by default (and as the peers do)
         return sim
-    r_cyl = column_radius(particles)
-    sim = _column_simulation(rolling)
-    sim.add_wall(Cylinder(r_cyl, material="table1", name="cylinder"))
     # a long settle (2-3 h for 10^6 spheres on 2 cores) is checkpointed as it goes, and an
     # interrupted one resumes from its last checkpoint
     partial = path.with_name(path.stem + "_partial.npz")
@@ -125,6 +121,9 @@ def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=pr
         echo(f"resuming the settling of {particles} spheres at t = {sim.time:.3f} of {SETTLE} s ({partial}) ...")
     else:
         echo(f"settling {particles} spheres for {SETTLE} s (cached afterwards in {path.parent}) ...")
+        r_cyl = column_radius(particles)
+        sim = _column_simulation(rolling)
+        sim.add_wall(Cylinder(r_cyl, material="table1", name="cylinder"))
         sim.insert(CylinderRegion(r_cyl, 0.0, FILL_HEIGHT), particles, RADIUS, "table1", seed=seed,
                    velocity=(0.0, 0.0, -0.5))
     total = round(SETTLE / sim.dt)
@@ -344,11 +343,7 @@ def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, 
 
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
-    if from_dump:
-        sim = column_from_dump(from_dump)
-        sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
-    else:
-        sim = _collapse_simulation(particles, echo)
+    sim = _collapse(column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo))
     wall, rebuilds = _time_run(sim, steps)
     note = f"settled state from {from_dump}" if from_dump else "settled state from the disk cache"
     return _result("column-collapse", "epsd", sim, steps, compile_s, wall, rebuilds, threads, note)
@@ -374,8 +369,9 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
 
     The cost of a model is measured on the identical state, one step in, before the runs part
     (without rolling resistance the bed rearranges and loses half its contacts within 2,000
-    steps, which would flatter no rolling model): the contact-force and wall passes, timed
-    ``SPLIT_REPEATS`` times each. The timed run that follows gives the particle-steps per second.
+    steps, which would flatter no rolling model): the contact-force and wall passes, the models
+    taking turns call by call (``_force_pass_costs``, ``FORCE_PASS_ROUNDS`` rounds). The timed run
+    that follows gives the particle-steps per second.
     """
     import numba
 
@@ -394,7 +390,7 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
         sims[model] = sim
     # a model's cost against none is the median of the rounds' ratios: a slow spell of the machine
     # that outlasts a round spoils one ratio, where it could spoil the minimum of one model alone
-    rounds = _force_pass_costs(sims, SPLIT_ROUNDS)
+    rounds = _force_pass_costs(sims, FORCE_PASS_ROUNDS)
     force_pass = {model: min(times) for model, times in rounds.items()}
     results = []
     for model, sim in sims.items():
@@ -405,7 +401,7 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
         r.note = f"identical state: contact forces + walls {t * 1e3:.3f} ms/step at {contacts:.2f} contacts/particle"
         if "none" in force_pass:
             ratios = np.array(rounds[model]) / np.array(rounds["none"])
-            r.note += (f", {np.median(ratios):.3f}x no rolling model (median of {SPLIT_ROUNDS} rounds, "
+            r.note += (f", {np.median(ratios):.3f}x no rolling model (median of {FORCE_PASS_ROUNDS} rounds, "
                        f"{ratios.min():.3f}-{ratios.max():.3f})")
         results.append(r)
     return results
@@ -457,9 +453,8 @@ def _slab_simulation(particles: int):
     return sim
 
 
-def _collapse_simulation(particles: int, echo=print):
-    """The settled column of ``particles`` spheres with its cylinder removed (the collapse)."""
-    sim = settled_column(particles, echo=echo)
+def _collapse(sim):
+    """``sim``, a settled column, with its cylinder removed: the collapse starts."""
     sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
     return sim
 
@@ -479,7 +474,7 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene=
         sims = [_slab_simulation(SCALING_SMALL), _slab_simulation(particles)]
         what = f"{SLAB_LAYERS} lattice layers falling onto a plate"
     else:
-        sims = [_collapse_simulation(SCALING_SMALL, echo), _collapse_simulation(particles, echo)]
+        sims = [_collapse(settled_column(n, echo=echo)) for n in (SCALING_SMALL, particles)]
         what = "the settled column's collapse (cylinder radius scaled with sqrt(N))"
     for sim in sims:
         _warm_up(sim)

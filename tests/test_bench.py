@@ -9,6 +9,7 @@ from typer.testing import CliRunner
 import rollingdem as rd
 from rollingdem import bench
 from rollingdem.cli import app
+from rollingdem.errors import ParameterError
 
 
 def test_bench_json_reports_the_scene(tmp_path):
@@ -128,6 +129,23 @@ def test_collapse_scaling_scene_times_two_collapses_in_turn(monkeypatch, tmp_pat
     assert len(list(tmp_path.glob("column_*.npz"))) == 2  # both settled states cached
     whole = (large.wall_s / large.particles) / (small.wall_s / small.particles)
     assert f"cost per particle-step {whole:.2f}x that at 300" in large.note
+
+
+def test_column_bed_scaling_keeps_the_cylinder(monkeypatch, tmp_path):
+    """The column-bed scene times the same settled columns at rest: unlike the collapse, both keep
+    their cylinder through the timed steps. An unknown scaling scene is refused by name."""
+    monkeypatch.setattr(bench, "SCALING_SMALL", 300)
+    monkeypatch.setattr(bench, "SETTLE", 0.002)
+    monkeypatch.setattr(bench, "_cache_dir", lambda: tmp_path)
+    columns = []
+    real = bench.settled_column
+    monkeypatch.setattr(bench, "settled_column", lambda *a, **k: columns.append(real(*a, **k)) or columns[-1])
+    small, large = bench.scaling(1200, steps=12, threads=1, echo=lambda *a: None, scene="column-bed")
+    assert (small.particles, large.particles) == (300, 1200) and "cylinder kept" in large.note
+    assert [sim.step for sim in columns] == [213, 213]  # 200 settling, 1 warm-up, 12 timed
+    assert all(any(w.name == "cylinder" for w in sim.walls) for sim in columns)
+    with pytest.raises(ParameterError, match="scene = 'heap'"):
+        bench.scaling(1200, steps=12, threads=1, scene="heap")
 
 
 def test_an_interrupted_settle_resumes_from_its_checkpoint(monkeypatch, tmp_path):

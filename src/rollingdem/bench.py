@@ -460,9 +460,10 @@ def _collapse(sim):
 
 
 def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene="slab") -> list[BenchResult]:
-    """The ``scene`` ("slab", or "column-collapse" from the settled columns of the disk cache) at
-    ``SCALING_SMALL`` and at ``particles`` spheres, each timed over ``steps`` steps in
-    ``SCALING_CHUNKS`` chunks taken in turn; the note of the second gives its cost per
+    """The ``scene`` ("slab"; "column-collapse" from the settled columns of the disk cache; or
+    "column-bed", the same columns at rest with their cylinder kept, ~4.2 contacts per sphere at
+    both sizes) at ``SCALING_SMALL`` and at ``particles`` spheres, each timed over ``steps`` steps
+    in ``SCALING_CHUNKS`` chunks taken in turn; the note of the second gives its cost per
     particle-step against the first, over the whole run and chunk by chunk."""
     import numba
 
@@ -473,9 +474,15 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene=
     if scene == "slab":
         sims = [_slab_simulation(SCALING_SMALL), _slab_simulation(particles)]
         what = f"{SLAB_LAYERS} lattice layers falling onto a plate"
-    else:
+    elif scene == "column-collapse":
         sims = [_collapse(settled_column(n, echo=echo)) for n in (SCALING_SMALL, particles)]
         what = "the settled column's collapse (cylinder radius scaled with sqrt(N))"
+    elif scene == "column-bed":
+        sims = [settled_column(n, echo=echo) for n in (SCALING_SMALL, particles)]
+        what = "the settled column at rest, cylinder kept (radius scaled with sqrt(N))"
+    else:
+        raise ParameterError(f"scene = {scene!r} is not a scaling scene: use 'slab', 'column-collapse' or "
+                             "'column-bed'")
     for sim in sims:
         _warm_up(sim)
     walls = np.zeros((2, SCALING_CHUNKS))

@@ -13,11 +13,10 @@ force on i along n is force_elastic + force_damping, with force_damping = -gamma
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
 from numba import njit
 
-from ..errors import check_choice, check_non_negative, check_positive
+from ..errors import check_non_negative, check_positive
 from .base import P_SHEAR, P_YOUNG, SubModel
 
 
@@ -34,52 +33,18 @@ def linear_damping_ratio(e: float) -> float:
     return -restitution_beta(e)
 
 
-def hertz_restitution(damping_factor: float) -> float:
-    """Restitution of a Hertz contact with gamma_n = c sqrt(S_n m*), S_n = 2 E* sqrt(R* delta).
-
-    In units delta0 = (m* v0^2 / k)^(2/5), t0 = delta0 / v0 (k = 4/3 E* sqrt(R*)) the impact obeys
-    x'' = -x^(3/2) - sqrt(3/2) c x^(1/4) x', x(0) = 0, x'(0) = 1 (Tsuji et al. 1992: e depends on c
-    only, not on the impact speed); e = -x' when x returns to 0 (no force clipping, as in LIGGGHTS
-    and LAMMPS).
-    """
-    from scipy.integrate import solve_ivp
-
-    if damping_factor == 0.0:
-        return 1.0
-    g = math.sqrt(1.5) * damping_factor
-
-    def rhs(_t, y):
-        x = max(y[0], 0.0)
-        return [y[1], -x ** 1.5 - g * x ** 0.25 * y[1]]
-
-    def back_at_zero(_t, y):
-        return y[0]
-
-    back_at_zero.terminal = True
-    back_at_zero.direction = -1
-    sol = solve_ivp(rhs, (0.0, 50.0), [0.0, 1.0], events=back_at_zero, rtol=1e-11, atol=1e-13, method="DOP853")
-    if sol.t_events[0].size == 0:
-        return 0.0  # over-damped: never separates within the window
-    return -float(sol.y_events[0][0][1])
-
-
-@lru_cache(maxsize=256)
 def hertz_damping_factor(e: float) -> float:
-    """The factor c in gamma_n = c sqrt(S_n m*) that gives restitution e exactly for Hertz.
+    """The factor c in gamma_n = c sqrt(S_n m*), S_n = 2 E* sqrt(R* delta), that gives a binary
+    Hertz impact the restitution e: c = -2 sqrt(5/6) beta(e) (Tsuji et al. 1992; LIGGGHTS
+    ``normal_model_hertz.h``, EDEM).
 
-    LIGGGHTS uses c = -2 sqrt(5/6) beta(e), which only approximates e (measured e is 1-8 % off);
-    here c is found by root finding on ``hertz_restitution``.
+    With this dashpot the impact, in units delta0 = (m* v0^2 / k)^(2/5), t0 = delta0 / v0
+    (k = 4/3 E* sqrt(R*)), obeys x'' = -x^(3/2) - sqrt(3/2) c x^(1/4) x' whatever v0 is, so e
+    depends on c only. Integrating that equation (tests/test_hertz_damping.py) returns e to 1e-9
+    for e in [0.1, 0.99]: the closed form is the exact restitution of this model, not an
+    approximation of it.
     """
-    from scipy.optimize import brentq
-
-    if e >= 1.0:
-        return 0.0
-    hi = 1.0
-    while hertz_restitution(hi) > e:
-        hi *= 2.0
-        if hi > 1e4:
-            raise ValueError(f"restitution = {e} cannot be reached by the Hertz dashpot")
-    return float(brentq(lambda c: hertz_restitution(c) - e, 0.0, hi, xtol=1e-13, rtol=1e-12))
+    return -2.0 * math.sqrt(5.0 / 6.0) * restitution_beta(e)
 
 
 @njit(cache=True, inline="always")
@@ -124,33 +89,17 @@ def linear_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
 
 
 class Hertz(SubModel):
-    """Hertz-Mindlin no-slip contact (MODELS.md §1.2).
-
-    Parameters
-    ----------
-    damping: "exact" (default) chooses the dashpot so that a binary impact has exactly the pair's
-        restitution e; "liggghts" uses LIGGGHTS/EDEM's gamma = -2 sqrt(5/6) beta sqrt(S m*),
-        which only approximates e (parity preset).
-    """
+    """Hertz-Mindlin no-slip contact (MODELS.md §1.2), with the dashpot gamma_n = c sqrt(S_n m*)
+    whose factor c (``hertz_damping_factor``) gives a binary impact exactly the pair's restitution
+    e, as in LIGGGHTS and EDEM. No parameters of its own."""
 
     slot = "normal"
     name = "hertz"
     kernel = ("rollingdem.contact.normal", "hertz_normal")
 
-    def __init__(self, damping: str = "exact"):
-        self.damping = check_choice("hertz damping", damping, {"exact", "liggghts"})
-
-    def damping_factor(self, e: float) -> float:
-        if self.damping == "liggghts":
-            return -2.0 * math.sqrt(5.0 / 6.0) * restitution_beta(e)
-        return hertz_damping_factor(float(e))
-
     def pair_parameters(self, pair):
-        return (self.damping_factor(pair.restitution),
+        return (hertz_damping_factor(pair.restitution),
                 math.sqrt(4.0 * pair.effective_shear_modulus / pair.effective_youngs_modulus))
-
-    def parameters(self):
-        return {"damping": self.damping}
 
 
 class Hooke(SubModel):
@@ -216,4 +165,4 @@ class Linear(SubModel):
 
 
 __all__ = ["Hertz", "Hooke", "Linear", "hertz_normal", "hooke_normal", "linear_normal", "hertz_damping_factor",
-           "hertz_restitution", "restitution_beta", "linear_damping_ratio"]
+           "restitution_beta", "linear_damping_ratio"]

@@ -34,11 +34,17 @@ def _fmt(value: Any) -> str:
     return repr(value) if not isinstance(value, float) else f"{value:g}"
 
 
+def _is_bool(value: Any) -> bool:
+    return isinstance(value, bool) or type(value).__name__ == "bool_"  # numpy's bool too
+
+
 def check_finite(name: str, value: Any) -> float:
+    if _is_bool(value) or isinstance(value, (str, bytes)):  # float(True) == 1.0, float("1") == 1.0: not numbers
+        raise ParameterError(f"{name} = {value!r} is not allowed: must be a number")
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ParameterError(f"{name} = {value!r} is not a number") from None
+        raise ParameterError(f"{name} = {value!r} is not allowed: must be a number") from None
     if not math.isfinite(x):
         raise ParameterError(f"{name} = {_fmt(x)} is not allowed: must be a finite number")
     return x
@@ -73,9 +79,30 @@ def check_range(name: str, value: Any, low: float, high: float, *, low_open: boo
 
 
 def check_choice(name: str, value: Any, allowed) -> str:
-    if value not in allowed:
+    try:
+        known = value in allowed
+    except TypeError:  # an unhashable value (a list, a mapping) is no name
+        known = False
+    if not known:
         raise ParameterError(f"{name} = {value!r} is not known: allowed are {', '.join(map(repr, sorted(allowed)))}")
     return value
+
+
+def check_integer(name: str, value: Any, low: int | None = None) -> int:
+    """A whole number (an int, or a float with no fractional part such as 1e4), at least ``low``."""
+    if _is_bool(value) or isinstance(value, (str, bytes)):
+        raise ParameterError(f"{name} = {value!r} is not allowed: must be a whole number")
+    try:
+        x = float(value)
+        whole = math.isfinite(x) and x == int(x)
+    except (TypeError, ValueError, OverflowError):
+        whole = False
+    if not whole:
+        raise ParameterError(f"{name} = {_fmt(value)} is not allowed: must be a whole number")
+    n = int(x) if not hasattr(value, "__index__") else int(value)
+    if low is not None and n < low:
+        raise ParameterError(f"{name} = {n} is not allowed: must be a whole number >= {low}")
+    return n
 
 
 def check_vector(name: str, value: Any, *, unit: bool = False) -> tuple[float, float, float]:

@@ -86,8 +86,35 @@ class SubModel:
         return hash((type(self), tuple(sorted(self.parameters().items()))))
 
 
+def _describe_parameters(params) -> str:
+    return ", ".join(f"{k} (required)" if p.default is p.empty else k for k, p in params.items()) or "none"
+
+
+def _check_parameter_type(slot: str, name: str, key: str, value, default) -> None:
+    """Refuse a value whose type cannot be that of the parameter's default (a number for a number,
+    a name for a name): the sub-model's own checks then see only values of the right kind."""
+    from numbers import Real
+
+    if default is None or default is inspect.Parameter.empty:
+        return  # no default to go by: the sub-model's own check names what is allowed
+    if isinstance(default, bool):
+        ok, what = isinstance(value, bool), "true or false"
+    elif isinstance(default, Real):
+        ok, what = isinstance(value, Real) and not isinstance(value, bool), "a number"
+    elif isinstance(default, str):
+        ok, what = isinstance(value, str), "a name (a string)"
+    else:
+        return
+    if not ok:
+        raise ParameterError(f"{slot} model {name!r}: parameter {key} = {value!r} is not allowed: must be {what}")
+
+
 def make_submodel(slot: str, spec) -> SubModel:
-    """Turn a name, a ``{"model": name, ...}`` mapping or an instance into a sub-model instance."""
+    """Turn a name, a ``{"model": name, ...}`` mapping or an instance into a sub-model instance.
+
+    Every mistake is a ``ParameterError`` naming the slot, the model and the parameter: an unknown
+    model or parameter, a required parameter left out, a value of the wrong kind.
+    """
     registry = _REGISTRIES[slot]
     if isinstance(spec, SubModel):
         if spec.slot != slot:
@@ -95,13 +122,26 @@ def make_submodel(slot: str, spec) -> SubModel:
         return spec
     if isinstance(spec, dict):
         spec = dict(spec)
-        name = spec.pop("model", None)
-        check_choice(f"{slot} model", name, registry)
-        allowed = [k for k in inspect.signature(registry[name]).parameters if k != "self"]
-        for key, value in spec.items():
-            if key not in allowed:
-                raise ParameterError(f"{slot} model {name!r}: parameter {key} = {value!r} is not known: "
-                                     f"allowed are {', '.join(allowed) or 'none'}")
-        return registry[name](**spec)
-    check_choice(f"{slot} model", spec, registry)
-    return registry[spec]()
+        if "model" not in spec:
+            raise ParameterError(f"{slot} model = {spec!r} is not allowed: a mapping must name its model, "
+                                 f"{{model: NAME, ...}}; models are {', '.join(map(repr, sorted(registry)))}")
+        name = spec.pop("model")
+    elif isinstance(spec, str):
+        name, spec = spec, {}
+    else:
+        raise ParameterError(f"{slot} model = {spec!r} is not allowed: must be a model name, a mapping "
+                             f"{{model: NAME, parameter: value, ...}} or a {slot} sub-model instance")
+    check_choice(f"{slot} model", name, registry)
+    cls = registry[name]
+    params = {k: p for k, p in inspect.signature(cls).parameters.items()
+              if k != "self" and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+    for key, value in spec.items():
+        if key not in params:
+            raise ParameterError(f"{slot} model {name!r}: parameter {key} = {value!r} is not known: "
+                                 f"allowed are {', '.join(params) or 'none'}")
+        _check_parameter_type(slot, name, key, value, params[key].default)
+    missing = [k for k, p in params.items() if p.default is p.empty and k not in spec]
+    if missing:
+        raise ParameterError(f"{slot} model {name!r}: parameter {missing[0]} is missing: it is required; give "
+                             f"{{model: {name}, {missing[0]}: VALUE}} (parameters: {_describe_parameters(params)})")
+    return cls(**spec)

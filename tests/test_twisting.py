@@ -51,5 +51,42 @@ def test_spin_goes_on_without_twisting(table1):
 
 def test_twisting_sds_validation():
     with pytest.raises(rd.ParameterError, match="twisting_stiffness = -1"):
-        rd.TwistingSDS(twisting_stiffness=-1)
-    assert np.isfinite(rd.TwistingSDS(1e-4, 1e-7, 1e-3).pair_parameters(None)).all()
+        rd.TwistingSDS(twisting_stiffness=-1, twisting_friction=1e-4)
+    # mu_tw caps spring and dashpot together: with 0 (the old default) the model did nothing
+    with pytest.raises(rd.ParameterError, match="twisting_friction is required"):
+        rd.TwistingSDS(1e-4, 1e-7)
+    with pytest.raises(rd.ParameterError, match="twisting_friction = 0 is not allowed.*would do nothing"):
+        rd.TwistingSDS(1e-4, 1e-7, 0.0)
+    with pytest.raises(rd.ParameterError, match="twisting_friction is required"):
+        rd.ContactModel(twisting={"model": "sds", "twisting_stiffness": 1e-4})
+    sds = rd.TwistingSDS(1e-4, 1e-7, 1e-3)
+    assert sds.pair_parameters(None) == (0.0, 1e-4, 1e-7, 1e-3)
+    assert rd.ContactModel(twisting=sds.parameters() | {"model": "sds"}).twisting == sds  # case-file round trip
+
+
+def test_spin_stops_with_twisting_sds(table1):
+    """TwistingSDS with a cap mu_tw F_n (MODELS.md §4.8, LAMMPS ``twisting sds``): sliding in twist,
+    the moment is mu_tw m g, so the spin falls linearly at mu_tw m g / I = mu_tw g / (0.4 R^2)
+    (98 rad/s^2 here), then it stops and stays stopped.
+    Catches: the cap not mu_tw F_n (e.g. a wrong factor or F_n), a spring or dashpot that does not
+    act, the spin's sign. The twisting spring k_tw = 1e-4 N m/rad (period 2 pi sqrt(I/k) = 47 ms,
+    resolved by dt = 1e-5 s), the dashpot half critical: at 20 rad/s the dashpot alone is 27 times
+    the cap, so the moment sits at the cap from the first step."""
+    mu_tw = 1e-4
+    m = 1056.0 * 4 / 3 * np.pi * R ** 3
+    inertia = 0.4 * m * R ** 2
+    k_tw = 1e-4
+    gamma_tw = 2 * 0.5 * np.sqrt(k_tw * inertia)
+    sim = spin_on_plate(rd.TwistingSDS(k_tw, gamma_tw, mu_tw), table1, duration=0.1)
+    moment = mu_tw * m * 9.81
+    drop = moment / inertia * 0.1
+    # 1e-3: the moment is at the cap from the first step (see above) and the normal force, settled
+    # for 50 ms (the damped Hertz contact rings down in a few 0.1 ms periods), is m g to far below
+    # that; a wrong factor in the cap is a change of order one
+    assert 20.0 - sim.angular_velocities[0, 2] == pytest.approx(drop, rel=1e-3)
+    sim.run(0.3)  # stops at ~ 0.2 s
+    # stuck: what is left is the damped spring ringing about rest, whose spin amplitude is at most
+    # (M / k) sqrt(k / I), the release from the slip limit
+    bound = moment / k_tw * np.sqrt(k_tw / inertia)
+    assert abs(sim.angular_velocities[0, 2]) < bound < 0.1 * 20.0
+    assert sim.dissipated_energy()["twisting"] > 0.99 * 0.5 * inertia * (20.0 ** 2 - bound ** 2)

@@ -15,7 +15,7 @@ import math
 
 from numba import njit
 
-from ..errors import check_non_negative, check_positive
+from ..errors import ParameterError, check_finite, check_non_negative, check_positive
 from .base import P_FRICTION, SubModel
 
 
@@ -84,7 +84,13 @@ class TwistingSDS(SubModel):
     """Twisting spring-dashpot-slider with given constants, as LAMMPS ``twisting sds``.
 
     twisting_stiffness: k_tw (N m/rad), > 0.  twisting_damping: gamma_tw (N m s/rad), >= 0.
-    twisting_friction: mu_tw (m), >= 0: the moment is capped at mu_tw F_n.
+    twisting_friction: mu_tw (m), > 0, required: the moment is capped at mu_tw max(F_n,el, 0).
+
+    twisting_friction has no default and 0 is refused: the cap mu_tw F_n applies to spring and
+    dashpot together, so with mu_tw = 0 the moment is always 0 and the model does nothing (a sphere
+    spinning on a plate keeps its spin, as with ``twisting="none"``); LAMMPS also requires all three
+    constants. It stays the third positional argument (``TwistingSDS(k, gamma, mu)`` keeps its
+    meaning); leaving it out is a ParameterError, not a silent no-op.
     """
 
     slot = "twisting"
@@ -92,10 +98,18 @@ class TwistingSDS(SubModel):
     history_size = 1
     kernel = ("rollingdem.contact.twisting", "spring_twisting")
 
-    def __init__(self, twisting_stiffness, twisting_damping=0.0, twisting_friction=0.0):
+    def __init__(self, twisting_stiffness, twisting_damping=0.0, twisting_friction=None):
         self.twisting_stiffness = check_positive("twisting sds twisting_stiffness", twisting_stiffness, "N m/rad")
         self.twisting_damping = check_non_negative("twisting sds twisting_damping", twisting_damping, "N m s/rad")
-        self.twisting_friction = check_non_negative("twisting sds twisting_friction", twisting_friction, "m")
+        if twisting_friction is None:
+            raise ParameterError("twisting sds twisting_friction is required: mu_tw (m), > 0, the moment is capped "
+                                 "at mu_tw F_n (without a cap the model would do nothing)")
+        friction = check_finite("twisting sds twisting_friction", twisting_friction)
+        if friction <= 0.0:
+            raise ParameterError(f"twisting sds twisting_friction = {friction:g} is not allowed: must be > 0 (m); the "
+                                 "moment is capped at mu_tw F_n, so 0 would do nothing (use twisting=\"none\" for "
+                                 "no twisting resistance)")
+        self.twisting_friction = friction
 
     def pair_parameters(self, pair):
         return (0.0, self.twisting_stiffness, self.twisting_damping, self.twisting_friction)

@@ -17,11 +17,23 @@ import re
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Strict, Tag,
+                      ValidationError, create_model)
 
 from .errors import ParameterError
 
-Vector = tuple[float, float, float]
+def _whole(value):
+    """An integer key: a bool (YAML ``yes``/``true``) is no count or index."""
+    if isinstance(value, bool):
+        raise ValueError("must be a whole number")
+    return value
+
+
+#: A number in a case file: an int or a float, never a bool or a string ("1e4" is read as a number
+#: by the loader below; ``true`` is not 1).
+Number = Annotated[float, Strict()]
+Whole = Annotated[int, BeforeValidator(_whole)]
+Vector = tuple[Number, Number, Number]
 
 
 class _YAMLLoader(yaml.SafeLoader):
@@ -50,7 +62,9 @@ def _material_spec():
     from .materials import Material
 
     hints = get_type_hints(Material)
-    spec = {f.name: (hints[f.name], ... if f.default is MISSING else f.default) for f in fields(Material)}
+    strict = {float: Number, Optional[float]: Optional[Number]}
+    spec = {f.name: (strict.get(hints[f.name], hints[f.name]), ... if f.default is MISSING else f.default)
+            for f in fields(Material)}
     return create_model("MaterialSpec", __base__=_Strict, **spec)
 
 
@@ -59,17 +73,18 @@ MaterialSpec = _material_spec()
 
 class PairSpec(_Strict):
     materials: tuple[str, str]
-    friction: Optional[float] = None
-    rolling_friction: Optional[float] = None
-    restitution: Optional[float] = None
-    rolling_damping: Optional[float] = None
+    friction: Optional[Number] = None
+    rolling_friction: Optional[Number] = None
+    restitution: Optional[Number] = None
+    rolling_damping: Optional[Number] = None
 
 
 class ContactSpec(_Strict):
-    normal: Union[str, dict[str, Any]] = "hertz"
-    tangential: Union[str, dict[str, Any]] = "history"
-    rolling: Union[str, dict[str, Any]] = "none"
-    twisting: Union[str, dict[str, Any]] = "none"
+    # a model name or {model: name, parameter: value, ...}; make_submodel checks both
+    normal: Any = "hertz"
+    tangential: Any = "history"
+    rolling: Any = "none"
+    twisting: Any = "none"
 
 
 class PlaneSpec(_Strict):
@@ -86,10 +101,10 @@ class CylinderSpec(_Strict):
     type: Literal["cylinder"]
     name: Optional[str] = None
     material: str
-    radius: float
+    radius: Number
     point: Vector = (0.0, 0.0, 0.0)
     axis: Vector = (0.0, 0.0, 1.0)
-    extent: Optional[tuple[float, float]] = None
+    extent: Optional[tuple[Number, Number]] = None
     velocity: Vector = (0.0, 0.0, 0.0)
     angular_velocity: Vector = (0.0, 0.0, 0.0)
 
@@ -105,10 +120,10 @@ class BoxRegionSpec(_Strict):
 
 class CylinderRegionSpec(_Strict):
     type: Literal["cylinder"]
-    radius: float
-    z_min: float
-    z_max: float
-    center: tuple[float, float] = (0.0, 0.0)
+    radius: Number
+    z_min: Number
+    z_max: Number
+    center: tuple[Number, Number] = (0.0, 0.0)
 
 
 RegionSpec = Annotated[Union[BoxRegionSpec, CylinderRegionSpec], Field(discriminator="type")]
@@ -116,65 +131,88 @@ RegionSpec = Annotated[Union[BoxRegionSpec, CylinderRegionSpec], Field(discrimin
 
 class UniformSpec(_Strict):
     distribution: Literal["uniform"]
-    low: float
-    high: float
+    low: Number
+    high: Number
 
 
 class NormalSpec(_Strict):
     distribution: Literal["normal"]
-    mean: float
-    std: float
-    low: Optional[float] = None
-    high: Optional[float] = None
+    mean: Number
+    std: Number
+    low: Optional[Number] = None
+    high: Optional[Number] = None
 
 
 class DiscreteSpec(_Strict):
     distribution: Literal["discrete"]
-    values: list[float]
-    weights: Optional[list[float]] = None
+    values: list[Number]
+    weights: Optional[list[Number]] = None
 
 
-RadiusSpec = Union[float, Annotated[Union[UniformSpec, NormalSpec, DiscreteSpec], Field(discriminator="distribution")]]
+def _radius_kind(value):
+    """The tag of a radius: a number, or the distribution of a mapping (or of a parsed distribution)."""
+    if isinstance(value, dict):
+        return value.get("distribution")
+    return getattr(value, "distribution", "number")
+
+
+RadiusSpec = Annotated[Union[Annotated[Number, Tag("number")], Annotated[UniformSpec, Tag("uniform")],
+                             Annotated[NormalSpec, Tag("normal")], Annotated[DiscreteSpec, Tag("discrete")]],
+                       Discriminator(_radius_kind, custom_error_type="radius_kind",
+                                     custom_error_message="must be a number or a distribution {distribution: uniform "
+                                                          "| normal | discrete, ...}")]
 
 
 class InsertSpec(_Strict):
     insert: RegionSpec
-    count: int
+    count: Whole
     radius: RadiusSpec
     material: str
-    seed: int = 0
+    seed: Whole = 0
     velocity: Optional[Vector] = None
 
 
 class ListSpec(_Strict):
     positions: list[Vector]
-    radius: Union[float, list[float]]
+    radius: Union[Number, list[Number]]
     material: str
     velocity: Optional[Union[Vector, list[Vector]]] = None
     angular_velocity: Optional[Union[Vector, list[Vector]]] = None
+    allow_overlap: bool = False
+
+
+def _particle_kind(value):
+    """A particle block with an ``insert`` key fills a region; any other lists its spheres."""
+    if isinstance(value, dict):
+        return "insert" if "insert" in value else "list"
+    return "insert" if isinstance(value, InsertSpec) else "list" if isinstance(value, ListSpec) else None
+
+
+ParticleSpec = Annotated[Union[Annotated[InsertSpec, Tag("insert")], Annotated[ListSpec, Tag("list")]],
+                         Discriminator(_particle_kind)]
 
 
 class SetVelocitySpec(_Strict):
-    particles: Union[Literal["all"], list[int]] = "all"
+    particles: Union[Literal["all"], list[Whole]] = "all"
     velocity: Optional[Vector] = None
     angular_velocity: Optional[Vector] = None
 
 
 class StageSpec(_Strict):
     name: str = "run"
-    duration: float
+    duration: Number
     gravity: Optional[Vector] = None
     remove_walls: list[str] = []
     set_velocity: Optional[SetVelocitySpec] = None
 
 
 class SeriesSpec(_Strict):
-    interval: float = 1e-3
-    particles: list[int] = []
+    interval: Number = 1e-3
+    particles: list[Whole] = []
 
 
 class IntervalSpec(_Strict):
-    interval: float
+    interval: Number
 
 
 class OutputSpec(_Strict):
@@ -187,55 +225,185 @@ class OutputSpec(_Strict):
 
 class CaseSpec(_Strict):
     name: str = "case"
-    dt: Optional[float] = None
-    skin: Optional[float] = None
+    dt: Optional[Number] = None
+    skin: Optional[Number] = None
     check_timestep: bool = True
     gravity: Vector = (0.0, 0.0, -9.81)
     materials: list[MaterialSpec] = Field(min_length=1)
     pairs: list[PairSpec] = []
     contact: ContactSpec = ContactSpec()
     walls: list[WallSpec] = []
-    particles: list[Union[InsertSpec, ListSpec]] = Field(min_length=1)
+    particles: list[ParticleSpec] = Field(min_length=1)
     stages: list[StageSpec] = Field(min_length=1)
     output: OutputSpec = OutputSpec()
 
 
-def _format_validation_error(err: ValidationError, source: str) -> str:
-    lines = [f"case file {source} is not valid:"]
+_KIND_OF_INPUT = {
+    "float_type": "a number", "float_parsing": "a number", "finite_number": "a finite number",
+    "int_type": "a whole number", "int_parsing": "a whole number", "int_from_float": "a whole number",
+    "bool_type": "true or false", "bool_parsing": "true or false", "string_type": "a string",
+    "list_type": "a list", "tuple_type": "a list", "dict_type": "a mapping of keys",
+    "model_type": "a mapping of keys", "model_attributes_type": "a mapping of keys",
+}
+_NOT_A_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_TYPE_NAMES = {"float", "int", "str", "bool", "dict", "list", "tuple", "number"}
+
+
+def _key_path(loc) -> tuple:
+    """The case-file keys of a pydantic error location (union members and tags dropped)."""
+    keep = []
+    for p in loc:
+        if isinstance(p, int):
+            keep.append(p)
+        elif (_NOT_A_KEY.match(p) and p not in _TYPE_NAMES and not p.endswith("Spec")
+              and not (keep and p in ("insert", "list") and isinstance(keep[-1], int) and keep[:1] == ["particles"]
+                       and len(keep) == 2)):
+            keep.append(p)
+    return tuple(keep)
+
+
+def _spec_at(path) -> Optional[type]:
+    """The model class of the mapping at ``path`` (None where it cannot be told), to list its keys."""
+    from typing import get_args, get_origin
+
+    def model_of(tp, key_hint=None):
+        origin = get_origin(tp)
+        if isinstance(tp, type) and issubclass(tp, BaseModel):
+            return tp
+        if origin is Annotated:
+            return model_of(get_args(tp)[0], key_hint)
+        if origin in (Union, list, tuple, Optional) or (origin is not None and str(origin).endswith("UnionType")):
+            found = [m for m in (model_of(a, key_hint) for a in get_args(tp)) if m is not None]
+            if key_hint is not None:
+                found = [m for m in found if key_hint(m)] or found
+            return found[0] if len(found) == 1 else None
+        return None
+
+    spec, data_hint = CaseSpec, None
+    for part in path:
+        if isinstance(part, int):
+            continue
+        field = spec.model_fields.get(part) if spec is not None else None
+        if field is None:
+            return None
+        spec = model_of(field.annotation)
+    return spec
+
+
+def _describe_error(e: dict, data) -> tuple[tuple, str]:
+    """(key path, what is wrong) of one pydantic error, in the words of the house style."""
+    path = _key_path(e["loc"])
+    kind = e["type"]
+    ctx = e.get("ctx") or {}
+    if kind == "extra_forbidden":
+        parent = _spec_at(path[:-1])
+        allowed = f": allowed are {', '.join(parent.model_fields)}" if parent is not None else ""
+        return path, f"is not a known key (misspelled?){allowed}"
+    if kind == "missing":
+        return path, "is missing: it is required"
+    if kind in _KIND_OF_INPUT:
+        return path, f"must be {_KIND_OF_INPUT[kind]}"
+    if kind == "literal_error":
+        return path, f"must be {ctx.get('expected')}"
+    if kind == "union_tag_invalid":
+        key = str(ctx.get("discriminator", "")).strip("'")
+        return path + ((key,) if key and key != "<function>" else ()), f"must be one of {ctx.get('expected_tags')}"
+    if kind == "union_tag_not_found":
+        key = str(ctx.get("discriminator", "")).strip("'")
+        return path + (key,), "is missing: it is required"
+    if kind in ("too_short", "too_long"):
+        if ctx.get("field_type") == "Tuple":
+            return path, f"must be {ctx.get('max_length', ctx.get('min_length'))} numbers"
+        return path, (f"must have at least {ctx.get('min_length')} entries" if kind == "too_short"
+                      else f"must have at most {ctx.get('max_length')} entries")
+    if kind == "radius_kind":
+        return path, e["msg"]
+    return path, e["msg"].removeprefix("Value error, ")
+
+
+def _value_at(data, path):
+    for part in path:
+        try:
+            data = data[part]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return data
+
+
+def _format_validation_error(err: ValidationError, source: str, data=None) -> str:
+    """One line per key at fault (branches of a union that all failed are one line); a single
+    fault is one line with the file's name."""
+    problems: dict[tuple, list[str]] = {}
+    kinds: dict[tuple, str] = {}
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p.endswith("Spec")
-                                                       or p in ("function-after", "tagged-union")))
-        value = e.get("input")
-        if e["type"] == "extra_forbidden":
-            lines.append(f"  key {loc!r}: not a known key (misspelled?)")
-        elif e["type"] == "missing":
-            lines.append(f"  key {loc!r}: missing (required)")
-        else:
-            shown = json.dumps(value, default=str)
-            if len(shown) > 80:
-                shown = shown[:77] + "..."
-            lines.append(f"  key {loc!r} = {shown}: {e['msg']}")
-    return "\n".join(lines)
+        path, what = _describe_error(e, data)
+        if e["type"] == "missing" and len(e["loc"]) > 1 and isinstance(e["loc"][-1], int):
+            path, what = path[:-1], "must be three numbers"  # a vector with too few numbers
+        kinds.setdefault(path, e["type"])
+        if what not in problems.setdefault(path, []):
+            problems[path].append(what)
+    lines = []
+    for path, whats in problems.items():
+        key = ".".join(str(p) for p in path) or "(top level)"
+        if kinds[path] in ("missing", "extra_forbidden", "union_tag_not_found"):
+            lines.append(f"key {key!r} {whats[0]}")
+            continue
+        shown = json.dumps(_value_at(data, path), default=str)
+        if len(shown) > 80:
+            shown = shown[:77] + "..."
+        musts = [w.removeprefix("must be ") for w in whats if w.startswith("must be ")]
+        what = ("must be " + " or ".join(musts)) if len(musts) == len(whats) else "; ".join(whats)
+        lines.append(f"key {key!r} = {shown} is not allowed: {what}")
+    if len(lines) == 1:
+        return f"case file {source}: {lines[0]}"
+    return "\n".join([f"case file {source} is not valid ({len(lines)} problems):"] + [f"  {x}" for x in lines])
 
 
 def read_mapping(path_or_dict, what: str = "case file") -> tuple[dict, str]:
-    """(data, source name) of a YAML file, a TOML file (by extension) or a mapping."""
+    """(data, source name) of a YAML file, a TOML file (by extension) or a mapping.
+
+    A file that is missing, a folder, unreadable, not text, not YAML / TOML, empty or not a
+    mapping is a ParameterError of one line that names the file."""
     if isinstance(path_or_dict, dict):
         return path_or_dict, "<dict>"
     path = Path(path_or_dict)
     source = str(path)
     if not path.exists():
         raise ParameterError(f"{what} {source} does not exist")
-    text = path.read_text()
+    if path.is_dir():
+        raise ParameterError(f"{what} {source} is a folder: must be a YAML or TOML file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ParameterError(f"{what} {source} is not a text file: must be a YAML or TOML file") from None
+    except OSError as err:
+        raise ParameterError(f"{what} {source} cannot be read: {err.strerror or err}") from None
     if path.suffix.lower() == ".toml":
         import tomllib
 
-        data = tomllib.loads(text)
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as err:
+            raise ParameterError(f"{what} {source} is not valid TOML: {err}") from None
     else:
-        data = yaml.load(text, Loader=_YAMLLoader)
+        try:
+            data = yaml.load(text, Loader=_YAMLLoader)
+        except yaml.YAMLError as err:
+            raise ParameterError(f"{what} {source} is not valid YAML: {_yaml_problem(err)}") from None
+    if data is None:
+        raise ParameterError(f"{what} {source} is empty: must hold a mapping of keys")
     if not isinstance(data, dict):
         raise ParameterError(f"{what} {source} must hold a mapping of keys, got {type(data).__name__}")
     return data, source
+
+
+def _yaml_problem(err) -> str:
+    """A YAML parse error in one line: what and where (line, column as an editor counts them)."""
+    problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+    mark = getattr(err, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    context = getattr(err, "context", None)
+    return f"{problem}{where}" + (f" ({context})" if context else "")
 
 
 def load_case(path_or_dict) -> CaseSpec:
@@ -244,7 +412,7 @@ def load_case(path_or_dict) -> CaseSpec:
     try:
         return CaseSpec.model_validate(data)
     except ValidationError as err:
-        raise ParameterError(_format_validation_error(err, source)) from None
+        raise ParameterError(_format_validation_error(err, source, data)) from None
 
 
 def _radius(spec):
@@ -259,32 +427,139 @@ def _radius(spec):
     return Discrete(spec.values, spec.weights)
 
 
+#: How a case-file user turns a check off (the refusals name these keys, not Python arguments).
+CASE_HINTS = {"check_timestep": "set check_timestep: false in the case file",
+              "allow_overlap": "set allow_overlap: true in the particle block"}
+
+
 def build_simulation(case: CaseSpec):
     """The Simulation a case describes (materials, walls, particles), before any stage runs."""
     from . import ContactModel, Cylinder, Material, Plane, Simulation
     from .insertion import BoxRegion, CylinderRegion
 
-    contact = ContactModel(**case.contact.model_dump())
+    def where(key):
+        return _InCase(key)
+
+    with where("contact"):
+        contact = ContactModel(**case.contact.model_dump())
     sim = Simulation(contact=contact, gravity=case.gravity, dt=case.dt, skin=case.skin,
                      check_timestep=case.check_timestep)
-    for m in case.materials:
-        sim.add_material(Material(**m.model_dump()))
-    for p in case.pairs:
-        coeffs = {k: v for k, v in p.model_dump(exclude={"materials"}).items() if v is not None}
-        sim.set_pair(p.materials[0], p.materials[1], **coeffs)
-    for w in case.walls:
-        d = w.model_dump(exclude={"type"})
-        sim.add_wall(Plane(**d) if w.type == "plane" else Cylinder(**d))
-    for p in case.particles:
-        if isinstance(p, InsertSpec):
-            r = p.insert
-            region = (BoxRegion(r.lo, r.hi) if r.type == "box"
-                      else CylinderRegion(r.radius, r.z_min, r.z_max, center=r.center))
-            sim.insert(region, p.count, _radius(p.radius), p.material, seed=p.seed, velocity=p.velocity)
-        else:
-            sim.add_particles(p.positions, p.radius, p.material, velocity=p.velocity,
-                              angular_velocity=p.angular_velocity)
+    sim.hints.update(CASE_HINTS)
+    for k, m in enumerate(case.materials):
+        with where(f"materials.{k}"):
+            sim.add_material(Material(**m.model_dump()))
+    for k, p in enumerate(case.pairs):
+        with where(f"pairs.{k}"):
+            coeffs = {c: v for c, v in p.model_dump(exclude={"materials"}).items() if v is not None}
+            sim.set_pair(p.materials[0], p.materials[1], **coeffs)
+    names = [w.name for w in case.walls if w.name]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ParameterError(f"walls: name = {twice[0]!r} is not allowed: it names two walls; wall names must differ")
+    for k, w in enumerate(case.walls):
+        with where(f"walls.{k}"):
+            d = w.model_dump(exclude={"type"})
+            sim.add_wall(Plane(**d) if w.type == "plane" else Cylinder(**d))
+    for k, p in enumerate(case.particles):
+        with where(f"particles.{k}"):
+            if isinstance(p, InsertSpec):
+                r = p.insert
+                region = (BoxRegion(r.lo, r.hi) if r.type == "box"
+                          else CylinderRegion(r.radius, r.z_min, r.z_max, center=r.center))
+                sim.insert(region, p.count, _radius(p.radius), p.material, seed=p.seed, velocity=p.velocity)
+            else:
+                sim.add_particles(p.positions, p.radius, p.material, velocity=p.velocity,
+                                  angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap)
     return sim
+
+
+class _InCase:
+    """Prefix a ParameterError raised while a case block is built with the block's key."""
+
+    def __init__(self, key: str):
+        self.key = key
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, err, tb):
+        if kind is not None and issubclass(kind, ParameterError):
+            raise ParameterError(f"{self.key}: {err}") from None
+        return False
+
+
+def check_case(case: CaseSpec, sim=None):
+    """Everything ``run_case`` would refuse before its first step, refused now, without running or
+    writing anything: the scene (``build_simulation``), each stage (duration, gravity, walls it
+    removes, velocities it sets), the outputs, and dt against the stable limit at the start of
+    the first stage. ``rollingdem check`` and ``rollingdem run`` both call it; returns the
+    simulation (``sim`` if given, else a new one)."""
+    from .errors import check_non_negative, check_positive, check_vector
+
+    sim = build_simulation(case) if sim is None else sim
+    n = sim.n_particles
+    in_place = {w.name for w in sim.walls if w.name}
+    removed: set[str] = set()
+    first_velocities = None
+    for k, stage in enumerate(case.stages):
+        where = f"stage {stage.name!r}"
+        check_non_negative(f"{where}: duration", stage.duration, "s")
+        if stage.gravity is not None:
+            check_vector(f"{where}: gravity", stage.gravity)
+        for name in stage.remove_walls:
+            if name in removed:
+                raise ParameterError(f"{where}: remove_walls = {name!r} is not allowed: an earlier stage removed "
+                                     "that wall already")
+            if name not in in_place:
+                raise ParameterError(f"{where}: remove_walls = {name!r} is not allowed: no wall has that name; "
+                                     f"wall names are {', '.join(map(repr, sorted(in_place))) or 'none'}")
+            in_place.discard(name)
+            removed.add(name)
+        sv = stage.set_velocity
+        if sv is not None:
+            if sv.velocity is None and sv.angular_velocity is None:
+                raise ParameterError(f"{where}: set_velocity = {sv.model_dump(exclude_none=True)} is not allowed: "
+                                     "give velocity and/or angular_velocity")
+            for key in ("velocity", "angular_velocity"):
+                if getattr(sv, key) is not None:
+                    check_vector(f"{where}: set_velocity {key}", getattr(sv, key))
+            if sv.particles != "all":
+                bad = [i for i in sv.particles if not 0 <= i < n]
+                if bad:
+                    raise ParameterError(f"{where}: set_velocity particles = {bad[0]} is not allowed: must be in "
+                                         f"[0, {n - 1}] (the case has {n} particles)")
+            if k == 0:
+                first_velocities = sv
+    out = case.output
+    for key in ("time_series", "snapshots", "checkpoint"):
+        block = getattr(out, key)
+        if block is not None:
+            check_positive(f"output.{key}.interval", block.interval, "s")
+    if out.time_series is not None:
+        bad = [i for i in out.time_series.particles if not 0 <= i < n]
+        if bad:
+            raise ParameterError(f"output.time_series.particles = {bad[0]} is not allowed: must be in [0, {n - 1}] "
+                                 f"(the case has {n} particles)")
+    _check_first_time_step(sim, first_velocities)
+    return sim
+
+
+def _check_first_time_step(sim, sv) -> None:
+    """dt against the stable limit as the first stage's run will see it (after its set_velocity);
+    the velocities are put back afterwards."""
+    from .engine import I_FORCES_VALID
+
+    st = sim._state
+    saved = (st.v.copy(), st.w.copy(), int(st.info[I_FORCES_VALID]))
+    try:
+        if sv is not None:
+            idx = np.arange(sim.n_particles) if sv.particles == "all" else sv.particles
+            sim.set_velocities(idx, sv.velocity, sv.angular_velocity)
+        sim.check_time_step()
+    finally:
+        st.v[...] = saved[0]
+        st.w[...] = saved[1]
+        st.info[I_FORCES_VALID] = saved[2]
 
 
 def _fresh_directory(base: Path) -> Path:
@@ -299,17 +574,37 @@ def _fresh_directory(base: Path) -> Path:
     return candidate
 
 
-def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = True, echo=print) -> dict:
-    """Run every stage of a case, writing its outputs; returns a summary (also in summary.json)."""
-    from . import Checkpoints, TimeSeries, VTKSnapshots
-
+def _output_folder(case: CaseSpec, out) -> Path:
+    """The folder a run writes into: ``out`` as given, else a fresh one (the case's directory or
+    rollingdem-output/NAME, with a time stamp when that exists). Refused when it is a file."""
     base = Path(out or case.output.directory or Path("rollingdem-output") / case.name)
     outdir = _fresh_directory(base) if out is None else base
-    outdir.mkdir(parents=True, exist_ok=True)
-    (outdir / "case.yaml").write_text(yaml.safe_dump(json.loads(case.model_dump_json()), sort_keys=False))
-    echo(f"rollingdem: case {case.name!r}, writing to {outdir}")
+    for folder in (outdir, *outdir.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                key = "--out / out" if out is not None else "output.directory"
+                raise ParameterError(f"{key} = {str(outdir)!r} is not allowed: {folder} is a file; must be a folder")
+            break
+    return outdir
+
+
+def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = True, echo=print) -> dict:
+    """Run every stage of a case, writing its outputs; returns a summary (also in summary.json).
+
+    Everything ``check_case`` refuses is refused before the output folder is made: a refused case
+    leaves nothing behind. A run that fails later keeps what it wrote so far (summary.json says
+    why it stopped)."""
+    from . import Checkpoints, TimeSeries, VTKSnapshots
+
     tic = time.perf_counter()
-    sim = build_simulation(case)
+    sim = check_case(case)
+    outdir = _output_folder(case, out)
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        (outdir / "case.yaml").write_text(yaml.safe_dump(json.loads(case.model_dump_json()), sort_keys=False))
+    except OSError as err:
+        raise ParameterError(f"output folder {outdir} cannot be written: {err.strerror or err}") from None
+    echo(f"rollingdem: case {case.name!r}, writing to {outdir}")
     echo(f"  {sim.n_particles} particles, {len(sim.walls)} walls, dt = {sim.dt:.3g} s, contact {sim.contact!r}")
     observers = []
     if case.output.time_series is not None:
@@ -326,10 +621,7 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
         for stage in case.stages:
             if stage.gravity is not None:
                 sim.gravity = stage.gravity
-            for name in stage.remove_walls:
-                if name not in walls_by_name:
-                    raise ParameterError(f"stage {stage.name!r}: remove_walls = {name!r} is not a wall name: "
-                                         f"known are {', '.join(map(repr, walls_by_name)) or 'none'}")
+            for name in stage.remove_walls:  # check_case made sure each names a wall in place
                 sim.remove_wall(walls_by_name.pop(name))
             if stage.set_velocity is not None:
                 sv = stage.set_velocity
@@ -392,4 +684,4 @@ def default_case_path() -> Path:
     return Path(__file__).parent / "cases" / "default.yaml"
 
 
-__all__ = ["CaseSpec", "load_case", "build_simulation", "run_case", "plot_kinetic_energy", "default_case_path"]
+__all__ = ["CaseSpec", "load_case", "build_simulation", "check_case", "run_case", "plot_kinetic_energy", "default_case_path"]

@@ -13,6 +13,12 @@ app = typer.Typer(add_completion=False, no_args_is_help=False,
                   help="rollingdem: DEM simulation of spheres, built around rolling resistance.")
 
 
+def _refuse(err) -> None:
+    """A user's mistake: one message on stderr (``error: ...``), exit status 2, no traceback."""
+    typer.echo(f"error: {err}", err=True)
+    raise typer.Exit(2)
+
+
 def _version(value: bool):
     if value:
         from . import __version__
@@ -205,11 +211,11 @@ def check(case: Path = typer.Argument(..., help="Case file to validate.")):
 
     try:
         spec = casefile.load_case(case)
-        sim = casefile.build_simulation(spec)
-        typer.echo(f"{case}: valid; {sim.n_particles} particles, dt = {sim.dt:.3g} s")
+        sim = casefile.check_case(spec)  # what run refuses before its first step, refused here
     except ParameterError as err:
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(2)
+        _refuse(err)
+    typer.echo(f"{case}: valid; {sim.n_particles} particles, {len(sim.walls)} walls, {len(spec.stages)} stages, "
+               f"dt = {sim.dt:.3g} s")
 
 
 def main():

@@ -13,7 +13,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from .errors import ParameterError, check_positive
+from .errors import ParameterError, check_integer, check_positive
 
 
 class Observer:
@@ -23,6 +23,9 @@ class Observer:
         self.interval = check_positive("observer interval", interval, "s")
         self._every = None
         self._next = None
+
+    def check(self, sim) -> None:
+        """Refuse what ``start`` would refuse for ``sim``, without writing anything (default: nothing)."""
 
     def start(self, sim) -> None:
         self._every = max(1, int(round(self.interval / sim.dt)))
@@ -58,7 +61,10 @@ class TimeSeries(Observer):
     def __init__(self, path, interval: float, particles=()):
         super().__init__(interval)
         self.path = Path(path)
-        self.particles = [int(p) for p in particles]
+        if isinstance(particles, (str, bytes)) or not hasattr(particles, "__iter__"):
+            raise ParameterError(f"time series particles = {particles!r} is not allowed: must be a list of particle "
+                                 "indices")
+        self.particles = [check_integer("time series particle", p, low=0) for p in particles]
         self._file = None
         self._writer = None
 
@@ -70,12 +76,15 @@ class TimeSeries(Observer):
                 cols.append(f"p{p}_{q}")
         return cols
 
-    def start(self, sim):
-        super().start(sim)
-        sim.track_energy = True  # the dissipated-energy columns
+    def check(self, sim):
         for p in self.particles:
             if not 0 <= p < sim.n_particles:
                 raise ParameterError(f"time series particle = {p} is not allowed: must be in [0, {sim.n_particles - 1}]")
+
+    def start(self, sim):
+        self.check(sim)
+        super().start(sim)
+        sim.track_energy = True  # the dissipated-energy columns
         self.path.parent.mkdir(parents=True, exist_ok=True)
         exists = self.path.exists() and self.path.stat().st_size > 0
         self._file = open(self.path, "a", newline="")
@@ -195,6 +204,8 @@ class Callback(Observer):
 
     def __init__(self, function, interval: float):
         super().__init__(interval)
+        if not callable(function):
+            raise ParameterError(f"callback function = {function!r} is not allowed: must be callable, function(sim)")
         self.function = function
 
     def observe(self, sim):

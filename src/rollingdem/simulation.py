@@ -12,13 +12,14 @@ from __future__ import annotations
 import json
 import math
 import time as _time
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from .contact.model import ContactModel
 from .engine import ENERGY_CHANNELS, I_FORCES_VALID, EngineState
-from .errors import ParameterError, SimulationError, check_finite, check_positive, check_vector
+from .errors import ParameterError, SimulationError, check_finite, check_integer, check_positive, check_vector
 from .materials import Material, MaterialTable
 from .timestep import (HERTZ_FRACTION, RAYLEIGH_FRACTION, SPRING_FRACTION, hertz_contact_time,
                        rayleigh_time_step, spring_period)
@@ -61,6 +62,9 @@ class Simulation:
         self.step = 0
         self.time = 0.0
         self._pair_params = None
+        # how a user turns a check off, as the refusal tells it; a case file names its own keys
+        self.hints = {"check_timestep": "pass check_timestep=False to the Simulation",
+                      "allow_overlap": "pass allow_overlap=True"}
 
     # --- scene ---------------------------------------------------------------------------------
     @property
@@ -109,15 +113,20 @@ class Simulation:
 
         Spheres that overlap each other or a wall are refused unless ``allow_overlap``.
         """
-        x = np.array(positions, dtype=np.float64, ndmin=2)
+        try:
+            x = np.array(positions, dtype=np.float64, ndmin=2)
+        except (TypeError, ValueError):
+            raise ParameterError(f"positions = {_short(positions)} is not allowed: must be N points of three "
+                                 "numbers (m)") from None
         if x.ndim != 2 or x.shape[1] != 3:
-            raise ParameterError(f"positions with shape {np.shape(positions)} are not allowed: need (N, 3)")
+            raise ParameterError(f"positions with shape {x.shape} are not allowed: must be N points of three "
+                                 "numbers, shape (N, 3)")
         m = x.shape[0]
         bad = ~np.isfinite(x).all(axis=1)
         if bad.any():
             k = int(np.nonzero(bad)[0][0])
             raise ParameterError(f"position of particle {k} = {x[k].tolist()} is not allowed: must be finite")
-        r = np.broadcast_to(np.asarray(radius, dtype=np.float64), (m,)).copy()
+        r = self._radii(radius, m)
         badr = ~(np.isfinite(r) & (r > 0))
         if badr.any():
             k = int(np.nonzero(badr)[0][0])
@@ -127,6 +136,9 @@ class Simulation:
         mat_idx = (self.materials.index(material) if not isinstance(material, (list, tuple, np.ndarray))
                    else None)
         if mat_idx is None:
+            if len(material) != m:
+                raise ParameterError(f"material with {len(material)} entries is not allowed for {m} positions: "
+                                     "must be one material or one per sphere")
             mats = np.array([self.materials.index(mm) for mm in material], dtype=np.int32)
         else:
             mats = np.full(m, mat_idx, dtype=np.int32)
@@ -140,12 +152,35 @@ class Simulation:
         return np.arange(first, first + m)
 
     @staticmethod
+    def _radii(radius, m):
+        """One radius per sphere from a number or a sequence of m numbers."""
+        try:
+            r = np.asarray(radius, dtype=np.float64)
+        except (TypeError, ValueError):
+            r = None
+        if r is None or isinstance(radius, (str, bool)) or r.ndim > 1:
+            raise ParameterError(f"radius = {_short(radius)} is not allowed: must be a number or one number per "
+                                 "sphere (m)")
+        if r.ndim == 1 and r.shape[0] != m:
+            raise ParameterError(f"radius with {r.shape[0]} values is not allowed for {m} positions: must be one "
+                                 f"radius or one per sphere ({m})")
+        return np.broadcast_to(r, (m,)).copy()
+
+    @staticmethod
     def _vectors(name, value, m):
+        """(m, 3) vectors from one 3-vector or m of them."""
         if value is None:
             return np.zeros((m, 3))
-        arr = np.broadcast_to(np.asarray(value, dtype=np.float64), (m, 3)).copy()
+        try:
+            arr = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            arr = None
+        if arr is None or isinstance(value, str) or not (arr.shape == (3,) or arr.shape == (m, 3)):
+            raise ParameterError(f"{name} = {_short(value)} is not allowed: must be three numbers, or three "
+                                 f"for each of the {m} spheres")
+        arr = np.broadcast_to(arr, (m, 3)).copy()
         if not np.isfinite(arr).all():
-            raise ParameterError(f"{name} contains a non-finite value: must be finite")
+            raise ParameterError(f"{name} = {_short(value)} is not allowed: components must be finite")
         return arr
 
     def _check_no_overlap(self, x, r, tolerance=1e-12):
@@ -169,7 +204,7 @@ class Simulation:
                 j = int(self._state.ids[j]) if j < first else j  # as the user numbers them
                 g = float(gap[np.argmax(bad)])
                 raise ParameterError(f"particles {min(i, j)} and {max(i, j)} overlap by {-g:.3g} m at insertion: "
-                                     "positions must not overlap (pass allow_overlap=True to accept it)")
+                                     f"positions must not overlap ({self.hints['allow_overlap']} to accept it)")
         for wl in self._walls:
             if wl.kind == INACTIVE:
                 continue
@@ -177,7 +212,7 @@ class Simulation:
             k = int(np.argmax(ov)) if len(ov) else 0
             if len(ov) and ov[k] > tolerance * r[k]:
                 raise ParameterError(f"particle {first + k} overlaps wall {self._wall_label(wl)} by {ov[k]:.3g} m "
-                                     "at insertion (pass allow_overlap=True to accept it)")
+                                     f"at insertion ({self.hints['allow_overlap']} to accept it)")
 
     def insert(self, region, count: int, radius, material, seed: int = 0, velocity=None,
                max_attempts: int = 200) -> np.ndarray:
@@ -206,8 +241,11 @@ class Simulation:
         return [w for w in self._walls if w.kind != INACTIVE]
 
     def add_wall(self, wall: Wall) -> Wall:
-        if not isinstance(wall, Wall):
+        if not isinstance(wall, Wall) or isinstance(wall, _Removed):
             raise ParameterError(f"wall = {wall!r} is not allowed: must be a rollingdem.Plane or Cylinder")
+        if any(w is wall for w in self._walls):
+            raise ParameterError(f"wall = {self._wall_label(wall)} is not allowed: it is part of this simulation "
+                                 "already")
         if wall.material is None:
             if not len(self.materials):
                 raise ParameterError("wall material = None is not allowed: add a material first or name one")
@@ -219,10 +257,16 @@ class Simulation:
 
     def remove_wall(self, wall: Wall) -> None:
         """Remove a wall; its contact history is dropped."""
-        if wall not in self._walls:
-            raise ParameterError(f"wall {wall!r} is not part of this simulation")
-        slot = self._walls.index(wall)
-        self._walls[slot] = _Removed()
+        if not isinstance(wall, Wall):
+            raise ParameterError(f"wall = {wall!r} is not allowed: must be a rollingdem.Plane or Cylinder of "
+                                 "this simulation")
+        slot = next((k for k, w in enumerate(self._walls) if w is wall), None)
+        if slot is None:
+            removed = any(isinstance(w, _Removed) and w.wall is wall for w in self._walls)
+            raise ParameterError(f"wall = {self._wall_label(wall)} is not allowed: "
+                                 + ("it was removed already" if removed else
+                                    "it is not part of this simulation (add it with add_wall)"))
+        self._walls[slot] = _Removed(wall)
         self._sync_walls()
 
     def set_wall_velocity(self, wall: Wall, velocity=None, angular_velocity=None) -> None:
@@ -234,7 +278,11 @@ class Simulation:
         self._sync_walls()
 
     def _wall_label(self, wall):
-        return repr(wall.name) if wall.name else f"#{self._walls.index(wall)} ({type(wall).__name__.lower()})"
+        if wall.name:
+            return repr(wall.name)
+        slot = next((k for k, w in enumerate(self._walls) if w is wall or getattr(w, "wall", None) is wall), None)
+        kind = type(wall).__name__.lower()
+        return f"#{slot} ({kind})" if slot is not None else f"({kind}, unnamed)"
 
     def _sync_walls(self):
         """Give the engine the walls in place. A removed wall keeps its place in ``_walls`` (labels
@@ -287,12 +335,26 @@ class Simulation:
 
     def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
         """Set translational (m/s) and/or angular (rad/s) velocities of some particles."""
-        idx = self._state.slots(np.atleast_1d(np.asarray(indices, dtype=np.int64)))
+        idx = self._state.slots(self._indices(indices))
         if velocity is not None:
             self._state.v[idx] = self._vectors("velocity", velocity, len(idx))
         if angular_velocity is not None:
             self._state.w[idx] = self._vectors("angular_velocity", angular_velocity, len(idx))
         self._state.info[I_FORCES_VALID] = 0
+
+    def _indices(self, indices, name="indices") -> np.ndarray:
+        """Particle indices as int64, each in [0, n_particles)."""
+        arr = np.atleast_1d(np.asarray(indices, dtype=object if isinstance(indices, str) else None))
+        if arr.size and (arr.dtype.kind not in "iu" or arr.ndim != 1):
+            raise ParameterError(f"{name} = {_short(indices)} is not allowed: must be particle indices (whole "
+                                 f"numbers in [0, {self.n_particles - 1}])")
+        arr = arr.astype(np.int64)
+        bad = (arr < 0) | (arr >= self.n_particles)
+        if bad.any():
+            k = int(arr[np.argmax(bad)])
+            allowed = f"must be in [0, {self.n_particles - 1}]" if self.n_particles else "there are no particles"
+            raise ParameterError(f"{name} = {_short(indices)} is not allowed: particle {k} does not exist; {allowed}")
+        return arr
 
     def kinetic_energy(self) -> tuple[float, float]:
         """(translational, rotational) kinetic energy (J)."""
@@ -383,14 +445,18 @@ class Simulation:
             raise ParameterError("dt cannot be chosen automatically before particles are added: give dt")
         return min(v for _, v in limits)
 
+    def check_time_step(self) -> None:
+        """Refuse a dt above a stable limit (unless ``check_timestep`` is off), as ``run`` does."""
+        self._check_dt()
+
     def _check_dt(self):
         if not self.check_timestep:
             return
         for label, limit in self.time_step_limits():
             if self.dt > limit * (1 + 1e-12):
-                raise ParameterError(f"dt = {self.dt:.4g} s exceeds the stable limit {limit:.4g} s "
-                                     f"({label}): choose dt <= {limit:.4g} s, or pass check_timestep=False "
-                                     "to the Simulation to run anyway")
+                raise ParameterError(f"dt = {self.dt:.4g} s is not allowed: it exceeds the stable limit {limit:.4g} s "
+                                     f"({label}); choose dt <= {limit:.4g} s, or {self.hints['check_timestep']} "
+                                     "to run anyway")
 
     # --- running -------------------------------------------------------------------------------
     def pair_parameters(self) -> np.ndarray:
@@ -407,18 +473,22 @@ class Simulation:
         observers have written what they had.
         """
         if (duration is None) == (steps is None):
-            raise ParameterError("give exactly one of duration (s) and steps")
+            raise ParameterError(f"duration = {duration!r}, steps = {steps!r} is not allowed: give exactly one of "
+                                 "duration (s) and steps")
         if steps is None:
             duration = check_finite("duration", duration)
             if duration < 0:
                 raise ParameterError(f"duration = {duration:g} is not allowed: must be >= 0 (s)")
             steps = int(round(duration / self.dt))
-        elif int(steps) < 0:
-            raise ParameterError(f"steps = {steps} is not allowed: must be >= 0")
-        steps = int(steps)
+        else:
+            steps = check_integer("steps", steps, low=0)
+        observers = self._observers(observers)
+        if not isinstance(label, str):
+            raise ParameterError(f"label = {label!r} is not allowed: must be a string")
         self._check_finite_state()  # first: a non-finite state would make the dt check's message a riddle
         self._check_dt()
-        observers = list(observers)
+        for ob in observers:
+            ob.check(self)  # all refusals before any observer writes
         bar = _Progress(self, steps, label) if progress else None
         end = self.step + steps
         for ob in observers:
@@ -457,6 +527,23 @@ class Simulation:
                 ob.finish(self, failure)
             if bar:
                 bar.close()
+
+    @staticmethod
+    def _observers(observers) -> list:
+        """The observers of a run: one observer or a sequence of them."""
+        from .observers import Observer
+
+        if isinstance(observers, Observer):
+            return [observers]
+        try:
+            observers = list(observers)
+        except TypeError:
+            observers = [observers]
+        for k, ob in enumerate(observers):
+            if not isinstance(ob, Observer):
+                raise ParameterError(f"observers[{k}] = {ob!r} is not allowed: must be a rollingdem observer "
+                                     "(TimeSeries, VTKSnapshots, Checkpoints, Callback)")
+        return observers
 
     def _check_finite_state(self):
         st = self._state
@@ -500,16 +587,34 @@ class Simulation:
 
     @classmethod
     def restore(cls, path) -> "Simulation":
-        with np.load(Path(path), allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
-            arrays = {k: data[k] for k in data.files if k != "meta"}
+        """The simulation a checkpoint (``Simulation.checkpoint``, ``Checkpoints``, a run's
+        ``final.npz``) holds."""
+        path = Path(path)
+        what = "must be a checkpoint .npz file written by Simulation.checkpoint"
+        if not path.exists():
+            raise ParameterError(f"checkpoint = {str(path)!r} is not allowed: it does not exist; {what}")
+        if path.is_dir():
+            raise ParameterError(f"checkpoint = {str(path)!r} is not allowed: it is a folder; {what}")
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                if not hasattr(data, "files") or "meta" not in data.files:
+                    raise ValueError("no meta")
+                meta = json.loads(str(data["meta"]))
+                arrays = {k: data[k] for k in data.files if k != "meta"}
+            for key in ("contact", "materials", "gravity", "dt", "walls", "step", "time"):
+                meta[key]
+        except OSError as err:
+            raise ParameterError(f"checkpoint = {str(path)!r} cannot be read ({err.strerror or err}); {what}") from None
+        except (ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):  # not an .npz, or not rollingdem's
+            raise ParameterError(f"checkpoint = {str(path)!r} is not allowed: it is not a rollingdem checkpoint; "
+                                 f"{what}") from None
         contact = ContactModel.from_dict(meta["contact"])
         sim = cls(contact=contact, gravity=meta["gravity"], dt=meta["dt"], skin=meta["skin"],
                   check_timestep=meta["check_timestep"], track_energy=meta.get("track_energy", True))
         sim.materials = MaterialTable.from_dict(meta["materials"])
         for wd in meta["walls"]:
             if wd is None:
-                sim._walls.append(_Removed())
+                sim._walls.append(_Removed(None))
             else:
                 wd = dict(wd)
                 mat = wd.pop("material")
@@ -534,10 +639,22 @@ class Simulation:
 
 
 class _Removed(Wall):
+    """The place of a removed wall in ``Simulation._walls``; ``wall`` is the wall that was there."""
+
     kind = INACTIVE
 
-    def __init__(self):
+    def __init__(self, wall=None):
         super().__init__(None)
+        self.wall = wall
+
+    def __repr__(self):
+        return f"<removed wall {self.wall!r}>"
+
+
+def _short(value, width: int = 60) -> str:
+    """repr of a user's value, cut to ``width`` characters."""
+    text = repr(value)
+    return text if len(text) <= width else text[:width - 3] + "..."
 
 
 class _Progress:

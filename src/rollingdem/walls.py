@@ -37,6 +37,15 @@ class Wall:
     def describe(self) -> dict:
         raise NotImplementedError
 
+    def __repr__(self):
+        try:
+            d = self.describe()
+        except NotImplementedError:
+            return f"{type(self).__name__}(name={self.name!r})"
+        d.pop("type", None)
+        args = {"name": d.pop("name", None), "material": self.material, **d}
+        return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in args.items())})"
+
 
 class Plane(Wall):
     """Infinite plane through ``point`` with unit ``normal`` pointing to the particles' side.

@@ -253,19 +253,19 @@ def c_ratio(eta, k_r):
 
 SPRING_CASES = {
     # model, k_r by hand, C_r by hand
-    "epsd, eta 0": (rd.EPSD(damping_ratio=0.0), 2.25 * KN * MU_R ** 2 * R_EFF ** 2, 0.0),
-    "epsd, pair eta": (rd.EPSD(), 2.25 * KN * MU_R ** 2 * R_EFF ** 2,
+    "epsd-eta0": (rd.EPSD(damping_ratio=0.0), 2.25 * KN * MU_R ** 2 * R_EFF ** 2, 0.0),
+    "epsd-pair-eta": (rd.EPSD(), 2.25 * KN * MU_R ** 2 * R_EFF ** 2,
                        c_ratio(ETA_R, 2.25 * KN * MU_R ** 2 * R_EFF ** 2)),
-    "epsd, own eta": (rd.EPSD(damping_ratio=0.45), 2.25 * KN * MU_R ** 2 * R_EFF ** 2,
+    "epsd-own-eta": (rd.EPSD(damping_ratio=0.45), 2.25 * KN * MU_R ** 2 * R_EFF ** 2,
                       c_ratio(0.45, 2.25 * KN * MU_R ** 2 * R_EFF ** 2)),
     "epsd2": (rd.EPSD2(), KT * R_EFF ** 2, 0.0),
-    "epsd3, eta 0": (rd.EPSD3(stiffness_coefficient=1.7, damping_ratio=0.0), 1.7 * KN * MU_R ** 2 * R_EFF ** 2, 0.0),
-    "epsd3, pair eta": (rd.EPSD3(stiffness_coefficient=1.7), 1.7 * KN * MU_R ** 2 * R_EFF ** 2,
+    "epsd3-eta0": (rd.EPSD3(stiffness_coefficient=1.7, damping_ratio=0.0), 1.7 * KN * MU_R ** 2 * R_EFF ** 2, 0.0),
+    "epsd3-pair-eta": (rd.EPSD3(stiffness_coefficient=1.7), 1.7 * KN * MU_R ** 2 * R_EFF ** 2,
                         c_ratio(ETA_R, 1.7 * KN * MU_R ** 2 * R_EFF ** 2)),
     "rrlinear": (rd.RRLinear(), KT * R_EFF ** 2, 0.0),
-    "sds, gamma 0": (rd.SDS(rolling_stiffness=3e3), 3e3 * R_EFF ** 2, 0.0),
+    "sds-gamma0": (rd.SDS(rolling_stiffness=3e3), 3e3 * R_EFF ** 2, 0.0),
     "sds": (rd.SDS(rolling_stiffness=3e3, rolling_damping=0.05), 3e3 * R_EFF ** 2, 0.05 * R_EFF ** 2),
-    "displacement_damping, nu 0": (rd.DisplacementDamping(theta_max=0.035), MU_R * R_EFF * F_EL / 0.035, 0.0),
+    "displacement_damping-nu0": (rd.DisplacementDamping(theta_max=0.035), MU_R * R_EFF * F_EL / 0.035, 0.0),
     "displacement_damping": (rd.DisplacementDamping(theta_max=0.035, damping=0.3), MU_R * R_EFF * F_EL / 0.035,
                              c_ratio(0.3, MU_R * R_EFF * F_EL / 0.035)),
 }
@@ -311,7 +311,7 @@ def test_epsd_elastic_cycle_dissipates_only_the_step_residual():
     assert total == pytest.approx(2 / steps * peak, rel=1e-10)
 
 
-@pytest.mark.parametrize("case", ["epsd, pair eta", "epsd, eta 0", "sds", "displacement_damping"])
+@pytest.mark.parametrize("case", ["epsd-pair-eta", "epsd-eta0", "sds", "displacement_damping"])
 def test_spring_rolling_at_the_cap(case):
     """A contact slipping at the cap (recommended: total moment capped at M_m = mu_r R* max(F_el, 0),
     damper kept with f = 1): with the spring at M_m - C_r w (where the last slipping step left it)

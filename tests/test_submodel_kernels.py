@@ -153,14 +153,17 @@ def tangential(hist, v, normal_force, gamma_t=GAMMA_T, n=Z, n_old=None, spin=0.0
 def test_history_spring_spring_and_dashpot():
     """One step from zero history (MODELS.md §1.2): xi = v_t dt and F = -k_t xi - gamma_t v_t, below
     mu F_n. Without the dashpot F = -k_t v_t dt. Catches: a wrong sign or factor of the spring or
-    the dashpot (e.g. the dashpot halved), a history not accumulated."""
+    the dashpot (e.g. the dashpot halved), a history not accumulated, a dissipation that counts
+    the stored spring energy as lost."""
     v = np.array([0.3, -0.2, 0.0])
     for gamma_t in (0.0, GAMMA_T):
         hist = np.zeros((1, 3))
-        f, _ = tangential(hist, v, 1.0, gamma_t=gamma_t)
+        f, dissipated = tangential(hist, v, 1.0, gamma_t=gamma_t)
         # |F| = 0.025 N << mu F_n = 0.6 N: elastic
         np.testing.assert_allclose(f, -KT_T * v * DT - gamma_t * v, rtol=RT, atol=0)
         np.testing.assert_allclose(hist[0], v * DT, rtol=RT, atol=0)
+        # the dashpot's gamma_t |v|^2 dt, plus the elastic step's residual 1/2 k_t |v|^2 dt^2 (docstring)
+        assert dissipated == pytest.approx(gamma_t * (v @ v) * DT + 0.5 * KT_T * (v @ v) * DT ** 2, rel=RT)
     # a second step adds to the history
     f, _ = tangential(hist, v, 1.0)
     np.testing.assert_allclose(f, -KT_T * 2 * v * DT - GAMMA_T * v, rtol=RT, atol=0)

@@ -34,6 +34,10 @@ def history_spring(hist, k, off, nx, ny, nz, frame, vtx, vty, vtz,
     spring and dashpot, never exceeds the Coulomb limit).
     The spring is carried with the contact frame (rotated, not just projected: MODELS.md §11.3).
     The limit uses max(F_n, 0), never |F_n|: a contact pulled by its dashpot cannot grip (§11.4).
+    Dissipation: the work of F_t over the step, -F_t . v_t dt, minus the increase of the spring
+    energy 1/2 k_t |xi|^2. The work is taken with the end-of-step force, so a purely elastic step
+    leaves a residual 1/2 k_t |v_t|^2 dt^2 (>= 0, vanishing as dt^2); the dashpot adds gamma_t |v_t|^2 dt;
+    steady sliding at the limit dissipates mu max(F_n, 0) |v_t| dt, the friction work.
     """
     carry_with_frame(hist, k, off, frame)
     x0 = hist[k, off]

@@ -337,9 +337,10 @@ def _format_validation_error(err: ValidationError, source: str, data=None) -> st
     kinds: dict[tuple, str] = {}
     for e in err.errors():
         path, what = _describe_error(e, data)
-        if e["type"] == "missing" and len(e["loc"]) > 1 and isinstance(e["loc"][-1], int):
-            path, what = path[:-1], "must be three numbers"  # a vector with too few numbers
-        kinds.setdefault(path, e["type"])
+        kind = e["type"]
+        if kind == "missing" and len(e["loc"]) > 1 and isinstance(e["loc"][-1], int):
+            path, what, kind = path[:-1], "must be three numbers", "too_short"  # a vector with too few numbers
+        kinds.setdefault(path, kind)
         if what not in problems.setdefault(path, []):
             problems[path].append(what)
     lines = []
@@ -582,7 +583,7 @@ def _output_folder(case: CaseSpec, out) -> Path:
     for folder in (outdir, *outdir.parents):
         if folder.exists():
             if not folder.is_dir():
-                key = "--out / out" if out is not None else "output.directory"
+                key = "output folder" if out is not None else "output.directory"
                 raise ParameterError(f"{key} = {str(outdir)!r} is not allowed: {folder} is a file; must be a folder")
             break
     return outdir

@@ -19,6 +19,34 @@ def _refuse(err) -> None:
     raise typer.Exit(2)
 
 
+def _check_out(path, option: str = "--out", folder: bool = True) -> None:
+    """Refuse, before anything runs, an output path the command could not write: one that is (or
+    lies under) a file, or a folder where a file is wanted, or under a folder without write permission."""
+    if path is None:
+        return
+    import os
+
+    path = Path(path)
+    if path.exists():
+        if folder and not path.is_dir():
+            _refuse(f"{option} = {str(path)!r} is not allowed: it is a file; must be a folder")
+        if not folder and path.is_dir():
+            _refuse(f"{option} = {str(path)!r} is not allowed: it is a folder; must be a file name")
+    for above in (path, *path.absolute().parents):
+        if above.exists():
+            if not above.is_dir():
+                _refuse(f"{option} = {str(path)!r} is not allowed: {above} is a file; must be a folder")
+            if not os.access(above, os.W_OK | os.X_OK):
+                _refuse(f"{option} = {str(path)!r} is not allowed: {above} is not writable")
+            return
+
+
+def _check_in_file(path, option: str) -> None:
+    """Refuse an input file that is a folder (a missing one is refused by the command itself)."""
+    if path is not None and Path(path).is_dir():
+        _refuse(f"{option} = {str(path)!r} is not allowed: it is a folder; must be a file")
+
+
 def _version(value: bool):
     if value:
         from . import __version__
@@ -44,12 +72,12 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
     from . import casefile
 
     _set_threads(threads)
+    _check_out(out)
     try:
         spec = casefile.load_case(case if case is not None else casefile.default_case_path())
         casefile.run_case(spec, out=out, progress=progress, echo=typer.echo)
     except ParameterError as err:
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(2)
+        _refuse(err)
     except SimulationError as err:
         typer.echo(f"error: the run failed: {err}\n(outputs written so far are kept)", err=True)
         raise typer.Exit(1)
@@ -61,9 +89,7 @@ def _set_threads(threads):
     import numba
 
     if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-        typer.echo(f"error: --threads = {threads} is not allowed: must be in [1, {numba.config.NUMBA_NUM_THREADS}]",
-                   err=True)
-        raise typer.Exit(2)
+        _refuse(f"--threads = {threads} is not allowed: must be in [1, {numba.config.NUMBA_NUM_THREADS}]")
     from .threads import fix_threads
 
     fix_threads(threads)  # what the user asked for, whatever the machine's load
@@ -74,8 +100,10 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
              case: Optional[list[str]] = typer.Option(None, "--case", "-c", help="Run only this case (repeatable): "
                                                       "inclined-wall, rolling-flat, rolling-slope, angle-of-repose, "
                                                       "repose-sweep."),
-             model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Only this rolling model in the "
-                                                       "single-sphere cases (repeatable), e.g. epsd, 'cdt (liggghts)'."),
+             model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Only this model (repeatable), "
+                                                       "e.g. epsd, 'cdt (liggghts)': each case runs those of its models "
+                                                       "named; repose-sweep sweeps one. A case that runs none of them "
+                                                       "is left out (refused if named with --case)."),
              quick: bool = typer.Option(False, "--quick", help="Reduced sizes (under 15 minutes on 2 cores)."),
              workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Simulations side by side, one "
                                                    "thread each (default: one per core; 1: one after the other here)."),
@@ -87,12 +115,12 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
     Exit status 1 when any check fails its tolerance."""
     from .validate import run_validation
 
+    _check_out(out)
     try:
         results = run_validation(out, cases=case, quick=quick, progress=progress, models=model, workers=workers,
-                                 scheduler=scheduler)
+                                 scheduler=scheduler, echo=typer.echo)
     except ParameterError as err:
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(2)
+        _refuse(err)
     for r in results:
         failed = [c for c in r.checks if not c.passed]
         typer.echo(f"{r.name:16s} {'pass' if r.passed else 'FAIL'}  {len(r.checks) - len(failed)}/{len(r.checks)} "
@@ -128,14 +156,18 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
     from . import bench as bench_mod
 
     _set_threads(threads)
+    _check_in_file(from_dump, "--from-dump")
+    _check_out(json_out, "--json", folder=False)
     try:
         results = bench_mod.run_bench(scenes=scene or ["column-collapse"], particles=particles, steps=steps,
                                       threads=threads, from_dump=from_dump, models=model, echo=typer.echo)
     except ParameterError as err:
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(2)
+        _refuse(err)
     if json_out is not None:
-        typer.echo(f"json: {bench_mod.write_json(results, json_out)}")
+        try:
+            typer.echo(f"json: {bench_mod.write_json(results, json_out)}")
+        except OSError as err:  # checked above; the file system may still say no
+            _refuse(f"--json = {str(json_out)!r} cannot be written: {err.strerror or err} (the results are above)")
 
 
 @app.command()
@@ -155,12 +187,13 @@ def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML)
     Exit status 1 when any run failed (its error is in runs.csv; the others still ran)."""
     from .sweep import run_sweep
 
+    _check_in_file(sweep_file, "sweep file")
+    _check_out(out)
     try:
         result = run_sweep(sweep_file, out, workers=workers, scheduler=scheduler, threads=threads, progress=progress,
                            retry_failed=retry_failed, echo=typer.echo)
     except ParameterError as err:
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(2)
+        _refuse(err)
     for f in result.figures:
         typer.echo(f"figure: {f}")
     failed = result.table[result.table["status"] == "failed"]
@@ -193,13 +226,13 @@ def calibrate(case: str = typer.Option(..., "--case", "-c", help="rolling-flat, 
     """Find the free parameter whose simulated observable matches a measured target, with a 95 % interval."""
     from .calibration import calibrate as run_calibration, parse_assignments, parse_free
 
+    _check_out(out)
     try:
         result = run_calibration(case, target, uncertainty, fix=parse_assignments(fix, "fix"), free=parse_free(free),
                                  observable=observable, seeds=seeds, coarse=coarse, refine=refine, rounds=rounds,
                                  out=out, workers=workers, scheduler=scheduler, progress=progress, echo=typer.echo)
     except ParameterError as err:
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(2)
+        _refuse(err)
     typer.echo(f"figure: {result.figures[0]}")
     typer.echo(f"result: {Path(out) / 'calibration.json'}")
 

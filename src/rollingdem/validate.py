@@ -36,27 +36,93 @@ def available_cases() -> dict:
     return cases
 
 
+def case_models() -> dict[str, tuple[str, list[str]]]:
+    """Case name -> (its keyword, the model names it takes) for the cases that take ``--model``:
+    the single-sphere cases take a list (``models``) of the validation labels, angle-of-repose a
+    list of its pile models, repose-sweep one rolling model (``model``)."""
+    from .cases.single_sphere import validation_models
+    from .contact import ROLLING_MODELS
+
+    labels = list(validation_models())
+    table = {name: ("models", labels) for name in ("inclined-wall", "rolling-flat", "rolling-slope")}
+    try:
+        from .cases.repose import REPOSE_MODELS
+    except ImportError:  # the pile cases need rollingdem.analysis
+        return table
+    table["angle-of-repose"] = ("models", list(REPOSE_MODELS))
+    table["repose-sweep"] = ("model", sorted(ROLLING_MODELS) + [m for m in labels if m not in ROLLING_MODELS])
+    return table
+
+
+def _model_arguments(names, models, explicit, echo) -> tuple[list[str], dict[str, dict]]:
+    """(the cases to run, case -> its model keyword argument) for ``--model`` = ``models``.
+
+    A model no chosen case knows is refused; a case that runs none of the models asked for (or,
+    for repose-sweep, which sweeps one model, more than one) is refused when the user named it
+    (``explicit``) and otherwise left out with a note through ``echo``."""
+    if models is None:
+        return names, {}
+    if isinstance(models, str) or not all(isinstance(m, str) for m in models) or not models:
+        raise ParameterError(f"models = {models!r} is not allowed: must be a list of model names")
+    table = case_models()
+    takes = {name: table[name] for name in names if name in table}
+    known = [m for _, ms in takes.values() for m in ms]
+    unknown = [m for m in models if m not in known]
+    if unknown:
+        allowed = "; ".join(f"{name}: {', '.join(map(repr, ms))}" for name, (_, ms) in takes.items()) or "none"
+        raise ParameterError(f"model = {unknown[0]!r} is not known to the cases chosen: allowed are {allowed}")
+    run, kwargs = [], {}
+    for name in names:
+        keyword, allowed = takes.get(name, (None, []))
+        chosen = [m for m in models if m in allowed]
+        if keyword == "model" and len(chosen) > 1:
+            why = f"it sweeps one rolling model and --model names {len(chosen)} ({', '.join(map(repr, chosen))})"
+        elif not chosen:
+            why = (f"it runs none of them (its models: {', '.join(map(repr, allowed))})" if allowed
+                   else "it takes no model")
+        else:
+            run.append(name)
+            kwargs[name] = {keyword: chosen[0] if keyword == "model" else chosen}
+            continue
+        if explicit:
+            raise ParameterError(f"model = {', '.join(map(repr, models))} is not allowed with case {name}: {why}")
+        if echo is not None:
+            echo(f"{name}: left out, --model {' '.join(map(repr, models))} does not apply: {why}")
+    if not run:
+        raise ParameterError(f"model = {', '.join(map(repr, models))} is not allowed: no case chosen runs it")
+    return run, kwargs
+
+
 def run_validation(outdir, cases=None, quick=False, progress=True, models=None, workers=None,
-                   scheduler=None) -> list[CaseResult]:
+                   scheduler=None, echo=None) -> list[CaseResult]:
     """Run the named cases (all by default) and write the report; returns the case results.
 
     The independent simulations of a case run side by side on ``workers`` processes (default: one
     per core; 1 runs them here, one after the other) or on the Dask cluster at ``scheduler``.
+    ``models`` limits every case to those of its models (see ``_model_arguments``; a case left
+    out for it is announced through ``echo``). Bad arguments are refused before anything is written.
     """
-    from .parallel import runner
+    from .parallel import check_workers, runner
 
     available = available_cases()
     names = list(available) if not cases else list(cases)
     unknown = [c for c in names if c not in available]
     if unknown:
         raise ParameterError(f"case = {', '.join(unknown)} is not known: allowed are {', '.join(available)}")
+    names, model_kwargs = _model_arguments(names, models, bool(cases), echo)
+    check_workers(workers, 1)
     out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"out = {str(out)!r} is not allowed: it is a file; must be a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ParameterError(f"out = {str(out)!r} cannot be made: {err.strerror or err}") from None
     with runner(workers=workers, scheduler=scheduler) as mapper:
-        return _run_cases(available, names, out, quick, progress, models, mapper)
+        return _run_cases(available, names, out, quick, progress, model_kwargs, mapper)
 
 
-def _run_cases(available, names, out, quick, progress, models, mapper) -> list[CaseResult]:
+def _run_cases(available, names, out, quick, progress, model_kwargs, mapper) -> list[CaseResult]:
     results = []
     bar = _bar(progress, len(names))
     for name in names:
@@ -64,9 +130,8 @@ def _run_cases(available, names, out, quick, progress, models, mapper) -> list[C
             bar.set_description(name)
         tic = time.perf_counter()
         try:
-            kwargs = {"quick": quick, "outdir": out, "progress": _run_counter(bar), "runner": mapper}
-            if models is not None and name in ("inclined-wall", "rolling-flat", "rolling-slope"):
-                kwargs["models"] = models
+            kwargs = {"quick": quick, "outdir": out, "progress": _run_counter(bar), "runner": mapper,
+                      **model_kwargs.get(name, {})}
             result = available[name](**kwargs)
         except Exception as err:  # a failed case is a result too: record it and go on
             result = CaseResult(name, name, pd.DataFrame(), [Check(name, "-", "case ran", float("nan"), 0.0, 0.0,

@@ -1,0 +1,359 @@
+"""No traceback for a user's mistake (issue 25): bad input gets one line naming the parameter, its
+value and what is allowed, from the Python API (``ParameterError``), case files and every command
+(``error: ...``, exit status 2); ``rollingdem check`` refuses what ``rollingdem run`` refuses, and a
+refused run leaves no output folder. Tiny scenes, a few steps at most."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import rollingdem as rd
+from rollingdem.cli import app
+
+# two spheres resting just above a floor; 4 steps of the automatic dt
+BASE = """\
+name: tiny
+materials:
+  - {name: m, youngs_modulus: 1.0e7, poisson_ratio: 0.3, density: 1000.0, friction: 0.5, restitution: 0.5}
+walls:
+  - {type: plane, name: floor, material: m}
+particles:
+  - positions: [[0, 0, 0.006], [0.02, 0, 0.006]]
+    radius: 0.005
+    material: m
+stages:
+  - {name: s, duration: 0.0002}
+output:
+  time_series: {interval: 0.0001}
+  plot: false
+"""
+
+
+def edit(old, new, text=BASE):
+    assert old in text, old
+    return text.replace(old, new)
+
+
+STAGE = "  - {name: s, duration: 0.0002}"
+SERIES = "time_series: {interval: 0.0001}"
+
+# (name, case-file text, a piece of the one-line message)
+CATALOGUE = [
+    ("rolling sds without its stiffness", edit("walls:", "contact: {rolling: sds}\nwalls:"),
+     "rolling model 'sds': parameter rolling_stiffness is missing"),
+    ("rolling {model: sds} without its stiffness", edit("walls:", "contact: {rolling: {model: sds}}\nwalls:"),
+     "rolling model 'sds': parameter rolling_stiffness is missing"),
+    ("twisting {model: sds} without its stiffness", edit("walls:", "contact: {twisting: {model: sds}}\nwalls:"),
+     "twisting model 'sds': parameter twisting_stiffness is missing"),
+    ("rolling parameter of the wrong type",
+     edit("walls:", "contact: {rolling: {model: cdt, limiter: abc}}\nwalls:"),
+     "rolling model 'cdt': parameter limiter = 'abc' is not allowed: must be a number"),
+    ("unknown rolling model", edit("walls:", "contact: {rolling: banana}\nwalls:"),
+     "rolling model = 'banana' is not known: allowed are"),
+    ("rolling model that is a number", edit("walls:", "contact: {rolling: 5}\nwalls:"),
+     "rolling model = 5 is not allowed: must be a model name"),
+    ("three radii for two positions", edit("radius: 0.005", "radius: [0.005, 0.005, 0.005]"),
+     "particles.0: radius with 3 values is not allowed for 2 positions"),
+    ("set_velocity of a particle that does not exist",
+     edit(STAGE, "  - {name: s, duration: 0.0002, set_velocity: {particles: [7], velocity: [1, 0, 0]}}"),
+     "stage 's': set_velocity particles = 7 is not allowed: must be in [0, 1]"),
+    ("set_velocity with nothing to set", edit(STAGE, "  - {name: s, duration: 0.0002, set_velocity: {}}"),
+     "stage 's': set_velocity = {'particles': 'all'} is not allowed: give velocity and/or angular_velocity"),
+    ("dt above the stable limit", edit("name: tiny", "name: tiny\ndt: 1.0e-2"),
+     "dt = 0.01 s is not allowed: it exceeds the stable limit"),
+    ("negative duration", edit("duration: 0.0002", "duration: -1"),
+     "stage 's': duration = -1 is not allowed: must be >= 0 (s)"),
+    ("time-series particle that does not exist", edit(SERIES, "time_series: {interval: 0.0001, particles: [5]}"),
+     "output.time_series.particles = 5 is not allowed: must be in [0, 1]"),
+    ("negative output interval", edit(SERIES, "time_series: {interval: -0.0001}"),
+     "output.time_series.interval = -0.0001 is not allowed: must be > 0 (s)"),
+    ("negative snapshot interval", edit(SERIES, SERIES + "\n  snapshots: {interval: -1}"),
+     "output.snapshots.interval = -1 is not allowed: must be > 0 (s)"),
+    ("unknown key", edit("name: tiny", "name: tiny\ntimestep: 1.0e-6"),
+     "key 'timestep' is not a known key (misspelled?): allowed are name, dt"),
+    ("missing required key", edit("    material: m\n", ""), "key 'particles.0.material' is missing: it is required"),
+    ("missing stages", BASE[:BASE.index("stages:")], "key 'stages' is missing: it is required"),
+    ("negative radius", edit("radius: 0.005", "radius: -0.005"),
+     "particles.0: radius of particle 0 = -0.005 is not allowed: must be > 0 (m)"),
+    ("unknown material in a particle block", edit("    material: m\n", "    material: steel\n"),
+     "particles.0: material = 'steel' is not known: known materials are 'm'"),
+    ("unknown material of a wall", edit("name: floor, material: m", "name: floor, material: steel"),
+     "walls.0: material = 'steel' is not known: known materials are 'm'"),
+    ("youngs_modulus that is not a number", edit("youngs_modulus: 1.0e7", "youngs_modulus: abc"),
+     "key 'materials.0.youngs_modulus' = \"abc\" is not allowed: must be a number"),
+    ("a boolean for a number", edit("duration: 0.0002", "duration: true"),
+     "key 'stages.0.duration' = true is not allowed: must be a number"),
+    ("count that is not whole",
+     edit("particles:\n", "particles:\n  - {insert: {type: box, lo: [0.1, 0.1, 0.1], hi: [0.2, 0.2, 0.2]}, "
+                          "count: 2.5, radius: 0.005, material: m}\n"),
+     "key 'particles.0.count' = 2.5 is not allowed: must be a whole number"),
+    ("vector of two numbers", edit("name: tiny", "name: tiny\ngravity: [0, -9.81]"),
+     "key 'gravity' = [0, -9.81] is not allowed: must be three numbers"),
+    ("unknown wall type", edit("type: plane", "type: sphere"),
+     "key 'walls.0.type' = \"sphere\" is not allowed: must be one of 'plane', 'cylinder'"),
+    ("wall removed by a stage that does not exist",
+     edit(STAGE, "  - {name: s, duration: 0.0002, remove_walls: [tube]}"),
+     "stage 's': remove_walls = 'tube' is not allowed: no wall has that name; wall names are 'floor'"),
+    ("wall removed twice",
+     edit(STAGE, STAGE.replace("}", ", remove_walls: [floor]}") + "\n" + STAGE.replace("s,", "t,").replace(
+         "}", ", remove_walls: [floor]}")),
+     "stage 't': remove_walls = 'floor' is not allowed: an earlier stage removed that wall already"),
+    ("two walls of one name",
+     edit("  - {type: plane, name: floor, material: m}\n",
+          "  - {type: plane, name: floor, material: m}\n  - {type: plane, name: floor, material: m, "
+          "point: [0, 0, -1]}\n"),
+     "walls: name = 'floor' is not allowed: it names two walls"),
+    ("non-finite stage gravity", edit(STAGE, "  - {name: s, duration: 0.0002, gravity: [.nan, 0, 0]}"),
+     "stage 's': gravity = (nan, 0.0, 0.0) is not allowed: components must be finite"),
+    ("overlapping spheres", edit("[0.02, 0, 0.006]", "[0.001, 0, 0.006]"),
+     "set allow_overlap: true in the particle block"),
+    ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),
+    ("empty file", "", "is empty: must hold a mapping of keys"),
+    ("a list, not a mapping", "- a\n- b\n", "must hold a mapping of keys, got list"),
+]
+
+
+def _error_lines(output):
+    return [line for line in output.splitlines() if line.startswith("error:")]
+
+
+@pytest.mark.parametrize("name,text,expected", CATALOGUE, ids=[c[0] for c in CATALOGUE])
+def test_check_and_run_refuse_a_bad_case_alike(tmp_path, name, text, expected):
+    """Every malformed case: exit status 2 from both commands, the same one-line message (naming
+    the key and its value), no traceback, and no output folder left by the refused run."""
+    case = tmp_path / "case.yaml"
+    case.write_text(text)
+    out = tmp_path / "out"
+    checked = CliRunner().invoke(app, ["check", str(case)])
+    ran = CliRunner().invoke(app, ["run", str(case), "--out", str(out), "--no-progress"])
+    for result in (checked, ran):
+        assert result.exit_code == 2, result.output
+        assert isinstance(result.exception, SystemExit), result.exception
+        assert "Traceback" not in result.output
+        assert len(_error_lines(result.output)) == 1 and result.output.count("\n") == 1, result.output
+        assert expected in result.output, result.output
+    assert checked.output == ran.output
+    assert not out.exists()
+
+
+def test_valid_case_is_checked_valid_and_runs(tmp_path):
+    case = tmp_path / "case.yaml"
+    case.write_text(edit("walls:", "check_timestep: true\nwalls:"))
+    checked = CliRunner().invoke(app, ["check", str(case)])
+    assert checked.exit_code == 0 and "valid; 2 particles, 1 walls, 1 stages" in checked.output, checked.output
+    out = tmp_path / "out"
+    ran = CliRunner().invoke(app, ["run", str(case), "--out", str(out), "--no-progress"])
+    assert ran.exit_code == 0, ran.output
+    assert json.loads((out / "summary.json").read_text())["status"] == "ok"
+
+
+def test_check_timestep_false_in_the_case_file_runs_anyway(tmp_path):
+    """The dt refusal names the case-file key; setting it lets the case through."""
+    case = tmp_path / "case.yaml"
+    case.write_text(edit("name: tiny", "name: tiny\ndt: 1.0e-3\ncheck_timestep: false"))
+    checked = CliRunner().invoke(app, ["check", str(case)])
+    assert checked.exit_code == 0, checked.output
+
+
+def test_case_file_messages_name_the_case_file_key(tmp_path):
+    from rollingdem.casefile import check_case, load_case
+
+    case = tmp_path / "case.yaml"
+    case.write_text(edit("name: tiny", "name: tiny\ndt: 1.0e-2"))
+    spec = load_case(case)
+    with pytest.raises(rd.ParameterError, match="set check_timestep: false in the case file") as err:
+        check_case(spec)
+    assert "check_timestep=False" not in str(err.value)
+
+
+# --- item 1: sub-models ---------------------------------------------------------------------
+@pytest.mark.parametrize("kwargs,expected", [
+    (dict(rolling="sds"), "rolling model 'sds': parameter rolling_stiffness is missing"),
+    (dict(rolling={"model": "sds"}), "rolling model 'sds': parameter rolling_stiffness is missing"),
+    (dict(twisting={"model": "sds"}), "twisting model 'sds': parameter twisting_stiffness is missing"),
+    (dict(rolling={"model": "sds", "rolling_stiffness": "stiff"}), "rolling_stiffness = 'stiff' is not allowed"),
+    (dict(rolling={"model": "sds", "rolling_stiffness": True}), "rolling_stiffness = True is not allowed"),
+    (dict(rolling={"model": "cdt", "limiter": [1]}), "parameter limiter = [1] is not allowed: must be a number"),
+    (dict(rolling={"model": "viscous", "form": 3}), "parameter form = 3 is not allowed: must be a name"),
+    (dict(rolling={"rolling_stiffness": 1.0}), "a mapping must name its model"),
+    (dict(rolling=["cdt"]), "rolling model = ['cdt'] is not allowed"),
+    (dict(rolling={"model": ["cdt"]}), "rolling model = ['cdt'] is not known"),
+])
+def test_contact_model_refuses_bad_submodels(kwargs, expected):
+    with pytest.raises(rd.ParameterError) as err:
+        rd.ContactModel(**kwargs)
+    assert expected in str(err.value) and "\n" not in str(err.value)
+
+
+# --- items 2, 4: the Python API -------------------------------------------------------------
+@pytest.fixture
+def sim():
+    s = rd.Simulation(dt=1e-6)
+    s.add_material(rd.Material("m", 1e7, 0.3, 1000.0))
+    s.add_wall(rd.Plane(material="m", name="floor"))
+    s.add_particles([[0, 0, 0.006]], radius=0.005, material="m")
+    return s
+
+
+@pytest.mark.parametrize("kwargs,expected", [
+    (dict(positions=[[0, 0, 0.1]], radius="big"), "radius = 'big' is not allowed: must be a number"),
+    (dict(positions=[[0, 0, 0.1], [0, 0, 0.2]], radius=[0.005, 0.005, 0.005]),
+     "radius with 3 values is not allowed for 2 positions"),
+    (dict(positions=[[0, 0, "a"]], radius=0.005), "positions = [[0, 0, 'a']] is not allowed"),
+    (dict(positions=[[0, 0]], radius=0.005), "positions with shape (1, 2) are not allowed"),
+    (dict(positions=[[0, 0, 0.1]], radius=0.005, velocity=[1, 2]), "velocity = [1, 2] is not allowed"),
+    (dict(positions=[[0, 0, 0.1]], radius=0.005, material=["m", "m"]),
+     "material with 2 entries is not allowed for 1 positions"),
+])
+def test_add_particles_refuses_bad_input(sim, kwargs, expected):
+    kwargs.setdefault("material", "m")
+    with pytest.raises(rd.ParameterError) as err:
+        sim.add_particles(**kwargs)
+    assert expected in str(err.value)
+    assert sim.n_particles == 1
+
+
+@pytest.mark.parametrize("indices,expected", [
+    ([5], "indices = [5] is not allowed: particle 5 does not exist; must be in [0, 0]"),
+    (-1, "particle -1 does not exist"),
+    ([0.5], "indices = [0.5] is not allowed: must be particle indices"),
+    ("0", "indices = '0' is not allowed: must be particle indices"),
+])
+def test_set_velocities_refuses_bad_indices(sim, indices, expected):
+    with pytest.raises(rd.ParameterError) as err:
+        sim.set_velocities(indices, velocity=(1.0, 0.0, 0.0))
+    assert expected in str(err.value)
+    with pytest.raises(rd.ParameterError, match=r"velocity = \(1, 0\) is not allowed: must be three numbers"):
+        sim.set_velocities([0], velocity=(1, 0))
+
+
+def test_restore_refuses_a_missing_or_foreign_file(tmp_path):
+    with pytest.raises(rd.ParameterError, match="it does not exist; must be a checkpoint .npz file written by "
+                                                "Simulation.checkpoint"):
+        rd.Simulation.restore(tmp_path / "missing.npz")
+    with pytest.raises(rd.ParameterError, match="it is a folder"):
+        rd.Simulation.restore(tmp_path)
+    (tmp_path / "text.npz").write_text("hello")
+    np.savez(tmp_path / "other.npz", a=np.zeros(3))
+    np.save(tmp_path / "array.npy", np.zeros(3))
+    (tmp_path / "broken.npz").write_bytes(b"PK\x03\x04 not a zip")
+    for name in ("text.npz", "other.npz", "array.npy", "broken.npz"):
+        with pytest.raises(rd.ParameterError, match="is not allowed: it is not a rollingdem checkpoint"):
+            rd.Simulation.restore(tmp_path / name)
+
+
+# --- item 8: run's arguments ----------------------------------------------------------------
+@pytest.mark.parametrize("kwargs,expected", [
+    (dict(steps=2.5), "steps = 2.5 is not allowed: must be a whole number"),
+    (dict(steps=-1), "steps = -1 is not allowed: must be a whole number >= 0"),
+    (dict(steps=True), "steps = True is not allowed"),
+    (dict(steps="3"), "steps = '3' is not allowed"),
+    (dict(steps=float("nan")), "steps = nan is not allowed"),
+    (dict(duration=float("nan")), "duration = nan is not allowed: must be a finite number"),
+    (dict(duration=float("inf")), "duration = inf is not allowed: must be a finite number"),
+    (dict(duration=-1.0), "duration = -1 is not allowed: must be >= 0 (s)"),
+    (dict(duration="1"), "duration = '1' is not allowed: must be a number"),
+    (dict(), "give exactly one of duration (s) and steps"),
+    (dict(duration=1.0, steps=1), "give exactly one of duration (s) and steps"),
+    (dict(steps=1, observers=["series"]), "observers[0] = 'series' is not allowed: must be a rollingdem observer"),
+    (dict(steps=1, label=3), "label = 3 is not allowed: must be a string"),
+])
+def test_run_refuses_bad_arguments(sim, kwargs, expected):
+    with pytest.raises(rd.ParameterError) as err:
+        sim.run(**kwargs)
+    assert expected in str(err.value)
+    assert sim.step == 0
+
+
+def test_run_refuses_a_time_series_particle_before_writing(sim, tmp_path):
+    series = rd.TimeSeries(tmp_path / "s.csv", 1e-6, particles=[3])
+    with pytest.raises(rd.ParameterError, match=r"time series particle = 3 is not allowed: must be in \[0, 0\]"):
+        sim.run(steps=1, observers=[series])
+    assert not (tmp_path / "s.csv").exists()
+    with pytest.raises(rd.ParameterError, match="time series particle = 1.5 is not allowed: must be a whole number"):
+        rd.TimeSeries(tmp_path / "s.csv", 1e-6, particles=[1.5])
+
+
+def test_dt_refusal_tells_a_python_user_the_argument(sim):
+    sim.dt = 1.0
+    with pytest.raises(rd.ParameterError, match="pass check_timestep=False to the Simulation"):
+        sim.run(steps=1)
+
+
+# --- item 9: walls --------------------------------------------------------------------------
+def test_removing_a_wall_twice_names_it(sim):
+    floor = sim.walls[0]
+    sim.remove_wall(floor)
+    with pytest.raises(rd.ParameterError) as err:
+        sim.remove_wall(floor)
+    assert str(err.value) == "wall = 'floor' is not allowed: it was removed already"
+    unnamed = sim.add_wall(rd.Plane(point=(0, 0, -1), material="m"))
+    sim.remove_wall(unnamed)
+    with pytest.raises(rd.ParameterError, match=r"wall = #1 \(plane\) is not allowed: it was removed already"):
+        sim.remove_wall(unnamed)
+    with pytest.raises(rd.ParameterError, match="it is not part of this simulation"):
+        sim.remove_wall(rd.Plane(material="m", name="other"))
+    with pytest.raises(rd.ParameterError, match="wall = 'floor' is not allowed: must be a rollingdem.Plane"):
+        sim.remove_wall("floor")
+    wall = sim.add_wall(rd.Plane(point=(0, 0, -2), material="m", name="low"))
+    with pytest.raises(rd.ParameterError, match="wall = 'low' is not allowed: it is part of this simulation already"):
+        sim.add_wall(wall)
+    assert "object at" not in repr(wall) and "name='low'" in repr(wall)
+
+
+# --- item 10: every command -----------------------------------------------------------------
+@pytest.fixture
+def afile(tmp_path):
+    path = tmp_path / "afile"
+    path.write_text("x")
+    return path
+
+
+def _refused(args, expected):
+    result = CliRunner().invoke(app, [str(a) for a in args])
+    assert result.exit_code == 2, result.output
+    assert isinstance(result.exception, SystemExit), result.exception
+    assert "Traceback" not in result.output and len(_error_lines(result.output)) == 1, result.output
+    assert expected in result.output, result.output
+
+
+def test_commands_refuse_bad_files_and_options_in_one_line(tmp_path, afile):
+    case = tmp_path / "case.yaml"
+    case.write_text(BASE)
+    (tmp_path / "case.toml").write_text("name = [unclosed\n")
+    (tmp_path / "binary.yaml").write_bytes(b"\xff\xfe\x00\x01")
+    for cmd in ("run", "check"):
+        _refused([cmd, tmp_path / "missing.yaml"], "does not exist")
+        _refused([cmd, tmp_path], "is a folder: must be a YAML or TOML file")
+        _refused([cmd, tmp_path / "case.toml"], "is not valid TOML")
+        _refused([cmd, tmp_path / "binary.yaml"], "is not a text file")
+    _refused(["run", case, "--out", afile, "--no-progress"], "is not allowed: it is a file; must be a folder")
+    _refused(["run", case, "--out", afile / "sub", "--no-progress"], "is a file; must be a folder")
+    _refused(["run", case, "--threads", 0], "--threads = 0 is not allowed")
+    _refused(["bench", "--scene", "nope"], "scene = nope is not known: allowed are")
+    _refused(["bench", "--from-dump", tmp_path], "--from-dump = ")
+    _refused(["bench", "--json", tmp_path], "it is a folder; must be a file name")
+    _refused(["sweep", tmp_path / "missing.yaml"], "sweep file")
+    _refused(["sweep", tmp_path], "it is a folder; must be a file")
+    (tmp_path / "sweep.yaml").write_text("case: rolling-flat\ngrid: {mur: [0.1]}\n")
+    _refused(["sweep", tmp_path / "sweep.yaml", "--out", afile], "--out = ")
+    _refused(["calibrate", "--case", "nope", "--target", 1], "case = 'nope' is not known")
+    _refused(["calibrate", "--case", "rolling-flat", "--target", 1, "--out", afile], "it is a file; must be a folder")
+    _refused(["validate", "--out", afile, "--no-progress"], "it is a file; must be a folder")
+    _refused(["validate", "--case", "nope", "--out", tmp_path / "v", "--no-progress"], "case = nope is not known")
+    _refused(["validate", "--case", "rolling-flat", "-w", 0, "--out", tmp_path / "v", "--no-progress"],
+             "workers = 0 is not allowed")
+    assert not (tmp_path / "v").exists()
+
+
+# --- item 7: validate --model ---------------------------------------------------------------
+def test_validate_refuses_an_unknown_model_up_front(tmp_path):
+    _refused(["validate", "--model", "nonsense", "--out", tmp_path / "v", "--no-progress", "-w", 1],
+             "model = 'nonsense' is not known to the cases chosen: allowed are")
+    _refused(["validate", "--case", "angle-of-repose", "--model", "sds", "--out", tmp_path / "v", "--no-progress"],
+             "model = 'sds' is not known to the cases chosen: allowed are angle-of-repose: 'cdt', 'epsd'")
+    _refused(["validate", "--case", "repose-sweep", "--model", "cdt", "--model", "epsd", "--out", tmp_path / "v",
+              "--no-progress"], "it sweeps one rolling model")
+    assert not (tmp_path / "v").exists()

@@ -128,3 +128,25 @@ def test_case_file_selects_rolling_and_twisting_models_with_their_parameters(tmp
     case.write_text(CASE.replace("rolling: cdt", "rolling: {model: cdt, parity: pfc}"))
     result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "--no-progress"])
     assert result.exit_code == 2 and "cdt parity = 'pfc' is not known" in result.output
+
+
+def test_a_case_refused_in_a_later_stage_keeps_its_outputs(tmp_path):
+    """check_case refuses what is known before the first step; a refusal that depends on the state
+    a stage reaches (here the second stage sets a speed whose Hertz time the dt exceeds) comes
+    from run alone, as one line that names the stage and the output folder, whose files stay
+    readable."""
+    case = tmp_path / "late.yaml"
+    case.write_text(CASE.replace("{name: release, remove_walls: [tube], duration: 0.01}",
+                                 "{name: kick, duration: 0.01, set_velocity: {particles: [0], velocity: [0, 0, -2000]}}"))
+    checked = CliRunner().invoke(app, ["check", str(case)])
+    assert checked.exit_code == 0, checked.output
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(out), "--no-progress"])
+    assert result.exit_code == 2 and "Traceback" not in result.output, result.output
+    line = [x for x in result.output.splitlines() if x.startswith("error:")][0]
+    assert "stage 'kick' at t = 0.02 s: dt = 1e-05 s is not allowed" in line and str(out) in line
+    assert "set check_timestep: false in the case file" in line
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"].startswith("failed: dt = 1e-05 s") and summary["steps"] == 2000
+    assert len(pd.read_csv(out / "series.csv")) == 21
+    assert rd.Simulation.restore(out / "final.npz").step == 2000

@@ -148,3 +148,40 @@ def test_repose_sweep_runs_creeping_piles_again_longer(tmp_path, monkeypatch):
     calls.clear()
     repose.repose_sweep(**args)
     assert calls == []
+
+
+def test_model_reaches_the_pile_cases_and_a_case_without_it_is_announced(tmp_path, monkeypatch):
+    """--model goes to every case that runs models: the single-sphere cases and angle-of-repose take
+    the list of theirs, repose-sweep its one model; a case that runs none of them is left out with
+    a note (refused when named with --case); an unknown name is refused before anything is written."""
+    calls = {}
+
+    def fake(name):
+        def case(quick=False, outdir=None, progress=None, runner=map, **kw):
+            calls[name] = kw
+            return CaseResult(name, name, pd.DataFrame(), [Check(name, "x", "value", 1.0, 1.0, 0.01)])
+        return case
+
+    names = ["rolling-flat", "angle-of-repose", "repose-sweep"]
+    monkeypatch.setattr(validate, "available_cases", lambda: {n: fake(n) for n in names})
+    notes = []
+    validate.run_validation(tmp_path / "a", models=["epsd"], progress=False, workers=1, echo=notes.append)
+    assert calls == {"rolling-flat": {"models": ["epsd"]}, "angle-of-repose": {"models": ["epsd"]},
+                     "repose-sweep": {"model": "epsd"}} and notes == []
+    calls.clear()
+    validate.run_validation(tmp_path / "b", models=["sds", "epsd (liggghts)"], progress=False, workers=1,
+                            echo=notes.append)
+    assert calls == {"rolling-flat": {"models": ["sds", "epsd (liggghts)"]}}
+    assert len(notes) == 2 and notes[0].startswith("angle-of-repose: left out") and "sweeps one rolling model" in notes[1]
+    with pytest.raises(rd.ParameterError, match="model = 'sds' is not known to the cases chosen"):
+        validate.run_validation(tmp_path / "c", cases=["angle-of-repose"], models=["sds"], progress=False, workers=1)
+    with pytest.raises(rd.ParameterError, match="model = 'sds' is not allowed with case angle-of-repose: it runs "
+                                                "none of them"):
+        validate.run_validation(tmp_path / "c", cases=["rolling-flat", "angle-of-repose"], models=["sds"],
+                                progress=False, workers=1)
+    with pytest.raises(rd.ParameterError, match="model = 'nonsense' is not known"):
+        validate.run_validation(tmp_path / "c", models=["nonsense"], progress=False, workers=1)
+    assert not (tmp_path / "c").exists()
+    result = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "d"), "--model", "nonsense",
+                                      "--no-progress", "-w", "1"])
+    assert result.exit_code == 2 and "Traceback" not in result.output and "model = 'nonsense'" in result.output

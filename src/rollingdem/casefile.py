@@ -618,6 +618,7 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
     walls_by_name = {w.name: w for w in sim.walls if w.name}
     summary = {"case": case.name, "output": str(outdir), "particles": sim.n_particles, "stages": []}
     failure = None
+    stage = None
     try:
         for stage in case.stages:
             if stage.gravity is not None:
@@ -635,6 +636,10 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
             steps = sim.step - steps0
             summary["stages"].append({"name": stage.name, "steps": steps, "wall_seconds": wall,
                                       "particle_steps_per_second": sim.n_particles * steps / wall if wall else None})
+    except ParameterError as err:  # refused later on (a stage's dt after the state changed): say where
+        failure = err
+        raise ParameterError(f"stage {stage.name!r} at t = {sim.time:.6g} s: {err} (the outputs so far are in "
+                             f"{outdir})") from None
     except Exception as err:  # noqa: BLE001 - recorded, then raised again
         failure = err
         raise

@@ -295,12 +295,21 @@ def test_removing_a_wall_twice_names_it(sim):
         sim.remove_wall(unnamed)
     with pytest.raises(rd.ParameterError, match="it is not part of this simulation"):
         sim.remove_wall(rd.Plane(material="m", name="other"))
-    with pytest.raises(rd.ParameterError, match="wall = 'floor' is not allowed: must be a rollingdem.Plane"):
-        sim.remove_wall("floor")
+    with pytest.raises(rd.ParameterError, match="wall = 'floor' is not allowed: it was removed already"):
+        sim.remove_wall("floor")  # by name as well
+    with pytest.raises(rd.ParameterError, match="wall = 'roof' is not allowed: no wall has that name"):
+        sim.set_wall_velocity("roof", (1, 0, 0))
+    with pytest.raises(rd.ParameterError, match="wall = 3 is not allowed: must be a wall of this simulation"):
+        sim.set_wall_velocity(3, (1, 0, 0))
+    with pytest.raises(rd.ParameterError, match="wall = 'floor' is not allowed: it was removed already"):
+        sim.set_wall_velocity(floor, (1, 0, 0))
     wall = sim.add_wall(rd.Plane(point=(0, 0, -2), material="m", name="low"))
     with pytest.raises(rd.ParameterError, match="wall = 'low' is not allowed: it is part of this simulation already"):
         sim.add_wall(wall)
     assert "object at" not in repr(wall) and "name='low'" in repr(wall)
+    sim.set_wall_velocity("low", (0.0, 0.0, 1.0))
+    sim.remove_wall("low")
+    assert [w.name for w in sim.walls] == []
 
 
 # --- item 10: every command -----------------------------------------------------------------

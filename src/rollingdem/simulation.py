@@ -255,22 +255,38 @@ class Simulation:
         self._sync_walls()
         return wall
 
-    def remove_wall(self, wall: Wall) -> None:
-        """Remove a wall; its contact history is dropped."""
-        if not isinstance(wall, Wall):
-            raise ParameterError(f"wall = {wall!r} is not allowed: must be a rollingdem.Plane or Cylinder of "
-                                 "this simulation")
-        slot = next((k for k, w in enumerate(self._walls) if w is wall), None)
-        if slot is None:
-            removed = any(isinstance(w, _Removed) and w.wall is wall for w in self._walls)
-            raise ParameterError(f"wall = {self._wall_label(wall)} is not allowed: "
-                                 + ("it was removed already" if removed else
-                                    "it is not part of this simulation (add it with add_wall)"))
+    def remove_wall(self, wall: Wall | str) -> None:
+        """Remove a wall (the object or its name); its contact history is dropped."""
+        wall = self._own_wall(wall)
+        slot = next(k for k, w in enumerate(self._walls) if w is wall)
         self._walls[slot] = _Removed(wall)
         self._sync_walls()
 
-    def set_wall_velocity(self, wall: Wall, velocity=None, angular_velocity=None) -> None:
-        """Give a wall a new prescribed velocity (m/s) and/or surface angular velocity (rad/s)."""
+    def _own_wall(self, wall: Wall | str) -> Wall:
+        """A wall in place in this simulation, given as the object or by name; else a ParameterError
+        that names it and says why (removed already, never added, no such name)."""
+        removed = [w.wall for w in self._walls if isinstance(w, _Removed) and w.wall is not None]
+        if isinstance(wall, str):
+            named = [w for w in self.walls if w.name == wall]
+            if named:
+                return named[0]
+            if any(w.name == wall for w in removed):
+                raise ParameterError(f"wall = {wall!r} is not allowed: it was removed already")
+            names = ", ".join(repr(w.name) for w in self.walls if w.name) or "none"
+            raise ParameterError(f"wall = {wall!r} is not allowed: no wall has that name; wall names are {names}")
+        if not isinstance(wall, Wall) or isinstance(wall, _Removed):
+            raise ParameterError(f"wall = {_short(wall)} is not allowed: must be a wall of this simulation (the "
+                                 "rollingdem.Plane or Cylinder, or its name)")
+        if any(w is wall for w in self._walls):
+            return wall
+        raise ParameterError(f"wall = {self._wall_label(wall)} is not allowed: "
+                             + ("it was removed already" if any(w is wall for w in removed) else
+                                "it is not part of this simulation (add it with add_wall)"))
+
+    def set_wall_velocity(self, wall: Wall | str, velocity=None, angular_velocity=None) -> None:
+        """Give a wall (the object or its name) a new prescribed velocity (m/s) and/or surface
+        angular velocity (rad/s)."""
+        wall = self._own_wall(wall)
         if velocity is not None:
             wall.velocity = check_vector("wall velocity", velocity)
         if angular_velocity is not None:

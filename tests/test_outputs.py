@@ -144,7 +144,7 @@ def test_a_case_refused_in_a_later_stage_keeps_its_outputs(tmp_path):
     result = CliRunner().invoke(app, ["run", str(case), "--out", str(out), "--no-progress"])
     assert result.exit_code == 2 and "Traceback" not in result.output, result.output
     line = [x for x in result.output.splitlines() if x.startswith("error:")][0]
-    assert "stage 'kick' at t = 0.02 s: dt = 1e-05 s is not allowed" in line and str(out) in line
+    assert "stage 'kick' at t = 0.02 s: dt = 1e-05 s exceeds the stable limit" in line and str(out) in line
     assert "set check_timestep: false in the case file" in line
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"].startswith("failed: dt = 1e-05 s") and summary["steps"] == 2000

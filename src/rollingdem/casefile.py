@@ -298,9 +298,9 @@ def _describe_error(e: dict, data) -> tuple[tuple, str]:
     if kind == "extra_forbidden":
         parent = _spec_at(path[:-1])
         allowed = f": allowed are {', '.join(parent.model_fields)}" if parent is not None else ""
-        return path, f"is not a known key (misspelled?){allowed}"
+        return path, f"not a known key (misspelled?){allowed}"
     if kind == "missing":
-        return path, "is missing: it is required"
+        return path, "missing (required)"
     if kind in _KIND_OF_INPUT:
         return path, f"must be {_KIND_OF_INPUT[kind]}"
     if kind == "literal_error":
@@ -310,7 +310,7 @@ def _describe_error(e: dict, data) -> tuple[tuple, str]:
         return path + ((key,) if key and key != "<function>" else ()), f"must be one of {ctx.get('expected_tags')}"
     if kind == "union_tag_not_found":
         key = str(ctx.get("discriminator", "")).strip("'")
-        return path + (key,), "is missing: it is required"
+        return path + (key,), "missing (required)"
     if kind in ("too_short", "too_long"):
         if ctx.get("field_type") == "Tuple":
             return path, f"must be {ctx.get('max_length', ctx.get('min_length'))} numbers"
@@ -347,7 +347,7 @@ def _format_validation_error(err: ValidationError, source: str, data=None) -> st
     for path, whats in problems.items():
         key = ".".join(str(p) for p in path) or "(top level)"
         if kinds[path] in ("missing", "extra_forbidden", "union_tag_not_found"):
-            lines.append(f"key {key!r} {whats[0]}")
+            lines.append(f"key {key!r}: {whats[0]}")
             continue
         shown = json.dumps(_value_at(data, path), default=str)
         if len(shown) > 80:

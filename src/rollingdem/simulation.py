@@ -470,8 +470,8 @@ class Simulation:
             return
         for label, limit in self.time_step_limits():
             if self.dt > limit * (1 + 1e-12):
-                raise ParameterError(f"dt = {self.dt:.4g} s is not allowed: it exceeds the stable limit {limit:.4g} s "
-                                     f"({label}); choose dt <= {limit:.4g} s, or {self.hints['check_timestep']} "
+                raise ParameterError(f"dt = {self.dt:.4g} s exceeds the stable limit {limit:.4g} s "
+                                     f"({label}): choose dt <= {limit:.4g} s, or {self.hints['check_timestep']} "
                                      "to run anyway")
 
     # --- running -------------------------------------------------------------------------------

@@ -206,18 +206,18 @@ def test_history_spring_pulling_contact_cannot_grip(normal_force):
 
 @pytest.mark.parametrize("theta,phi", [(0.3, 0.2), (0.0, 0.2), (0.3, 0.0), (2e-4, 3e-4)])
 def test_history_spring_turns_with_the_contact_frame(theta, phi):
-    """A loaded spring xi0 = (xi, 0, 0) on normal z; the normal turns by theta about y and the pair
-    spins by phi about the new normal, with no slip. The spring must be the hand-rotated
-    R(n, phi) R(y, theta) xi0 (MODELS.md §11.3): same magnitude, tangent to the new normal.
-    Catches: the history not carried with the frame (it would keep a normal part xi sin(theta) and
-    miss the spin), a spin about the wrong axis or with the wrong sign. The small-angle case takes
-    the series path of ``contact_frame``."""
-    xi0 = np.array([4e-5, 0.0, 0.0])
+    """A loaded spring xi0 (in the plane, along neither axis) on normal z; the normal turns by theta
+    about y and the pair spins by phi about the new normal, with no slip. The spring must be the
+    hand-rotated R(n, phi) R(y, theta) xi0 (MODELS.md §11.3): same magnitude, tangent to the new
+    normal. Catches: the history not carried with the frame (it would keep a normal part
+    ~ |xi| sin(theta) and miss the spin), a spin about the wrong axis or with the wrong sign (in
+    any component). The small-angle case takes the series path of ``contact_frame``."""
+    xi0 = np.array([4e-5, -3e-5, 0.0])
     hist = xi0.reshape(1, 3).copy()
     n = np.array([math.sin(theta), 0.0, math.cos(theta)])
     f, _ = tangential(hist, (0.0, 0.0, 0.0), 1.0, n=tuple(n), n_old=Z, spin=phi)
     expected = rot(n, phi) @ rot((0, 1, 0), theta) @ xi0
-    # |F| = k_t |xi| = 0.2 N < mu F_n: elastic; the rotations are exact to round-off
+    # |F| = k_t |xi| = 0.25 N < mu F_n: elastic; the rotations are exact to round-off
     np.testing.assert_allclose(hist[0], expected, rtol=0, atol=RT * np.linalg.norm(xi0))
     np.testing.assert_allclose(f, -KT_T * expected, rtol=0, atol=RT * KT_T * np.linalg.norm(xi0))
     assert abs(f @ n) <= RT * np.linalg.norm(f)

@@ -366,3 +366,26 @@ def test_validate_refuses_an_unknown_model_up_front(tmp_path):
     _refused(["validate", "--case", "repose-sweep", "--model", "cdt", "--model", "epsd", "--out", tmp_path / "v",
               "--no-progress"], "it sweeps one rolling model")
     assert not (tmp_path / "v").exists()
+
+
+def test_python_api_refuses_output_and_input_paths_by_name(tmp_path):
+    """The refusals the CLI makes up front hold for the Python functions too: an output folder that
+    is a file, a dump that is a folder, a JSON path that is a folder; nothing is run or written."""
+    from rollingdem.bench import column_from_dump, write_json
+    from rollingdem.calibration import calibrate
+    from rollingdem.sweep import run_sweep
+
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    spec = {"case": "rolling-flat", "grid": {"mur": [0.1]}, "seeds": 1}
+    with pytest.raises(rd.ParameterError, match=r"out = .*afile.* is a file; must be a folder"):
+        run_sweep(spec, afile, workers=1)
+    with pytest.raises(rd.ParameterError, match=r"out = .*under.* is not allowed: .*afile is a file"):
+        run_sweep(spec, afile / "under", workers=1)
+    with pytest.raises(rd.ParameterError, match=r"out = .*afile.* is a file; must be a folder"):
+        calibrate("rolling-flat", target=0.1, fix={}, free="mur", out=afile, workers=1)
+    with pytest.raises(rd.ParameterError, match=r"from_dump = .* is a folder; must be the dump file"):
+        column_from_dump(tmp_path)
+    with pytest.raises(rd.ParameterError, match=r"json = .* is a folder; must be a file name"):
+        write_json([], tmp_path)
+    assert afile.read_text() == "x" and sorted(p.name for p in tmp_path.iterdir()) == ["afile"]

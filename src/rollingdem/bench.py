@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import ParameterError, check_output_path
 
 SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling")
 SCALING_SMALL = 20000
@@ -144,6 +144,8 @@ def column_from_dump(path, rolling: str = "epsd"):
     if not path.exists():
         raise ParameterError(f"from_dump = {str(path)!r} does not exist: give the dump written by "
                              "liggghts_in.build (see reference/bench/README.md)")
+    if path.is_dir():
+        raise ParameterError(f"from_dump = {str(path)!r} is not allowed: it is a folder; must be the dump file")
     lines = path.read_text().splitlines()
     try:
         start = next(k for k, line in enumerate(lines) if line.startswith("ITEM: ATOMS"))
@@ -550,7 +552,7 @@ def write_json(results: list[BenchResult], path) -> Path:
 
     from . import __version__
 
-    path = Path(path)
+    path = check_output_path("json", path, folder=False)
     path.parent.mkdir(parents=True, exist_ok=True)
     load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
     doc = {"version": __version__, "machine": platform.machine(), "processor": platform.processor(),

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from .cases.observables import get_case
-from .errors import ParameterError, check_finite, check_non_negative
+from .errors import ParameterError, check_finite, check_non_negative, check_output_path
 
 __all__ = ["Calibration", "calibrate", "monotone_inverse"]
 
@@ -185,7 +185,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
         if isinstance(v, bool) or not isinstance(v, int) or v < n_min:
             raise ParameterError(f"{k} = {v!r} is not allowed: must be an integer >= {n_min}")
     seeds = seeds if seeds is not None else (3 if sc.stochastic else 1)
-    out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-calibrate-"))
+    out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-calibrate-"))
     first = load_sweep({"case": case, "fixed": fix, "points": [{name: lo}], "seeds": seeds})  # refuse bad input now
     say = echo or (lambda *_: None)
 

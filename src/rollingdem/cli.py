@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from .errors import ParameterError, SimulationError
+from .errors import ParameterError, SimulationError, check_output_path
 
 app = typer.Typer(add_completion=False, no_args_is_help=False,
                   help="rollingdem: DEM simulation of spheres, built around rolling resistance.")
@@ -20,25 +20,12 @@ def _refuse(err) -> None:
 
 
 def _check_out(path, option: str = "--out", folder: bool = True) -> None:
-    """Refuse, before anything runs, an output path the command could not write: one that is (or
-    lies under) a file, or a folder where a file is wanted, or under a folder without write permission."""
-    if path is None:
-        return
-    import os
-
-    path = Path(path)
-    if path.exists():
-        if folder and not path.is_dir():
-            _refuse(f"{option} = {str(path)!r} is not allowed: it is a file; must be a folder")
-        if not folder and path.is_dir():
-            _refuse(f"{option} = {str(path)!r} is not allowed: it is a folder; must be a file name")
-    for above in (path, *path.absolute().parents):
-        if above.exists():
-            if not above.is_dir():
-                _refuse(f"{option} = {str(path)!r} is not allowed: {above} is a file; must be a folder")
-            if not os.access(above, os.W_OK | os.X_OK):
-                _refuse(f"{option} = {str(path)!r} is not allowed: {above} is not writable")
-            return
+    """Refuse, before anything runs, an output path the command could not write."""
+    if path is not None:
+        try:
+            check_output_path(option, path, folder=folder)
+        except ParameterError as err:
+            _refuse(err)
 
 
 def _check_in_file(path, option: str) -> None:

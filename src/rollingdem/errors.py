@@ -120,3 +120,37 @@ def check_vector(name: str, value: Any, *, unit: bool = False) -> tuple[float, f
             raise ParameterError(f"{name} = {value!r} is not allowed: must be a non-zero direction")
         seq = [c / norm for c in seq]
     return (seq[0], seq[1], seq[2])
+
+
+def check_output_path(name: str, path, *, folder: bool = True):
+    """Refuse, before anything runs, an output path that could not be written: one that is (or lies
+    under) a file, a folder where a file is wanted, or under a folder without write permission.
+    Returns the path as a ``Path``."""
+    from pathlib import Path
+
+    path = Path(path)
+    if path.exists():
+        if folder and not path.is_dir():
+            raise ParameterError(f"{name} = {str(path)!r} is not allowed: it is a file; must be a folder")
+        if not folder and path.is_dir():
+            raise ParameterError(f"{name} = {str(path)!r} is not allowed: it is a folder; must be a file name")
+    for above in (path, *path.absolute().parents):
+        if above.exists():
+            if not above.is_dir():
+                raise ParameterError(f"{name} = {str(path)!r} is not allowed: {above} is a file; must be a folder")
+            if not os.access(above, os.W_OK | os.X_OK):
+                raise ParameterError(f"{name} = {str(path)!r} is not allowed: {above} is not writable")
+            break
+    return path
+
+
+def check_input_file(name: str, path):
+    """Refuse an input file that does not exist or is a folder; returns it as a ``Path``."""
+    from pathlib import Path
+
+    path = Path(path)
+    if path.is_dir():
+        raise ParameterError(f"{name} = {str(path)!r} is not allowed: it is a folder; must be a file")
+    if not path.exists():
+        raise ParameterError(f"{name} = {str(path)!r} is not allowed: it does not exist")
+    return path

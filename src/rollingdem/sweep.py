@@ -38,7 +38,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from .analysis import confidence_interval
 from .cases.observables import SweepCase, get_case
-from .errors import ParameterError
+from .errors import ParameterError, check_output_path
 
 __all__ = ["SweepSpec", "SweepResult", "load_sweep", "expand", "run_sweep", "summarize"]
 
@@ -263,7 +263,7 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     check_workers(workers, threads)
     spec = load_sweep(spec)
     case = get_case(spec.case)
-    out = Path(out)
+    out = check_output_path("out", out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / TABLE
     columns = _columns(case)

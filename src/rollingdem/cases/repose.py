@@ -142,6 +142,15 @@ REPOSE_MODELS = {"cdt": ("cdt", "none"), "epsd": ("epsd", "none"), "epsd2": ("ep
 
 
 FINAL_WINDOW = 0.25  # s: case 3 compares mean kinetic energies over the end of the run
+#: deg: allowed |angle(EPSD2) - angle(EPSD)| of case 3: the 95 % band of the difference of two
+#: single-seed angles, t(0.975, 6) sqrt(2) s, s = 4.68 deg the pooled seed-to-seed standard deviation
+#: of the quick pile (1000 spheres; pile_run(m, count=1000, collapse=1.5, max_collapse=1.5, seed=k)):
+#: EPSD 11.13, 17.70, 10.98, 18.04, 20.26 deg (seeds 1-5, mean 15.62), EPSD2 21.07, 10.29, 16.06 deg
+#: (seeds 1-3, mean 15.81); 52-59 s a pile. The means agree to 0.2 deg, but one seed per model
+#: resolves no less: the pile is flat (cone fit R^2 0.09-0.52). A larger pile (more surface
+#: spheres) is expected to scatter less, so the band should be conservative for the full case, whose
+#: spread was not measured.
+REPOSE_ANGLE_TOLERANCE = 16.2
 
 
 def _without_spin(r: PileRun) -> np.ndarray:
@@ -162,7 +171,9 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
     check is on translation because no rolling model resists every spin: a sphere held at two
     contacts spins freely about the line through them, whatever its tilt, until a twisting model
     stops it, and how much such spin a collapse leaves is chance (1e-10 to 2e-9 J in quick piles
-    of one seed, against 1e-9 J of CDT chatter). ``runner`` maps
+    of one seed, against 1e-9 J of CDT chatter). The seed report gives no angle for this case; the
+    angle check is that EPSD2's pile stands at EPSD's angle (the same rolling limit mu_r R F_n),
+    within ``REPOSE_ANGLE_TOLERANCE``, the 95 % band of the seed-to-seed difference. ``runner`` maps
     the runs (``map`` here, :func:`rollingdem.parallel.runner` side by side).
     """
     tic = time.perf_counter()
@@ -206,6 +217,15 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
         ratio = runs["epsd + marshall twisting"].spin_vertical[-1] / max(runs["epsd"].spin_vertical[-1], 1e-300)
         checks.append(Check("angle-of-repose", "epsd + marshall twisting", "final spin energy / without twisting",
                             ratio, 1e-2, 0.0, bound="upper", source="twisting resistance stops the spin"))
+    if "epsd" in runs and "epsd2" in runs:
+        # The seed report gives no angle for case 3 (it compares kinetic energies only). What physics
+        # fixes is that EPSD and EPSD2 limit the rolling torque alike (mu_r R F_n): a pile at rest
+        # on that limit stands at the same angle, whatever the spring and dashpot below it.
+        angles = [runs[m].angle.angle if runs[m].angle else math.nan for m in ("epsd2", "epsd")]
+        checks.append(Check("angle-of-repose", "epsd2", "repose angle - EPSD's (deg)", angles[0] - angles[1], 0.0,
+                            REPOSE_ANGLE_TOLERANCE, relative=False,
+                            source="the same rolling limit mu_r R F_n holds the pile; tolerance: 95 % of the "
+                                   "seed-to-seed differences (quick pile, REPOSE_ANGLE_TOLERANCE)"))
     tube, height = column_size(count, RADIUS, POLYDISPERSITY)
     result = CaseResult("angle-of-repose", f"Case 3: angle of repose ({count} spheres)", pd.DataFrame(rows), checks,
                         notes=[f"{count} spheres of R = 5 mm ± {POLYDISPERSITY:.0%} (uniform) settle in a tube of "

@@ -280,6 +280,27 @@ def test_flat_foot_is_left_out_of_the_fit(alpha, envelope):
     assert res.fit_range[1] == pytest.approx((h - 3 * D) / tan_a, abs=0.25 * D / tan_a)
 
 
+def test_a_few_tufts_far_out_do_not_set_the_pile_radius():
+    """Three small tufts (a sphere on the third layer of a little heap, bottom 1.64 d up, so it counts
+    as lying on others) stand 4-6 pile radii out in three of the 16 sectors. The pile radius is the
+    median over the sectors, so they do not move it: the fit range starts at 0.15 of the heap's radius
+    and the angle is exact (TOL_EXACT). Were the radius the largest over the sectors, 6 pile radii,
+    the apex cut alone (0.9 of the heap's radius) would leave too few surface spheres to fit."""
+    pos = ideal_pile(30.0, seed=4)
+    big_r = 30 * D
+    tufts = []
+    for phi, r in ((0.3, 4.0), (2.5, 5.0), (4.4, 6.0)):
+        x, y = r * big_r * math.cos(phi), r * big_r * math.sin(phi)
+        tufts += [[x, y, RADIUS], [x + D, y, RADIUS], [x + RADIUS, y + 0.87 * D, RADIUS],
+                  [x + RADIUS, y + 0.29 * D, RADIUS + 0.82 * D], [x + RADIUS, y + 0.29 * D, RADIUS + 1.64 * D]]
+    res = repose_angle(np.vstack([pos, tufts]), RADIUS)
+    assert abs(res.angle - 30.0) < TOL_EXACT
+    # the heap's radius from its lifted spheres (bottom >= 1.25 d up): they reach out to where the cone's
+    # top sphere is that high, rho + a = 30 d - 1.25 d / tan(30) + a = 28.3 d, to a lattice spacing d
+    heap = big_r - 1.25 * D / math.tan(math.radians(30.0)) + RADIUS
+    assert res.fit_range[0] == pytest.approx(0.15 * heap, abs=0.15 * D)
+
+
 def test_unsettled_pile_is_refused():
     pos, radii = make_pile(30.0, n_base=20, seed=1)
     rng = np.random.default_rng(0)

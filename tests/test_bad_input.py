@@ -389,3 +389,14 @@ def test_python_api_refuses_output_and_input_paths_by_name(tmp_path):
     with pytest.raises(rd.ParameterError, match=r"json = .* is a folder; must be a file name"):
         write_json([], tmp_path)
     assert afile.read_text() == "x" and sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+def test_sweep_refuses_a_twisting_model_that_needs_parameters():
+    """A sweep parameter names a model only: 'sds' needs its constants, so it is refused when the
+    sweep file is read, not as a failed run; 'marshall' (no parameters) is taken."""
+    from rollingdem.sweep import load_sweep
+
+    spec = {"case": "angle-of-repose", "points": [{"mur": 0.1}], "seeds": 1}
+    with pytest.raises(rd.ParameterError, match=r"twisting = 'sds' is not allowed: .*twisting_stiffness is missing"):
+        load_sweep({**spec, "fixed": {"twisting": "sds"}})
+    load_sweep({**spec, "fixed": {"twisting": "marshall"}})

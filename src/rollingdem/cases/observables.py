@@ -52,8 +52,13 @@ class Parameter:
                 resolve_rolling(value, self.name)
             else:
                 from ..contact import TWISTING_MODELS
+                from ..contact.base import make_submodel
 
                 check_choice(self.name, value, TWISTING_MODELS)
+                try:
+                    make_submodel("twisting", value)
+                except ParameterError as err:  # a model that needs parameters of its own (sds)
+                    raise ParameterError(f"{self.name} = {value!r} is not allowed: {err}") from None
             return value
         if self.integer:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or float(value) != int(value):

@@ -39,30 +39,78 @@ class Mutation:
 
 
 M = Mutation
-CONTACT = "src/rollingdem/contact/"
+C = "src/rollingdem/contact/"
+K = ("tests/test_submodel_kernels.py", "tests/test_rolling_kernel.py")  # the kernels called on their own
+HERTZ = K + ("tests/test_hertz_damping.py",)
+TWIST = K + ("tests/test_twisting.py",)
 MUTATIONS = [
-    # --- normal -----------------------------------------------------------------------------
-    M("hertz normal stiffness 4/3 -> 1", CONTACT + "normal.py", "kn = (4.0 / 3.0) * p[P_YOUNG] * a",
-      "kn = 1.0 * p[P_YOUNG] * a", ("tests/test_submodel_kernels.py", "tests/test_contacts.py")),
-    M("hertz tangential dashpot halved", CONTACT + "normal.py", "return kn * overlap, -gamma_n * normal_velocity, kn, st, gamma_n * p[off + 1]",
-      "return kn * overlap, -gamma_n * normal_velocity, kn, st, 0.5 * gamma_n * p[off + 1]",
-      ("tests/test_submodel_kernels.py", "tests/test_contacts.py")),
-    M("hertz damping factor sqrt(5/6) -> sqrt(2/3)", CONTACT + "normal.py",
-      "return -2.0 * math.sqrt(5.0 / 6.0) * restitution_beta(e)", "return -2.0 * math.sqrt(2.0 / 3.0) * restitution_beta(e)",
-      ("tests/test_hertz_damping.py", "tests/test_submodel_kernels.py", "tests/test_contacts.py")),
-    # --- tangential -------------------------------------------------------------------------
-    M("coulomb limit on |F_n| instead of max(F_n, 0)", CONTACT + "tangential.py",
-      "limit = p[P_FRICTION] * max(normal_force, 0.0)", "limit = p[P_FRICTION] * abs(normal_force)",
-      ("tests/test_submodel_kernels.py", "tests/test_contacts.py", "tests/test_slope.py")),
-    M("tangential history not carried with the frame", CONTACT + "tangential.py",
-      "    carry_with_frame(hist, k, off, frame)\n    x0 = hist[k, off]", "    x0 = hist[k, off]",
-      ("tests/test_submodel_kernels.py", "tests/test_contacts.py")),
-    # --- rolling ----------------------------------------------------------------------------
-    M("epsd stiffness prefactor 2.25 -> 2.0", CONTACT + "rolling.py",
-      "    def stiffness_coefficient(self):\n        return 2.25\n",
-      "    def stiffness_coefficient(self):\n        return 2.0\n",
-      ("tests/test_submodel_kernels.py", "tests/test_rolling_kernel.py", "tests/test_rolling.py",
-       "tests/test_slope.py", "tests/test_inclined_wall.py")),
+    # --- normal (contact/normal.py) and the material pair ------------------------------------------
+    M("hertz k_n = 4/3 E* a -> E* a", C + "normal.py", "kn = (4.0 / 3.0) * p[P_YOUNG] * a", "kn = 1.0 * p[P_YOUNG] * a", HERTZ),
+    M("hertz S_t = 8 G* a -> 4 G* a", C + "normal.py", "st = 8.0 * p[P_SHEAR] * a", "st = 4.0 * p[P_SHEAR] * a", HERTZ),
+    M("hertz S_n = 2 E* a -> E* a", C + "normal.py", "sn = 2.0 * p[P_YOUNG] * a", "sn = 1.0 * p[P_YOUNG] * a", HERTZ),
+    M("hertz tangential dashpot halved", C + "normal.py", "gamma_n * p[off + 1]", "0.5 * gamma_n * p[off + 1]", HERTZ),
+    M("hertz damping factor sqrt(5/6) -> sqrt(2/3)", C + "normal.py", "math.sqrt(5.0 / 6.0) * restitution_beta(e)",
+      "math.sqrt(2.0 / 3.0) * restitution_beta(e)", HERTZ),
+    M("hooke stiffness 16/15 -> 4/3", C + "normal.py", "(16.0 / 15.0) * sr * young", "(4.0 / 3.0) * sr * young", K),
+    M("hooke tangential dashpot halved", C + "normal.py",
+      "return kn * overlap, -gamma_n * normal_velocity, kn, p[off + 2] * kn, gamma_n",
+      "return kn * overlap, -gamma_n * normal_velocity, kn, p[off + 2] * kn, 0.5 * gamma_n", K),
+    M("linear shear dashpot from k_n", C + "normal.py", "gamma_t = p[off + 3] * math.sqrt(m_eff * ks)",
+      "gamma_t = p[off + 3] * math.sqrt(m_eff * kn)", K),
+    M("effective shear modulus: factor 2 lost", "src/rollingdem/materials.py", "inv = (2.0 * (2.0 - a.poisson_ratio)",
+      "inv = ((2.0 - a.poisson_ratio)", K),
+    # --- tangential (contact/tangential.py) ------------------------------------------------------
+    M("coulomb limit on |F_n| instead of max(F_n, 0)", C + "tangential.py", "limit = p[P_FRICTION] * max(normal_force, 0.0)",
+      "limit = p[P_FRICTION] * abs(normal_force)", K),
+    M("tangential history not carried with the frame", C + "tangential.py",
+      "    carry_with_frame(hist, k, off, frame)\n", "    pass\n", K),
+    M("tangential spring backed out without the dashpot", C + "tangential.py", "xx = -(fx + gamma_t * vtx) / kt",
+      "xx = -fx / kt", K),
+    M("tangential dissipation ignores the stored energy", C + "tangential.py", "stored_before = 0.5 * kt *",
+      "stored_before = 0.0 * kt *", K),
+    M("frame spin rotated the wrong way", C + "frame.py", "hx = rx * cs + cx * sn + nx * nd * (1.0 - cs)",
+      "hx = rx * cs - cx * sn + nx * nd * (1.0 - cs)", K),
+    # --- rolling (contact/rolling.py) ------------------------------------------------------------
+    M("epsd stiffness prefactor 2.25 -> 2.0", C + "rolling.py",
+      "    def stiffness_coefficient(self):\n        return 2.25", "    def stiffness_coefficient(self):\n        return 2.0", K),
+    M("spring rolling k_r: mu_r^2 -> mu_r", C + "rolling.py", "k_r = coefficient * kn * mu_r * mu_r * r_eff * r_eff",
+      "k_r = coefficient * kn * mu_r * r_eff * r_eff", K),
+    M("rolling dashpot 2 sqrt(I k) -> sqrt(I k)", C + "rolling.py", "c_r = eta * 2.0 * math.sqrt(inertia_r * k_r)",
+      "c_r = eta * math.sqrt(inertia_r * k_r)", K),
+    M("sds rolling damping R*^2 -> R*", C + "rolling.py", "c_r = damping * r_eff * r_eff", "c_r = damping * r_eff", K),
+    M("rolling limit on |F_n,el| instead of max(F_n,el, 0)", C + "rolling.py", "f_lim = max(force_elastic, 0.0)",
+      "f_lim = abs(force_elastic)", K),
+    M("rolling history not carried with the frame", C + "rolling.py",
+      "        carry_with_frame(hist, k, off, frame)\n    elif", "        pass\n    elif", K),
+    M("recommended slip damping 1 -> 0", C + "rolling.py", "None: (CAP_TOTAL, FORCE_ELASTIC, HISTORY_FRAME, 0, 1.0)",
+      "None: (CAP_TOTAL, FORCE_ELASTIC, HISTORY_FRAME, 0, 0.0)", K),
+    M("spring at the cap not backed out of the dashpot", C + "rolling.py",
+      "            sx = mx - slip_damping * c_r * rx\n", "            sx = mx\n", K),
+    M("rolling dissipation ignores the released spring energy", C + "rolling.py",
+      "        dissipated += 0.5 * ((trial_x", "        dissipated += 0.0 * ((trial_x", K),
+    M("epsd without the pair's rolling damping", C + "rolling.py",
+      "    def damping_value(self, pair):\n        return -1.0 if self.damping_ratio is None else self.damping_ratio\n\n"
+      "    def parameters(self):\n        return {\"damping_ratio\"",
+      "    def damping_value(self, pair):\n        return 0.0 if self.damping_ratio is None else self.damping_ratio\n\n"
+      "    def parameters(self):\n        return {\"damping_ratio\"", K),
+    M("displacement damping mobilised on |F_total|", C + "rolling.py", "k_r = moment_max / coefficient",
+      "k_r = mu_r * r_eff * abs(force_total) / coefficient", K),
+    M("lammps parity on the elastic force", C + "rolling.py", "\"lammps\": (CAP_TOTAL, FORCE_ABS_TOTAL, HISTORY_PROJECT, 0, 1.0)",
+      "\"lammps\": (CAP_TOTAL, FORCE_ELASTIC, HISTORY_PROJECT, 0, 1.0)", K),
+    M("liggghts parity with slip damping", C + "rolling.py", "\"liggghts\": (CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL, 1, 0.0)",
+      "\"liggghts\": (CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL, 1, 1.0)", K),
+    M("cdt on |F_total|", C + "rolling.py", "moment = p[P_ROLLING_FRICTION] * r_eff * max(force_elastic, 0.0) * rate / norm",
+      "moment = p[P_ROLLING_FRICTION] * r_eff * abs(force_total) * rate / norm", K),
+    M("viscous kratos form without its R*", C + "rolling.py", "        s *= r_eff\n", "        s *= 1.0\n", K),
+    M("force proportional: levers swapped", C + "rolling.py", "si = f * lever_i / a", "si = f * lever_j / a", K),
+    # --- twisting (contact/twisting.py) ----------------------------------------------------------
+    M("marshall limit 2/3 a -> a/2", C + "twisting.py", "limit = (2.0 / 3.0) * math.sqrt(a2)", "limit = 0.5 * math.sqrt(a2)", TWIST),
+    M("marshall k_tw = k_t a^2/2 -> k_t a^2", C + "twisting.py", "k_tw = 0.5 * kt * a2", "k_tw = kt * a2", TWIST),
+    M("marshall gamma_tw = gamma_t a^2/2 -> gamma_t a^2", C + "twisting.py", "g_tw = 0.5 * gamma_t * a2", "g_tw = gamma_t * a2", TWIST),
+    M("marshall limit with mu_r instead of mu", C + "twisting.py", "math.sqrt(a2) * p[P_FRICTION]", "math.sqrt(a2) * p[3]", TWIST),
+    M("twisting sds limit on |F_n,el|", C + "twisting.py", "limit = p[poff + 3] * max(force_elastic, 0.0)",
+      "limit = p[poff + 3] * abs(force_elastic)", TWIST),
+    M("twist rate: n_z dropped", C + "twisting.py", "spin = dwx * nx + dwy * ny + dwz * nz", "spin = dwx * nx + dwy * ny + dwz", TWIST),
 ]
 
 
@@ -73,10 +121,12 @@ def _copy_tree(dest: Path) -> None:
     shutil.copy2(ROOT / "pyproject.toml", dest / "pyproject.toml")
 
 
-def _run_tests(copy: Path, tests, cache: Path) -> tuple[int, list[str], str]:
+def _run_tests(copy: Path, tests) -> tuple[int, list[str], str]:
     """pytest on the copy; (exit code, failed test ids, last output lines)."""
-    env = dict(os.environ, PYTHONPATH=str(copy / "src"), ROLLINGDEM_CACHE_DIR=str(cache),
-               ROLLINGDEM_PRECOMPILE="0", PYTHONDONTWRITEBYTECODE="1")
+    # caches of its own per copy: Numba's cache does not notice an edit in a module whose function
+    # was inlined into another module's cached function (frame.py into rolling.py)
+    env = dict(os.environ, PYTHONPATH=str(copy / "src"), ROLLINGDEM_CACHE_DIR=str(copy / "kernels"),
+               NUMBA_CACHE_DIR=str(copy / "numba-cache"), ROLLINGDEM_PRECOMPILE="0", PYTHONDONTWRITEBYTECODE="1")
     # the copy's package must be the one imported, not an installed one
     where = subprocess.run([sys.executable, "-c", "import rollingdem; print(rollingdem.__file__)"],
                            cwd=copy, env=env, capture_output=True, text=True)
@@ -115,13 +165,12 @@ def main(argv=None) -> int:
         return 2
 
     work = Path(tempfile.mkdtemp(prefix="rollingdem-mutations-"))
-    cache = work / "kernels"
     try:
         base = work / "base"
         _copy_tree(base)
         all_tests = sorted({t for m in chosen for t in m.tests})
         t0 = time.perf_counter()
-        code, failed, tail = _run_tests(base, all_tests, cache)
+        code, failed, tail = _run_tests(base, all_tests)
         if code != 0:
             print(f"error: the unmutated copy fails its tests ({', '.join(failed) or tail}): fix that first",
                   file=sys.stderr)
@@ -133,7 +182,7 @@ def main(argv=None) -> int:
             _copy_tree(copy)
             _apply(copy, m)
             t0 = time.perf_counter()
-            code, failed, tail = _run_tests(copy, m.tests, cache)
+            code, failed, tail = _run_tests(copy, m.tests)
             caught = code != 0
             if caught and not failed:
                 failed = [tail.splitlines()[-1] if tail else f"exit {code}"]

@@ -240,6 +240,21 @@ def test_exact_pile_gives_the_exact_angle(alpha):
     assert math.hypot(free.apex[0] - 0.013, free.apex[1] + 0.021) < 1e-3 * RADIUS
 
 
+@pytest.mark.parametrize("alpha", [20.0, 30.0, 40.0])
+def test_a_sector_bare_to_the_floor_is_not_taken_for_the_surface(alpha):
+    """A pile that ran off one side: in a 90 degree sector only the first layer is left on the
+    floor. The first-layer cut keeps those spheres out of the surface, so the rest of the cone gives
+    alpha to TOL_EXACT, in the cone fit and in every slice. Taken for the surface, the bare floor
+    pulls the cone steeper (+0.16 to +0.5 degree here) and the slices across the sector by 3 to 6
+    degrees."""
+    pos = ideal_pile(alpha, seed=1)
+    azimuth = np.degrees(np.arctan2(pos[:, 1], pos[:, 0]))
+    pos = pos[~((np.abs(azimuth) < 45.0) & (pos[:, 2] > 1.5 * RADIUS))]  # the first layer stays
+    res = repose_angle(pos, RADIUS, n_slices=4)
+    assert abs(res.angle - alpha) < TOL_EXACT
+    assert np.all(np.abs(res.slice_angles - alpha) < TOL_EXACT)
+
+
 @pytest.mark.parametrize("envelope", ["exact", "even"])
 @pytest.mark.parametrize("alpha", [20.0, 40.0])
 def test_stacks_on_the_outer_surface_do_not_pull_the_cone(alpha, envelope):

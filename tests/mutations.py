@@ -7,10 +7,10 @@ pass, or the table means nothing.
 
     python tests/mutations.py                 # every mutation; a table at the end
     python tests/mutations.py --list          # the mutations, not run
-    python tests/mutations.py --only epsd     # those whose name contains 'epsd'
+    python tests/mutations.py --only epsd     # those whose name contains 'epsd' (repeatable)
 
 Exit status 0 when every mutation is caught, 1 otherwise, 2 for bad arguments. Not part of the
-default suite (each mutation recompiles the kernels it touches: about a minute each on 2 cores).
+default suite (each mutation recompiles what it touches: 20 s to 2 min each on 2 cores).
 """
 
 from __future__ import annotations
@@ -43,6 +43,8 @@ C = "src/rollingdem/contact/"
 K = ("tests/test_submodel_kernels.py", "tests/test_rolling_kernel.py")  # the kernels called on their own
 HERTZ = K + ("tests/test_hertz_damping.py",)
 TWIST = K + ("tests/test_twisting.py",)
+A = "src/rollingdem/analysis.py"
+PILES = ("tests/test_analysis.py",)
 MUTATIONS = [
     # --- normal (contact/normal.py) and the material pair ------------------------------------------
     M("hertz k_n = 4/3 E* a -> E* a", C + "normal.py", "kn = (4.0 / 3.0) * p[P_YOUNG] * a", "kn = 1.0 * p[P_YOUNG] * a", HERTZ),
@@ -111,6 +113,31 @@ MUTATIONS = [
     M("twisting sds limit on |F_n,el|", C + "twisting.py", "limit = p[poff + 3] * max(force_elastic, 0.0)",
       "limit = p[poff + 3] * abs(force_elastic)", TWIST),
     M("twist rate: n_z dropped", C + "twisting.py", "spin = dwx * nx + dwy * ny + dwz * nz", "spin = dwx * nx + dwy * ny + dwz", TWIST),
+    # --- the repose-angle estimator (analysis.py) -----------------------------------------------
+    M("repose slope biased by 1.5 %", A, "angle = math.degrees(math.atan(p[1]))",
+      "angle = math.degrees(math.atan(1.015 * p[1]))", PILES),
+    M("repose cone fit without its robust loss", A, 'loss="soft_l1"', 'loss="linear"', PILES),
+    M("repose fit without the toe clearance", A,
+      "r_hi = min(r_hi, (p_prev[0] - floor - TOE_CLEARANCE * d_mean) / p_prev[1])", "r_hi = r_hi", PILES),
+    M("repose surface without the first-layer cut", A, " & (x[cand, 2] - floor >= 2.0 * a[cand])", "", PILES),
+    M("repose fit without the outlier (MAD) cut", A, "inl = np.abs(r - med) <= 3.0 * sigma",
+      "inl = np.abs(r - med) <= np.inf * sigma", PILES),
+    M("pile radius: largest sector instead of the median", A, "return float(np.median(ext))",
+      "return float(np.max(ext))", PILES),
+    # --- cases, bench, walls ---------------------------------------------------------------------
+    M("repose case: the angle check compares EPSD2 with itself", "src/rollingdem/cases/repose.py",
+      'for m in ("epsd2", "epsd")]', 'for m in ("epsd2", "epsd2")]',
+      ("tests/test_pile_cases.py::test_angle_check_of_case_3_on_stand_in_piles",)),
+    M("repose column 10 % too narrow", "src/rollingdem/cases/repose.py",
+      "tube = (solid / (PACKING * math.pi * 2.0 * aspect)) ** (1.0 / 3.0)",
+      "tube = 0.9 * (solid / (PACKING * math.pi * 2.0 * aspect)) ** (1.0 / 3.0)",
+      ("tests/test_parallel.py::test_column_size_holds_the_spheres",)),
+    M("bench counts each contact once", "src/rollingdem/bench.py", "return (2 * pairs + walls) / n, 2 * st.list_size / n",
+      "return (pairs + walls) / n, 2 * st.list_size / n", ("tests/test_bench.py",)),
+    M("bench rate over half the wall time", "src/rollingdem/bench.py", "particle_steps_per_s=n * steps / wall,",
+      "particle_steps_per_s=n * steps / (0.5 * wall),", ("tests/test_bench.py",)),
+    M("cylinder wall overlap off by 20 nm", "src/rollingdem/engine_kernel.py", "overlap = r + ri - wall_geom[wl, 6]",
+      "overlap = r + ri - wall_geom[wl, 6] + 2e-8", ("tests/test_engine.py::test_cylinder_wall_holds_particles",)),
 ]
 
 
@@ -153,9 +180,10 @@ def _apply(copy: Path, m: Mutation) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--list", action="store_true", help="list the mutations and exit")
-    parser.add_argument("--only", default=None, help="run the mutations whose name contains this text")
+    parser.add_argument("--only", action="append", default=None,
+                        help="run the mutations whose name contains this text (repeatable: any of them)")
     args = parser.parse_args(argv)
-    chosen = [m for m in MUTATIONS if args.only is None or args.only in m.name]
+    chosen = [m for m in MUTATIONS if args.only is None or any(t in m.name for t in args.only)]
     if args.list:
         for m in MUTATIONS:
             print(f"{m.name}: {m.file}")

@@ -69,33 +69,3 @@ def test_column_size_holds_the_spheres(table1):
     with pytest.raises(rd.ParameterError, match="packing fraction"):
         sim.insert(rd.CylinderRegion(tube, 0.0, height), n, sizes, "m", seed=2)
 
-
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason="the quick case's column settles 1.19 H high (solid fraction ~0.50, not "
-                   "PACKING = 0.6): found in issue 25; when column_size is fixed, this test passes and strict "
-                   "xfail fails, so remove the marker")
-def test_settled_column_is_as_high_as_column_size_says(table1):
-    """pile_run's settle (Table 1 material, dt = 1e-5 s, the quick case's 1000 spheres of R (1 +- 0.2)
-    in the tube of column_size, run 2 sqrt(2 fill / g) + 0.1 s): the settled column should stand H
-    high. For a column of uniform density 2 <z> = H (centres). A random packing of frictional
-    spheres lies between random loose (0.55) and random close (0.64) packing, so if column_size's
-    PACKING = 0.6 held to that range the height would be within 0.6/0.64 = 0.94 and 0.6/0.55 = 1.09
-    of H. Measured 2 <z> / H = 1.19 (19 s of compute): the tube of 10.5 radii loosens the packing to
-    about 0.50, and the quick case's column is 1.19 tube diameters high, not 1."""
-    import numpy as np
-
-    from rollingdem.cases.repose import INSERT_PACKING, PACKING, POLYDISPERSITY, column_size
-    from rollingdem.cases.single_sphere import G, RADIUS, TABLE1
-
-    n = 1000
-    tube, height = column_size(n, RADIUS, POLYDISPERSITY)
-    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5)
-    sim.add_material(rd.Material("m", **TABLE1))
-    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
-    sim.add_wall(rd.Cylinder(tube, extent=(0.0, 2 * height + 0.1), material="m"))
-    fill = height * PACKING / INSERT_PACKING
-    sim.insert(rd.CylinderRegion(tube, 0.0, fill), n,
-               rd.Uniform(RADIUS * (1 - POLYDISPERSITY), RADIUS * (1 + POLYDISPERSITY)), "m", seed=1)
-    sim.run(2.0 * math.sqrt(2.0 * fill / G) + 0.1)
-    assert np.abs(sim.velocities).max() < 1e-3  # at rest
-    assert 0.94 < 2 * sim.positions[:, 2].mean() / height < 1.09

@@ -34,14 +34,17 @@ from .single_sphere import DT, G, RADIUS, TABLE1
 
 POLYDISPERSITY = 0.2  # radii uniform in R (1 +- 0.2)
 MOVING_FRACTION = 0.005  # of the spheres: a pile with fewer still moving counts as settled
-PACKING = 0.6  # solid fraction of the settled column, used to size the tube
+PACKING = 0.6  # nominal solid fraction of the settled column, used to size the tube
 INSERT_PACKING = 0.3  # solid fraction of the random insertion (it tops out near 0.35)
 
 
 def column_size(count, radius=RADIUS, polydispersity=0.0, aspect=1.0) -> tuple[float, float]:
-    """(tube radius, settled column height) in m for ``count`` spheres: height = aspect x diameter.
+    """(tube radius, nominal column height) in m for ``count`` spheres: the height the column has at
+    solid fraction ``PACKING`` is ``aspect`` tube diameters.
 
-    Solid volume N (4/3) pi <r^3>, with <r^3> = R^3 (1 + p^2) for radii uniform in R (1 +- p).
+    Solid volume N (4/3) pi <r^3>, with <r^3> = R^3 (1 + p^2) for radii uniform in R (1 +- p). A
+    narrow tube packs looser than that: 1000 spheres of R (1 +- 0.2) in the tube of 10.5 R settle at
+    a solid fraction of about 0.50, 1.19 times the nominal height.
     """
     solid = count * 4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2)
     tube = (solid / (PACKING * math.pi * 2.0 * aspect)) ** (1.0 / 3.0)
@@ -229,7 +232,8 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
     tube, height = column_size(count, RADIUS, POLYDISPERSITY)
     result = CaseResult("angle-of-repose", f"Case 3: angle of repose ({count} spheres)", pd.DataFrame(rows), checks,
                         notes=[f"{count} spheres of R = 5 mm ± {POLYDISPERSITY:.0%} (uniform) settle in a tube of "
-                               f"radius {tube:.3f} m into a column about {height:.3f} m high; the tube is removed at "
+                               f"radius {tube:.3f} m (sized for a column {height:.3f} m high at solid fraction {PACKING}; "
+                               "a column this narrow packs looser and stands higher); the tube is removed at "
                                f"once and the column collapses for {collapse} s. Spin about z: Σ ½ I ω_z². "
                                "Without a twisting model a sphere resting on the plate keeps any spin about the "
                                "vertical (LIGGGHTS does the same), and a sphere held at two contacts any spin about "

@@ -42,6 +42,16 @@ N_BASE = 40  # pile base radius in diameters
 TOL_ANGLE = 0.5  # degrees: the issue's requirement
 
 
+def column_lattice(rng, half_width, d):
+    """Column positions on a square lattice of spacing d, from -half_width d to half_width d each
+    way, jittered by +-0.1 d in x and y: (x, y, distance from the axis)."""
+    g = np.arange(-half_width, half_width + 1) * d
+    gx, gy = np.meshgrid(g, g, indexing="ij")
+    cx = gx.ravel() + rng.uniform(-0.1, 0.1, gx.size) * d
+    cy = gy.ravel() + rng.uniform(-0.1, 0.1, gy.size) * d
+    return cx, cy, np.hypot(cx, cy)
+
+
 def make_pile(alpha_deg, *, radius=RADIUS, n_base=N_BASE, noise=0.0, rough=0.0, bumps=0.0,
               center=(0.0, 0.0), floor=0.0, poly=0.0, toe=False, seed=0):
     """Spheres filling a cone of angle alpha_deg (degrees); returns (positions (N, 3) m, radii)."""
@@ -49,11 +59,7 @@ def make_pile(alpha_deg, *, radius=RADIUS, n_base=N_BASE, noise=0.0, rough=0.0, 
     d = 2 * radius
     big_r = n_base * d
     tan_a = np.tan(np.radians(alpha_deg))
-    g = np.arange(-n_base - 11, n_base + 12) * d
-    gx, gy = np.meshgrid(g, g, indexing="ij")
-    cx = gx.ravel() + rng.uniform(-0.1, 0.1, gx.size) * d
-    cy = gy.ravel() + rng.uniform(-0.1, 0.1, gy.size) * d
-    rho = np.hypot(cx, cy)
+    cx, cy, rho = column_lattice(rng, n_base + 11, d)
     phase = rng.uniform(0.0, d, cx.size)  # random vertical phase of each column
     room = big_r * tan_a - rho * tan_a - phase  # height available above the column's lowest centre
     nz = np.where(room >= 0, np.floor(room / d).astype(int) + 1, 0)
@@ -184,11 +190,7 @@ def ideal_pile(alpha_deg, *, n_base=30, envelope="exact", stacks=0.0, stack_heig
     d = D
     big_r = n_base * d
     tan_a = math.tan(math.radians(alpha_deg))
-    g = np.arange(-n_base - 12, n_base + 13) * d
-    gx, gy = np.meshgrid(g, g, indexing="ij")
-    cx = gx.ravel() + rng.uniform(-0.1, 0.1, gx.size) * d
-    cy = gy.ravel() + rng.uniform(-0.1, 0.1, gy.size) * d
-    rho = np.hypot(cx, cy)
+    cx, cy, rho = column_lattice(rng, n_base + 12, d)
     depth = np.zeros(rho.size)
     if envelope == "even":
         order = np.argsort(rho)

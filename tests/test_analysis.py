@@ -257,6 +257,16 @@ def test_a_sector_bare_to_the_floor_is_not_taken_for_the_surface(alpha):
     assert np.all(np.abs(res.slice_angles - alpha) < TOL_EXACT)
 
 
+def angle_within_tolerance(pos, alpha, envelope):
+    """Measure the pile; assert the cone and the slices' mean give alpha to TOL_EXACT (exact
+    envelope) or to the envelope tolerance (even); return the result."""
+    res = repose_angle(pos, RADIUS)
+    tol = TOL_EXACT if envelope == "exact" else envelope_tolerance(pos, res, alpha)
+    assert abs(res.angle - alpha) < tol, f"{res.angle - alpha:+.3f} deg off (tolerance {tol:.3f})"
+    assert abs(res.slice_mean - alpha) < tol, f"slices {res.slice_mean - alpha:+.3f} deg off (tolerance {tol:.3f})"
+    return res
+
+
 @pytest.mark.parametrize("envelope", ["exact", "even"])
 @pytest.mark.parametrize("alpha", [20.0, 40.0])
 def test_stacks_on_the_outer_surface_do_not_pull_the_cone(alpha, envelope):
@@ -266,11 +276,7 @@ def test_stacks_on_the_outer_surface_do_not_pull_the_cone(alpha, envelope):
     surface, measured <= 0.08 degree). A plain least-squares first fit, or no MAD cut, lets the
     stacks lift the outer surface: 0.5-2 degree too shallow."""
     pos = ideal_pile(alpha, envelope=envelope, stacks=0.3, seed=1)
-    res = repose_angle(pos, RADIUS)
-    tol = TOL_EXACT if envelope == "exact" else envelope_tolerance(pos, res, alpha)
-    print(f"\nstacks {envelope} {alpha}: {res.angle - alpha:+.3f} (tolerance {tol:.3f}) deg")
-    assert abs(res.angle - alpha) < tol
-    assert abs(res.slice_mean - alpha) < tol
+    res = angle_within_tolerance(pos, alpha, envelope)
     # no stacked sphere is taken for the surface: every surface top is at most one diameter off the cone
     top = pos[:, 2] + RADIUS
     rho = np.hypot(pos[:, 0] - res.apex[0], pos[:, 1] - res.apex[1])
@@ -287,11 +293,7 @@ def test_flat_foot_is_left_out_of_the_fit(alpha, envelope):
     within TOL_EXACT (exact) or the envelope tolerance (even; measured <= 0.08 degree). Without that
     toe clearance the fit runs on to 0.85 of the pile radius, over the foot: 3-8 degrees too shallow."""
     pos = ideal_pile(alpha, envelope=envelope, foot_layers=2, seed=2)
-    res = repose_angle(pos, RADIUS)
-    tol = TOL_EXACT if envelope == "exact" else envelope_tolerance(pos, res, alpha)
-    print(f"\nfoot {envelope} {alpha}: {res.angle - alpha:+.3f} (tolerance {tol:.3f}) deg")
-    assert abs(res.angle - alpha) < tol
-    assert abs(res.slice_mean - alpha) < tol
+    res = angle_within_tolerance(pos, alpha, envelope)
     # the fit range ends where the fitted tops are 3 d above the floor (to the 0.25 d of its convergence)
     h, tan_a = res.apex[2], math.tan(math.radians(res.angle))
     assert res.fit_range[1] == pytest.approx((h - 3 * D) / tan_a, abs=0.25 * D / tan_a)

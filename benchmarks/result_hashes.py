@@ -77,7 +77,8 @@ def slab() -> dict:
     return {"end": state_hash(sim)}
 
 
-def mixture() -> dict:
+def mixture_simulation():
+    """The mixture scene, poured but not yet stepped."""
     import rollingdem as rd
 
     sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd", twisting="marshall"), dt=1e-5,
@@ -92,6 +93,11 @@ def mixture() -> dict:
     sizes = rd.Uniform(0.004, 0.006)
     sim.insert(rd.CylinderRegion(0.06, 0.0, 0.3), 1500, sizes, "soft", seed=3)
     sim.insert(rd.CylinderRegion(0.06, 0.3, 0.6), 1500, sizes, "hard", seed=4)
+    return sim
+
+
+def mixture() -> dict:
+    sim = mixture_simulation()
     step(sim, 2000)
     return {"end": state_hash(sim)}
 

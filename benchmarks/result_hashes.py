@@ -18,9 +18,6 @@ and the energies it tracks):
   cylinder is removed, the plate stopped and gravity tilted, 1,000 steps each.
 - ``rolling-flat/<model>``: the validation case 1 run of every rolling model (one sphere, 0.3 s).
 
-Every run steps in kernel calls of a fixed length (``step``), so the hashes do not depend on the
-machine's speed.
-
 Every scene runs on each thread count asked for; the hashes must agree across them (the engine is
 bit-identical for any thread count) and, with ``--check``, with the recorded file. Floating-point
 results depend on the processor's instruction set, so compare runs made on one machine.
@@ -35,19 +32,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
-
-CALL = 64  # steps per kernel call: the first chunk of Simulation.run, which later adapts to the clock
-
-
-def step(sim, steps: int) -> None:
-    """``steps`` steps in calls of ``CALL`` steps. ``Simulation.run`` sizes its kernel calls by the
-    wall time they take, and the state after a call boundary differs at round-off from the state
-    stepped through it: stepping in fixed calls makes a run's result independent of the machine's
-    speed and of whether its kernel was compiled in the same process."""
-    while steps > 0:
-        sim.run(steps=min(CALL, steps))
-        steps -= CALL
 
 
 def state_hash(sim) -> str:
@@ -65,7 +49,7 @@ def collapse() -> dict:
 
     sim = settled_column(20000, echo=lambda m: print(m, file=sys.stderr))
     start = state_hash(sim)
-    step(_collapse(sim), 300)
+    _collapse(sim).run(steps=300)
     return {"start": start, "end": state_hash(sim)}
 
 
@@ -73,7 +57,7 @@ def slab() -> dict:
     from rollingdem.bench import _slab_simulation
 
     sim = _slab_simulation(20000)
-    step(sim, 300)
+    sim.run(steps=300)
     return {"end": state_hash(sim)}
 
 
@@ -98,7 +82,7 @@ def mixture_simulation():
 
 def mixture() -> dict:
     sim = mixture_simulation()
-    step(sim, 2000)
+    sim.run(steps=2000)
     return {"end": state_hash(sim)}
 
 
@@ -110,15 +94,15 @@ def walls() -> dict:
     sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m", name="plate"))
     sim.add_wall(rd.Cylinder(0.05, material="m", name="tube"))
     sim.insert(rd.CylinderRegion(0.05, 0.0, 0.4), 1500, 0.005, "m", seed=5)
-    step(sim, 1000)
+    sim.run(steps=1000)
     sim.set_wall_velocity("tube", angular_velocity=(0.0, 0.0, 3.0))
     sim.set_wall_velocity("plate", velocity=(0.0, 0.0, 0.05))
-    step(sim, 1000)
+    sim.run(steps=1000)
     middle = state_hash(sim)
     sim.remove_wall("tube")
     sim.set_wall_velocity("plate", velocity=(0.0, 0.0, 0.0))
     sim.gravity = (1.5, 0.0, -9.7)
-    step(sim, 1000)
+    sim.run(steps=1000)
     return {"middle": middle, "end": state_hash(sim)}
 
 
@@ -128,9 +112,9 @@ def rolling_flat(label, model) -> dict:
     from rollingdem.cases.single_sphere import DT, sphere_on_wall
 
     sim = sphere_on_wall(model, settle=0.0)
-    step(sim, round(0.2 / DT))
+    sim.run(steps=round(0.2 / DT))
     sim.set_velocities([0], velocity=(1.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0))
-    step(sim, round(0.3 / DT))
+    sim.run(steps=round(0.3 / DT))
     return {"end": state_hash(sim)}
 
 

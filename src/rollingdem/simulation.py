@@ -61,6 +61,9 @@ class Simulation:
         self._state = EngineState(self.contact.history_size)
         self.step = 0
         self.time = 0.0
+        # (time, step) where the present dt took over: time = t0 + (step - s0) dt, one product, so
+        # the clock does not depend on how the steps were cut into runs and kernel calls
+        self._time_origin = (0.0, 0)
         self._pair_params = None
         # how a user turns a check off, as the refusal tells it; a case file names its own keys
         self.hints = {"check_timestep": "pass check_timestep=False to the Simulation",
@@ -86,6 +89,7 @@ class Simulation:
     @dt.setter
     def dt(self, value):
         self._dt = check_positive("dt", value, "s")
+        self._time_origin = (self.time, self.step)
 
     @property
     def skin(self) -> float:
@@ -523,7 +527,7 @@ class Simulation:
                                                     self.pair_parameters())
                 elapsed = _time.perf_counter() - tic
                 self.step += done
-                self.time += done * self.dt
+                self.time = self._time_origin[0] + (self.step - self._time_origin[1]) * self.dt
                 self._check_finite_state()
                 if problem:
                     raise SimulationError(f"at t = {self.time:.6g} s (step {self.step}): {problem}")
@@ -591,6 +595,7 @@ class Simulation:
             "track_energy": self.track_energy,
             "step": self.step,
             "time": self.time,
+            "time_origin": list(self._time_origin),
             "walls": [None if wl.kind == INACTIVE else {**wl.describe(), "name": wl.name,
                                                           "material": self.materials[wl.material].name}
                       for wl in self._walls],
@@ -646,6 +651,8 @@ class Simulation:
             wl.update_from_geometry(g)
         sim.step = int(meta["step"])
         sim.time = float(meta["time"])
+        origin = meta.get("time_origin", (sim.time, sim.step))  # absent in older checkpoints
+        sim._time_origin = (float(origin[0]), int(origin[1]))
         return sim
 
     def sync_walls_from_engine(self):

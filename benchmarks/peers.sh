@@ -9,7 +9,7 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 work="$1"; rounds="${2:-3}"
 mkdir -p "$work"; cd "$work"
-cp -n "$here/../shared/reference/bench/"* . 2>/dev/null || true
+cp -n "$here/benchmarks/reference/"* . 2>/dev/null || true
 M="mpirun --allow-run-as-root --oversubscribe"
 if [ ! -f column20k.dump ]; then
   $M -np 2 liggghts -in liggghts_in.build -var rf epsd -var out column20k > build.log

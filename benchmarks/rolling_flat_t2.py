@@ -1,4 +1,4 @@
-"""Seed report test case 1 (MODELS.md §13 T2) per rolling model: stop time, distance, residual speed.
+"""Seed report test case 1 (docs/models.md §13 T2) per rolling model: stop time, distance, residual speed.
 
     python benchmarks/rolling_flat_t2.py
 """

@@ -4,7 +4,7 @@
   m g R sin b = mu_r R m g cos b, so the critical angle for mu_r is atan(mu_r) and the mu_r for a
   measured critical angle b is tan(b).
 * A small real case: the stop distance of the rolling-flat case against its analytic value
-  s(mu_r) = v0 t1 - mu g t1^2 / 2 + 7 v1^2 / (10 mu_r g) (MODELS.md §13 T2).
+  s(mu_r) = v0 t1 - mu g t1^2 / 2 + 7 v1^2 / (10 mu_r g) (docs/models.md §13 T2).
 """
 
 import json

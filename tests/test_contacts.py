@@ -1,4 +1,4 @@
-"""Binary impacts: restitution, Hertz contact time, energy conservation (MODELS.md §1, §2)."""
+"""Binary impacts: restitution, Hertz contact time, energy conservation (docs/models.md §1, §2)."""
 
 import math
 
@@ -122,7 +122,7 @@ def test_elastic_bouncing_conserves_energy(table1):
 
 def test_slip_then_roll_without_rolling_resistance(table1):
     """v0 = 1 m/s, omega0 = 0 on a plane, mu = 0.8: sliding decelerates at mu g and spins up until
-    t1 = 2 v0 / (7 mu g); then it rolls on at 5/7 v0 (MODELS.md §13 T2 with mu_r = 0)."""
+    t1 = 2 v0 / (7 mu g); then it rolls on at 5/7 v0 (docs/models.md §13 T2 with mu_r = 0)."""
     mu = 0.8
     sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="none"), dt=1e-5)
     sim.add_material(table1(friction=mu, rolling_friction=0.0))

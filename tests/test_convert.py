@@ -1,5 +1,5 @@
 """rd.convert: other codes' rolling parameters give the same trajectory as the rollingdem model
-they are claimed to equal (MODELS.md §12, §13 T6(f)).
+they are claimed to equal (docs/models.md §12, §13 T6(f)).
 
 Every comparison uses the linear contact (constant k_s), so that EPSD2's k_r = k_s R*^2 is a
 constant and the two runs differ only in how the same numbers are computed: they must agree to

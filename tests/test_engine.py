@@ -325,7 +325,7 @@ def test_cylinder_wall_holds_particles(table1):
     """A sphere pulled sideways (g along x) against the inside of a cylinder of radius 0.02 m comes to
     rest at the Hertz static overlap under its weight, delta = (3 m g / (4 E* sqrt(R*)))^(2/3), with
     the wall a partner of infinite radius and stiffness-matched material (R* = R, E* = E / (2 (1 -
-    nu^2)); MODELS.md section 0): 1.68e-6 m for Table 1. At rest the damping force vanishes, so what
+    nu^2)); docs/models.md section 0): 1.68e-6 m for Table 1. At rest the damping force vanishes, so what
     is left of the overlap error is an oscillation of amplitude v / omega, omega = sqrt(1.5 m g /
     (delta m)) ~ 3000 rad/s: with v < 1e-6 m/s that is below 4e-10 m, 2e-4 delta. Tolerance 1 % of
     delta (17 nm; measured 5e-12 delta): a wall taken as concave (R* = R Rc / (Rc - R), delta 9 %

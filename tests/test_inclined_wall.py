@@ -1,5 +1,5 @@
 """T3, the seed report's test case 0: a sphere on a wall inclined by beta rests if and only if
-mu_r >= tan(beta) (MODELS.md §10.1: m g R sin(beta) against mu_r R m g cos(beta))."""
+mu_r >= tan(beta) (docs/models.md §10.1: m g R sin(beta) against mu_r R m g cos(beta))."""
 
 import math
 
@@ -16,7 +16,7 @@ def assert_threshold(rolling, beta):
     """0.5 % either side of tan(beta) (the report's Table 2 is within 1.6 %). Just below, the sphere
     rolls from the end of the tilt at a = (5/7) g (0.005 sin beta), i.e. about a x 0.25 s over the
     last 0.1 s; half of that (rolling_threshold_speed) separates it from a held sphere (springs:
-    0, CDT's chatter creep ~4e-5 m/s at 10 deg, MODELS.md §13 T4)."""
+    0, CDT's chatter creep ~4e-5 m/s at 10 deg, docs/models.md §13 T4)."""
     tan_b = math.tan(math.radians(beta))
     threshold = rolling_threshold_speed(beta, 0.005)
     assert speed_down_incline(rolling, 0.995 * tan_b, beta) > threshold

@@ -1,4 +1,4 @@
-"""Rolling resistance models against MODELS.md §13 (seed report material, Hertz, dt = 1e-5 s)."""
+"""Rolling resistance models against docs/models.md §13 (seed report material, Hertz, dt = 1e-5 s)."""
 
 import numpy as np
 import pytest
@@ -12,7 +12,7 @@ MU, MU_R = 0.8, 0.2
 
 def test_analytic_reference_values():
     _, _, t_stop, s = analytic_flat()
-    assert t_stop == pytest.approx(0.50968, abs=1e-5) and s == pytest.approx(0.18836, abs=1e-5)  # MODELS.md §13
+    assert t_stop == pytest.approx(0.50968, abs=1e-5) and s == pytest.approx(0.18836, abs=1e-5)  # docs/models.md §13
 
 
 SLOW = pytest.mark.slow
@@ -35,7 +35,7 @@ def test_rolling_on_flat_stops_where_theory_says(rolling, tol):
 
 
 def test_liggghts_parity_epsd_stops_short_by_the_dashpot_spike():
-    """MODELS.md §11.5: LIGGGHTS caps only the spring, so at the end of slip the uncapped dashpot
+    """docs/models.md §11.5: LIGGGHTS caps only the spring, so at the end of slip the uncapped dashpot
     adds a moment spike and the sphere stops short (LIGGGHTS: 0.18758 m against 0.18836 m). The
     parity preset must stop short of the recommended EPSD by more than 0.1 % and land within 0.3 %
     of LIGGGHTS's distance; 0.3 % because LIGGGHTS's own CDT run already sits 0.13 % short of the

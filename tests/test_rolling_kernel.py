@@ -1,4 +1,4 @@
-"""The rolling kernel on its own (MODELS.md §13 T6): frame carrying, the moment limit, objectivity."""
+"""The rolling kernel on its own (docs/models.md §13 T6): frame carrying, the moment limit, objectivity."""
 
 import importlib
 import math
@@ -137,7 +137,7 @@ FRAME_SPRING_MODELS = [rd.EPSD(), rd.EPSD2(), rd.EPSD3(), rd.RRLinear(), rd.SDS(
 
 @pytest.mark.parametrize("model", FRAME_SPRING_MODELS, ids=lambda m: m.name)
 def test_objectivity_rigid_corotation_carries_the_loaded_spring(model):
-    """T6(c), MODELS.md §11.1, §11.3: a contact holding a bent spring is turned rigidly (both partners
+    """T6(c), docs/models.md §11.1, §11.3: a contact holding a bent spring is turned rigidly (both partners
     spin with the same omega, the normal turns with them). No relative rotation, so no new moment:
     the moment is the stored spring, carried with the pair, M(t) = R(omega t) M_k0: its magnitude
     kept (round-off, 1e-12), tangent to the turning normal (1e-12), along the rotated direction.
@@ -161,7 +161,7 @@ def test_objectivity_rigid_corotation_carries_the_loaded_spring(model):
 
 
 def test_corotation_lammps_projection_keeps_size_but_misses_the_spin():
-    """LAMMPS's project-and-rescale (parity "lammps", MODELS.md §4.2, §11.3) keeps |M| and M tangent,
+    """LAMMPS's project-and-rescale (parity "lammps", docs/models.md §4.2, §11.3) keeps |M| and M tangent,
     but does not follow the spin of the pair about n: after 100 steps the moment lags the rigid
     rotation by about the accumulated spin angle, sum of omega . n dt ~ 5e-2 rad."""
     m0, steps = corotate(rd.SDS(rolling_stiffness=1e4, parity="lammps"))
@@ -175,7 +175,7 @@ def test_corotation_lammps_projection_keeps_size_but_misses_the_spin():
 
 
 def test_corotation_liggghts_history_stays_in_space():
-    """LIGGGHTS keeps the spring in the global frame (MODELS.md §3.3 step 3, §11.3): under rigid
+    """LIGGGHTS keeps the spring in the global frame (docs/models.md §3.3 step 3, §11.3): under rigid
     co-rotation the moment stays M_k0, fixed in space, and so gains a part along the turning normal
     (a spurious twist) equal to M_k0 . n."""
     m0, steps = corotate(rd.EPSD(parity="liggghts"))
@@ -195,7 +195,7 @@ def test_objectivity_rigid_corotation_no_history_models(model):
 
 
 def test_force_proportional_is_not_objective():
-    """The STAR-CCM+ Force Proportional method brakes a rigidly co-rotating pair (MODELS.md §11.1)."""
+    """The STAR-CCM+ Force Proportional method brakes a rigidly co-rotating pair (docs/models.md §11.1)."""
     cm = rd.ContactModel("hertz", rolling="force_proportional")
     table = rd.MaterialTable()
     table.add(rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2))
@@ -215,7 +215,7 @@ def cdt_moment(model, n, wi, wj, lever_i=R_EFF, lever_j=R_EFF, r_eff=R_EFF):
 
 
 def test_liggghts_cdt_normalises_by_the_full_relative_rotation():
-    """MODELS.md §3.2: with a twist equal to the bending rate, LIGGGHTS's CDT moment is
+    """docs/models.md §3.2: with a twist equal to the bending rate, LIGGGHTS's CDT moment is
     M_m |dw_r| / |dw| = M_m / sqrt(2); the documented CDT keeps the full M_m."""
     n = (0.0, 0.0, 1.0)
     documented = cdt_moment(rd.CDT(), n, (1.0, 0, 1.0), (0, 0, 0))

@@ -1,4 +1,4 @@
-"""T4, the seed report's test case 2: rolling up a 10 deg slope, then rest or creep (MODELS.md §13 T4)."""
+"""T4, the seed report's test case 2: rolling up a 10 deg slope, then rest or creep (docs/models.md §13 T4)."""
 
 import math
 
@@ -39,7 +39,7 @@ def test_x_max_and_rest(rolling):
 
 
 def test_cdt_creeps_back_with_or_without_limiter():
-    """Without a limiter CDT chatters and creeps down at 4.0e-5 m/s, as LIGGGHTS does (MODELS.md §13 T4;
+    """Without a limiter CDT chatters and creeps down at 4.0e-5 m/s, as LIGGGHTS does (docs/models.md §13 T4;
     10 %: the creep is a chatter average). The STAR-CCM+ limiter |M| <= f I_r |dw_r| / dt turns the
     moment into a viscous clamp at low rates, so it cannot hold a slope either: at steady creep
     f I_r omega / dt = m g R sin(theta) with I_r = 1.4 m R^2, i.e. v = g sin(theta) dt / (1.4 f)

@@ -1,5 +1,5 @@
 """Each contact sub-model kernel called on its own, against numbers worked out by hand from the
-formula in its docstring and the literature (MODELS.md §1, §3-§6, §4.8, §11, §12).
+formula in its docstring and the literature (docs/models.md §1, §3-§6, §4.8, §11, §12).
 
 Every expected value below is written from the published formula with the inputs typed in this
 file (E, nu, e, mu, mu_r, ... of two materials), never from the code's own helpers or output: a
@@ -26,7 +26,7 @@ from rollingdem.contact.twisting import spring_twisting
 
 RT = 1e-12  # relative round-off allowance of one kernel call (see module docstring)
 
-# Two materials, so that the pair mixing rules enter (MODELS.md §1.1).
+# Two materials, so that the pair mixing rules enter (docs/models.md §1.1).
 E_A, NU_A = 40e6, 0.49
 E_B, NU_B = 2e8, 0.30
 MAT_A = rd.Material("a", E_A, NU_A, 1056.0, friction=0.8, rolling_friction=0.2, restitution=0.5,
@@ -52,7 +52,7 @@ F_TOT = 1.3  # differs from F_EL so that a model reading the wrong one is caught
 
 
 def beta(e):
-    """beta = ln e / sqrt(ln^2 e + pi^2) (MODELS.md §1.1)."""
+    """beta = ln e / sqrt(ln^2 e + pi^2) (docs/models.md §1.1)."""
     return math.log(e) / math.sqrt(math.log(e) ** 2 + math.pi ** 2)
 
 
@@ -73,7 +73,7 @@ def rot(axis, angle):
 
 
 def test_pair_row_common_slots():
-    """The common slots of the pair row are E*, G*, mu, mu_r, eta_r, e mixed by hand (MODELS.md §1.1).
+    """The common slots of the pair row are E*, G*, mu, mu_r, eta_r, e mixed by hand (docs/models.md §1.1).
     Catches a wrong mixing rule (e.g. 2 (2 - nu)(1 + nu) -> (2 - nu)(1 + nu) in G*)."""
     p, _, _ = row(dict(normal="hertz"), "normal")
     np.testing.assert_allclose(p[:6], [E_STAR, G_STAR, MU, MU_R, ETA_R, E_REST], rtol=RT)
@@ -82,7 +82,7 @@ def test_pair_row_common_slots():
 # --- normal ---------------------------------------------------------------------------------------
 
 def test_hertz_normal_by_hand():
-    """Hertz-Mindlin (MODELS.md §1.2): a = sqrt(R* delta), k_n = 4/3 E* a, F_el = k_n delta,
+    """Hertz-Mindlin (docs/models.md §1.2): a = sqrt(R* delta), k_n = 4/3 E* a, F_el = k_n delta,
     S_n = 2 E* a, S_t = 8 G* a, gamma_n = c sqrt(S_n m*), gamma_t = c sqrt(S_t m*),
     c = -2 sqrt(5/6) beta(e) (LIGGGHTS/EDEM; exact for Hertz).
     Catches: 4/3 -> 1 in k_n, 8 G* -> 4 G* in S_t, 2 E* in S_n, sqrt(5/6) -> sqrt(2/3) in c,
@@ -101,7 +101,7 @@ def test_hertz_normal_by_hand():
 
 
 def test_hooke_normal_by_hand():
-    """Hooke (MODELS.md §1.3): k_n = m* V_c^2 / delta_H^2 with delta_H = (15 m* V_c^2 / (16 E* sqrt(R*)))^(2/5)
+    """Hooke (docs/models.md §1.3): k_n = m* V_c^2 / delta_H^2 with delta_H = (15 m* V_c^2 / (16 E* sqrt(R*)))^(2/5)
     the Hertz peak overlap at V_c (the derived form, not the code's); k_t = ratio k_n;
     gamma_n = gamma_t = -2 beta(e) sqrt(m* k_n).
     Catches: a wrong 16/15 or 1/5 power in k_n, a wrong 2 or beta in gamma_n, gamma_t != gamma_n,
@@ -123,7 +123,7 @@ def test_hooke_normal_by_hand():
 
 @pytest.mark.parametrize("zeta_n", [None, 0.4])
 def test_linear_normal_by_hand(zeta_n):
-    """PFC linear (MODELS.md §5): F = k_n delta; gamma_n = 2 zeta_n sqrt(m* k_n) with zeta_n = -beta(e)
+    """PFC linear (docs/models.md §5): F = k_n delta; gamma_n = 2 zeta_n sqrt(m* k_n) with zeta_n = -beta(e)
     unless given; gamma_t = 2 zeta_s sqrt(m* k_s).
     Catches: a wrong 2 in a dashpot, k_s and k_n swapped in gamma_t, the restitution's damping ratio wrong."""
     kn, ks, zeta_s = 3e4, 1e4, 0.25
@@ -151,7 +151,7 @@ def tangential(hist, v, normal_force, gamma_t=GAMMA_T, n=Z, n_old=None, spin=0.0
 
 
 def test_history_spring_spring_and_dashpot():
-    """One step from zero history (MODELS.md §1.2): xi = v_t dt and F = -k_t xi - gamma_t v_t, below
+    """One step from zero history (docs/models.md §1.2): xi = v_t dt and F = -k_t xi - gamma_t v_t, below
     mu F_n. Without the dashpot F = -k_t v_t dt. Catches: a wrong sign or factor of the spring or
     the dashpot (e.g. the dashpot halved), a history not accumulated, a dissipation that counts
     the stored spring energy as lost."""
@@ -195,7 +195,7 @@ def test_history_spring_coulomb_cap_and_backing_out():
 def test_history_spring_pulling_contact_cannot_grip(normal_force):
     """A contact whose normal force is pulling (F_n < 0, the dashpot at the end of an impact) has
     the Coulomb limit mu max(F_n, 0) = 0: no tangential force, however small the slip, and the
-    spring is backed out to -gamma_t v_t/k_t (MODELS.md §11.4). Catches |F_n| in the limit (which
+    spring is backed out to -gamma_t v_t/k_t (docs/models.md §11.4). Catches |F_n| in the limit (which
     would give a grip of up to mu |F_n| = 0.3 N here)."""
     v = np.array([0.3, -0.2, 0.0])
     hist = np.zeros((1, 3))
@@ -208,7 +208,7 @@ def test_history_spring_pulling_contact_cannot_grip(normal_force):
 def test_history_spring_turns_with_the_contact_frame(theta, phi):
     """A loaded spring xi0 (in the plane, along neither axis) on normal z; the normal turns by theta
     about y and the pair spins by phi about the new normal, with no slip. The spring must be the
-    hand-rotated R(n, phi) R(y, theta) xi0 (MODELS.md §11.3): same magnitude, tangent to the new
+    hand-rotated R(n, phi) R(y, theta) xi0 (docs/models.md §11.3): same magnitude, tangent to the new
     normal. Catches: the history not carried with the frame (it would keep a normal part
     ~ |xi| sin(theta) and miss the spin), a spin about the wrong axis or with the wrong sign (in
     any component). The small-angle case takes the series path of ``contact_frame``."""
@@ -341,7 +341,7 @@ def test_spring_rolling_at_the_cap(case):
 @pytest.mark.parametrize("model", [rd.EPSD(), rd.EPSD2(), rd.RRLinear(), rd.SDS(3e3, 0.05),
                                    rd.DisplacementDamping(damping=0.3)])
 def test_spring_rolling_pulling_contact_has_no_moment(model):
-    """Recommended limit M_m = mu_r R* max(F_n,el, 0) (MODELS.md §11.4, §12): a contact whose elastic
+    """Recommended limit M_m = mu_r R* max(F_n,el, 0) (docs/models.md §11.4, §12): a contact whose elastic
     force is negative (F_el = -0.5 N, total +0.7 N) has M_m = 0 and no rolling moment, whatever the
     stored spring. Catches |F_el| or F_total in the recommended limit (M would be up to mu_r R* 0.7)."""
     hist = np.array([[1e-5, -2e-5, 0.0]])
@@ -353,7 +353,7 @@ def test_spring_rolling_pulling_contact_has_no_moment(model):
 @pytest.mark.parametrize("model", [rd.EPSD(parity="liggghts"), rd.EPSD2(parity="liggghts"),
                                    rd.SDS(3e3, parity="lammps")])
 def test_parity_presets_cap_at_the_total_normal_force(model):
-    """LIGGGHTS and LAMMPS limit the moment at mu_r R* |F_n,total| (MODELS.md §3.3 step 4, §4.2):
+    """LIGGGHTS and LAMMPS limit the moment at mu_r R* |F_n,total| (docs/models.md §3.3 step 4, §4.2):
     with F_el = 1 N and F_total = -0.8 N (pulling) the cap is mu_r R* 0.8 N, and a spring loaded
     beyond it comes out at the cap. Catches: F_el or max(F_total, 0) in the parity presets."""
     cap = MU_R * R_EFF * 0.8
@@ -364,7 +364,7 @@ def test_parity_presets_cap_at_the_total_normal_force(model):
 
 
 def test_liggghts_epsd_caps_the_spring_only():
-    """LIGGGHTS EPSD (MODELS.md §3.3 steps 5-6): at the cap M = M_m along the spring, no dashpot, and
+    """LIGGGHTS EPSD (docs/models.md §3.3 steps 5-6): at the cap M = M_m along the spring, no dashpot, and
     the spring is stored at the cap; below it M = M_s + C_r w uncapped (so M may exceed M_m).
     Catches a total cap or a slip damper in the LIGGGHTS preset."""
     model = rd.EPSD(parity="liggghts")
@@ -469,7 +469,7 @@ TWISTING_CASES = {"marshall": ("marshall", MARSHALL),
 
 @pytest.mark.parametrize("case", list(TWISTING_CASES))
 def test_spring_twisting_by_hand(case):
-    """Twisting spring-dashpot-slider (MODELS.md §4.8): Omega = (w_i - w_j) . n, xi = Omega dt,
+    """Twisting spring-dashpot-slider (docs/models.md §4.8): Omega = (w_i - w_j) . n, xi = Omega dt,
     M = k_tw xi + gamma_tw Omega; at the cap mu_tw max(F_el, 0) the spring is backed out,
     xi = (M - gamma_tw Omega)/k_tw, and steady slip dissipates M Omega dt.
     Marshall (2009): k_tw = k_t a^2/2, gamma_tw = gamma_t a^2/2, mu_tw = 2/3 a mu, a = sqrt(R* delta);

@@ -1,7 +1,7 @@
 """rollingdem sweep: design expansion, the runs table (written as runs finish, resumable), failed
 runs, a worker killed mid-sweep, and refusals of bad sweep files.
 
-The physics in the rows is checked against the analytic rolling-flat solution (MODELS.md §13 T2):
+The physics in the rows is checked against the analytic rolling-flat solution (docs/models.md §13 T2):
 the validation case holds the simulated stop distance within 0.5 % of it at mu_r = 0.2, and the
 same sources of error (slip phase of the spring, 0.1 ms sampling) bound it at 1 % over 0.1-0.4.
 """

@@ -1,4 +1,4 @@
-"""Twisting resistance: a sphere spinning about the vertical on a plate (MODELS.md §4.8)."""
+"""Twisting resistance: a sphere spinning about the vertical on a plate (docs/models.md §4.8)."""
 
 import numpy as np
 import pytest
@@ -65,7 +65,7 @@ def test_twisting_sds_validation():
 
 
 def test_spin_stops_with_twisting_sds(table1):
-    """TwistingSDS with a cap mu_tw F_n (MODELS.md §4.8, LAMMPS ``twisting sds``): sliding in twist,
+    """TwistingSDS with a cap mu_tw F_n (docs/models.md §4.8, LAMMPS ``twisting sds``): sliding in twist,
     the moment is mu_tw m g, so the spin falls linearly at mu_tw m g / I = mu_tw g / (0.4 R^2)
     (98 rad/s^2 here), then it stops and stays stopped.
     Catches: the cap not mu_tw F_n (e.g. a wrong factor or F_n), a spring or dashpot that does not

@@ -86,7 +86,7 @@ def test_dt_above_stable_limit_is_refused():
     sim = rd.Simulation(dt=1e-4)
     sim.add_material(material())
     sim.add_particles([[0, 0, 0]], R, "m")
-    # Table 1 material: Rayleigh time 1.4566e-4 s (MODELS.md §13 T8), so the limit is 2.91e-5 s
+    # Table 1 material: Rayleigh time 1.4566e-4 s (docs/models.md §13 T8), so the limit is 2.91e-5 s
     with pytest.raises(rd.ParameterError) as err:
         sim.run(steps=1)
     msg = str(err.value)
@@ -98,7 +98,7 @@ def test_dt_above_stable_limit_is_refused():
 
 
 def test_rayleigh_time_step_matches_models_md():
-    """MODELS.md §13 T8 / §2 worked values, within 1e-4 relative."""
+    """docs/models.md §13 T8 / §2 worked values, within 1e-4 relative."""
     assert rd.rayleigh_time_step(0.005, 1056, 40e6, 0.49) == pytest.approx(1.4566e-4, rel=1e-4)
     assert rd.rayleigh_time_step(0.005, 2500, 10e6, 0.3) == pytest.approx(4.3270e-4, rel=1e-4)
     assert rd.rayleigh_time_step(0.001, 2500, 70e9, 0.25) == pytest.approx(1.02e-6, rel=5e-3)  # given to 3 digits
@@ -226,7 +226,7 @@ def test_pair_override_validated():
 
 
 def test_rotational_springs_enter_the_time_step_check():
-    """MODELS.md §2: every rolling and twisting spring must be resolved; the Iwashita-Oda spring
+    """docs/models.md §2: every rolling and twisting spring must be resolved; the Iwashita-Oda spring
     (k_t R*^2) never limits dt, a stiff LAMMPS sds spring does."""
     def limits(rolling):
         sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling=rolling, twisting="marshall"), dt=1e-5)

@@ -4,7 +4,7 @@ import os as _os
 
 import numba as _numba
 
-# TBB stalls on an oversubscribed 2-core machine (DESIGN.md principle 6), and its fork/join costs
+# TBB stalls on an oversubscribed 2-core machine, and its fork/join costs
 # ~190 us per parallel region on 2 cores against ~1 us for OpenMP; the workqueue costs ~80 us.
 _numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 # OpenMP threads spin 30,000 times before they sleep (GNU default: 300,000 with OMP_WAIT_POLICY

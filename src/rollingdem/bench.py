@@ -143,7 +143,7 @@ def column_from_dump(path, rolling: str = "epsd"):
     path = Path(path)
     if not path.exists():
         raise ParameterError(f"from_dump = {str(path)!r} does not exist: give the dump written by "
-                             "liggghts_in.build (see reference/bench/README.md)")
+                             "benchmarks/reference/liggghts_in.build (see benchmarks/reference/README.md)")
     if path.is_dir():
         raise ParameterError(f"from_dump = {str(path)!r} is not allowed: it is a folder; must be the dump file")
     lines = path.read_text().splitlines()

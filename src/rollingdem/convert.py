@@ -1,4 +1,4 @@
-"""Parameter conversion from other DEM codes' rolling-resistance conventions (MODELS.md §12).
+"""Parameter conversion from other DEM codes' rolling-resistance conventions (docs/models.md §12).
 
 Each function takes the parameters as the other code's input file names them and returns a
 :class:`RollingParameters`: the rollingdem rolling sub-model plus the material coefficients
@@ -8,7 +8,7 @@ bounds the moment, how the stored moment follows the contact frame); ``parity=Fa
 recommended formulation with converted numbers, so that two codes' parameter sets can be compared
 on equal terms.
 
-Torque form of every spring model (MODELS.md §12): M_k += k_r dw_r dt, |M| <= mu_r R* F_n, with
+Torque form of every spring model (docs/models.md §12): M_k += k_r dw_r dt, |M| <= mu_r R* F_n, with
 R* = R_i R_j / (R_i + R_j) (R_i for a wall).
 
 =====================  ===================================  ===========================================
@@ -19,7 +19,7 @@ LIGGGHTS epsd/2/3,cdt  coefficientRollingFriction mu_r,     same mu_r, eta_r; EP
                        coeffRollingStiffness c
 LAMMPS rolling sds     k_roll, gamma_roll, mu_roll          SDS(k_roll, gamma_roll), mu_r = mu_roll
 MercuryDPM             rollingStiffness k, rollingDissip.   SDS(4 k, 4 eta), mu_r = 2 mu (torque from a
-  FrictionSpecies      eta, rollingFrictionCoefficient mu   pseudo-force at lever 2 R*: MODELS.md §7.2)
+  FrictionSpecies      eta, rollingFrictionCoefficient mu   pseudo-force at lever 2 R*: docs/models.md §7.2)
 PFC rrlinear           rr_fric, linear ks                   RRLinear, mu_r = rr_fric (R-bar = R*)
 Yade CohFrictMat       alphaKr, etaRoll, k_s, R_1, R_2      SDS(alphaKr k_s R_1 R_2 / R*^2),
                                                             mu_r = etaRoll min(R_1, R_2) / R*
@@ -50,7 +50,7 @@ class RollingParameters:
 
 def from_liggghts(model: str, rolling_friction: float, rolling_viscous_damping: float = 0.0,
                   rolling_stiffness_coefficient: float = 2.25, parity: bool = True) -> RollingParameters:
-    """LIGGGHTS 3.8 ``rolling_friction cdt|epsd|epsd2|epsd3`` (MODELS.md §3).
+    """LIGGGHTS 3.8 ``rolling_friction cdt|epsd|epsd2|epsd3`` (docs/models.md §3).
 
     rolling_friction: ``coefficientRollingFriction`` (mu_r, M_m = mu_r R* F_n, the same convention).
     rolling_viscous_damping: ``coefficientRollingViscousDamping`` (eta_r; epsd and epsd3 only).
@@ -72,7 +72,7 @@ def from_liggghts(model: str, rolling_friction: float, rolling_viscous_damping: 
 
 
 def from_lammps_sds(k_roll: float, gamma_roll: float, mu_roll: float, parity: bool = True) -> RollingParameters:
-    """LAMMPS ``pair_style granular ... rolling sds k_roll gamma_roll mu_roll`` (MODELS.md §4):
+    """LAMMPS ``pair_style granular ... rolling sds k_roll gamma_roll mu_roll`` (docs/models.md §4):
     torque stiffness k_roll R*^2, torque damping gamma_roll R*^2, limit mu_roll R* |F_n|."""
     mu_r = check_non_negative("lammps mu_roll", mu_roll)
     return RollingParameters(SDS(k_roll, gamma_roll, parity="lammps" if parity else None), mu_r)
@@ -80,7 +80,7 @@ def from_lammps_sds(k_roll: float, gamma_roll: float, mu_roll: float, parity: bo
 
 def from_mercury(rolling_stiffness: float, rolling_dissipation: float, rolling_friction: float,
                  parity: bool = True) -> RollingParameters:
-    """MercuryDPM ``FrictionSpecies`` rolling (Luding 2008; MODELS.md §7.2).
+    """MercuryDPM ``FrictionSpecies`` rolling (Luding 2008; docs/models.md §7.2).
 
     Mercury applies a pseudo-force k xi + eta v_r at the lever d_eff = 2 R*, with v_r = d_eff (dw x n)
     and |f_r| <= mu |F_n|. In torque form: stiffness 4 k R*^2, damping 4 eta R*^2 and limit
@@ -94,7 +94,7 @@ def from_mercury(rolling_stiffness: float, rolling_dissipation: float, rolling_f
 
 
 def from_pfc_rrlinear(rr_fric: float, parity: bool = True) -> RollingParameters:
-    """Itasca PFC ``rrlinear`` (MODELS.md §5): k_r = k_s R-bar^2, 1/R-bar = 1/R_1 + 1/R_2 (= R*),
+    """Itasca PFC ``rrlinear`` (docs/models.md §5): k_r = k_s R-bar^2, 1/R-bar = 1/R_1 + 1/R_2 (= R*),
     |M| <= rr_fric R-bar F_n,linear. Use it with :class:`rollingdem.Linear` (kn, ks as in PFC)."""
     mu_r = check_non_negative("pfc rr_fric", rr_fric)
     return RollingParameters(RRLinear(parity="pfc" if parity else None), mu_r)
@@ -103,7 +103,7 @@ def from_pfc_rrlinear(rr_fric: float, parity: bool = True) -> RollingParameters:
 def from_yade_cohfrict(alpha_kr: float, eta_roll: float, shear_stiffness: float, radius_1: float,
                        radius_2: float) -> RollingParameters:
     """Yade ``CohFrictMat`` with ``Law2_ScGeom6D_CohFrictPhys_CohesionMoment`` (incremental form;
-    MODELS.md §8.1): k_r = alphaKr k_s R_1 R_2, |M| <= min(etaRoll R_1, etaRoll R_2) F_n,el.
+    docs/models.md §8.1): k_r = alphaKr k_s R_1 R_2, |M| <= min(etaRoll R_1, etaRoll R_2) F_n,el.
 
     Yade's rolling stiffness uses R_1 R_2 where rollingdem uses R*^2, and its limit the smaller
     radius where rollingdem uses R*; both are exact for the given pair of radii (for a monodisperse
@@ -121,5 +121,5 @@ def from_yade_cohfrict(alpha_kr: float, eta_roll: float, shear_stiffness: float,
 
 def lammps_sds_equivalent_of_epsd2(tangential_stiffness: float) -> float:
     """k_roll (N/m) of LAMMPS ``rolling sds`` that equals EPSD2 / PFC rrlinear for a constant
-    tangential stiffness k_t: k_r = k_roll R*^2 = k_t R*^2, so k_roll = k_t (MODELS.md §13 T6(f))."""
+    tangential stiffness k_t: k_r = k_roll R*^2 = k_t R*^2, so k_roll = k_t (docs/models.md §13 T6(f))."""
     return check_positive("tangential_stiffness", tangential_stiffness, "N/m")

@@ -553,7 +553,7 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
     """All wall contacts of particle i: total force and torque on i, energies, contact count.
 
     A wall is a partner of infinite radius and mass with a prescribed surface velocity
-    v_wall + omega_wall x (c - point); R* = R_i, m* = m_i, I_r = 1.4 m_i R_i^2 (DESIGN.md principle 4).
+    v_wall + omega_wall x (c - point); R* = R_i, m* = m_i, I_r = 1.4 m_i R_i^2 (docs/models.md §0, §3.3).
     """
     fx = fy = fz = 0.0
     tx = ty = tz = 0.0

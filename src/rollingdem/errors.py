@@ -143,14 +143,3 @@ def check_output_path(name: str, path, *, folder: bool = True):
             break
     return path
 
-
-def check_input_file(name: str, path):
-    """Refuse an input file that does not exist or is a folder; returns it as a ``Path``."""
-    from pathlib import Path
-
-    path = Path(path)
-    if path.is_dir():
-        raise ParameterError(f"{name} = {str(path)!r} is not allowed: it is a folder; must be a file")
-    if not path.exists():
-        raise ParameterError(f"{name} = {str(path)!r} is not allowed: it does not exist")
-    return path

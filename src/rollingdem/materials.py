@@ -1,4 +1,4 @@
-"""Materials and the pair mixing rules of MODELS.md §1.1.
+"""Materials and the pair mixing rules of docs/models.md §1.1.
 
 Effective moduli (LIGGGHTS ``global_properties.cpp``, EDEM):
 

@@ -38,7 +38,7 @@ class Simulation:
     gravity: gravitational acceleration (m/s^2), a 3-vector; may be changed between runs.
     dt: time step (s); default: the largest step the checks allow (0.2 x Rayleigh time, ...).
     skin: neighbor-list skin (m); default 0.4 x the largest radius.
-    check_timestep: refuse a run whose dt exceeds the stable limit (MODELS.md §2).
+    check_timestep: refuse a run whose dt exceeds the stable limit (docs/models.md §2).
     track_energy: sum the energy dissipated in the contacts (``dissipated_energy``), by normal
         damping, sliding, rolling and twisting. Off by default, as in LIGGGHTS and LAMMPS: the
         bookkeeping costs about 12 % of the contact forces. A ``TimeSeries`` observer turns it on
@@ -402,7 +402,7 @@ class Simulation:
 
     # --- time step -----------------------------------------------------------------------------
     def time_step_limits(self) -> list[tuple[str, float]]:
-        """Each criterion of MODELS.md §2 that applies: (description, largest allowed dt)."""
+        """Each criterion of docs/models.md §2 that applies: (description, largest allowed dt)."""
         st = self._state
         if st.n == 0:
             return []

@@ -1,4 +1,4 @@
-"""Time-step criteria (MODELS.md §2).
+"""Time-step criteria (docs/models.md §2).
 
 * Rayleigh time: dt_R = pi R_min sqrt(rho / G) / (0.1631 nu + 0.8766), G = E / (2 (1 + nu))
   (LIGGGHTS ``fix check/timestep/gran``).

@@ -1,7 +1,7 @@
 """Walls: infinite plane and cylinder (particles inside).
 
 A wall is a contact partner of infinite radius and mass with a prescribed velocity
-(MODELS.md §0: R* = R_i, m* = m_i). It can move with a constant velocity, its surface can move
+(docs/models.md §0: R* = R_i, m* = m_i). It can move with a constant velocity, its surface can move
 with an angular velocity (a rotating drum: surface velocity v + omega x (c - point)), and it can be
 removed or given a new velocity between runs.
 """

@@ -5,7 +5,7 @@ parameters (SI units, angles in degrees) and returns a flat mapping of named obs
 parameter has a default, a check and, where calibration may vary it, a default range.
 
 * ``rolling-flat``: the seed report's case 1 (one sphere launched at ``v0`` with omega = 0 on a
-  flat). Observables: ``distance`` (m) and ``stop_time`` (s). Analytic (MODELS.md §13 T2):
+  flat). Observables: ``distance`` (m) and ``stop_time`` (s). Analytic (docs/models.md §13 T2):
   s = v0 t1 - mu g t1^2 / 2 + 7 v1^2 / (10 mu_r g), deterministic (the seed is unused).
 * ``inclined-wall``: the report's case 0 turned round: for a given mu_r, the wall inclination at
   which the sphere starts to roll, by bisection. Observable ``critical_angle`` (deg); theory:

@@ -168,7 +168,7 @@ def _final_mean(r: PileRun, energy=None) -> float:
 def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=None, runner=map) -> CaseResult:
     """Case 3 for CDT, EPSD, EPSD2 and EPSD with twisting resistance; the tube is removed at once.
 
-    Checks (MODELS.md §11.6 and the report's Figure 4): EPSD's final translational kinetic energy
+    Checks (docs/models.md §11.6 and the report's Figure 4): EPSD's final translational kinetic energy
     is below 1e-2 of CDT's (CDT chatters at rest, EPSD comes to rest to numerical accuracy); with a
     twisting model the final spin energy about the vertical is below 1 % of that without. The
     check is on translation because no rolling model resists every spin: a sphere held at two

@@ -1,4 +1,4 @@
-"""The seed report's single-sphere test cases 0-2 (MODELS.md §13 T2-T4), run by the package.
+"""The seed report's single-sphere test cases 0-2 (docs/models.md §13 T2-T4), run by the package.
 
 All use the report's Table 1 material (R = 5 mm, E = 40 MPa, nu = 0.49, rho = 1056 kg/m^3,
 mu = 0.8, mu_r = 0.2, eta_r = 0.3, e = 0.5), Hertz contacts, dt = 1e-5 s, and a sphere on a flat
@@ -71,7 +71,7 @@ def validation_models() -> dict:
 
 #: models without a static threshold (a viscous moment vanishes at rest): no critical mu_r
 NO_THRESHOLD = ("viscous",)
-#: models that cannot hold a sphere at rest on a slope below the threshold (MODELS.md §11.6)
+#: models that cannot hold a sphere at rest on a slope below the threshold (docs/models.md §11.6)
 CREEPING = ("cdt", "cdt (liggghts)", "cdt (limiter 0.08)", "force_proportional", "viscous")
 
 
@@ -112,7 +112,7 @@ def launch(sim: Simulation, duration: float, v0=1.0, sample_steps=10) -> Traject
 # --- case 1: rolling on a flat ---------------------------------------------------------------------
 def analytic_flat(v0=1.0, mu=TABLE1["friction"], mu_r=TABLE1["rolling_friction"]):
     """(t1, v1, t_stop, distance): slip ends at t1 = v0 / (g (3.5 mu - 2.5 mu_r)) with
-    v1 = 2.5 v0 (mu - mu_r) / (3.5 mu - 2.5 mu_r); then rolling deceleration (5/7) mu_r g (MODELS.md §13 T2)."""
+    v1 = 2.5 v0 (mu - mu_r) / (3.5 mu - 2.5 mu_r); then rolling deceleration (5/7) mu_r g (docs/models.md §13 T2)."""
     t1 = v0 / (G * (3.5 * mu - 2.5 * mu_r))
     v1 = 2.5 * v0 * (mu - mu_r) / (3.5 * mu - 2.5 * mu_r)
     t_stop = t1 + 7 * v1 / (5 * mu_r * G)
@@ -156,7 +156,7 @@ SLOPE = math.radians(10.0)
 
 def analytic_slope(v0=1.0, theta=SLOPE, mu=TABLE1["friction"], mu_r=TABLE1["rolling_friction"]):
     """(x_max, t_max): slip until t1 = v0 / (g [sin + mu cos + 2.5 (mu - mu_r) cos]), then rolling
-    deceleration (5/7) g (sin + mu_r cos) to rest (MODELS.md §13 T4)."""
+    deceleration (5/7) g (sin + mu_r cos) to rest (docs/models.md §13 T4)."""
     s, c = math.sin(theta), math.cos(theta)
     t1 = v0 / (G * (s + mu * c + 2.5 * (mu - mu_r) * c))
     v1 = v0 - G * (s + mu * c) * t1

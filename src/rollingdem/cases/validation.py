@@ -27,7 +27,7 @@ REPORT_TABLE2 = {
     "epsd": (0.0688, 0.13948, 0.1752, 0.26688, 0.36288, 0.46521, 0.576, 0.7),
     "epsd2": (0.0688, 0.14, 0.17539, 0.26704, 0.36288, 0.46528, 0.576, 0.69904),
 }
-# LIGGGHTS 3.8 runs of the seed cases (MODELS.md §13 T2, T4)
+# LIGGGHTS 3.8 runs of the seed cases (docs/models.md §13 T2, T4)
 LIGGGHTS_FLAT_EPSD = 0.18758
 LIGGGHTS_CDT_CREEP = -4.0e-5
 
@@ -103,8 +103,8 @@ def rolling_flat(models=None, quick=False, outdir=None, progress=None, runner=ma
     """Case 1: v0 = 1 m/s, omega0 = 0 on a flat. Checks: stop time and distance against the analytic
     0.50968 s / 0.18836 m within 0.5 % for CDT, the recommended EPSD and Force Proportional (the same
     torque on a still wall), 1 % for the other spring models; the LIGGGHTS-parity EPSD within 0.3 %
-    of LIGGGHTS's 0.18758 m (its dashpot spike, MODELS.md §11.5); the viscous model's decay time
-    tau = 1.4 R / (c_v g) within 1 % (MODELS.md §13 T5; it never stops)."""
+    of LIGGGHTS's 0.18758 m (its dashpot spike, docs/models.md §11.5); the viscous model's decay time
+    tau = 1.4 R / (c_v g) within 1 % (docs/models.md §13 T5; it never stops)."""
     tic = time.perf_counter()
     t1, v1, t_ref, s_ref = analytic_flat()
     rows, checks, runs = [], [], {}
@@ -121,7 +121,7 @@ def rolling_flat(models=None, quick=False, outdir=None, progress=None, runner=ma
                                 source="theory: tau = 1.4 R / (c_v g)"))
         elif label == "epsd (liggghts)":
             checks.append(Check("rolling-flat", label, "distance (m)", dist, LIGGGHTS_FLAT_EPSD, 0.003,
-                                source="LIGGGHTS 3.8 run (MODELS.md §13 T2)"))
+                                source="LIGGGHTS 3.8 run (docs/models.md §13 T2)"))
         else:
             tol = 0.005 if label in ("cdt", "cdt (liggghts)", "epsd", "force_proportional") else 0.01
             checks.append(Check("rolling-flat", label, "stop time (s)", t_stop, t_ref, tol, source="analytic"))
@@ -176,7 +176,7 @@ def rolling_slope(models=None, quick=False, outdir=None, progress=None, runner=m
                                 0.02, source="theory: f I_r w / dt = m g R sin(theta)"))
         elif label in ("cdt", "cdt (liggghts)", "force_proportional"):
             checks.append(Check("rolling-slope", label, "creep (m/s)", creep, LIGGGHTS_CDT_CREEP, 0.1,
-                                source="LIGGGHTS 3.8 CDT (MODELS.md §13 T4)"))
+                                source="LIGGGHTS 3.8 CDT (docs/models.md §13 T4)"))
         elif label not in CREEPING:
             checks.append(Check("rolling-slope", label, "|creep| (m/s)", abs(creep), 1e-7, 0.0, bound="upper",
                                 source="a spring holds the sphere"))
@@ -185,7 +185,7 @@ def rolling_slope(models=None, quick=False, outdir=None, progress=None, runner=m
     rows.append({"model": "analytic", "x_max (m)": x_ref, "t at x_max (s)": t_ref})
     result = CaseResult("rolling-slope", "Case 2: a sphere rolling up a 10° slope", pd.DataFrame(rows), checks,
                         notes=["Back-roll = x_max - final x; creep = mean velocity over the last second (negative: "
-                               "down the slope). The viscous model cannot hold a slope (MODELS.md §12)."])
+                               "down the slope). The viscous model cannot hold a slope (docs/models.md §12)."])
     if outdir is not None:
         plt = pyplot()
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.5))

@@ -1,6 +1,6 @@
 """The sub-model contract.
 
-A sub-model is one small class plus one compiled function (DESIGN.md principle 2):
+A sub-model is one small class plus one compiled function:
 
 * the class validates and holds the parameters, says how many per-contact history slots it
   needs (``history_size``), and turns a material pair into a fixed row of floats
@@ -72,7 +72,7 @@ class SubModel:
     def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force,
                              pair) -> float:
         """Stiffness (N m/rad) of this sub-model's rotational spring at the given contact state, for
-        the time-step check (MODELS.md §2); 0 when it has none."""
+        the time-step check (docs/models.md §2); 0 when it has none."""
         return 0.0
 
     def __repr__(self):

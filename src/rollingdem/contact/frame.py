@@ -1,4 +1,4 @@
-"""Carrying per-contact vector state with the contact frame (MODELS.md §11.3, §12 step 1).
+"""Carrying per-contact vector state with the contact frame (docs/models.md §11.3, §12 step 1).
 
 A history vector h (tangential spring, rolling spring moment) lives in the tangent plane of the
 contact. When the contact normal turns from n_old to n and the pair spins about n, h is carried
@@ -11,7 +11,7 @@ with the frame:
    magnitude before the rotation.
 
 Yade rotates to first order (``ScGeom::rotate``); LAMMPS only projects and rescales; LIGGGHTS does
-neither (the "unrotated history" of MODELS.md §11.3).
+neither (the "unrotated history" of docs/models.md §11.3).
 
 The scalars of the frame change (a, c, 1/(1+c), cos phi, sin phi) are computed once per contact
 and step (``contact_frame``) and shared by its history vectors.

@@ -3,8 +3,7 @@
 The engine template (``rollingdem/engine_kernel.py``) calls four functions by slot name. For each
 combination of sub-models a copy of the template is written to the kernel cache directory with
 those imports, parameter offsets and history slots filled in, and imported; Numba's on-disk cache
-then works as for any module (closures over jitted functions would defeat it, DESIGN.md
-principle 9). The file name carries a hash of every source it depends on, so an edited sub-model
+then works as for any module (closures over jitted functions would defeat it). The file name carries a hash of every source it depends on, so an edited sub-model
 never runs with a stale kernel.
 
 The step loop is written once, for the parallel passes; each function tagged ``@@SERIAL_COPY`` is

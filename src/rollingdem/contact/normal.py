@@ -1,4 +1,4 @@
-"""Normal contact sub-models (MODELS.md §1).
+"""Normal contact sub-models (docs/models.md §1).
 
 Kernel signature (slot "normal")::
 
@@ -21,7 +21,7 @@ from .base import P_SHEAR, P_YOUNG, SubModel
 
 
 def restitution_beta(e: float) -> float:
-    """beta = ln e / sqrt(ln^2 e + pi^2) (MODELS.md §1.1); negative for e < 1, zero for e = 1."""
+    """beta = ln e / sqrt(ln^2 e + pi^2) (docs/models.md §1.1); negative for e < 1, zero for e = 1."""
     if e >= 1.0:
         return 0.0
     le = math.log(e)
@@ -89,7 +89,7 @@ def linear_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
 
 
 class Hertz(SubModel):
-    """Hertz-Mindlin no-slip contact (MODELS.md §1.2), with the dashpot gamma_n = c sqrt(S_n m*)
+    """Hertz-Mindlin no-slip contact (docs/models.md §1.2), with the dashpot gamma_n = c sqrt(S_n m*)
     whose factor c (``hertz_damping_factor``) gives a binary impact exactly the pair's restitution
     e, as in LIGGGHTS and EDEM. No parameters of its own."""
 
@@ -103,7 +103,7 @@ class Hertz(SubModel):
 
 
 class Hooke(SubModel):
-    """Linear spring-dashpot with LIGGGHTS's stiffness from a characteristic velocity (MODELS.md §1.3).
+    """Linear spring-dashpot with LIGGGHTS's stiffness from a characteristic velocity (docs/models.md §1.3).
 
     Parameters
     ----------
@@ -132,7 +132,7 @@ class Hooke(SubModel):
 
 
 class Linear(SubModel):
-    """PFC-style linear contact with given normal and shear stiffness (MODELS.md §5).
+    """PFC-style linear contact with given normal and shear stiffness (docs/models.md §5).
 
     Parameters
     ----------

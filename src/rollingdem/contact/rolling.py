@@ -1,4 +1,4 @@
-"""Rolling resistance sub-models (MODELS.md §3-§6, §12).
+"""Rolling resistance sub-models (docs/models.md §3-§6, §12).
 
 Kernel signature (slot "rolling")::
 
@@ -11,7 +11,7 @@ Kernel signature (slot "rolling")::
 (wix, wiy, wiz) and (wjx, wjy, wjz) are the angular velocities of i and of j (of the wall for a
 wall contact, with lever_j = 0); lever_i, lever_j are the distances R' from the centres to the
 contact point. The torque on i is -M_i and on j +M_j. For every objective model M_i = M_j = M,
-a pure couple along (or lagging) dw_r = (omega_i - omega_j) minus its twist part (MODELS.md §0);
+a pure couple along (or lagging) dw_r = (omega_i - omega_j) minus its twist part (docs/models.md §0);
 only the non-objective STAR-CCM+ Force Proportional method has M_i != M_j. ``inertia_r`` is I_r of
 seed report eq. 12 (1.4 m R^2 for a wall). ``dissipation`` is the energy (J) the moment removed
 in the step: (M_i . omega_i - M_j . omega_j) dt minus any increase of stored spring energy.
@@ -44,7 +44,7 @@ def relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz):
 
 @njit(cache=True, inline="always")
 def liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff):
-    """LIGGGHTS 3.8 rotation rates seen by a rolling model (MODELS.md §3.1).
+    """LIGGGHTS 3.8 rotation rates seen by a rolling model (docs/models.md §3.1).
 
     A wall contact (lever_j = 0, lever_i = R_i - delta) reads omega_i (R_i - delta/2)/(R_i - delta)
     and never the wall's own angular velocity; a pair is returned unchanged.
@@ -69,10 +69,10 @@ def constant_directional_torque(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, 
 
     M = mu_r R* max(F_n,el, 0) dw_r / |dw_r|, dw_r = dw - (dw . n) n (twist removed), and with the
     optional moment limiter |M| <= f I_r |dw_r| / dt (STAR-CCM+ f = 0.08), so that the torque
-    cannot reverse the relative rotation within one step (MODELS.md §11.6).
+    cannot reverse the relative rotation within one step (docs/models.md §11.6).
     LIGGGHTS parity (p[poff+1] = 1) divides by the full |dw| and projects afterwards, so a twist
     shrinks the moment by |dw_r|/|dw|, and walls read omega_i (R - delta/2)/(R - delta) without
-    the wall's rotation (MODELS.md §3.2, §12 ``liggghts_cdt``).
+    the wall's rotation (docs/models.md §3.2, §12 ``liggghts_cdt``).
     """
     if p[poff + 1] != 0.0:
         wix, wiy, wiz, wjx, wjy, wjz = liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff)
@@ -110,9 +110,9 @@ class CDT(SubModel):
     limiter: moment limiter factor f (-), >= 0; 0 switches it off (LIGGGHTS). With f > 0 the
         moment is capped at f I_r |dw_r| / dt; STAR-CCM+ uses 0.08.
     parity: None (the seed report's eq. 2 as documented) or "liggghts" (LIGGGHTS 3.8 code:
-        normalised by the full |dw|, wall rotation ignored, MODELS.md §3.2).
+        normalised by the full |dw|, wall rotation ignored, docs/models.md §3.2).
 
-    CDT chatters at rest (MODELS.md §11.6); it is offered for parity, not as the default.
+    CDT chatters at rest (docs/models.md §11.6); it is offered for parity, not as the default.
     """
 
     slot = "rolling"
@@ -132,7 +132,7 @@ class CDT(SubModel):
         return {"limiter": self.limiter, "parity": self.parity}
 
 
-# --- spring-type models: one kernel, MODELS.md §12 -----------------------------------------------
+# --- spring-type models: one kernel, docs/models.md §12 -----------------------------------------------
 # Parameter row after the common slots (poff + k):
 STIFFNESS_NORMAL = 0      # k_r = c k_n mu_r^2 R*^2               (Ai / LIGGGHTS epsd, epsd3)
 STIFFNESS_TANGENTIAL = 1  # k_r = c k_t R*^2                       (Iwashita-Oda: epsd2, PFC rrlinear)
@@ -152,7 +152,7 @@ HISTORY_PROJECT = 2       # projected on the tangent plane and rescaled (LAMMPS)
 @njit(cache=True, inline="always")
 def spring_rolling(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
                    lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff, modes):
-    """Elastic-plastic spring-dashpot rolling resistance (Ai type C), the unified form of MODELS.md §12.
+    """Elastic-plastic spring-dashpot rolling resistance (Ai type C), the unified form of docs/models.md §12.
 
     1. carry the spring moment M_k with the contact frame (or, for parity, not / project only);
     2. M_s = M_k + k_r dw_r dt, dw_r = dw - (dw . n) n;  M_tot = M_s + C_r dw_r;
@@ -371,7 +371,7 @@ class EPSD3(_SpringRolling):
 
 
 class RRLinear(_SpringRolling):
-    """PFC rolling resistance linear model (PFC seed; MODELS.md §5): k_r = k_s R^2 (Iwashita-Oda),
+    """PFC rolling resistance linear model (PFC seed; docs/models.md §5): k_r = k_s R^2 (Iwashita-Oda),
     moment capped at mu_r R F_n,linear (elastic), no rolling dashpot, moment kept in the contact
     frame. Meant with the ``linear`` normal model; ``parity="pfc"`` caps the spring only (the same
     thing here, as there is no dashpot)."""
@@ -385,7 +385,7 @@ class RRLinear(_SpringRolling):
 
 
 class SDS(_SpringRolling):
-    """LAMMPS ``rolling sds k_roll gamma_roll mu_roll`` (MODELS.md §4): torque stiffness k_roll R*^2,
+    """LAMMPS ``rolling sds k_roll gamma_roll mu_roll`` (docs/models.md §4): torque stiffness k_roll R*^2,
     torque damping gamma_roll R*^2, limit mu_r R* F (mu_roll = the pair's rolling_friction).
     ``parity="lammps"``: |F_n,total| in the limit and project-and-rescale history.
 
@@ -414,7 +414,7 @@ class SDS(_SpringRolling):
 
 
 class DisplacementDamping(_SpringRolling):
-    """STAR-CCM+ Displacement Damping (seed 004; MODELS_CONTACTS.md §3.3): spring torque with
+    """STAR-CCM+ Displacement Damping (seed 004; docs/models.md §6.3): spring torque with
     k_r = mu_r R* F_n / theta_max, so that it mobilises at theta_max, plus an optional viscous
     damper nu 2 sqrt(I_r k_r), multiplied by f at full mobilisation.
 
@@ -446,7 +446,7 @@ def force_proportional_moment(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wj
                               lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff, modes):
     """STAR-CCM+ Force Proportional (seed 004, eq. 3275): each particle's own in-plane spin is
     opposed by mu_r |F_n| |r_c| omega_p / |omega_p|, |r_c| = R' (centre to contact point).
-    Not objective (a rigidly co-rotating pair is braked: MODELS.md §11.1); offered for parity."""
+    Not objective (a rigidly co-rotating pair is braked: docs/models.md §11.1); offered for parity."""
     f = max(force_elastic, 0.0) * p[P_ROLLING_FRICTION]
     wn = wix * nx + wiy * ny + wiz * nz
     ax = wix - wn * nx
@@ -477,7 +477,7 @@ def viscous_moment(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz
                    lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff, modes):
     """Viscous rolling resistance, Ai type B (Zhou et al. 1999 eq. 4): M = c_v F_n (R* |dw_r|) dw_r/|dw_r|
     = c_v F_n R* dw_r, c_v in s; in the Kratos/Lethe form one more factor R* (c_v in s/m).
-    It vanishes at rest: it cannot hold a static pile (MODELS.md §13 T5)."""
+    It vanishes at rest: it cannot hold a static pile (docs/models.md §13 T5)."""
     rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
     s = p[poff] * max(force_elastic, 0.0) * r_eff
     if p[poff + 1] > 0.0:

@@ -1,4 +1,4 @@
-"""Tangential contact sub-models (MODELS.md §1.2).
+"""Tangential contact sub-models (docs/models.md §1.2).
 
 Kernel signature (slot "tangential")::
 
@@ -32,7 +32,7 @@ def history_spring(hist, k, off, nx, ny, nz, frame, vtx, vty, vtz,
     if |F_trial| > mu max(F_n, 0): F_t = mu max(F_n, 0) F_trial/|F_trial| and the spring is backed
     out of it, xi = -(F_t + gamma_t v_t)/k_t (LAMMPS ``tangential mindlin``: the total force,
     spring and dashpot, never exceeds the Coulomb limit).
-    The spring is carried with the contact frame (rotated, not just projected: MODELS.md §11.3).
+    The spring is carried with the contact frame (rotated, not just projected: docs/models.md §11.3).
     The limit uses max(F_n, 0), never |F_n|: a contact pulled by its dashpot cannot grip (§11.4).
     Dissipation: the work of F_t over the step, -F_t . v_t dt, minus the increase of the spring
     energy 1/2 k_t |xi|^2. The work is taken with the end-of-step force, so a purely elastic step

@@ -1,4 +1,4 @@
-"""Twisting resistance sub-models (MODELS.md §4.8; MODELS_CONTACTS.md §4).
+"""Twisting resistance sub-models (docs/models.md §4.8; docs/models.md §4.8).
 
 Kernel signature (slot "twisting")::
 
@@ -37,7 +37,7 @@ class NoTwisting(SubModel):
 @njit(cache=True, inline="always")
 def spring_twisting(hist, k, off, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
                     force_total, dt, p, poff):
-    """Twisting spring-dashpot-slider (LAMMPS ``twisting sds`` / ``marshall``, MODELS.md §4.8).
+    """Twisting spring-dashpot-slider (LAMMPS ``twisting sds`` / ``marshall``, docs/models.md §4.8).
 
     Omega_tw = (omega_i - omega_j) . n;  xi += Omega_tw dt;  M = k_tw xi + gamma_tw Omega_tw;
     |M| <= mu_tw max(F_n,el, 0), and at the cap the spring is backed out: xi = (M - gamma_tw Omega_tw)/k_tw.

@@ -131,8 +131,8 @@ def test_angle_of_repose_calibration_is_reproduced_by_fresh_seeds(tmp_path):
     calibrated mu_r must give a mean angle whose 95 % interval overlaps the target's band
     (+- 1.96 x 1 deg): the calibration and the check are both limited by the seed scatter of a
     small pile (about 1.5 deg per pile)."""
-    from rollingdem.analysis import confidence_interval
     from rollingdem.cases.observables import CASES
+    from rollingdem.intervals import confidence_interval
 
     fix = {"mu": 0.6, "count": 1000, "model": "epsd"}
     res = calibrate("angle-of-repose", 22.0, 1.0, fix=fix, free=("mur", (0.1, 0.8)), seeds=2, coarse=4, refine=2,

@@ -32,7 +32,8 @@ import pytest
 from scipy import stats
 
 from rollingdem.cases import repose
-from rollingdem.cases.repose import REPOSE_ANGLE_TOLERANCE, angle_of_repose, repose_sweep
+from rollingdem.cases.repose import REPOSE_ANGLE_TOLERANCE, angle_of_repose
+from rollingdem.repose_study import repose_sweep
 
 QUICK_SWEEP_SPREAD = {(0.4, 0.2): [17.275, 15.907, 14.183], (0.8, 0.8): [31.316, 30.997]}
 

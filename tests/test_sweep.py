@@ -183,7 +183,7 @@ def test_validation_repose_sweep_runs_through_the_sweep_table(tmp_path):
     rolling_frictions=(0.4,), seeds=(s,)), s = 1..6, 13-60 s each). The trend of the angle with
     mu and mu_r is tested on the quick sweep's 2000-sphere piles (test_pile_cases.py, slow). Here:
     the case's point is the run's row (one seed: its mean is that run's angle, no interval)."""
-    from rollingdem.cases.repose import repose_sweep
+    from rollingdem.repose_study import repose_sweep
 
     kwargs = dict(outdir=tmp_path, count=600, frictions=(0.6,), rolling_frictions=(0.4,), seeds=(1,))
     first = repose_sweep(**kwargs)

@@ -83,7 +83,7 @@ def test_unknown_model_is_refused():
 
 def test_student_t_interval_matches_the_table_value():
     """Three values 1, 2, 3: mean 2, s = 1, t(0.975, 2 dof) = 4.303 (printed tables): 4.303 / sqrt(3)."""
-    from rollingdem.cases.repose import confidence_interval
+    from rollingdem.intervals import confidence_interval
     mean, half = confidence_interval([1.0, 2.0, 3.0, math.nan])
     assert mean == 2.0 and half == pytest.approx(4.303 / math.sqrt(3), abs=1e-3)
     assert math.isnan(confidence_interval([5.0])[1])
@@ -94,7 +94,7 @@ def test_repose_trend_checks_use_the_measured_points():
     points, pass on a rising table, fail on a falling one, and fail when nothing is measured."""
     import pandas as pd
 
-    from rollingdem.cases.repose import sweep_checks
+    from rollingdem.repose_study import sweep_checks
 
     def table(angles):
         rows = [{"mu": mu, "mu_r": mur, "angle mean (deg)": a, "95 % CI ± (deg)": 0.5}
@@ -121,6 +121,7 @@ def test_repose_sweep_runs_creeping_piles_again_longer(tmp_path, monkeypatch):
     from types import SimpleNamespace
 
     from rollingdem.cases import repose
+    from rollingdem.repose_study import repose_sweep
 
     calls = []
 
@@ -137,7 +138,7 @@ def test_repose_sweep_runs_creeping_piles_again_longer(tmp_path, monkeypatch):
     monkeypatch.setattr(repose, "pile_run", fake_pile)
     args = dict(frictions=(0.2, 0.6), rolling_frictions=(0.0, 0.5, 1.0), seeds=(1, 2), count=1000,
                 outdir=tmp_path)
-    result = repose.repose_sweep(**args)
+    result = repose_sweep(**args)
     assert len(calls) == 12 + 4  # the grid, then mu_r = 1 at both mu and both seeds, to 7 s
     assert sorted(c for c in calls if c[2] == 7.0) == [(1.0, 1, 7.0), (1.0, 1, 7.0), (1.0, 2, 7.0), (1.0, 2, 7.0)]
     table = result.table.set_index(["mu", "mu_r"])
@@ -146,7 +147,7 @@ def test_repose_sweep_runs_creeping_piles_again_longer(tmp_path, monkeypatch):
     assert table.loc[(0.2, 0.0), "measured"] == 0
     assert any("run again to 7 s" in n for n in result.notes)
     calls.clear()
-    repose.repose_sweep(**args)
+    repose_sweep(**args)
     assert calls == []
 
 

@@ -110,7 +110,7 @@ from scipy.optimize import least_squares
 
 from .errors import ParameterError, SimulationError, check_finite, check_non_negative, check_positive, check_range
 
-__all__ = ["ReposeAngle", "confidence_interval", "default_max_speed", "plot_pile", "repose_angle", "settled", "touching"]
+__all__ = ["ReposeAngle", "default_max_speed", "plot_pile", "repose_angle", "settled", "touching"]
 
 #: Fewest particles accepted: a cone fit has up to 4 parameters, and a pile needs several layers.
 MIN_PARTICLES = 20
@@ -249,21 +249,6 @@ def _check_n_slices(n_slices: Any) -> int:
 # --------------------------------------------------------------------------------------------
 # settling
 # --------------------------------------------------------------------------------------------
-
-def confidence_interval(values: Any, level: float = 0.95) -> tuple[float, float]:
-    """(mean, half-width) of the Student-t confidence interval of the mean of the finite values:
-    half-width = t_{(1 + level)/2, n-1} s / sqrt(n) (scipy.stats.t); NaN half-width for n < 2."""
-    from scipy import stats
-
-    v = np.asarray(values, dtype=float).ravel()
-    v = v[np.isfinite(v)]
-    if len(v) == 0:
-        return math.nan, math.nan
-    if len(v) < 2:
-        return float(v.mean()), math.nan
-    half = stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v))
-    return float(v.mean()), float(half)
-
 
 def default_max_speed(radii: Any, gravity: float = 9.81) -> float:
     r"""Default settling threshold :math:`v_\mathrm{max} = 10^{-3}\sqrt{g\bar d}` (m/s).

@@ -283,7 +283,7 @@ def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) 
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.plot(ok[result.parameter], pd.to_numeric(ok[result.observable], errors="coerce"), ".", color="0.6",
             label="runs")
-    from .analysis import confidence_interval
+    from .intervals import confidence_interval
 
     ci = [confidence_interval(pd.to_numeric(ok[ok[result.parameter] == v][result.observable], errors="coerce"))[1]
           for v in stats["x"]]

@@ -21,6 +21,8 @@ from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Fie
                       ValidationError, create_model)
 
 from .errors import ParameterError
+from .mapping_file import read_mapping
+
 
 def _whole(value):
     """An integer key: a bool (YAML ``yes``/``true``) is no count or index."""
@@ -30,25 +32,10 @@ def _whole(value):
 
 
 #: A number in a case file: an int or a float, never a bool or a string ("1e4" is read as a number
-#: by the loader below; ``true`` is not 1).
+#: by the loader of :mod:`rollingdem.mapping_file`; ``true`` is not 1).
 Number = Annotated[float, Strict()]
 Whole = Annotated[int, BeforeValidator(_whole)]
 Vector = tuple[Number, Number, Number]
-
-
-class _YAMLLoader(yaml.SafeLoader):
-    """PyYAML reads YAML 1.1, where 1.0e4 (no exponent sign) is a string; read it as the float
-    every user means (YAML 1.2 rule)."""
-
-
-_YAMLLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
-                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
-                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
-                |[-+]?\.(?:inf|Inf|INF)
-                |\.(?:nan|NaN|NAN))$""", re.X),
-    list("-+0123456789."))
 
 
 class _Strict(BaseModel):
@@ -358,53 +345,6 @@ def _format_validation_error(err: ValidationError, source: str, data=None) -> st
     if len(lines) == 1:
         return f"case file {source}: {lines[0]}"
     return "\n".join([f"case file {source} is not valid ({len(lines)} problems):"] + [f"  {x}" for x in lines])
-
-
-def read_mapping(path_or_dict, what: str = "case file") -> tuple[dict, str]:
-    """(data, source name) of a YAML file, a TOML file (by extension) or a mapping.
-
-    A file that is missing, a folder, unreadable, not text, not YAML / TOML, empty or not a
-    mapping is a ParameterError of one line that names the file."""
-    if isinstance(path_or_dict, dict):
-        return path_or_dict, "<dict>"
-    path = Path(path_or_dict)
-    source = str(path)
-    if not path.exists():
-        raise ParameterError(f"{what} {source} does not exist")
-    if path.is_dir():
-        raise ParameterError(f"{what} {source} is a folder: must be a YAML or TOML file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise ParameterError(f"{what} {source} is not a text file: must be a YAML or TOML file") from None
-    except OSError as err:
-        raise ParameterError(f"{what} {source} cannot be read: {err.strerror or err}") from None
-    if path.suffix.lower() == ".toml":
-        import tomllib
-
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as err:
-            raise ParameterError(f"{what} {source} is not valid TOML: {err}") from None
-    else:
-        try:
-            data = yaml.load(text, Loader=_YAMLLoader)
-        except yaml.YAMLError as err:
-            raise ParameterError(f"{what} {source} is not valid YAML: {_yaml_problem(err)}") from None
-    if data is None:
-        raise ParameterError(f"{what} {source} is empty: must hold a mapping of keys")
-    if not isinstance(data, dict):
-        raise ParameterError(f"{what} {source} must hold a mapping of keys, got {type(data).__name__}")
-    return data, source
-
-
-def _yaml_problem(err) -> str:
-    """A YAML parse error in one line: what and where (line, column as an editor counts them)."""
-    problem = getattr(err, "problem", None) or str(err).splitlines()[0]
-    mark = getattr(err, "problem_mark", None)
-    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-    context = getattr(err, "context", None)
-    return f"{problem}{where}" + (f" ({context})" if context else "")
 
 
 def load_case(path_or_dict) -> CaseSpec:

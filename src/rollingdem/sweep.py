@@ -36,9 +36,9 @@ import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from .analysis import confidence_interval
 from .cases.observables import SweepCase, get_case
 from .errors import ParameterError, check_output_path
+from .intervals import confidence_interval
 
 __all__ = ["SweepSpec", "SweepResult", "load_sweep", "expand", "run_sweep", "summarize"]
 
@@ -103,7 +103,7 @@ def load_sweep(source) -> SweepSpec:
     """Read and check a sweep file (YAML, TOML by extension) or a mapping; ParameterError on bad input."""
     if isinstance(source, SweepSpec):
         return source
-    from .casefile import read_mapping
+    from .mapping_file import read_mapping
 
     data, name = read_mapping(source, "sweep file")
     try:

@@ -30,9 +30,10 @@ def available_cases() -> dict:
              "rolling-slope": validation.rolling_slope}
     try:
         from .cases import repose
+        from .repose_study import repose_sweep
     except ImportError:  # the pile cases need rollingdem.analysis
         return cases
-    cases.update({"angle-of-repose": repose.angle_of_repose, "repose-sweep": repose.repose_sweep})
+    cases.update({"angle-of-repose": repose.angle_of_repose, "repose-sweep": repose_sweep})
     return cases
 
 

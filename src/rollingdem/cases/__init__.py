@@ -1,9 +1,10 @@
-"""Built-in cases: the seed report's test cases and the PFC repose-angle study.
+"""Built-in cases: the seed report's test cases, each one scene built, run and measured.
 
 Each validation case is a function returning a :class:`CaseResult` (table, checks, figures):
 :func:`inclined_wall`, :func:`rolling_flat`, :func:`rolling_slope` (single sphere, every rolling
-model); the pile cases live in :mod:`rollingdem.cases.repose`. ``default.yaml`` is the case
-``rollingdem run`` uses without a file.
+model); the pile case lives in :mod:`rollingdem.cases.repose`. The cases sit below the sweep
+machinery and never import it; the PFC repose-angle study, a sweep of the pile, is
+:mod:`rollingdem.repose_study`. ``default.yaml`` is the case ``rollingdem run`` uses without a file.
 """
 
 from .results import CaseResult, Check

@@ -115,16 +115,16 @@ ph = {n: bench._Phases(s) for n, s in sims.items()}
 
 def variants(n):
     st = sims[n]._state
-    pair_args = (st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.nl_start, st.nl_j, st.nl_i, st.pool,
-                 st.contact_row, st.groups, st.contacts, st._blocks, st._lanes)
+    pair_args = (st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.contact_list.start, st.contact_list.j, st.contact_list.i, st.contact_list.pool,
+                 st.contact_list.contact_row, st.contact_list.groups, st.contacts, st._blocks, st._lanes)
     return [("pair", ph[n].pair),
-            ("minpair", lambda: minimal_pair(st.x, st.radius, st.nl_start, st.nl_j, st.nl_i, st.contact_row, st.f,
+            ("minpair", lambda: minimal_pair(st.x, st.radius, st.contact_list.start, st.contact_list.j, st.contact_list.i, st.contact_list.contact_row, st.f,
                                              st.t, st.contacts)),
             ("cand", lambda: passv(0, *pair_args)), ("inputs", lambda: passv(1, *pair_args)),
             ("histread", lambda: passv(2, *pair_args)), ("poolwrite", lambda: passv(3, *pair_args)),
             ("gather", ph[n].gather_plain),
             ("mingather", lambda: minimal_gather(st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia, st.x_ref,
-                                                 st.tr_start, st.tr_k, st.contact_row, st.pool, 0.0))]
+                                                 st.contact_list.tr_start, st.contact_list.tr_k, st.contact_list.contact_row, st.contact_list.pool, 0.0))]
 
 
 res = {}

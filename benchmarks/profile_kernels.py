@@ -43,7 +43,7 @@ def sampled_run():
     print(f"{STEPS} steps in {wall:.2f} s: {sim.n_particles * STEPS / wall / 1e6:.2f} M particle-steps/s "
           f"(under perf), {THREADS} thread(s)")
     lines = []
-    for module in (sim.kernel(), neighbors):
+    for module in (sim.engine_module(), neighbors):
         for name in dir(module):
             dispatcher = getattr(module, name)
             for cres in getattr(dispatcher, "overloads", {}).values():

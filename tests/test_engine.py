@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
-from rollingdem.engine import I_REBUILDS, EngineState
+from rollingdem.engine import EngineState
+from rollingdem.kernel_layout import I_REBUILDS
 from rollingdem.neighbors import POOL_GROUP, brute_force_pairs
 from conftest import R
 
@@ -81,18 +82,18 @@ def test_neighbor_list_equals_brute_force(seed, skin, shuffled):
         st.ids = rng.permutation(n).astype(np.int64)
     ids = st.ids
     total = st.rebuild_list(skin)
-    rows = [(i, int(st.nl_j[k])) for i in range(n) for k in range(st.nl_start[i], st.nl_start[i + 1])]
+    rows = [(i, int(st.contact_list.j[k])) for i in range(n) for k in range(st.contact_list.start[i], st.contact_list.start[i + 1])]
     assert all(ids[j] > ids[i] for i, j in rows)
     listed = {(min(i, j), max(i, j)) for i, j in rows}
     assert total == len(listed) == len(rows)
     assert listed == brute_force_pairs(x, radius, skin)
     for i in range(n):  # rows sorted by partner id, which the history merge relies on
-        row = st.nl_j[st.nl_start[i]:st.nl_start[i + 1]]
+        row = st.contact_list.j[st.contact_list.start[i]:st.contact_list.start[i + 1]]
         assert np.all(np.diff(ids[row]) > 0)
     # transposed index: for each j the entries k where it is second, ascending in i
     for j in range(n):
-        ks = st.tr_k[st.tr_start[j]:st.tr_start[j + 1]]
-        assert all(st.nl_j[k] == j for k in ks)
+        ks = st.contact_list.tr_k[st.contact_list.tr_start[j]:st.contact_list.tr_start[j + 1]]
+        assert all(st.contact_list.j[k] == j for k in ks)
         assert np.all(np.diff(ks) > 0)
 
 
@@ -122,14 +123,14 @@ def test_rebuild_carries_each_contacts_history_in_place_and_drops_lost_pairs(see
     st.ids = rng.permutation(n).astype(np.int64)
 
     def by_pair(total):
-        hist = st.entry_history()
-        return {(int(st.ids[i]), int(st.ids[st.nl_j[k]])): hist[k] for i in range(n)
-                for k in range(st.nl_start[i], st.nl_start[i + 1])}
+        hist = st.contact_list.entry_history()
+        return {(int(st.ids[i]), int(st.ids[st.contact_list.j[k]])): hist[k] for i in range(n)
+                for k in range(st.contact_list.start[i], st.contact_list.start[i + 1])}
 
     total = st.rebuild_list(skin)
     # about half the entries carry a history (a contact normal and values), the rest zeros
     active = rng.random(total) < 0.5
-    st.set_entry_history(np.where(active[:, None], rng.uniform(-1, 1, (total, 6)) + 2.0, 0.0))
+    st.contact_list.set_entry_history(np.where(active[:, None], rng.uniform(-1, 1, (total, 6)) + 2.0, 0.0))
     before = by_pair(total)
     st.x[rng.random(n) < 0.3] += rng.uniform(-0.01, 0.01, (3,))  # some particles jump: pairs come and go
     after = by_pair(st.rebuild_list(skin))
@@ -159,8 +160,8 @@ def test_contact_history_dropped_when_contact_opens(table1):
     sim.run(steps=1500)  # approach 625 steps, contact ~150 steps
     assert sim.number_of_contacts() == 0 and sim.velocities[1, 0] > 0  # they bounced apart
     st = sim._state
-    assert st.list_size == 1  # still neighbors within the skin ...
-    assert st.contact_row[0] == -1 and np.all(st.entry_history() == 0.0)  # ... but the closed contact's springs are gone
+    assert st.contact_list.size == 1  # still neighbors within the skin ...
+    assert st.contact_list.contact_row[0] == -1 and np.all(st.contact_list.entry_history() == 0.0)  # ... but the closed contact's springs are gone
 
 
 def test_restart_is_bit_identical(table1, tmp_path):
@@ -221,7 +222,7 @@ def test_energy_bookkeeping_changes_no_trajectory(table1, tmp_path):
 def test_same_result_for_any_thread_count(table1, monkeypatch):
     """Forces are gathered per particle in a fixed order: the serial path (small scenes, one
     thread) and the parallel path on all threads give the same bits."""
-    import rollingdem.engine_kernel as ek
+    import rollingdem.kernel_layout as ek
 
     results = []
     for threads, serial_below in ((1, ek.SERIAL_BELOW), (numba.config.NUMBA_NUM_THREADS, 0)):
@@ -396,17 +397,17 @@ def pool_rows(st):
     rows of its contacts in list order, its free rows, its first row): each contact has a row of
     its own among its group's rows, below the group's next unused row; the free list holds the
     group's other rows below it, so no row is lost and none is shared."""
-    n, total = st.n, st.list_size
-    rows_of = st.contact_row[:total]
+    n, total = st.n, st.contact_list.size
+    rows_of = st.contact_list.contact_row[:total]
     out = []
-    for g in range(len(st.groups)):
-        first, last = st.nl_start[min(g * POOL_GROUP, n)], st.nl_start[min((g + 1) * POOL_GROUP, n)]
+    for g in range(len(st.contact_list.groups)):
+        first, last = st.contact_list.start[min(g * POOL_GROUP, n)], st.contact_list.start[min((g + 1) * POOL_GROUP, n)]
         rows = rows_of[first:last][rows_of[first:last] >= 0]
-        fill = int(st.groups[g, 1])
-        free, r = [], int(st.groups[g, 0])
+        fill = int(st.contact_list.groups[g, 1])
+        free, r = [], int(st.contact_list.groups[g, 0])
         while r >= 0:
             free.append(r)
-            r = int(st.pool[r, 0])
+            r = int(st.contact_list.pool[r, 0])
         assert first <= fill <= last
         assert all(first <= r < fill for r in [*rows.tolist(), *free])
         assert len(set(rows.tolist()) | set(free)) == len(rows) + len(free) == fill - first
@@ -421,20 +422,19 @@ def test_pool_rows_packed_in_list_order_after_a_rebuild(table1):
     next step behind, and a later contact of the same pair would start pre-loaded."""
     sim = _bed(table1, n=800, seed=2)  # 4 groups of the pool
     sim.run(0.08)  # the first spheres land
-    kernel = sim.contact.kernel()
+    kernel = sim.engine_module()
     checked = 0
     for _ in range(20):
         sim.run(steps=500)
         st = sim._state
-        kernel._rebuild(st.x, st.radius, sim.skin, st.ids, st.nl_start, st.nl_j, st.nl_i, st.pool, st.contact_row,
-                        st.groups,
-                        st.tr_start, st.tr_k, st.cell_start, st.cell_items, st.cell_of, st.counts, st.x_ref, st.info)
+        particles, _, lists, _ = st.records()
+        kernel._rebuild(particles, lists, sim.skin, st.info)
         for rows, free, first in pool_rows(st):
             np.testing.assert_array_equal(rows, first + np.arange(len(rows)))
             assert free == []
-        total = st.list_size
-        in_contact = np.any(st.entry_history()[:, :3] != 0.0, axis=1)
-        np.testing.assert_array_equal(st.contact_row[:total] >= 0, in_contact)
+        total = st.contact_list.size
+        in_contact = np.any(st.contact_list.entry_history()[:, :3] != 0.0, axis=1)
+        np.testing.assert_array_equal(st.contact_list.contact_row[:total] >= 0, in_contact)
         checked += int(in_contact.sum())
     assert checked > 100
 
@@ -471,10 +471,10 @@ def test_list_growth_in_mid_step_changes_nothing(table1):
         sim.add_particles(x, R, "m", velocity=-40.0 * (x - x.mean(0)))  # a cube squeezed inwards
         sim.run(steps=1)
         st = sim._state
-        st.grow(capacity or st.list_size)  # the list after the first step, kept, in arrays this big
-        first = st.capacity
+        st.grow(capacity or st.contact_list.size)  # the list after the first step, kept, in arrays this big
+        first = st.contact_list.capacity
         sim.run(steps=5000)
-        return sim, first, st.capacity
+        return sim, first, st.contact_list.capacity
 
     small, first, grown = run(None)
     roomy, roomy_first, roomy_last = run(100_000)

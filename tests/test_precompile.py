@@ -1,6 +1,6 @@
 """A cold kernel compiles on two cores: a helper process fills Numba's cache with the scalar
 contact law, the neighbor search and the gather while the run compiles the pair pass and the
-drift (rollingdem.contact.precompile); only the step loop the run takes is compiled."""
+drift (rollingdem.precompile); only the step loop the run takes is compiled."""
 
 import os
 import subprocess
@@ -11,9 +11,10 @@ from pathlib import Path
 import pytest
 
 import rollingdem as rd
-from rollingdem.contact import precompile
+from rollingdem import precompile
 from rollingdem.contact.model import ContactModel
-from rollingdem.contact.precompile import is_cached, prepare
+from rollingdem.kernels import engine_module
+from rollingdem.precompile import is_cached, prepare
 
 
 def test_no_helper_for_a_cached_step_loop_or_when_switched_off(monkeypatch):
@@ -22,13 +23,13 @@ def test_no_helper_for_a_cached_step_loop_or_when_switched_off(monkeypatch):
     sim.add_material(rd.Material("m", youngs_modulus=1e7, poisson_ratio=0.3, density=1000.0))
     sim.add_particles([[0, 0, 0.01]], 0.01, "m")
     sim.run(steps=1)  # one sphere: the serial step loop
-    kernel = contact.kernel()
+    kernel = engine_module(contact)
     assert is_cached(kernel, "gather_serial") and is_cached(kernel, "advance_serial")
     monkeypatch.setattr(precompile, "_PREPARED", set())
-    assert not prepare(contact, kernel, False, True)
+    assert not prepare(kernel, True)
     monkeypatch.setattr(precompile, "_PREPARED", set())
     monkeypatch.setenv("ROLLINGDEM_PRECOMPILE", "0")
-    assert not prepare(contact, kernel, False, False)
+    assert not prepare(kernel, False)
 
 
 @pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="the helper runs only with a second core")
@@ -46,7 +47,7 @@ def test_a_failing_head_start_does_not_fail_the_run(monkeypatch):
         return sim.positions.copy()
 
     before = run()
-    kernel = contact.kernel()
+    kernel = engine_module(contact)
 
     def no_scene(*args, **kwargs):
         raise RuntimeError("no scene")
@@ -54,7 +55,7 @@ def test_a_failing_head_start_does_not_fail_the_run(monkeypatch):
     monkeypatch.setattr(precompile, "_PREPARED", set())
     monkeypatch.setattr(precompile, "is_cached", lambda module, function="gather": False)
     monkeypatch.setattr(precompile, "signatures", no_scene)
-    assert prepare(contact, kernel, False, True)
+    assert prepare(kernel, True)
     assert not list(Path(kernel.__file__).parent.glob(Path(kernel.__file__).stem + ".precompile.lock"))
     assert (run() == before).all()
 

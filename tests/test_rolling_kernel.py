@@ -1,6 +1,5 @@
 """The rolling kernel on its own (docs/models.md §13 T6): frame carrying, the moment limit, objectivity."""
 
-import importlib
 import math
 
 import numpy as np
@@ -9,6 +8,7 @@ import pytest
 import rollingdem as rd
 from rollingdem.contact.frame import contact_frame
 from rollingdem.contact.rolling import spring_rolling
+from rollingdem.kernels import engine_module
 
 R_EFF = 0.0025
 KN, KT = 2e4, 2e4 * 2 / 7
@@ -23,7 +23,7 @@ def params(model, mu_r=MU_R, eta=0.3):
     cm = rd.ContactModel("hertz", rolling=model)
     table = rd.MaterialTable()
     table.add(mat)
-    return cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"], cm.rolling.kernel_modes()
+    return cm.pair_table(table)[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
 
 
 def step(model_params, hist, n, n_old, wi, wj, dt=1e-5, spin=0.0, f_total=None):
@@ -105,9 +105,8 @@ def corotate(model, preload=True):
     cm = rd.ContactModel("hertz", rolling=model)
     table = rd.MaterialTable()
     table.add(rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2, rolling_damping=0.3))
-    p, off, modes = cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"], cm.rolling.kernel_modes()
-    module, name = cm.rolling.kernel
-    kern = getattr(importlib.import_module(module), name)
+    p, off, modes = cm.pair_table(table)[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
+    kern = type(cm.rolling).function
     hist = np.zeros((1, 3))
     dt = 1e-4
     n = np.array([0.0, 0.0, 1.0])
@@ -199,8 +198,8 @@ def test_force_proportional_is_not_objective():
     cm = rd.ContactModel("hertz", rolling="force_proportional")
     table = rd.MaterialTable()
     table.add(rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2))
-    p, off, modes = cm.pair_table(table)[0, 0], cm.offsets()["OFF_ROLLING"], cm.rolling.kernel_modes()
-    res = cm.kernel().rolling_moment(np.zeros((1, 3)), 0, 0, 0, 0, 1.0, contact_frame(0, 0, 1.0, 0, 0, 1.0, 0.0),
+    p, off, modes = cm.pair_table(table)[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
+    res = engine_module(cm).rolling_moment(np.zeros((1, 3)), 0, 0, 0, 0, 1.0, contact_frame(0, 0, 1.0, 0, 0, 1.0, 0.0),
                                      3.0, 0, 0, 3.0, 0, 0,
                                      R_EFF, R_EFF, KN, KT, F_EL, F_EL, R_EFF, I_R, 1e-5, p, off, modes)
     assert res[0] == pytest.approx(MU_R * F_EL * R_EFF) and res[3] == pytest.approx(-MU_R * F_EL * R_EFF)
@@ -208,7 +207,7 @@ def test_force_proportional_is_not_objective():
 
 def cdt_moment(model, n, wi, wj, lever_i=R_EFF, lever_j=R_EFF, r_eff=R_EFF):
     p, off, modes = params(model)
-    kern = rd.ContactModel("hertz", rolling=model).kernel().rolling_moment
+    kern = engine_module(rd.ContactModel("hertz", rolling=model)).rolling_moment
     res = kern(np.zeros((1, 3)), 0, 0, *n, contact_frame(*n, *n, 0.0), *wi, *wj, lever_i, lever_j, KN, KT, F_EL, F_EL, r_eff, I_R,
                1e-5, p, off, modes)
     return np.array(res[:3])
@@ -242,9 +241,9 @@ def test_parity_presets_compile_their_switches_as_constants():
     preset; the class's own switches (stiffness, damping) stay in the parameter row."""
     from rollingdem.contact.rolling import CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL
 
-    default = rd.ContactModel("hertz", rolling="epsd").kernel()
-    assert rd.ContactModel("hertz", rolling="epsd2").kernel() is default
-    liggghts = rd.ContactModel("hertz", rolling=rd.EPSD(parity="liggghts")).kernel()
+    default = engine_module(rd.ContactModel("hertz", rolling="epsd"))
+    assert engine_module(rd.ContactModel("hertz", rolling="epsd2")) is default
+    liggghts = engine_module(rd.ContactModel("hertz", rolling=rd.EPSD(parity="liggghts")))
     assert liggghts is not default
     assert liggghts.ROLLING_MODES == (CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL, 1)
-    assert rd.ContactModel("hertz", rolling=rd.EPSD2(parity="liggghts")).kernel() is liggghts
+    assert engine_module(rd.ContactModel("hertz", rolling=rd.EPSD2(parity="liggghts"))) is liggghts

@@ -12,7 +12,6 @@ round-off allowance, and the smallest factor error we look for (2.25 -> 2.0 is 1
 dashpot 50 %, sqrt(5/6) -> sqrt(2/3) 11 %) is ten orders of magnitude above it.
 """
 
-import importlib
 import math
 
 import numpy as np
@@ -62,7 +61,7 @@ def row(model_kw, slot):
     table = rd.MaterialTable()
     table.add(MAT_A)
     table.add(MAT_B)
-    return cm.pair_table(table)[0, 1], cm.offsets()["OFF_" + slot.upper()], cm
+    return cm.pair_table(table)[0, 1], cm.layout()[slot.upper() + "_PARAMS"], cm
 
 
 def rot(axis, angle):
@@ -235,8 +234,7 @@ M_MAX = MU_R * R_EFF * F_EL
 def rolling(model, hist=None, wi=WI, wj=WJ, f_el=F_EL, f_tot=F_TOT, lever_i=R_EFF, lever_j=R_EFF, n=N_R):
     """One call of the model's own rolling kernel; returns (M_i, M_j, dissipation, history)."""
     p, off, cm = row(dict(normal="hertz", rolling=model), "rolling")
-    module, name = cm.rolling.kernel
-    kern = getattr(importlib.import_module(module), name)
+    kern = type(cm.rolling).function
     hist = np.zeros((1, 3)) if hist is None else hist
     res = kern(hist, 0, 0, *n, contact_frame(*n, *n, 0.0), *wi, *wj, lever_i, lever_j, KN, KT,
                f_el, f_tot, R_EFF, I_R, DT, p, off, cm.rolling.kernel_modes())

@@ -6,7 +6,7 @@ import numba
 import numpy as np
 import pytest
 
-import rollingdem.engine_kernel as ek
+import rollingdem.kernel_layout as ek
 import rollingdem.threads as th
 from test_engine import cluster
 

@@ -60,8 +60,8 @@ def test_twisting_sds_validation():
     with pytest.raises(rd.ParameterError, match="twisting_friction is required"):
         rd.ContactModel(twisting={"model": "sds", "twisting_stiffness": 1e-4})
     sds = rd.TwistingSDS(1e-4, 1e-7, 1e-3)
-    assert sds.pair_parameters(None) == (0.0, 1e-4, 1e-7, 1e-3)
-    assert rd.ContactModel(twisting=sds.parameters() | {"model": "sds"}).twisting == sds  # case-file round trip
+    assert sds.pair_values(None) == (0.0, 1e-4, 1e-7, 1e-3)
+    assert rd.ContactModel(twisting=sds.settings() | {"model": "sds"}).twisting == sds  # case-file round trip
 
 
 def test_spin_stops_with_twisting_sds(table1):

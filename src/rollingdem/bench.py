@@ -86,7 +86,7 @@ class BenchResult:
 
 
 def _cache_dir() -> Path:
-    from .contact.model import kernel_cache_dir
+    from .kernels import kernel_cache_dir
 
     return kernel_cache_dir().parent / "bench"
 
@@ -174,12 +174,13 @@ def _contacts_per_particle(sim) -> tuple[float, float]:
     """(contacts per particle, each pair counted for both and walls once; neighbors per particle)."""
     st = sim._state
     n = st.n
-    rows = np.repeat(np.arange(n), np.diff(st.nl_start[: n + 1]))
-    j = st.nl_j[: st.list_size]
+    cl = st.contact_list
+    rows = np.repeat(np.arange(n), np.diff(cl.start[: n + 1]))
+    j = cl.j[: cl.size]
     d = np.linalg.norm(st.x[rows] - st.x[j], axis=1)
     pairs = int(np.count_nonzero(d < st.radius[rows] + st.radius[j]))
     walls = int(st.contacts.sum()) - pairs
-    return (2 * pairs + walls) / n, 2 * st.list_size / n
+    return (2 * pairs + walls) / n, 2 * cl.size / n
 
 
 class _Phases:
@@ -191,38 +192,31 @@ class _Phases:
 
         st = sim._state
         self.state = st
-        kernel = sim.kernel()
+        kernel = sim.engine_module()
         st.energy_for(kernel)
         gravity = np.asarray(sim.gravity)
-        args = st.kernel_args(sim.dt, gravity, sim.skin, sim.pair_parameters())
-        (dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pp, wall_kind, wall_geom, wall_vel, wall_omega,
-         wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k, cell_start, cell_items,
-         cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes) = args
-        self.saved = {name: getattr(st, name).copy() for name in ("pool", "contact_row", "groups", "whist", "wtouch",
-                                                                  "energy", "f", "t", "contacts", "x_ref", "nl_start",
-                                                                  "nl_j", "nl_i", "tr_start", "tr_k")}
+        dt, skin, pp = sim.dt, sim.skin, sim.pair_parameters()
+        particles, walls, lists, scratch = st.records()
+        self.saved = [(owner, name, getattr(owner, name).copy())
+                      for owner, names in ((st, ("whist", "wtouch", "energy", "f", "t", "contacts", "x_ref")),
+                                           (st.contact_list, ("pool", "contact_row", "groups", "start", "j", "i",
+                                                              "tr_start", "tr_k")))
+                      for name in names]
         serial = st.serial()  # the paths the engine takes
         pair_forces = kernel.pair_forces_serial if serial else kernel.pair_forces
         gather = kernel.gather_serial if serial else kernel.gather
         kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
+        no_walls = walls._make(a[:0] for a in walls)
 
-        def gather_with(kind, geom, vel, omega, wmat):
-            return lambda: gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pp, tr_start, tr_k,
-                                  nl_j, contact_row, pool, kind, geom, vel, omega, wmat, whist, wtouch, energy,
-                                  contacts, x_ref, 0.5 * skin)
-
-        self.pair = lambda: pair_forces(dt, x, v, w, f, t, radius, mass, mat, pp, nl_start, nl_j, nl_i, pool,
-                                        contact_row, groups, energy, contacts, blocks, lanes)
-        self.gather_walls = gather_with(wall_kind, wall_geom, wall_vel, wall_omega, wall_mat)
-        self.gather_plain = gather_with(wall_kind[:0], wall_geom[:0], wall_vel[:0], wall_omega[:0], wall_mat[:0])
-        self.kick = lambda: kick_drift(0.0, x, v, w, f, t, mass, inertia, x_ref, 0.5 * skin)
-        self.rebuild = lambda: rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row,
-                                                     groups, tr_start, tr_k, cell_start, cell_items, cell_of, counts,
-                                                     x_ref)
+        self.pair = lambda: pair_forces(dt, pp, particles, lists, scratch)
+        self.gather_walls = lambda: gather(dt, 0.0, gravity, pp, particles, walls, lists, 0.5 * skin)
+        self.gather_plain = lambda: gather(dt, 0.0, gravity, pp, particles, no_walls, lists, 0.5 * skin)
+        self.kick = lambda: kick_drift(0.0, particles, 0.5 * skin)
+        self.rebuild = lambda: rebuild_neighbor_list(st.x, st.radius, skin, st.ids, st.x_ref, lists)
 
     def restore(self) -> None:
-        for name, arr in self.saved.items():
-            getattr(self.state, name)[...] = arr
+        for owner, name, arr in self.saved:
+            getattr(owner, name)[...] = arr
 
 
 def _seconds_per_call(fn, repeats: int, blocks: int = 5) -> float:
@@ -284,7 +278,7 @@ def compile_time(contact, spheres: int = 2) -> float:
     (or ``SERIAL_BELOW``) spheres on a plate, two of them stacked (a pair contact and a wall
     contact)."""
     from . import Material, Plane, Simulation
-    from .engine_kernel import SERIAL_BELOW
+    from .kernel_layout import SERIAL_BELOW
 
     tic = time.perf_counter()
     sim = Simulation(contact=contact, dt=DT, skin=SKIN)
@@ -306,7 +300,7 @@ def _warm_up(sim) -> None:
 
 def _timed_steps(sim, steps: int) -> tuple[float, int]:
     """(seconds, neighbor rebuilds) of ``steps`` steps."""
-    from .engine_kernel import I_REBUILDS
+    from .kernel_layout import I_REBUILDS
 
     before = int(sim._state.info[I_REBUILDS])
     tic = time.perf_counter()

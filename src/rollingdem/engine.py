@@ -14,14 +14,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import kernel_layout
 from .errors import SimulationError
-from .neighbors import PAIR_TERMS, POOL_GROUP, _transpose, list_rows, rebuild_neighbor_list
+from .kernel_layout import (CONTACT_BLOCK, ENERGY_CHANNELS, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS,
+                            I_STEPS_DONE, INFO_SIZE, LANE_HITS, STATUS_CAPACITY, STATUS_TOO_FAST, TILE_ROWS,
+                            WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, ListArrays, ParticleArrays, Scratch, WallArrays,
+                            block_columns)
+from .neighbors import ContactList
 from .threads import ThreadGovernor
-from .walls import GEOMETRY_SIZE
-
-I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST, I_DRIFTED = range(8)
-STATUS_CAPACITY, STATUS_TOO_FAST = 1, 2
-INFO_SIZE = 8
 # list capacity = entries needed x this (16 bytes per entry and a pool row of 8 (history + 6) bytes,
 # 136 with EPSD): growing costs a reallocation and one more counting pass of the neighbor search,
 # so a small margin is cheap
@@ -33,7 +33,6 @@ MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start, tr_k and c
 # unequal work), hence the threshold.
 SORT_ABOVE = 50_000  # particles
 SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
-ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")
 
 
 class EngineState:
@@ -69,9 +68,7 @@ class EngineState:
         self.whist = np.zeros((0, history_size))
         self.wtouch = np.zeros(0, dtype=np.uint8)
         self.info = np.zeros(INFO_SIZE, dtype=np.int64)
-        self.capacity = 0
-        self._allocate_list(16)
-        self._allocate_particle_scratch()
+        self.contact_list = ContactList(history_size)
 
     @property
     def n(self) -> int:
@@ -81,74 +78,11 @@ class EngineState:
     def n_walls(self) -> int:
         return self.wall_kind.shape[0]
 
-    # --- allocation --------------------------------------------------------------------------
-    def _allocate_particle_scratch(self):
-        n = self.n
-        # row starts, int32 as the entry indices in tr_k (the list holds < 2**31 entries, see grow)
-        self.nl_start = np.zeros(n + 1, dtype=np.int32)
-        self.tr_start = np.zeros(n + 1, dtype=np.int32)
-        self.cell_items = np.zeros(n, dtype=np.int32)
-        # rebuild scratch, int32 (16 B/p less than int64): at most max(2 n, 64) cells, n spheres
-        self.cell_of = np.zeros(n, dtype=np.int32)
-        self.counts = np.zeros(n, dtype=np.int32)
-        self.cell_start = np.zeros(max(2 * n, 64) + 1, dtype=np.int32)
-        # the contact pool's groups (rollingdem.neighbors): head of the free list, next unused row; a
-        # rebuild sets them
-        self.groups = np.zeros(((n + POOL_GROUP - 1) // POOL_GROUP, 2), dtype=np.int32)
-        self.groups[:, 0] = -1
-
-    def _allocate_list(self, capacity: int, keep: int = 0):
-        old = (getattr(self, "nl_j", None), getattr(self, "pool", None), getattr(self, "contact_row", None))
-        self.nl_j = np.zeros(capacity, dtype=np.int32)
-        self.nl_i = np.zeros(capacity, dtype=np.int32)  # the row of each entry (neighbors.list_rows)
-        # contact rows (history, F_ij, T_j) and each entry's row, -1 out of contact (rollingdem.neighbors):
-        # the rows in use lie below the list's length, so the first ``keep`` rows are all there is
-        self.pool = np.zeros((capacity, self.history_size + PAIR_TERMS))
-        self.contact_row = np.full(capacity, -1, dtype=np.int32)
-        if keep and old[0] is not None:
-            self.nl_j[:keep] = old[0][:keep]
-            self.pool[:keep] = old[1][:keep]
-            self.contact_row[:keep] = old[2][:keep]
-        self.tr_k = np.zeros(capacity, dtype=np.int32)
-        self.capacity = capacity
-
-    def entry_history(self) -> np.ndarray:
-        """The contact history of each list entry, (entries, history_size), zeros out of contact (the
-        layout of checkpoints)."""
-        total = self.list_size
-        hist = np.zeros((total, self.history_size))
-        rows = self.contact_row[:total]
-        touching = rows >= 0
-        hist[touching] = self.pool[rows[touching], :self.history_size]
-        return hist
-
-    def set_entry_history(self, hist: np.ndarray):
-        """Put a history per list entry (``entry_history``'s layout) into the pool, as a rebuild
-        leaves it: an entry is in contact iff it keeps a contact normal, each group's contacts at
-        the front of its rows in list order. Needs ``nl_i`` (``index_list``)."""
-        total = self.list_size
-        touching = np.nonzero(np.any(hist[:total, :3] != 0.0, axis=1))[0]
-        group = self.nl_i[touching] // POOL_GROUP
-        first_entry = self.nl_start[np.minimum(np.arange(len(self.groups)) * POOL_GROUP, self.n)]
-        rank = np.arange(len(touching)) - np.searchsorted(group, group)  # in its group, in list order
-        rows = first_entry[group] + rank
-        self.contact_row[:total] = -1
-        self.contact_row[touching] = rows
-        self.pool[rows, :self.history_size] = hist[touching]
-        self.groups[:, 0] = -1
-        self.groups[:, 1] = first_entry + np.bincount(group, minlength=len(self.groups))
-
+    # --- the contact list ----------------------------------------------------------------------
     def rebuild_list(self, skin: float) -> int:
         """Rebuild the neighbor list at the present positions, carrying the contacts over (the
         arrays grow as needed); returns its number of entries."""
-        while True:
-            total = rebuild_neighbor_list(self.x, self.radius, skin, self.ids, self.nl_start, self.nl_j, self.nl_i,
-                                          self.pool, self.contact_row, self.groups, self.tr_start, self.tr_k,
-                                          self.cell_start, self.cell_items, self.cell_of, self.counts, self.x_ref)
-            if total >= 0:
-                list_rows(self.n, self.nl_start, self.nl_i)
-                return total
-            self.grow(-total)
+        return self.contact_list.rebuild(self.x, self.radius, skin, self.ids, self.x_ref, self.grow)
 
     def derive_wall_touch(self):
         """``wtouch[i * n_walls + w]``: whether particle i touched wall w at the last step (it keeps a
@@ -157,25 +91,16 @@ class EngineState:
         self.wtouch = np.ascontiguousarray(np.any(self.whist[:, :3] != 0.0, axis=1), dtype=np.uint8)
 
     def grow(self, needed: int):
+        """Room for ``needed`` list entries (and a margin); the entries and contacts are kept."""
         if needed > MAX_ENTRIES:
             raise SimulationError(f"the neighbor list needs {needed} entries ({needed / max(self.n, 1):.1f} per "
                                   f"particle), more than the {MAX_ENTRIES} one process holds (int32 indices): run "
                                   "fewer particles per process, or a smaller neighbor skin")
-        keep = int(self.nl_start[-1]) if self.nl_start.size else 0
-        self._allocate_list(min(int(needed * LIST_MARGIN) + 16, MAX_ENTRIES), keep=keep)
+        keep = self.contact_list.size
+        self.contact_list.allocate(min(int(needed * LIST_MARGIN) + 16, MAX_ENTRIES), keep=keep)
         self.info[I_NEED_REBUILD] = 1
         if keep:  # the list's entries were kept as they were; their indices are made anew
-            self.index_list()
-
-    def index_list(self):
-        """The indices derived from the list (``nl_start``, ``nl_j``): the transposed index (``tr_start``,
-        ``tr_k``) and each entry's row (``nl_i``), as the kernel makes them at a rebuild."""
-        _transpose(self.n, self.nl_start, self.nl_j, self.tr_start, self.tr_k)
-        list_rows(self.n, self.nl_start, self.nl_i)
-
-    @property
-    def list_size(self) -> int:
-        return int(self.nl_start[-1]) if self.nl_start.size else 0
+            self.contact_list.index()
 
     # --- particles and walls -----------------------------------------------------------------
     def append_particles(self, x, v, w, radius, mass, inertia, mat):
@@ -198,11 +123,8 @@ class EngineState:
         self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
         if self._slots is not None:
             self._slots = np.concatenate([self._slots, np.arange(n0, n0 + m, dtype=np.int64)])
-        old_start = self.nl_start
         wall_hist = self.whist.reshape(n0, self.n_walls, self.history_size) if n0 else None
-        self._allocate_particle_scratch()
-        self.nl_start[: n0 + 1] = old_start[: n0 + 1]
-        self.nl_start[n0 + 1:] = old_start[n0] if n0 else 0
+        self.contact_list.add_rows(m)
         whist = np.zeros((self.n, self.n_walls, self.history_size))
         if wall_hist is not None:
             whist[:n0] = wall_hist
@@ -211,7 +133,7 @@ class EngineState:
         self.info[I_NEED_REBUILD] = 1
         self.info[I_FORCES_VALID] = 0
         self.steps_since_sort = SORT_EVERY  # the new particles come in the user's order: sort at the next run
-        if self.capacity < 3 * self.n:  # a settled bed's half list holds ~4 entries per particle
+        if self.contact_list.capacity < 3 * self.n:  # a settled bed's half list holds ~4 entries per particle
             self.grow(3 * self.n)
 
     def set_walls(self, kinds, geoms, vels, omegas, mats, carry):
@@ -263,17 +185,7 @@ class EngineState:
             h = self.history_size
             self.whist = np.ascontiguousarray(self.whist.reshape(n, self.n_walls, h)[perm].reshape(-1, h))
             self.derive_wall_touch()
-        # rows move with their particle; entries keep their order (by partner id) and history
-        hist = self.entry_history()
-        old_start = self.nl_start.copy()
-        lengths = np.diff(old_start)[perm]
-        self.nl_start[0] = 0
-        np.cumsum(lengths, out=self.nl_start[1:])
-        total = int(self.nl_start[-1])
-        src = np.repeat(old_start[:-1][perm] - self.nl_start[:-1], lengths) + np.arange(total)
-        self.nl_j[:total] = inv[self.nl_j[src]]
-        self.index_list()
-        self.set_entry_history(hist[src])
+        self.contact_list.reorder(perm, inv)  # rows move with their particle
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
 
@@ -287,23 +199,27 @@ class EngineState:
         one contact at a time."""
         import numba
 
-        from .engine_kernel import CONTACT_BLOCK, LANE_HITS, N_INPUTS, N_RESULTS, TILE_ROWS
-
         threads = numba.get_num_threads()
         one_material = self.n == 0 or bool((self.mat[:self.n] == self.mat[0]).all())
-        width = (self.history_size + N_INPUTS + 2 * N_RESULTS) * CONTACT_BLOCK if one_material else 0
+        width = block_columns(self.history_size) * CONTACT_BLOCK if one_material else 0
         if self._blocks is None or self._blocks.shape != (threads, width):
             self._blocks = np.zeros((threads, width))
             self._lanes = np.zeros((threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK), dtype=np.int64)
         return self._blocks, self._lanes
 
+    def records(self) -> tuple[ParticleArrays, WallArrays, ListArrays, Scratch]:
+        """The kernel's four records (``rollingdem.kernel_layout``), of the arrays as they are now
+        (the arrays are replaced when they grow: records are made for each call)."""
+        return (ParticleArrays(self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
+                               self.ids, self.x_ref, self.energy, self.contacts),
+                WallArrays(self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat, self.whist,
+                           self.wtouch),
+                self.contact_list.arrays(),
+                Scratch(*self.contact_blocks()))
+
     def kernel_args(self, dt, gravity, skin, pair_params):
-        return (dt, gravity, self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
-                self.ids, pair_params, self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat,
-                self.whist, self.wtouch, self.nl_start, self.nl_j, self.nl_i, self.pool, self.contact_row, self.groups,
-                self.tr_start, self.tr_k, self.cell_start, self.cell_items,
-                self.cell_of, self.counts, self.x_ref, skin, self.energy, self.contacts, self.info,
-                *self.contact_blocks())
+        """The arguments of the step loop after ``nsteps``."""
+        return (dt, gravity, skin, pair_params, *self.records(), self.info)
 
     def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
         """Advance up to ``nsteps`` steps (growing the list arrays as often as needed).
@@ -353,9 +269,7 @@ class EngineState:
         """Whether the kernel steps on the calling thread (a small scene, or one Numba thread)."""
         import numba
 
-        from .engine_kernel import SERIAL_BELOW
-
-        return self.n < SERIAL_BELOW or numba.get_num_threads() == 1
+        return self.n < kernel_layout.SERIAL_BELOW or numba.get_num_threads() == 1
 
     def step_loop(self, kernel):
         """The kernel's step loop for this scene: ``advance_serial`` or ``advance`` (threads)."""
@@ -382,7 +296,8 @@ class EngineState:
         are exactly those the evaluation started from.
         """
         total = self.rebuild_list(skin)
-        saved = (self.pool[:total].copy(), self.contact_row[:total].copy(), self.groups.copy(), self.whist.copy(),
+        cl = self.contact_list
+        saved = (cl.pool[:total].copy(), cl.contact_row[:total].copy(), cl.groups.copy(), self.whist.copy(),
                  self.energy.copy())
         while True:
             self.info[I_FORCES_VALID] = 0
@@ -390,20 +305,23 @@ class EngineState:
             if self.info[I_STATUS] != STATUS_CAPACITY:
                 break
             self.grow(int(self.info[I_NEEDED]))
-        self.pool[:total], self.contact_row[:total], self.groups[:], self.whist[:], self.energy[:] = saved
+        cl = self.contact_list  # grown perhaps: the arrays are new
+        cl.pool[:total], cl.contact_row[:total], cl.groups[:], self.whist[:], self.energy[:] = saved
         self.derive_wall_touch()
 
     # --- checkpoint ----------------------------------------------------------------------------
     ARRAYS = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts", "x_ref",
-              "wall_kind", "wall_geom", "wall_vel", "wall_omega", "wall_mat", "whist", "info", "nl_start",
-              "tr_start")
+              "wall_kind", "wall_geom", "wall_vel", "wall_omega", "wall_mat", "whist", "info")
 
     def to_arrays(self) -> dict:
         out = {name: getattr(self, name) for name in self.ARRAYS}
-        total = self.list_size
-        out["nl_j"] = self.nl_j[:total]
-        out["hist"] = self.entry_history()
-        out["tr_k"] = self.tr_k[:total]
+        cl = self.contact_list
+        total = cl.size
+        out["nl_start"] = cl.start
+        out["tr_start"] = cl.tr_start
+        out["nl_j"] = cl.j[:total]
+        out["hist"] = cl.entry_history()
+        out["tr_k"] = cl.tr_k[:total]
         return out
 
     @classmethod
@@ -413,19 +331,18 @@ class EngineState:
             arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
         for name in cls.ARRAYS:
             setattr(st, name, np.array(arrays[name]))
-        st.contacts = st.contacts.astype(np.int32)  # int64 in checkpoints of before 2026-12-02
-        if not st.energy.any():  # nothing summed (checkpoints of before 2026-12-02 kept the zeros)
+        st.contacts = st.contacts.astype(np.int32)  # int64 in older checkpoints
+        if not st.energy.any():  # nothing summed (older checkpoints kept the zeros)
             st.energy = np.zeros((0, len(ENERGY_CHANNELS)))
         if not np.array_equal(st.ids, np.arange(st.n)):
             st._slots = np.argsort(st.ids)
-        nl_start = st.nl_start
-        tr_start = st.tr_start
-        st._allocate_particle_scratch()
-        st.nl_start, st.tr_start = nl_start.astype(np.int32), tr_start.astype(np.int32)  # int64 before 2026-12-02
+        cl = st.contact_list = ContactList(history_size, rows=st.n)
+        cl.start[:] = arrays["nl_start"]  # int64 in older checkpoints
+        cl.tr_start[:] = arrays["tr_start"]
         total = int(arrays["nl_j"].shape[0])
-        st._allocate_list(max(int(total * LIST_MARGIN) + 16, 3 * st.n))
-        st.nl_j[:total] = arrays["nl_j"]
+        cl.allocate(max(int(total * LIST_MARGIN) + 16, 3 * st.n))
+        cl.j[:total] = arrays["nl_j"]
         st.derive_wall_touch()
-        st.index_list()  # the checkpoint's tr_k too, made again (as it was written)
-        st.set_entry_history(arrays["hist"])
+        cl.index()  # the checkpoint's tr_k too, made again (as it was written)
+        cl.set_entry_history(arrays["hist"])
         return st

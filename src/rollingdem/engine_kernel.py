@@ -1,50 +1,12 @@
 """The compiled step loop: neighbor list -> contact forces and torques -> velocity Verlet.
 
-This file is a template. ``rollingdem.contact.model.ContactModel`` writes a copy of it for each
-combination of sub-models, with the lines marked ``# @@`` replaced (which kernels to call, their
-parameter offsets and history slots), and imports that copy; Numba caches it on disk. As it
-stands it is a valid module with the Hertz / history / no rolling / no twisting combination.
-
-Per step (velocity Verlet, forces at half-step velocities as in LIGGGHTS and LAMMPS):
-
-1. v += dt/2 F/m, omega += dt/2 T/I, x += dt v; walls move with their velocity;
-2. rebuild the neighbor list if any particle has moved skin/2 or more since the last build (the
-   test LAMMPS makes after its drift);
-3. pair contacts (each thread a contiguous range of rows of the half list): force and torque on
-   i summed per row, force and torque on j stored with the pair. The distance tests find the
-   contacts, which are queued and computed 64 at a time, one per SIMD lane (``pair_rows``,
-   ``block_contacts``); with spheres of several materials, one at a time (``pair_row``);
-4. per particle: gather the pair terms where it is the second partner, wall contacts, gravity;
-   v += dt/2 F/m, omega += dt/2 T/I.
-
-Inside a chunk of steps, 4 and the next step's 1 are one pass over the particles (the closing half
-kick and the next opening half kick and drift use the same F, so the arithmetic is that of two
-passes, bit for bit): one pass and one parallel region fewer per step. The last step of a chunk
-stops after 4, so between chunks positions and velocities are at the same time, as observers and
-checkpoints want. ``info[I_DRIFTED]`` says that a chunk stopped between 1 and 3 (only when the
-list arrays must grow): the next call goes on from 2.
-
-Nothing here allocates or calls Python. ``contact`` is compiled without Numba's reference
-counting (``_nrt=False``): it takes arrays but never allocates, and a counted call costs atomic
-increments and decrements of every array argument per contact (+18 % speed on a dense bed). The
-sub-model kernels are inlined into ``contact`` and into ``block_contacts`` (``inline="always"``).
-The per-particle bodies are functions of their own (``pair_rows``, ``gather_rows``), each called
-by a parallel driver and a serial one, and there are two step loops, ``advance`` (threads) and
-``advance_serial`` (the generator writes it from ``advance``): a run compiles only the loop and
-the drivers it takes. What costs compile time in Numba: each function compiled on its own emits
-the machine code of all it calls once more, and each level of ``inline="always"`` copies the
-inlined body again (the pair pass and the gather are called from the loop directly, and
-``block_contacts`` calls ``contact_in_frame`` directly, for that reason). A cold kernel compiles
-on two processes (``rollingdem.contact.precompile``); inlining ``contact`` itself into the
-scalar pair loop is 3-8 % faster but costs 9-19 s more compile time per kernel.
-
-``TRACK_ENERGY`` (0 or 1, a compile-time constant of the generated copy) says whether the energies
-dissipated per contact are summed: with 0 their arithmetic is dead code and the compiler drops it
-(12 % of the contact pass with EPSD), as LIGGGHTS and LAMMPS, which do not count them either.
-The kernels are compiled with ``error_model="numpy"`` (a division by zero gives inf or NaN, which
-the engine's check of the state after each chunk reports, instead of raising inside the kernel,
-and no zero test guards each division) and ``fastmath={"contract"}`` (fused multiply-add: results
-change at round-off only; no reassociation, and NaN and inf keep their meaning).
+A template: ``rollingdem.kernels`` writes a copy of it for each contact law, with the lines
+tagged ``# @@`` filled in (the sub-models' compiled functions, where their parameters and history
+sit in the rows), and imports it; as it stands it is a valid module (Hertz, history spring, no
+rolling, no twisting). The arrays come in four records (``rollingdem.kernel_layout``):
+``particles``, ``walls``, ``lists`` (neighbor list and contact pool) and ``scratch``. Nothing
+here allocates or calls Python. The step, the passes and why they are shaped as they are:
+docs/architecture.md (the kernel) and docs/performance.md (what each choice is worth).
 """
 
 import math
@@ -55,6 +17,10 @@ from numba import njit, prange, uint32, uint64
 from numba.np.arrayobj import reshape_unchecked
 from numba.core.errors import NumbaPerformanceWarning
 
+from rollingdem.kernel_layout import (BLOCK_SHIFT, CONTACT_BLOCK, CONTACT_INPUTS as IN, I_DRIFTED, I_FORCES_VALID,
+                                      I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
+                                      LANE_HITS, N_INPUTS, N_RESULTS, STATUS_CAPACITY, STATUS_TOO_FAST, WALL_CYLINDER,
+                                      WALL_PLANE)
 from rollingdem.neighbors import POOL_GROUP, free_row, list_rows, rebuild_neighbor_list, take_row
 from rollingdem.contact.frame import SERIES_ANGLE, contact_frame, contact_frame_series
 from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
@@ -62,67 +28,37 @@ from rollingdem.contact.tangential import history_spring as tangential_force  # 
 from rollingdem.contact.rolling import no_rolling as rolling_moment  # @@ROLLING
 from rollingdem.contact.twisting import no_twisting as twisting_moment  # @@TWISTING
 
-OFF_NORMAL = 6  # @@OFF_NORMAL
-OFF_TANGENTIAL = 7  # @@OFF_TANGENTIAL
-OFF_ROLLING = 7  # @@OFF_ROLLING
-OFF_TWISTING = 7  # @@OFF_TWISTING
-H_TANGENTIAL = 3  # @@H_TANGENTIAL
-H_ROLLING = 6  # @@H_ROLLING
-H_TWISTING = 6  # @@H_TWISTING
+NORMAL_PARAMS = 6  # @@NORMAL_PARAMS
+TANGENTIAL_PARAMS = 8  # @@TANGENTIAL_PARAMS
+ROLLING_PARAMS = 8  # @@ROLLING_PARAMS
+TWISTING_PARAMS = 8  # @@TWISTING_PARAMS
+TANGENTIAL_HISTORY = 3  # @@TANGENTIAL_HISTORY
+ROLLING_HISTORY = 6  # @@ROLLING_HISTORY
+TWISTING_HISTORY = 6  # @@TWISTING_HISTORY
 TRACK_ENERGY = 1  # @@TRACK_ENERGY
 ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
+N_PARAMS = 8  # @@N_PARAMS
 
 # Indices in the hot loops are cast to unsigned integers (``uint64(k)``, ``uint32(nl_j[k])``): Numba
 # gives every signed index Python's wraparound for negative values, a compare and a select per
 # index, which cost 40 % of the candidate loop (7.3 -> 4.2 ns per entry).
 
-# Block buffers of the pair pass (see ``pair_rows``): CONTACT_BLOCK lanes per column; the columns
-# are the history slots, the 18 inputs of ``contact``, its 13 results, and the 13 results of a
-# contact computed by the scalar ``contact`` instead.
-CONTACT_BLOCK = 64
-BLOCK_SHIFT = 6  # log2(CONTACT_BLOCK)
-# rows of a thread's ``lanes`` (int64, CONTACT_BLOCK wide): 0-2 the block's pool rows, list rows and series
-# flags; from LANE_HITS on, the candidate entries of a tile of the list (``candidate_entries``)
-LANE_HITS = 3
-TILE_ROWS = 16  # a tile of 1024 entries
-CANDIDATE_SLACK = 1.0 + 1e-12
-N_INPUTS = 18
-N_RESULTS = 13
 # columns of a contact's pool row (``rollingdem.neighbors``) after its history: F on i, T on j
 P_FORCE = HISTORY_SIZE
 P_TORQUE_J = HISTORY_SIZE + 3
+# columns of the block buffer (``kernel_layout``): history, inputs, results, the scalar contact's results
 B_IN = HISTORY_SIZE
 B_OUT = B_IN + N_INPUTS
 B_SCALAR = B_OUT + N_RESULTS
 BLOCK_COLUMNS = B_SCALAR + N_RESULTS
-
-# info slots shared with rollingdem.engine
-I_STEPS_DONE = 0
-I_STATUS = 1
-I_NEEDED = 2
-I_REBUILDS = 3
-I_NEED_REBUILD = 4
-I_FORCES_VALID = 5
-I_TOO_FAST = 6
-I_DRIFTED = 7
-
-STATUS_CAPACITY = 1
-STATUS_TOO_FAST = 2
-
-WALL_PLANE = 0
-WALL_CYLINDER = 1
-
-# Scenes of fewer particles, and runs on one Numba thread, step on the calling thread: a parallel
-# region's fork/join (~1 us with OpenMP, 3 per step) costs more than it saves there. The
-# ``*_serial`` loops are compiled with parallel=True but use range, not prange: no threads start,
-# and Numba's parallel pipeline makes them 2-4x faster than a plain njit of the same code
-# (measured on the 20,000-sphere collapse).
-SERIAL_BELOW = 512
+CANDIDATE_SLACK = 1.0 + 1e-12
 GATHER_RUN = 256  # particles per call of gather_rows: the call is negligible, the threads stay balanced
+INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
+# The ``*_serial`` loops are compiled with parallel=True but use range, not prange: no threads
+# start, and Numba's parallel pipeline makes them 2-4x faster than a plain njit of the same code.
 warnings.filterwarnings("ignore", message="(?s).*parallel=True.*no transformation for parallel execution",
                         category=NumbaPerformanceWarning)
-INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
 
 
 @njit(cache=True, inline="always")
@@ -143,11 +79,12 @@ def spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt):
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j,
-            r_eff, m_eff, inertia_r, p, dt):
-    """One contact: force on i, torque on i, torque on j, dissipated energies (normal, sliding,
-    rolling, twisting). (rvx, rvy, rvz) is the velocity of i's centre relative to j's centre (for a
-    wall: relative to the wall's surface velocity at the contact, with lever_j = 0)."""
+def contact(hist, k, g, p, dt):
+    """One contact, its inputs ``g`` (``CONTACT_INPUTS``): the ``CONTACT_RESULTS`` (force on i,
+    torque on i, torque on j, dissipated energies). (rvx, rvy, rvz) is the velocity of i's centre
+    relative to j's centre (for a wall: relative to the wall's surface velocity at the contact,
+    with lever_j = 0)."""
+    nx, ny, nz = g[IN.nx], g[IN.ny], g[IN.nz]
     onx = hist[k, 0]
     ony = hist[k, 1]
     onz = hist[k, 2]
@@ -157,15 +94,16 @@ def contact(hist, k, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy
         onx = nx
         ony = ny
         onz = nz
-    frame = contact_frame(onx, ony, onz, nx, ny, nz, spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt))
-    return contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz,
-                            lever_i, lever_j, r_eff, m_eff, inertia_r, p, dt)
+    frame = contact_frame(onx, ony, onz, nx, ny, nz, spin_angle(nx, ny, nz, g[IN.wix], g[IN.wiy], g[IN.wiz], g[IN.wjx],
+                                                                g[IN.wjy], g[IN.wjz], dt))
+    return contact_in_frame(hist, k, frame, g, p, dt)
 
 
 @njit(cache=True, inline="always")
-def contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
-                     lever_j, r_eff, m_eff, inertia_r, p, dt):
+def contact_in_frame(hist, k, frame, g, p, dt):
     """The body of ``contact`` once the frame change is known."""
+    (nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff, m_eff,
+     inertia_r) = g
     vn = rvx * nx + rvy * ny + rvz * nz
     # slip velocity at the contact point: v_c = (v_i - v_j) - (R'_i w_i + R'_j w_j) x n
     sx = lever_i * wix + lever_j * wjx
@@ -179,19 +117,19 @@ def contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wi
     vty = vcy - vcn * ny
     vtz = vcz - vcn * nz
 
-    f_el, f_damp, kn, kt, gamma_t = normal_force(overlap, vn, r_eff, m_eff, p, OFF_NORMAL)
+    f_el, f_damp, kn, kt, gamma_t = normal_force(overlap, vn, r_eff, m_eff, p, NORMAL_PARAMS)
     fn = f_el + f_damp
-    ftx, fty, ftz, e_t = tangential_force(hist, k, H_TANGENTIAL, nx, ny, nz, frame,
-                                          vtx, vty, vtz, kt, gamma_t, fn, dt, p, OFF_TANGENTIAL)
-    mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, H_ROLLING, nx, ny, nz, frame,
+    ftx, fty, ftz, e_t = tangential_force(hist, k, TANGENTIAL_HISTORY, nx, ny, nz, frame,
+                                          vtx, vty, vtz, kt, gamma_t, fn, dt, p, TANGENTIAL_PARAMS)
+    mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, ROLLING_HISTORY, nx, ny, nz, frame,
                                                        wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, kn, kt,
-                                                       f_el, fn, r_eff, inertia_r, dt, p, OFF_ROLLING,
+                                                       f_el, fn, r_eff, inertia_r, dt, p, ROLLING_PARAMS,
                                                        ROLLING_MODES)
     dwx = wix - wjx
     dwy = wiy - wjy
     dwz = wiz - wjz
-    m_tw, e_tw = twisting_moment(hist, k, H_TWISTING, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t,
-                                 f_el, fn, dt, p, OFF_TWISTING)
+    m_tw, e_tw = twisting_moment(hist, k, TWISTING_HISTORY, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t,
+                                 f_el, fn, dt, p, TWISTING_PARAMS)
     hist[k, 0] = nx
     hist[k, 1] = ny
     hist[k, 2] = nz
@@ -207,54 +145,38 @@ def contact_in_frame(hist, k, frame, nx, ny, nz, overlap, rvx, rvy, rvz, wix, wi
             e_r if TRACK_ENERGY else 0.0, e_tw if TRACK_ENERGY else 0.0)
 
 
+@njit(cache=True, inline="always")
+def lane_columns(block):
+    """The block buffer as ``col[lane, column]`` (column-major: a column's lanes are contiguous)."""
+    return reshape_unchecked(block, (CONTACT_BLOCK, BLOCK_COLUMNS), (8, 8 * CONTACT_BLOCK))
+
+
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def block_contacts(block, p, dt):
     """All ``CONTACT_BLOCK`` lanes of a block buffer through the contact law, one contact per lane:
     ``contact`` for a spin angle below ``SERIES_ANGLE``, with selects instead of branches and the
     frame's cos and sin from their series (no libm call), so that the loop vectorises.
 
-    Every access is to ``block`` at offsets known when compiling (its history columns are viewed as
-    ``hist[lane, slot]`` with constant strides), so LLVM can prove the lanes independent without
-    run-time checks and vectorises the loop (8 lanes with AVX-512: 21-25 ns per EPSD contact against
-    53-75 ns for the scalar ``contact``, see docs/performance.md). Lanes past the block's count hold
-    stale inputs: they are computed (NaN results included) and ignored, and ``pair_rows`` writes a
-    lane's inputs and history anew before it is used again. So every contact goes through the same
-    vector code whatever block it falls in, and results do not depend on the number of threads.
-    ``contact_in_frame`` is called here, not through a helper of its own: each level of Numba's
-    inlining copies the whole inlined body again (2 s of compile per level)."""
-    hist = reshape_unchecked(block, (CONTACT_BLOCK, BLOCK_COLUMNS), (8, 8 * CONTACT_BLOCK))
+    Every access is to ``block`` at offsets known when compiling (``col[n, column]``, constant
+    strides), so LLVM proves the lanes independent without run-time checks and vectorises the
+    loop. Lanes past the block's count hold stale inputs: they are computed (NaN results
+    included) and ignored, and ``pair_rows`` writes a lane's inputs and history anew before it is
+    used again; so every contact goes through the same vector code whatever block it falls in,
+    and results do not depend on the number of threads."""
+    col = lane_columns(block)
     for n in range(CONTACT_BLOCK):
-        nx = block[(B_IN + 0) * CONTACT_BLOCK + n]
-        ny = block[(B_IN + 1) * CONTACT_BLOCK + n]
-        nz = block[(B_IN + 2) * CONTACT_BLOCK + n]
-        wix = block[(B_IN + 7) * CONTACT_BLOCK + n]
-        wiy = block[(B_IN + 8) * CONTACT_BLOCK + n]
-        wiz = block[(B_IN + 9) * CONTACT_BLOCK + n]
-        wjx = block[(B_IN + 10) * CONTACT_BLOCK + n]
-        wjy = block[(B_IN + 11) * CONTACT_BLOCK + n]
-        wjz = block[(B_IN + 12) * CONTACT_BLOCK + n]
-        onx, ony, onz = stored_normal(hist, n, nx, ny, nz)
-        phi = spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt)
-        frame = contact_frame_series(onx, ony, onz, nx, ny, nz, phi)
-        res = contact_in_frame(hist, n, frame, nx, ny, nz, block[(B_IN + 3) * CONTACT_BLOCK + n],
-                               block[(B_IN + 4) * CONTACT_BLOCK + n], block[(B_IN + 5) * CONTACT_BLOCK + n],
-                               block[(B_IN + 6) * CONTACT_BLOCK + n], wix, wiy, wiz, wjx, wjy, wjz,
-                               block[(B_IN + 13) * CONTACT_BLOCK + n], block[(B_IN + 14) * CONTACT_BLOCK + n],
-                               block[(B_IN + 15) * CONTACT_BLOCK + n], block[(B_IN + 16) * CONTACT_BLOCK + n],
-                               block[(B_IN + 17) * CONTACT_BLOCK + n], p, dt)
-        block[(B_OUT + 0) * CONTACT_BLOCK + n] = res[0]
-        block[(B_OUT + 1) * CONTACT_BLOCK + n] = res[1]
-        block[(B_OUT + 2) * CONTACT_BLOCK + n] = res[2]
-        block[(B_OUT + 3) * CONTACT_BLOCK + n] = res[3]
-        block[(B_OUT + 4) * CONTACT_BLOCK + n] = res[4]
-        block[(B_OUT + 5) * CONTACT_BLOCK + n] = res[5]
-        block[(B_OUT + 6) * CONTACT_BLOCK + n] = res[6]
-        block[(B_OUT + 7) * CONTACT_BLOCK + n] = res[7]
-        block[(B_OUT + 8) * CONTACT_BLOCK + n] = res[8]
-        block[(B_OUT + 9) * CONTACT_BLOCK + n] = res[9]
-        block[(B_OUT + 10) * CONTACT_BLOCK + n] = res[10]
-        block[(B_OUT + 11) * CONTACT_BLOCK + n] = res[11]
-        block[(B_OUT + 12) * CONTACT_BLOCK + n] = res[12]
+        g = (col[n, B_IN + IN.nx], col[n, B_IN + IN.ny], col[n, B_IN + IN.nz], col[n, B_IN + IN.overlap],
+             col[n, B_IN + IN.rvx], col[n, B_IN + IN.rvy], col[n, B_IN + IN.rvz], col[n, B_IN + IN.wix],
+             col[n, B_IN + IN.wiy], col[n, B_IN + IN.wiz], col[n, B_IN + IN.wjx], col[n, B_IN + IN.wjy],
+             col[n, B_IN + IN.wjz], col[n, B_IN + IN.lever_i], col[n, B_IN + IN.lever_j], col[n, B_IN + IN.r_eff],
+             col[n, B_IN + IN.m_eff], col[n, B_IN + IN.inertia_r])
+        onx, ony, onz = stored_normal(col, n, g[IN.nx], g[IN.ny], g[IN.nz])
+        phi = spin_angle(g[IN.nx], g[IN.ny], g[IN.nz], g[IN.wix], g[IN.wiy], g[IN.wiz], g[IN.wjx], g[IN.wjy], g[IN.wjz],
+                         dt)
+        frame = contact_frame_series(onx, ony, onz, g[IN.nx], g[IN.ny], g[IN.nz], phi)
+        res = contact_in_frame(col, n, frame, g, p, dt)
+        for c in range(N_RESULTS):
+            col[n, B_OUT + c] = res[c]
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
@@ -263,6 +185,7 @@ def flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts):
     history back to each contact's pool row, F and T_j beside it, F and T added to row i in the
     order of its entries (the order the scalar loop summed them in)."""
     block_contacts(block, p, dt)
+    col = lane_columns(block)
     for n in range(count):
         un = uint64(n)
         row = uint64(lanes[0, n])  # the contact's pool row
@@ -270,37 +193,29 @@ def flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts):
         out = B_SCALAR if lanes[2, n] else B_OUT  # the scalar contact already wrote its history row
         if not lanes[2, n]:
             for s in range(HISTORY_SIZE):
-                pool[row, s] = block[uint64(s * CONTACT_BLOCK) + un]
-        r0 = block[uint64((out + 0) * CONTACT_BLOCK) + un]
-        r1 = block[uint64((out + 1) * CONTACT_BLOCK) + un]
-        r2 = block[uint64((out + 2) * CONTACT_BLOCK) + un]
-        f[i, 0] += r0
-        f[i, 1] += r1
-        f[i, 2] += r2
-        t[i, 0] += block[uint64((out + 3) * CONTACT_BLOCK) + un]
-        t[i, 1] += block[uint64((out + 4) * CONTACT_BLOCK) + un]
-        t[i, 2] += block[uint64((out + 5) * CONTACT_BLOCK) + un]
-        pool[row, P_FORCE] = r0
-        pool[row, P_FORCE + 1] = r1
-        pool[row, P_FORCE + 2] = r2
-        pool[row, P_TORQUE_J] = block[uint64((out + 6) * CONTACT_BLOCK) + un]
-        pool[row, P_TORQUE_J + 1] = block[uint64((out + 7) * CONTACT_BLOCK) + un]
-        pool[row, P_TORQUE_J + 2] = block[uint64((out + 8) * CONTACT_BLOCK) + un]
+                pool[row, s] = col[un, s]
+        for d in range(3):
+            force = col[un, out + d]
+            f[i, d] += force
+            t[i, d] += col[un, out + 3 + d]
+            pool[row, P_FORCE + d] = force
+            pool[row, P_TORQUE_J + d] = col[un, out + 6 + d]
         if TRACK_ENERGY:
             for c in range(4):
-                energy[i, c] += block[uint64((out + 9 + c) * CONTACT_BLOCK) + un]
+                energy[i, c] += col[un, out + 9 + c]
         contacts[i] += 1
 
 
-NO_INPUTS = (0.0,) * 18
+NO_INPUTS = (0.0,) * N_INPUTS
 
 
 @njit(cache=True, inline="always")
-def entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, contact_row, groups):
-    """Entry k (row i) of the half list: (whether the spheres touch, j, the contact's pool row, the
-    18 inputs of ``contact`` after ``pool`` and the row). A contact that starts takes a pool row of
-    its group (history zeroed); one that ends gives its row back (``rollingdem.neighbors``)."""
-    j = uint32(nl_j[k])
+def entry_inputs(i, k, particles, lists):
+    """Entry k (row i) of the half list: (whether the spheres touch, j, the contact's pool row, its
+    ``CONTACT_INPUTS``). A contact that starts takes a pool row of its group (history zeroed); one
+    that ends gives its row back (``rollingdem.neighbors``)."""
+    x, v, w, radius, mass = particles.x, particles.v, particles.w, particles.radius, particles.mass
+    j = uint32(lists.j[k])
     dx = x[i, 0] - x[j, 0]
     dy = x[i, 1] - x[j, 1]
     dz = x[i, 2] - x[j, 2]
@@ -308,15 +223,15 @@ def entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, contact_row, groups):
     rj = radius[j]
     d2 = dx * dx + dy * dy + dz * dz
     reach = ri + rj
-    row = contact_row[k]
+    row = lists.contact_row[k]
     if d2 >= reach * reach:
         if row >= 0:
-            free_row(pool, groups, uint64(i) // uint64(POOL_GROUP), row)
-            contact_row[k] = -1
+            free_row(lists.pool, lists.groups, uint64(i) // uint64(POOL_GROUP), row)
+            lists.contact_row[k] = -1
         return False, j, row, NO_INPUTS
     if row < 0:
-        row = take_row(pool, groups, uint64(i) // uint64(POOL_GROUP), HISTORY_SIZE)
-        contact_row[k] = row
+        row = take_row(lists.pool, lists.groups, uint64(i) // uint64(POOL_GROUP), HISTORY_SIZE)
+        lists.contact_row[k] = row
     dist = math.sqrt(d2)
     overlap = reach - dist
     inv_dist = 1.0 / dist
@@ -325,10 +240,10 @@ def entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, contact_row, groups):
     ai = mi * ri * ri
     aj = mj * rj * rj
     return True, j, row, (dx * inv_dist, dy * inv_dist, dz * inv_dist, overlap,
-                     v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
-                     w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
-                     ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, mi * mj / (mi + mj),
-                     INERTIA_R_FACTOR * ai * aj / (ai + aj))
+                          v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+                          w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
+                          ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, mi * mj / (mi + mj),
+                          INERTIA_R_FACTOR * ai * aj / (ai + aj))
 
 
 @njit(cache=True, inline="always")
@@ -354,32 +269,28 @@ def candidate_entries(k0, k1, x, radius, nl_j, nl_i, contact_row, lanes):
 
 
 @njit(cache=True, inline="always")
-def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, pool, contact_row, groups, energy,
-             contacts):
+def pair_row(i, dt, particles, lists, pair_params):
     """Row i of the half list, one contact at a time through the scalar ``contact`` (spheres of more
     than one material, see ``pair_rows``)."""
+    f, t, mat, pool = particles.f, particles.t, particles.mat, lists.pool
     fx = fy = fz = 0.0
     tx = ty = tz = 0.0
     en = et = er = etw = 0.0
     ncontact = 0
-    for k in range(nl_start[i], nl_start[i + 1]):
-        touching, j, row, g = entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, contact_row, groups)
+    for k in range(lists.start[i], lists.start[i + 1]):
+        touching, j, row, g = entry_inputs(i, k, particles, lists)
         if not touching:
             continue
-        res = contact(pool, np.int64(row), g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], g[8], g[9], g[10], g[11], g[12],
-                      g[13], g[14], g[15], g[16], g[17], pair_params[mat[i], mat[j]], dt)
+        res = contact(pool, np.int64(row), g, pair_params[mat[i], mat[j]], dt)
         fx += res[0]
         fy += res[1]
         fz += res[2]
         tx += res[3]
         ty += res[4]
         tz += res[5]
-        pool[row, P_FORCE] = res[0]
-        pool[row, P_FORCE + 1] = res[1]
-        pool[row, P_FORCE + 2] = res[2]
-        pool[row, P_TORQUE_J] = res[6]
-        pool[row, P_TORQUE_J + 1] = res[7]
-        pool[row, P_TORQUE_J + 2] = res[8]
+        for d in range(3):
+            pool[row, P_FORCE + d] = res[d]
+            pool[row, P_TORQUE_J + d] = res[6 + d]
         en += res[9]
         et += res[10]
         er += res[11]
@@ -392,130 +303,100 @@ def pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_
     t[i, 1] = ty
     t[i, 2] = tz
     if TRACK_ENERGY:
-        energy[i, 0] += en
-        energy[i, 1] += et
-        energy[i, 2] += er
-        energy[i, 3] += etw
-    contacts[i] = ncontact
+        particles.energy[i, 0] += en
+        particles.energy[i, 1] += et
+        particles.energy[i, 2] += er
+        particles.energy[i, 3] += etw
+    particles.contacts[i] = ncontact
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def pair_rows(lo, hi, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row,
-              groups, energy, contacts, block, lanes):
+def pair_rows(lo, hi, dt, particles, lists, pair_params, block, lanes):
     """Rows lo..hi-1 of the half list: F and T on i summed over the row, F and T_j kept per pair.
 
     The distance tests run a tile of the list at a time (``candidate_entries``); the contacts found
-    are queued into ``block`` (their inputs and a copy of their history rows) and computed ``CONTACT_BLOCK`` at a time by ``block_contacts``.
-    A block's lanes share one parameter vector, so this is for spheres of one material (walls may
-    have others). With an empty ``block`` (the engine gives one when the spheres' materials differ)
-    the rows go through ``pair_row`` instead: a block per run of contacts of one material pair
-    would cost a whole block's computation per run, 15 scalar contacts for a block of one. A
-    contact whose spin angle in the step is ``SERIES_ANGLE`` or more (|omega| dt >= 1e-3: rare) is
-    computed at once by the scalar ``contact``, which has libm's cos and sin, and keeps its lane.
-    ``contact_row[k]`` is entry k's pool row while it is in contact, -1 otherwise (the gather skips those),
-    so a neighbor out of reach costs a distance test and an int, not a history row and two force
-    rows. ``lo`` and ``hi`` are whole groups of the pool (``POOL_GROUP`` rows), or ``hi`` = n."""
+    are queued into ``block`` (their inputs and a copy of their history rows) and computed
+    ``CONTACT_BLOCK`` at a time by ``block_contacts``. A block's lanes share one parameter vector,
+    so this is for spheres of one material (walls may have others). With an empty ``block`` (the
+    engine gives one when the spheres' materials differ) the rows go through ``pair_row``
+    instead: a block per run of contacts of one material pair would cost a whole block's
+    computation per run, 15 scalar contacts for a block of one. A contact whose spin angle in the
+    step is ``SERIES_ANGLE`` or more (|omega| dt >= 1e-3: rare) is computed at once by the scalar
+    ``contact``, which has libm's cos and sin, and keeps its lane. ``contact_row[k]`` is entry k's
+    pool row while it is in contact, -1 otherwise (the gather skips those), so a neighbor out of
+    reach costs a distance test and an int, not a history row and two force rows. ``lo`` and
+    ``hi`` are whole groups of the pool (``POOL_GROUP`` rows), or ``hi`` = n."""
     if block.shape[0] == 0:
         for i in range(lo, hi):
-            pair_row(i, dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, pool, contact_row, groups,
-                     energy, contacts)
+            pair_row(i, dt, particles, lists, pair_params)
         return
-    p = pair_params[mat[lo], mat[lo]] if hi > lo else pair_params[0, 0]
+    f, t, pool, contacts = particles.f, particles.t, lists.pool, particles.contacts
+    p = pair_params[particles.mat[lo], particles.mat[lo]] if hi > lo else pair_params[0, 0]
     count = np.int64(0)  # not a literal 0, which would compile flush_block a second time
     for i in range(lo, hi):
         for d in range(3):
             f[i, d] = 0.0
             t[i, d] = 0.0
         contacts[i] = 0
+    col = lane_columns(block)
     tile = (lanes.shape[0] - LANE_HITS) * CONTACT_BLOCK
-    kend = nl_start[hi]
-    for k0 in range(nl_start[lo], kend, tile):
-        nhit = candidate_entries(k0, min(k0 + tile, kend), x, radius, nl_j, nl_i, contact_row, lanes)
+    kend = lists.start[hi]
+    for k0 in range(lists.start[lo], kend, tile):
+        nhit = candidate_entries(k0, min(k0 + tile, kend), particles.x, particles.radius, lists.j, lists.i,
+                                 lists.contact_row, lanes)
         for e in range(nhit):
             k = uint64(lanes[LANE_HITS + (e >> BLOCK_SHIFT), e & (CONTACT_BLOCK - 1)])
-            i = uint32(nl_i[k])
-            touching, j, row, inputs = entry_inputs(i, k, x, v, w, radius, mass, nl_j, pool, contact_row, groups)
+            i = uint32(lists.i[k])
+            touching, j, row, g = entry_inputs(i, k, particles, lists)
             if not touching:
                 continue
             if count == CONTACT_BLOCK:
-                flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts)
+                flush_block(count, block, lanes, dt, f, t, p, pool, particles.energy, contacts)
                 count = 0
             n = count
             un = uint64(n)
             count += 1
-            block[uint64((B_IN + 0) * CONTACT_BLOCK) + un] = inputs[0]
-            block[uint64((B_IN + 1) * CONTACT_BLOCK) + un] = inputs[1]
-            block[uint64((B_IN + 2) * CONTACT_BLOCK) + un] = inputs[2]
-            block[uint64((B_IN + 3) * CONTACT_BLOCK) + un] = inputs[3]
-            block[uint64((B_IN + 4) * CONTACT_BLOCK) + un] = inputs[4]
-            block[uint64((B_IN + 5) * CONTACT_BLOCK) + un] = inputs[5]
-            block[uint64((B_IN + 6) * CONTACT_BLOCK) + un] = inputs[6]
-            block[uint64((B_IN + 7) * CONTACT_BLOCK) + un] = inputs[7]
-            block[uint64((B_IN + 8) * CONTACT_BLOCK) + un] = inputs[8]
-            block[uint64((B_IN + 9) * CONTACT_BLOCK) + un] = inputs[9]
-            block[uint64((B_IN + 10) * CONTACT_BLOCK) + un] = inputs[10]
-            block[uint64((B_IN + 11) * CONTACT_BLOCK) + un] = inputs[11]
-            block[uint64((B_IN + 12) * CONTACT_BLOCK) + un] = inputs[12]
-            block[uint64((B_IN + 13) * CONTACT_BLOCK) + un] = inputs[13]
-            block[uint64((B_IN + 14) * CONTACT_BLOCK) + un] = inputs[14]
-            block[uint64((B_IN + 15) * CONTACT_BLOCK) + un] = inputs[15]
-            block[uint64((B_IN + 16) * CONTACT_BLOCK) + un] = inputs[16]
-            block[uint64((B_IN + 17) * CONTACT_BLOCK) + un] = inputs[17]
+            for c in range(N_INPUTS):
+                col[un, B_IN + c] = g[c]
             urow = uint64(row)
             for s in range(HISTORY_SIZE):
-                block[uint64(s * CONTACT_BLOCK) + un] = pool[urow, s]
+                col[un, s] = pool[urow, s]
             lanes[0, n] = row
             lanes[1, n] = i
-            phi = spin_angle(inputs[0], inputs[1], inputs[2], inputs[7], inputs[8], inputs[9], inputs[10],
-                             inputs[11], inputs[12], dt)
+            phi = spin_angle(g[IN.nx], g[IN.ny], g[IN.nz], g[IN.wix], g[IN.wiy], g[IN.wiz], g[IN.wjx], g[IN.wjy],
+                             g[IN.wjz], dt)
             lanes[2, n] = 0 if abs(phi) < SERIES_ANGLE else 1
             if lanes[2, n]:
-                res = contact(pool, np.int64(row), inputs[0], inputs[1], inputs[2], inputs[3], inputs[4], inputs[5],
-                              inputs[6], inputs[7], inputs[8], inputs[9], inputs[10], inputs[11], inputs[12], inputs[13],
-                              inputs[14], inputs[15], inputs[16], inputs[17], p, dt)
-                block[uint64((B_SCALAR + 0) * CONTACT_BLOCK) + un] = res[0]
-                block[uint64((B_SCALAR + 1) * CONTACT_BLOCK) + un] = res[1]
-                block[uint64((B_SCALAR + 2) * CONTACT_BLOCK) + un] = res[2]
-                block[uint64((B_SCALAR + 3) * CONTACT_BLOCK) + un] = res[3]
-                block[uint64((B_SCALAR + 4) * CONTACT_BLOCK) + un] = res[4]
-                block[uint64((B_SCALAR + 5) * CONTACT_BLOCK) + un] = res[5]
-                block[uint64((B_SCALAR + 6) * CONTACT_BLOCK) + un] = res[6]
-                block[uint64((B_SCALAR + 7) * CONTACT_BLOCK) + un] = res[7]
-                block[uint64((B_SCALAR + 8) * CONTACT_BLOCK) + un] = res[8]
-                block[uint64((B_SCALAR + 9) * CONTACT_BLOCK) + un] = res[9]
-                block[uint64((B_SCALAR + 10) * CONTACT_BLOCK) + un] = res[10]
-                block[uint64((B_SCALAR + 11) * CONTACT_BLOCK) + un] = res[11]
-                block[uint64((B_SCALAR + 12) * CONTACT_BLOCK) + un] = res[12]
+                res = contact(pool, np.int64(row), g, p, dt)
+                for c in range(N_RESULTS):
+                    col[un, B_SCALAR + c] = res[c]
     if count > 0:
-        flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts)
+        flush_block(count, block, lanes, dt, f, t, p, pool, particles.energy, contacts)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row, groups,
-                energy, contacts, blocks, lanes):
+def pair_forces(dt, pair_params, particles, lists, scratch):
     """Pair contacts: each thread a contiguous range of whole pool groups, with its own block buffer."""
-    n = x.shape[0]
+    n = particles.x.shape[0]
+    blocks, lanes = scratch.blocks, scratch.lanes
     nblock = blocks.shape[0]
     ngroups = (n + POOL_GROUP - 1) // POOL_GROUP
     for b in prange(nblock):
         pair_rows(min(b * ngroups // nblock * POOL_GROUP, n), min((b + 1) * ngroups // nblock * POOL_GROUP, n), dt,
-                  x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row, groups, energy,
-                  contacts, blocks[b], lanes[b])
+                  particles, lists, pair_params, blocks[b], lanes[b])
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def pair_forces_serial(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row,
-                       groups, energy, contacts, blocks, lanes):
-    """``pair_forces`` on the calling thread (see ``SERIAL_BELOW``)."""
+def pair_forces_serial(dt, pair_params, particles, lists, scratch):
+    """``pair_forces`` on the calling thread (see ``kernel_layout.SERIAL_BELOW``)."""
     for b in range(1):  # lo = b, not 0: a literal 0 would compile pair_rows a second time
-        pair_rows(b, x.shape[0], dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool,
-                  contact_row, groups, energy, contacts, blocks[b], lanes[b])
+        pair_rows(b, particles.x.shape[0], dt, particles, lists, pair_params, scratch.blocks[b], scratch.lanes[b])
 
 
 @njit(cache=True, inline="always")
 def wall_overlap(i, wl, x, ri, wall_kind, wall_geom):
     """(overlap, n) of sphere i (radius ri) and wall wl; overlap -1 where the wall cannot touch it
-    (past a cylinder's ends, or on its axis)."""
+    (past a cylinder's ends, or on its axis). Geometry rows: ``rollingdem.walls``."""
     kind = wall_kind[wl]
     overlap = -1.0
     nx = ny = nz = 0.0
@@ -548,20 +429,21 @@ def wall_overlap(i, wl, x, ri, wall_kind, wall_geom):
 
 
 @njit(cache=True, inline="always")
-def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel, wall_omega,
-                  wall_mat, whist, wtouch):
+def wall_contacts(i, dt, particles, walls, pair_params):
     """All wall contacts of particle i: total force and torque on i, energies, contact count.
 
     A wall is a partner of infinite radius and mass with a prescribed surface velocity
     v_wall + omega_wall x (c - point); R* = R_i, m* = m_i, I_r = 1.4 m_i R_i^2 (docs/models.md §0, §3.3).
     """
+    x, v, w = particles.x, particles.v, particles.w
+    wall_kind, wall_geom, whist, wtouch = walls.kind, walls.geometry, walls.history, walls.touching
     fx = fy = fz = 0.0
     tx = ty = tz = 0.0
     en = et = er = etw = 0.0
     ncontact = 0
     nwall = wall_kind.shape[0]
-    ri = radius[i]
-    mi = mass[i]
+    ri = particles.radius[i]
+    mi = particles.mass[i]
     # most spheres touch no wall and had no wall contact: a first loop of the bare tests lets them
     # skip the contact loop (whose call of ``contact`` keeps every sphere's loop heavy: 7 ns a
     # sphere on the collapse, where 1.7 % touch the plate)
@@ -586,15 +468,16 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
         cx = x[i, 0] - lever * nx - wall_geom[wl, 0]
         cy = x[i, 1] - lever * ny - wall_geom[wl, 1]
         cz = x[i, 2] - lever * nz - wall_geom[wl, 2]
-        owx = wall_omega[wl, 0]
-        owy = wall_omega[wl, 1]
-        owz = wall_omega[wl, 2]
-        swx = wall_vel[wl, 0] + (owy * cz - owz * cy)
-        swy = wall_vel[wl, 1] + (owz * cx - owx * cz)
-        swz = wall_vel[wl, 2] + (owx * cy - owy * cx)
-        res = contact(whist, np.int64(k), nx, ny, nz, overlap, v[i, 0] - swx, v[i, 1] - swy, v[i, 2] - swz,
-                      w[i, 0], w[i, 1], w[i, 2], owx, owy, owz, ri - 0.5 * overlap, 0.0,
-                      ri, mi, INERTIA_R_FACTOR * mi * ri * ri, pair_params[mat[i], wall_mat[wl]], dt)
+        owx = walls.angular_velocity[wl, 0]
+        owy = walls.angular_velocity[wl, 1]
+        owz = walls.angular_velocity[wl, 2]
+        swx = walls.velocity[wl, 0] + (owy * cz - owz * cy)
+        swy = walls.velocity[wl, 1] + (owz * cx - owx * cz)
+        swz = walls.velocity[wl, 2] + (owx * cy - owy * cx)
+        res = contact(whist, np.int64(k), (nx, ny, nz, overlap, v[i, 0] - swx, v[i, 1] - swy, v[i, 2] - swz,
+                                           w[i, 0], w[i, 1], w[i, 2], owx, owy, owz, ri - 0.5 * overlap, 0.0,
+                                           ri, mi, INERTIA_R_FACTOR * mi * ri * ri),
+                      pair_params[particles.mat[i], walls.material[wl]], dt)
         fx += res[0]
         fy += res[1]
         fz += res[2]
@@ -610,22 +493,21 @@ def wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wal
 
 
 @njit(cache=True, inline="always")
-def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, wall_kind, wall_geom,
-               wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin):
+def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     """Particle i, its pair terms gathered (``gather_rows``): walls, gravity; then the closing half
     kick if ``kick`` is 1.0 or more and, if it is 2.0, the next step's opening half kick and drift
-    (a float, so one compiled version serves all; one argument, as a call of more than 30 is one
-    that Numba cannot inline). Returns (1 if i drifted to skin/2 or more from
-    where the list was built, 1 if its next drift would move it skin/2 or more: the skin is too small
-    for its speed)."""
+    (a float, so one compiled version serves all). Returns (1 if i drifted to skin/2 or more from
+    where the list was built, 1 if its next drift would move it skin/2 or more: the skin is too
+    small for its speed)."""
+    x, v, w, f, t, mass, inertia = particles.x, particles.v, particles.w, particles.f, particles.t, particles.mass, \
+        particles.inertia
     fx = f[i, 0]
     fy = f[i, 1]
     fz = f[i, 2]
     tx = t[i, 0]
     ty = t[i, 1]
     tz = t[i, 2]
-    wres = wall_contacts(i, dt, x, v, w, radius, mass, mat, pair_params, wall_kind, wall_geom, wall_vel,
-                         wall_omega, wall_mat, whist, wtouch)
+    wres = wall_contacts(i, dt, particles, walls, pair_params)
     mi = mass[i]
     fx += wres[0] + mi * gravity[0]
     fy += wres[1] + mi * gravity[1]
@@ -634,11 +516,11 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
     ty += wres[4]
     tz += wres[5]
     if TRACK_ENERGY:
-        energy[i, 0] += wres[6]
-        energy[i, 1] += wres[7]
-        energy[i, 2] += wres[8]
-        energy[i, 3] += wres[9]
-    contacts[i] += wres[10]
+        particles.energy[i, 0] += wres[6]
+        particles.energy[i, 1] += wres[7]
+        particles.energy[i, 2] += wres[8]
+        particles.energy[i, 3] += wres[9]
+    particles.contacts[i] += wres[10]
     f[i, 0] = fx
     f[i, 1] = fy
     f[i, 2] = fz
@@ -660,7 +542,7 @@ def gather_one(i, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, 
     # the next step's opening half kick and drift, also when i is too fast (the chunk then stops
     # and undo_drift takes them back), but not when i is not finite
     if kick == 2.0 and step_move - step_move == 0.0:
-        exceed = kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
+        exceed = kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, particles.x_ref, half_skin)
     return exceed, fast
 
 
@@ -671,16 +553,15 @@ def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
-                contacts, x_ref, half_skin):
+def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params, half_skin):
     """Particles lo..hi-1: the pair terms where each is the second partner, subtracted from (F) and
     added to (T) its row sums in ascending entry order, then ``gather_one``; returns the counts of
     its two flags. One function for both drivers, as ``pair_rows``: compiled once (the walls'
     contact law with it). The pair terms are one flat loop over the transposed entries of all
-    lo..hi-1 (the partner of entry k is ``nl_j[k]``), not a loop per particle, whose exit would be
-    mispredicted once per particle, as in the pair pass (``candidate_entries``)."""
-    for m in range(tr_start[lo], tr_start[hi]):
+    lo..hi-1 (the partner of entry k is ``lists.j[k]``), not a loop per particle, whose exit would
+    be mispredicted once per particle, as in the pair pass (``candidate_entries``)."""
+    f, t, pool, contact_row, nl_j, tr_k = particles.f, particles.t, lists.pool, lists.contact_row, lists.j, lists.tr_k
+    for m in range(lists.tr_start[lo], lists.tr_start[hi]):
         k = uint32(tr_k[uint64(m)])
         row = contact_row[k]
         if row < 0:
@@ -696,49 +577,40 @@ def gather_rows(lo, hi, dt, kick, gravity, x, v, w, f, t, radius, mass, inertia,
     nexceed = 0
     nfast = 0
     for q in range(lo, hi):
-        exceed, fast = gather_one(uint64(q), dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params,
-                                  wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
-                                  contacts, x_ref, half_skin)
+        exceed, fast = gather_one(uint64(q), dt, kick, gravity, particles, walls, pair_params, half_skin)
         nexceed += exceed
         nfast += fast
     return nexceed, nfast
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, contact_row,
-           pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref,
-           half_skin):
+def gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin):
     """``gather_rows`` on runs of ``GATHER_RUN`` particles, shared out among the threads."""
-    n = x.shape[0]
+    n = particles.x.shape[0]
     nexceed = 0
     nfast = 0
     for b in prange((n + GATHER_RUN - 1) // GATHER_RUN):
-        exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, x, v, w, f, t,
-                                   radius, mass, inertia, mat, pair_params, tr_start, tr_k, nl_j, contact_row, pool,
-                                   wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
-                                   contacts, x_ref, half_skin)
+        exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, particles, walls,
+                                   lists, pair_params, half_skin)
         nexceed += exceed
         nfast += fast
     return nexceed, nfast
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def gather_serial(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start, tr_k,
-                  nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, energy,
-                  contacts, x_ref, half_skin):
+def gather_serial(dt, kick, gravity, pair_params, particles, walls, lists, half_skin):
     """``gather`` on the calling thread."""
     nexceed = nfast = 0
     for b in range(1):  # lo = b, not a literal 0: see pair_forces_serial
-        nexceed, nfast = gather_rows(b, x.shape[0], dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat,
-                                     pair_params, tr_start, tr_k, nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel,
-                                     wall_omega, wall_mat, whist, wtouch, energy, contacts, x_ref, half_skin)
+        nexceed, nfast = gather_rows(b, particles.x.shape[0], dt, kick, gravity, particles, walls, lists, pair_params,
+                                     half_skin)
     return nexceed, nfast
 
 
 @njit(cache=True, inline="always")
 def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
     """Opening half kick and drift of particle i; 1 if it is now skin/2 or more from where the list
-    was built (NaN: 1)."""
+    was built (NaN: 1). Arrays, not the record: it is inlined into a prange body."""
     a = 0.5 * dt / mass[i]
     b = 0.5 * dt / inertia[i]
     for d in range(3):
@@ -752,9 +624,11 @@ def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def kick_drift(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
+def kick_drift(dt, particles, half_skin):
     """Opening half kick and drift of velocity Verlet; the count of particles now skin/2 or more
     from where the list was built."""
+    x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
+    mass, inertia, x_ref = particles.mass, particles.inertia, particles.x_ref
     nexceed = 0
     for i in prange(x.shape[0]):
         nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
@@ -762,7 +636,9 @@ def kick_drift(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def kick_drift_serial(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
+def kick_drift_serial(dt, particles, half_skin):
+    x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
+    mass, inertia, x_ref = particles.mass, particles.inertia, particles.x_ref
     nexceed = 0
     for i in range(x.shape[0]):
         nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
@@ -770,11 +646,13 @@ def kick_drift_serial(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def undo_drift(dt, x, v, w, f, t, mass, inertia):
+def undo_drift(dt, particles):
     """Take back the opening half kick and drift that ``gather_one`` made, to round-off, in the
     particles it made them in: all whose state is finite (the test of ``next_drift_bound``, on the
     velocity before the kick). Only when a chunk stops because a particle is too fast, so that the
     state it leaves is at one time."""
+    x, v, w, f, t, mass, inertia = particles.x, particles.v, particles.w, particles.f, particles.t, particles.mass, \
+        particles.inertia
     for i in range(x.shape[0]):
         a = 0.5 * dt / mass[i]
         vx = v[i, 0] - a * f[i, 0]
@@ -793,51 +671,44 @@ def undo_drift(dt, x, v, w, f, t, mass, inertia):
 
 
 @njit(cache=True, inline="always")
-def move_walls(dt, wall_geom, wall_vel):
-    for wl in range(wall_geom.shape[0]):
+def move_walls(dt, walls):
+    for wl in range(walls.geometry.shape[0]):
         for d in range(3):
-            wall_geom[wl, d] += dt * wall_vel[wl, d]
+            walls.geometry[wl, d] += dt * walls.velocity[wl, d]
 
 
 @njit(cache=True)
-def _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k, cell_start,
-             cell_items, cell_of, counts, x_ref, info):
-    total = rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k,
-                                  cell_start, cell_items, cell_of, counts, x_ref)
+def _rebuild(particles, lists, skin, info):
+    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.x_ref, lists)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY
         info[I_NEEDED] = -total
         return False
-    list_rows(x.shape[0], nl_start, nl_i)
+    list_rows(particles.x.shape[0], lists.start, lists.i)
     info[I_REBUILDS] += 1
     return True
 
 
 @njit(cache=True)  # @@SERIAL_COPY
-def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids, pair_params, wall_kind,
-            wall_geom, wall_vel, wall_omega, wall_mat, whist, wtouch, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start,
-            tr_k, cell_start, cell_items, cell_of, counts, x_ref, skin, energy, contacts, info, blocks, lanes):
+def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info):
     """Advance ``nsteps`` steps: ``advance`` on Numba's threads, ``advance_serial`` (the same loop
     with the ``*_serial`` passes, written by the kernel generator) on the calling thread. Stops
     early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the
     capacity needed when the neighbor list outgrows its arrays, or STATUS_TOO_FAST when a particle
-    would move more than skin/2 in one step."""
+    would move more than skin/2 in one step. The closing half kick of a step and the opening kick
+    and drift of the next are one pass (``gather`` with kick 2.0); the last step of a call stops
+    after its closing kick, so that between calls positions and velocities are at one time."""
     half_skin = 0.5 * skin
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
         info[I_DRIFTED] = 0
-        if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k,
-                        cell_start, cell_items, cell_of, counts, x_ref, info):
+        if not _rebuild(particles, lists, skin, info):
             return
-        # the pair pass and the gather are called here and in the loop, not through one function:
-        # a call of more than 30 arguments cannot be inlined, and a function of its own would
-        # compile the whole kernel once more (1 s of a cold compile)
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row, groups,
-                    energy, contacts, blocks, lanes)
-        exceed, fast = gather(dt, 0.0, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                              tr_k, nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
-                              wtouch, energy, contacts, x_ref, half_skin)
+        # the pair pass and the gather are called here and in the loop, not through one function
+        # of their own, which would compile the whole kernel once more (1 s of a cold compile)
+        pair_forces(dt, pair_params, particles, lists, scratch)
+        exceed, fast = gather(dt, 0.0, gravity, pair_params, particles, walls, lists, half_skin)
         info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
         info[I_FORCES_VALID] = 1
@@ -847,30 +718,26 @@ def advance(nsteps, dt, gravity, x, v, w, f, t, radius, mass, inertia, mat, ids,
                 # even a list built now would not hold for this step: refuse rather than miss contacts
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
-            exceed = kick_drift(dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
+            exceed = kick_drift(dt, particles, half_skin)
             info[I_NEED_REBUILD] += exceed
-            move_walls(dt, wall_geom, wall_vel)
+            move_walls(dt, walls)
             info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k,
-                            cell_start, cell_items, cell_of, counts, x_ref, info):
+            if not _rebuild(particles, lists, skin, info):
                 return  # drifted: the call after the arrays grow goes on from here
             info[I_NEED_REBUILD] = 0
         drift = step + 1 < nsteps
         kick = 2.0 if drift else 1.0
-        pair_forces(dt, x, v, w, f, t, radius, mass, mat, pair_params, nl_start, nl_j, nl_i, pool, contact_row, groups,
-                    energy, contacts, blocks, lanes)
-        exceed, fast = gather(dt, kick, gravity, x, v, w, f, t, radius, mass, inertia, mat, pair_params, tr_start,
-                              tr_k, nl_j, contact_row, pool, wall_kind, wall_geom, wall_vel, wall_omega, wall_mat, whist,
-                              wtouch, energy, contacts, x_ref, half_skin)
+        pair_forces(dt, pair_params, particles, lists, scratch)
+        exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin)
         info[I_NEED_REBUILD] = exceed
         info[I_TOO_FAST] = fast
         info[I_STEPS_DONE] = step + 1
         info[I_DRIFTED] = 0
         if drift:
             if info[I_TOO_FAST] > 0:
-                undo_drift(dt, x, v, w, f, t, mass, inertia)
+                undo_drift(dt, particles)
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
-            move_walls(dt, wall_geom, wall_vel)  # with the next step's drift, made in the gather
+            move_walls(dt, walls)  # with the next step's drift, made in the gather
             info[I_DRIFTED] = 1

@@ -32,6 +32,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange, uint32, uint64
 
+from .kernel_layout import ListArrays
+
 POOL_GROUP = 256  # list rows per group of the contact pool (the pair pass's threads take whole groups)
 PAIR_TERMS = 6  # pool columns after the history: F_ij (force on i) and T_j (torque on j) of the step
 
@@ -284,9 +286,9 @@ def list_rows(n, nl_start, nl_i):
 
 
 @njit(cache=True)
-def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, contact_row, groups, tr_start, tr_k,
-                          cell_start, cell_items, cell_of, counts, x_ref):
-    """Rebuild the half list at the current positions, carrying contact history over.
+def rebuild_neighbor_list(x, radius, skin, ids, x_ref, lists):
+    """Rebuild the half list (``lists``, a ``kernel_layout.ListArrays``) at the current positions,
+    carrying contact history over; ``x_ref`` gets the positions it was built at.
 
     Returns the number of list entries, or minus the capacity needed when ``nl_j`` is too short
     (nothing is changed then: the caller grows the arrays and calls again). The contact rows move
@@ -295,6 +297,10 @@ def rebuild_neighbor_list(x, radius, skin, ids, nl_start, nl_j, nl_i, pool, cont
     rebuilds afterwards; ``nl_i`` is scratch, the caller makes it again with ``list_rows``), the
     new list is written over the old, and each contact goes to the front of its group's rows.
     """
+    nl_start, nl_j, nl_i, pool, contact_row, groups = lists.start, lists.j, lists.i, lists.pool, lists.contact_row, \
+        lists.groups
+    tr_start, tr_k, cell_start, cell_items, cell_of, counts = lists.tr_start, lists.tr_k, lists.cell_start, \
+        lists.cell_items, lists.cell_of, lists.counts
     n = x.shape[0]
     if n == 0:
         nl_start[0] = 0
@@ -352,4 +358,123 @@ def brute_force_pairs(x: np.ndarray, radius: np.ndarray, skin: float) -> set[tup
     return set(zip(i.tolist(), j.tolist()))
 
 
-__all__ = ["rebuild_neighbor_list", "list_rows", "brute_force_pairs", "spatial_order"]
+class ContactList:
+    """The half list, its contact pool and its transposed index: the arrays (``ListArrays``), their
+    capacity, and what Python does with them between kernel calls (the compiled half is above).
+
+    ``rows`` list rows (one per particle); ``capacity`` entries, grown on demand. The pool's rows
+    hold ``history_size`` history columns, then the pair terms.
+    """
+
+    def __init__(self, history_size: int, rows: int = 0, capacity: int = 16):
+        self.history_size = history_size
+        self.rows = 0
+        self._allocate_rows(rows)
+        self.allocate(capacity)
+
+    # --- arrays ----------------------------------------------------------------------------
+    def _allocate_rows(self, rows: int) -> None:
+        """The arrays sized by the rows, empty (row starts int32, as the entry indices: < 2**31 entries)."""
+        self.rows = rows
+        self.start = np.zeros(rows + 1, dtype=np.int32)
+        self.tr_start = np.zeros(rows + 1, dtype=np.int32)
+        # rebuild scratch, int32 (16 B/p less than int64): at most max(2 n, 64) cells, n spheres
+        self.cell_items = np.zeros(rows, dtype=np.int32)
+        self.cell_of = np.zeros(rows, dtype=np.int32)
+        self.counts = np.zeros(rows, dtype=np.int32)
+        self.cell_start = np.zeros(max(2 * rows, 64) + 1, dtype=np.int32)
+        # the pool's groups: head of the free list, next unused row; a rebuild sets them
+        self.groups = np.zeros(((rows + POOL_GROUP - 1) // POOL_GROUP, 2), dtype=np.int32)
+        self.groups[:, 0] = -1
+
+    def add_rows(self, count: int) -> None:
+        """``count`` empty rows after the last (new particles); the entries and contacts stay."""
+        old_start, n0 = self.start, self.rows
+        self._allocate_rows(n0 + count)
+        self.start[: n0 + 1] = old_start[: n0 + 1]
+        self.start[n0 + 1:] = old_start[n0] if n0 else 0
+
+    def allocate(self, capacity: int, keep: int = 0) -> None:
+        """Entry arrays of ``capacity``, the first ``keep`` entries (and their contacts) kept."""
+        old = (getattr(self, "j", None), getattr(self, "pool", None), getattr(self, "contact_row", None))
+        self.j = np.zeros(capacity, dtype=np.int32)
+        self.i = np.zeros(capacity, dtype=np.int32)  # the row of each entry (list_rows)
+        # the rows in use lie below the list's length, so the first ``keep`` rows are all there is
+        self.pool = np.zeros((capacity, self.history_size + PAIR_TERMS))
+        self.contact_row = np.full(capacity, -1, dtype=np.int32)
+        if keep and old[0] is not None:
+            self.j[:keep] = old[0][:keep]
+            self.pool[:keep] = old[1][:keep]
+            self.contact_row[:keep] = old[2][:keep]
+        self.tr_k = np.zeros(capacity, dtype=np.int32)
+        self.capacity = capacity
+
+    def arrays(self) -> ListArrays:
+        """The kernel's record of the list (made anew: the arrays are replaced when they grow)."""
+        return ListArrays(self.start, self.j, self.i, self.pool, self.contact_row, self.groups, self.tr_start,
+                          self.tr_k, self.cell_start, self.cell_items, self.cell_of, self.counts)
+
+    @property
+    def size(self) -> int:
+        """The number of entries."""
+        return int(self.start[-1]) if self.start.size else 0
+
+    # --- building --------------------------------------------------------------------------
+    def rebuild(self, x, radius, skin, ids, x_ref, grow) -> int:
+        """Rebuild at the present positions, carrying the contacts over; ``grow(needed)`` is called
+        while the arrays are too short. Returns the number of entries."""
+        while True:
+            total = rebuild_neighbor_list(x, radius, skin, ids, x_ref, self.arrays())
+            if total >= 0:
+                list_rows(self.rows, self.start, self.i)
+                return total
+            grow(-total)
+
+    def index(self) -> None:
+        """The indices derived from the list (``start``, ``j``): the transposed index (``tr_start``,
+        ``tr_k``) and each entry's row (``i``), as a rebuild makes them."""
+        _transpose(self.rows, self.start, self.j, self.tr_start, self.tr_k)
+        list_rows(self.rows, self.start, self.i)
+
+    def reorder(self, perm: np.ndarray, inv: np.ndarray) -> None:
+        """Rows follow a re-sort of the particles (new row s is old row ``perm[s]``, ``inv`` its
+        inverse); entries keep their order (by partner id) and their contacts."""
+        hist = self.entry_history()
+        old_start = self.start.copy()
+        lengths = np.diff(old_start)[perm]
+        self.start[0] = 0
+        np.cumsum(lengths, out=self.start[1:])
+        total = int(self.start[-1])
+        src = np.repeat(old_start[:-1][perm] - self.start[:-1], lengths) + np.arange(total)
+        self.j[:total] = inv[self.j[src]]
+        self.index()
+        self.set_entry_history(hist[src])
+
+    # --- contact history per entry (the layout of checkpoints) -----------------------------
+    def entry_history(self) -> np.ndarray:
+        """The contact history of each entry, (entries, history_size), zeros out of contact."""
+        total = self.size
+        hist = np.zeros((total, self.history_size))
+        rows = self.contact_row[:total]
+        touching = rows >= 0
+        hist[touching] = self.pool[rows[touching], :self.history_size]
+        return hist
+
+    def set_entry_history(self, hist: np.ndarray) -> None:
+        """Put a history per entry (``entry_history``'s layout) into the pool, as a rebuild leaves
+        it: an entry is in contact iff it keeps a contact normal, each group's contacts at the
+        front of its rows in list order. Needs ``i`` (``index``)."""
+        total = self.size
+        touching = np.nonzero(np.any(hist[:total, :3] != 0.0, axis=1))[0]
+        group = self.i[touching] // POOL_GROUP
+        first_entry = self.start[np.minimum(np.arange(len(self.groups)) * POOL_GROUP, self.rows)]
+        rank = np.arange(len(touching)) - np.searchsorted(group, group)  # in its group, in list order
+        rows = first_entry[group] + rank
+        self.contact_row[:total] = -1
+        self.contact_row[touching] = rows
+        self.pool[rows, :self.history_size] = hist[touching]
+        self.groups[:, 0] = -1
+        self.groups[:, 1] = first_entry + np.bincount(group, minlength=len(self.groups))
+
+
+__all__ = ["ContactList", "rebuild_neighbor_list", "list_rows", "brute_force_pairs", "spatial_order"]

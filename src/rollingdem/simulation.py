@@ -18,11 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from .contact.model import ContactModel
-from .engine import ENERGY_CHANNELS, I_FORCES_VALID, EngineState
+from .engine import EngineState
+from .kernel_layout import ENERGY_CHANNELS, I_FORCES_VALID
+from .kernels import engine_module
 from .errors import ParameterError, SimulationError, check_finite, check_integer, check_positive, check_vector
 from .materials import Material, MaterialTable
-from .timestep import (HERTZ_FRACTION, RAYLEIGH_FRACTION, SPRING_FRACTION, hertz_contact_time,
-                       rayleigh_time_step, spring_period)
+from .timestep import SPRING_FRACTION
 from .walls import INACTIVE, Wall, wall_from_dict, wall_overlap
 
 __version__ = "0.1.0"
@@ -383,9 +384,9 @@ class Simulation:
         rot = 0.5 * float(np.dot(st.inertia, np.einsum("ij,ij->i", st.w, st.w)))
         return trans, rot
 
-    def kernel(self):
-        """The compiled engine module this simulation steps with."""
-        return self.contact.kernel(self.track_energy, serial=self._state.serial())
+    def engine_module(self):
+        """The compiled engine module this simulation steps with (``rollingdem.kernels``)."""
+        return engine_module(self.contact, self.track_energy, serial=self._state.serial())
 
     def dissipated_energy(self) -> dict[str, float]:
         """Energy (J) dissipated while ``track_energy`` was on, by normal damping, sliding, rolling
@@ -407,48 +408,19 @@ class Simulation:
         if st.n == 0:
             return []
         limits = []
-        normal = self.contact.normal.name
-        params = self.pair_parameters()
+        normal = self.contact.normal
         for k, mat in enumerate(self.materials.materials):
             sel = st.mat == k
             if not sel.any():
                 continue
             rmin = float(st.radius[sel].min())
             mmin = float(st.mass[sel].min())
-            if normal in ("hertz", "hooke"):
-                t_r = rayleigh_time_step(rmin, mat.density, mat.youngs_modulus, mat.poisson_ratio)
-                limits.append((f"{RAYLEIGH_FRACTION:g} x Rayleigh time {t_r:.4g} s of material {mat.name!r} "
-                               f"(R_min = {rmin:.4g} m)", RAYLEIGH_FRACTION * t_r))
-            row = params[k, k]
-            m_eff = 0.5 * mmin
-            r_eff = 0.5 * rmin
-            if normal == "hertz":
-                speed = np.sqrt((st.v[sel] ** 2).sum(axis=1))
-                vmax = 2.0 * float(speed[np.isfinite(speed)].max(initial=0.0))  # a non-finite v is reported apart
-                if vmax > 0:
-                    t_h = hertz_contact_time(m_eff, r_eff, row[0], vmax)
-                    limits.append((f"Hertz time {t_h:.4g} s / 20 at impact speed {vmax:.3g} m/s", HERTZ_FRACTION * t_h))
-            kern = self.contact.normal
-            if normal == "hertz":
-                # rotational springs are checked at a generous overlap of 1 % of R_min, where the
-                # Hertz stiffnesses (growing as sqrt(overlap)) are larger than in any sane packing
-                overlap = 0.01 * rmin
-                a = math.sqrt(r_eff * overlap)
-                kn, kt = 4.0 / 3.0 * row[0] * a, 8.0 * row[1] * a
-            elif normal == "hooke":
-                vc = kern.characteristic_velocity
-                e = row[0]
-                kn = (16 / 15) * math.sqrt(r_eff) * e * (15 * m_eff * vc ** 2 / (16 * math.sqrt(r_eff) * e)) ** 0.2
-                kt = kern.tangential_stiffness_ratio * kn
-                overlap = math.sqrt(m_eff / kn)  # peak overlap of an impact at 1 m/s
-            else:
-                kn, kt = kern.normal_stiffness, kern.shear_stiffness
-                overlap = math.sqrt(m_eff / kn)
-            if normal != "hertz":
-                for label, stiff in (("normal", kn), ("tangential", kt)):
-                    per = spring_period(stiff, m_eff)
-                    limits.append((f"{label} spring period {per:.4g} s / 10", SPRING_FRACTION * per))
             pair = self.materials.pair(k, k)
+            speed = np.sqrt((st.v[sel] ** 2).sum(axis=1))
+            impact = 2.0 * float(speed[np.isfinite(speed)].max(initial=0.0))  # a non-finite v is reported apart
+            limits += normal.time_step_limits(mat, pair, rmin, mmin, impact)
+            r_eff = 0.5 * rmin
+            kn, kt, overlap = normal.reference_stiffness(pair, r_eff, 0.5 * mmin, rmin)
             inertia = SOLID_SPHERE * mmin * rmin ** 2
             for sub in (self.contact.rolling, self.contact.twisting):
                 k_rot = sub.rotational_stiffness(kn, kt, r_eff, overlap, kn * overlap, pair)
@@ -515,7 +487,7 @@ class Simulation:
             ob.start(self)
         failure = None
         try:
-            kernel = self.kernel()  # after the observers start: a TimeSeries turns on track_energy
+            kernel = self.engine_module()  # after the observers start: a TimeSeries turns on track_energy
             for ob in observers:
                 ob.maybe_observe(self, force=True)
             chunk = 64

@@ -13,11 +13,8 @@ import math
 import numpy as np
 
 from .errors import ParameterError, check_positive, check_vector
-
-PLANE = 0
-CYLINDER = 1
-INACTIVE = -1
-GEOMETRY_SIZE = 9
+from .kernel_layout import WALL_CYLINDER as CYLINDER, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_INACTIVE as INACTIVE
+from .kernel_layout import WALL_PLANE as PLANE
 
 
 class Wall:

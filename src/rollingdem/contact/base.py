@@ -1,29 +1,19 @@
-"""The sub-model contract.
+"""The sub-model contract: a contact law is one class and one compiled function.
 
-A sub-model is one small class plus one compiled function:
-
-* the class validates and holds the parameters, says how many per-contact history slots it
-  needs (``history_size``), and turns a material pair into a fixed row of floats
-  (``pair_parameters``) that the kernel reads;
-* ``kernel`` is a ``numba.njit`` function with the fixed signature of its slot (see
-  ``rollingdem.contact.signatures``). It allocates nothing and calls no Python. Declare it
-  ``@njit(cache=True, inline="always")``: it is inlined into the engine's per-contact function,
-  which saves a call with array arguments per contact (about 30 ns each).
-
-Subclasses register themselves by ``slot`` and ``name``: adding a model is adding a class, with no
-edit to the engine.
-
-Every pair-parameter row starts with the common slots below; each sub-model's own parameters
-follow at an offset the contact model hands to its kernel.
+The class declares its per-pair parameters (``parameters``) and per-contact history
+(``history``) by name, once, with ``slots``; the contact model places them in the kernel's rows
+and the offsets follow. ``function`` is the compiled law, with its slot's signature (module
+docstrings of ``normal``, ``tangential``, ``rolling``, ``twisting``). Subclasses register by
+``slot`` and ``name``. How to add one: docs/architecture.md.
 """
 
 from __future__ import annotations
 
 import inspect
-
 from typing import ClassVar
 
 from ..errors import ParameterError, check_choice
+from ..kernel_layout import slots
 
 # Common pair-parameter slots, shared by every sub-model.
 P_YOUNG = 0            # E* (Pa)
@@ -42,25 +32,55 @@ _REGISTRIES = {"normal": NORMAL_MODELS, "tangential": TANGENTIAL_MODELS, "rollin
                "twisting": TWISTING_MODELS}
 
 
+NO_SLOTS = slots()
+
+
 class SubModel:
-    """Base of all contact sub-models."""
+    """Base of all contact sub-models.
+
+    Class attributes: ``slot`` ("normal", "tangential", "rolling", "twisting"), ``name`` (as
+    case files give it), ``parameters`` and ``history`` (``slots``: the per-pair floats after the
+    common ones, and the per-contact history), ``function`` (the compiled law, as a
+    ``staticmethod``). ``history_size`` and ``n_parameters`` follow from the declarations.
+    """
 
     slot: ClassVar[str] = ""
     name: ClassVar[str] = ""
+    parameters: ClassVar[tuple] = NO_SLOTS
+    history: ClassVar[tuple] = NO_SLOTS
+    function: ClassVar = None
     history_size: ClassVar[int] = 0
-    #: (module, function name) of the compiled kernel; the engine generator imports it from there.
-    kernel: ClassVar[tuple[str, str]] = ("", "")
+    n_parameters: ClassVar[int] = 0
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
+        cls.history_size = len(cls.history)
+        cls.n_parameters = len(cls.parameters)
         if cls.slot and cls.name:
+            if cls.function is None:
+                raise TypeError(f"{cls.__name__}: a {cls.slot} sub-model needs its compiled function "
+                                "(function = staticmethod(...))")
             _REGISTRIES[cls.slot][cls.name] = cls
 
-    def pair_parameters(self, pair) -> tuple[float, ...]:
-        """Extra per-pair floats after the common slots (default: none)."""
+    @classmethod
+    def compiled_function(cls) -> tuple[str, str]:
+        """(module, name) of the compiled law, as the engine generator imports it."""
+        func = getattr(cls.function, "py_func", cls.function)
+        return func.__module__, func.__name__
+
+    def pair_values(self, pair) -> tuple[float, ...]:
+        """The declared ``parameters`` of a material pair, in their order (default: none)."""
         return ()
 
-    def parameters(self) -> dict:
+    def pair_row(self, pair) -> tuple[float, ...]:
+        """``pair_values`` as floats, checked against the declaration."""
+        values = tuple(float(x) for x in self.pair_values(pair))
+        if len(values) != self.n_parameters:
+            raise TypeError(f"{type(self).__name__}.pair_values gave {len(values)} values for its "
+                            f"{self.n_parameters} declared parameters {self.parameters._fields}")
+        return values
+
+    def settings(self) -> dict:
         """The constructor arguments, for case files and checkpoints."""
         return {}
 
@@ -76,14 +96,14 @@ class SubModel:
         return 0.0
 
     def __repr__(self):
-        args = ", ".join(f"{k}={v!r}" for k, v in self.parameters().items())
+        args = ", ".join(f"{k}={v!r}" for k, v in self.settings().items())
         return f"{type(self).__name__}({args})"
 
     def __eq__(self, other):
-        return type(self) is type(other) and self.parameters() == other.parameters()
+        return type(self) is type(other) and self.settings() == other.settings()
 
     def __hash__(self):
-        return hash((type(self), tuple(sorted(self.parameters().items()))))
+        return hash((type(self), tuple(sorted(self.settings().items()))))
 
 
 def _describe_parameters(params) -> str:

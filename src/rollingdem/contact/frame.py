@@ -79,11 +79,11 @@ def contact_frame_series(onx, ony, onz, nx, ny, nz, spin_angle):
 
 
 @njit(cache=True, inline="always")
-def carry_with_frame(hist, k, off, frame):
-    """Carry the 3-vector ``hist[k, off:off+3]`` through the frame change ``frame`` (``contact_frame``), in place."""
-    hx = hist[k, off]
-    hy = hist[k, off + 1]
-    hz = hist[k, off + 2]
+def carry_with_frame(hist, k, at, frame):
+    """Carry the 3-vector ``hist[k, at:at+3]`` through the frame change ``frame`` (``contact_frame``), in place."""
+    hx = hist[k, at]
+    hy = hist[k, at + 1]
+    hz = hist[k, at + 2]
     mag2 = hx * hx + hy * hy + hz * hz
     if mag2 == 0.0:
         return
@@ -101,32 +101,32 @@ def carry_with_frame(hist, k, off, frame):
     hx = rx * cs + cx * sn + nx * nd * (1.0 - cs)
     hy = ry * cs + cy * sn + ny * nd * (1.0 - cs)
     hz = rz * cs + cz * sn + nz * nd * (1.0 - cs)
-    _store_tangent(hist, k, off, nx, ny, nz, hx, hy, hz, mag2)
+    _store_tangent(hist, k, at, nx, ny, nz, hx, hy, hz, mag2)
 
 
 @njit(cache=True, inline="always")
-def project_onto_plane(hist, k, off, nx, ny, nz):
-    """LAMMPS's carry: remove the normal part of ``hist[k, off:off+3]`` and restore its magnitude."""
-    hx = hist[k, off]
-    hy = hist[k, off + 1]
-    hz = hist[k, off + 2]
+def project_onto_plane(hist, k, at, nx, ny, nz):
+    """LAMMPS's carry: remove the normal part of ``hist[k, at:at+3]`` and restore its magnitude."""
+    hx = hist[k, at]
+    hy = hist[k, at + 1]
+    hz = hist[k, at + 2]
     mag2 = hx * hx + hy * hy + hz * hz
     if mag2 != 0.0:
-        _store_tangent(hist, k, off, nx, ny, nz, hx, hy, hz, mag2)
+        _store_tangent(hist, k, at, nx, ny, nz, hx, hy, hz, mag2)
 
 
 @njit(cache=True, inline="always")
-def _store_tangent(hist, k, off, nx, ny, nz, hx, hy, hz, mag2):
+def _store_tangent(hist, k, at, nx, ny, nz, hx, hy, hz, mag2):
     """3. store h, projected onto the tangent plane and rescaled to |h|^2 = mag2 if it has a normal
     part beyond round-off. After the exact rotations a tangent h stays tangent to round-off and the
     rescale factor would be 1 + O(eps): the sqrt and division are skipped unless the normal part is
-    real (a flip, a projection-only carry, a vector stored off the plane); LAMMPS's rolling sds
+    real (a flip, a projection-only carry, a vector stored at the plane); LAMMPS's rolling sds
     makes the same test before it rescales."""
     nd = nx * hx + ny * hy + nz * hz
     if nd * nd <= TANGENT_TOLERANCE2 * mag2:
-        hist[k, off] = hx
-        hist[k, off + 1] = hy
-        hist[k, off + 2] = hz
+        hist[k, at] = hx
+        hist[k, at + 1] = hy
+        hist[k, at + 2] = hz
         return
     hx -= nd * nx
     hy -= nd * ny
@@ -134,10 +134,10 @@ def _store_tangent(hist, k, off, nx, ny, nz, hx, hy, hz, mag2):
     m2 = hx * hx + hy * hy + hz * hz
     if m2 > 0.0:
         s = math.sqrt(mag2 / m2)
-        hist[k, off] = hx * s
-        hist[k, off + 1] = hy * s
-        hist[k, off + 2] = hz * s
+        hist[k, at] = hx * s
+        hist[k, at + 1] = hy * s
+        hist[k, at + 2] = hz * s
     else:
-        hist[k, off] = 0.0
-        hist[k, off + 1] = 0.0
-        hist[k, off + 2] = 0.0
+        hist[k, at] = 0.0
+        hist[k, at + 1] = 0.0
+        hist[k, at + 2] = 0.0

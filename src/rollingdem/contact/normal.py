@@ -1,13 +1,15 @@
 """Normal contact sub-models (docs/models.md §1).
 
-Kernel signature (slot "normal")::
+Compiled function of the slot "normal"::
 
-    normal_force(overlap, normal_velocity, r_eff, m_eff, p, off)
+    normal_force(overlap, normal_velocity, r_eff, m_eff, p, params_at)
         -> (force_elastic, force_damping, normal_stiffness, tangential_stiffness, tangential_damping)
 
 ``normal_velocity`` is v_n = (v_i - v_j) . n (negative while approaching); the scalar normal
 force on i along n is force_elastic + force_damping, with force_damping = -gamma_n v_n.
-``normal_stiffness`` is the secant stiffness k_n = F_el / delta that rolling models reuse.
+``normal_stiffness`` is the secant stiffness k_n = F_el / delta that rolling models reuse;
+``p[params_at:]`` holds the law's declared ``parameters``. The class also reports the law's
+stiffness and time-step limits (``reference_stiffness``, ``time_step_limits``, docs/models.md §2).
 """
 
 from __future__ import annotations
@@ -17,7 +19,9 @@ import math
 from numba import njit
 
 from ..errors import check_non_negative, check_positive
-from .base import P_SHEAR, P_YOUNG, SubModel
+from ..timestep import (HERTZ_FRACTION, RAYLEIGH_FRACTION, SPRING_FRACTION, hertz_contact_time,
+                        rayleigh_time_step, spring_period)
+from .base import P_SHEAR, P_YOUNG, SubModel, slots
 
 
 def restitution_beta(e: float) -> float:
@@ -47,8 +51,11 @@ def hertz_damping_factor(e: float) -> float:
     return -2.0 * math.sqrt(5.0 / 6.0) * restitution_beta(e)
 
 
+HERTZ_PARAMETERS = slots("damping_factor", "tangential_damping_ratio")
+
+
 @njit(cache=True, inline="always")
-def hertz_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
+def hertz_normal(overlap, normal_velocity, r_eff, m_eff, p, params_at):
     """Hertz-Mindlin (no-slip), LIGGGHTS ``normal_model_hertz.h`` / EDEM.
 
     a = sqrt(R* delta); S_n = 2 E* a; k_n = 4/3 E* a; F_el = k_n delta;
@@ -59,12 +66,15 @@ def hertz_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
     sn = 2.0 * p[P_YOUNG] * a
     kn = (4.0 / 3.0) * p[P_YOUNG] * a
     st = 8.0 * p[P_SHEAR] * a
-    gamma_n = p[off] * math.sqrt(sn * m_eff)
-    return kn * overlap, -gamma_n * normal_velocity, kn, st, gamma_n * p[off + 1]
+    gamma_n = p[params_at + HERTZ_PARAMETERS.damping_factor] * math.sqrt(sn * m_eff)
+    return kn * overlap, -gamma_n * normal_velocity, kn, st, gamma_n * p[params_at + HERTZ_PARAMETERS.tangential_damping_ratio]
+
+
+HOOKE_PARAMETERS = slots("damping_factor", "characteristic_velocity", "tangential_stiffness_ratio")
 
 
 @njit(cache=True, inline="always")
-def hooke_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
+def hooke_normal(overlap, normal_velocity, r_eff, m_eff, p, params_at):
     """Hooke with stiffness from a characteristic velocity V_c, LIGGGHTS ``normal_model_hooke.h``.
 
     k_n = 16/15 sqrt(R*) E* [15 m* V_c^2 / (16 sqrt(R*) E*)]^(1/5)  (= m* V_c^2 / delta_H^2);
@@ -72,37 +82,92 @@ def hooke_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
     """
     young = p[P_YOUNG]
     sr = math.sqrt(r_eff)
-    vc = p[off + 1]
+    vc = p[params_at + HOOKE_PARAMETERS.characteristic_velocity]
     kn = (16.0 / 15.0) * sr * young * (15.0 * m_eff * vc * vc / (16.0 * sr * young)) ** 0.2
-    gamma_n = p[off] * math.sqrt(m_eff * kn)
-    return kn * overlap, -gamma_n * normal_velocity, kn, p[off + 2] * kn, gamma_n
+    gamma_n = p[params_at + HOOKE_PARAMETERS.damping_factor] * math.sqrt(m_eff * kn)
+    return (kn * overlap, -gamma_n * normal_velocity, kn, p[params_at + HOOKE_PARAMETERS.tangential_stiffness_ratio] * kn,
+            gamma_n)
+
+
+LINEAR_PARAMETERS = slots("normal_stiffness", "shear_stiffness", "normal_damping_factor", "shear_damping_factor")
 
 
 @njit(cache=True, inline="always")
-def linear_normal(overlap, normal_velocity, r_eff, m_eff, p, off):
+def linear_normal(overlap, normal_velocity, r_eff, m_eff, p, params_at):
     """PFC-style linear contact with given k_n, k_s and dashpots gamma = 2 zeta sqrt(m* k)."""
-    kn = p[off]
-    ks = p[off + 1]
-    gamma_n = p[off + 2] * math.sqrt(m_eff * kn)
-    gamma_t = p[off + 3] * math.sqrt(m_eff * ks)
+    kn = p[params_at + LINEAR_PARAMETERS.normal_stiffness]
+    ks = p[params_at + LINEAR_PARAMETERS.shear_stiffness]
+    gamma_n = p[params_at + LINEAR_PARAMETERS.normal_damping_factor] * math.sqrt(m_eff * kn)
+    gamma_t = p[params_at + LINEAR_PARAMETERS.shear_damping_factor] * math.sqrt(m_eff * ks)
     return kn * overlap, -gamma_n * normal_velocity, kn, ks, gamma_t
 
 
-class Hertz(SubModel):
+def rayleigh_limit(material, r_min):
+    """(description, 0.2 dt_R) of the smallest sphere of a material (docs/models.md §2)."""
+    t_r = rayleigh_time_step(r_min, material.density, material.youngs_modulus, material.poisson_ratio)
+    return (f"{RAYLEIGH_FRACTION:g} x Rayleigh time {t_r:.4g} s of material {material.name!r} "
+            f"(R_min = {r_min:.4g} m)", RAYLEIGH_FRACTION * t_r)
+
+
+def spring_limits(normal_stiffness, tangential_stiffness, m_eff):
+    """(description, period / 10) of the normal and the tangential linear spring."""
+    limits = []
+    for label, stiff in (("normal", normal_stiffness), ("tangential", tangential_stiffness)):
+        per = spring_period(stiff, m_eff)
+        limits.append((f"{label} spring period {per:.4g} s / 10", SPRING_FRACTION * per))
+    return limits
+
+
+class NormalModel(SubModel):
+    """A normal contact law. Besides its compiled function it reports, for the time-step check of a
+    material pair (docs/models.md §2), its stiffness and the limits it imposes; the contact of two
+    of the smallest spheres (R* = R_min / 2, m* = m_min / 2) is the stiffest."""
+
+    slot = "normal"
+
+    def reference_stiffness(self, pair, r_eff, m_eff, r_min) -> tuple[float, float, float]:
+        """(k_n, k_t, overlap): the law's stiffnesses at a representative large overlap, at which
+        the rotational springs are checked too."""
+        raise NotImplementedError
+
+    def time_step_limits(self, material, pair, r_min, m_min, impact_speed) -> list[tuple[str, float]]:
+        """(description, largest allowed dt) of each criterion of the law, for the smallest spheres of
+        ``material`` (radius r_min, mass m_min) at ``impact_speed``: by default those of linear springs."""
+        m_eff = 0.5 * m_min
+        kn, kt, _ = self.reference_stiffness(pair, 0.5 * r_min, m_eff, r_min)
+        return spring_limits(kn, kt, m_eff)
+
+
+class Hertz(NormalModel):
     """Hertz-Mindlin no-slip contact (docs/models.md §1.2), with the dashpot gamma_n = c sqrt(S_n m*)
     whose factor c (``hertz_damping_factor``) gives a binary impact exactly the pair's restitution
     e, as in LIGGGHTS and EDEM. No parameters of its own."""
 
-    slot = "normal"
     name = "hertz"
-    kernel = ("rollingdem.contact.normal", "hertz_normal")
+    parameters = HERTZ_PARAMETERS
+    function = staticmethod(hertz_normal)
 
-    def pair_parameters(self, pair):
+    def pair_values(self, pair):
         return (hertz_damping_factor(pair.restitution),
                 math.sqrt(4.0 * pair.effective_shear_modulus / pair.effective_youngs_modulus))
 
+    def reference_stiffness(self, pair, r_eff, m_eff, r_min):
+        # 1 % of R_min: the Hertz stiffnesses grow as sqrt(overlap), and are larger there than in
+        # any sane packing
+        overlap = 0.01 * r_min
+        a = math.sqrt(r_eff * overlap)
+        return 4.0 / 3.0 * pair.effective_youngs_modulus * a, 8.0 * pair.effective_shear_modulus * a, overlap
 
-class Hooke(SubModel):
+    def time_step_limits(self, material, pair, r_min, m_min, impact_speed):
+        limits = [rayleigh_limit(material, r_min)]
+        if impact_speed > 0:
+            t_h = hertz_contact_time(0.5 * m_min, 0.5 * r_min, pair.effective_youngs_modulus, impact_speed)
+            limits.append((f"Hertz time {t_h:.4g} s / 20 at impact speed {impact_speed:.3g} m/s",
+                           HERTZ_FRACTION * t_h))
+        return limits
+
+
+class Hooke(NormalModel):
     """Linear spring-dashpot with LIGGGHTS's stiffness from a characteristic velocity (docs/models.md §1.3).
 
     Parameters
@@ -112,9 +177,9 @@ class Hooke(SubModel):
     tangential_stiffness_ratio: k_t / k_n (-); 1 is LIGGGHTS's default, 2/7 its ``ktToKnUser on``.
     """
 
-    slot = "normal"
     name = "hooke"
-    kernel = ("rollingdem.contact.normal", "hooke_normal")
+    parameters = HOOKE_PARAMETERS
+    function = staticmethod(hooke_normal)
 
     def __init__(self, characteristic_velocity: float = 1.0, tangential_stiffness_ratio: float = 1.0):
         self.characteristic_velocity = check_positive("hooke characteristic_velocity",
@@ -122,16 +187,26 @@ class Hooke(SubModel):
         self.tangential_stiffness_ratio = check_positive("hooke tangential_stiffness_ratio",
                                                          tangential_stiffness_ratio)
 
-    def pair_parameters(self, pair):
+    def pair_values(self, pair):
         return (2.0 * linear_damping_ratio(pair.restitution), self.characteristic_velocity,
                 self.tangential_stiffness_ratio)
 
-    def parameters(self):
+    def settings(self):
         return {"characteristic_velocity": self.characteristic_velocity,
                 "tangential_stiffness_ratio": self.tangential_stiffness_ratio}
 
+    def reference_stiffness(self, pair, r_eff, m_eff, r_min):
+        vc = self.characteristic_velocity
+        e = pair.effective_youngs_modulus
+        kn = (16 / 15) * math.sqrt(r_eff) * e * (15 * m_eff * vc ** 2 / (16 * math.sqrt(r_eff) * e)) ** 0.2
+        return kn, self.tangential_stiffness_ratio * kn, math.sqrt(m_eff / kn)  # peak overlap at 1 m/s
 
-class Linear(SubModel):
+    def time_step_limits(self, material, pair, r_min, m_min, impact_speed):
+        return [rayleigh_limit(material, r_min)] + super().time_step_limits(material, pair, r_min, m_min,
+                                                                             impact_speed)
+
+
+class Linear(NormalModel):
     """PFC-style linear contact with given normal and shear stiffness (docs/models.md §5).
 
     Parameters
@@ -142,9 +217,9 @@ class Linear(SubModel):
     shear_damping_ratio: zeta_s (-), PFC ``dp_sratio``; default 0 as in PFC.
     """
 
-    slot = "normal"
     name = "linear"
-    kernel = ("rollingdem.contact.normal", "linear_normal")
+    parameters = LINEAR_PARAMETERS
+    function = staticmethod(linear_normal)
 
     def __init__(self, normal_stiffness: float = 1e5, shear_stiffness: float | None = None,
                  normal_damping_ratio: float | None = None, shear_damping_ratio: float = 0.0):
@@ -155,14 +230,17 @@ class Linear(SubModel):
                                      else check_non_negative("linear normal_damping_ratio", normal_damping_ratio))
         self.shear_damping_ratio = check_non_negative("linear shear_damping_ratio", shear_damping_ratio)
 
-    def pair_parameters(self, pair):
+    def pair_values(self, pair):
         zn = linear_damping_ratio(pair.restitution) if self.normal_damping_ratio is None else self.normal_damping_ratio
         return (self.normal_stiffness, self.shear_stiffness, 2.0 * zn, 2.0 * self.shear_damping_ratio)
 
-    def parameters(self):
+    def settings(self):
         return {"normal_stiffness": self.normal_stiffness, "shear_stiffness": self.shear_stiffness,
                 "normal_damping_ratio": self.normal_damping_ratio, "shear_damping_ratio": self.shear_damping_ratio}
 
+    def reference_stiffness(self, pair, r_eff, m_eff, r_min):
+        return self.normal_stiffness, self.shear_stiffness, math.sqrt(m_eff / self.normal_stiffness)
 
-__all__ = ["Hertz", "Hooke", "Linear", "hertz_normal", "hooke_normal", "linear_normal", "hertz_damping_factor",
+
+__all__ = ["NormalModel", "Hertz", "Hooke", "Linear", "hertz_normal", "hooke_normal", "linear_normal", "hertz_damping_factor",
            "restitution_beta", "linear_damping_ratio"]

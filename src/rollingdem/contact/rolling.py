@@ -1,10 +1,10 @@
 """Rolling resistance sub-models (docs/models.md §3-§6, §12).
 
-Kernel signature (slot "rolling")::
+Compiled function of the slot "rolling"::
 
-    rolling_moment(hist, k, off, nx, ny, nz, frame,
+    rolling_moment(hist, k, history_at, nx, ny, nz, frame,
                    wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, normal_stiffness,
-                   tangential_stiffness, force_elastic, force_total, r_eff, inertia_r, dt, p, poff, modes)
+                   tangential_stiffness, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes)
         -> (mix, miy, miz, mjx, mjy, mjz, dissipation)
 
 ``frame`` is the step's change of the contact frame (see ``rollingdem.contact.tangential``).
@@ -28,7 +28,7 @@ import math
 from numba import njit
 
 from ..errors import ParameterError, check_non_negative, check_positive
-from .base import P_ROLLING_DAMPING, P_ROLLING_FRICTION, SubModel
+from .base import P_ROLLING_DAMPING, P_ROLLING_FRICTION, SubModel, slots
 from .frame import carry_with_frame, project_onto_plane
 
 
@@ -56,38 +56,41 @@ def liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff):
 
 
 @njit(cache=True, inline="always")
-def no_rolling(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
-               lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff, modes):
+def no_rolling(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
+               lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
     """No rolling resistance: M = 0."""
     return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
+CDT_PARAMETERS = slots("limiter", "liggghts_parity")
+
+
 @njit(cache=True, inline="always")
-def constant_directional_torque(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
-                                lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff, modes):
+def constant_directional_torque(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
+                                lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
     """CDT, Ai et al. (2011) type A; seed report eq. 2; STAR-CCM+ Constant Torque.
 
     M = mu_r R* max(F_n,el, 0) dw_r / |dw_r|, dw_r = dw - (dw . n) n (twist removed), and with the
     optional moment limiter |M| <= f I_r |dw_r| / dt (STAR-CCM+ f = 0.08), so that the torque
     cannot reverse the relative rotation within one step (docs/models.md §11.6).
-    LIGGGHTS parity (p[poff+1] = 1) divides by the full |dw| and projects afterwards, so a twist
+    LIGGGHTS parity (``liggghts_parity`` = 1) divides by the full |dw| and projects afterwards, so a twist
     shrinks the moment by |dw_r|/|dw|, and walls read omega_i (R - delta/2)/(R - delta) without
     the wall's rotation (docs/models.md §3.2, §12 ``liggghts_cdt``).
     """
-    if p[poff + 1] != 0.0:
+    if p[params_at + CDT_PARAMETERS.liggghts_parity] != 0.0:
         wix, wiy, wiz, wjx, wjy, wjz = liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff)
     rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
     rate = math.sqrt(rx * rx + ry * ry + rz * rz)
     if rate == 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     norm = rate
-    if p[poff + 1] != 0.0:
+    if p[params_at + CDT_PARAMETERS.liggghts_parity] != 0.0:
         dwx = wix - wjx
         dwy = wiy - wjy
         dwz = wiz - wjz
         norm = math.sqrt(dwx * dwx + dwy * dwy + dwz * dwz)
     moment = p[P_ROLLING_FRICTION] * r_eff * max(force_elastic, 0.0) * rate / norm
-    limiter = p[poff]
+    limiter = p[params_at + CDT_PARAMETERS.limiter]
     if limiter > 0.0:
         moment = min(moment, limiter * inertia_r * rate / dt)
     s = moment / rate
@@ -99,7 +102,7 @@ class NoRolling(SubModel):
 
     slot = "rolling"
     name = "none"
-    kernel = ("rollingdem.contact.rolling", "no_rolling")
+    function = staticmethod(no_rolling)
 
 
 class CDT(SubModel):
@@ -117,7 +120,8 @@ class CDT(SubModel):
 
     slot = "rolling"
     name = "cdt"
-    kernel = ("rollingdem.contact.rolling", "constant_directional_torque")
+    parameters = CDT_PARAMETERS
+    function = staticmethod(constant_directional_torque)
 
     parities = (None, "liggghts")
 
@@ -125,15 +129,17 @@ class CDT(SubModel):
         self.limiter = check_non_negative("cdt limiter", limiter)
         self.parity = check_parity(self.name, parity, self.parities)
 
-    def pair_parameters(self, pair):
+    def pair_values(self, pair):
         return (self.limiter, 1.0 if self.parity == "liggghts" else 0.0)
 
-    def parameters(self):
+    def settings(self):
         return {"limiter": self.limiter, "parity": self.parity}
 
 
 # --- spring-type models: one kernel, docs/models.md §12 -----------------------------------------------
-# Parameter row after the common slots (poff + k):
+SPRING_PARAMETERS = slots("stiffness_mode", "stiffness_coefficient", "damping_mode", "damping", "slip_damping")
+SPRING_HISTORY = slots("moment_x", "moment_y", "moment_z")  # the spring moment M_k (N m)
+# values of stiffness_mode and damping_mode:
 STIFFNESS_NORMAL = 0      # k_r = c k_n mu_r^2 R*^2               (Ai / LIGGGHTS epsd, epsd3)
 STIFFNESS_TANGENTIAL = 1  # k_r = c k_t R*^2                       (Iwashita-Oda: epsd2, PFC rrlinear)
 STIFFNESS_GIVEN = 2       # k_r = c R*^2, c = k_roll (N/m)          (LAMMPS rolling sds)
@@ -150,8 +156,8 @@ HISTORY_PROJECT = 2       # projected on the tangent plane and rescaled (LAMMPS)
 
 
 @njit(cache=True, inline="always")
-def spring_rolling(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
-                   lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff, modes):
+def spring_rolling(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
+                   lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
     """Elastic-plastic spring-dashpot rolling resistance (Ai type C), the unified form of docs/models.md §12.
 
     1. carry the spring moment M_k with the contact frame (or, for parity, not / project only);
@@ -165,22 +171,22 @@ def spring_rolling(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz
     less than zero).
     """
     cap_mode, force_mode, history_mode, wall_rate = modes  # the parity's switches, constants
-    stiffness_mode = p[poff]  # the class's (a branch on them costs nothing measurable)
-    coefficient = p[poff + 1]
-    damping_mode = p[poff + 2]
-    damping = p[poff + 3]
-    slip_damping = p[poff + 4]
+    stiffness_mode = p[params_at + SPRING_PARAMETERS.stiffness_mode]  # the class's (a branch on them costs
+    coefficient = p[params_at + SPRING_PARAMETERS.stiffness_coefficient]  # nothing measurable)
+    damping_mode = p[params_at + SPRING_PARAMETERS.damping_mode]
+    damping = p[params_at + SPRING_PARAMETERS.damping]
+    slip_damping = p[params_at + SPRING_PARAMETERS.slip_damping]
     mu_r = p[P_ROLLING_FRICTION]
     if wall_rate:
         wix, wiy, wiz, wjx, wjy, wjz = liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff)
 
     if history_mode == HISTORY_FRAME:
-        carry_with_frame(hist, k, off, frame)
+        carry_with_frame(hist, k, history_at, frame)
     elif history_mode == HISTORY_PROJECT:
-        project_onto_plane(hist, k, off, nx, ny, nz)
-    mkx = hist[k, off]
-    mky = hist[k, off + 1]
-    mkz = hist[k, off + 2]
+        project_onto_plane(hist, k, history_at, nx, ny, nz)
+    mkx = hist[k, history_at + SPRING_HISTORY.moment_x]
+    mky = hist[k, history_at + SPRING_HISTORY.moment_y]
+    mkz = hist[k, history_at + SPRING_HISTORY.moment_z]
 
     rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
 
@@ -235,9 +241,9 @@ def spring_rolling(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz
             mx = sx + c_r * rx
             my = sy + c_r * ry
             mz = sz + c_r * rz
-    hist[k, off] = sx
-    hist[k, off + 1] = sy
-    hist[k, off + 2] = sz
+    hist[k, history_at + SPRING_HISTORY.moment_x] = sx
+    hist[k, history_at + SPRING_HISTORY.moment_y] = sy
+    hist[k, history_at + SPRING_HISTORY.moment_z] = sz
     # The elastic trial step stores exactly the midpoint work 1/2 (M_k + M_trial) . dw_r dt; the rest
     # of the work done by M, and the spring energy released by the cap, are dissipated.
     dissipated = ((mx - 0.5 * (mkx + trial_x)) * rx + (my - 0.5 * (mky + trial_y)) * ry
@@ -269,8 +275,9 @@ class _SpringRolling(SubModel):
     """Shared parameter handling of the spring-type rolling models (one kernel, ``spring_rolling``)."""
 
     slot = "rolling"
-    history_size = 3
-    kernel = ("rollingdem.contact.rolling", "spring_rolling")
+    parameters = SPRING_PARAMETERS
+    history = SPRING_HISTORY
+    function = staticmethod(spring_rolling)
     parities: tuple = (None,)
     stiffness_mode = STIFFNESS_NORMAL
     damping_mode = DAMPING_RATIO
@@ -298,7 +305,7 @@ class _SpringRolling(SubModel):
             return c * r_eff ** 2
         return pair.rolling_friction * r_eff * normal_force / c
 
-    def pair_parameters(self, pair):
+    def pair_values(self, pair):
         return (float(self.stiffness_mode), self.stiffness_coefficient(), float(self.damping_mode),
                 self.damping_value(pair), self.slip_damping)
 
@@ -332,7 +339,7 @@ class EPSD(_SpringRolling):
     def damping_value(self, pair):
         return -1.0 if self.damping_ratio is None else self.damping_ratio
 
-    def parameters(self):
+    def settings(self):
         return {"damping_ratio": self.damping_ratio, "parity": self.parity, "slip_damping": self.slip_damping}
 
 
@@ -343,7 +350,7 @@ class EPSD2(_SpringRolling):
     parities = (None, "liggghts")
     stiffness_mode = STIFFNESS_TANGENTIAL
 
-    def parameters(self):
+    def settings(self):
         return {"parity": self.parity, "slip_damping": self.slip_damping}
 
 
@@ -365,7 +372,7 @@ class EPSD3(_SpringRolling):
     def damping_value(self, pair):
         return -1.0 if self.damping_ratio is None else self.damping_ratio
 
-    def parameters(self):
+    def settings(self):
         return {"stiffness_coefficient": self.stiffness_coefficient_value, "damping_ratio": self.damping_ratio,
                 "parity": self.parity, "slip_damping": self.slip_damping}
 
@@ -380,7 +387,7 @@ class RRLinear(_SpringRolling):
     parities = (None, "pfc")
     stiffness_mode = STIFFNESS_TANGENTIAL
 
-    def parameters(self):
+    def settings(self):
         return {"parity": self.parity}
 
 
@@ -408,7 +415,7 @@ class SDS(_SpringRolling):
     def damping_value(self, pair):
         return self.rolling_damping
 
-    def parameters(self):
+    def settings(self):
         return {"rolling_stiffness": self.rolling_stiffness, "rolling_damping": self.rolling_damping,
                 "parity": self.parity}
 
@@ -437,13 +444,13 @@ class DisplacementDamping(_SpringRolling):
     def damping_value(self, pair):
         return self.damping
 
-    def parameters(self):
+    def settings(self):
         return {"theta_max": self.theta_max, "damping": self.damping, "slip_damping": self.slip_damping}
 
 
 @njit(cache=True, inline="always")
-def force_proportional_moment(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
-                              lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff, modes):
+def force_proportional_moment(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
+                              lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
     """STAR-CCM+ Force Proportional (seed 004, eq. 3275): each particle's own in-plane spin is
     opposed by mu_r |F_n| |r_c| omega_p / |omega_p|, |r_c| = R' (centre to contact point).
     Not objective (a rigidly co-rotating pair is braked: docs/models.md §11.1); offered for parity."""
@@ -469,18 +476,21 @@ class ForceProportional(SubModel):
 
     slot = "rolling"
     name = "force_proportional"
-    kernel = ("rollingdem.contact.rolling", "force_proportional_moment")
+    function = staticmethod(force_proportional_moment)
+
+
+VISCOUS_PARAMETERS = slots("coefficient", "kratos_form")
 
 
 @njit(cache=True, inline="always")
-def viscous_moment(hist, k, off, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
-                   lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, poff, modes):
+def viscous_moment(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
+                   lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
     """Viscous rolling resistance, Ai type B (Zhou et al. 1999 eq. 4): M = c_v F_n (R* |dw_r|) dw_r/|dw_r|
     = c_v F_n R* dw_r, c_v in s; in the Kratos/Lethe form one more factor R* (c_v in s/m).
     It vanishes at rest: it cannot hold a static pile (docs/models.md §13 T5)."""
     rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
-    s = p[poff] * max(force_elastic, 0.0) * r_eff
-    if p[poff + 1] > 0.0:
+    s = p[params_at + VISCOUS_PARAMETERS.coefficient] * max(force_elastic, 0.0) * r_eff
+    if p[params_at + VISCOUS_PARAMETERS.kratos_form] > 0.0:
         s *= r_eff
     return s * rx, s * ry, s * rz, s * rx, s * ry, s * rz, s * (rx * rx + ry * ry + rz * rz) * dt
 
@@ -493,7 +503,8 @@ class Viscous(SubModel):
 
     slot = "rolling"
     name = "viscous"
-    kernel = ("rollingdem.contact.rolling", "viscous_moment")
+    parameters = VISCOUS_PARAMETERS
+    function = staticmethod(viscous_moment)
 
     def __init__(self, coefficient=0.0, form="zhou"):
         self.coefficient = check_non_negative("viscous coefficient", coefficient, "s" if form == "zhou" else "s/m")
@@ -501,8 +512,8 @@ class Viscous(SubModel):
             raise ParameterError(f"viscous form = {form!r} is not known: allowed are 'zhou', 'kratos'")
         self.form = form
 
-    def pair_parameters(self, pair):
+    def pair_values(self, pair):
         return (self.coefficient, 1.0 if self.form == "kratos" else 0.0)
 
-    def parameters(self):
+    def settings(self):
         return {"coefficient": self.coefficient, "form": self.form}

@@ -1,12 +1,13 @@
 """Tangential contact sub-models (docs/models.md §1.2).
 
-Kernel signature (slot "tangential")::
+Compiled function of the slot "tangential"::
 
-    tangential_force(hist, k, off, nx, ny, nz, frame,
+    tangential_force(hist, k, history_at, nx, ny, nz, frame,
                      vtx, vty, vtz, tangential_stiffness, tangential_damping,
-                     normal_force, dt, p, poff) -> (ftx, fty, ftz, dissipation)
+                     normal_force, dt, p, params_at) -> (ftx, fty, ftz, dissipation)
 
-``hist[k, off:off+history_size]`` is the contact's own state; (nx, ny, nz) the current normal;
+``hist[k, history_at:history_at + history_size]`` is the contact's own state (its declared
+``history``), ``p[params_at:]`` its declared ``parameters``; (nx, ny, nz) the current normal;
 ``frame`` the change of the contact frame during the step (``rollingdem.contact.frame.contact_frame``:
 the turn of the normal and the rigid spin of the pair about it), for ``carry_with_frame``;
 (vtx, vty, vtz) the tangential slip velocity at the contact point; F_t is the force on particle i.
@@ -19,13 +20,13 @@ import math
 
 from numba import njit
 
-from .base import P_FRICTION, SubModel
+from .base import P_FRICTION, SubModel, slots
 from .frame import carry_with_frame
 
 
 @njit(cache=True, inline="always")
-def history_spring(hist, k, off, nx, ny, nz, frame, vtx, vty, vtz,
-                   kt, gamma_t, normal_force, dt, p, poff):
+def history_spring(hist, k, history_at, nx, ny, nz, frame, vtx, vty, vtz,
+                   kt, gamma_t, normal_force, dt, p, params_at):
     """Tangential spring-dashpot with Coulomb limit.
 
     xi <- carry(xi) + v_t dt;  F_trial = -k_t xi - gamma_t v_t;
@@ -39,10 +40,10 @@ def history_spring(hist, k, off, nx, ny, nz, frame, vtx, vty, vtz,
     leaves a residual 1/2 k_t |v_t|^2 dt^2 (>= 0, vanishing as dt^2); the dashpot adds gamma_t |v_t|^2 dt;
     steady sliding at the limit dissipates mu max(F_n, 0) |v_t| dt, the friction work.
     """
-    carry_with_frame(hist, k, off, frame)
-    x0 = hist[k, off]
-    y0 = hist[k, off + 1]
-    z0 = hist[k, off + 2]
+    carry_with_frame(hist, k, history_at, frame)
+    x0 = hist[k, history_at]
+    y0 = hist[k, history_at + 1]
+    z0 = hist[k, history_at + 2]
     stored_before = 0.5 * kt * (x0 * x0 + y0 * y0 + z0 * z0)
     xx = x0 + vtx * dt
     xy = y0 + vty * dt
@@ -66,9 +67,9 @@ def history_spring(hist, k, off, nx, ny, nz, frame, vtx, vty, vtz,
             xx = 0.0
             xy = 0.0
             xz = 0.0
-    hist[k, off] = xx
-    hist[k, off + 1] = xy
-    hist[k, off + 2] = xz
+    hist[k, history_at] = xx
+    hist[k, history_at + 1] = xy
+    hist[k, history_at + 2] = xz
     stored_after = 0.5 * kt * (xx * xx + xy * xy + xz * xz)
     work_on_contact = -(fx * vtx + fy * vty + fz * vtz) * dt
     return fx, fy, fz, work_on_contact - (stored_after - stored_before)
@@ -79,5 +80,5 @@ class HistorySpring(SubModel):
 
     slot = "tangential"
     name = "history"
-    history_size = 3
-    kernel = ("rollingdem.contact.tangential", "history_spring")
+    history = slots("spring_x", "spring_y", "spring_z")  # xi (m), carried with the contact frame
+    function = staticmethod(history_spring)

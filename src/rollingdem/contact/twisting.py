@@ -1,10 +1,10 @@
-"""Twisting resistance sub-models (docs/models.md §4.8; docs/models.md §4.8).
+"""Twisting resistance sub-models (docs/models.md §4.8).
 
-Kernel signature (slot "twisting")::
+Compiled function of the slot "twisting"::
 
-    twisting_moment(hist, k, off, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff,
+    twisting_moment(hist, k, history_at, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff,
                     tangential_stiffness, tangential_damping, force_elastic, force_total,
-                    dt, p, poff) -> (m_twist, dissipation)
+                    dt, p, params_at) -> (m_twist, dissipation)
 
 The twisting moment acts as -m_twist n on particle i and +m_twist n on particle j.
 """
@@ -16,12 +16,12 @@ import math
 from numba import njit
 
 from ..errors import ParameterError, check_finite, check_non_negative, check_positive
-from .base import P_FRICTION, SubModel
+from .base import P_FRICTION, SubModel, slots
 
 
 @njit(cache=True, inline="always")
-def no_twisting(hist, k, off, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
-                force_total, dt, p, poff):
+def no_twisting(hist, k, history_at, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
+                force_total, dt, p, params_at):
     """No twisting resistance."""
     return 0.0, 0.0
 
@@ -31,12 +31,16 @@ class NoTwisting(SubModel):
 
     slot = "twisting"
     name = "none"
-    kernel = ("rollingdem.contact.twisting", "no_twisting")
+    function = staticmethod(no_twisting)
+
+
+TWISTING_PARAMETERS = slots("marshall", "twisting_stiffness", "twisting_damping", "twisting_friction")
+TWISTING_HISTORY = slots("twist_angle")  # xi (rad)
 
 
 @njit(cache=True, inline="always")
-def spring_twisting(hist, k, off, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
-                    force_total, dt, p, poff):
+def spring_twisting(hist, k, history_at, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
+                    force_total, dt, p, params_at):
     """Twisting spring-dashpot-slider (LAMMPS ``twisting sds`` / ``marshall``, docs/models.md §4.8).
 
     Omega_tw = (omega_i - omega_j) . n;  xi += Omega_tw dt;  M = k_tw xi + gamma_tw Omega_tw;
@@ -44,23 +48,23 @@ def spring_twisting(hist, k, off, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt,
     Marshall (2009): k_tw = k_t a^2 / 2, gamma_tw = gamma_t a^2 / 2, mu_tw = 2/3 a mu, a = sqrt(R* delta).
     """
     spin = dwx * nx + dwy * ny + dwz * nz
-    if p[poff] > 0.0:  # marshall
+    if p[params_at + TWISTING_PARAMETERS.marshall] > 0.0:
         a2 = r_eff * overlap
         k_tw = 0.5 * kt * a2
         g_tw = 0.5 * gamma_t * a2
         limit = (2.0 / 3.0) * math.sqrt(a2) * p[P_FRICTION] * max(force_elastic, 0.0)
     else:
-        k_tw = p[poff + 1]
-        g_tw = p[poff + 2]
-        limit = p[poff + 3] * max(force_elastic, 0.0)
-    xi = hist[k, off]
+        k_tw = p[params_at + TWISTING_PARAMETERS.twisting_stiffness]
+        g_tw = p[params_at + TWISTING_PARAMETERS.twisting_damping]
+        limit = p[params_at + TWISTING_PARAMETERS.twisting_friction] * max(force_elastic, 0.0)
+    xi = hist[k, history_at + TWISTING_HISTORY.twist_angle]
     stored_before = 0.5 * k_tw * xi * xi
     xi += spin * dt
     moment = k_tw * xi + g_tw * spin
     if abs(moment) > limit:
         moment = limit if moment > 0.0 else -limit
         xi = (moment - g_tw * spin) / k_tw if k_tw > 0.0 else 0.0
-    hist[k, off] = xi
+    hist[k, history_at + TWISTING_HISTORY.twist_angle] = xi
     return moment, moment * spin * dt - (0.5 * k_tw * xi * xi - stored_before)
 
 
@@ -70,10 +74,11 @@ class Marshall(SubModel):
 
     slot = "twisting"
     name = "marshall"
-    history_size = 1
-    kernel = ("rollingdem.contact.twisting", "spring_twisting")
+    parameters = TWISTING_PARAMETERS
+    history = TWISTING_HISTORY
+    function = staticmethod(spring_twisting)
 
-    def pair_parameters(self, pair):
+    def pair_values(self, pair):
         return (1.0, 0.0, 0.0, 0.0)
 
     def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force, pair):
@@ -95,8 +100,9 @@ class TwistingSDS(SubModel):
 
     slot = "twisting"
     name = "sds"
-    history_size = 1
-    kernel = ("rollingdem.contact.twisting", "spring_twisting")
+    parameters = TWISTING_PARAMETERS
+    history = TWISTING_HISTORY
+    function = staticmethod(spring_twisting)
 
     def __init__(self, twisting_stiffness, twisting_damping=0.0, twisting_friction=None):
         self.twisting_stiffness = check_positive("twisting sds twisting_stiffness", twisting_stiffness, "N m/rad")
@@ -111,12 +117,12 @@ class TwistingSDS(SubModel):
                                  "no twisting resistance)")
         self.twisting_friction = friction
 
-    def pair_parameters(self, pair):
+    def pair_values(self, pair):
         return (0.0, self.twisting_stiffness, self.twisting_damping, self.twisting_friction)
 
     def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force, pair):
         return self.twisting_stiffness
 
-    def parameters(self):
+    def settings(self):
         return {"twisting_stiffness": self.twisting_stiffness, "twisting_damping": self.twisting_damping,
                 "twisting_friction": self.twisting_friction}

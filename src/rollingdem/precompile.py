@@ -4,7 +4,7 @@ A kernel that is not yet in Numba's on-disk cache costs about 25 s of compilatio
 Numba types a function's callees one after the other, each compiled in full before the next. The
 step loop a run takes (``advance`` on threads, ``advance_serial`` on the calling thread) is
 therefore prepared in two processes before its first call, when it is not cached yet
-(``prepare``, from ``ContactModel.kernel``). A helper process compiles the scalar contact law,
+(``prepare``, from ``kernels.engine_module``). A helper process compiles the scalar contact law,
 the gather's per-particle body (with the walls' contacts) and the neighbor search into Numba's
 cache, printing each name as it is done; meanwhile this process compiles the vectorised contact
 block, the drift, the pair pass (once the helper's contact law, which it calls, is in the
@@ -21,7 +21,6 @@ other process is preparing this kernel (a lock file, stale after 10 minutes) and
 
 from __future__ import annotations
 
-import json
 import os
 import selectors
 import subprocess
@@ -29,7 +28,9 @@ import sys
 import time
 from pathlib import Path
 
-from ..errors import env_switch
+import numpy as np
+
+from .errors import env_switch
 
 LOCK_STALE_S = 600.0
 HELPER_WAIT_S = 600.0  # the longest this process waits for the helper before compiling alone
@@ -65,40 +66,32 @@ def is_cached(module, function: str = "gather") -> bool:
     return Path(FunctionCache(getattr(module, function).py_func)._cache_file._index_path).exists()
 
 
-def signatures(module, contact, track_energy: bool = False) -> dict:
-    """Argument types of every function the plans name, as the engine calls them (taken from the
-    state of a one-sphere scene: types do not depend on the number of particles)."""
+def signatures(module) -> dict:
+    """Argument types of every function the plans name, as the engine calls them (taken from an
+    engine state of one sphere on a plate: types do not depend on sizes or values)."""
     import numba
 
-    from ..materials import Material
-    from ..simulation import Simulation
-    from ..walls import Plane
+    from .engine import EngineState
+    from .kernel_layout import WALL_GEOMETRY_SIZE, WALL_PLANE
 
-    sim = Simulation(contact=contact, dt=1e-6, track_energy=track_energy)
-    sim.add_material(Material("m", youngs_modulus=1e7, poisson_ratio=0.3, density=1000.0, friction=0.5,
-                              rolling_friction=0.1, restitution=0.5, rolling_damping=0.1))
-    sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
-    sim.add_particles([[0.0, 0.0, 0.01]], 0.01, "m")
-    st = sim._state
+    st = EngineState(module.HISTORY_SIZE)
+    st.set_walls([WALL_PLANE], [np.zeros(WALL_GEOMETRY_SIZE)], [np.zeros(3)], [np.zeros(3)], [0], [-1])
+    st.append_particles(np.array([[0.0, 0.0, 0.01]]), np.zeros((1, 3)), np.zeros((1, 3)), np.array([0.01]),
+                        np.array([1e-3]), np.array([4e-8]), np.zeros(1, dtype=np.int32))
+    st.energy_for(module)
     dt, kick, half_skin, skin = 1e-6, 1.0, 1e-3, 2e-3
-    pp = sim.pair_parameters()
-    blocks, lanes = st.contact_blocks()
-    pair = (dt, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.mat, pp, st.nl_start, st.nl_j, st.nl_i, st.pool,
-            st.contact_row, st.groups, st.energy, st.contacts)
-    gather = (dt, kick, sim._gravity, st.x, st.v, st.w, st.f, st.t, st.radius, st.mass, st.inertia, st.mat, pp,
-              st.tr_start, st.tr_k, st.nl_j, st.contact_row, st.pool, st.wall_kind, st.wall_geom, st.wall_vel,
-              st.wall_omega, st.wall_mat, st.whist, st.wtouch, st.energy, st.contacts, st.x_ref, half_skin)
-    drift = (dt, st.x, st.v, st.w, st.f, st.t, st.mass, st.inertia, st.x_ref, half_skin)
+    pp = np.zeros((1, 1, module.N_PARAMS))
+    particles, walls, lists, scratch = st.records()
+    gather = (dt, kick, np.zeros(3), pp, particles, walls, lists, half_skin)
     args = {
-        "contact": (st.pool, 0) + (0.0,) * 18 + (pp[0, 0], dt),
-        "block_contacts": (blocks[0], pp[0, 0], dt),
-        "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.nl_start, st.nl_j, st.nl_i, st.pool, st.contact_row,
-                                  st.groups, st.tr_start, st.tr_k, st.cell_start, st.cell_items, st.cell_of,
-                                  st.counts, st.x_ref),
-        "pair_forces": pair + (blocks, lanes), "pair_forces_serial": pair + (blocks, lanes),
-        "gather_rows": (0, 1) + gather, "gather": gather, "gather_serial": gather,
-        "kick_drift": drift, "kick_drift_serial": drift,
-        "undo_drift": drift[:-2],
+        "contact": (lists.pool, 0, (0.0,) * 18, pp[0, 0], dt),
+        "block_contacts": (scratch.blocks[0], pp[0, 0], dt),
+        "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.x_ref, lists),
+        "pair_forces": (dt, pp, particles, lists, scratch), "pair_forces_serial": (dt, pp, particles, lists, scratch),
+        "gather_rows": (0, 1, dt, kick, np.zeros(3), particles, walls, lists, pp, half_skin),
+        "gather": gather, "gather_serial": gather,
+        "kick_drift": (dt, particles, half_skin), "kick_drift_serial": (dt, particles, half_skin),
+        "undo_drift": (dt, particles),
     }
     return {name: tuple(numba.typeof(a) for a in values) for name, values in args.items()}
 
@@ -108,7 +101,7 @@ def compile_into_cache(module, name: str, sigs: dict) -> None:
         getattr(module, name).compile(sigs[name])
 
 
-def prepare(contact, module, track_energy: bool, serial: bool) -> bool:
+def prepare(module, serial: bool) -> bool:
     """Compile the passes of ``module``'s step loop for ``serial`` on two cores (see above), if it
     would help, and return True; otherwise return False, and the first call compiles them on
     this core."""
@@ -126,12 +119,12 @@ def prepare(contact, module, track_energy: bool, serial: bool) -> bool:
     except OSError:  # another process is preparing it, or the folder is read-only
         return False
     env = dict(os.environ, ROLLINGDEM_PRECOMPILE="0")
-    helper = subprocess.Popen([sys.executable, "-m", "rollingdem.contact.precompile", json.dumps(contact.to_dict()),
-                               str(lock), str(int(track_energy)), str(int(serial))], env=env, stdin=subprocess.DEVNULL,
+    helper = subprocess.Popen([sys.executable, "-m", "rollingdem.precompile", module.__file__, str(lock),
+                               str(int(serial))], env=env, stdin=subprocess.DEVNULL,
                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, bufsize=0)
     progress = _Progress(helper)
     try:
-        sigs = signatures(module, contact, track_energy)
+        sigs = signatures(module)
         for name in plans(serial)[1]:
             if name in NEEDS:
                 progress.wait(NEEDS[name])
@@ -174,21 +167,25 @@ class _Progress:
                 self.done.update(line.decode().strip() for line in lines)
 
 
-def _helper(contact_dict: dict, track_energy: bool, serial: bool) -> None:
-    """The helper's part of the plan, each name printed when it is in the cache."""
-    from .model import ContactModel
+def _helper(path: str, serial: bool) -> None:
+    """The helper's part of the plan for the generated engine module at ``path``, each name printed
+    when it is in the cache."""
+    import importlib.util
 
-    contact = ContactModel.from_dict(contact_dict)
-    module = contact.kernel(track_energy)
-    sigs = signatures(module, contact, track_energy)
-    for name in plans(serial)[0]:
-        compile_into_cache(module, name, sigs)
-        print(name, flush=True)
+    name = Path(path).stem
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    sigs = signatures(module)
+    for func in plans(serial)[0]:
+        compile_into_cache(module, func, sigs)
+        print(func, flush=True)
 
 
 if __name__ == "__main__":
     try:
-        _helper(json.loads(sys.argv[1]), sys.argv[3] == "1", sys.argv[4] == "1")
+        _helper(sys.argv[1], sys.argv[3] == "1")
     finally:
         try:
             os.unlink(sys.argv[2])

@@ -1,0 +1,98 @@
+"""The layout the compiled kernel and the Python engine share: the status record, wall kinds,
+energy channels, the pair pass's block buffer, and ``slots`` (named indices), in one place."""
+
+from __future__ import annotations
+
+import collections
+
+
+def slots(*names: str) -> tuple:
+    """Named indices 0, 1, ... (a namedtuple instance): ``IN = slots("nx", "ny")``, then
+    ``row[IN.ny]``; in a compiled function the index is a constant, folded when compiled."""
+    return collections.namedtuple("Slots", names)(*range(len(names)))
+
+
+# the kernel's status record ``info`` (int64): what a call did and why it stopped
+INFO = slots("steps_done", "status", "needed", "rebuilds", "need_rebuild", "forces_valid", "too_fast", "drifted")
+I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST, I_DRIFTED = INFO
+INFO_SIZE = len(INFO)
+STATUS_CAPACITY = 1  # the neighbor list outgrew its arrays: grow them to info[I_NEEDED] and call again
+STATUS_TOO_FAST = 2  # a particle would move more than skin/2 in one step
+
+# wall kinds (``walls.Wall.kind``) and the length of a wall's geometry row
+WALL_INACTIVE = -1
+WALL_PLANE = 0
+WALL_CYLINDER = 1
+WALL_GEOMETRY_SIZE = 9
+
+ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")  # columns of the dissipated energy
+
+# The contact's stored normal of the last step, ``hist[k, 0:3]``, before the sub-models' history.
+HISTORY_FRAME = 3
+
+# Scenes of fewer particles, and runs on one Numba thread, step on the calling thread
+# (``advance_serial``): a parallel region's fork/join (~1 us with OpenMP, 3 per step) costs more
+# than it saves there.
+SERIAL_BELOW = 512
+
+# The pair pass's block buffer (``engine_kernel.pair_rows``): CONTACT_BLOCK lanes, one contact
+# each; its columns are the contact's history, its inputs, its results, and the results of a
+# contact computed by the scalar ``contact`` instead.
+CONTACT_BLOCK = 64
+BLOCK_SHIFT = 6  # log2(CONTACT_BLOCK)
+CONTACT_INPUTS = slots("nx", "ny", "nz", "overlap", "rvx", "rvy", "rvz", "wix", "wiy", "wiz", "wjx", "wjy", "wjz",
+                       "lever_i", "lever_j", "r_eff", "m_eff", "inertia_r")
+CONTACT_RESULTS = slots("fx", "fy", "fz", "tix", "tiy", "tiz", "tjx", "tjy", "tjz", "e_normal", "e_sliding", "e_rolling",
+                        "e_twisting")
+N_INPUTS = len(CONTACT_INPUTS)
+N_RESULTS = len(CONTACT_RESULTS)
+# rows of a thread's ``lanes`` (int64, CONTACT_BLOCK wide): 0-2 the block's pool rows, list rows and
+# series flags; from LANE_HITS on, the candidate entries of a tile of the list
+LANE_HITS = 3
+TILE_ROWS = 16  # a tile of 1024 entries
+
+
+def block_columns(history_size: int) -> int:
+    """Columns of the block buffer for a contact law with this history size."""
+    return history_size + N_INPUTS + 2 * N_RESULTS
+
+
+# The kernel's arrays, in four records built by ``engine.EngineState.records`` (Numba types a
+# namedtuple of arrays as one argument). A parallel function takes its arrays out of a record
+# before its ``prange`` loop and hands arrays to what it inlines there: with Numba 0.68.1, writes
+# made through a record's array inside a prange body are lost (docs/architecture.md). A function
+# called, not inlined, from a prange body may take records.
+ParticleArrays = collections.namedtuple("ParticleArrays", (
+    "x",          # (n, 3) position (m)
+    "v",          # (n, 3) velocity (m/s)
+    "w",          # (n, 3) angular velocity (rad/s)
+    "f",          # (n, 3) force (N)
+    "t",          # (n, 3) torque (N m)
+    "radius",     # (n,) (m)
+    "mass",       # (n,) (kg)
+    "inertia",    # (n,) moment of inertia (kg m^2)
+    "mat",        # (n,) int32 material index
+    "ids",        # (n,) int64 the index the user knows (storage slots are re-sorted)
+    "x_ref",      # (n, 3) position at the last neighbor-list build
+    "energy",     # (n, 4) dissipated energy per ENERGY_CHANNELS, or (0, 4) when not summed
+    "contacts",   # (n,) int32 contacts of the last step
+))
+WallArrays = collections.namedtuple("WallArrays", (
+    "kind",              # (walls,) int32 WALL_PLANE, WALL_CYLINDER
+    "geometry",          # (walls, WALL_GEOMETRY_SIZE) see rollingdem.walls
+    "velocity",          # (walls, 3) (m/s)
+    "angular_velocity",  # (walls, 3) (rad/s)
+    "material",          # (walls,) int32
+    "history",           # (n * walls, history size) contact history of particle i and wall w at i * walls + w
+    "touching",          # (n * walls,) uint8 whether that contact existed at the last step
+))
+ListArrays = collections.namedtuple("ListArrays", (  # rollingdem.neighbors
+    "start", "j", "i",          # CSR half list: row starts (n + 1), partner and row of each entry
+    "pool", "contact_row", "groups",  # contact pool: rows (history, F_ij, T_j), each entry's row, group heads
+    "tr_start", "tr_k",         # transposed index: entries where each particle is the second partner
+    "cell_start", "cell_items", "cell_of", "counts",  # cell-list scratch of a rebuild
+))
+Scratch = collections.namedtuple("Scratch", (
+    "blocks",  # (threads, BLOCK columns x CONTACT_BLOCK) float64 block buffers of the pair pass
+    "lanes",   # (threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK) int64 their lane indices
+))

@@ -1,0 +1,139 @@
+"""The compiled engine of a contact law: the template ``engine_kernel.py`` with the law's compiled
+functions and row layout filled in, written to the kernel cache and imported.
+
+For each combination of sub-models (and of the rolling model's compile-time ``kernel_modes`` and
+the energy switch) a copy of the template is written with the lines tagged ``# @@`` replaced,
+under a file name that carries a hash of every source it depends on (an edited sub-model never
+runs with a stale kernel), and imported; Numba's on-disk cache then works as for any module
+(closures over jitted functions would defeat it). The step loop is written once, for the
+parallel passes; each function tagged ``@@SERIAL_COPY`` is written a second time with the
+``*_serial`` passes (``advance_serial``): Numba compiles every function a loop can call, so one
+loop with a ``serial`` flag would compile both sets of passes (docs/performance.md).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import inspect
+import os
+import re
+import sys
+import tempfile
+from pathlib import Path
+
+SERIAL_PASSES = ("advance", "pair_forces", "gather", "kick_drift")  # name -> name_serial
+_SERIAL_NAME = re.compile(r"\b(" + "|".join(SERIAL_PASSES) + r")\(")
+_ALIASES = {"NORMAL": "normal_force", "TANGENTIAL": "tangential_force", "ROLLING": "rolling_moment",
+            "TWISTING": "twisting_moment"}
+
+_LOADED: dict[str, object] = {}
+_BY_CLASSES: dict[tuple, object] = {}
+
+
+def kernel_cache_dir() -> Path:
+    """Where generated kernels live: $ROLLINGDEM_CACHE_DIR, else ~/.cache/rollingdem/kernels."""
+    env = os.environ.get("ROLLINGDEM_CACHE_DIR")
+    base = Path(env) if env else Path.home() / ".cache" / "rollingdem" / "kernels"
+    try:
+        base.mkdir(parents=True, exist_ok=True)
+        probe = base / ".write-test"
+        probe.write_text("")
+        probe.unlink()
+        return base
+    except OSError:
+        fallback = Path(tempfile.gettempdir()) / "rollingdem-kernels"
+        fallback.mkdir(parents=True, exist_ok=True)
+        return fallback
+
+
+def engine_source(contact, track_energy: bool = False) -> str:
+    """The template with ``contact``'s functions, layout and switches filled in."""
+    from . import engine_kernel
+
+    template = Path(engine_kernel.__file__).read_text()
+    layout = contact.layout()
+    out = []
+    for line in template.splitlines():
+        tag = line.rsplit("# @@", 1)[1].strip() if "# @@" in line else ""
+        if tag and tag.isupper() and tag != "SERIAL_COPY":
+            if tag in _ALIASES:
+                module, func = getattr(contact, tag.lower()).compiled_function()
+                line = f"from {module} import {func} as {_ALIASES[tag]}"
+            elif tag == "TRACK_ENERGY":
+                line = f"TRACK_ENERGY = {int(bool(track_energy))}"
+            elif tag == "ROLLING_MODES":
+                line = f"ROLLING_MODES = {tuple(int(m) for m in contact.rolling.kernel_modes())!r}"
+            else:
+                line = f"{tag} = {layout[tag]}"
+        out.append(line)
+    return "\n".join(out + _serial_copies(out)) + "\n"
+
+
+def engine_module(contact, track_energy: bool = False, serial: bool | None = None):
+    """The compiled engine module for ``contact`` (generated and imported once per process); with
+    ``track_energy`` the one that also sums the dissipated energies. With ``serial`` (the step loop
+    the run takes: ``advance_serial`` if True, ``advance`` if False) a step loop not yet in the
+    cache is compiled on two cores now (``rollingdem.precompile``)."""
+    # the generated code depends on the sub-model classes and the rolling model's compile-time
+    # switches only, never on parameter values
+    key = (tuple((type(sub), sub.compiled_function()) for sub in contact.submodels) + (bool(track_energy),)
+           + tuple(contact.rolling.kernel_modes()))
+    module = _BY_CLASSES.get(key)
+    if module is None:
+        _BY_CLASSES[key] = module = _load(contact, bool(track_energy))
+    if serial is not None:
+        from .precompile import prepare
+
+        prepare(module, bool(serial))
+    return module
+
+
+def _dependency_hash(contact, source: str) -> str:
+    import numba
+
+    from . import kernel_layout, neighbors
+    from .contact import frame
+
+    h = hashlib.sha256(source.encode())
+    names = {sub.compiled_function()[0] for sub in contact.submodels}
+    modules = {sys.modules[name] if name in sys.modules else importlib.import_module(name) for name in names}
+    for mod in sorted(modules | {neighbors, frame, kernel_layout}, key=lambda m: m.__name__):
+        h.update(inspect.getsource(mod).encode())
+    h.update(numba.__version__.encode())
+    return h.hexdigest()[:16]
+
+
+def _load(contact, track_energy: bool):
+    source = engine_source(contact, track_energy)
+    digest = _dependency_hash(contact, source)
+    names = "_".join(sub.compiled_function()[1] for sub in contact.submodels)  # laws sharing a function share the file
+    modname = f"rollingdem_kernel_{names}_{digest}"
+    if modname in _LOADED:
+        return _LOADED[modname]
+    path = kernel_cache_dir() / f"{modname}.py"
+    if not path.exists() or path.read_text() != source:
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)  # atomic: concurrent processes never import half a file
+    spec = importlib.util.spec_from_file_location(modname, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[modname] = module
+    spec.loader.exec_module(module)
+    _LOADED[modname] = module
+    return module
+
+
+def _serial_copies(lines: list[str]) -> list[str]:
+    """The functions tagged ``@@SERIAL_COPY`` again, calling the ``*_serial`` passes."""
+    copies, inside = [], False
+    for line in lines:
+        if line.rstrip().endswith("# @@SERIAL_COPY"):
+            inside = True
+            copies += ["", ""]
+        elif inside and line and not line[0].isspace() and not line.startswith(("def ", ")")):
+            inside = False
+        if inside:
+            copies.append(_SERIAL_NAME.sub(r"\1_serial(", line.replace("  # @@SERIAL_COPY", "")))
+    return copies

@@ -137,7 +137,7 @@ MUTATIONS = [
       "return (pairs + walls) / n, 2 * cl.size / n", ("tests/test_bench.py",)),
     M("bench rate over half the wall time", "src/rollingdem/bench.py", "particle_steps_per_s=n * steps / wall,",
       "particle_steps_per_s=n * steps / (0.5 * wall),", ("tests/test_bench.py",)),
-    M("cylinder wall overlap off by 20 nm", "src/rollingdem/engine_kernel.py", "overlap = r + ri - wall_geom[wl, 6]",
+    M("cylinder wall overlap off by 20 nm", "src/rollingdem/walls.py", "overlap = r + ri - wall_geom[wl, 6]",
       "overlap = r + ri - wall_geom[wl, 6] + 2e-8", ("tests/test_engine.py::test_cylinder_wall_holds_particles",)),
 ]
 

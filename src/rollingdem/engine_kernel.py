@@ -1,27 +1,23 @@
 """The compiled step loop: neighbor list -> contact forces and torques -> velocity Verlet.
 
-A template: ``rollingdem.kernels`` writes a copy of it for each contact law, with the lines
-tagged ``# @@`` filled in (the sub-models' compiled functions, where their parameters and history
-sit in the rows), and imports it; as it stands it is a valid module (Hertz, history spring, no
-rolling, no twisting). The arrays come in four records (``rollingdem.kernel_layout``):
-``particles``, ``walls``, ``lists`` (neighbor list and contact pool) and ``scratch``. Nothing
-here allocates or calls Python. The step, the passes and why they are shaped as they are:
-docs/architecture.md (the kernel) and docs/performance.md (what each choice is worth).
+A template: ``rollingdem.kernels`` writes a copy of it per contact law, the lines tagged ``# @@``
+filled in; as it stands it is a valid module (Hertz, history, no rolling, no twisting). It takes
+four records of arrays (``kernel_layout``), allocates nothing and calls no Python. The step and the
+contract: docs/architecture.md; what each choice is worth: docs/performance.md.
 """
 
 import math
-import warnings
 
 import numpy as np
 from numba import njit, prange, uint32, uint64
 from numba.np.arrayobj import reshape_unchecked
-from numba.core.errors import NumbaPerformanceWarning
 
 from rollingdem.kernel_layout import (BLOCK_SHIFT, CONTACT_BLOCK, CONTACT_INPUTS as IN, I_DRIFTED, I_FORCES_VALID,
                                       I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
-                                      LANE_HITS, N_INPUTS, N_RESULTS, STATUS_CAPACITY, STATUS_TOO_FAST, WALL_CYLINDER,
-                                      WALL_PLANE)
+                                      LANE_HITS, N_INPUTS, N_RESULTS, STATUS_CAPACITY, STATUS_TOO_FAST)
+from rollingdem.integrator import kick_drift, kick_drift_one, kick_drift_serial, move_walls, next_drift_bound, undo_drift
 from rollingdem.neighbors import POOL_GROUP, free_row, list_rows, rebuild_neighbor_list, take_row
+from rollingdem.walls import wall_contact_geometry
 from rollingdem.contact.frame import SERIES_ANGLE, contact_frame, contact_frame_series
 from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
 from rollingdem.contact.tangential import history_spring as tangential_force  # @@TANGENTIAL
@@ -40,25 +36,19 @@ ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
 N_PARAMS = 8  # @@N_PARAMS
 
-# Indices in the hot loops are cast to unsigned integers (``uint64(k)``, ``uint32(nl_j[k])``): Numba
-# gives every signed index Python's wraparound for negative values, a compare and a select per
-# index, which cost 40 % of the candidate loop (7.3 -> 4.2 ns per entry).
+# Indices in the hot loops are unsigned (``uint64(k)``): Numba gives a signed index Python's
+# wraparound for negative values, a compare and a select per index (40 % of the candidate loop).
 
 # columns of a contact's pool row (``rollingdem.neighbors``) after its history: F on i, T on j
 P_FORCE = HISTORY_SIZE
 P_TORQUE_J = HISTORY_SIZE + 3
-# columns of the block buffer (``kernel_layout``): history, inputs, results, the scalar contact's results
-B_IN = HISTORY_SIZE
+B_IN = HISTORY_SIZE  # block buffer columns: history, inputs, results, the scalar contact's results
 B_OUT = B_IN + N_INPUTS
 B_SCALAR = B_OUT + N_RESULTS
 BLOCK_COLUMNS = B_SCALAR + N_RESULTS
 CANDIDATE_SLACK = 1.0 + 1e-12
 GATHER_RUN = 256  # particles per call of gather_rows: the call is negligible, the threads stay balanced
 INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
-# The ``*_serial`` loops are compiled with parallel=True but use range, not prange: no threads
-# start, and Numba's parallel pipeline makes them 2-4x faster than a plain njit of the same code.
-warnings.filterwarnings("ignore", message="(?s).*parallel=True.*no transformation for parallel execution",
-                        category=NumbaPerformanceWarning)
 
 
 @njit(cache=True, inline="always")
@@ -155,14 +145,9 @@ def lane_columns(block):
 def block_contacts(block, p, dt):
     """All ``CONTACT_BLOCK`` lanes of a block buffer through the contact law, one contact per lane:
     ``contact`` for a spin angle below ``SERIES_ANGLE``, with selects instead of branches and the
-    frame's cos and sin from their series (no libm call), so that the loop vectorises.
-
-    Every access is to ``block`` at offsets known when compiling (``col[n, column]``, constant
-    strides), so LLVM proves the lanes independent without run-time checks and vectorises the
-    loop. Lanes past the block's count hold stale inputs: they are computed (NaN results
-    included) and ignored, and ``pair_rows`` writes a lane's inputs and history anew before it is
-    used again; so every contact goes through the same vector code whatever block it falls in,
-    and results do not depend on the number of threads."""
+    frame's cos and sin from their series, at offsets known when compiling, so that the loop
+    vectorises. Lanes past the block's count hold stale inputs: computed and ignored (every
+    contact goes through the same vector code, whatever block it falls in)."""
     col = lane_columns(block)
     for n in range(CONTACT_BLOCK):
         g = (col[n, B_IN + IN.nx], col[n, B_IN + IN.ny], col[n, B_IN + IN.nz], col[n, B_IN + IN.overlap],
@@ -249,11 +234,9 @@ def entry_inputs(i, k, particles, lists):
 @njit(cache=True, inline="always")
 def candidate_entries(k0, k1, x, radius, nl_j, nl_i, contact_row, lanes):
     """Entries k0..k1-1 whose spheres may touch now or touched at the last step, in ascending k, into
-    the rows ``LANE_HITS..`` of ``lanes``; returns their count. One flat loop without branches
-    over the entries of many rows (``nl_i`` gives each entry's row): a loop per row mispredicts
-    its exit once per row, which cost more than the distance tests themselves (rows hold ~4
-    entries). The test is looser than ``entry_inputs``' by a relative 1e-12, so that an entry
-    on the edge (which the two may round differently) is still given to ``entry_inputs`` to decide."""
+    the rows ``LANE_HITS..`` of ``lanes``; returns their count. One flat loop without branches over
+    the entries of many rows (a loop per row mispredicts its exit once per row). The test is looser
+    than ``entry_inputs``' by a relative 1e-12: an entry on the edge is left to it to decide."""
     nhit = uint64(0)
     for kk in range(k0, k1):
         k = uint64(kk)
@@ -312,20 +295,12 @@ def pair_row(i, dt, particles, lists, pair_params):
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def pair_rows(lo, hi, dt, particles, lists, pair_params, block, lanes):
-    """Rows lo..hi-1 of the half list: F and T on i summed over the row, F and T_j kept per pair.
-
-    The distance tests run a tile of the list at a time (``candidate_entries``); the contacts found
-    are queued into ``block`` (their inputs and a copy of their history rows) and computed
-    ``CONTACT_BLOCK`` at a time by ``block_contacts``. A block's lanes share one parameter vector,
-    so this is for spheres of one material (walls may have others). With an empty ``block`` (the
-    engine gives one when the spheres' materials differ) the rows go through ``pair_row``
-    instead: a block per run of contacts of one material pair would cost a whole block's
-    computation per run, 15 scalar contacts for a block of one. A contact whose spin angle in the
-    step is ``SERIES_ANGLE`` or more (|omega| dt >= 1e-3: rare) is computed at once by the scalar
-    ``contact``, which has libm's cos and sin, and keeps its lane. ``contact_row[k]`` is entry k's
-    pool row while it is in contact, -1 otherwise (the gather skips those), so a neighbor out of
-    reach costs a distance test and an int, not a history row and two force rows. ``lo`` and
-    ``hi`` are whole groups of the pool (``POOL_GROUP`` rows), or ``hi`` = n."""
+    """Rows lo..hi-1 of the half list (whole groups of the pool): F and T on i summed over the row,
+    F and T_j kept per contact. The contacts a tile's distance tests find are queued into
+    ``block`` and computed ``CONTACT_BLOCK`` at a time (``block_contacts``); a block's lanes share
+    one parameter row, so with spheres of several materials (an empty ``block``) the rows go
+    through ``pair_row``. A contact that spins ``SERIES_ANGLE`` or more in the step is computed by
+    the scalar ``contact`` (libm's cos and sin) and keeps its lane."""
     if block.shape[0] == 0:
         for i in range(lo, hi):
             pair_row(i, dt, particles, lists, pair_params)
@@ -388,44 +363,9 @@ def pair_forces(dt, pair_params, particles, lists, scratch):
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def pair_forces_serial(dt, pair_params, particles, lists, scratch):
-    """``pair_forces`` on the calling thread (see ``kernel_layout.SERIAL_BELOW``)."""
+    """``pair_forces`` on the calling thread (parallel=True, range: see ``integrator``)."""
     for b in range(1):  # lo = b, not 0: a literal 0 would compile pair_rows a second time
         pair_rows(b, particles.x.shape[0], dt, particles, lists, pair_params, scratch.blocks[b], scratch.lanes[b])
-
-
-@njit(cache=True, inline="always")
-def wall_overlap(i, wl, x, ri, wall_kind, wall_geom):
-    """(overlap, n) of sphere i (radius ri) and wall wl; overlap -1 where the wall cannot touch it
-    (past a cylinder's ends, or on its axis). Geometry rows: ``rollingdem.walls``."""
-    kind = wall_kind[wl]
-    overlap = -1.0
-    nx = ny = nz = 0.0
-    if kind == WALL_PLANE:
-        dist = ((x[i, 0] - wall_geom[wl, 0]) * wall_geom[wl, 3] + (x[i, 1] - wall_geom[wl, 1]) * wall_geom[wl, 4]
-                + (x[i, 2] - wall_geom[wl, 2]) * wall_geom[wl, 5])
-        overlap = ri - dist
-        nx = wall_geom[wl, 3]
-        ny = wall_geom[wl, 4]
-        nz = wall_geom[wl, 5]
-    elif kind == WALL_CYLINDER:
-        ux = wall_geom[wl, 3]
-        uy = wall_geom[wl, 4]
-        uz = wall_geom[wl, 5]
-        ddx = x[i, 0] - wall_geom[wl, 0]
-        ddy = x[i, 1] - wall_geom[wl, 1]
-        ddz = x[i, 2] - wall_geom[wl, 2]
-        s = ddx * ux + ddy * uy + ddz * uz
-        if s >= wall_geom[wl, 7] and s <= wall_geom[wl, 8]:
-            qx = ddx - s * ux
-            qy = ddy - s * uy
-            qz = ddz - s * uz
-            r = math.sqrt(qx * qx + qy * qy + qz * qz)
-            if r > 0.0:
-                overlap = r + ri - wall_geom[wl, 6]
-                nx = -qx / r
-                ny = -qy / r
-                nz = -qz / r
-    return overlap, nx, ny, nz
 
 
 @njit(cache=True, inline="always")
@@ -449,13 +389,13 @@ def wall_contacts(i, dt, particles, walls, pair_params):
     # sphere on the collapse, where 1.7 % touch the plate)
     need = False
     for wl in range(nwall):
-        overlap = wall_overlap(i, wl, x, ri, wall_kind, wall_geom)[0]
+        overlap = wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom)[0]
         need |= (overlap > 0.0) | (wtouch[i * uint64(nwall) + uint64(wl)] != 0)
     if not need:
         return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
     for wl in range(nwall):
         k = i * uint64(nwall) + uint64(wl)
-        overlap, nx, ny, nz = wall_overlap(i, wl, x, ri, wall_kind, wall_geom)
+        overlap, nx, ny, nz = wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom)
         if overlap <= 0.0:
             if wtouch[k]:  # the contact just ended: its springs go (a byte, not the history row)
                 wtouch[k] = 0
@@ -494,11 +434,9 @@ def wall_contacts(i, dt, particles, walls, pair_params):
 
 @njit(cache=True, inline="always")
 def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
-    """Particle i, its pair terms gathered (``gather_rows``): walls, gravity; then the closing half
-    kick if ``kick`` is 1.0 or more and, if it is 2.0, the next step's opening half kick and drift
-    (a float, so one compiled version serves all). Returns (1 if i drifted to skin/2 or more from
-    where the list was built, 1 if its next drift would move it skin/2 or more: the skin is too
-    small for its speed)."""
+    """Particle i, its pair terms gathered: walls, gravity; the closing half kick if ``kick`` >= 1.0,
+    and if it is 2.0 the next step's opening kick and drift. Returns (1 if i drifted skin/2 or
+    more from where the list was built, 1 if its next drift would: the skin is too small)."""
     x, v, w, f, t, mass, inertia = particles.x, particles.v, particles.w, particles.f, particles.t, particles.mass, \
         particles.inertia
     fx = f[i, 0]
@@ -546,20 +484,12 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     return exceed, fast
 
 
-@njit(cache=True, inline="always")
-def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
-    """dt (|v| + dt/2 |F|/m) >= dt |v + dt/2 F/m|, the length of the next drift."""
-    return dt * (math.sqrt(vx * vx + vy * vy + vz * vz) + 0.5 * dt * math.sqrt(fx * fx + fy * fy + fz * fz) / m)
-
-
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params, half_skin):
     """Particles lo..hi-1: the pair terms where each is the second partner, subtracted from (F) and
-    added to (T) its row sums in ascending entry order, then ``gather_one``; returns the counts of
-    its two flags. One function for both drivers, as ``pair_rows``: compiled once (the walls'
-    contact law with it). The pair terms are one flat loop over the transposed entries of all
-    lo..hi-1 (the partner of entry k is ``lists.j[k]``), not a loop per particle, whose exit would
-    be mispredicted once per particle, as in the pair pass (``candidate_entries``)."""
+    added to (T) its row sums in ascending entry order (one flat loop over their transposed
+    entries), then ``gather_one``; returns the counts of its two flags. One function for both
+    drivers: compiled once."""
     f, t, pool, contact_row, nl_j, tr_k = particles.f, particles.t, lists.pool, lists.contact_row, lists.j, lists.tr_k
     for m in range(lists.tr_start[lo], lists.tr_start[hi]):
         k = uint32(tr_k[uint64(m)])
@@ -607,76 +537,6 @@ def gather_serial(dt, kick, gravity, pair_params, particles, walls, lists, half_
     return nexceed, nfast
 
 
-@njit(cache=True, inline="always")
-def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
-    """Opening half kick and drift of particle i; 1 if it is now skin/2 or more from where the list
-    was built (NaN: 1). Arrays, not the record: it is inlined into a prange body."""
-    a = 0.5 * dt / mass[i]
-    b = 0.5 * dt / inertia[i]
-    for d in range(3):
-        v[i, d] += a * f[i, d]
-        w[i, d] += b * t[i, d]
-        x[i, d] += dt * v[i, d]
-    ex = x[i, 0] - x_ref[i, 0]
-    ey = x[i, 1] - x_ref[i, 1]
-    ez = x[i, 2] - x_ref[i, 2]
-    return 0 if ex * ex + ey * ey + ez * ez < half_skin * half_skin else 1
-
-
-@njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def kick_drift(dt, particles, half_skin):
-    """Opening half kick and drift of velocity Verlet; the count of particles now skin/2 or more
-    from where the list was built."""
-    x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
-    mass, inertia, x_ref = particles.mass, particles.inertia, particles.x_ref
-    nexceed = 0
-    for i in prange(x.shape[0]):
-        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
-    return nexceed
-
-
-@njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def kick_drift_serial(dt, particles, half_skin):
-    x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
-    mass, inertia, x_ref = particles.mass, particles.inertia, particles.x_ref
-    nexceed = 0
-    for i in range(x.shape[0]):
-        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
-    return nexceed
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def undo_drift(dt, particles):
-    """Take back the opening half kick and drift that ``gather_one`` made, to round-off, in the
-    particles it made them in: all whose state is finite (the test of ``next_drift_bound``, on the
-    velocity before the kick). Only when a chunk stops because a particle is too fast, so that the
-    state it leaves is at one time."""
-    x, v, w, f, t, mass, inertia = particles.x, particles.v, particles.w, particles.f, particles.t, particles.mass, \
-        particles.inertia
-    for i in range(x.shape[0]):
-        a = 0.5 * dt / mass[i]
-        vx = v[i, 0] - a * f[i, 0]
-        vy = v[i, 1] - a * f[i, 1]
-        vz = v[i, 2] - a * f[i, 2]
-        step_move = next_drift_bound(dt, vx, vy, vz, f[i, 0], f[i, 1], f[i, 2], mass[i])
-        if step_move - step_move != 0.0:  # inf or NaN: not drifted
-            continue
-        b = 0.5 * dt / inertia[i]
-        for d in range(3):
-            x[i, d] -= dt * v[i, d]
-            w[i, d] -= b * t[i, d]
-        v[i, 0] = vx
-        v[i, 1] = vy
-        v[i, 2] = vz
-
-
-@njit(cache=True, inline="always")
-def move_walls(dt, walls):
-    for wl in range(walls.geometry.shape[0]):
-        for d in range(3):
-            walls.geometry[wl, d] += dt * walls.velocity[wl, d]
-
-
 @njit(cache=True)
 def _rebuild(particles, lists, skin, info):
     total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.x_ref, lists)
@@ -691,13 +551,9 @@ def _rebuild(particles, lists, skin, info):
 
 @njit(cache=True)  # @@SERIAL_COPY
 def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info):
-    """Advance ``nsteps`` steps: ``advance`` on Numba's threads, ``advance_serial`` (the same loop
-    with the ``*_serial`` passes, written by the kernel generator) on the calling thread. Stops
-    early, at a step boundary, with info[I_STATUS] = STATUS_CAPACITY and info[I_NEEDED] = the
-    capacity needed when the neighbor list outgrows its arrays, or STATUS_TOO_FAST when a particle
-    would move more than skin/2 in one step. The closing half kick of a step and the opening kick
-    and drift of the next are one pass (``gather`` with kick 2.0); the last step of a call stops
-    after its closing kick, so that between calls positions and velocities are at one time."""
+    """Advance ``nsteps`` steps (``advance_serial``: the same loop with the ``*_serial`` passes, on the
+    calling thread); stop early at a step boundary with info[I_STATUS] = STATUS_CAPACITY (grow the
+    list to info[I_NEEDED]) or STATUS_TOO_FAST (docs/architecture.md, the step)."""
     half_skin = 0.5 * skin
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0

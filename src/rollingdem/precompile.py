@@ -118,7 +118,8 @@ def prepare(module, serial: bool) -> bool:
         os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
     except OSError:  # another process is preparing it, or the folder is read-only
         return False
-    env = dict(os.environ, ROLLINGDEM_PRECOMPILE="0")
+    # the helper imports what this process imports (a sub-model defined in the user's own module)
+    env = dict(os.environ, ROLLINGDEM_PRECOMPILE="0", PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
     helper = subprocess.Popen([sys.executable, "-m", "rollingdem.precompile", module.__file__, str(lock),
                                str(int(serial))], env=env, stdin=subprocess.DEVNULL,
                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, bufsize=0)

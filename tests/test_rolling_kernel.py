@@ -8,6 +8,7 @@ import pytest
 import rollingdem as rd
 from rollingdem.contact.frame import contact_frame
 from rollingdem.contact.rolling import spring_rolling
+from rollingdem.kernel_layout import contact_inputs
 from rollingdem.kernels import engine_module
 
 R_EFF = 0.0025
@@ -29,9 +30,9 @@ def params(model, mu_r=MU_R, eta=0.3):
 def step(model_params, hist, n, n_old, wi, wj, dt=1e-5, spin=0.0, f_total=None):
     p, off, modes = model_params
     frame = contact_frame(n_old[0], n_old[1], n_old[2], n[0], n[1], n[2], spin)
-    res = spring_rolling(hist, 0, 0, n[0], n[1], n[2], frame, wi[0], wi[1], wi[2],
-                         wj[0], wj[1], wj[2], R_EFF, R_EFF, KN, KT, F_EL, F_EL if f_total is None else f_total,
-                         R_EFF, I_R, dt, p, off, modes)
+    g = contact_inputs(normal=n, omega_i=wi, omega_j=wj, lever_i=R_EFF, lever_j=R_EFF, r_eff=R_EFF, inertia_r=I_R)
+    normal = (F_EL, F_EL if f_total is None else f_total, KN, KT, 0.0)
+    res = spring_rolling(hist, 0, 0, g, frame, normal, dt, p, off, modes)
     return np.array(res[:3]), np.array(res[3:6]), res[6]
 
 
@@ -112,8 +113,9 @@ def corotate(model, preload=True):
     n = np.array([0.0, 0.0, 1.0])
     if preload:
         for _ in range(20):
-            kern(hist, 0, 0, *n, contact_frame(*n, *n, 0.0), 2.0, 0, 0, 0, 0, 0, R_EFF, R_EFF, KN, KT,
-                 F_EL, F_EL, R_EFF, I_R, dt, p, off, modes)
+            kern(hist, 0, 0, contact_inputs(n, omega_i=(2.0, 0, 0), lever_i=R_EFF, lever_j=R_EFF, r_eff=R_EFF,
+                                            inertia_r=I_R),
+                 contact_frame(*n, *n, 0.0), (F_EL, F_EL, KN, KT, 0.0), dt, p, off, modes)
     m0 = hist[0].copy()
     omega = np.array([3.0, -2.0, 5.0])
     step_rotation = rotation(omega, np.linalg.norm(omega) * dt)
@@ -123,8 +125,9 @@ def corotate(model, preload=True):
         n_new = step_rotation @ n
         total = step_rotation @ total
         spin = 0.5 * (omega + omega) @ n_new * dt  # the engine's spin angle, 1/2 (w_i + w_j) . n dt
-        res = kern(hist, 0, 0, *n_new, contact_frame(*n, *n_new, spin), *omega, *omega, R_EFF, R_EFF, KN, KT,
-                   F_EL, F_EL, R_EFF, I_R, dt, p, off, modes)
+        res = kern(hist, 0, 0, contact_inputs(n_new, omega_i=omega, omega_j=omega, lever_i=R_EFF, lever_j=R_EFF,
+                                              r_eff=R_EFF, inertia_r=I_R),
+                   contact_frame(*n, *n_new, spin), (F_EL, F_EL, KN, KT, 0.0), dt, p, off, modes)
         n = n_new
         out.append((np.array(res[:3]), np.array(res[3:6]), n.copy(), total.copy()))
     return m0, out
@@ -199,17 +202,18 @@ def test_force_proportional_is_not_objective():
     table = rd.MaterialTable()
     table.add(rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2))
     p, off, modes = cm.pair_table(table)[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
-    res = engine_module(cm).rolling_moment(np.zeros((1, 3)), 0, 0, 0, 0, 1.0, contact_frame(0, 0, 1.0, 0, 0, 1.0, 0.0),
-                                     3.0, 0, 0, 3.0, 0, 0,
-                                     R_EFF, R_EFF, KN, KT, F_EL, F_EL, R_EFF, I_R, 1e-5, p, off, modes)
+    g = contact_inputs((0, 0, 1.0), omega_i=(3.0, 0, 0), omega_j=(3.0, 0, 0), lever_i=R_EFF, lever_j=R_EFF,
+                       r_eff=R_EFF, inertia_r=I_R)
+    res = engine_module(cm).rolling_moment(np.zeros((1, 3)), 0, 0, g, contact_frame(0, 0, 1.0, 0, 0, 1.0, 0.0),
+                                           (F_EL, F_EL, KN, KT, 0.0), 1e-5, p, off, modes)
     assert res[0] == pytest.approx(MU_R * F_EL * R_EFF) and res[3] == pytest.approx(-MU_R * F_EL * R_EFF)
 
 
 def cdt_moment(model, n, wi, wj, lever_i=R_EFF, lever_j=R_EFF, r_eff=R_EFF):
     p, off, modes = params(model)
     kern = engine_module(rd.ContactModel("hertz", rolling=model)).rolling_moment
-    res = kern(np.zeros((1, 3)), 0, 0, *n, contact_frame(*n, *n, 0.0), *wi, *wj, lever_i, lever_j, KN, KT, F_EL, F_EL, r_eff, I_R,
-               1e-5, p, off, modes)
+    g = contact_inputs(n, omega_i=wi, omega_j=wj, lever_i=lever_i, lever_j=lever_j, r_eff=r_eff, inertia_r=I_R)
+    res = kern(np.zeros((1, 3)), 0, 0, g, contact_frame(*n, *n, 0.0), (F_EL, F_EL, KN, KT, 0.0), 1e-5, p, off, modes)
     return np.array(res[:3])
 
 

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
+from rollingdem.kernel_layout import contact_inputs
 from rollingdem.contact.frame import contact_frame
 from rollingdem.contact.normal import hertz_normal, hooke_normal, linear_normal
 from rollingdem.contact.tangential import history_spring
@@ -145,7 +146,8 @@ KT_T, GAMMA_T = 5e3, 0.02
 def tangential(hist, v, normal_force, gamma_t=GAMMA_T, n=Z, n_old=None, spin=0.0):
     p, off, _ = row(dict(normal="hertz"), "tangential")
     frame = contact_frame(*(n if n_old is None else n_old), *n, spin)
-    res = history_spring(hist, 0, 0, *n, frame, *v, KT_T, gamma_t, normal_force, DT, p, off)
+    res = history_spring(hist, 0, 0, contact_inputs(n), frame, tuple(v), (0.0, normal_force, 0.0, KT_T, gamma_t), DT, p,
+                         off)
     return np.array(res[:3]), res[3]
 
 
@@ -236,8 +238,9 @@ def rolling(model, hist=None, wi=WI, wj=WJ, f_el=F_EL, f_tot=F_TOT, lever_i=R_EF
     p, off, cm = row(dict(normal="hertz", rolling=model), "rolling")
     kern = type(cm.rolling).function
     hist = np.zeros((1, 3)) if hist is None else hist
-    res = kern(hist, 0, 0, *n, contact_frame(*n, *n, 0.0), *wi, *wj, lever_i, lever_j, KN, KT,
-               f_el, f_tot, R_EFF, I_R, DT, p, off, cm.rolling.kernel_modes())
+    g = contact_inputs(n, omega_i=wi, omega_j=wj, lever_i=lever_i, lever_j=lever_j, r_eff=R_EFF, inertia_r=I_R)
+    res = kern(hist, 0, 0, g, contact_frame(*n, *n, 0.0), (f_el, f_tot, KN, KT, 0.0), DT, p, off,
+               cm.rolling.kernel_modes())
     return np.array(res[:3]), np.array(res[3:6]), res[6], hist
 
 
@@ -455,7 +458,8 @@ KT_TW, GAMMA_T_TW = 5e3, 0.02
 
 def twisting(model, hist, f_el=F_EL, f_tot=F_TOT, dw=DW_TW):
     p, off, _ = row(dict(normal="hertz", twisting=model), "twisting")
-    return spring_twisting(hist, 0, 0, *N_TW, *dw, OVERLAP, R_TW, KT_TW, GAMMA_T_TW, f_el, f_tot, DT, p, off)
+    g = contact_inputs(N_TW, overlap=OVERLAP, omega_i=dw, r_eff=R_TW)  # omega_j = 0: w_i - w_j = dw
+    return spring_twisting(hist, 0, 0, g, (f_el, f_tot, 0.0, KT_TW, GAMMA_T_TW), DT, p, off)
 
 
 MARSHALL = dict(k=0.5 * KT_TW * R_TW * OVERLAP, gamma=0.5 * GAMMA_T_TW * R_TW * OVERLAP,

@@ -15,10 +15,9 @@ _numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 # libgomp is loaded.
 _os.environ.setdefault("GOMP_SPINCOUNT", "30000")
 
-from .contact import (CDT, EPSD, EPSD2, EPSD3, SDS, DisplacementDamping, ForceProportional, RRLinear,  # noqa: E402
-                      Marshall, TwistingSDS, Viscous)
+from . import contact as _contact  # noqa: E402
 from . import convert  # noqa: E402
-from .contact import ContactModel, Hertz, HistorySpring, Hooke, Linear, NoRolling, NoTwisting  # noqa: E402,E501
+from .contact import ContactModel  # noqa: E402
 from .errors import ParameterError, SimulationError  # noqa: E402
 from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform  # noqa: E402
 from .materials import Material, MaterialTable  # noqa: E402
@@ -27,9 +26,11 @@ from .simulation import Simulation, __version__  # noqa: E402
 from .timestep import hertz_contact_time, rayleigh_time_step  # noqa: E402
 from .walls import Cylinder, Plane  # noqa: E402
 
+globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (rd.EPSD, rd.Hertz, ...)
+
 __all__ = [
-    "convert", "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "Hertz", "Hooke", "Linear",
-    "HistorySpring", "NoRolling", "CDT", "EPSD", "EPSD2", "EPSD3", "RRLinear", "SDS", "DisplacementDamping",
-    "ForceProportional", "Viscous", "NoTwisting", "Marshall", "TwistingSDS", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback",
-    "Observer", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "Discrete", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
+    "convert", "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "TimeSeries",
+    "VTKSnapshots", "Checkpoints", "Callback", "Observer", "BoxRegion", "CylinderRegion", "Uniform", "Normal",
+    "Discrete", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
+    *_contact.SUBMODELS,
 ]

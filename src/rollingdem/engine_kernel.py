@@ -109,17 +109,12 @@ def contact_in_frame(hist, k, frame, g, p, dt):
 
     f_el, f_damp, kn, kt, gamma_t = normal_force(overlap, vn, r_eff, m_eff, p, NORMAL_PARAMS)
     fn = f_el + f_damp
-    ftx, fty, ftz, e_t = tangential_force(hist, k, TANGENTIAL_HISTORY, nx, ny, nz, frame,
-                                          vtx, vty, vtz, kt, gamma_t, fn, dt, p, TANGENTIAL_PARAMS)
-    mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, ROLLING_HISTORY, nx, ny, nz, frame,
-                                                       wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, kn, kt,
-                                                       f_el, fn, r_eff, inertia_r, dt, p, ROLLING_PARAMS,
-                                                       ROLLING_MODES)
-    dwx = wix - wjx
-    dwy = wiy - wjy
-    dwz = wiz - wjz
-    m_tw, e_tw = twisting_moment(hist, k, TWISTING_HISTORY, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t,
-                                 f_el, fn, dt, p, TWISTING_PARAMS)
+    normal = (f_el, fn, kn, kt, gamma_t)  # NORMAL_RESULT
+    ftx, fty, ftz, e_t = tangential_force(hist, k, TANGENTIAL_HISTORY, g, frame, (vtx, vty, vtz), normal, dt, p,
+                                          TANGENTIAL_PARAMS)
+    mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, ROLLING_HISTORY, g, frame, normal, dt, p,
+                                                       ROLLING_PARAMS, ROLLING_MODES)
+    m_tw, e_tw = twisting_moment(hist, k, TWISTING_HISTORY, g, normal, dt, p, TWISTING_PARAMS)
     hist[k, 0] = nx
     hist[k, 1] = ny
     hist[k, 2] = nz

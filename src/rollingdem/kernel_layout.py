@@ -44,12 +44,22 @@ CONTACT_INPUTS = slots("nx", "ny", "nz", "overlap", "rvx", "rvy", "rvz", "wix", 
                        "lever_i", "lever_j", "r_eff", "m_eff", "inertia_r")
 CONTACT_RESULTS = slots("fx", "fy", "fz", "tix", "tiy", "tiz", "tjx", "tjy", "tjz", "e_normal", "e_sliding", "e_rolling",
                         "e_twisting")
+# what the normal law gives the other three sub-models (``normal``: force_total = elastic + damping)
+NORMAL_RESULT = slots("force_elastic", "force_total", "normal_stiffness", "tangential_stiffness", "tangential_damping")
 N_INPUTS = len(CONTACT_INPUTS)
 N_RESULTS = len(CONTACT_RESULTS)
 # rows of a thread's ``lanes`` (int64, CONTACT_BLOCK wide): 0-2 the block's pool rows, list rows and
 # series flags; from LANE_HITS on, the candidate entries of a tile of the list
 LANE_HITS = 3
 TILE_ROWS = 16  # a tile of 1024 entries
+
+
+def contact_inputs(normal=(0.0, 0.0, 1.0), overlap=0.0, relative_velocity=(0.0, 0.0, 0.0), omega_i=(0.0, 0.0, 0.0),
+                   omega_j=(0.0, 0.0, 0.0), lever_i=0.0, lever_j=0.0, r_eff=0.0, m_eff=0.0, inertia_r=0.0) -> tuple:
+    """A contact's ``CONTACT_INPUTS`` tuple, as the kernel hands it to the sub-models (to call a
+    sub-model's compiled function on its own, in tests)."""
+    values = (*normal, overlap, *relative_velocity, *omega_i, *omega_j, lever_i, lever_j, r_eff, m_eff, inertia_r)
+    return tuple(float(v) for v in values)
 
 
 def block_columns(history_size: int) -> int:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..contact.model import ContactModel
-from ..contact.rolling import CDT, EPSD, SDS, DisplacementDamping, Viscous
+from ..contact import ROLLING_MODELS
 from ..materials import Material
 from ..simulation import Simulation
 from ..walls import Plane
@@ -51,22 +51,23 @@ def single_thread(func):
     return wrapper
 
 
+#: the settings the single-sphere cases give a rolling model, over its own ``validation_presets``
+CASE_SETTINGS = {"sds": {"rolling_stiffness": 2e3}, "displacement_damping": {"damping": 0.3},
+                 "viscous": {"coefficient": VISCOUS_COEFFICIENT}}
+
+
 def validation_models() -> dict:
-    """Every rolling model, by the label the validation tables use (parity presets included)."""
-    return {
-        "cdt": "cdt",
-        "cdt (liggghts)": CDT(parity="liggghts"),
-        "cdt (limiter 0.08)": CDT(limiter=0.08),
-        "epsd": "epsd",
-        "epsd (liggghts)": EPSD(parity="liggghts"),
-        "epsd2": "epsd2",
-        "epsd3": "epsd3",
-        "rrlinear": "rrlinear",
-        "sds": SDS(rolling_stiffness=2e3),
-        "displacement_damping": DisplacementDamping(damping=0.3),
-        "force_proportional": "force_proportional",
-        "viscous": Viscous(coefficient=VISCOUS_COEFFICIENT),
-    }
+    """Every registered rolling model by the label the validation tables use: each model's
+    ``validation_presets`` (parity presets included), with ``CASE_SETTINGS``; the name itself
+    where nothing is set."""
+    models = {}
+    for name, cls in ROLLING_MODELS.items():
+        if name == "none":
+            continue
+        for label, settings in cls.validation_presets.items():
+            settings = {**settings, **CASE_SETTINGS.get(name, {})}
+            models[label] = cls(**settings) if settings else name
+    return models
 
 
 #: models without a static threshold (a viscous moment vanishes at rest): no critical mu_r

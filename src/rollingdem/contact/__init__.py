@@ -1,12 +1,14 @@
-"""Contact sub-models (normal, tangential, rolling, twisting) and their composition."""
+"""Contact sub-models (normal, tangential, rolling, twisting) and their composition. Every
+registered sub-model class is exported here by its class name: a law added to one of the slot
+modules needs no edit of an export list."""
 
-from .base import ROLLING_MODELS, NORMAL_MODELS, TANGENTIAL_MODELS, TWISTING_MODELS, SubModel
-from .normal import Hertz, Hooke, Linear
-from .tangential import HistorySpring
-from .rolling import CDT, EPSD, EPSD2, EPSD3, SDS, DisplacementDamping, ForceProportional, NoRolling, RRLinear, Viscous
-from .twisting import Marshall, NoTwisting, TwistingSDS
+from . import normal, rolling, tangential, twisting  # noqa: F401 (defining the classes registers them)
+from .base import NORMAL_MODELS, ROLLING_MODELS, TANGENTIAL_MODELS, TWISTING_MODELS, SubModel
 from .model import ContactModel
 
-__all__ = ["SubModel", "ContactModel", "Hertz", "Hooke", "Linear", "HistorySpring", "NoRolling", "CDT", "EPSD", "EPSD2", "EPSD3", "RRLinear", "SDS", "DisplacementDamping",
-           "ForceProportional", "Viscous",
-           "NoTwisting", "Marshall", "TwistingSDS", "NORMAL_MODELS", "TANGENTIAL_MODELS", "ROLLING_MODELS", "TWISTING_MODELS"]
+SUBMODELS = {cls.__name__: cls for registry in (NORMAL_MODELS, TANGENTIAL_MODELS, ROLLING_MODELS, TWISTING_MODELS)
+             for cls in registry.values()}
+globals().update(SUBMODELS)
+
+__all__ = ["SubModel", "ContactModel", "NORMAL_MODELS", "TANGENTIAL_MODELS", "ROLLING_MODELS", "TWISTING_MODELS",
+           *SUBMODELS]

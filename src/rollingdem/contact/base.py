@@ -49,6 +49,9 @@ class SubModel:
     parameters: ClassVar[tuple] = NO_SLOTS
     history: ClassVar[tuple] = NO_SLOTS
     function: ClassVar = None
+    #: label -> constructor arguments of the variants the validation cases run (rolling models;
+    #: ``cases.single_sphere.validation_models``); by default the model with its defaults
+    validation_presets: ClassVar[dict | None] = None
     history_size: ClassVar[int] = 0
     n_parameters: ClassVar[int] = 0
 
@@ -56,6 +59,8 @@ class SubModel:
         super().__init_subclass__(**kwargs)
         cls.history_size = len(cls.history)
         cls.n_parameters = len(cls.parameters)
+        if cls.name and "validation_presets" not in cls.__dict__:
+            cls.validation_presets = {cls.name: {}}
         if cls.slot and cls.name:
             if cls.function is None:
                 raise TypeError(f"{cls.__name__}: a {cls.slot} sub-model needs its compiled function "

@@ -2,15 +2,14 @@
 
 Compiled function of the slot "rolling"::
 
-    rolling_moment(hist, k, history_at, nx, ny, nz, frame,
-                   wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, normal_stiffness,
-                   tangential_stiffness, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes)
+    rolling_moment(hist, k, history_at, g, frame, normal, dt, p, params_at, modes)
         -> (mix, miy, miz, mjx, mjy, mjz, dissipation)
 
-``frame`` is the step's change of the contact frame (see ``rollingdem.contact.tangential``).
-(wix, wiy, wiz) and (wjx, wjy, wjz) are the angular velocities of i and of j (of the wall for a
-wall contact, with lever_j = 0); lever_i, lever_j are the distances R' from the centres to the
-contact point. The torque on i is -M_i and on j +M_j. For every objective model M_i = M_j = M,
+``g`` is the contact's ``kernel_layout.CONTACT_INPUTS`` (``rolling_kinematics`` picks out what
+rolling laws read), ``normal`` the normal law's ``NORMAL_RESULT``, ``frame`` the step's change of
+the contact frame (see ``rollingdem.contact.tangential``). (wix, wiy, wiz) and (wjx, wjy, wjz) are
+the angular velocities of i and of j (of the wall for a wall contact, with lever_j = 0); lever_i,
+lever_j are the distances R' from the centres to the contact point. The torque on i is -M_i and on j +M_j. For every objective model M_i = M_j = M,
 a pure couple along (or lagging) dw_r = (omega_i - omega_j) minus its twist part (docs/models.md §0);
 only the non-objective STAR-CCM+ Force Proportional method has M_i != M_j. ``inertia_r`` is I_r of
 seed report eq. 12 (1.4 m R^2 for a wall). ``dissipation`` is the energy (J) the moment removed
@@ -28,8 +27,16 @@ import math
 from numba import njit
 
 from ..errors import ParameterError, check_non_negative, check_positive
+from ..kernel_layout import CONTACT_INPUTS as IN
 from .base import P_ROLLING_DAMPING, P_ROLLING_FRICTION, SubModel, slots
 from .frame import carry_with_frame, project_onto_plane
+
+
+@njit(cache=True, inline="always")
+def rolling_kinematics(g):
+    """(n, omega_i, omega_j, lever_i, lever_j, R*, I_r) of a contact's inputs ``g``, as 13 floats."""
+    return (g[IN.nx], g[IN.ny], g[IN.nz], g[IN.wix], g[IN.wiy], g[IN.wiz], g[IN.wjx], g[IN.wjy], g[IN.wjz],
+            g[IN.lever_i], g[IN.lever_j], g[IN.r_eff], g[IN.inertia_r])
 
 
 @njit(cache=True, inline="always")
@@ -56,8 +63,7 @@ def liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff):
 
 
 @njit(cache=True, inline="always")
-def no_rolling(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
-               lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
+def no_rolling(hist, k, history_at, g, frame, normal, dt, p, params_at, modes):
     """No rolling resistance: M = 0."""
     return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
@@ -66,8 +72,7 @@ CDT_PARAMETERS = slots("limiter", "liggghts_parity")
 
 
 @njit(cache=True, inline="always")
-def constant_directional_torque(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
-                                lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
+def constant_directional_torque(hist, k, history_at, g, frame, normal, dt, p, params_at, modes):
     """CDT, Ai et al. (2011) type A; seed report eq. 2; STAR-CCM+ Constant Torque.
 
     M = mu_r R* max(F_n,el, 0) dw_r / |dw_r|, dw_r = dw - (dw . n) n (twist removed), and with the
@@ -77,6 +82,8 @@ def constant_directional_torque(hist, k, history_at, nx, ny, nz, frame, wix, wiy
     shrinks the moment by |dw_r|/|dw|, and walls read omega_i (R - delta/2)/(R - delta) without
     the wall's rotation (docs/models.md §3.2, §12 ``liggghts_cdt``).
     """
+    nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff, inertia_r = rolling_kinematics(g)
+    force_elastic, force_total, kn, kt, _ = normal
     if p[params_at + CDT_PARAMETERS.liggghts_parity] != 0.0:
         wix, wiy, wiz, wjx, wjy, wjz = liggghts_wall_rate(wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff)
     rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
@@ -122,6 +129,7 @@ class CDT(SubModel):
     name = "cdt"
     parameters = CDT_PARAMETERS
     function = staticmethod(constant_directional_torque)
+    validation_presets = {"cdt": {}, "cdt (liggghts)": {"parity": "liggghts"}, "cdt (limiter 0.08)": {"limiter": 0.08}}
 
     parities = (None, "liggghts")
 
@@ -156,8 +164,7 @@ HISTORY_PROJECT = 2       # projected on the tangent plane and rescaled (LAMMPS)
 
 
 @njit(cache=True, inline="always")
-def spring_rolling(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz, lever_i,
-                   lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
+def spring_rolling(hist, k, history_at, g, frame, normal, dt, p, params_at, modes):
     """Elastic-plastic spring-dashpot rolling resistance (Ai type C), the unified form of docs/models.md §12.
 
     1. carry the spring moment M_k with the contact frame (or, for parity, not / project only);
@@ -170,6 +177,8 @@ def spring_rolling(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, w
     trial step, so a purely elastic exchange dissipates only its O(k_r |dw_r|^2 dt^2) residual, never
     less than zero).
     """
+    nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff, inertia_r = rolling_kinematics(g)
+    force_elastic, force_total, kn, kt, _ = normal
     cap_mode, force_mode, history_mode, wall_rate = modes  # the parity's switches, constants
     stiffness_mode = p[params_at + SPRING_PARAMETERS.stiffness_mode]  # the class's (a branch on them costs
     coefficient = p[params_at + SPRING_PARAMETERS.stiffness_coefficient]  # nothing measurable)
@@ -327,6 +336,7 @@ class EPSD(_SpringRolling):
 
     name = "epsd"
     parities = (None, "liggghts")
+    validation_presets = {"epsd": {}, "epsd (liggghts)": {"parity": "liggghts"}}
 
     def __init__(self, damping_ratio=None, parity=None, slip_damping=None):
         super().__init__(parity, slip_damping)
@@ -449,11 +459,12 @@ class DisplacementDamping(_SpringRolling):
 
 
 @njit(cache=True, inline="always")
-def force_proportional_moment(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
-                              lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
+def force_proportional_moment(hist, k, history_at, g, frame, normal, dt, p, params_at, modes):
     """STAR-CCM+ Force Proportional (seed 004, eq. 3275): each particle's own in-plane spin is
     opposed by mu_r |F_n| |r_c| omega_p / |omega_p|, |r_c| = R' (centre to contact point).
     Not objective (a rigidly co-rotating pair is braked: docs/models.md §11.1); offered for parity."""
+    nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff, inertia_r = rolling_kinematics(g)
+    force_elastic, force_total, kn, kt, _ = normal
     f = max(force_elastic, 0.0) * p[P_ROLLING_FRICTION]
     wn = wix * nx + wiy * ny + wiz * nz
     ax = wix - wn * nx
@@ -483,11 +494,12 @@ VISCOUS_PARAMETERS = slots("coefficient", "kratos_form")
 
 
 @njit(cache=True, inline="always")
-def viscous_moment(hist, k, history_at, nx, ny, nz, frame, wix, wiy, wiz, wjx, wjy, wjz,
-                   lever_i, lever_j, kn, kt, force_elastic, force_total, r_eff, inertia_r, dt, p, params_at, modes):
+def viscous_moment(hist, k, history_at, g, frame, normal, dt, p, params_at, modes):
     """Viscous rolling resistance, Ai type B (Zhou et al. 1999 eq. 4): M = c_v F_n (R* |dw_r|) dw_r/|dw_r|
     = c_v F_n R* dw_r, c_v in s; in the Kratos/Lethe form one more factor R* (c_v in s/m).
     It vanishes at rest: it cannot hold a static pile (docs/models.md §13 T5)."""
+    nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff, inertia_r = rolling_kinematics(g)
+    force_elastic, force_total, kn, kt, _ = normal
     rx, ry, rz = relative_rolling_rate(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz)
     s = p[params_at + VISCOUS_PARAMETERS.coefficient] * max(force_elastic, 0.0) * r_eff
     if p[params_at + VISCOUS_PARAMETERS.kratos_form] > 0.0:

@@ -2,15 +2,16 @@
 
 Compiled function of the slot "tangential"::
 
-    tangential_force(hist, k, history_at, nx, ny, nz, frame,
-                     vtx, vty, vtz, tangential_stiffness, tangential_damping,
-                     normal_force, dt, p, params_at) -> (ftx, fty, ftz, dissipation)
+    tangential_force(hist, k, history_at, g, frame, slip, normal, dt, p, params_at)
+        -> (ftx, fty, ftz, dissipation)
 
 ``hist[k, history_at:history_at + history_size]`` is the contact's own state (its declared
-``history``), ``p[params_at:]`` its declared ``parameters``; (nx, ny, nz) the current normal;
+``history``), ``p[params_at:]`` its declared ``parameters``; ``g`` the contact's
+``kernel_layout.CONTACT_INPUTS`` (the current normal, ...), ``normal`` the normal law's
+``NORMAL_RESULT`` (its stiffness k_t, damping gamma_t, total normal force F_n);
 ``frame`` the change of the contact frame during the step (``rollingdem.contact.frame.contact_frame``:
 the turn of the normal and the rigid spin of the pair about it), for ``carry_with_frame``;
-(vtx, vty, vtz) the tangential slip velocity at the contact point; F_t is the force on particle i.
+``slip`` = (vtx, vty, vtz) the tangential slip velocity at the contact point; F_t is the force on particle i.
 ``dissipation`` is the energy (J) dissipated during the step.
 """
 
@@ -20,13 +21,13 @@ import math
 
 from numba import njit
 
+from ..kernel_layout import NORMAL_RESULT as NR
 from .base import P_FRICTION, SubModel, slots
 from .frame import carry_with_frame
 
 
 @njit(cache=True, inline="always")
-def history_spring(hist, k, history_at, nx, ny, nz, frame, vtx, vty, vtz,
-                   kt, gamma_t, normal_force, dt, p, params_at):
+def history_spring(hist, k, history_at, g, frame, slip, normal, dt, p, params_at):
     """Tangential spring-dashpot with Coulomb limit.
 
     xi <- carry(xi) + v_t dt;  F_trial = -k_t xi - gamma_t v_t;
@@ -40,6 +41,10 @@ def history_spring(hist, k, history_at, nx, ny, nz, frame, vtx, vty, vtz,
     leaves a residual 1/2 k_t |v_t|^2 dt^2 (>= 0, vanishing as dt^2); the dashpot adds gamma_t |v_t|^2 dt;
     steady sliding at the limit dissipates mu max(F_n, 0) |v_t| dt, the friction work.
     """
+    vtx, vty, vtz = slip
+    normal_force = normal[NR.force_total]
+    kt = normal[NR.tangential_stiffness]
+    gamma_t = normal[NR.tangential_damping]
     carry_with_frame(hist, k, history_at, frame)
     x0 = hist[k, history_at]
     y0 = hist[k, history_at + 1]

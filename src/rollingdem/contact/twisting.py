@@ -2,11 +2,10 @@
 
 Compiled function of the slot "twisting"::
 
-    twisting_moment(hist, k, history_at, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff,
-                    tangential_stiffness, tangential_damping, force_elastic, force_total,
-                    dt, p, params_at) -> (m_twist, dissipation)
+    twisting_moment(hist, k, history_at, g, normal, dt, p, params_at) -> (m_twist, dissipation)
 
-The twisting moment acts as -m_twist n on particle i and +m_twist n on particle j.
+``g`` is the contact's ``kernel_layout.CONTACT_INPUTS``, ``normal`` the normal law's
+``NORMAL_RESULT``. The twisting moment acts as -m_twist n on particle i and +m_twist n on particle j.
 """
 
 from __future__ import annotations
@@ -16,12 +15,12 @@ import math
 from numba import njit
 
 from ..errors import ParameterError, check_finite, check_non_negative, check_positive
+from ..kernel_layout import CONTACT_INPUTS as IN, NORMAL_RESULT as NR
 from .base import P_FRICTION, SubModel, slots
 
 
 @njit(cache=True, inline="always")
-def no_twisting(hist, k, history_at, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
-                force_total, dt, p, params_at):
+def no_twisting(hist, k, history_at, g, normal, dt, p, params_at):
     """No twisting resistance."""
     return 0.0, 0.0
 
@@ -39,14 +38,19 @@ TWISTING_HISTORY = slots("twist_angle")  # xi (rad)
 
 
 @njit(cache=True, inline="always")
-def spring_twisting(hist, k, history_at, nx, ny, nz, dwx, dwy, dwz, overlap, r_eff, kt, gamma_t, force_elastic,
-                    force_total, dt, p, params_at):
+def spring_twisting(hist, k, history_at, g, normal, dt, p, params_at):
     """Twisting spring-dashpot-slider (LAMMPS ``twisting sds`` / ``marshall``, docs/models.md §4.8).
 
     Omega_tw = (omega_i - omega_j) . n;  xi += Omega_tw dt;  M = k_tw xi + gamma_tw Omega_tw;
     |M| <= mu_tw max(F_n,el, 0), and at the cap the spring is backed out: xi = (M - gamma_tw Omega_tw)/k_tw.
     Marshall (2009): k_tw = k_t a^2 / 2, gamma_tw = gamma_t a^2 / 2, mu_tw = 2/3 a mu, a = sqrt(R* delta).
     """
+    nx, ny, nz = g[IN.nx], g[IN.ny], g[IN.nz]
+    dwx = g[IN.wix] - g[IN.wjx]
+    dwy = g[IN.wiy] - g[IN.wjy]
+    dwz = g[IN.wiz] - g[IN.wjz]
+    overlap, r_eff = g[IN.overlap], g[IN.r_eff]
+    kt, gamma_t, force_elastic = normal[NR.tangential_stiffness], normal[NR.tangential_damping], normal[NR.force_elastic]
     spin = dwx * nx + dwy * ny + dwz * nz
     if p[params_at + TWISTING_PARAMETERS.marshall] > 0.0:
         a2 = r_eff * overlap

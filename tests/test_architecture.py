@@ -1,5 +1,6 @@
-"""The package's structure: its import graph has no cycle, the layers import one way, and every
-module says in a docstring what it is for.
+"""The package's structure: its import graph has no cycle, the layers import one way, every
+module says in a docstring what it is for, and no plain-Python function takes more than 12
+parameters.
 
 The graph is read from the source with :mod:`ast` (nothing is imported): every ``import`` and
 ``from ... import`` in a module, at its top or inside a function, relative ones resolved, gives an
@@ -186,3 +187,71 @@ def test_worked_example_adds_a_rolling_law_without_editing_the_package(tmp_path,
     finally:
         ROLLING_MODELS.pop("constant_moment", None)
         sys.modules.pop("my_rolling_law", None)
+
+
+#: The most parameters a plain-Python function of the package may take.
+MAX_PARAMETERS = 12
+
+
+def _is_exempt(func: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
+    """Compiled by Numba (``@njit``/``@jit``, bare, called or as ``numba.njit``) or a typer command
+    (a decorator whose text contains ``.command``, e.g. ``@app.command()``)."""
+    for decorator in func.decorator_list:
+        target = decorator.func if isinstance(decorator, ast.Call) else decorator
+        name = target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")
+        if name in ("njit", "jit") or ".command" in ast.unparse(decorator):
+            return True
+    return False
+
+
+def _parameter_count(func: ast.FunctionDef | ast.AsyncFunctionDef, in_class: bool) -> int:
+    """Positional-only, positional and keyword-only parameters; not ``*args``/``**kwargs``, and not
+    the ``self``/``cls`` of a method."""
+    a = func.args
+    names = [p.arg for p in (*a.posonlyargs, *a.args, *a.kwonlyargs)]
+    if in_class and names[:1] in (["self"], ["cls"]):
+        names = names[1:]
+    return len(names)
+
+
+def _functions(tree: ast.AST, in_class: bool = False):
+    """(function node, whether it is a method) for every function, nested ones included."""
+    for node in ast.iter_child_nodes(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            yield node, in_class
+            yield from _functions(node, False)
+        elif isinstance(node, ast.ClassDef):
+            yield from _functions(node, True)
+        else:
+            yield from _functions(node, in_class)
+
+
+def test_the_parameter_counter_sees_methods_and_exemptions():
+    tree = ast.parse("class A:\n    def f(self, a, /, b, *args, c, **kw): pass\n"
+                     "    @classmethod\n    def g(cls, a): pass\n"
+                     "def h(self, a): pass\n"
+                     "@njit(cache=True)\ndef k(a): pass\n@numba.jit\ndef m(a): pass\n"
+                     "@app.command()\ndef n(a): pass\n@functools.cache\ndef p(a): pass\n")
+    found = {f.name: (_parameter_count(f, in_class), _is_exempt(f)) for f, in_class in _functions(tree)}
+    assert found == {"f": (3, False), "g": (1, False), "h": (2, False), "k": (1, True), "m": (1, True),
+                     "n": (1, True), "p": (1, False)}
+
+
+def test_no_python_function_takes_more_than_12_parameters():
+    """No function of the package takes more than ``MAX_PARAMETERS`` parameters (positional-only,
+    positional and keyword-only; not ``self``/``cls``, not ``*args``/``**kwargs``): related ones
+    travel together in a small dataclass instead.
+
+    Two kinds of function are exempt. Numba-compiled ones (``@njit``/``@jit``): their arguments are
+    the kernel's contract, flat scalars and arrays that Numba inlines and specialises on, where a
+    Python object would not compile or would cost a boxing per call. Typer commands (a decorator
+    containing ``.command``): typer maps each parameter of the function to one command-line option,
+    so the parameter list is the command's option list."""
+    offenders = []
+    for name, path in module_files().items():
+        for func, in_class in _functions(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+            count = _parameter_count(func, in_class)
+            if count > MAX_PARAMETERS and not _is_exempt(func):
+                offenders.append(f"{name}:{func.lineno} {func.name} {count}")
+    assert not offenders, (f"functions with more than {MAX_PARAMETERS} parameters (group related ones in a "
+                           "dataclass):\n" + "\n".join(offenders))

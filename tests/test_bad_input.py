@@ -372,7 +372,7 @@ def test_python_api_refuses_output_and_input_paths_by_name(tmp_path):
     """The refusals the CLI makes up front hold for the Python functions too: an output folder that
     is a file, a dump that is a folder, a JSON path that is a folder; nothing is run or written."""
     from rollingdem.bench import column_from_dump, write_json
-    from rollingdem.calibration import calibrate
+    from rollingdem.calibration import Execution, calibrate
     from rollingdem.sweep import run_sweep
 
     afile = tmp_path / "afile"
@@ -383,7 +383,7 @@ def test_python_api_refuses_output_and_input_paths_by_name(tmp_path):
     with pytest.raises(rd.ParameterError, match=r"out = .*under.* is not allowed: .*afile is a file"):
         run_sweep(spec, afile / "under", workers=1)
     with pytest.raises(rd.ParameterError, match=r"out = .*afile.* is a file; must be a folder"):
-        calibrate("rolling-flat", target=0.1, fix={}, free="mur", out=afile, workers=1)
+        calibrate("rolling-flat", target=0.1, fix={}, free="mur", out=afile, execution=Execution(workers=1))
     with pytest.raises(rd.ParameterError, match=r"from_dump = .* is a folder; must be the dump file"):
         column_from_dump(tmp_path)
     with pytest.raises(rd.ParameterError, match=r"json = .* is a folder; must be a file name"):
@@ -400,3 +400,14 @@ def test_sweep_refuses_a_twisting_model_that_needs_parameters():
     with pytest.raises(rd.ParameterError, match=r"twisting = 'sds' is not allowed: .*twisting_stiffness is missing"):
         load_sweep({**spec, "fixed": {"twisting": "sds"}})
     load_sweep({**spec, "fixed": {"twisting": "marshall"}})
+
+
+def test_pile_run_refuses_settings_that_are_not_its_dataclasses():
+    """pile_run's grouped settings come as PileMaterial and Collapse; anything else (a dict of the
+    old keywords, say) is refused by name before a sphere is made."""
+    from rollingdem.cases.repose import pile_run
+
+    with pytest.raises(rd.ParameterError, match=r"^material = \{'friction': 0.5\} is not allowed: .*PileMaterial"):
+        pile_run(material={"friction": 0.5})
+    with pytest.raises(rd.ParameterError, match=r"^collapse = 1.5 is not allowed: .*Collapse$"):
+        pile_run(collapse=1.5)

@@ -17,7 +17,7 @@ import pytest
 from scipy.optimize import brentq
 
 import rollingdem as rd
-from rollingdem.calibration import calibrate, monotone_inverse, parse_assignments, parse_free
+from rollingdem.calibration import Execution, Search, calibrate, monotone_inverse, parse_assignments, parse_free
 from rollingdem.cases.single_sphere import analytic_flat
 
 
@@ -31,8 +31,8 @@ def test_inclined_wall_gives_back_tan_beta_with_the_interval_of_the_target(tmp_p
     mu_r = tan(beta +- 1.96 sigma), half-width 1.96 sigma sec^2(beta) = 0.01937 (+-10 % for the
     bootstrap's percentile estimate and the curvature of tan over the interval).
     """
-    res = calibrate("inclined-wall", 20.0, 0.5, fix={"model": "epsd"}, free="mur", out=tmp_path, workers=2,
-                    progress=False)
+    res = calibrate("inclined-wall", 20.0, 0.5, fix={"model": "epsd"}, free="mur", out=tmp_path,
+                    execution=Execution(workers=2), progress=False)
     exact = math.tan(math.radians(20.0))
     assert res.value == pytest.approx(exact, rel=0.005)
     assert res.low < exact < res.high
@@ -49,13 +49,13 @@ def test_rolling_flat_stop_distance_gives_back_the_analytic_mu_r(tmp_path):
     near there, so mu_r comes back within 0.5 %. The distance falls as mu_r grows."""
     exact = brentq(lambda m: analytic_flat(1.0, 0.8, m)[3] - 0.25, 0.05, 0.6)
     res = calibrate("rolling-flat", 0.25, 0.0, fix={"mu": 0.8, "model": "epsd"}, free="mur", out=tmp_path,
-                    workers=1, progress=False)
+                    execution=Execution(workers=1), progress=False)
     assert res.value == pytest.approx(exact, rel=0.005)
     assert res.direction == "decreasing"
     # rerun with a target uncertainty: the runs already there are reused, the interval widens to
     # the target's, dmu_r = 1.96 u / |ds/dmu_r|
     wider = calibrate("rolling-flat", 0.25, 0.005, fix={"mu": 0.8, "model": "epsd"}, free="mur", out=tmp_path,
-                      workers=1, progress=False, rounds=0)
+                      execution=Execution(workers=1), progress=False, search=Search(rounds=0))
     slope = (analytic_flat(1.0, 0.8, exact * 1.001)[3] - analytic_flat(1.0, 0.8, exact * 0.999)[3]) / (0.002 * exact)
     assert 0.5 * (wider.high - wider.low) == pytest.approx(1.96 * 0.005 / abs(slope), rel=0.1)
     assert wider.value == pytest.approx(exact, rel=0.005)
@@ -63,8 +63,8 @@ def test_rolling_flat_stop_distance_gives_back_the_analytic_mu_r(tmp_path):
 
 def test_a_target_out_of_reach_is_refused_with_the_range_found(tmp_path):
     with pytest.raises(rd.ParameterError, match=r"outside what mur in \[0.2, 0.4\] gives"):
-        calibrate("rolling-flat", 2.0, fix={"model": "cdt"}, free=("mur", (0.2, 0.4)), coarse=3, out=tmp_path,
-                  workers=1, progress=False)
+        calibrate("rolling-flat", 2.0, fix={"model": "cdt"}, free=("mur", (0.2, 0.4)), search=Search(coarse=3),
+                  out=tmp_path, execution=Execution(workers=1), progress=False)
     assert (tmp_path / "runs.csv").exists()  # the runs made are kept
 
 
@@ -74,7 +74,12 @@ def test_a_target_out_of_reach_is_refused_with_the_range_found(tmp_path):
     ({"free": "model"}, ["not a real-valued parameter"]),
     ({"free": "seed"}, ["not a real-valued parameter"]),
     ({"uncertainty": -1.0}, ["uncertainty = -1"]),
-    ({"coarse": 2}, ["coarse = 2"]),
+    ({"search": Search(coarse=2)}, ["coarse = 2"]),
+    ({"search": Search(refine=0)}, ["refine = 0", "integer >= 1"]),
+    ({"search": Search(bootstrap=0)}, ["bootstrap = 0", "integer >= 1"]),
+    ({"search": {"coarse": 3}}, ["search = {'coarse': 3}", "rollingdem.calibration.Search"]),
+    ({"execution": Execution(workers=0)}, ["workers = 0", "integer >= 1"]),
+    ({"execution": 2}, ["execution = 2", "rollingdem.calibration.Execution"]),
     ({"free": ("mur", (0.4, 0.2))}, ["LOW < HIGH"]),
     ({"free": ("mur", (-0.1, 0.2))}, ["mur = -0.1"]),
     ({"fix": {"mur": 0.2}}, ["both fixed and free"]),
@@ -84,7 +89,7 @@ def test_a_target_out_of_reach_is_refused_with_the_range_found(tmp_path):
     ({"fix": {"model": "epsdx"}}, ["model = 'epsdx'", "allowed"]),
 ])
 def test_bad_calibration_input_is_refused(kwargs, words, tmp_path):
-    args = dict(case="rolling-flat", target=0.2, out=tmp_path, workers=1, progress=False)
+    args = dict(case="rolling-flat", target=0.2, out=tmp_path, execution=Execution(workers=1), progress=False)
     args.update(kwargs)
     with pytest.raises(rd.ParameterError) as err:
         calibrate(**args)
@@ -135,8 +140,8 @@ def test_angle_of_repose_calibration_is_reproduced_by_fresh_seeds(tmp_path):
     from rollingdem.intervals import confidence_interval
 
     fix = {"mu": 0.6, "count": 1000, "model": "epsd"}
-    res = calibrate("angle-of-repose", 22.0, 1.0, fix=fix, free=("mur", (0.1, 0.8)), seeds=2, coarse=4, refine=2,
-                    rounds=1, out=tmp_path, progress=False)
+    res = calibrate("angle-of-repose", 22.0, 1.0, fix=fix, free=("mur", (0.1, 0.8)), seeds=2,
+                    search=Search(coarse=4, refine=2, rounds=1), out=tmp_path, progress=False)
     assert res.low < res.value < res.high and res.direction == "increasing"
     angles = [CASES["angle-of-repose"].run(dict(fix, mur=res.value, seed=s))["angle"] for s in (11, 12, 13)]
     mean, half = confidence_interval(angles)

@@ -125,7 +125,8 @@ def test_repose_sweep_runs_creeping_piles_again_longer(tmp_path, monkeypatch):
 
     calls = []
 
-    def fake_pile(rolling, twisting, rolling_friction, max_collapse, seed, **kw):
+    def fake_pile(rolling, twisting, seed, material, collapse, **kw):
+        rolling_friction, max_collapse = material.rolling_friction, collapse.max_time
         calls.append((rolling_friction, seed, max_collapse))
         settle = 1.0 + 3.0 * rolling_friction if rolling_friction > 0 else math.inf
         if settle > max_collapse:

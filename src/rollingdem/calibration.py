@@ -2,7 +2,8 @@
 
 ``calibrate(case, target, uncertainty, fix={"mu": 0.5}, free="mur")`` (and ``rollingdem
 calibrate``) proceeds as follows, with every run going through :func:`rollingdem.sweep.run_sweep`
-(one table ``OUT/runs.csv``, so an interrupted calibration resumes):
+(one table ``OUT/runs.csv``, so an interrupted calibration resumes); ``coarse``, ``refine``,
+``rounds`` and ``bootstrap`` are the fields of its :class:`Search`:
 
 1. a coarse sweep of ``coarse`` points over the free parameter's range, ``seeds`` runs each;
 2. a monotone surrogate: the mean over seeds at each point, made monotone by isotonic
@@ -15,7 +16,7 @@ calibrate``) proceeds as follows, with every run going through :func:`rollingdem
    each replicate draws the point means from their seed spread (pooled standard deviation,
    Student t with the pooled degrees of freedom, divided by sqrt(runs)) and the target from
    N(target, uncertainty^2), and inverts its own monotone surrogate; the interval is the 2.5 and
-   97.5 percentiles of the replicates.
+   97.5 percentiles of ``bootstrap`` replicates.
 
 ``uncertainty`` is the standard uncertainty (one sigma) of the measured target. A target the
 free parameter's range cannot reach is refused with the range the sweep found.
@@ -33,10 +34,23 @@ import pandas as pd
 
 from .cases.observables import get_case
 from .errors import ParameterError, check_finite, check_non_negative, check_output_path
+from .parallel import Execution
 
-__all__ = ["Calibration", "calibrate", "monotone_inverse"]
+__all__ = ["Calibration", "Execution", "Search", "calibrate", "monotone_inverse"]
 
 BOOTSTRAP = 4000
+
+
+@dataclass(frozen=True)
+class Search:
+    """How the free parameter's range is searched (see the module docstring): ``coarse`` points
+    first (>= 3), then ``rounds`` refinements (>= 0) of ``refine`` points each (>= 1), and
+    ``bootstrap`` replicates for the 95 % interval (>= 1)."""
+
+    coarse: int = 5
+    refine: int = 4
+    rounds: int = 2
+    bootstrap: int = BOOTSTRAP
 
 
 @dataclass
@@ -138,16 +152,16 @@ def _direction(stats: pd.DataFrame) -> bool:
 
 
 def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | None = None, free="mur",
-              observable: str | None = None, seeds=None, coarse: int = 5, refine: int = 4, rounds: int = 2,
-              out=None, workers=None, scheduler=None, threads: int = 1, progress: bool = True,
-              bootstrap: int = BOOTSTRAP, echo=None) -> Calibration:
+              observable: str | None = None, seeds=None, search: Search = Search(), out=None,
+              execution: Execution = Execution(), progress: bool = True, echo=None) -> Calibration:
     """Find the ``free`` parameter (a name, or (name, (low, high))) whose ``observable`` matches
-    ``target`` +- ``uncertainty`` (one sigma) with the parameters ``fix`` held; see the module
-    docstring for the method. Writes ``out/runs.csv``, ``calibration.json`` and ``calibration.png``."""
+    ``target`` +- ``uncertainty`` (one sigma) with the parameters ``fix`` held, ``seeds`` runs per
+    point, searched as ``search`` says (see the module docstring for the method), the runs going
+    where ``execution`` says. Writes ``out/runs.csv``, ``calibration.json`` and ``calibration.png``;
+    ``echo`` (a print-like function) tells each round and the result."""
     import tempfile
     import time
 
-    from .parallel import runner
     from .sweep import load_sweep, run_sweep
 
     tic = time.perf_counter()
@@ -180,10 +194,14 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
     fix = dict(fix or {})
     if name in fix:
         raise ParameterError(f"parameter {name!r} is both fixed and free: give it in one place")
-    for k, n_min in (("coarse", 3), ("refine", 1), ("rounds", 0)):
-        v = {"coarse": coarse, "refine": refine, "rounds": rounds}[k]
+    for what, value, kind in (("search", search, Search), ("execution", execution, Execution)):
+        if not isinstance(value, kind):
+            raise ParameterError(f"{what} = {value!r} is not allowed: must be a rollingdem.calibration.{kind.__name__}")
+    for k, n_min in (("coarse", 3), ("refine", 1), ("rounds", 0), ("bootstrap", 1)):
+        v = getattr(search, k)
         if isinstance(v, bool) or not isinstance(v, int) or v < n_min:
             raise ParameterError(f"{k} = {v!r} is not allowed: must be an integer >= {n_min}")
+    coarse, refine, rounds = search.coarse, search.refine, search.rounds
     seeds = seeds if seeds is not None else (3 if sc.stochastic else 1)
     out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-calibrate-"))
     first = load_sweep({"case": case, "fixed": fix, "points": [{name: lo}], "seeds": seeds})  # refuse bad input now
@@ -193,7 +211,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
         spec = load_sweep({"case": case, "fixed": fix, "points": [{name: float(x)} for x in xs], "seeds": seeds})
         return run_sweep(spec, out, mapper=m, progress=progress, summary=False).table
 
-    with runner(workers=workers, scheduler=scheduler, threads=threads) as m:
+    with execution.runner() as m:
         xs = list(np.linspace(lo, hi, coarse))
         sweep(xs, m)
         table = None
@@ -227,7 +245,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
     g = _monotone(means, counts, increasing)
     value = monotone_inverse(x, g, target)
     lo95, hi95, outside = _bootstrap(x, means, counts, stats["std"].to_numpy(), increasing, target, uncertainty,
-                                     bootstrap)
+                                     search.bootstrap)
     result = Calibration(case, name, observable, target, uncertainty, value, lo95, hi95, fix,
                          runs=int(len(table)), points=len(x), seeds=first.seed_list,
                          direction="increasing" if increasing else "decreasing", outside_fraction=outside,

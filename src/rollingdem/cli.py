@@ -211,13 +211,15 @@ def calibrate(case: str = typer.Option(..., "--case", "-c", help="rolling-flat, 
               scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address."),
               progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
     """Find the free parameter whose simulated observable matches a measured target, with a 95 % interval."""
-    from .calibration import calibrate as run_calibration, parse_assignments, parse_free
+    from .calibration import Execution, Search, calibrate as run_calibration, parse_assignments, parse_free
 
     _check_out(out)
     try:
         result = run_calibration(case, target, uncertainty, fix=parse_assignments(fix, "fix"), free=parse_free(free),
-                                 observable=observable, seeds=seeds, coarse=coarse, refine=refine, rounds=rounds,
-                                 out=out, workers=workers, scheduler=scheduler, progress=progress, echo=typer.echo)
+                                 observable=observable, seeds=seeds,
+                                 search=Search(coarse=coarse, refine=refine, rounds=rounds), out=out,
+                                 execution=Execution(workers=workers, scheduler=scheduler), progress=progress,
+                                 echo=typer.echo)
     except ParameterError as err:
         _refuse(err)
     typer.echo(f"figure: {result.figures[0]}")

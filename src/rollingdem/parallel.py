@@ -16,11 +16,12 @@ from __future__ import annotations
 import logging
 import os
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Iterator
 
 from .errors import ParameterError
 
-__all__ = ["Mapper", "completed", "default_workers", "runner"]
+__all__ = ["Execution", "Mapper", "completed", "default_workers", "runner"]
 
 
 def default_workers() -> int:
@@ -137,3 +138,19 @@ def runner(workers: int | None = None, scheduler: str | None = None, threads: in
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+@dataclass(frozen=True)
+class Execution:
+    """Where a study's runs go: the arguments of :func:`runner`. ``workers`` processes here (None:
+    cores // ``threads``; 1 and no ``scheduler``: in this process), or the Dask cluster at
+    ``scheduler`` (``"tcp://host:port"``); each run on ``threads`` Numba threads. Checked when the
+    runner starts (:func:`check_workers`)."""
+
+    workers: int | None = None
+    scheduler: str | None = None
+    threads: int = 1
+
+    def runner(self):
+        """:func:`runner` with these settings (a context manager yielding a :class:`Mapper`)."""
+        return runner(self.workers, self.scheduler, self.threads)

@@ -167,13 +167,14 @@ def inclined_wall(params: dict) -> dict:
 # --- angle-of-repose -------------------------------------------------------------------------------
 def angle_of_repose(params: dict) -> dict:
     """A pile from a lifted tube and its measured angle (NaN with a note when it cannot be fitted)."""
-    from .repose import pile_run
+    from .repose import Collapse, PileMaterial, pile_run
 
     p = CASES["angle-of-repose"].resolve(params)
-    run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], friction=p["mu"],
-                   rolling_friction=p["mur"], seed=p["seed"], lift_speed=p["lift_speed"] or None,
-                   youngs_modulus=p["youngs_modulus"], dt=p["dt"], sample=0.02, max_collapse=p["max_collapse"],
-                   polydispersity=p["polydispersity"], restitution=p["e"], rolling_damping=p["eta_r"])
+    material = PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
+                            restitution=p["e"], rolling_damping=p["eta_r"])
+    collapse = Collapse(max_time=p["max_collapse"], sample=0.02, lift_speed=p["lift_speed"] or None)
+    run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], seed=p["seed"], material=material,
+                   collapse=collapse, polydispersity=p["polydispersity"], dt=p["dt"])
     a = run.angle
     return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
             "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,

@@ -19,6 +19,7 @@ import pandas as pd
 
 from ..analysis import ReposeAngle, default_max_speed, plot_pile, repose_angle, touching
 from ..contact.model import ContactModel
+from ..errors import ParameterError
 from ..insertion import CylinderRegion, Uniform
 from ..materials import Material
 from ..simulation import Simulation
@@ -63,31 +64,65 @@ class PileRun:
     wall_time: float = math.nan
 
 
-def pile_run(rolling="epsd", twisting="none", count=3000, friction=TABLE1["friction"],
-             rolling_friction=TABLE1["rolling_friction"], seed=1, collapse=1.0, max_collapse=3.0, sample=0.01,
-             normal="hertz", polydispersity=POLYDISPERSITY, aspect=1.0, lift_speed=None,
-             youngs_modulus=TABLE1["youngs_modulus"], dt=DT, restitution=TABLE1["restitution"],
-             rolling_damping=TABLE1["rolling_damping"], label=None) -> PileRun:
+@dataclass(frozen=True)
+class PileMaterial:
+    """The pile's material where it may differ from Table 1 (whose Poisson ratio 0.49 and density
+    1056 kg/m^3 it keeps): sliding and rolling friction coefficients, Young's modulus (Pa),
+    coefficient of restitution and rolling viscous damping ratio. Checked by
+    :class:`rollingdem.Material` when the pile is built."""
+
+    friction: float = TABLE1["friction"]
+    rolling_friction: float = TABLE1["rolling_friction"]
+    youngs_modulus: float = TABLE1["youngs_modulus"]
+    restitution: float = TABLE1["restitution"]
+    rolling_damping: float = TABLE1["rolling_damping"]
+
+    def as_material(self, name: str) -> Material:
+        """Table 1 with these values, as a :class:`rollingdem.Material` called ``name``."""
+        return Material(name, **dict(TABLE1, youngs_modulus=self.youngs_modulus, friction=self.friction,
+                                     rolling_friction=self.rolling_friction, restitution=self.restitution,
+                                     rolling_damping=self.rolling_damping))
+
+
+@dataclass(frozen=True)
+class Collapse:
+    """How the tube leaves and how long the pile collapses: the tube is removed at once or, with
+    ``lift_speed`` (m/s), lifted; the collapse runs at least ``min_time`` s and then on, in steps
+    of ``sample`` s, until the pile is settled or ``max_time`` s have passed."""
+
+    min_time: float = 1.0
+    max_time: float = 3.0
+    sample: float = 0.01
+    lift_speed: float | None = None
+
+
+def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
+             collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, aspect=1.0, dt=DT,
+             label=None) -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
     Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
     tube on a plate and settle into a column ``aspect`` diameters high (a monodisperse column
-    orders into layers on a flat plate and then spreads into a monolayer). Then the tube is removed
-    at once (the report's case 3) or, with ``lift_speed`` (m/s), lifted as in the PFC example.
-    The collapse runs at least ``collapse`` s and then on, in ``sample`` steps, until the pile is
-    settled or ``max_collapse`` s have passed. Settled: of the spheres that touch another
+    orders into layers on a flat plate and then spreads into a monolayer); ``material`` sets what
+    may differ from Table 1. Then the tube is removed at once (the report's case 3) or, with
+    ``collapse.lift_speed`` (m/s), lifted as in the PFC example. The collapse runs at least
+    ``collapse.min_time`` s and then on, in ``collapse.sample`` steps, until the pile is settled or
+    ``collapse.max_time`` s have passed. Settled: of the spheres that touch another
     (:func:`rollingdem.analysis.touching`), at most ``MOVING_FRACTION`` (0.5 %) move faster than
     1e-3 sqrt(g d) (:func:`rollingdem.analysis.default_max_speed`). A sphere rolling alone over the
     plate (with little rolling resistance it may roll for seconds) and a few rattlers caged in
     the pile do not change its surface. Then the angle is measured.
     """
+    for what, value, kind in (("material", material, PileMaterial), ("collapse", collapse, Collapse)):
+        if not isinstance(value, kind):
+            raise ParameterError(f"{what} = {value!r} is not allowed: must be a "
+                                 f"rollingdem.cases.repose.{kind.__name__}")
+    lift_speed, sample, max_collapse = collapse.lift_speed, collapse.sample, collapse.max_time
     tic = time.perf_counter()
     dist = Uniform(RADIUS * (1 - polydispersity), RADIUS * (1 + polydispersity)) if polydispersity else RADIUS
     tube_radius, height = column_size(count, RADIUS, polydispersity, aspect)
     sim = Simulation(contact=ContactModel(normal, rolling=rolling, twisting=twisting), dt=dt)
-    sim.add_material(Material("m", **dict(TABLE1, youngs_modulus=youngs_modulus, friction=friction,
-                                          rolling_friction=rolling_friction, restitution=restitution,
-                                          rolling_damping=rolling_damping)))
+    sim.add_material(material.as_material("m"))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m", name="plate"))
     tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material="m", name="tube"))
     fill = height * PACKING / INSERT_PACKING
@@ -109,7 +144,7 @@ def pile_run(rolling="epsd", twisting="none", count=3000, friction=TABLE1["frict
             sim.remove_wall(tube)  # clear of the pile
         trans, rot = sim.kinetic_energy()
         ke.append((t, trans, rot, 0.5 * float(np.dot(inertia, sim.angular_velocities[:, 2] ** 2))))
-        if t >= collapse - 1e-9 and tube not in sim.walls:
+        if t >= collapse.min_time - 1e-9 and tube not in sim.walls:
             pile = touching(sim.positions, sim.radii)
             speed = np.linalg.norm(sim.velocities[pile], axis=1)
             if np.count_nonzero(speed >= limit) <= MOVING_FRACTION * count:
@@ -136,7 +171,7 @@ REPOSE_MODELS = {"cdt": ("cdt", "none"), "epsd": ("epsd", "none"), "epsd2": ("ep
 FINAL_WINDOW = 0.25  # s: case 3 compares mean kinetic energies over the end of the run
 #: deg: allowed |angle(EPSD2) - angle(EPSD)| of case 3: the 95 % band of the difference of two
 #: single-seed angles, t(0.975, 6) sqrt(2) s, s = 4.68 deg the pooled seed-to-seed standard deviation
-#: of the quick pile (1000 spheres; pile_run(m, count=1000, collapse=1.5, max_collapse=1.5, seed=k)):
+#: of the quick pile (1000 spheres; pile_run(m, count=1000, seed=k, collapse=Collapse(1.5, 1.5))):
 #: EPSD 11.13, 17.70, 10.98, 18.04, 20.26 deg (seeds 1-5, mean 15.62), EPSD2 21.07, 10.29, 16.06 deg
 #: (seeds 1-3, mean 15.81); 52-59 s a pile. The means agree to 0.2 deg, but one seed per model
 #: resolves no less: the pile is flat (cone fit R^2 0.09-0.52). A larger pile (more surface
@@ -176,7 +211,7 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
 
     def one(item):
         label, (rolling, twisting) = item
-        return pile_run(rolling, twisting, count=count, collapse=collapse, max_collapse=collapse, label=label)
+        return pile_run(rolling, twisting, count=count, collapse=Collapse(collapse, collapse), label=label)
 
     runs = {}
     for r in runner(one, list(chosen.items())):

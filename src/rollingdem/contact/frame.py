@@ -141,3 +141,20 @@ def _store_tangent(hist, k, at, nx, ny, nz, hx, hy, hz, mag2):
         hist[k, at] = 0.0
         hist[k, at + 1] = 0.0
         hist[k, at + 2] = 0.0
+
+
+@njit(cache=True, inline="always")
+def stored_normal(hist, k, nx, ny, nz):
+    """The contact normal of the last step, kept in ``hist[k, 0:3]``; n itself for a new contact
+    (nothing stored yet). Selects, no branch."""
+    onx = hist[k, 0]
+    ony = hist[k, 1]
+    onz = hist[k, 2]
+    fresh = onx == 0.0 and ony == 0.0 and onz == 0.0
+    return (nx if fresh else onx), (ny if fresh else ony), (nz if fresh else onz)
+
+
+@njit(cache=True, inline="always")
+def spin_angle(nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, dt):
+    """phi = 1/2 (omega_i + omega_j) . n dt: the pair's rigid spin about n in the step."""
+    return 0.5 * ((wix + wjx) * nx + (wiy + wjy) * ny + (wiz + wjz) * nz) * dt

@@ -1,103 +1,9 @@
-r"""Angle of repose of a conical pile of spheres.
+"""Angle of repose of a conical pile of spheres: a robust cone fit to the tops of the free-surface
+particles, and line fits per azimuthal slice for the pile's asymmetry.
 
-Works on any pile given as plain numpy arrays (from this package's :class:`~rollingdem.Simulation`
-via ``sim.positions``, ``sim.radii``, ``sim.velocities``, or from a user's own data). SI units
-throughout: lengths in m, speeds in m/s, angles reported in degrees.
-
-Conventions
------------
-Particle centres :math:`\mathbf{x}_i = (x_i, y_i, z_i)`, radii :math:`a_i`; gravity points along
-:math:`-z`; the pile rests on the horizontal floor :math:`z = z_f` (``floor``). The height of the
-free surface is read from the particle tops
-
-.. math:: t_i = z_i + a_i .
-
-Method
-------
-1. **Settled?** If velocities are given, the pile is measured only if (see :func:`settled`)
-
-   .. math:: \max_i |\mathbf{v}_i| < v_\mathrm{max}, \qquad
-             v_\mathrm{max} = 10^{-3}\sqrt{g\,\bar d}\ \text{(default)},
-
-   :math:`\bar d` the mean diameter. At that speed a particle needs
-   :math:`10^{3}\sqrt{\bar d/g}` (about 20 s for 4 mm spheres) to move one diameter, so the
-   surface does not change while it is measured. Otherwise :class:`SimulationError`.
-
-2. **Centre.** If ``center`` is not given, a first guess is the xy centroid of the particles whose
-   top lies in the upper 20 % of the pile height, weighted by their height above that level
-   (:math:`w_i = t_i - [z_f + 0.8(t_\max - z_f)]`). Only the upper part of the pile enters, so a
-   toe spread further on one side does not pull the centre. The guess is then refined by fitting
-   the apex position together with the cone (step 5), re-selecting the surface about the new
-   centre.
-
-3. **Pile radius.** In cylindrical coordinates about the centre,
-   :math:`\rho_i = \sqrt{(x_i-x_0)^2 + (y_i-y_0)^2}`, :math:`\theta_i = \operatorname{atan2}`.
-   The outer radius :math:`R` is the median, over 16 azimuthal sectors, of each sector's largest
-   :math:`\rho_i + a_i` among the particles that lie on others, with their bottom at least
-   1.25 mean diameters above the floor, :math:`z_i - a_i - z_f \ge 1.25\,\bar d` (a particle
-   of the second layer sits about 0.8 diameter up): spheres that rolled away and the monolayer
-   that a collapsing column spreads over the floor are not part of the heap. A few particles that
-   stayed on top of others far out, or a toe spread on one side, move only some sectors and not
-   the median. If no particle lies that high, all particles count.
-
-4. **Free surface.** Rings of width :math:`w = \bar d` in :math:`\rho`; ring :math:`k` is cut into
-   :math:`n_k = \max(1, \lfloor 2\pi(k + 1/2)\rfloor)` azimuthal bins, so every bin is about one
-   diameter wide both ways. The particle with the highest top :math:`t_i` in each bin is a
-   surface candidate. Candidates are kept in the fit range
-
-   .. math:: \epsilon_a R \le \rho_i \le (1 - \epsilon_t) R,
-
-   (``exclude_apex`` :math:`\epsilon_a`, ``exclude_toe`` :math:`\epsilon_t`; the rounded apex and
-   the flattened toe are not part of the cone) and only if they do not lie in the first layer on
-   the floor, :math:`z_i - z_f \ge 2 a_i` (bottom at least one radius above the floor; a particle
-   of the second layer sitting in the dimples of the first has :math:`z_i - z_f \approx 2.6 a_i`).
-   Dropping first-layer particles one by one censors the low side of the envelope near the toe
-   (a hole in the surface exposes a particle one diameter lower, which is dropped there but kept
-   further up); that raises the outer points and makes the fit shallower (-0.4 degree on a rough
-   20-degree pile 30 diameters in radius). So, once a cone is fitted, the fit range also ends
-   where the fitted surface of tops comes within three mean diameters of the floor,
-
-   .. math:: \rho \le \frac{h - z_f - 3\bar d}{\tan\alpha},
-
-   where even a particle one layer below the surface lies clear of the first-layer cut.
-
-5. **Cone fit** (:func:`scipy.optimize.least_squares`) of the tops of the candidates,
-
-   .. math:: t_i \approx h - \tan\alpha\;\sqrt{(x_i - x_0)^2 + (y_i - y_0)^2},
-
-   parameters :math:`h, \tan\alpha` and, when the centre is not given, :math:`x_0, y_0`. A robust
-   loss (``soft_l1``, scale :math:`\bar a`) limits the pull of holes (a bin whose surface particle
-   is missing gives a particle one layer down) and bumps; then candidates with
-   :math:`|r_i - \operatorname{median}(r)| > 3\sigma`, :math:`\sigma = 1.4826\,\mathrm{MAD}(r)`
-   (at least :math:`0.1\bar a`), are dropped and the fit is repeated. The remaining candidates are
-   the ``surface`` mask. The coefficient of determination is
-
-   .. math:: R^2 = 1 - \frac{\sum_i (t_i - \hat t_i)^2}{\sum_i (t_i - \bar t)^2} .
-
-   Steps 3-5 are repeated (at most 8 passes) until the centre and the toe limit of the fit range
-   are stable (to 5 % and 25 % of a diameter).
-
-6. **Slices.** The azimuth about the fitted apex is cut into ``n_slices`` equal sectors
-   (sector :math:`k` covers :math:`\theta \in [2\pi k/n, 2\pi(k+1)/n)`); in each, an ordinary
-   least-squares line :math:`t = c_k - s_k \rho` through the surface particles of that sector gives
-   :math:`\alpha_k = \arctan s_k`. Reported: every :math:`\alpha_k`, their mean and their sample
-   standard deviation (``ddof = 1``; 0 for a single slice), a measure of the pile's asymmetry.
-
-Bias
-----
-The tops of spheres whose centres lie on (or a fixed mean depth below) a cone of angle
-:math:`\alpha` lie on a cone of the same angle shifted up by :math:`a`: a parallel offset changes
-:math:`h` only, not :math:`\alpha`. The highest particle in a bin lies on average some fraction of a
-layer below the true surface, the same at every radius, so again only :math:`h` moves. The fit uses
-each particle's own :math:`\rho_i`, not its bin centre, so the bin width does not bias the slope.
-What does bias it, the rounded apex and the flattened toe and first floor layer, is excluded by the
-fit range. On synthetic jittered-lattice piles of 20 to 40 degrees (``tests/test_analysis.py``),
-with and without position noise of 0.2 radius, a rough surface or polydisperse radii, the error of
-the cone angle and of the slice mean is below 0.25 degree (10 random piles of each kind).
-A pile with a flat or strongly rounded top is not a cone near its axis: raise ``exclude_apex``
-until the fit range starts below the plateau (a 30-degree cone cut flat at 70 % of its height
-reads 0.8 degree low with the default 0.15, right to 0.05 degree with 0.35).
-"""
+Works on plain numpy arrays (``sim.positions``, ``sim.radii``, ``sim.velocities``, or a user's own
+data); SI units, angles in degrees. The method (its steps 1-6), its safeguards and its measured
+accuracy: docs/analysis.md."""
 
 from __future__ import annotations
 
@@ -309,7 +215,7 @@ def touching(positions: Any, radii: Any, gap: float = 0.05) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 
 def _estimate_center(x: np.ndarray, top: np.ndarray, floor: float) -> tuple[float, float]:
-    """xy centroid of the particles in the upper part of the pile, weighted by height (step 2)."""
+    """xy centroid of the particles in the upper part of the pile, weighted by height (docs/analysis.md step 2)."""
     level = floor + (1.0 - _TOP_FRACTION) * (top.max() - floor)
     k = min(10, top.size)
     # at least the k highest particles, so that a pile topped by a single sphere still averages
@@ -320,7 +226,8 @@ def _estimate_center(x: np.ndarray, top: np.ndarray, floor: float) -> tuple[floa
 
 
 def _pile_radius(rho: np.ndarray, theta: np.ndarray, a: np.ndarray, lifted: np.ndarray) -> float:
-    """Median over azimuthal sectors of the largest rho + a of the particles above the second layer (step 3)."""
+    """Median over azimuthal sectors of the largest rho + a of the particles above the second layer
+    (docs/analysis.md step 3)."""
     if lifted.any():
         rho, theta, a = rho[lifted], theta[lifted], a[lifted]
     sector = np.minimum((theta * (_RADIUS_SECTORS / (2 * np.pi))).astype(np.int64), _RADIUS_SECTORS - 1)
@@ -336,7 +243,8 @@ def _polar(x: np.ndarray, c: tuple[float, float]) -> tuple[np.ndarray, np.ndarra
 
 
 def _envelope(rho: np.ndarray, theta: np.ndarray, top: np.ndarray, width: float) -> np.ndarray:
-    """Indices of the highest particle top in each (ring, azimuth) bin about one width wide (step 4)."""
+    """Indices of the highest particle top in each (ring, azimuth) bin about one width wide
+    (docs/analysis.md step 4)."""
     ring = (rho / width).astype(np.int64)
     n_az = np.maximum(1, np.floor(2 * np.pi * (np.arange(ring.max() + 1) + 0.5)).astype(np.int64))
     offset = np.concatenate(([0], np.cumsum(n_az)[:-1]))
@@ -352,7 +260,7 @@ def _envelope(rho: np.ndarray, theta: np.ndarray, top: np.ndarray, width: float)
 
 def _fit_cone(x: np.ndarray, top: np.ndarray, p0: np.ndarray, center: tuple[float, float] | None,
               scale: float) -> np.ndarray:
-    """Robust least-squares cone t = h - tan(alpha) rho; returns (h, tan_alpha, x0, y0) (step 5)."""
+    """Robust least-squares cone t = h - tan(alpha) rho; returns (h, tan_alpha, x0, y0) (docs/analysis.md step 5)."""
     if center is None:
         def res(p):
             return top - (p[0] - p[1] * np.hypot(x[:, 0] - p[2], x[:, 1] - p[3]))
@@ -420,7 +328,7 @@ def _select_and_fit(x, a, top, floor, c, fixed_center, exclude_apex, exclude_toe
 def repose_angle(positions: Any, radii: Any, *, floor: float = 0.0, center: Any = None,
                  velocities: Any = None, max_speed: float | None = None, n_slices: int = 8,
                  exclude_apex: float = 0.15, exclude_toe: float = 0.15, gravity: float = 9.81) -> ReposeAngle:
-    r"""Angle of repose of a conical pile of spheres (method in the module docstring).
+    r"""Angle of repose of a conical pile of spheres (method: docs/analysis.md).
 
     Parameters
     ----------

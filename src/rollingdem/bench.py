@@ -1,34 +1,9 @@
 """``rollingdem bench``: time standard scenes, report particle-steps per second and where the time goes.
 
-Scenes (the performance issue's definitions):
-
-* ``column-collapse``: N spheres of R = 5 mm, the seed report's Table 1 material (E = 40 MPa,
-  nu = 0.49, rho = 1056 kg/m3, mu = 0.8, mu_r = 0.2, eta_r = 0.3, e = 0.5), Hertz-Mindlin with
-  tangential history and EPSD rolling resistance, plate at z = 0, settled 0.6 s in a cylinder of
-  radius 0.125 m sqrt(N / 20,000) (the LIGGGHTS reference input's geometry), then the cylinder is
-  removed and ``steps`` steps of the collapse are timed; dt = 1e-5 s, skin 2 mm. The settled state
-  is cached on disk (``$ROLLINGDEM_CACHE_DIR/bench``), or read from the dump the LIGGGHTS
-  reference input writes (``--from-dump``).
-* ``single-particle``: the rolling-flat case (one sphere, one plane), 150,000 steps: the per-step
-  overhead.
-* ``dense-bed``: the settled column with its cylinder kept, once per rolling model: the cost of
-  each model relative to none.
-* ``slab``: N spheres on a jittered cubic lattice (spacing 2.02 R, 8 layers) on a plate, falling
-  onto it with random velocities of 5 cm/s, EPSD: the cost per particle-step against N without a
-  settle first (a settled column of 10^6 spheres takes hours to build on 2 cores).
-* ``scaling``: the slab at 20,000 and at N spheres (default 10^6) in one process, stepped in turn
-  ``SCALING_CHUNKS`` times, so both pass through the same simulated times and the same moments of
-  a shared machine's load: the cost per particle-step at N against 20,000 (the performance issue
-  asks for at most 1.3x).
-
-Every scene runs as a Simulation does by default: without summing the dissipated energies
-(``track_energy=False``), as LIGGGHTS and LAMMPS, which do not count them either.
-
-The figure ``particle_steps_per_s`` never includes compilation: the first call, which compiles or
-loads the kernel from Numba's cache, is timed apart (``compile_s``). The time split comes from
-timing each phase of the step on its own on the final state (contact forces; walls; gravity and
-integration; neighbor search, amortised over the rebuilds of the timed run).
-"""
+The scenes (``column-collapse``, ``single-particle``, ``dense-bed``, ``slab``, ``scaling``,
+``collapse-scaling``), what each measures and how the figures are taken (compilation timed apart,
+each phase timed on its own): docs/performance.md, "rollingdem bench"; the scaling scenes:
+docs/scaling.md."""
 
 from __future__ import annotations
 

@@ -1,26 +1,9 @@
 """Calibration: the value of one free parameter whose simulated observable matches a measured one.
 
 ``calibrate(case, target, uncertainty, fix={"mu": 0.5}, free="mur")`` (and ``rollingdem
-calibrate``) proceeds as follows, with every run going through :func:`rollingdem.sweep.run_sweep`
-(one table ``OUT/runs.csv``, so an interrupted calibration resumes); ``coarse``, ``refine``,
-``rounds`` and ``bootstrap`` are the fields of its :class:`Search`:
-
-1. a coarse sweep of ``coarse`` points over the free parameter's range, ``seeds`` runs each;
-2. a monotone surrogate: the mean over seeds at each point, made monotone by isotonic
-   regression (scipy.optimize.isotonic_regression, weighted by the runs per point, in the
-   direction of the Spearman trend) and interpolated linearly;
-3. ``rounds`` refinements of ``refine`` points each inside the bracket where the surrogate
-   crosses the target, widened to where the seed scatter alone leaves the answer (the bootstrap
-   of step 4 without the target's uncertainty), so a noisy case does not crowd its points;
-4. the estimate x* = surrogate^-1(target), and its 95 % interval from a parametric bootstrap:
-   each replicate draws the point means from their seed spread (pooled standard deviation,
-   Student t with the pooled degrees of freedom, divided by sqrt(runs)) and the target from
-   N(target, uncertainty^2), and inverts its own monotone surrogate; the interval is the 2.5 and
-   97.5 percentiles of ``bootstrap`` replicates.
-
-``uncertainty`` is the standard uncertainty (one sigma) of the measured target. A target the
-free parameter's range cannot reach is refused with the range the sweep found.
-"""
+calibrate``): a coarse sweep, a monotone surrogate, refinement rounds where it crosses the target,
+and a 95 % interval from a parametric bootstrap, every run through :func:`rollingdem.sweep.run_sweep`
+(resumable). The method step by step: docs/studies.md, "Calibration"."""
 
 from __future__ import annotations
 
@@ -43,7 +26,7 @@ BOOTSTRAP = 4000
 
 @dataclass(frozen=True)
 class Search:
-    """How the free parameter's range is searched (see the module docstring): ``coarse`` points
+    """How the free parameter's range is searched (docs/studies.md, "Calibration"): ``coarse`` points
     first (>= 3), then ``rounds`` refinements (>= 0) of ``refine`` points each (>= 1), and
     ``bootstrap`` replicates for the 95 % interval (>= 1)."""
 
@@ -156,7 +139,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
               execution: Execution = Execution(), progress: bool = True, echo=None) -> Calibration:
     """Find the ``free`` parameter (a name, or (name, (low, high))) whose ``observable`` matches
     ``target`` +- ``uncertainty`` (one sigma) with the parameters ``fix`` held, ``seeds`` runs per
-    point, searched as ``search`` says (see the module docstring for the method), the runs going
+    point, searched as ``search`` says (the method: docs/studies.md, "Calibration"), the runs going
     where ``execution`` says. Writes ``out/runs.csv``, ``calibration.json`` and ``calibration.png``;
     ``echo`` (a print-like function) tells each round and the result."""
     import tempfile

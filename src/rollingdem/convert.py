@@ -1,30 +1,9 @@
 """Parameter conversion from other DEM codes' rolling-resistance conventions (docs/models.md §12).
 
-Each function takes the parameters as the other code's input file names them and returns a
-:class:`RollingParameters`: the rollingdem rolling sub-model plus the material coefficients
-(``rolling_friction`` mu_r in the M_m = mu_r R* F_n convention, ``rolling_damping`` eta_r) that
-reproduce the same moment law. ``parity=True`` also selects the other code's quirks (which force
-bounds the moment, how the stored moment follows the contact frame); ``parity=False`` keeps the
-recommended formulation with converted numbers, so that two codes' parameter sets can be compared
-on equal terms.
-
-Torque form of every spring model (docs/models.md §12): M_k += k_r dw_r dt, |M| <= mu_r R* F_n, with
-R* = R_i R_j / (R_i + R_j) (R_i for a wall).
-
-=====================  ===================================  ===========================================
-code                   its parameters                       rollingdem
-=====================  ===================================  ===========================================
-LIGGGHTS epsd/2/3,cdt  coefficientRollingFriction mu_r,     same mu_r, eta_r; EPSD/EPSD2/EPSD3/CDT
-                       coefficientRollingViscousDamping,    (parity "liggghts")
-                       coeffRollingStiffness c
-LAMMPS rolling sds     k_roll, gamma_roll, mu_roll          SDS(k_roll, gamma_roll), mu_r = mu_roll
-MercuryDPM             rollingStiffness k, rollingDissip.   SDS(4 k, 4 eta), mu_r = 2 mu (torque from a
-  FrictionSpecies      eta, rollingFrictionCoefficient mu   pseudo-force at lever 2 R*: docs/models.md §7.2)
-PFC rrlinear           rr_fric, linear ks                   RRLinear, mu_r = rr_fric (R-bar = R*)
-Yade CohFrictMat       alphaKr, etaRoll, k_s, R_1, R_2      SDS(alphaKr k_s R_1 R_2 / R*^2),
-                                                            mu_r = etaRoll min(R_1, R_2) / R*
-=====================  ===================================  ===========================================
-"""
+One function per code: it takes the parameters as the other code's input file names them and
+returns a :class:`RollingParameters`, the rollingdem rolling sub-model and the material
+coefficients (mu_r, eta_r) that give the same moment law. The conventions, the table of codes and
+what ``parity`` selects: docs/models.md §12, "Parameters from other codes"."""
 
 from __future__ import annotations
 

@@ -1,14 +1,8 @@
 """Engine state: the arrays the compiled kernel advances, and their capacity management.
 
-Python calls the kernel for K steps at a time; the kernel stops early only at a step boundary,
-when the neighbor list needs more room, and is then called again after the arrays grow (so the
-result does not depend on the initial capacity).
-
-Particles live in storage slots that are re-sorted in space (Morton order) every ``SORT_EVERY``
-steps in scenes of at least ``SORT_ABOVE`` particles, so that partners in contact sit near each
-other in memory (as LAMMPS's and LIGGGHTS's ``atom_modify sort``). ``ids[slot]`` is the index the
-user knows; the public arrays are returned in that order.
-"""
+``EngineState`` calls the kernel for K steps at a time and grows the arrays when it stops for
+room; it re-sorts the particles' storage slots in space in large scenes (``ids[slot]`` is the
+index the user knows). docs/architecture.md, "The engine state"."""
 
 from __future__ import annotations
 

@@ -3,24 +3,7 @@
     from rollingdem.insertion import CylinderRegion, Uniform
     sim.insert(CylinderRegion(0.05, 0.0, 0.2), 500, Uniform(0.004, 0.005), "glass", seed=3)
 
-``fill_region`` does random sequential addition (RSA): radii are drawn first and placed largest
-first; each sphere gets up to ``max_attempts`` random candidate centres, drawn uniformly from the
-part of the region where its whole body lies inside, and the first candidate that overlaps neither
-an already placed sphere, an existing particle nor a wall is kept. The work is done in rounds: each
-round draws candidates for the largest spheres still waiting (several per sphere once few are left),
-checks them against everything placed so far with a k-d tree in one vectorized call, and then
-accepts them in order, skipping any that would overlap one accepted earlier in the same round. Once
-candidates fail so often that a sphere might run out of attempts, they are drawn only from the cells
-of a background grid that may still hold a free centre (``_FreeCells``): still uniform over the free
-space, but far fewer are wasted. A region too large for that grid at its finest cells (more than
-``_FreeCells.MAX_DENSE`` cells, ~65,000 spheres of one size at a packing fraction of 0.27) is filled
-in slabs across its longest axis, in ``SLAB_PASSES`` passes with shifted seams (``_slab_plan``):
-10^6 spheres in the bench's column take ~50 s. The result is reproducible from ``seed``.
-
-Random insertion cannot fill a region densely: RSA of equal spheres jams near a packing fraction
-of 0.38 (0.3-0.35 is what is reached in practice with a bounded number of attempts), so a
-denser bed has to be made by letting the spheres settle (run the simulation with gravity).
-"""
+Random sequential addition, reproducible from ``seed``; how, and how densely: docs/studies.md."""
 
 from __future__ import annotations
 

@@ -1,15 +1,9 @@
 """The compiled engine of a contact law: the template ``engine_kernel.py`` with the law's compiled
 functions and row layout filled in, written to the kernel cache and imported.
 
-For each combination of sub-models (and of the rolling model's compile-time ``kernel_modes`` and
-the energy switch) a copy of the template is written with the lines tagged ``# @@`` replaced,
-under a file name that carries a hash of every source it depends on (an edited sub-model never
-runs with a stale kernel), and imported; Numba's on-disk cache then works as for any module
-(closures over jitted functions would defeat it). The step loop is written once, for the
-parallel passes; each function tagged ``@@SERIAL_COPY`` is written a second time with the
-``*_serial`` passes (``advance_serial``): Numba compiles every function a loop can call, so one
-loop with a ``serial`` flag would compile both sets of passes (docs/performance.md).
-"""
+One module per combination of sub-models, rolling ``kernel_modes`` and energy switch, named by a
+hash of its sources, with a serial copy of the step loop (``advance_serial``): docs/architecture.md,
+"The kernel and its contract" and "Compiling a kernel"."""
 
 from __future__ import annotations
 

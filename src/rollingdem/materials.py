@@ -1,14 +1,8 @@
 """Materials and the pair mixing rules of docs/models.md §1.1.
 
-Effective moduli (LIGGGHTS ``global_properties.cpp``, EDEM):
-
-    1/E* = (1 - nu_i^2)/E_i + (1 - nu_j^2)/E_j
-    1/G* = 2 (2 - nu_i)(1 + nu_i)/E_i + 2 (2 - nu_j)(1 + nu_j)/E_j
-
-Per-pair coefficients (friction, rolling friction, restitution, rolling damping) default to the
-arithmetic mean of the two materials' values and can be overridden per material pair, as
-LIGGGHTS ``peratomtypepair`` matrices and HOOMD ``params[(a, b)]`` allow.
-"""
+:class:`Material`; :class:`MaterialTable`, the materials of a scene with the effective moduli E*
+and G* of each pair and its coefficients (friction, rolling friction, restitution, rolling
+damping): the mean of the two materials' values unless set for the pair (``set_pair``)."""
 
 from __future__ import annotations
 

@@ -1,31 +1,9 @@
 """Cell list and Verlet neighbor list with skin, and contact history carried across rebuilds.
 
-The list is a half list in CSR form: each pair once, in the row of the partner with the smaller
-particle id (``ids``: the index the user knows, which a spatial re-sort of the storage slots
-never changes, so neither does which partner of a contact is "i"). The neighbors of slot i are
-``nl_j[nl_start[i]:nl_start[i+1]]``, sorted by ascending id, holding every j with
-|x_i - x_j| < R_i + R_j + skin at the build. It stays valid while no particle has moved more
-than skin/2 since the build.
-
-The contacts' rows (history, then the pair terms F_ij and T_j of the step) are kept apart from
-the entries, in a pool: ``contact_row[k]`` is the pool row of entry k, -1 when its spheres did not touch
-at the last step. Most entries are not in contact (9 % in a falling slab, 5 % in a collapsing
-column, 2/3 in a dense bed): rows kept beside every entry would leave the contacts' rows scattered
-one or two cache lines apart, and a scene too large for the cache would read whole lines for a
-few bytes each. The pool is cut in groups of ``POOL_GROUP`` list rows; group g owns the pool rows
-of its own entries' range (``nl_start[g G] .. nl_start[(g + 1) G]``), its contacts packed at their
-front in list order at every rebuild. A contact that starts between rebuilds takes a row from
-its group's free list or after its group's last row used (``groups[g] = (free list head, next
-unused row)``); one that ends gives its row to the free list. A group never runs out of rows: it
-has one per entry. As one thread owns a group's rows in the pair pass, no row is shared between
-threads, and which row a contact takes does not depend on the number of threads. At a rebuild
-the contacts are carried to the new list by merging the two sorted rows of each particle, not by
-search, in place (no second buffer).
-
-A transposed index (``tr_start``, ``tr_k``) lists, for each particle j, the list entries k in which
-it is the second partner, in ascending i: the per-particle gather of pair forces then runs with
-one writer per particle, in a fixed order (bit-identical results whatever the thread count).
-"""
+The half list in CSR form, the pool of the contacts' rows (in groups of ``POOL_GROUP`` list rows)
+and the transposed index of the gather: ``ContactList`` and the compiled rebuild. Their layout and
+rules: docs/architecture.md, "The neighbor list and the contact pool"; what they are worth in
+speed: docs/performance.md."""
 
 from __future__ import annotations
 

@@ -1,15 +1,8 @@
 """Run independent simulations side by side on Dask.
 
-A runner is a context manager that yields a :class:`Mapper`: ``mapper(func, items)`` iterates
-over ``func(item)`` in the order of ``items``, ``mapper.as_completed(func, items)`` as the runs
-finish. Each task runs on ``threads`` Numba threads (default 1) and the default worker count is
-cores // threads, so the cores are filled without oversubscription: a run of a few thousand
-spheres gains little from a second thread, and two runs side by side use both cores fully.
-
-* ``workers=1`` and no scheduler: in this process, no Dask (tests, debugging).
-* default: a ``dask.distributed.LocalCluster`` of cores // threads worker processes.
-* ``scheduler="tcp://host:port"``: an existing Dask cluster (dask-jobqueue, Kubernetes, ...).
-"""
+A runner is a context manager that yields a :class:`Mapper` (in order, or as the runs finish): in
+this process, on a ``LocalCluster`` of cores // threads workers (the default), or on an existing
+Dask cluster. docs/studies.md, "Running side by side"."""
 
 from __future__ import annotations
 

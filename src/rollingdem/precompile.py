@@ -1,23 +1,9 @@
 """Compile a new engine kernel on two cores instead of one.
 
-A kernel that is not yet in Numba's on-disk cache costs about 25 s of compilation on one core:
-Numba types a function's callees one after the other, each compiled in full before the next. The
-step loop a run takes (``advance`` on threads, ``advance_serial`` on the calling thread) is
-therefore prepared in two processes before its first call, when it is not cached yet
-(``prepare``, from ``kernels.engine_module``). A helper process compiles the scalar contact law,
-the gather's per-particle body (with the walls' contacts) and the neighbor search into Numba's
-cache, printing each name as it is done; meanwhile this process compiles the vectorised contact
-block, the drift, the pair pass (once the helper's contact law, which it calls, is in the
-cache) and the gather's driver (once its body is cached). When
-the helper is done, the step loop's first call finds every pass in the cache and compiles only
-the loop itself. Nothing is computed twice in the usual case; if the helper fails or is slow,
-this process compiles what is missing itself, with the same result. Numba writes its cache
-files atomically (a temporary file, then ``os.replace``).
-
-The helper starts only when the step loop is not cached, more than one core is available, no
-other process is preparing this kernel (a lock file, stale after 10 minutes) and
-``ROLLINGDEM_PRECOMPILE`` is not ``0``.
-"""
+When the step loop a run takes is not yet in Numba's cache, a helper process compiles part of its
+passes into the cache while this process compiles the rest (``prepare``, from
+``kernels.engine_module``). The plan, its fallbacks and when the helper starts:
+docs/architecture.md, "Compiling a kernel"; the time it saves: docs/performance.md."""
 
 from __future__ import annotations
 

@@ -1,22 +1,9 @@
 """Parameter sweeps: one case over many parameter sets and seeds, on Dask, resumable.
 
-A sweep file (YAML or TOML) names a case of :mod:`rollingdem.cases.observables`, fixed
-parameters, and one of a ``grid`` (every combination), a list of ``points`` or a Latin-hypercube
-``sample`` (scipy.stats.qmc) over parameter ranges, repeated over ``seeds``::
-
-    case: rolling-flat
-    fixed: {model: epsd, v0: 1.0}
-    grid: {mur: [0.1, 0.2, 0.3, 0.4]}
-    seeds: 1                     # a count (seeds 1..n) or a list [3, 7, 11]
-
-Every run has an id, a hash of its case and its full parameter set (defaults filled in). Rows are
-appended to ``OUT/runs.csv`` as runs finish (flushed and synced, one per run: parameters, seed,
-observables, wall time, package version, status, error); a second invocation skips the ids already
-in the table, so an interrupted sweep resumes where it stopped. A run that raises is recorded as
-``failed`` with its error and the others go on; a run whose worker process dies is rerun on
-another worker by the Dask scheduler. ``OUT/summary.csv`` and ``OUT/summary.png`` give each
-observable against the swept parameters: mean over seeds with a 95 % Student-t interval.
-"""
+A sweep file names a case of :mod:`rollingdem.cases.observables`, fixed parameters and a grid, a
+list of points or a Latin-hypercube sample, repeated over seeds. Runs are appended to
+``OUT/runs.csv`` as they finish (a rerun skips those done); ``OUT/summary.csv`` and ``summary.png``
+give the means over seeds with 95 % intervals. docs/studies.md, "Sweeps"."""
 
 from __future__ import annotations
 

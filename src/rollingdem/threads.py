@@ -1,23 +1,9 @@
 """How many threads a run steps on: all it was given on a quiet machine, fewer while other
 processes keep cores busy.
 
-The OpenMP threads spin for a while before they sleep at a barrier (``GOMP_SPINCOUNT``, set in
-``rollingdem/__init__.py``). A longer spin saves the wake-up after every parallel region, two per
-step, and that pays on a quiet machine; but when another process runs on one of the cores, a
-spinning thread waits for a peer that the scheduler has taken off its core, and two threads then
-run slower than one. So a run that was not given a fixed thread count (``rollingdem run``, the
-Python API) is stepped in segments of about ``SEGMENT_S`` seconds, and between segments
-:class:`ThreadGovernor` counts the CPU time that the machine's other processes took on this
-process's cores (``/proc/stat`` minus this process's own time) and steps the next segment on the
-cores they left free, at least one and at most the threads given. Results do not depend on the
-thread count (the pair pass sums each particle's terms in a fixed order), so a run stepped in
-segments on changing threads is the same bit for bit. Off where ``/proc/stat`` is missing (not
-Linux), with ``--threads N`` on the command line, or with ``ROLLINGDEM_ADAPTIVE_THREADS=0``.
-
-Measured on the 2-core test machine, 20,000-sphere column collapse, 2 threads: a quiet machine
-7.5–8.7 M particle-steps/s with a spin of 3,000 and 8.9–10.3 M with 30,000; with another process
-busy on one core 3.7–3.8 M and 2.8–2.9 M, and one thread 3.9–5.7 M (docs/performance.md).
-"""
+A run not given a fixed thread count steps in segments of about ``SEGMENT_S`` seconds, each on the
+cores that other processes left free in the last (:class:`ThreadGovernor`); results are the same
+bit for bit. Why and when: docs/architecture.md, "Threads"; measured: docs/performance.md."""
 
 from __future__ import annotations
 
@@ -65,7 +51,7 @@ def threads_for(cores: int, others: float, given: int) -> int:
 
 
 class ThreadGovernor:
-    """Chooses each segment's length and thread count (see the module's docstring). One per
+    """Chooses each segment's length and thread count (docs/architecture.md, "Threads"). One per
     engine state, kept across ``EngineState.advance`` calls so that short output intervals still
     add up to a measurement. ``given`` is the Numba thread count when a call begins; it is set
     back when the call ends."""

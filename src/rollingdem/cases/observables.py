@@ -1,20 +1,9 @@
 """Cases as functions ``run(params) -> observables``: what sweeps and calibration call.
 
-This is the contract GrainLearning and Optuna use: a case takes a flat mapping of named
-parameters (SI units, angles in degrees) and returns a flat mapping of named observables. Every
-parameter has a default, a check and, where calibration may vary it, a default range.
-
-* ``rolling-flat``: the seed report's case 1 (one sphere launched at ``v0`` with omega = 0 on a
-  flat). Observables: ``distance`` (m) and ``stop_time`` (s). Analytic (docs/models.md §13 T2):
-  s = v0 t1 - mu g t1^2 / 2 + 7 v1^2 / (10 mu_r g), deterministic (the seed is unused).
-* ``inclined-wall``: the report's case 0 turned round: for a given mu_r, the wall inclination at
-  which the sphere starts to roll, by bisection. Observable ``critical_angle`` (deg); theory:
-  beta_crit = atan(mu_r) (m g R sin b = mu_r R m g cos b). Deterministic.
-* ``angle-of-repose``: spheres settle in a tube on a plate, the tube is lifted (or removed) and the
-  pile's angle is measured (:func:`rollingdem.cases.repose.pile_run`,
-  :func:`rollingdem.analysis.repose_angle`). Observables: ``angle`` (deg), ``slice_std`` (deg),
-  ``r_squared``, ``settled_at`` (s). The seed sets the random insertion.
-"""
+Each case (``rolling-flat``, ``inclined-wall``, ``angle-of-repose``) takes a flat mapping of named
+parameters, each with a default, a check and, where calibration may vary it, a default range, and
+returns a flat mapping of named observables. The cases, their observables and their theory:
+docs/studies.md, "Cases as functions of parameters"."""
 
 from __future__ import annotations
 

@@ -1,15 +1,9 @@
 """The seed report's single-sphere test cases 0-2 (docs/models.md §13 T2-T4), run by the package.
 
-All use the report's Table 1 material (R = 5 mm, E = 40 MPa, nu = 0.49, rho = 1056 kg/m^3,
-mu = 0.8, mu_r = 0.2, eta_r = 0.3, e = 0.5), Hertz contacts, dt = 1e-5 s, and a sphere on a flat
-wall whose inclination is set by tilting gravity.
-
-* :func:`inclined_wall` (case 0): the critical mu_r at which a sphere on a wall inclined by beta
-  starts to roll, by bisection; theory: mu_r,crit = tan(beta) (m g R sin b = mu_r R m g cos b).
-* :func:`rolling_flat` (case 1): launched at v0 = 1 m/s with omega = 0: slides, then rolls, stops at
-  t_stop = t1 + 7 v1 / (5 mu_r g) after s = v0 t1 - mu g t1^2 / 2 + 7 v1^2 / (10 mu_r g).
-* :func:`rolling_slope` (case 2): the same launch up a 10 deg slope: x_max, then rest or creep.
-"""
+A sphere of the report's Table 1 material on a flat wall whose inclination is set by tilting
+gravity: :func:`inclined_wall` (case 0, the critical mu_r by bisection), :func:`rolling_flat`
+(case 1) and :func:`rolling_slope` (case 2, up a 10 deg slope). Settings and analytic answers:
+docs/models.md §13."""
 
 from __future__ import annotations
 

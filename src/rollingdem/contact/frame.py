@@ -1,21 +1,9 @@
 """Carrying per-contact vector state with the contact frame (docs/models.md §11.3, §12 step 1).
 
-A history vector h (tangential spring, rolling spring moment) lives in the tangent plane of the
-contact. When the contact normal turns from n_old to n and the pair spins about n, h is carried
-with the frame:
-
-1. rotate h by the rotation that takes n_old to n (Rodrigues, axis a = n_old x n, c = n_old . n):
-   h' = c h + a x h + a (a . h) / (1 + c);
-2. rotate by the rigid spin angle phi = 1/2 (omega_i + omega_j) . n dt about n;
-3. if a normal component remains beyond round-off (|h . n| > 1e-12 |h|), remove it and rescale to the
-   magnitude before the rotation.
-
-Yade rotates to first order (``ScGeom::rotate``); LAMMPS only projects and rescales; LIGGGHTS does
-neither (the "unrotated history" of docs/models.md §11.3).
-
-The scalars of the frame change (a, c, 1/(1+c), cos phi, sin phi) are computed once per contact
-and step (``contact_frame``) and shared by its history vectors.
-"""
+A history vector (tangential spring, rolling spring moment) lives in the contact's tangent plane;
+when the normal turns and the pair spins about it, ``carry_with_frame`` rotates it with the frame,
+whose change in the step ``contact_frame`` computes once per contact. The three steps and the
+other codes' choices: docs/models.md §11.3."""
 
 from __future__ import annotations
 

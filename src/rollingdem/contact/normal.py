@@ -1,15 +1,9 @@
 """Normal contact sub-models (docs/models.md §1).
 
-Compiled function of the slot "normal"::
+Compiled function of the slot "normal" (arguments: docs/architecture.md; results: docs/models.md §0)::
 
     normal_force(overlap, normal_velocity, r_eff, m_eff, p, params_at)
         -> (force_elastic, force_damping, normal_stiffness, tangential_stiffness, tangential_damping)
-
-``normal_velocity`` is v_n = (v_i - v_j) . n (negative while approaching); the scalar normal
-force on i along n is force_elastic + force_damping, with force_damping = -gamma_n v_n.
-``normal_stiffness`` is the secant stiffness k_n = F_el / delta that rolling models reuse;
-``p[params_at:]`` holds the law's declared ``parameters``. The class also reports the law's
-stiffness and time-step limits (``reference_stiffness``, ``time_step_limits``, docs/models.md §2).
 """
 
 from __future__ import annotations

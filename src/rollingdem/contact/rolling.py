@@ -1,23 +1,9 @@
 """Rolling resistance sub-models (docs/models.md §3-§6, §12).
 
-Compiled function of the slot "rolling"::
+Compiled function of the slot "rolling" (arguments: docs/architecture.md; results: docs/models.md §0)::
 
     rolling_moment(hist, k, history_at, g, frame, normal, dt, p, params_at, modes)
         -> (mix, miy, miz, mjx, mjy, mjz, dissipation)
-
-``g`` is the contact's ``kernel_layout.CONTACT_INPUTS`` (``rolling_kinematics`` picks out what
-rolling laws read), ``normal`` the normal law's ``NORMAL_RESULT``, ``frame`` the step's change of
-the contact frame (see ``rollingdem.contact.tangential``). (wix, wiy, wiz) and (wjx, wjy, wjz) are
-the angular velocities of i and of j (of the wall for a wall contact, with lever_j = 0); lever_i,
-lever_j are the distances R' from the centres to the contact point. The torque on i is -M_i and on j +M_j. For every objective model M_i = M_j = M,
-a pure couple along (or lagging) dw_r = (omega_i - omega_j) minus its twist part (docs/models.md §0);
-only the non-objective STAR-CCM+ Force Proportional method has M_i != M_j. ``inertia_r`` is I_r of
-seed report eq. 12 (1.4 m R^2 for a wall). ``dissipation`` is the energy (J) the moment removed
-in the step: (M_i . omega_i - M_j . omega_j) dt minus any increase of stored spring energy.
-``modes`` is the sub-model's ``kernel_modes()``, a tuple of integer switches that the generated
-kernel passes as a constant: the compiler drops the branches not taken, which in the vectorised
-contact block would otherwise all be computed (EPSD's pair pass 1.09-1.14x faster on a dense
-bed). The spring models pass their parity preset's switches; each preset is a kernel of its own.
 """
 
 from __future__ import annotations

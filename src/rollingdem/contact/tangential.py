@@ -1,18 +1,9 @@
 """Tangential contact sub-models (docs/models.md §1.2).
 
-Compiled function of the slot "tangential"::
+Compiled function of the slot "tangential" (arguments: docs/architecture.md; results: docs/models.md §0)::
 
     tangential_force(hist, k, history_at, g, frame, slip, normal, dt, p, params_at)
         -> (ftx, fty, ftz, dissipation)
-
-``hist[k, history_at:history_at + history_size]`` is the contact's own state (its declared
-``history``), ``p[params_at:]`` its declared ``parameters``; ``g`` the contact's
-``kernel_layout.CONTACT_INPUTS`` (the current normal, ...), ``normal`` the normal law's
-``NORMAL_RESULT`` (its stiffness k_t, damping gamma_t, total normal force F_n);
-``frame`` the change of the contact frame during the step (``rollingdem.contact.frame.contact_frame``:
-the turn of the normal and the rigid spin of the pair about it), for ``carry_with_frame``;
-``slip`` = (vtx, vty, vtz) the tangential slip velocity at the contact point; F_t is the force on particle i.
-``dissipation`` is the energy (J) dissipated during the step.
 """
 
 from __future__ import annotations

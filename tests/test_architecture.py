@@ -255,3 +255,27 @@ def test_no_python_function_takes_more_than_12_parameters():
                 offenders.append(f"{name}:{func.lineno} {func.name} {count}")
     assert not offenders, (f"functions with more than {MAX_PARAMETERS} parameters (group related ones in a "
                            "dataclass):\n" + "\n".join(offenders))
+
+
+def test_the_contract_refuses_a_law_that_breaks_its_declaration():
+    """A law must name its compiled function, and give as many values per pair as it declares:
+    the kernel reads the row by the declared offsets, so a short row would shift every later law's
+    parameters (a wrong result, not an error)."""
+    import pytest
+
+    from rollingdem.contact import ROLLING_MODELS, SubModel
+    from rollingdem.contact.rolling import no_rolling
+    from rollingdem.kernel_layout import slots
+
+    with pytest.raises(TypeError, match="needs its compiled function"):
+        type("NoFunction", (SubModel,), {"slot": "rolling", "name": "test_no_function"})
+    short = type("Short", (SubModel,), {"slot": "rolling", "name": "test_short", "parameters": slots("a", "b"),
+                                        "function": staticmethod(no_rolling),
+                                        "pair_values": lambda self, pair: (1.0,)})
+    try:
+        assert short.n_parameters == 2 and short.history_size == 0
+        with pytest.raises(TypeError, match="gave 1 values for its 2 declared parameters"):
+            short().pair_row(None)
+    finally:
+        ROLLING_MODELS.pop("test_short", None)
+        ROLLING_MODELS.pop("test_no_function", None)

@@ -1,0 +1,181 @@
+"""Triangle meshes for walls (STL, OBJ): the checked mesh, its edge topology, and the compiled
+closest point of a triangle to a sphere's centre with the feature (face, edge, vertex) it lies on.
+Not yet a wall the engine steps with: the contact with one contact per touched feature comes next."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from .errors import ParameterError
+
+# the feature of a triangle a closest point lies on
+FACE = 0
+EDGE_AB, EDGE_BC, EDGE_CA = 1, 2, 3
+VERTEX_A, VERTEX_B, VERTEX_C = 4, 5, 6
+#: relative area below which a triangle is degenerate: |(b - a) x (c - a)| / 2 < this x (longest edge)^2
+DEGENERATE_AREA = 1e-10
+
+
+@njit(cache=True, inline="always")
+def closest_point_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """(qx, qy, qz, feature): the point of triangle abc closest to p, and the feature it lies on
+    (``FACE``, ``EDGE_*``, ``VERTEX_*``). The Voronoi-region test of Ericson, Real-Time Collision
+    Detection (2005), sec. 5.1.5: the barycentric coordinates of the projection decide the region,
+    with no square root."""
+    abx, aby, abz = bx - ax, by - ay, bz - az
+    acx, acy, acz = cx - ax, cy - ay, cz - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0.0 and d2 <= 0.0:
+        return ax, ay, az, VERTEX_A
+    bpx, bpy, bpz = px - bx, py - by, pz - bz
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    if d3 >= 0.0 and d4 <= d3:
+        return bx, by, bz, VERTEX_B
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return ax + v * abx, ay + v * aby, az + v * abz, EDGE_AB
+    cpx, cpy, cpz = px - cx, py - cy, pz - cz
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    if d6 >= 0.0 and d5 <= d6:
+        return cx, cy, cz, VERTEX_C
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return ax + w * acx, ay + w * acy, az + w * acz, EDGE_CA
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return bx + w * (cx - bx), by + w * (cy - by), bz + w * (cz - bz), EDGE_BC
+    denom = 1.0 / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    return ax + abx * v + acx * w, ay + aby * v + acy * w, az + abz * v + acz * w, FACE
+
+
+@njit(cache=True)
+def closest_points(points, vertices, triangles, out_points, out_features):
+    """``closest_point_on_triangle`` of points[k] and triangle triangles[k] (for tests and checks)."""
+    for k in range(points.shape[0]):
+        a, b, c = triangles[k, 0], triangles[k, 1], triangles[k, 2]
+        q = closest_point_on_triangle(points[k, 0], points[k, 1], points[k, 2],
+                                      vertices[a, 0], vertices[a, 1], vertices[a, 2],
+                                      vertices[b, 0], vertices[b, 1], vertices[b, 2],
+                                      vertices[c, 0], vertices[c, 1], vertices[c, 2])
+        out_points[k, 0] = q[0]
+        out_points[k, 1] = q[1]
+        out_points[k, 2] = q[2]
+        out_features[k] = q[3]
+
+
+class TriangleMesh:
+    """A checked triangle mesh: ``vertices`` (n, 3) in m, ``triangles`` (m, 3) vertex indices.
+
+    Refused with a ``ParameterError`` naming the mesh (``label``: its file, or "mesh") and the
+    problem: no triangle, an index out of range, a non-finite vertex, a degenerate triangle (area
+    below ``DEGENERATE_AREA`` times its longest edge squared: a needle or repeated vertex), an
+    edge shared by more than two triangles (not a manifold surface).
+    """
+
+    def __init__(self, vertices, triangles, label: str = "mesh"):
+        self.label = label
+        try:
+            vertices = np.asarray(vertices, dtype=np.float64)
+            triangles = np.asarray(triangles)
+        except (TypeError, ValueError) as err:
+            raise ParameterError(f"{label}: vertices and triangles must be arrays of numbers ({err})") from None
+        if vertices.ndim != 2 or vertices.shape[1] != 3:
+            raise ParameterError(f"{label}: vertices of shape {vertices.shape} are not allowed: must be (n, 3)")
+        if triangles.size == 0:
+            raise ParameterError(f"{label}: the mesh has no triangle: a wall needs at least one")
+        if triangles.ndim != 2 or triangles.shape[1] != 3 or not np.issubdtype(triangles.dtype, np.integer):
+            raise ParameterError(f"{label}: triangles of shape {triangles.shape} ({triangles.dtype}) are not allowed: "
+                                 "must be (m, 3) vertex indices")
+        if not np.isfinite(vertices).all():
+            k = int(np.nonzero(~np.isfinite(vertices).all(axis=1))[0][0])
+            raise ParameterError(f"{label}: vertex {k} = {vertices[k].tolist()} is not finite")
+        bad = (triangles < 0) | (triangles >= len(vertices))
+        if bad.any():
+            k = int(np.nonzero(bad.any(axis=1))[0][0])
+            raise ParameterError(f"{label}: triangle {k} = {triangles[k].tolist()} names a vertex out of range "
+                                 f"(the mesh has {len(vertices)} vertices)")
+        self.vertices = vertices
+        self.triangles = triangles.astype(np.int64)
+        a, b, c = (vertices[self.triangles[:, i]] for i in range(3))
+        area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        longest = np.max([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
+                          np.linalg.norm(a - c, axis=1)], axis=0)
+        degenerate = area <= DEGENERATE_AREA * longest ** 2
+        if degenerate.any():
+            k = int(np.nonzero(degenerate)[0][0])
+            raise ParameterError(f"{label}: triangle {k} (vertices {self.triangles[k].tolist()}) is degenerate: its area "
+                                 f"{area[k]:.3g} m^2 is nil against its longest edge {longest[k]:.3g} m; remove it or "
+                                 "repair the mesh")
+        self.normals = np.cross(b - a, c - a) / (2.0 * area)[:, None]
+        self.edge_neighbors = self._edge_neighbors()
+
+    def _edge_neighbors(self) -> np.ndarray:
+        """(m, 3): the triangle across edge ab, bc, ca of each triangle, -1 on a free edge."""
+        t = self.triangles
+        edges = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])  # edge e of triangle k at e * m + k
+        key = np.sort(edges, axis=1)
+        order = np.lexsort((key[:, 1], key[:, 0]))
+        ks = key[order]
+        same = np.all(ks[1:] == ks[:-1], axis=1)
+        if (same[1:] & same[:-1]).any():
+            k = int(np.nonzero(same[1:] & same[:-1])[0][0])
+            raise ParameterError(f"{self.label}: edge {ks[k + 1].tolist()} is shared by more than two triangles: the "
+                                 "mesh is not a manifold surface")
+        m = len(t)
+        neighbors = np.full(3 * m, -1, dtype=np.int64)
+        first, second = order[:-1][same], order[1:][same]
+        neighbors[first] = second % m
+        neighbors[second] = first % m
+        return neighbors.reshape(3, m).T.copy()
+
+    @property
+    def n_triangles(self) -> int:
+        return len(self.triangles)
+
+    @classmethod
+    def from_file(cls, path, scale: float = 1.0) -> "TriangleMesh":
+        """Read an STL (ASCII or binary) or OBJ file with meshio; coordinates times ``scale`` (e.g.
+        0.001 for a file in mm). Repeated vertices (STL stores each triangle's own) are merged."""
+        import meshio
+
+        path = Path(path)
+        if not path.is_file():
+            raise ParameterError(f"mesh file {str(path)!r} is not found")
+        if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
+            raise ParameterError(f"mesh scale = {scale!r} is not allowed: must be a number > 0 (e.g. 0.001 for mm)")
+        try:
+            with np.errstate(over="ignore"):  # meshio's binary-STL size test overflows on an ASCII file
+                data = meshio.read(path)
+        except Exception as err:  # meshio raises many kinds: one line naming the file
+            raise ParameterError(f"mesh file {str(path)!r} cannot be read as STL or OBJ: {err}") from None
+        blocks = [c.data for c in data.cells if c.type == "triangle"]
+        if not blocks:
+            raise ParameterError(f"mesh file {str(path)!r} has no triangle")
+        vertices, inverse = np.unique(np.asarray(data.points, dtype=np.float64) * scale, axis=0, return_inverse=True)
+        triangles = inverse.reshape(-1)[np.concatenate(blocks)]
+        return cls(vertices, triangles, label=f"mesh file {str(path)!r}")
+
+    def write(self, path) -> Path:
+        """Write the mesh as STL (or any format meshio names by the suffix), to look at in ParaView."""
+        import meshio
+
+        path = Path(path)
+        meshio.write(path, meshio.Mesh(self.vertices, [("triangle", self.triangles)]))
+        return path
+
+
+__all__ = ["TriangleMesh", "closest_point_on_triangle", "closest_points", "FACE", "EDGE_AB", "EDGE_BC", "EDGE_CA",
+           "VERTEX_A", "VERTEX_B", "VERTEX_C"]

@@ -1,0 +1,122 @@
+"""Triangle meshes (rollingdem.mesh): the closest point of a triangle and its feature against an
+independent construction, the mesh checks, and reading STL and OBJ files."""
+
+import numpy as np
+import pytest
+
+from rollingdem.errors import ParameterError
+from rollingdem.mesh import (EDGE_AB, EDGE_BC, EDGE_CA, FACE, VERTEX_A, VERTEX_B, VERTEX_C, TriangleMesh,
+                             closest_points)
+
+EDGES = {(0, 1): EDGE_AB, (1, 2): EDGE_BC, (2, 0): EDGE_CA}
+VERTICES = (VERTEX_A, VERTEX_B, VERTEX_C)
+
+
+def reference_closest(p, tri):
+    """Another construction: the projection on the plane if it falls inside (barycentric >= 0),
+    else the nearest of the three edges' clamped projections. Returns (point, feature)."""
+    a, b, c = tri
+    n = np.cross(b - a, c - a)
+    q = p - np.dot(p - a, n) / np.dot(n, n) * n
+    area = np.dot(np.cross(b - a, c - a), n)
+    bary = [np.dot(np.cross(c - b, q - b), n) / area, np.dot(np.cross(a - c, q - c), n) / area,
+            np.dot(np.cross(b - a, q - a), n) / area]
+    if min(bary) > 0.0:
+        return q, FACE
+    best = None
+    for (i, j), edge in EDGES.items():
+        s, e = tri[i], tri[j]
+        t = np.clip(np.dot(p - s, e - s) / np.dot(e - s, e - s), 0.0, 1.0)
+        x = s + t * (e - s)
+        feature = VERTICES[i] if t == 0.0 else VERTICES[j] if t == 1.0 else edge
+        d = np.linalg.norm(p - x)
+        if best is None or d < best[0]:
+            best = (d, x, feature)
+    return best[1], best[2]
+
+
+def test_closest_point_and_feature_agree_with_an_independent_construction():
+    """2,000 random triangles and points (points up to 2 triangle sizes away, so every region is
+    hit many times): the same point to 1e-12 of the triangle's size, the same feature."""
+    rng = np.random.default_rng(7)
+    n = 2000
+    vertices = rng.uniform(-1, 1, (3 * n, 3))
+    triangles = np.arange(3 * n).reshape(n, 3)
+    points = rng.uniform(-2, 2, (n, 3))
+    got, features = np.zeros((n, 3)), np.zeros(n, dtype=np.int64)
+    closest_points(points, vertices, triangles, got, features)
+    seen = set()
+    for k in range(n):
+        q, feature = reference_closest(points[k], vertices[triangles[k]])
+        np.testing.assert_allclose(got[k], q, atol=1e-12 * 4)
+        assert features[k] == feature, k
+        seen.add(feature)
+    assert seen == {FACE, EDGE_AB, EDGE_BC, EDGE_CA, VERTEX_A, VERTEX_B, VERTEX_C}
+
+
+def test_the_feature_of_points_above_a_face_beyond_an_edge_and_beyond_a_vertex():
+    vertices = np.array([[0.0, 0, 0], [1.0, 0, 0], [0.0, 1, 0]])
+    tri = np.array([[0, 1, 2]] * 4)
+    points = np.array([[0.2, 0.2, 0.5], [0.5, -0.3, 0.1], [0.6, 0.6, -0.2], [-0.2, -0.1, 0.3]])
+    got, features = np.zeros((4, 3)), np.zeros(4, dtype=np.int64)
+    closest_points(points, vertices, tri, got, features)
+    np.testing.assert_allclose(got, [[0.2, 0.2, 0], [0.5, 0, 0], [0.5, 0.5, 0], [0, 0, 0]], atol=1e-15)
+    assert features.tolist() == [FACE, EDGE_AB, EDGE_BC, VERTEX_A]
+
+
+SQUARE = (np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]), np.array([[0, 1, 2], [0, 2, 3]]))
+
+
+def test_edge_neighbors_of_a_square_of_two_triangles():
+    mesh = TriangleMesh(*SQUARE)
+    # triangle 0 (0, 1, 2) meets triangle 1 across its edge ca (2, 0); triangle 1 (0, 2, 3) across ab (0, 2)
+    assert mesh.edge_neighbors.tolist() == [[-1, -1, 1], [0, -1, -1]]
+    np.testing.assert_allclose(mesh.normals, [[0, 0, 1], [0, 0, 1]])
+
+
+@pytest.mark.parametrize("vertices, triangles, problem", [
+    (np.zeros((3, 3)), np.zeros((0, 3), dtype=int), "has no triangle"),
+    (SQUARE[0], np.array([[0, 1, 7]]), "out of range"),
+    (np.array([[0.0, 0, 0], [1, 0, 0], [np.nan, 1, 0]]), np.array([[0, 1, 2]]), "not finite"),
+    (np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]]), np.array([[0, 1, 2]]), "degenerate"),
+    (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 1]]), "degenerate"),
+    (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]]),
+     np.array([[0, 1, 2], [0, 1, 3], [0, 1, 4]]), "more than two triangles"),
+    (np.zeros((3, 2)), np.array([[0, 1, 2]]), "must be (n, 3)"),
+    (SQUARE[0], np.array([[0.0, 1, 2]]), "vertex indices"),
+])
+def test_bad_meshes_are_refused_with_their_problem(vertices, triangles, problem):
+    with pytest.raises(ParameterError, match="mesh: .*" + problem.replace("(", r"\(").replace(")", r"\)")):
+        TriangleMesh(vertices, triangles)
+
+
+@pytest.mark.parametrize("name, options", [("box.stl", {"binary": False}), ("box.stl", {"binary": True}),
+                                           ("box.obj", {})])
+def test_a_mesh_file_round_trip_merges_vertices_and_scales(tmp_path, name, options):
+    """A unit cube's 12 triangles written in mm (STL stores every triangle's own three vertices):
+    read back at scale 0.001, 8 vertices, the same triangles, in m."""
+    import meshio
+
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+    faces = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1], [2, 3, 7], [2, 7, 6],
+                      [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    meshio.write(tmp_path / name, meshio.Mesh(corners * 1000.0, [("triangle", faces)]), **options)
+    mesh = TriangleMesh.from_file(tmp_path / name, scale=0.001)
+    assert len(mesh.vertices) == 8 and mesh.n_triangles == 12
+    got = {tuple(sorted(map(tuple, np.round(mesh.vertices[t], 12)))) for t in mesh.triangles}
+    want = {tuple(sorted(map(tuple, corners[f]))) for f in faces}
+    assert got == want
+    assert (mesh.edge_neighbors >= 0).all()  # closed: every edge has its neighbor
+
+
+def test_mesh_file_mistakes_name_the_file(tmp_path):
+    with pytest.raises(ParameterError, match="mesh file '.*nowhere.stl' is not found"):
+        TriangleMesh.from_file(tmp_path / "nowhere.stl")
+    (tmp_path / "junk.stl").write_text("this is not an STL file\n")
+    with pytest.raises(ParameterError, match="mesh file '.*junk.stl' cannot be read"):
+        TriangleMesh.from_file(tmp_path / "junk.stl")
+    import meshio
+
+    meshio.write(tmp_path / "tri.stl", meshio.Mesh(SQUARE[0], [("triangle", SQUARE[1])]))
+    with pytest.raises(ParameterError, match="mesh scale = -1 is not allowed"):
+        TriangleMesh.from_file(tmp_path / "tri.stl", scale=-1)

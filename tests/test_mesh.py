@@ -120,3 +120,75 @@ def test_mesh_file_mistakes_name_the_file(tmp_path):
     meshio.write(tmp_path / "tri.stl", meshio.Mesh(SQUARE[0], [("triangle", SQUARE[1])]))
     with pytest.raises(ParameterError, match="mesh scale = -1 is not allowed"):
         TriangleMesh.from_file(tmp_path / "tri.stl", scale=-1)
+
+
+# --- ready-made shapes: their areas and volumes are those of the polygonal solids they approximate ---
+def polygon_area(radius, n):
+    """Area of the regular n-gon inscribed in a circle of ``radius``."""
+    return 0.5 * n * radius ** 2 * np.sin(2 * np.pi / n)
+
+
+def free_edges(mesh):
+    return int((mesh.edge_neighbors < 0).sum())
+
+
+def test_closed_shapes_enclose_their_volume_with_outward_normals():
+    """A positive signed volume means outward normals; the drum is the n-gon prism."""
+    from rollingdem import mesh
+
+    drum = mesh.drum(0.1, 0.25, segments=24)
+    assert free_edges(drum) == 0
+    assert abs(drum.enclosed_volume() - polygon_area(0.1, 24) * 0.25) <= 1e-12 * polygon_area(0.1, 24) * 0.25
+    box = mesh.box((0.1, 0.2, 0.3))
+    assert free_edges(box) == 0
+    assert abs(box.enclosed_volume() - 0.006) <= 1e-15
+
+
+def test_open_shapes_have_the_area_of_their_polygonal_surfaces():
+    from rollingdem import mesh
+
+    n, r_out, r_in, h = 16, 0.1, 0.02, 0.3
+    silo = mesh.silo(r_out, h, r_in, segments=n)
+    chord = 2 * r_out * np.sin(np.pi / n)
+    assert np.isclose(silo.area(), n * chord * h + polygon_area(r_out, n) - polygon_area(r_in, n), rtol=1e-12)
+    assert free_edges(silo) == 2 * n  # the open top and the orifice
+    hopper = mesh.hopper(r_out, r_in, 0.1, segments=n)
+    slant = np.hypot(0.1, (r_out - r_in) * np.cos(np.pi / n))  # between the chords' midpoints
+    trapezoids = n * 0.5 * (2 * r_out + 2 * r_in) * np.sin(np.pi / n) * slant
+    assert np.isclose(hopper.area(), trapezoids, rtol=1e-12)
+    assert np.isclose(mesh.disk(0.1, segments=n).area(), polygon_area(0.1, n), rtol=1e-12)
+    assert np.isclose(mesh.chute(1.0, 0.2, 0.05).area(), 1.0 * 0.2 + 2 * 1.0 * 0.05, rtol=1e-12)
+
+
+def test_a_shape_written_to_stl_reads_back_the_same(tmp_path):
+    from rollingdem import mesh
+
+    hopper = mesh.hopper(0.1, 0.02, 0.1, segments=32)
+    back = TriangleMesh.from_file(hopper.write(tmp_path / "hopper.stl"))
+    assert back.n_triangles == hopper.n_triangles
+    assert np.isclose(back.area(), hopper.area(), rtol=1e-6)  # binary STL stores float32
+
+
+def test_a_moved_mesh_keeps_its_shape():
+    """Rotated by 30 degrees about x and translated: area and enclosed volume unchanged to round-off."""
+    from rollingdem import mesh
+
+    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    drum = mesh.drum(0.1, 0.25, segments=24)
+    moved = drum.moved([[1, 0, 0], [0, c, -s], [0, s, c]], (1.0, 2.0, 3.0))
+    assert np.isclose(moved.area(), drum.area(), rtol=1e-12)
+    assert np.isclose(moved.enclosed_volume(), drum.enclosed_volume(), rtol=1e-12)
+
+
+@pytest.mark.parametrize("build, problem", [
+    (lambda m: m.drum(0.1, 0.2, segments=2), "segments = 2 is not allowed"),
+    (lambda m: m.silo(0.1, 0.2, 0.1), "orifice_radius = 0.1 is not allowed"),
+    (lambda m: m.hopper(0.1, -0.02, 0.1), "outlet_radius = -0.02 is not allowed"),
+    (lambda m: m.box((1, 0, 1)), "box size ly = 0.0 is not allowed"),
+    (lambda m: m.chute(1.0, 0.2, float("nan")), "wall_height = nan is not allowed"),
+])
+def test_bad_shape_arguments_are_refused(build, problem):
+    from rollingdem import mesh
+
+    with pytest.raises(ParameterError, match=problem):
+        build(mesh)

@@ -145,6 +145,21 @@ class TriangleMesh:
     def n_triangles(self) -> int:
         return len(self.triangles)
 
+    def area(self) -> float:
+        """Total area (m^2)."""
+        a, b, c = (self.vertices[self.triangles[:, i]] for i in range(3))
+        return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+
+    def enclosed_volume(self) -> float:
+        """Signed volume (m^3) enclosed by a closed mesh with outward normals (divergence theorem)."""
+        a, b, c = (self.vertices[self.triangles[:, i]] for i in range(3))
+        return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+    def moved(self, rotation=np.eye(3), translation=(0.0, 0.0, 0.0)) -> "TriangleMesh":
+        """The mesh rotated by the 3x3 matrix ``rotation`` about the origin, then translated (m)."""
+        vertices = self.vertices @ np.asarray(rotation, dtype=float).T + np.asarray(translation, dtype=float)
+        return TriangleMesh(vertices, self.triangles, label=self.label)
+
     @classmethod
     def from_file(cls, path, scale: float = 1.0) -> "TriangleMesh":
         """Read an STL (ASCII or binary) or OBJ file with meshio; coordinates times ``scale`` (e.g.
@@ -177,5 +192,101 @@ class TriangleMesh:
         return path
 
 
-__all__ = ["TriangleMesh", "closest_point_on_triangle", "closest_points", "FACE", "EDGE_AB", "EDGE_BC", "EDGE_CA",
+# --- ready-made shapes -------------------------------------------------------------------------
+def _ring(radius: float, z: float, segments: int) -> np.ndarray:
+    angle = 2.0 * math.pi * np.arange(segments) / segments
+    return np.column_stack([radius * np.cos(angle), radius * np.sin(angle), np.full(segments, z)])
+
+
+def _band(lower: int, upper: int, segments: int) -> np.ndarray:
+    """The triangles between two rings of ``segments`` vertices starting at ``lower`` and ``upper``."""
+    k = np.arange(segments)
+    k1 = (k + 1) % segments
+    return np.concatenate([np.column_stack([lower + k, lower + k1, upper + k1]),
+                           np.column_stack([lower + k, upper + k1, upper + k])])
+
+
+def _fan(center: int, ring: int, segments: int, reverse: bool) -> np.ndarray:
+    k = np.arange(segments)
+    tri = np.column_stack([np.full(segments, center), ring + k, ring + (k + 1) % segments])
+    return tri[:, [0, 2, 1]] if reverse else tri
+
+
+def _check_segments(segments) -> int:
+    if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)) or segments < 3:
+        raise ParameterError(f"segments = {segments!r} is not allowed: must be an integer >= 3")
+    return int(segments)
+
+
+def _check_length(name, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ParameterError(f"{name} = {value!r} is not allowed: must be a number > 0 (m)")
+    return float(value)
+
+
+def drum(radius: float, length: float, segments: int = 48) -> TriangleMesh:
+    """A closed drum: a cylinder of ``radius`` about the z axis from z = 0 to ``length`` with both end
+    caps, its side a regular polygon of ``segments`` sides; normals outward."""
+    radius, length, n = _check_length("radius", radius), _check_length("length", length), _check_segments(segments)
+    vertices = np.vstack([_ring(radius, 0.0, n), _ring(radius, length, n), [[0, 0, 0], [0, 0, length]]])
+    triangles = np.vstack([_band(0, n, n), _fan(2 * n, 0, n, reverse=True), _fan(2 * n + 1, n, n, reverse=False)])
+    return TriangleMesh(vertices, triangles, label="drum")
+
+
+def silo(radius: float, height: float, orifice_radius: float, segments: int = 48) -> TriangleMesh:
+    """A flat-bottomed cylindrical silo about the z axis, open at the top (z = ``height``), its floor
+    at z = 0 an annulus around a central orifice of ``orifice_radius``."""
+    radius, height, n = _check_length("radius", radius), _check_length("height", height), _check_segments(segments)
+    orifice_radius = _check_length("orifice_radius", orifice_radius)
+    if orifice_radius >= radius:
+        raise ParameterError(f"orifice_radius = {orifice_radius:g} is not allowed: must be < radius = {radius:g} m")
+    vertices = np.vstack([_ring(orifice_radius, 0.0, n), _ring(radius, 0.0, n), _ring(radius, height, n)])
+    triangles = np.vstack([_band(0, n, n)[:, [0, 2, 1]], _band(n, 2 * n, n)])
+    return TriangleMesh(vertices, triangles, label="silo")
+
+
+def hopper(top_radius: float, outlet_radius: float, height: float, segments: int = 48) -> TriangleMesh:
+    """A conical hopper: the frustum about the z axis from its outlet (``outlet_radius`` at z = 0) to
+    its open top (``top_radius`` at z = ``height``)."""
+    top, height, n = _check_length("top_radius", top_radius), _check_length("height", height), _check_segments(segments)
+    outlet = _check_length("outlet_radius", outlet_radius)
+    if outlet >= top:
+        raise ParameterError(f"outlet_radius = {outlet:g} is not allowed: must be < top_radius = {top:g} m")
+    vertices = np.vstack([_ring(outlet, 0.0, n), _ring(top, height, n)])
+    return TriangleMesh(vertices, _band(0, n, n), label="hopper")
+
+
+def disk(radius: float, segments: int = 48) -> TriangleMesh:
+    """A flat disk of ``radius`` in the plane z = 0, centred on the origin, normal +z."""
+    radius, n = _check_length("radius", radius), _check_segments(segments)
+    vertices = np.vstack([_ring(radius, 0.0, n), [[0.0, 0.0, 0.0]]])
+    return TriangleMesh(vertices, _fan(n, 0, n, reverse=False), label="disk")
+
+
+def box(size) -> TriangleMesh:
+    """A closed box from the origin to ``size`` = (lx, ly, lz), two triangles a face, normals outward."""
+    try:
+        lx, ly, lz = (float(v) for v in size)
+    except (TypeError, ValueError):
+        raise ParameterError(f"box size = {size!r} is not allowed: must be three lengths (m)") from None
+    for name, value in zip(("lx", "ly", "lz"), (lx, ly, lz)):
+        _check_length(f"box size {name}", value)
+    corners = np.array([[x, y, z] for x in (0.0, lx) for y in (0.0, ly) for z in (0.0, lz)])
+    faces = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1], [2, 3, 7], [2, 7, 6],
+                      [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    return TriangleMesh(corners, faces, label="box")
+
+
+def chute(length: float, width: float, wall_height: float) -> TriangleMesh:
+    """A flat chute along x from 0 to ``length``, its base (z = 0) ``width`` wide about y = 0, with
+    side walls ``wall_height`` high; incline it by rotating the mesh (``TriangleMesh.moved``)."""
+    length, width = _check_length("length", length), _check_length("width", width)
+    h, w = _check_length("wall_height", wall_height), 0.5 * width
+    vertices = np.array([[0, -w, 0], [length, -w, 0], [length, w, 0], [0, w, 0],
+                         [0, -w, h], [length, -w, h], [length, w, h], [0, w, h]], dtype=float)
+    triangles = np.array([[0, 1, 2], [0, 2, 3], [0, 4, 5], [0, 5, 1], [3, 2, 6], [3, 6, 7]])
+    return TriangleMesh(vertices, triangles, label="chute")
+
+
+__all__ = ["TriangleMesh", "drum", "silo", "hopper", "disk", "box", "chute", "closest_point_on_triangle", "closest_points", "FACE", "EDGE_AB", "EDGE_BC", "EDGE_CA",
            "VERTEX_A", "VERTEX_B", "VERTEX_C"]

@@ -192,3 +192,77 @@ def test_bad_shape_arguments_are_refused(build, problem):
 
     with pytest.raises(ParameterError, match=problem):
         build(mesh)
+
+
+# --- one contact per touched feature (docs: rollingdem.mesh.touching_features) ---------------------
+def contacts(mesh, p, radius):
+    """(triangles, features, points) of the sphere at p against every triangle of the mesh."""
+    from rollingdem.mesh import touching_features
+
+    m = mesh.n_triangles
+    tri, feat, pts = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64), np.zeros((m, 3))
+    n = touching_features(*np.asarray(p, dtype=float), radius, mesh.vertices, mesh.triangles, mesh.edge_neighbors,
+                          np.arange(m), m, tri, feat, pts)
+    return tri[:n], feat[:n], pts[:n]
+
+
+def test_one_contact_with_the_face_normal_across_the_edges_and_vertices_of_a_flat_mesh():
+    """A hexagonal fan of 6 triangles (a vertex shared by 6, edges shared by 2) and the 2-triangle
+    square: a sphere of radius 0.1 at 0.099 above any point (a face, an edge, the centre vertex,
+    exactly on them or beside) touches once, at the point below it: the force has no jump."""
+    angle = np.arange(6) * np.pi / 3
+    fan = TriangleMesh(np.vstack([[[0.0, 0, 0]], np.column_stack([np.cos(angle), np.sin(angle), np.zeros(6)])]),
+                       np.array([[0, 1 + k, 1 + (k + 1) % 6] for k in range(6)]))
+    square = TriangleMesh(*SQUARE)
+    rng = np.random.default_rng(3)
+    spots = [(0.0, 0.0), (1e-9, 0.0), (0.5, 0.0), (0.25, 0.25 * np.tan(np.pi / 3)), (0.3, -1e-13)]
+    spots += [tuple(x) for x in rng.uniform(-0.45, 0.45, (40, 2))]  # inside both meshes
+    for mesh, shift in ((fan, 0.0), (square, 0.5)):
+        for x, y in spots:
+            p = (x + shift, y + shift, 0.099)
+            tri, feat, pts = contacts(mesh, p, 0.1)
+            assert len(tri) == 1, (p, feat)
+            np.testing.assert_allclose(pts[0], [p[0], p[1], 0.0], atol=1e-15)
+
+
+def roof(slope):
+    """Two planes meeting at a ridge along x (y = 0, z = 0), falling with ``slope`` to each side."""
+    h = slope
+    v = np.array([[0, -1, -h], [1, -1, -h], [1, 0, 0], [0, 0, 0], [1, 1, -h], [0, 1, -h]], dtype=float)
+    return TriangleMesh(v, np.array([[0, 1, 2], [0, 2, 3], [3, 2, 4], [3, 4, 5]]))
+
+
+def test_a_convex_edge_gives_one_contact_from_the_edge_and_a_face_beyond_it():
+    """Over the ridge, between the two faces' normals: one contact at the ridge point nearest the
+    centre, its normal from there to the centre. Past a face's normal at the ridge: one face contact."""
+    mesh = roof(np.tan(np.radians(30)))
+    for y in (0.0, 0.01, -0.02):
+        tri, feat, pts = contacts(mesh, (0.5, y, 0.05), 0.06)
+        assert len(tri) == 1 and feat[0] in (EDGE_AB, EDGE_BC, EDGE_CA), feat
+        np.testing.assert_allclose(pts[0], [0.5, 0, 0], atol=1e-15)
+    n_left = np.array([0, -np.sin(np.radians(30)), np.cos(np.radians(30))])
+    q = np.array([0.5, -0.2, -0.2 * np.tan(np.radians(30))])
+    tri, feat, pts = contacts(mesh, q + 0.05 * n_left, 0.06)
+    assert len(tri) == 1 and feat[0] == FACE
+    np.testing.assert_allclose(pts[0], q, atol=1e-14)
+
+
+def test_a_concave_corner_gives_one_contact_per_face():
+    """A floor (z = 0) and a wall (y = 0) at 90 degrees: a sphere 0.05 from both touches each
+    once, at its foot on each face."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 0, 1], [0, 0, 1]], dtype=float)
+    mesh = TriangleMesh(v, np.array([[0, 1, 2], [0, 2, 3], [0, 5, 4], [0, 4, 1]]))
+    tri, feat, pts = contacts(mesh, (0.5, 0.05, 0.05), 0.06)
+    assert sorted(map(tuple, np.round(pts, 15))) == [(0.5, 0.0, 0.05), (0.5, 0.05, 0.0)]
+    assert list(feat) == [FACE, FACE]
+
+
+def test_a_convex_vertex_gives_one_contact_from_the_vertex():
+    """The apex of a square pyramid: a sphere above it, inside the apex's region, touches once at
+    the apex."""
+    v = np.array([[0, 0, 1], [-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
+    mesh = TriangleMesh(v, np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]]))
+    for p in ((0, 0, 1.05), (0.01, -0.005, 1.05)):
+        tri, feat, pts = contacts(mesh, p, 0.06)
+        assert len(tri) == 1 and feat[0] >= VERTEX_A
+        np.testing.assert_allclose(pts[0], [0, 0, 1], atol=1e-15)

@@ -76,6 +76,103 @@ def closest_points(points, vertices, triangles, out_points, out_features):
         out_features[k] = q[3]
 
 
+@njit(cache=True, inline="always")
+def _into_triangle(vertices, triangles, u, va, vb, qx, qy, qz, px, py, pz):
+    """(p - q) . m, m the direction in triangle u's plane, normal to its edge (va, vb), pointing into
+    u; and |p - q| |m|, its scale."""
+    w = triangles[u, 0] + triangles[u, 1] + triangles[u, 2] - va - vb  # u's third vertex
+    ex, ey, ez = vertices[vb, 0] - vertices[va, 0], vertices[vb, 1] - vertices[va, 1], vertices[vb, 2] - vertices[va, 2]
+    wx, wy, wz = vertices[w, 0] - vertices[va, 0], vertices[w, 1] - vertices[va, 1], vertices[w, 2] - vertices[va, 2]
+    s = (wx * ex + wy * ey + wz * ez) / (ex * ex + ey * ey + ez * ez)
+    mx, my, mz = wx - s * ex, wy - s * ey, wz - s * ez
+    dx, dy, dz = px - qx, py - qy, pz - qz
+    scale = math.sqrt((dx * dx + dy * dy + dz * dz) * (mx * mx + my * my + mz * mz))
+    return dx * mx + dy * my + dz * mz, scale
+
+
+#: relative tolerance of the feature tests: p counts as in a feature's region up to this much past it
+FEATURE_TOLERANCE = 1e-12
+
+
+@njit(cache=True)
+def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, candidates, ncand, out_tri, out_feature,
+                      out_point):
+    """The contacts of a sphere (centre p, ``radius``) with the triangles ``candidates[:ncand]``: one per
+    touched surface feature, not one per triangle. Returns their count; ``out_tri``, ``out_feature``,
+    ``out_point`` hold each one's triangle, feature and contact point (its normal is p - point).
+
+    A triangle touches when its closest point q is nearer than ``radius``. A face contact is kept.
+    An edge contact is kept when p also lies outside the triangle across that edge, (p - q) . m <= 0
+    with m pointing into it in its plane (on a flat or concave edge the sphere is over the
+    neighbour's face instead), and once per edge. A vertex contact is kept when p lies outside
+    every touching triangle around the vertex, (p - v) . (x - v) <= 0 for each of their edges
+    (v, x), and once per vertex. The triangles around a touched edge or vertex are within
+    ``radius`` of p, so they are among the touching ones when the candidates hold every triangle
+    that near. So a sphere crossing the shared edge of coplanar triangles has one contact with the
+    face normal throughout, one on a convex edge or vertex with the normal from it to the centre,
+    and one per face in a concave corner (Voronoi regions of the surface's features)."""
+    r2 = radius * radius
+    nkeep = 0
+    for a in range(ncand):
+        t = candidates[a]
+        i0, i1, i2 = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+        q = closest_point_on_triangle(px, py, pz, vertices[i0, 0], vertices[i0, 1], vertices[i0, 2],
+                                      vertices[i1, 0], vertices[i1, 1], vertices[i1, 2],
+                                      vertices[i2, 0], vertices[i2, 1], vertices[i2, 2])
+        dx, dy, dz = px - q[0], py - q[1], pz - q[2]
+        if dx * dx + dy * dy + dz * dz >= r2:
+            continue
+        out_tri[nkeep] = t
+        out_feature[nkeep] = q[3]
+        out_point[nkeep, 0] = q[0]
+        out_point[nkeep, 1] = q[1]
+        out_point[nkeep, 2] = q[2]
+        nkeep += 1
+    n = 0
+    for a in range(nkeep):
+        t, feature = out_tri[a], out_feature[a]
+        qx, qy, qz = out_point[a, 0], out_point[a, 1], out_point[a, 2]
+        keep = True
+        if EDGE_AB <= feature <= EDGE_CA:
+            e = feature - EDGE_AB
+            va, vb = triangles[t, e], triangles[t, (e + 1) % 3]
+            u = edge_neighbors[t, e]
+            if u >= 0:
+                into, scale = _into_triangle(vertices, triangles, u, va, vb, qx, qy, qz, px, py, pz)
+                keep = into <= FEATURE_TOLERANCE * scale
+                for b in range(a):  # the same edge, seen from u
+                    if out_tri[b] == u and EDGE_AB <= out_feature[b] <= EDGE_CA:
+                        f = out_feature[b] - EDGE_AB
+                        ua, ub = triangles[u, f], triangles[u, (f + 1) % 3]
+                        if (ua == va and ub == vb) or (ua == vb and ub == va):
+                            keep = False
+        elif feature >= VERTEX_A:
+            v = triangles[t, feature - VERTEX_A]
+            for b in range(nkeep):
+                u = out_tri[b]
+                for c in range(3):
+                    if triangles[u, c] != v:
+                        continue
+                    if b < a and out_feature[b] == VERTEX_A + c:
+                        keep = False  # counted already
+                    for x in (triangles[u, (c + 1) % 3], triangles[u, (c + 2) % 3]):
+                        ex = vertices[x, 0] - qx
+                        ey = vertices[x, 1] - qy
+                        ez = vertices[x, 2] - qz
+                        dx, dy, dz = px - qx, py - qy, pz - qz
+                        scale = math.sqrt((dx * dx + dy * dy + dz * dz) * (ex * ex + ey * ey + ez * ez))
+                        if dx * ex + dy * ey + dz * ez > FEATURE_TOLERANCE * scale:
+                            keep = False
+        if keep:
+            out_tri[n] = t
+            out_feature[n] = feature
+            out_point[n, 0] = qx
+            out_point[n, 1] = qy
+            out_point[n, 2] = qz
+            n += 1
+    return n
+
+
 class TriangleMesh:
     """A checked triangle mesh: ``vertices`` (n, 3) in m, ``triangles`` (m, 3) vertex indices.
 
@@ -288,5 +385,5 @@ def chute(length: float, width: float, wall_height: float) -> TriangleMesh:
     return TriangleMesh(vertices, triangles, label="chute")
 
 
-__all__ = ["TriangleMesh", "drum", "silo", "hopper", "disk", "box", "chute", "closest_point_on_triangle", "closest_points", "FACE", "EDGE_AB", "EDGE_BC", "EDGE_CA",
+__all__ = ["TriangleMesh", "touching_features", "drum", "silo", "hopper", "disk", "box", "chute", "closest_point_on_triangle", "closest_points", "FACE", "EDGE_AB", "EDGE_BC", "EDGE_CA",
            "VERTEX_A", "VERTEX_B", "VERTEX_C"]

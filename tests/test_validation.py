@@ -240,3 +240,47 @@ def test_rotational_springs_enter_the_time_step_check():
     sim, lim = limits({"model": "sds", "rolling_stiffness": 1e9})
     with pytest.raises(rd.ParameterError, match=r"dt = 1e-05 s exceeds .*rolling spring \(sds\)"):
         sim.run(steps=1)
+
+
+def test_each_normal_law_reports_its_own_time_step_limits():
+    """docs/models.md §2, worked by hand for the Table 1 sphere (one material, so E* = E / (2 (1 -
+    nu^2)), G* = E / (4 (2 - nu)(1 + nu)), R* = R/2, m* = m/2, I = 0.4 m R^2): Hertz's time at
+    twice the fastest speed / 20 and, through EPSD's and Marshall's rotational springs, Hertz's
+    normal and tangential stiffness at an overlap of R/100; Hooke's stiffness from V_c and the spring periods / 10 of Hooke and linear.
+    Each value to 1e-12: any factor wrong by 1 % moves it by 0.2 % or more."""
+    E, nu, rho, mu_r = TABLE1["youngs_modulus"], TABLE1["poisson_ratio"], TABLE1["density"], 0.2
+    m = rho * 4.0 / 3.0 * math.pi * R ** 3
+    e_star, g_star = E / (2 * (1 - nu ** 2)), E / (4 * (2 - nu) * (1 + nu))
+    r_eff, m_eff, inertia = R / 2, m / 2, 0.4 * m * R ** 2
+
+    def limits(normal, rolling="none", speed=0.0, twisting="none"):
+        sim = rd.Simulation(contact=rd.ContactModel(normal, rolling=rolling, twisting=twisting), dt=1e-7)
+        sim.add_material(material(rolling_friction=mu_r))
+        sim.add_particles([[0, 0, 0]], R, "m", velocity=(speed, 0, 0))
+        return {label.split(" ")[0] + " " + label.split(" ")[1]: v for label, v in sim.time_step_limits()}
+
+    def period(k, mass):
+        return 2 * math.pi * math.sqrt(mass / k)
+
+    hertz = limits("hertz", "epsd", speed=0.5, twisting="marshall")
+    t_hertz = 2.87 * (m_eff ** 2 / (r_eff * e_star ** 2 * 1.0)) ** 0.2
+    assert hertz["Hertz time"] == pytest.approx(t_hertz / 20, rel=1e-12)
+    kn = 4.0 / 3.0 * e_star * math.sqrt(r_eff * 0.01 * R)
+    k_roll = 2.25 * kn * mu_r ** 2 * r_eff ** 2
+    assert hertz["rolling spring"] == pytest.approx(period(k_roll * 2 / inertia, 1.0) / 10, rel=1e-12)
+    kt = 8.0 * g_star * math.sqrt(r_eff * 0.01 * R)
+    k_twist = 0.5 * kt * r_eff * 0.01 * R  # Marshall: k_t a^2 / 2
+    assert hertz["twisting spring"] == pytest.approx(period(k_twist * 2 / inertia, 1.0) / 10, rel=1e-12)
+    assert "normal spring" not in hertz
+
+    vc, ratio = 2.0, 0.4
+    hooke = limits(rd.Hooke(characteristic_velocity=vc, tangential_stiffness_ratio=ratio))
+    kn = 16 / 15 * math.sqrt(r_eff) * e_star * (15 * m_eff * vc ** 2 / (16 * math.sqrt(r_eff) * e_star)) ** 0.2
+    assert hooke["normal spring"] == pytest.approx(period(kn, m_eff) / 10, rel=1e-12)
+    assert hooke["tangential spring"] == pytest.approx(period(ratio * kn, m_eff) / 10, rel=1e-12)
+    assert "0.2 x" in hooke
+
+    linear = limits(rd.Linear(normal_stiffness=2e4, shear_stiffness=5e3))
+    assert linear["normal spring"] == pytest.approx(period(2e4, m_eff) / 10, rel=1e-12)
+    assert linear["tangential spring"] == pytest.approx(period(5e3, m_eff) / 10, rel=1e-12)
+    assert "0.2 x" not in linear  # PFC's linear contact has no Rayleigh criterion

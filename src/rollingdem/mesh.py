@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from .errors import ParameterError
+from .errors import ParameterError, check_integer, check_positive, check_vector
 
 # the feature of a triangle a closest point lies on
 FACE = 0
@@ -148,6 +148,7 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
                             keep = False
         elif feature >= VERTEX_A:
             v = triangles[t, feature - VERTEX_A]
+            dx, dy, dz = px - qx, py - qy, pz - qz
             for b in range(nkeep):
                 u = out_tri[b]
                 for c in range(3):
@@ -159,7 +160,6 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
                         ex = vertices[x, 0] - qx
                         ey = vertices[x, 1] - qy
                         ez = vertices[x, 2] - qz
-                        dx, dy, dz = px - qx, py - qy, pz - qz
                         scale = math.sqrt((dx * dx + dy * dy + dz * dz) * (ex * ex + ey * ey + ez * ez))
                         if dx * ex + dy * ey + dz * ez > FEATURE_TOLERANCE * scale:
                             keep = False
@@ -254,7 +254,14 @@ class TriangleMesh:
 
     def moved(self, rotation=np.eye(3), translation=(0.0, 0.0, 0.0)) -> "TriangleMesh":
         """The mesh rotated by the 3x3 matrix ``rotation`` about the origin, then translated (m)."""
-        vertices = self.vertices @ np.asarray(rotation, dtype=float).T + np.asarray(translation, dtype=float)
+        try:
+            matrix = np.asarray(rotation, dtype=float)
+        except (TypeError, ValueError):
+            matrix = np.zeros(0)
+        if matrix.shape != (3, 3) or not np.isfinite(matrix).all():
+            shown = rotation.tolist() if isinstance(rotation, np.ndarray) else rotation  # one line
+            raise ParameterError(f"rotation = {shown!r} is not allowed: must be a 3x3 matrix of finite numbers")
+        vertices = self.vertices @ matrix.T + np.array(check_vector("translation", translation))
         return TriangleMesh(vertices, self.triangles, label=self.label)
 
     @classmethod
@@ -266,8 +273,7 @@ class TriangleMesh:
         path = Path(path)
         if not path.is_file():
             raise ParameterError(f"mesh file {str(path)!r} is not found")
-        if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
-            raise ParameterError(f"mesh scale = {scale!r} is not allowed: must be a number > 0 (e.g. 0.001 for mm)")
+        scale = check_positive("mesh scale", scale)
         try:
             with np.errstate(over="ignore"):  # meshio's binary-STL size test overflows on an ASCII file
                 data = meshio.read(path)
@@ -309,22 +315,10 @@ def _fan(center: int, ring: int, segments: int, reverse: bool) -> np.ndarray:
     return tri[:, [0, 2, 1]] if reverse else tri
 
 
-def _check_segments(segments) -> int:
-    if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)) or segments < 3:
-        raise ParameterError(f"segments = {segments!r} is not allowed: must be an integer >= 3")
-    return int(segments)
-
-
-def _check_length(name, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise ParameterError(f"{name} = {value!r} is not allowed: must be a number > 0 (m)")
-    return float(value)
-
-
 def drum(radius: float, length: float, segments: int = 48) -> TriangleMesh:
     """A closed drum: a cylinder of ``radius`` about the z axis from z = 0 to ``length`` with both end
     caps, its side a regular polygon of ``segments`` sides; normals outward."""
-    radius, length, n = _check_length("radius", radius), _check_length("length", length), _check_segments(segments)
+    radius, length, n = check_positive("radius", radius, "m"), check_positive("length", length, "m"), check_integer("segments", segments, low=3)
     vertices = np.vstack([_ring(radius, 0.0, n), _ring(radius, length, n), [[0, 0, 0], [0, 0, length]]])
     triangles = np.vstack([_band(0, n, n), _fan(2 * n, 0, n, reverse=True), _fan(2 * n + 1, n, n, reverse=False)])
     return TriangleMesh(vertices, triangles, label="drum")
@@ -333,8 +327,8 @@ def drum(radius: float, length: float, segments: int = 48) -> TriangleMesh:
 def silo(radius: float, height: float, orifice_radius: float, segments: int = 48) -> TriangleMesh:
     """A flat-bottomed cylindrical silo about the z axis, open at the top (z = ``height``), its floor
     at z = 0 an annulus around a central orifice of ``orifice_radius``."""
-    radius, height, n = _check_length("radius", radius), _check_length("height", height), _check_segments(segments)
-    orifice_radius = _check_length("orifice_radius", orifice_radius)
+    radius, height, n = check_positive("radius", radius, "m"), check_positive("height", height, "m"), check_integer("segments", segments, low=3)
+    orifice_radius = check_positive("orifice_radius", orifice_radius, "m")
     if orifice_radius >= radius:
         raise ParameterError(f"orifice_radius = {orifice_radius:g} is not allowed: must be < radius = {radius:g} m")
     vertices = np.vstack([_ring(orifice_radius, 0.0, n), _ring(radius, 0.0, n), _ring(radius, height, n)])
@@ -345,8 +339,8 @@ def silo(radius: float, height: float, orifice_radius: float, segments: int = 48
 def hopper(top_radius: float, outlet_radius: float, height: float, segments: int = 48) -> TriangleMesh:
     """A conical hopper: the frustum about the z axis from its outlet (``outlet_radius`` at z = 0) to
     its open top (``top_radius`` at z = ``height``)."""
-    top, height, n = _check_length("top_radius", top_radius), _check_length("height", height), _check_segments(segments)
-    outlet = _check_length("outlet_radius", outlet_radius)
+    top, height, n = check_positive("top_radius", top_radius, "m"), check_positive("height", height, "m"), check_integer("segments", segments, low=3)
+    outlet = check_positive("outlet_radius", outlet_radius, "m")
     if outlet >= top:
         raise ParameterError(f"outlet_radius = {outlet:g} is not allowed: must be < top_radius = {top:g} m")
     vertices = np.vstack([_ring(outlet, 0.0, n), _ring(top, height, n)])
@@ -355,19 +349,15 @@ def hopper(top_radius: float, outlet_radius: float, height: float, segments: int
 
 def disk(radius: float, segments: int = 48) -> TriangleMesh:
     """A flat disk of ``radius`` in the plane z = 0, centred on the origin, normal +z."""
-    radius, n = _check_length("radius", radius), _check_segments(segments)
+    radius, n = check_positive("radius", radius, "m"), check_integer("segments", segments, low=3)
     vertices = np.vstack([_ring(radius, 0.0, n), [[0.0, 0.0, 0.0]]])
     return TriangleMesh(vertices, _fan(n, 0, n, reverse=False), label="disk")
 
 
 def box(size) -> TriangleMesh:
     """A closed box from the origin to ``size`` = (lx, ly, lz), two triangles a face, normals outward."""
-    try:
-        lx, ly, lz = (float(v) for v in size)
-    except (TypeError, ValueError):
-        raise ParameterError(f"box size = {size!r} is not allowed: must be three lengths (m)") from None
-    for name, value in zip(("lx", "ly", "lz"), (lx, ly, lz)):
-        _check_length(f"box size {name}", value)
+    lx, ly, lz = (check_positive(f"box size {name}", value, "m")
+                  for name, value in zip(("lx", "ly", "lz"), check_vector("box size", size)))
     corners = np.array([[x, y, z] for x in (0.0, lx) for y in (0.0, ly) for z in (0.0, lz)])
     faces = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1], [2, 3, 7], [2, 7, 6],
                       [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
@@ -377,8 +367,8 @@ def box(size) -> TriangleMesh:
 def chute(length: float, width: float, wall_height: float) -> TriangleMesh:
     """A flat chute along x from 0 to ``length``, its base (z = 0) ``width`` wide about y = 0, with
     side walls ``wall_height`` high; incline it by rotating the mesh (``TriangleMesh.moved``)."""
-    length, width = _check_length("length", length), _check_length("width", width)
-    h, w = _check_length("wall_height", wall_height), 0.5 * width
+    length, width = check_positive("length", length, "m"), check_positive("width", width, "m")
+    h, w = check_positive("wall_height", wall_height, "m"), 0.5 * width
     vertices = np.array([[0, -w, 0], [length, -w, 0], [length, w, 0], [0, w, 0],
                          [0, -w, h], [length, -w, h], [length, w, h], [0, w, h]], dtype=float)
     triangles = np.array([[0, 1, 2], [0, 2, 3], [0, 4, 5], [0, 5, 1], [3, 2, 6], [3, 6, 7]])

@@ -58,7 +58,7 @@ def signatures(module) -> dict:
     import numba
 
     from .engine import EngineState
-    from .kernel_layout import WALL_GEOMETRY_SIZE, WALL_PLANE
+    from .kernel_layout import N_INPUTS, WALL_GEOMETRY_SIZE, WALL_PLANE
 
     st = EngineState(module.HISTORY_SIZE)
     st.set_walls([WALL_PLANE], [np.zeros(WALL_GEOMETRY_SIZE)], [np.zeros(3)], [np.zeros(3)], [0], [-1])
@@ -70,7 +70,7 @@ def signatures(module) -> dict:
     particles, walls, lists, scratch = st.records()
     gather = (dt, kick, np.zeros(3), pp, particles, walls, lists, half_skin)
     args = {
-        "contact": (lists.pool, 0, (0.0,) * 18, pp[0, 0], dt),
+        "contact": (lists.pool, 0, (0.0,) * N_INPUTS, pp[0, 0], dt),
         "block_contacts": (scratch.blocks[0], pp[0, 0], dt),
         "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.x_ref, lists),
         "pair_forces": (dt, pp, particles, lists, scratch), "pair_forces_serial": (dt, pp, particles, lists, scratch),

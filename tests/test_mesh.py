@@ -205,7 +205,7 @@ def contacts(mesh, p, radius):
     m = mesh.n_triangles
     tri, feat, pts = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64), np.zeros((m, 3))
     n = touching_features(*np.asarray(p, dtype=float), radius, mesh.vertices, mesh.triangles, mesh.edge_neighbors,
-                          np.arange(m), m, tri, feat, pts)
+                          np.arange(m), 0, m, tri, feat, pts)
     return tri[:n], feat[:n], pts[:n]
 
 

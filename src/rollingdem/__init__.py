@@ -21,6 +21,7 @@ from .contact import ContactModel  # noqa: E402
 from .errors import ParameterError, SimulationError  # noqa: E402
 from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform  # noqa: E402
 from .materials import Material, MaterialTable  # noqa: E402
+from .mesh import MeshWall, TriangleMesh  # noqa: E402
 from .observers import Callback, Checkpoints, Observer, TimeSeries, VTKSnapshots  # noqa: E402
 from .simulation import Simulation, __version__  # noqa: E402
 from .timestep import hertz_contact_time, rayleigh_time_step  # noqa: E402
@@ -29,7 +30,7 @@ from .walls import Cylinder, Plane  # noqa: E402
 globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (rd.EPSD, rd.Hertz, ...)
 
 __all__ = [
-    "convert", "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "TimeSeries",
+    "convert", "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "TriangleMesh", "TimeSeries",
     "VTKSnapshots", "Checkpoints", "Callback", "Observer", "BoxRegion", "CylinderRegion", "Uniform", "Normal",
     "Discrete", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
     *_contact.SUBMODELS,

@@ -11,9 +11,9 @@ import numpy as np
 from . import kernel_layout
 from .errors import SimulationError
 from .kernel_layout import (CONTACT_BLOCK, ENERGY_CHANNELS, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS,
-                            I_STEPS_DONE, INFO_SIZE, LANE_HITS, STATUS_CAPACITY, STATUS_TOO_FAST, TILE_ROWS,
-                            WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, ListArrays, ParticleArrays, Scratch, WallArrays,
-                            block_columns)
+                            I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_MOTION_SIZE, MESH_SLOTS, STATUS_CAPACITY,
+                            STATUS_MESH_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE,
+                            WALL_LOAD_SIZE, ListArrays, ParticleArrays, Scratch, WallArrays, block_columns)
 from .neighbors import ContactList
 from .threads import ThreadGovernor
 # list capacity = entries needed x this (16 bytes per entry and a pool row of 8 (history + 6) bytes,
@@ -61,6 +61,8 @@ class EngineState:
         self.wall_mat = np.zeros(0, dtype=np.int32)
         self.whist = np.zeros((0, history_size))
         self.wtouch = np.zeros(0, dtype=np.uint8)
+        self.wall_load = np.zeros((0, WALL_LOAD_SIZE))
+        self.meshes = MeshState(history_size)
         self.info = np.zeros(INFO_SIZE, dtype=np.int64)
         self.contact_list = ContactList(history_size)
 
@@ -123,7 +125,12 @@ class EngineState:
         if wall_hist is not None:
             whist[:n0] = wall_hist
         self.whist = whist.reshape(self.n * self.n_walls, self.history_size)
+        load = np.zeros((self.n, self.n_walls, WALL_LOAD_SIZE))
+        if n0:
+            load[:n0] = self.wall_load.reshape(n0, self.n_walls, WALL_LOAD_SIZE)
+        self.wall_load = load.reshape(self.n * self.n_walls, WALL_LOAD_SIZE)
         self.derive_wall_touch()
+        self.meshes.resize_particles(self.n)
         self.info[I_NEED_REBUILD] = 1
         self.info[I_FORCES_VALID] = 0
         self.steps_since_sort = SORT_EVERY  # the new particles come in the user's order: sort at the next run
@@ -141,13 +148,24 @@ class EngineState:
         self.wall_vel = np.asarray(vels, dtype=np.float64).reshape(new_w, 3)
         self.wall_omega = np.asarray(omegas, dtype=np.float64).reshape(new_w, 3)
         self.wall_mat = np.asarray(mats, dtype=np.int32).reshape(new_w)
+        old_load = self.wall_load.reshape(self.n, old_w, WALL_LOAD_SIZE) if old is not None else None
         whist = np.zeros((self.n, new_w, self.history_size))
+        load = np.zeros((self.n, new_w, WALL_LOAD_SIZE))
         if old is not None:
             for new_slot, old_slot in enumerate(carry):
                 if old_slot >= 0:
                     whist[:, new_slot] = old[:, old_slot]
+                    load[:, new_slot] = old_load[:, old_slot]
         self.whist = whist.reshape(self.n * new_w, self.history_size)
+        self.wall_load = load.reshape(self.n * new_w, WALL_LOAD_SIZE)
         self.derive_wall_touch()
+        self.info[I_FORCES_VALID] = 0
+
+    def set_meshes(self, meshes: list, carry: list, walls: list):
+        """Replace the triangle meshes (``MeshState.set_meshes``); ``walls`` their Wall objects."""
+        self.meshes.n = self.n
+        self.meshes.set_meshes(meshes, carry)
+        self.meshes.names = list(walls)
         self.info[I_FORCES_VALID] = 0
 
     # --- slots and ids -----------------------------------------------------------------------
@@ -178,7 +196,10 @@ class EngineState:
         if self.n_walls:
             h = self.history_size
             self.whist = np.ascontiguousarray(self.whist.reshape(n, self.n_walls, h)[perm].reshape(-1, h))
+            self.wall_load = np.ascontiguousarray(
+                self.wall_load.reshape(n, self.n_walls, WALL_LOAD_SIZE)[perm].reshape(-1, WALL_LOAD_SIZE))
             self.derive_wall_touch()
+        self.meshes.reorder(perm)
         self.contact_list.reorder(perm, inv)  # rows move with their particle
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
@@ -207,7 +228,7 @@ class EngineState:
         return (ParticleArrays(self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
                                self.ids, self.x_ref, self.energy, self.contacts),
                 WallArrays(self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat, self.whist,
-                           self.wtouch),
+                           self.wtouch, self.wall_load, *self.meshes.arrays()),
                 self.contact_list.arrays(),
                 Scratch(*self.contact_blocks()))
 
@@ -241,8 +262,12 @@ class EngineState:
                 self.steps_since_sort += done
                 if self.info[I_STATUS] == STATUS_CAPACITY:
                     self.grow(int(self.info[I_NEEDED]))
+                elif self.info[I_STATUS] == STATUS_MESH_CAPACITY:
+                    self.meshes.grow(int(self.info[I_NEEDED]))
                 elif self.info[I_STATUS] == STATUS_TOO_FAST:
                     return nsteps - remaining, self._too_fast_message(dt, skin)
+                if self.meshes.n_triangles and self.meshes.mesh_error.any():
+                    return nsteps - remaining, self.meshes.error_message(self.ids)
         finally:
             governor.close()
         return nsteps, None
@@ -293,14 +318,19 @@ class EngineState:
         cl = self.contact_list
         saved = (cl.pool[:total].copy(), cl.contact_row[:total].copy(), cl.groups.copy(), self.whist.copy(),
                  self.energy.copy())
+        mesh_saved = self.meshes.save_contacts()
         while True:
             self.info[I_FORCES_VALID] = 0
             self.step_loop(kernel)(0, *self.kernel_args(dt, gravity, skin, pair_params))
-            if self.info[I_STATUS] != STATUS_CAPACITY:
+            if self.info[I_STATUS] == STATUS_CAPACITY:
+                self.grow(int(self.info[I_NEEDED]))
+            elif self.info[I_STATUS] == STATUS_MESH_CAPACITY:
+                self.meshes.grow(int(self.info[I_NEEDED]))
+            else:
                 break
-            self.grow(int(self.info[I_NEEDED]))
         cl = self.contact_list  # grown perhaps: the arrays are new
         cl.pool[:total], cl.contact_row[:total], cl.groups[:], self.whist[:], self.energy[:] = saved
+        self.meshes.restore_contacts(mesh_saved)
         self.derive_wall_touch()
 
     # --- checkpoint ----------------------------------------------------------------------------
@@ -340,3 +370,165 @@ class EngineState:
         cl.index()  # the checkpoint's tr_k too, made again (as it was written)
         cl.set_entry_history(arrays["hist"])
         return st
+
+
+class MeshState:
+    """The triangle meshes' arrays of the engine (``kernel_layout.WallArrays``, from ``reference``
+    on): every mesh's vertices and triangles in one array, their motion, and per sphere the
+    candidate triangles and the contact slots. The per-sphere arrays have no rows while there is
+    no mesh (a slot's history is 6 rows a sphere)."""
+
+    def __init__(self, history_size: int):
+        self.history_size = history_size
+        self.n = 0
+        self.names: list = []  # the Wall objects, in the engine's order
+        self.reference = np.zeros((0, 3))
+        self.vertices = np.zeros((0, 3))
+        self.built = np.zeros((0, 3))
+        self.vertex_start = np.zeros(1, dtype=np.int64)
+        self.triangle_start = np.zeros(1, dtype=np.int64)
+        self.triangles = np.zeros((0, 3), dtype=np.int64)
+        self.neighbors = np.zeros((0, 3), dtype=np.int64)
+        self.triangle_mesh = np.zeros(0, dtype=np.int32)
+        self.motion = np.zeros((0, MESH_MOTION_SIZE))
+        self.material = np.zeros(0, dtype=np.int32)
+        self._particle_arrays(0)
+        self.allocate(0)
+
+    @property
+    def n_triangles(self) -> int:
+        return self.triangles.shape[0]
+
+    @property
+    def n_meshes(self) -> int:
+        return self.motion.shape[0]
+
+    def _particle_arrays(self, rows: int):
+        self.candidate_start = np.zeros(rows + 1 if rows else 0, dtype=np.int64)
+        self.slot_triangle = np.full((rows, MESH_SLOTS), -1, dtype=np.int64)
+        self.history = np.zeros((rows * MESH_SLOTS, self.history_size))
+        self.load = np.zeros((rows * MESH_SLOTS, WALL_LOAD_SIZE))
+        self.mesh_error = np.zeros(rows, dtype=np.uint8)
+        self.grid_start = np.zeros(max(2 * rows, 64) + 1 if rows else 0, dtype=np.int64)
+        self.grid_items = np.zeros(rows, dtype=np.int64)
+
+    def allocate(self, capacity: int):
+        """Room for ``capacity`` candidate entries (the contacts found are kept in them too)."""
+        self.candidates = np.zeros(capacity, dtype=np.int64)
+        self.touch_triangle = np.zeros(capacity, dtype=np.int64)
+        self.touch_feature = np.zeros(capacity, dtype=np.int64)
+        self.touch_point = np.zeros((capacity, 3))
+        self.touch_slot = np.zeros(capacity, dtype=np.int64)
+
+    def grow(self, needed: int):
+        self.allocate(int(needed * LIST_MARGIN) + 16)
+
+    def resize_particles(self, n: int):
+        """Keep the slots of the first spheres, add empty ones up to n (none while there is no mesh)."""
+        self.n = n
+        if not self.n_meshes:
+            return
+        old = (self.slot_triangle, self.history, self.load)
+        n0 = old[0].shape[0]
+        self._particle_arrays(n)
+        keep = min(n0, n)
+        self.slot_triangle[:keep] = old[0][:keep]
+        self.history[:keep * MESH_SLOTS] = old[1][:keep * MESH_SLOTS]
+        self.load[:keep * MESH_SLOTS] = old[2][:keep * MESH_SLOTS]
+        if self.candidates.shape[0] < 4 * n:
+            self.allocate(4 * n)
+
+    def reorder(self, perm):
+        """The slots follow their spheres to new storage slots (``EngineState.sort``)."""
+        if not self.n_meshes:
+            return
+        s, h = MESH_SLOTS, self.history_size
+        self.slot_triangle = np.ascontiguousarray(self.slot_triangle[perm])
+        self.history = np.ascontiguousarray(self.history.reshape(-1, s, h)[perm].reshape(-1, h))
+        self.load = np.ascontiguousarray(self.load.reshape(-1, s, WALL_LOAD_SIZE)[perm].reshape(-1, WALL_LOAD_SIZE))
+        self.mesh_error = np.ascontiguousarray(self.mesh_error[perm])
+
+    def set_meshes(self, meshes: list, carry: list):
+        """Replace the meshes. Each is a dict of ``vertices``, ``triangles``, ``neighbors``,
+        ``velocity``, ``angular_velocity``, ``point`` (the rotation axis's point) and ``material``;
+        its motion starts now from these vertices. ``carry[m]``: the index new mesh m had before
+        (the contacts with its triangles are kept), or -1."""
+        old_start, old_slots = self.triangle_start, self.slot_triangle
+        nv = [len(m["vertices"]) for m in meshes]
+        nt = [len(m["triangles"]) for m in meshes]
+        self.vertex_start = np.concatenate([[0], np.cumsum(nv)]).astype(np.int64)
+        self.triangle_start = np.concatenate([[0], np.cumsum(nt)]).astype(np.int64)
+        cat = (lambda parts, shape, dtype: np.ascontiguousarray(np.concatenate(parts), dtype=dtype) if parts
+               else np.zeros(shape, dtype=dtype))
+        self.reference = cat([np.asarray(m["vertices"], dtype=float) for m in meshes], (0, 3), np.float64)
+        self.vertices = self.reference.copy()
+        self.built = self.reference.copy()
+        self.triangles = cat([np.asarray(m["triangles"]) + v0 for m, v0 in zip(meshes, self.vertex_start)], (0, 3),
+                             np.int64)
+        self.neighbors = cat([np.where(np.asarray(m["neighbors"]) >= 0, np.asarray(m["neighbors"]) + t0, -1)
+                              for m, t0 in zip(meshes, self.triangle_start)], (0, 3), np.int64)
+        self.triangle_mesh = np.repeat(np.arange(len(meshes), dtype=np.int32), nt)
+        self.motion = np.zeros((len(meshes), MESH_MOTION_SIZE))
+        for k, m in enumerate(meshes):
+            self.motion[k, 0:3] = m["velocity"]
+            self.motion[k, 3:6] = m["angular_velocity"]
+            self.motion[k, 6:9] = m["point"]
+        self.material = np.array([m["material"] for m in meshes], dtype=np.int32)
+        if not meshes:
+            self._particle_arrays(0)
+            self.allocate(0)
+            return
+        if old_slots.shape[0] != self.n:  # the first mesh: the spheres get their slots
+            self._particle_arrays(self.n)
+            self.allocate(max(self.candidates.shape[0], 4 * self.n))
+            return
+        # a kept mesh's contacts keep their slots, renumbered; the others' end
+        remap = np.full(int(old_start[-1]) + 1, -1, dtype=np.int64)
+        for new, old in enumerate(carry):
+            if old >= 0:
+                remap[old_start[old]:old_start[old + 1]] = np.arange(self.triangle_start[new],
+                                                                     self.triangle_start[new + 1])
+        slots = np.where(old_slots >= 0, remap[np.maximum(old_slots, 0)], -1)
+        ended = (slots < 0).reshape(-1)
+        self.slot_triangle = slots
+        self.history[ended] = 0.0
+        self.load[ended] = 0.0
+
+    def arrays(self) -> tuple:
+        """The mesh fields of ``WallArrays``, in their order."""
+        return (self.reference, self.vertices, self.built, self.vertex_start, self.triangles, self.neighbors,
+                self.triangle_mesh, self.motion, self.material, self.candidate_start, self.candidates,
+                self.touch_triangle, self.touch_feature, self.touch_point, self.touch_slot, self.slot_triangle,
+                self.history, self.load, self.mesh_error, self.grid_start, self.grid_items)
+
+    def save_contacts(self):
+        return self.slot_triangle.copy(), self.history.copy()
+
+    def restore_contacts(self, saved):
+        self.slot_triangle[...], self.history[...] = saved
+        self.mesh_error[:] = 0
+
+    def loads(self, ids=None) -> np.ndarray:
+        """(meshes, 6): each mesh's force (N) and moment about the origin (N m) at the last step."""
+        out = np.zeros((self.n_meshes, WALL_LOAD_SIZE))
+        if self.n_meshes and self.n:
+            used = self.slot_triangle.reshape(-1) >= 0
+            mesh = self.triangle_mesh[self.slot_triangle.reshape(-1)[used]]
+            np.add.at(out, mesh, self.load[used])
+        return out
+
+    def error_message(self, ids) -> str:
+        k = int(np.nonzero(self.mesh_error)[0][0])
+        code = int(self.mesh_error[k])
+        slots = self.slot_triangle[k]
+        meshes = sorted({int(self.triangle_mesh[t]) for t in slots if t >= 0})
+        where = " and ".join(repr(self.label(m)) for m in meshes) or "a mesh wall"
+        if code == 1:
+            return (f"particle {int(ids[k])} touches {where} at more than {MESH_SLOTS} surface features at once: the "
+                    "mesh folds on itself there (a sliver or a self-intersection); repair it")
+        return (f"particle {int(ids[k])} passed through mesh wall {where}: its centre crossed the surface in one "
+                "step, so it moved faster than the contact can stop it; reduce dt or the speed, or thicken the wall")
+
+    def label(self, m: int) -> str:
+        wall = self.names[m] if m < len(self.names) else None
+        return (wall.name or f"mesh {m}") if wall is not None else f"mesh {m}"

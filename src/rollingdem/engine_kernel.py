@@ -14,9 +14,11 @@ from numba.np.arrayobj import reshape_unchecked
 
 from rollingdem.kernel_layout import (BLOCK_SHIFT, CONTACT_BLOCK, CONTACT_INPUTS as IN, I_DRIFTED, I_FORCES_VALID,
                                       I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
-                                      LANE_HITS, N_INPUTS, N_RESULTS, STATUS_CAPACITY, STATUS_TOO_FAST)
+                                      LANE_HITS, MESH_MOTION as MO, MESH_SLOTS, N_INPUTS, N_RESULTS, STATUS_CAPACITY,
+                                      STATUS_MESH_CAPACITY, STATUS_TOO_FAST, WALL_LOAD_SIZE)
 from rollingdem.integrator import kick_drift, kick_drift_one, kick_drift_serial, move_walls, next_drift_bound, undo_drift
 from rollingdem.neighbors import POOL_GROUP, free_row, list_rows, rebuild_neighbor_list, take_row
+from rollingdem.mesh_kernel import build_mesh_candidates, match_mesh_contacts, move_meshes, surface_velocity
 from rollingdem.walls import wall_contact_geometry
 from rollingdem.contact.frame import SERIES_ANGLE, contact_frame, contact_frame_series, spin_angle, stored_normal
 from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
@@ -401,6 +403,8 @@ def wall_contacts(i, dt, particles, walls, pair_params):
                 wtouch[k] = 0
                 for s2 in range(whist.shape[1]):
                     whist[k, s2] = 0.0
+                for s2 in range(WALL_LOAD_SIZE):
+                    walls.load[k, s2] = 0.0
             continue
         wtouch[k] = 1
         # surface velocity of the wall at the contact point c = x_i - (R_i - overlap) n
@@ -418,6 +422,75 @@ def wall_contacts(i, dt, particles, walls, pair_params):
                                            w[i, 0], w[i, 1], w[i, 2], owx, owy, owz, ri - 0.5 * overlap, 0.0,
                                            ri, mi, INERTIA_R_FACTOR * mi * ri * ri),
                       pair_params[particles.mat[i], walls.material[wl]], dt)
+        wall_load(walls.load, k, res, x[i, 0] - lever * nx, x[i, 1] - lever * ny, x[i, 2] - lever * nz)
+        fx += res[0]
+        fy += res[1]
+        fz += res[2]
+        tx += res[3]
+        ty += res[4]
+        tz += res[5]
+        en += res[9]
+        et += res[10]
+        er += res[11]
+        etw += res[12]
+        ncontact += 1
+    return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+
+
+@njit(cache=True, inline="always")
+def wall_load(load, k, res, cx, cy, cz):
+    """Row k of a wall contact's load (``kernel_layout.WALL_LOAD``): the force on the wall, -F, and
+    its moment about the origin, c x (-F) + the torque on the wall."""
+    fx, fy, fz = -res[0], -res[1], -res[2]
+    load[k, 0] = fx
+    load[k, 1] = fy
+    load[k, 2] = fz
+    load[k, 3] = cy * fz - cz * fy + res[6]
+    load[k, 4] = cz * fx - cx * fz + res[7]
+    load[k, 5] = cx * fy - cy * fx + res[8]
+
+
+@njit(cache=True, inline="always")
+def mesh_contacts(i, dt, particles, walls, pair_params):
+    """All triangle-mesh contacts of particle i, one per touched surface feature, each in its
+    contact slot (``mesh_kernel.match_mesh_contacts``): total force and torque on i, energies,
+    contact count. A mesh is a wall: R* = R_i, m* = m_i, its surface velocity at the contact point
+    v + omega x (c - o)."""
+    x, v, w = particles.x, particles.v, particles.w
+    fx = fy = fz = 0.0
+    tx = ty = tz = 0.0
+    en = et = er = etw = 0.0
+    ncontact = 0
+    lo = walls.candidate_start[i]
+    if lo == walls.candidate_start[i + 1]:  # no triangle near: done, unless a contact just ended
+        used = False
+        for s in range(MESH_SLOTS):
+            used |= walls.slot_triangle[i, s] >= 0
+        if not used:
+            return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+    px, py, pz = x[i, 0], x[i, 1], x[i, 2]
+    ri = particles.radius[i]
+    mi = particles.mass[i]
+    found = match_mesh_contacts(i, px, py, pz, ri, walls)
+    for b in range(lo, lo + found):
+        s = walls.touch_slot[b]
+        if s < 0:
+            continue
+        m = walls.triangle_mesh[walls.touch_triangle[b]]
+        qx, qy, qz = walls.touch_point[b, 0], walls.touch_point[b, 1], walls.touch_point[b, 2]
+        dx, dy, dz = px - qx, py - qy, pz - qz
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+        overlap = ri - dist
+        inv = 1.0 / dist  # dist > 0: a centre on the surface has passed half through it (mesh_error)
+        nx, ny, nz = dx * inv, dy * inv, dz * inv
+        swx, swy, swz = surface_velocity(walls, m, qx, qy, qz)
+        k = i * uint64(MESH_SLOTS) + uint64(s)
+        res = contact(walls.mesh_history, np.int64(k),
+                      (nx, ny, nz, overlap, v[i, 0] - swx, v[i, 1] - swy, v[i, 2] - swz, w[i, 0], w[i, 1], w[i, 2],
+                       walls.motion[m, MO.wx], walls.motion[m, MO.wy], walls.motion[m, MO.wz], ri - 0.5 * overlap, 0.0, ri, mi,
+                       INERTIA_R_FACTOR * mi * ri * ri),
+                      pair_params[particles.mat[i], walls.mesh_material[m]], dt)
+        wall_load(walls.mesh_load, k, res, qx, qy, qz)
         fx += res[0]
         fy += res[1]
         fz += res[2]
@@ -459,6 +532,20 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
         particles.energy[i, 2] += wres[8]
         particles.energy[i, 3] += wres[9]
     particles.contacts[i] += wres[10]
+    if walls.triangles.shape[0] > 0:
+        mres = mesh_contacts(i, dt, particles, walls, pair_params)
+        fx += mres[0]
+        fy += mres[1]
+        fz += mres[2]
+        tx += mres[3]
+        ty += mres[4]
+        tz += mres[5]
+        if TRACK_ENERGY:
+            particles.energy[i, 0] += mres[6]
+            particles.energy[i, 1] += mres[7]
+            particles.energy[i, 2] += mres[8]
+            particles.energy[i, 3] += mres[9]
+        particles.contacts[i] += mres[10]
     f[i, 0] = fx
     f[i, 1] = fy
     f[i, 2] = fz
@@ -538,10 +625,15 @@ def gather_serial(dt, kick, gravity, pair_params, particles, walls, lists, half_
 
 
 @njit(cache=True)
-def _rebuild(particles, lists, skin, info):
+def _rebuild(particles, walls, lists, skin, info):
     total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.x_ref, lists)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY
+        info[I_NEEDED] = -total
+        return False
+    total = build_mesh_candidates(particles.x, particles.radius, skin, walls)
+    if total < 0:
+        info[I_STATUS] = STATUS_MESH_CAPACITY
         info[I_NEEDED] = -total
         return False
     list_rows(particles.x.shape[0], lists.start, lists.i)
@@ -559,7 +651,7 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
         info[I_DRIFTED] = 0
-        if not _rebuild(particles, lists, skin, info):
+        if not _rebuild(particles, walls, lists, skin, info):
             return
         # the pair pass and the gather are called here and in the loop, not through one function
         # of their own, which would compile the whole kernel once more (1 s of a cold compile)
@@ -577,9 +669,10 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
             exceed = kick_drift(dt, particles, half_skin)
             info[I_NEED_REBUILD] += exceed
             move_walls(dt, walls)
+            info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
             info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(particles, lists, skin, info):
+            if not _rebuild(particles, walls, lists, skin, info):
                 return  # drifted: the call after the arrays grow goes on from here
             info[I_NEED_REBUILD] = 0
         drift = step + 1 < nsteps
@@ -596,4 +689,5 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
             move_walls(dt, walls)  # with the next step's drift, made in the gather
+            info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
             info[I_DRIFTED] = 1

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from .errors import ParameterError, check_finite, check_non_negative, check_positive, check_vector
-from .walls import wall_overlap
+from .kernel_layout import WALL_PLANE
 
 MAX_PACKING_FRACTION = 0.55
 """Requests above this packing fraction are refused before any attempt (random insertion tops out
@@ -317,7 +317,7 @@ class _FreeCells:
         h = max(h, float(np.prod(np.maximum(ext, 1e-300)) / self.MAX_DENSE) ** (1.0 / 3.0))
         self.h = h
         self.shape = np.maximum(np.ceil(ext / h).astype(np.int64), 1)
-        self.planes = [(g[0:3], g[3:6]) for g, kind in walls if kind == 0]
+        self.planes = [(w.geometry()[0:3], w.geometry()[3:6]) for w in walls if w.kind == WALL_PLANE]
         # A cell must fit in an exclusion ball, and the region must be at least a cell thick.
         self.usable = bool(h * math.sqrt(3.0) < 2.0 * rho0 and (ext >= h).all())
         self.dense = None  # flags of the dense grid, flattened
@@ -481,7 +481,6 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
         raise ParameterError("existing_positions / existing_radii contain a non-finite value: must be finite")
 
     walls = [w for w in (walls or ()) if getattr(w, "kind", -1) >= 0]
-    wall_geom = [(w.geometry(), int(w.kind)) for w in walls]
 
     # Radii, and the checks that need no attempt.
     r_all = np.asarray(dist.sample(rng, n), dtype=np.float64)
@@ -504,7 +503,7 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
         # each slab sees everything placed before it as existing particles
         known_x = np.concatenate([ex, x_out[known]])
         known_r = np.concatenate([er, r_all[known]])
-        x_sub, done, why = _fill(sub, r_all[idx], rng, known_x, known_r, wall_geom, max_attempts)
+        x_sub, done, why = _fill(sub, r_all[idx], rng, known_x, known_r, walls, max_attempts)
         placed += done
         if why is not None:
             break
@@ -568,7 +567,7 @@ def _slab_plan(region: Region, rho0: float, rmax: float, n: int) -> list[tuple[R
     return plan
 
 
-def _fill(region: Region, r_all: np.ndarray, rng, ex: np.ndarray, er: np.ndarray, wall_geom, max_attempts: int):
+def _fill(region: Region, r_all: np.ndarray, rng, ex: np.ndarray, er: np.ndarray, walls, max_attempts: int):
     """Random sequential addition of spheres of radii ``r_all`` into ``region`` (see ``fill_region``).
     Returns (positions in the order of ``r_all``, spheres placed, None), or (None, spheres placed,
     why) when one ran out of attempts."""
@@ -626,8 +625,8 @@ def _fill(region: Region, r_all: np.ndarray, rng, ex: np.ndarray, er: np.ndarray
                 sph, rc = sph[:0], rc[:0]
                 full = True
             ok = region.contains(xc, rc)
-        for g, kind in wall_geom:
-            ok &= wall_overlap(g, kind, xc, rc) <= 0.0
+        for w in walls:
+            ok &= w.overlap(xc, rc) <= 0.0
         # Against everything placed before this round.
         all_x = np.concatenate([fixed_x, new_x[:n_new]]) if n_new else fixed_x
         all_r = np.concatenate([fixed_r, new_r[:n_new]]) if n_new else fixed_r
@@ -695,7 +694,7 @@ def _fill(region: Region, r_all: np.ndarray, rng, ex: np.ndarray, er: np.ndarray
         expect = rate * (max_attempts - int(attempts[waiting].max()))
         if n_placed < n and grid is None and not grid_tried and expect < _EXPECT:
             grid_tried = True
-            g = _FreeCells(region, rho0, wall_geom)
+            g = _FreeCells(region, rho0, walls)
             if g.usable:
                 g.cover(fixed_x, fixed_r)
                 g.cover(new_x[:n_new], new_r[:n_new])

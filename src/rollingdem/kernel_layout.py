@@ -18,12 +18,27 @@ I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_
 INFO_SIZE = len(INFO)
 STATUS_CAPACITY = 1  # the neighbor list outgrew its arrays: grow them to info[I_NEEDED] and call again
 STATUS_TOO_FAST = 2  # a particle would move more than skin/2 in one step
+STATUS_MESH_CAPACITY = 3  # the mesh candidate list outgrew its arrays: grow them to info[I_NEEDED]
 
 # wall kinds (``walls.Wall.kind``) and the length of a wall's geometry row
 WALL_INACTIVE = -1
 WALL_PLANE = 0
 WALL_CYLINDER = 1
+WALL_MESH = 2  # a triangle mesh: its triangles are in the mesh arrays of ``WallArrays``, not a geometry row
 WALL_GEOMETRY_SIZE = 9
+#: a wall contact's load row (``WallArrays.load``, ``mesh_load``): the force on the wall (N) and its
+#: moment about the origin (N m), c x F + the contact's torque on the wall (rolling, twisting), at the
+#: last step; a wall's force and its torque about any point P (M - P x F) are summed from these
+#: between kernel calls
+WALL_LOAD = slots("fx", "fy", "fz", "mx", "my", "mz")
+WALL_LOAD_SIZE = len(WALL_LOAD)
+#: contacts one sphere can hold with triangle meshes at once (one per touched surface feature: 3 in
+#: the corner of a box); a sphere that would need more stops the run with an error
+MESH_SLOTS = 6
+#: a mesh's motion row (``WallArrays.motion``): velocity (m/s), angular velocity (rad/s) about the axis
+#: through (px, py, pz) where the motion began, and the time since it began (s)
+MESH_MOTION = slots("vx", "vy", "vz", "wx", "wy", "wz", "px", "py", "pz", "elapsed")
+MESH_MOTION_SIZE = len(MESH_MOTION)
 
 ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")  # columns of the dissipated energy
 
@@ -95,6 +110,30 @@ WallArrays = collections.namedtuple("WallArrays", (
     "material",          # (walls,) int32
     "history",           # (n * walls, history size) contact history of particle i and wall w at i * walls + w
     "touching",          # (n * walls,) uint8 whether that contact existed at the last step
+    "load",              # (n * walls, WALL_LOAD_SIZE) that contact's load at the last step
+    # triangle meshes (rollingdem.mesh), the triangles of all of them in one array, each mesh's
+    # vertices and triangles contiguous
+    "reference",         # (vertices, 3) vertex positions where the mesh's present motion began (m)
+    "vertices",          # (vertices, 3) vertex positions now (m)
+    "built",             # (vertices, 3) vertex positions when the candidate lists were built (m)
+    "vertex_start",      # (meshes + 1,) int64 each mesh's first vertex
+    "triangles",         # (triangles, 3) int64 vertex indices
+    "neighbors",         # (triangles, 3) int64 the triangle across edge ab, bc, ca; -1 on a free edge
+    "triangle_mesh",     # (triangles,) int32 the mesh of each triangle
+    "motion",            # (meshes, MESH_MOTION_SIZE)
+    "mesh_material",     # (meshes,) int32
+    "candidate_start",   # (n + 1,) int64 CSR rows: the triangles within R_i + skin of each sphere
+    "candidates",        # (capacity,) int64 their triangles, built with the neighbor list
+    "touch_triangle",    # (capacity,) int64 scratch of a sphere's contacts, in its own candidate rows:
+    "touch_feature",     # (capacity,) int64   triangle, feature (rollingdem.mesh.FACE ...), contact point,
+    "touch_point",       # (capacity, 3)       and slot
+    "touch_slot",        # (capacity,) int64
+    "slot_triangle",     # (n, MESH_SLOTS) int64 the triangle of each mesh contact slot, -1 free
+    "mesh_history",      # (n * MESH_SLOTS, history size) the slot's contact history
+    "mesh_load",         # (n * MESH_SLOTS, WALL_LOAD_SIZE) the slot's load at the last step
+    "mesh_error",        # (n,) uint8 1: more mesh contacts than MESH_SLOTS; 2: passed through a face
+    "grid_start",        # (cells + 1,) int64 scratch of the candidate build: spheres per grid cell,
+    "grid_items",        # (n,) int64
 ))
 ListArrays = collections.namedtuple("ListArrays", (  # rollingdem.neighbors
     "start", "j", "i",          # CSR half list: row starts (n + 1), partner and row of each entry

@@ -1,6 +1,7 @@
-"""Triangle meshes for walls (STL, OBJ): the checked mesh, its edge topology, and the compiled
-closest point of a triangle to a sphere's centre with the feature (face, edge, vertex) it lies on.
-Not yet a wall the engine steps with: the contact with one contact per touched feature comes next."""
+"""Triangle-mesh walls (STL, OBJ): ``MeshWall``, the checked ``TriangleMesh`` with its edge
+topology, ready-made shapes, and the compiled closest point of a triangle to a sphere's centre with
+the feature (face, edge, vertex) it lies on and the contacts of a sphere with a mesh, one per
+touched surface feature (docs/models.md, "Mesh walls")."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import numpy as np
 from numba import njit
 
 from .errors import ParameterError, check_integer, check_positive, check_vector
+from .kernel_layout import WALL_MESH
+from .walls import Wall
 
 # the feature of a triangle a closest point lies on
 FACE = 0
@@ -95,11 +98,12 @@ FEATURE_TOLERANCE = 1e-12
 
 
 @njit(cache=True)
-def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, candidates, ncand, out_tri, out_feature,
-                      out_point):
-    """The contacts of a sphere (centre p, ``radius``) with the triangles ``candidates[:ncand]``: one per
-    touched surface feature, not one per triangle. Returns their count; ``out_tri``, ``out_feature``,
-    ``out_point`` hold each one's triangle, feature and contact point (its normal is p - point).
+def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, candidates, lo, hi, out_tri,
+                      out_feature, out_point):
+    """The contacts of a sphere (centre p, ``radius``) with the triangles ``candidates[lo:hi]``: one per
+    touched surface feature, not one per triangle. Returns their count c; ``out_tri``, ``out_feature``,
+    ``out_point`` hold at lo .. lo + c - 1 each one's triangle, feature and contact point (its normal
+    is p - point): a sphere's own rows of the candidate list are its scratch.
 
     A triangle touches when its closest point q is nearer than ``radius``. A face contact is kept.
     An edge contact is kept when p also lies outside the triangle across that edge, (p - q) . m <= 0
@@ -112,8 +116,8 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
     face normal throughout, one on a convex edge or vertex with the normal from it to the centre,
     and one per face in a concave corner (Voronoi regions of the surface's features)."""
     r2 = radius * radius
-    nkeep = 0
-    for a in range(ncand):
+    nkeep = lo
+    for a in range(lo, hi):
         t = candidates[a]
         i0, i1, i2 = triangles[t, 0], triangles[t, 1], triangles[t, 2]
         q = closest_point_on_triangle(px, py, pz, vertices[i0, 0], vertices[i0, 1], vertices[i0, 2],
@@ -128,8 +132,8 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
         out_point[nkeep, 1] = q[1]
         out_point[nkeep, 2] = q[2]
         nkeep += 1
-    n = 0
-    for a in range(nkeep):
+    n = lo
+    for a in range(lo, nkeep):
         t, feature = out_tri[a], out_feature[a]
         qx, qy, qz = out_point[a, 0], out_point[a, 1], out_point[a, 2]
         keep = True
@@ -140,7 +144,7 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
             if u >= 0:
                 into, scale = _into_triangle(vertices, triangles, u, va, vb, qx, qy, qz, px, py, pz)
                 keep = into <= FEATURE_TOLERANCE * scale
-                for b in range(a):  # the same edge, seen from u
+                for b in range(lo, a):  # the same edge, seen from u
                     if out_tri[b] == u and EDGE_AB <= out_feature[b] <= EDGE_CA:
                         f = out_feature[b] - EDGE_AB
                         ua, ub = triangles[u, f], triangles[u, (f + 1) % 3]
@@ -149,7 +153,7 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
         elif feature >= VERTEX_A:
             v = triangles[t, feature - VERTEX_A]
             dx, dy, dz = px - qx, py - qy, pz - qz
-            for b in range(nkeep):
+            for b in range(lo, nkeep):
                 u = out_tri[b]
                 for c in range(3):
                     if triangles[u, c] != v:
@@ -170,7 +174,7 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
             out_point[n, 1] = qy
             out_point[n, 2] = qz
             n += 1
-    return n
+    return n - lo
 
 
 class TriangleMesh:
@@ -295,6 +299,125 @@ class TriangleMesh:
         return path
 
 
+class MeshWall(Wall):
+    """A wall of triangles: ``MeshWall(vertices, triangles, material=...)``, ``MeshWall(mesh)`` of a
+    ``TriangleMesh``, ``MeshWall.from_file("hopper.stl", scale=0.001)`` or ``MeshWall.shape("drum",
+    radius=0.1, length=0.05)``.
+
+    Both sides of each triangle repel; a sphere has one contact per touched surface feature
+    (``touching_features``), and its springs go with it from triangle to triangle. The mesh moves as
+    a rigid body: ``velocity`` (m/s) and ``angular_velocity`` (rad/s) about the axis through
+    ``point`` (default: the centroid of its area), both constant during a run and changed between
+    runs with ``Simulation.set_wall_velocity``; the contact uses its surface velocity at the
+    contact point, v + omega x (c - point).
+    """
+
+    kind = WALL_MESH
+
+    def __init__(self, vertices, triangles=None, material=None, velocity=(0.0, 0.0, 0.0),
+                 angular_velocity=(0.0, 0.0, 0.0), point=None, name=None):
+        super().__init__(material, velocity, angular_velocity, name)
+        if isinstance(vertices, TriangleMesh):
+            if triangles is not None:
+                raise ParameterError("triangles = ... is not allowed with a TriangleMesh: it holds its triangles")
+            self.mesh = vertices
+        else:
+            if triangles is None:
+                raise ParameterError("triangles = None is not allowed: give the (m, 3) vertex indices of the "
+                                     "triangles, or a TriangleMesh as the first argument")
+            self.mesh = TriangleMesh(vertices, triangles, label=f"mesh {name!r}" if name else "mesh")
+        self.point = self.centroid() if point is None else check_vector("mesh point", point)
+
+    @classmethod
+    def from_file(cls, path, material=None, scale: float = 1.0, name=None, **motion) -> "MeshWall":
+        """A mesh wall read from an STL (ASCII or binary) or OBJ file; coordinates times ``scale``."""
+        return cls(TriangleMesh.from_file(path, scale), material=material, name=name, **motion)
+
+    @classmethod
+    def shape(cls, shape: str, material=None, name=None, velocity=(0.0, 0.0, 0.0),
+              angular_velocity=(0.0, 0.0, 0.0), point=None, **dimensions) -> "MeshWall":
+        """A ready-made shape by name (``SHAPES``: drum, silo, hopper, disk, box, chute) with its
+        dimensions as keywords, e.g. ``MeshWall.shape("hopper", top_radius=0.1, outlet_radius=0.01,
+        height=0.1, segments=96)``."""
+        if shape not in SHAPES:
+            raise ParameterError(f"mesh shape = {shape!r} is not known: allowed are {', '.join(map(repr, SHAPES))}")
+        import inspect
+
+        allowed = list(inspect.signature(SHAPES[shape]).parameters)
+        for key in dimensions:
+            if key not in allowed:
+                raise ParameterError(f"mesh shape {shape!r}: {key} is not one of its dimensions ({', '.join(allowed)})")
+        missing = [k for k, p in inspect.signature(SHAPES[shape]).parameters.items()
+                   if p.default is inspect.Parameter.empty and k not in dimensions]
+        if missing:
+            raise ParameterError(f"mesh shape {shape!r}: {', '.join(missing)} missing ({', '.join(allowed)} allowed)")
+        return cls(SHAPES[shape](**dimensions), material=material, name=name, velocity=velocity,
+                   angular_velocity=angular_velocity, point=point)
+
+    def centroid(self) -> tuple:
+        """The centroid of the mesh's area (m)."""
+        v, t = self.mesh.vertices, self.mesh.triangles
+        a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+        area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        return tuple(float(x) for x in (area[:, None] * (a + b + c) / 3.0).sum(axis=0) / area.sum())
+
+    def engine_mesh(self, material: int) -> dict:
+        """What ``engine.MeshState.set_meshes`` takes of this wall."""
+        return {"vertices": self.mesh.vertices, "triangles": self.mesh.triangles, "neighbors": self.mesh.edge_neighbors,
+                "velocity": self.velocity, "angular_velocity": self.angular_velocity, "point": self.point,
+                "material": material}
+
+    def overlap(self, x, r) -> np.ndarray:
+        """Overlap (m) of spheres (centres x, radii r) with the mesh: R minus the distance to its
+        nearest point."""
+        from scipy.spatial import cKDTree
+
+        x = np.asarray(x, dtype=float).reshape(-1, 3)
+        r = np.asarray(r, dtype=float).reshape(-1)
+        out = np.full(len(r), -np.inf)
+        if not len(r):
+            return out
+        v, t = self.mesh.vertices, self.mesh.triangles
+        centre = v[t].mean(axis=1)
+        reach = np.linalg.norm(v[t] - centre[:, None, :], axis=2).max(axis=1)  # each triangle within this of its centre
+        tree = cKDTree(centre)
+        pairs_p, pairs_t = [], []
+        for k, near in enumerate(tree.query_ball_point(x, r + reach.max())):
+            pairs_p += [k] * len(near)
+            pairs_t += near
+        if pairs_p:
+            pp, tt = np.asarray(pairs_p), np.asarray(pairs_t, dtype=np.int64)
+            q, feature = np.zeros((len(pp), 3)), np.zeros(len(pp), dtype=np.int64)
+            closest_points(np.ascontiguousarray(x[pp]), v, np.ascontiguousarray(t[tt]), q, feature)
+            np.maximum.at(out, pp, r[pp] - np.linalg.norm(x[pp] - q, axis=1))
+        return out
+
+    def update_from_engine(self, vertices, point):
+        """Take the engine's vertices and rotation point after a run (the mesh has moved)."""
+        self.mesh = _with_vertices(self.mesh, vertices)
+        self.point = tuple(float(c) for c in point)
+
+    def describe(self) -> dict:
+        return {"type": "mesh", "point": list(self.point), "velocity": list(self.velocity),
+                "angular_velocity": list(self.angular_velocity), "name": self.name,
+                "triangles": self.mesh.n_triangles}
+
+    def __repr__(self):
+        return (f"MeshWall(name={self.name!r}, material={self.material!r}, triangles={self.mesh.n_triangles}, "
+                f"velocity={self.velocity!r}, angular_velocity={self.angular_velocity!r}, point={self.point!r})")
+
+
+def _with_vertices(mesh: TriangleMesh, vertices) -> TriangleMesh:
+    """``mesh`` with new vertex positions (the same triangles, moved rigidly: no check again)."""
+    out = TriangleMesh.__new__(TriangleMesh)
+    out.__dict__.update(mesh.__dict__)
+    out.vertices = np.array(vertices, dtype=np.float64)
+    a, b, c = (out.vertices[out.triangles[:, i]] for i in range(3))
+    n = np.cross(b - a, c - a)
+    out.normals = n / np.linalg.norm(n, axis=1)[:, None]
+    return out
+
+
 # --- ready-made shapes -------------------------------------------------------------------------
 def _ring(radius: float, z: float, segments: int) -> np.ndarray:
     angle = 2.0 * math.pi * np.arange(segments) / segments
@@ -375,5 +498,7 @@ def chute(length: float, width: float, wall_height: float) -> TriangleMesh:
     return TriangleMesh(vertices, triangles, label="chute")
 
 
-__all__ = ["TriangleMesh", "touching_features", "drum", "silo", "hopper", "disk", "box", "chute", "closest_point_on_triangle", "closest_points", "FACE", "EDGE_AB", "EDGE_BC", "EDGE_CA",
+SHAPES = {"drum": drum, "silo": silo, "hopper": hopper, "disk": disk, "box": box, "chute": chute}
+
+__all__ = ["MeshWall", "SHAPES", "TriangleMesh", "touching_features", "drum", "silo", "hopper", "disk", "box", "chute", "closest_point_on_triangle", "closest_points", "FACE", "EDGE_AB", "EDGE_BC", "EDGE_CA",
            "VERTEX_A", "VERTEX_B", "VERTEX_C"]

@@ -19,12 +19,12 @@ import numpy as np
 
 from .contact.model import ContactModel
 from .engine import EngineState
-from .kernel_layout import ENERGY_CHANNELS, I_FORCES_VALID
+from .kernel_layout import ENERGY_CHANNELS, I_FORCES_VALID, WALL_MESH
 from .kernels import engine_module
 from .errors import ParameterError, SimulationError, check_finite, check_integer, check_positive, check_vector
 from .materials import Material, MaterialTable
 from .timestep import SPRING_FRACTION
-from .walls import INACTIVE, Wall, wall_from_dict, wall_overlap
+from .walls import INACTIVE, Wall, wall_from_dict
 
 __version__ = "0.1.0"
 SOLID_SPHERE = 0.4  # I = 2/5 m R^2
@@ -213,7 +213,7 @@ class Simulation:
         for wl in self._walls:
             if wl.kind == INACTIVE:
                 continue
-            ov = wall_overlap(wl.geometry(), wl.kind, x, r)
+            ov = wl.overlap(x, r)
             k = int(np.argmax(ov)) if len(ov) else 0
             if len(ov) and ov[k] > tolerance * r[k]:
                 raise ParameterError(f"particle {first + k} overlaps wall {self._wall_label(wl)} by {ov[k]:.3g} m "
@@ -247,7 +247,7 @@ class Simulation:
 
     def add_wall(self, wall: Wall) -> Wall:
         if not isinstance(wall, Wall) or isinstance(wall, _Removed):
-            raise ParameterError(f"wall = {wall!r} is not allowed: must be a rollingdem.Plane or Cylinder")
+            raise ParameterError(f"wall = {wall!r} is not allowed: must be a rollingdem.Plane, Cylinder or MeshWall")
         if any(w is wall for w in self._walls):
             raise ParameterError(f"wall = {self._wall_label(wall)} is not allowed: it is part of this simulation "
                                  "already")
@@ -310,12 +310,16 @@ class Simulation:
         and checkpoints number walls as the user added them) but not in the engine, whose
         per-sphere wall history would otherwise keep a row per sphere for it (72 B per sphere
         with EPSD) and whose gather would test it for every sphere at every step."""
-        active = self.walls
+        self.sync_walls_from_engine()  # a mesh's motion starts again from where it is now
+        active = [wl for wl in self.walls if wl.kind != WALL_MESH]
         carry = [next((k for k, old in enumerate(self._engine_walls) if old is wl), -1) for wl in active]
         self._state.set_walls([wl.kind for wl in active], [wl.geometry() for wl in active],
                               [wl.velocity for wl in active], [wl.angular_velocity for wl in active],
                               [self.materials.index(wl.material) for wl in active], carry)
         self._engine_walls = active
+        meshes = [wl for wl in self.walls if wl.kind == WALL_MESH]
+        carry = [next((k for k, old in enumerate(self._state.meshes.names) if old is wl), -1) for wl in meshes]
+        self._state.set_meshes([wl.engine_mesh(self.materials.index(wl.material)) for wl in meshes], carry, meshes)
         self._pair_params = None
 
     # --- state access --------------------------------------------------------------------------
@@ -631,6 +635,37 @@ class Simulation:
         """Copy moved wall positions from the engine back to the Wall objects."""
         for wl, g in zip(self._engine_walls, self._state.wall_geom):
             wl.update_from_geometry(g)
+        ms = self._state.meshes
+        for m, wl in enumerate(ms.names):
+            v0, v1 = ms.vertex_start[m], ms.vertex_start[m + 1]
+            mo = ms.motion[m]
+            wl.update_from_engine(ms.vertices[v0:v1], mo[6:9] + mo[0:3] * mo[9])
+
+    def wall_loads(self, point=None) -> dict:
+        """Force (N) and torque (N m) on each wall in place at the last step, by the wall's name (or
+        '#k' for an unnamed one): {"force": (fx, fy, fz), "torque": (tx, ty, tz), "point": ...}, the
+        torque about ``point`` if given, else about the wall's own ``torque_point`` (a mesh's
+        centroid, moving with it; a plane's or cylinder's point)."""
+        st = self._state
+        out = {}
+        planes = (st.wall_load.reshape(st.n, st.n_walls, -1).sum(axis=0) if st.n and st.n_walls
+                  else np.zeros((st.n_walls, 6)))
+        meshes = st.meshes.loads()
+        rows = [(wl, planes[k]) for k, wl in enumerate(self._engine_walls)]
+        rows += [(wl, meshes[k]) for k, wl in enumerate(st.meshes.names)]
+        for wl, load in rows:
+            about = np.array(wl.torque_point() if point is None else check_vector("torque point", point))
+            force = load[0:3]
+            torque = load[3:6] - np.cross(about, force)
+            out[self._wall_key(wl)] = {"force": tuple(float(c) for c in force),
+                                       "torque": tuple(float(c) for c in torque),
+                                       "point": tuple(float(c) for c in about)}
+        return out
+
+    def _wall_key(self, wall) -> str:
+        if wall.name:
+            return wall.name
+        return f"#{next(k for k, w in enumerate(self._walls) if w is wall)}"
 
 
 class _Removed(Wall):

@@ -32,6 +32,14 @@ class Wall:
     def geometry(self) -> np.ndarray:
         raise NotImplementedError
 
+    def torque_point(self) -> tuple:
+        """The point the wall's torque is reported about (``Simulation.wall_loads``): its ``point``."""
+        return tuple(self.point)
+
+    def overlap(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Overlap (m) of spheres (centres x, radii r) with this wall; > 0 where they overlap."""
+        return wall_overlap(self.geometry(), self.kind, x, r)
+
     def describe(self) -> dict:
         raise NotImplementedError
 

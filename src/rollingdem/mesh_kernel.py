@@ -1,0 +1,236 @@
+"""The compiled passes of triangle-mesh walls that do not depend on the contact law: the candidate
+triangles of each sphere (built with the neighbor list), the meshes' motion, and each sphere's
+mesh contacts matched to its contact slots, so that the contact history goes with the sphere from
+triangle to triangle (docs/architecture.md, "Mesh walls"). The arrays: ``kernel_layout.WallArrays``."""
+
+import math
+
+from numba import njit
+
+from rollingdem.kernel_layout import MESH_MOTION as MO, MESH_SLOTS, WALL_LOAD_SIZE
+from rollingdem.mesh import closest_point_on_triangle, touching_features
+
+#: a new mesh contact takes over the history of an ended contact of the same mesh whose normal was
+#: within this angle: the sphere went on from one triangle, edge or vertex to the next (the normal
+#: turns continuously over a convex edge; on a tessellated curved surface it turns by the angle
+#: between faces, 3.75 deg on a 96-gon). Two contacts that both go on are two contacts: a sphere in a
+#: concave corner keeps one per face.
+CARRY_ANGLE_COS = math.cos(math.radians(20.0))
+#: at most this many grid cells per sphere in the candidate build (the cells grow beyond 2 R + skin
+#: where the spheres are sparse)
+CELLS_PER_SPHERE = 2
+
+
+@njit(cache=True)
+def build_mesh_candidates(x, radius, skin, walls):
+    """The candidate rows: for each sphere i, the triangles within R_i + skin of its centre, in
+    ascending order (``walls.candidate_start``, ``walls.candidates``). They stay complete while
+    the sphere and the mesh each move less than skin/2 (the neighbor list's rule; ``move_meshes``
+    tells when a mesh has moved that far). Spheres are binned on a grid of cells at least
+    2 R_max + skin wide; each triangle visits the cells its box, grown by R_max + skin, meets, and
+    tests the spheres there by the exact distance. Returns the number of entries, or minus the
+    number needed when ``walls.candidates`` is too short (nothing else is changed then)."""
+    n = x.shape[0]
+    start = walls.candidate_start
+    ntri = walls.triangles.shape[0]
+    if ntri == 0 or n == 0:
+        return 0
+    for i in range(n + 1):
+        start[i] = 0
+    vert, tri = walls.vertices, walls.triangles
+    for v in range(vert.shape[0]):
+        for d in range(3):
+            walls.built[v, d] = vert[v, d]
+    lox, loy, loz = x[0, 0], x[0, 1], x[0, 2]
+    hix, hiy, hiz = lox, loy, loz
+    rmax = 0.0
+    for i in range(n):
+        lox, loy, loz = min(lox, x[i, 0]), min(loy, x[i, 1]), min(loz, x[i, 2])
+        hix, hiy, hiz = max(hix, x[i, 0]), max(hiy, x[i, 1]), max(hiz, x[i, 2])
+        rmax = max(rmax, radius[i])
+    reach = rmax + skin
+    h = 2.0 * rmax + skin
+    ncell_max = walls.grid_start.shape[0] - 1
+    while True:
+        nx = int((hix - lox) / h) + 1
+        ny = int((hiy - loy) / h) + 1
+        nz = int((hiz - loz) / h) + 1
+        if nx * ny * nz <= ncell_max:
+            break
+        h *= 1.25
+    cell_start, items = walls.grid_start, walls.grid_items
+    ncell = nx * ny * nz
+    for c in range(ncell + 1):
+        cell_start[c] = 0
+    for i in range(n):
+        c = (int((x[i, 0] - lox) / h) * ny + int((x[i, 1] - loy) / h)) * nz + int((x[i, 2] - loz) / h)
+        cell_start[c + 1] += 1
+    for c in range(ncell):
+        cell_start[c + 1] += cell_start[c]
+    for i in range(n):  # counting sort, cell_start[c] as the cursor, shifted back below
+        c = (int((x[i, 0] - lox) / h) * ny + int((x[i, 1] - loy) / h)) * nz + int((x[i, 2] - loz) / h)
+        items[cell_start[c]] = i
+        cell_start[c] += 1
+    for c in range(ncell, 0, -1):
+        cell_start[c] = cell_start[c - 1]
+    cell_start[0] = 0
+    cand = walls.candidates
+    total = 0
+    for fill in range(2):  # count per sphere into start[i + 1], then fill with start[i] as the cursor
+        for t in range(ntri):
+            a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+            ix0 = max(int(math.floor((min(vert[a, 0], vert[b, 0], vert[c, 0]) - reach - lox) / h)), 0)
+            iy0 = max(int(math.floor((min(vert[a, 1], vert[b, 1], vert[c, 1]) - reach - loy) / h)), 0)
+            iz0 = max(int(math.floor((min(vert[a, 2], vert[b, 2], vert[c, 2]) - reach - loz) / h)), 0)
+            ix1 = min(int(math.floor((max(vert[a, 0], vert[b, 0], vert[c, 0]) + reach - lox) / h)), nx - 1)
+            iy1 = min(int(math.floor((max(vert[a, 1], vert[b, 1], vert[c, 1]) + reach - loy) / h)), ny - 1)
+            iz1 = min(int(math.floor((max(vert[a, 2], vert[b, 2], vert[c, 2]) + reach - loz) / h)), nz - 1)
+            for ix in range(ix0, ix1 + 1):
+                for iy in range(iy0, iy1 + 1):
+                    for iz in range(iz0, iz1 + 1):
+                        cell = (ix * ny + iy) * nz + iz
+                        for m in range(cell_start[cell], cell_start[cell + 1]):
+                            i = items[m]
+                            q = closest_point_on_triangle(x[i, 0], x[i, 1], x[i, 2], vert[a, 0], vert[a, 1],
+                                                          vert[a, 2], vert[b, 0], vert[b, 1], vert[b, 2],
+                                                          vert[c, 0], vert[c, 1], vert[c, 2])
+                            dx, dy, dz = x[i, 0] - q[0], x[i, 1] - q[1], x[i, 2] - q[2]
+                            within = radius[i] + skin
+                            if dx * dx + dy * dy + dz * dz < within * within:
+                                if fill:
+                                    cand[start[i]] = t
+                                    start[i] += 1
+                                else:
+                                    start[i + 1] += 1
+        if not fill:
+            for i in range(n):
+                start[i + 1] += start[i]
+            total = start[n]
+            if total > cand.shape[0]:
+                for i in range(n + 1):
+                    start[i] = 0
+                return -total
+    for i in range(n, 0, -1):
+        start[i] = start[i - 1]
+    start[0] = 0
+    return total
+
+
+@njit(cache=True)
+def move_meshes(dt, walls, half_skin):
+    """Advance each moving mesh by dt: vertex = p0 + v tau + R(omega tau) (reference - p0), tau the
+    time since its motion began (exact rigid motion, no drift of repeated small rotations).
+    Returns 1 if a vertex is now skin/2 or more from where the candidate lists were built."""
+    motion, ref, vert, built = walls.motion, walls.reference, walls.vertices, walls.built
+    exceed = 0
+    for m in range(motion.shape[0]):
+        vx, vy, vz = motion[m, MO.vx], motion[m, MO.vy], motion[m, MO.vz]
+        wx, wy, wz = motion[m, MO.wx], motion[m, MO.wy], motion[m, MO.wz]
+        if vx == 0.0 and vy == 0.0 and vz == 0.0 and wx == 0.0 and wy == 0.0 and wz == 0.0:
+            continue
+        tau = motion[m, MO.elapsed] + dt
+        motion[m, MO.elapsed] = tau
+        # Rodrigues: R = I + sin(a) K + (1 - cos(a)) K^2, K the cross-product matrix of the unit axis
+        speed = math.sqrt(wx * wx + wy * wy + wz * wz)
+        angle = speed * tau
+        ux, uy, uz = (wx / speed, wy / speed, wz / speed) if speed > 0.0 else (0.0, 0.0, 1.0)
+        s, c1 = math.sin(angle), 1.0 - math.cos(angle)
+        r00, r01, r02 = 1.0 - c1 * (uy * uy + uz * uz), c1 * ux * uy - s * uz, c1 * ux * uz + s * uy
+        r10, r11, r12 = c1 * ux * uy + s * uz, 1.0 - c1 * (ux * ux + uz * uz), c1 * uy * uz - s * ux
+        r20, r21, r22 = c1 * ux * uz - s * uy, c1 * uy * uz + s * ux, 1.0 - c1 * (ux * ux + uy * uy)
+        px, py, pz = motion[m, MO.px], motion[m, MO.py], motion[m, MO.pz]
+        ox, oy, oz = px + vx * tau, py + vy * tau, pz + vz * tau
+        for k in range(walls.vertex_start[m], walls.vertex_start[m + 1]):
+            ax, ay, az = ref[k, 0] - px, ref[k, 1] - py, ref[k, 2] - pz
+            vert[k, 0] = ox + r00 * ax + r01 * ay + r02 * az
+            vert[k, 1] = oy + r10 * ax + r11 * ay + r12 * az
+            vert[k, 2] = oz + r20 * ax + r21 * ay + r22 * az
+            ex, ey, ez = vert[k, 0] - built[k, 0], vert[k, 1] - built[k, 1], vert[k, 2] - built[k, 2]
+            if ex * ex + ey * ey + ez * ez >= half_skin * half_skin:
+                exceed = 1
+    return exceed
+
+
+@njit(cache=True, inline="always")
+def surface_velocity(walls, m, cx, cy, cz):
+    """Velocity (m/s) of mesh m's surface at the point c: v + omega x (c - o), o the rotation axis's
+    point now."""
+    mo = walls.motion
+    tau = mo[m, MO.elapsed]
+    rx = cx - (mo[m, MO.px] + mo[m, MO.vx] * tau)
+    ry = cy - (mo[m, MO.py] + mo[m, MO.vy] * tau)
+    rz = cz - (mo[m, MO.pz] + mo[m, MO.vz] * tau)
+    wx, wy, wz = mo[m, MO.wx], mo[m, MO.wy], mo[m, MO.wz]
+    return mo[m, MO.vx] + (wy * rz - wz * ry), mo[m, MO.vy] + (wz * rx - wx * rz), mo[m, MO.vz] + (wx * ry - wy * rx)
+
+
+@njit(cache=True)
+def match_mesh_contacts(i, px, py, pz, radius, walls):
+    """Sphere i's mesh contacts now (``touching_features`` over its candidates), each matched to a
+    contact slot (``walls.touch_slot``, -1 for one that found no slot); returns their count, in
+    sphere i's candidate rows from ``walls.candidate_start[i]``.
+
+    A contact keeps the slot of the same triangle; else it takes over the slot of an ended contact
+    of the same mesh whose last normal is within ``CARRY_ANGLE_COS`` of its own (the sphere rolled
+    on to a neighbouring triangle, edge or vertex: its springs go with it, and the contact law turns
+    them into the new frame); else it starts in a free slot with no history. Slots no contact took
+    end (history and load zeroed). Sets ``walls.mesh_error[i]`` to 1 when the contacts outnumber
+    the slots, to 2 when a contact's normal turned over in one step (the centre passed through the
+    surface)."""
+    lo = walls.candidate_start[i]
+    ncontact = touching_features(px, py, pz, radius, walls.vertices, walls.triangles, walls.neighbors,
+                                 walls.candidates, lo, walls.candidate_start[i + 1], walls.touch_triangle,
+                                 walls.touch_feature, walls.touch_point)
+    slot_tri, hist, tslot = walls.slot_triangle, walls.mesh_history, walls.touch_slot
+    claimed = 0
+    for b in range(lo, lo + ncontact):
+        tslot[b] = -1
+        for s in range(MESH_SLOTS):
+            if (claimed >> s) & 1 == 0 and slot_tri[i, s] == walls.touch_triangle[b]:
+                tslot[b] = s
+                claimed |= 1 << s
+                break
+    for b in range(lo, lo + ncontact):
+        if tslot[b] >= 0:
+            continue
+        nx, ny, nz = px - walls.touch_point[b, 0], py - walls.touch_point[b, 1], pz - walls.touch_point[b, 2]
+        norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+        mesh = walls.triangle_mesh[walls.touch_triangle[b]]
+        best, best_cos = -1, CARRY_ANGLE_COS * norm
+        for s in range(MESH_SLOTS):
+            t = slot_tri[i, s]
+            if (claimed >> s) & 1 or t < 0 or walls.triangle_mesh[t] != mesh:
+                continue
+            k = i * MESH_SLOTS + s
+            cos = hist[k, 0] * nx + hist[k, 1] * ny + hist[k, 2] * nz
+            if cos > best_cos:
+                best, best_cos = s, cos
+        if best >= 0:
+            tslot[b] = best
+            claimed |= 1 << best
+    for s in range(MESH_SLOTS):
+        if slot_tri[i, s] >= 0 and (claimed >> s) & 1 == 0:
+            slot_tri[i, s] = -1
+            k = i * MESH_SLOTS + s
+            for c in range(hist.shape[1]):
+                hist[k, c] = 0.0
+            for c in range(WALL_LOAD_SIZE):
+                walls.mesh_load[k, c] = 0.0
+    for b in range(lo, lo + ncontact):
+        if tslot[b] < 0:
+            for s in range(MESH_SLOTS):
+                if slot_tri[i, s] < 0 and (claimed >> s) & 1 == 0:
+                    tslot[b] = s
+                    claimed |= 1 << s
+                    break
+            if tslot[b] < 0:
+                walls.mesh_error[i] = 1
+                continue
+        s = tslot[b]
+        slot_tri[i, s] = walls.touch_triangle[b]
+        k = i * MESH_SLOTS + s
+        dot = (hist[k, 0] * (px - walls.touch_point[b, 0]) + hist[k, 1] * (py - walls.touch_point[b, 1])
+               + hist[k, 2] * (pz - walls.touch_point[b, 2]))
+        if dot < 0.0:
+            walls.mesh_error[i] = 2
+    return ncontact

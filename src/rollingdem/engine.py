@@ -265,9 +265,9 @@ class EngineState:
                 elif self.info[I_STATUS] == STATUS_MESH_CAPACITY:
                     self.meshes.grow(int(self.info[I_NEEDED]))
                 elif self.info[I_STATUS] == STATUS_TOO_FAST:
+                    if self.meshes.n_triangles and self.meshes.mesh_error.any():
+                        return nsteps - remaining, self.meshes.error_message(self.ids)
                     return nsteps - remaining, self._too_fast_message(dt, skin)
-                if self.meshes.n_triangles and self.meshes.mesh_error.any():
-                    return nsteps - remaining, self.meshes.error_message(self.ids)
         finally:
             governor.close()
         return nsteps, None
@@ -408,7 +408,7 @@ class MeshState:
         self.slot_triangle = np.full((rows, MESH_SLOTS), -1, dtype=np.int64)
         self.history = np.zeros((rows * MESH_SLOTS, self.history_size))
         self.load = np.zeros((rows * MESH_SLOTS, WALL_LOAD_SIZE))
-        self.mesh_error = np.zeros(rows, dtype=np.uint8)
+        self.mesh_error = np.zeros(rows, dtype=np.int64)
         self.grid_start = np.zeros(max(2 * rows, 64) + 1 if rows else 0, dtype=np.int64)
         self.grid_items = np.zeros(rows, dtype=np.int64)
 
@@ -518,17 +518,17 @@ class MeshState:
         return out
 
     def error_message(self, ids) -> str:
+        """The line that stops a run when a sphere's mesh contacts went wrong (``mesh_error``)."""
         k = int(np.nonzero(self.mesh_error)[0][0])
-        code = int(self.mesh_error[k])
-        slots = self.slot_triangle[k]
-        meshes = sorted({int(self.triangle_mesh[t]) for t in slots if t >= 0})
-        where = " and ".join(repr(self.label(m)) for m in meshes) or "a mesh wall"
+        code, mesh = int(self.mesh_error[k]) % 4, int(self.mesh_error[k]) // 4
+        self.mesh_error[:] = 0
+        where = repr(self.label(mesh))
         if code == 1:
-            return (f"particle {int(ids[k])} touches {where} at more than {MESH_SLOTS} surface features at once: the "
-                    "mesh folds on itself there (a sliver or a self-intersection); repair it")
+            return (f"particle {int(ids[k])} touches mesh wall {where} at more than {MESH_SLOTS} surface features at "
+                    "once: the mesh folds on itself there (a sliver or a self-intersection); repair it")
         return (f"particle {int(ids[k])} passed through mesh wall {where}: its centre crossed the surface in one "
-                "step, so it moved faster than the contact can stop it; reduce dt or the speed, or thicken the wall")
+                "step, faster than the contact can stop it; reduce dt or the speed, or thicken the wall")
 
     def label(self, m: int) -> str:
         wall = self.names[m] if m < len(self.names) else None
-        return (wall.name or f"mesh {m}") if wall is not None else f"mesh {m}"
+        return wall.name if wall is not None and wall.name else f"mesh {m}"

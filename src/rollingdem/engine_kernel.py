@@ -532,6 +532,7 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
         particles.energy[i, 2] += wres[8]
         particles.energy[i, 3] += wres[9]
     particles.contacts[i] += wres[10]
+    stop = False
     if walls.triangles.shape[0] > 0:
         mres = mesh_contacts(i, dt, particles, walls, pair_params)
         fx += mres[0]
@@ -546,6 +547,7 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
             particles.energy[i, 2] += mres[8]
             particles.energy[i, 3] += mres[9]
         particles.contacts[i] += mres[10]
+        stop = walls.mesh_error[i] != 0  # the step stops as for a particle too fast, and says why
     f[i, 0] = fx
     f[i, 1] = fy
     f[i, 2] = fz
@@ -563,7 +565,7 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
         w[i, 2] += b * tz
     step_move = next_drift_bound(dt, v[i, 0], v[i, 1], v[i, 2], fx, fy, fz, mi)
     exceed = 0
-    fast = 0 if step_move < half_skin else 1  # NaN: 1
+    fast = 0 if step_move < half_skin and not stop else 1  # NaN: 1
     # the next step's opening half kick and drift, also when i is too fast (the chunk then stops
     # and undo_drift takes them back), but not when i is not finite
     if kick == 2.0 and step_move - step_move == 0.0:

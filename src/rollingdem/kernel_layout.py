@@ -131,7 +131,8 @@ WallArrays = collections.namedtuple("WallArrays", (
     "slot_triangle",     # (n, MESH_SLOTS) int64 the triangle of each mesh contact slot, -1 free
     "mesh_history",      # (n * MESH_SLOTS, history size) the slot's contact history
     "mesh_load",         # (n * MESH_SLOTS, WALL_LOAD_SIZE) the slot's load at the last step
-    "mesh_error",        # (n,) uint8 1: more mesh contacts than MESH_SLOTS; 2: passed through a face
+    "mesh_error",        # (n,) int64 1: more mesh contacts than MESH_SLOTS, 2: passed through the
+                         #   surface; plus 4 x the mesh (the step stops as for a particle too fast)
     "grid_start",        # (cells + 1,) int64 scratch of the candidate build: spheres per grid cell,
     "grid_items",        # (n,) int64
 ))

@@ -176,7 +176,7 @@ def match_mesh_contacts(i, px, py, pz, radius, walls):
     them into the new frame); else it starts in a free slot with no history. Slots no contact took
     end (history and load zeroed). Sets ``walls.mesh_error[i]`` to 1 when the contacts outnumber
     the slots, to 2 when a contact's normal turned over in one step (the centre passed through the
-    surface)."""
+    surface); plus 4 x the mesh's index."""
     lo = walls.candidate_start[i]
     ncontact = touching_features(px, py, pz, radius, walls.vertices, walls.triangles, walls.neighbors,
                                  walls.candidates, lo, walls.candidate_start[i + 1], walls.touch_triangle,
@@ -224,7 +224,7 @@ def match_mesh_contacts(i, px, py, pz, radius, walls):
                     claimed |= 1 << s
                     break
             if tslot[b] < 0:
-                walls.mesh_error[i] = 1
+                walls.mesh_error[i] = 1 + 4 * walls.triangle_mesh[walls.touch_triangle[b]]
                 continue
         s = tslot[b]
         slot_tri[i, s] = walls.touch_triangle[b]
@@ -232,5 +232,5 @@ def match_mesh_contacts(i, px, py, pz, radius, walls):
         dot = (hist[k, 0] * (px - walls.touch_point[b, 0]) + hist[k, 1] * (py - walls.touch_point[b, 1])
                + hist[k, 2] * (pz - walls.touch_point[b, 2]))
         if dot < 0.0:
-            walls.mesh_error[i] = 2
+            walls.mesh_error[i] = 2 + 4 * walls.triangle_mesh[walls.touch_triangle[b]]
     return ncontact

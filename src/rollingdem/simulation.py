@@ -256,9 +256,23 @@ class Simulation:
                 raise ParameterError("wall material = None is not allowed: add a material first or name one")
             wall.material = self.materials.materials[0].name
         self.materials.index(wall.material)
+        if wall.kind == WALL_MESH:
+            self._check_mesh_size(wall, self._state.radius)
         self._walls.append(wall)
         self._sync_walls()
         return wall
+
+    @staticmethod
+    def _check_mesh_size(wall, radius):
+        """Refuse a mesh smaller than one particle: a file in mm read as m, or the reverse."""
+        if not len(radius):
+            return
+        extent = float(np.ptp(wall.mesh.vertices, axis=0).max())
+        diameter = 2.0 * float(radius.min())
+        if extent < diameter:
+            raise ParameterError(f"{wall.mesh.label}: the mesh is {extent:.3g} m across, smaller than one particle "
+                                 f"(diameter {diameter:.3g} m): a unit mistake? give its scale (0.001 for a file "
+                                 "in mm)")
 
     def remove_wall(self, wall: Wall | str) -> None:
         """Remove a wall (the object or its name); its contact history is dropped."""
@@ -482,6 +496,9 @@ class Simulation:
         if not isinstance(label, str):
             raise ParameterError(f"label = {label!r} is not allowed: must be a string")
         self._check_finite_state()  # first: a non-finite state would make the dt check's message a riddle
+        for wall in self.walls:
+            if wall.kind == WALL_MESH:
+                self._check_mesh_size(wall, self._state.radius)
         self._check_dt()
         for ob in observers:
             ob.check(self)  # all refusals before any observer writes

@@ -70,12 +70,14 @@ NO_THRESHOLD = ("viscous",)
 CREEPING = ("cdt", "cdt (liggghts)", "cdt (limiter 0.08)", "force_proportional", "viscous")
 
 
-def sphere_on_wall(rolling, settle=0.2, material=None, gravity=(0.0, 0.0, -G)) -> Simulation:
-    """One Table-1 sphere settled on a horizontal wall at z = 0 for ``settle`` seconds."""
+def sphere_on_wall(rolling, settle=0.2, material=None, gravity=(0.0, 0.0, -G), wall=None, at=(0.0, 0.0)) -> Simulation:
+    """One Table-1 sphere settled on a horizontal wall at z = 0 for ``settle`` seconds, at (x, y) =
+    ``at``. ``wall``: the wall's surface, a function of the material's name giving a Wall whose
+    top is the plane z = 0 (a ``MeshWall`` of a tessellated plane, say); default a ``Plane``."""
     sim = Simulation(contact=ContactModel("hertz", rolling=rolling), gravity=gravity, dt=DT, track_energy=True)
     sim.add_material(Material("table1", **dict(TABLE1, **(material or {}))))
-    sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1"))
-    sim.add_particles([[0, 0, RADIUS]], RADIUS, "table1")
+    sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1") if wall is None else wall("table1"))
+    sim.add_particles([[at[0], at[1], RADIUS]], RADIUS, "table1")
     sim.run(settle)
     return sim
 
@@ -126,9 +128,9 @@ def analytic_flat_curve(t, v0=1.0, mu=TABLE1["friction"], mu_r=TABLE1["rolling_f
     return np.where(t < t1, slip, x1 + v1 * tr - 0.5 * a * tr ** 2)
 
 
-def rolling_flat_run(rolling, duration=0.8, v0=1.0, material=None) -> Trajectory:
+def rolling_flat_run(rolling, duration=0.8, v0=1.0, material=None, wall=None) -> Trajectory:
     """Case 1 for one model: settle 0.2 s, launch at v0 with omega = 0, record ``duration`` seconds."""
-    return launch(sphere_on_wall(rolling, material=material), duration, v0)
+    return launch(sphere_on_wall(rolling, material=material, wall=wall), duration, v0)
 
 
 def stop_time(traj: Trajectory, speed=1e-3) -> float:
@@ -159,10 +161,10 @@ def analytic_slope(v0=1.0, theta=SLOPE, mu=TABLE1["friction"], mu_r=TABLE1["roll
     return v0 * t1 - 0.5 * G * (s + mu * c) * t1 ** 2 + v1 ** 2 / (2 * a), t1 + v1 / a
 
 
-def rolling_slope_run(rolling, duration=2.2, v0=1.0, theta=SLOPE) -> Trajectory:
+def rolling_slope_run(rolling, duration=2.2, v0=1.0, theta=SLOPE, wall=None) -> Trajectory:
     """Case 2 for one model: settle 0.2 s on the flat, tilt gravity by theta (the slope rises
     towards +x, as in the report), launch uphill; record ``duration`` seconds."""
-    sim = sphere_on_wall(rolling)
+    sim = sphere_on_wall(rolling, wall=wall)
     sim.gravity = (-G * math.sin(theta), 0.0, -G * math.cos(theta))
     return launch(sim, duration, v0, sample_steps=100)
 
@@ -174,14 +176,14 @@ def creep_speed(traj: Trajectory, last=1.0) -> float:
 
 
 # --- case 0: inclined wall -------------------------------------------------------------------------
-def speed_down_incline(rolling, mu_r, beta_deg, tilt_time=0.3, hold=0.3, material=None) -> float:
+def speed_down_incline(rolling, mu_r, beta_deg, tilt_time=0.3, hold=0.3, material=None, wall=None) -> float:
     """Mean speed (m/s) down a wall tilted to beta, over the last 0.1 s.
 
     Gravity is tilted to beta over ``tilt_time`` in 1000 small steps (a sudden tilt makes an
     undamped rolling spring overshoot to twice the static moment and slip), then held ``hold`` s.
     ``material`` overrides Table 1 entries (``mu_r`` wins over its rolling_friction).
     """
-    sim = sphere_on_wall(rolling, settle=0.05, material=dict(material or {}, rolling_friction=mu_r))
+    sim = sphere_on_wall(rolling, settle=0.05, material=dict(material or {}, rolling_friction=mu_r), wall=wall)
     steps = max(int(round(tilt_time / DT / 1000)), 1)
     for k in range(1, 1001):
         b = math.radians(beta_deg) * k / 1000
@@ -203,7 +205,7 @@ def rolling_threshold_speed(beta_deg, margin=0.005) -> float:
     return 0.5 * 5 / 7 * G * margin * math.sin(math.radians(beta_deg)) * 0.25
 
 
-def critical_rolling_friction(rolling, beta_deg, rel_tol=1e-3, bracket=0.05) -> float:
+def critical_rolling_friction(rolling, beta_deg, rel_tol=1e-3, bracket=0.05, wall=None) -> float:
     """mu_r at which the sphere starts to roll down a wall inclined by beta, by bisection in
     [tan b (1 - bracket), tan b (1 + bracket)] to a relative width ``rel_tol``. Returns the middle
     of the final bracket, or NaN when the bracket does not contain the threshold."""
@@ -212,7 +214,7 @@ def critical_rolling_friction(rolling, beta_deg, rel_tol=1e-3, bracket=0.05) -> 
     threshold = rolling_threshold_speed(beta_deg, rel_tol)
 
     def rolls(mu_r):
-        return speed_down_incline(rolling, mu_r, beta_deg) > threshold
+        return speed_down_incline(rolling, mu_r, beta_deg, wall=wall) > threshold
 
     if not rolls(lo) or rolls(hi):
         return math.nan

@@ -1,0 +1,280 @@
+"""Triangle-mesh walls in the engine: the contact against analytic geometry and against planes,
+history carried across triangles, rigid motion, wall loads, and refusals.
+
+A mesh wall whose triangles tile a plane must act as that plane: every test below that compares
+with a ``Plane`` allows 1e-9 relative, the round-off of computing the contact point from a
+triangle's vertices (1e-16 relative per step) grown over the run's steps, far below any physics
+factor (a rolling spring that restarts at an edge, or a doubled contact, changes the force by
+order one).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial import Delaunay
+
+import rollingdem as rd
+from rollingdem.cases import single_sphere as ss
+from rollingdem.errors import ParameterError, SimulationError
+
+R = ss.RADIUS
+
+
+def tessellated_plane(x_range, y_range, spacing=R, jitter=0.15, angle_deg=17.0, seed=1):
+    """A random triangulation of the plane z = 0 over x_range x y_range (normals +z): a jittered
+    grid of ``spacing`` turned by ``angle_deg`` (no edge lines up with x), Delaunay-triangulated,
+    keeping triangles whose edges are all shorter than 2 ``spacing`` (the hull's slivers go)."""
+    rng = np.random.default_rng(seed)
+    a = math.radians(angle_deg)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    centre = np.array([0.5 * sum(x_range), 0.5 * sum(y_range)])
+    half = 0.5 * math.hypot(x_range[1] - x_range[0], y_range[1] - y_range[0]) + 2 * spacing
+    k = np.arange(-half, half + spacing, spacing)
+    u, v = np.meshgrid(k, k, indexing="ij")
+    pts = np.column_stack([u.ravel(), v.ravel()]) + rng.uniform(-jitter, jitter, (u.size, 2)) * spacing
+    pts = pts @ rot.T + centre
+    keep = ((pts[:, 0] > x_range[0] - spacing) & (pts[:, 0] < x_range[1] + spacing)
+            & (pts[:, 1] > y_range[0] - spacing) & (pts[:, 1] < y_range[1] + spacing))
+    pts = pts[keep]
+    tri = Delaunay(pts).simplices
+    edge = np.stack([np.linalg.norm(pts[tri[:, p]] - pts[tri[:, q]], axis=1) for p, q in ((0, 1), (1, 2), (2, 0))])
+    tri = tri[edge.max(axis=0) < 2 * spacing]
+    a, b, c = (pts[tri[:, i]] for i in range(3))
+    up = (b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0] > 0
+    tri[~up] = tri[~up][:, [0, 2, 1]]
+    return np.column_stack([pts, np.zeros(len(pts))]), tri
+
+
+TESSELLATION = tessellated_plane((-0.03, 0.26), (-0.03, 0.03))
+
+
+def tessellated_wall(material):
+    return rd.MeshWall(*TESSELLATION, material=material, name="tessellated")
+
+
+def test_the_tessellation_is_what_the_seed_cases_ask_for():
+    """Edges of 0.5-2 sphere radii where the sphere goes (|y| < 0.02 m); the grid's directions are
+    turned 17 degrees from x, so the edges run every way and few of them near x (under 2 % within
+    2 degrees of it: the sphere crosses edges, it does not roll along them)."""
+    v, t = TESSELLATION
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    length = np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1)
+    near = (np.abs(v[e, 1]).max(axis=1) < 0.02) & (v[e, 0].min(axis=1) > -0.01) & (v[e, 0].max(axis=1) < 0.25)
+    assert 0.5 * R <= length[near].min() and length[near].max() <= 2 * R
+    direction = (v[e[near, 1]] - v[e[near, 0]]) / length[near, None]
+    assert np.mean(np.abs(direction[:, 1]) < math.sin(math.radians(2.0))) < 0.02
+
+
+@pytest.mark.parametrize("rolling", ["cdt", "epsd"])
+def test_case_1_on_a_random_tessellation_stops_where_the_plane_does(rolling):
+    """Case 1 (rolling on a flat, docs/models.md §13 T2) on ~1,000 random triangles: the sphere
+    crosses ~80 edges and passes by vertices; its stop distance equals the analytic 0.18836 m
+    within 0.5 % and the plane's run to 1e-9 relative, its velocity the plane's at every sample:
+    a rolling spring that restarted at each edge would move the stop (EPSD) and a contact counted
+    twice would double the friction."""
+    mesh = ss.rolling_flat_run(rolling, wall=tessellated_wall)
+    plane = ss.rolling_flat_run(rolling)
+    distance = ss.analytic_flat()[3]
+    assert mesh.x[-1] == pytest.approx(distance, rel=5e-3)
+    assert mesh.x[-1] == pytest.approx(plane.x[-1], rel=1e-9)
+    np.testing.assert_allclose(mesh.v, plane.v, rtol=0, atol=1e-9 * 1.0)  # v0 = 1 m/s
+    np.testing.assert_allclose(mesh.torque, plane.torque, rtol=0, atol=1e-9 * np.abs(plane.torque).max())
+
+
+def test_forces_are_continuous_across_coplanar_edges():
+    """A sphere sliding (no rotation, friction 0.8) across the tessellation: at every step its
+    force equals the plane's to 1e-9 relative, so there is no jump where it crosses an edge or a
+    vertex, and exactly one contact throughout."""
+    runs = []
+    for wall in (tessellated_wall, None):
+        sim = ss.sphere_on_wall("none", settle=0.05, wall=wall)
+        sim.set_velocities([0], velocity=(0.5, 0.2, 0), angular_velocity=(0, 0, 0))
+        forces, contacts = [], []
+        for _ in range(400):
+            sim.run(steps=5)
+            forces.append(sim.forces[0].copy())
+            contacts.append(sim.number_of_contacts())
+        runs.append((np.array(forces), np.array(contacts)))
+    (fm, cm), (fp, cp) = runs
+    scale = np.abs(fp).max()
+    np.testing.assert_allclose(fm, fp, rtol=0, atol=1e-9 * scale)
+    assert (cm == 1).all() and (cp == 1).all()
+
+
+def ridge(angle_deg=30.0):
+    """A roof: two unit squares meeting along the x axis, each sloping down by ``angle_deg``."""
+    s, c = math.sin(math.radians(angle_deg)), math.cos(math.radians(angle_deg))
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, c, -s], [0, c, -s], [1, -c, -s], [0, -c, -s]], dtype=float) - [0.5, 0, 0]
+    return v, np.array([[0, 1, 2], [0, 2, 3], [0, 5, 4], [0, 4, 1]])
+
+
+def force_on(wall_or_walls, position, radius=0.01, material=None):
+    """The contact force on one sphere held at ``position`` (no gravity, at rest), after one step."""
+    sim = rd.Simulation(gravity=(0, 0, 0), dt=1e-9, check_timestep=False)
+    sim.add_material(rd.Material("m", 1e7, 0.3, 1000.0, friction=0.5, **(material or {})))
+    for wall in (wall_or_walls if isinstance(wall_or_walls, list) else [wall_or_walls]):
+        sim.add_wall(wall)
+    sim.add_particles([position], radius, "m", allow_overlap=True)
+    sim.run(steps=1)
+    return sim.forces[0].copy(), sim.number_of_contacts()
+
+
+def test_on_a_convex_edge_the_normal_points_from_the_edge_to_the_centre():
+    """A sphere of radius 0.01 whose centre is 0.009 from the ridge line, in a direction between
+    the two faces' normals: one contact, its force along (centre - closest point on the ridge)
+    to 1e-9, with the Hertz magnitude of the 0.001 overlap."""
+    for tilt in (0.0, 0.2, -0.25):  # radians from the vertical, within the edge's normal cone (+-30 deg)
+        direction = np.array([0.0, math.sin(tilt), math.cos(tilt)])
+        force, n = force_on(rd.MeshWall(*ridge(), material="m"), 0.009 * direction + [0.1, 0, 0])
+        assert n == 1
+        assert np.linalg.norm(force / np.linalg.norm(force) - direction) < 1e-9
+        plane, _ = force_on(rd.Plane(point=(0, 0, 0), normal=direction, material="m"), 0.009 * direction)
+        assert np.linalg.norm(force) == pytest.approx(np.linalg.norm(plane), rel=1e-9)
+
+
+def test_at_a_vertex_the_normal_points_from_the_vertex_to_the_centre():
+    """A square pyramid's apex (the sphere above it, off the faces' normal cones): one contact
+    along (centre - apex)."""
+    v = np.array([[0, 0, 0.5], [1, 1, 0], [-1, 1, 0], [-1, -1, 0], [1, -1, 0]], dtype=float)
+    t = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]])
+    direction = np.array([0.1, -0.05, 1.0]) / np.linalg.norm([0.1, -0.05, 1.0])
+    force, n = force_on(rd.MeshWall(v, t, material="m"), v[0] + 0.0095 * direction)
+    assert n == 1
+    assert np.linalg.norm(force / np.linalg.norm(force) - direction) < 1e-9
+
+
+def test_in_a_concave_corner_the_force_is_two_planes_forces():
+    """A 90-degree concave corner (floor z = 0 and wall x = 0 as four triangles): a sphere
+    pressed into both has two contacts and the force of the two planes, to 1e-12 relative."""
+    v = np.array([[0, -1, 0], [1, -1, 0], [1, 1, 0], [0, 1, 0], [0, -1, 1], [0, 1, 1]], dtype=float)
+    t = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 5], [0, 5, 4]])
+    position = [0.0093, 0.2, 0.0097]
+    mesh, n = force_on(rd.MeshWall(v, t, material="m"), position)
+    planes, n2 = force_on([rd.Plane(normal=(0, 0, 1), material="m"), rd.Plane(normal=(1, 0, 0), material="m")],
+                          position)
+    assert n == n2 == 2
+    np.testing.assert_allclose(mesh, planes, rtol=0, atol=1e-12 * np.linalg.norm(planes))
+
+
+def test_a_rotated_mesh_gives_the_forces_of_the_mesh_built_there():
+    """A tessellated square turned about the axis (1, 1, 0) through (0.1, 0, 0) at 2 rad/s for 0.25 s
+    (no sphere near), then stopped: its vertices are the reference's rotated by 0.5 rad, and a
+    sphere pressed onto it feels the force it feels on the mesh built at those vertices."""
+    from scipy.spatial.transform import Rotation
+
+    v, t = tessellated_plane((-0.05, 0.05), (-0.05, 0.05), spacing=0.01)
+    axis = np.array([1.0, 1.0, 0.0]) / math.sqrt(2)
+    point = np.array([0.1, 0.0, 0.0])
+    turned = Rotation.from_rotvec(0.5 * axis).apply(v - point) + point
+    normal = Rotation.from_rotvec(0.5 * axis).apply([0, 0, 1.0])
+    position = turned[len(v) // 2] + 0.004 * normal + [1e-4, 0, 0]
+
+    def setup(wall):
+        sim = rd.Simulation(gravity=(0, 0, 0), dt=1e-5, check_timestep=False)
+        sim.add_material(rd.Material("m", 1e7, 0.3, 1000.0, friction=0.5))
+        sim.add_wall(wall)
+        sim.add_particles([[5.0, 5.0, 5.0]], 0.005, "m")  # far away while the mesh turns
+        return sim
+
+    moving = setup(rd.MeshWall(v, t, material="m", angular_velocity=2.0 * axis, point=point, name="m1"))
+    moving.run(steps=25_000)
+    moving.set_wall_velocity("m1", angular_velocity=(0, 0, 0))
+    np.testing.assert_allclose(moving.walls[0].mesh.vertices, turned, rtol=0, atol=1e-12)
+    built = setup(rd.MeshWall(turned, t, material="m"))
+    forces = []
+    for sim in (moving, built):
+        sim.set_velocities([0], velocity=(0, 0, 0))
+        sim._state.x[sim._state.slots([0])] = position
+        sim._state.info[:] = 0
+        sim.run(steps=3)
+        forces.append(sim.forces[0].copy())
+    assert np.linalg.norm(forces[1]) > 0
+    np.testing.assert_allclose(forces[0], forces[1], rtol=1e-9)
+
+
+def test_a_rotating_disk_drags_a_resting_sphere_with_its_surface_velocity():
+    """A turntable (a disk mesh spinning at 3 rad/s about its axis, z) under a sphere at r = 0.05:
+    friction brings the sphere's contact point to the surface velocity there, omega x r = 0.15 m/s
+    (it then rolls without slip, its velocity at the contact point v + w x (-R z) equals the
+    surface's within 1 %), and the disk's load is the contact force, reversed."""
+    sim = rd.Simulation(gravity=(0, 0, -9.81), dt=2e-6)
+    sim.add_material(rd.Material("m", 1e7, 0.3, 1000.0, friction=0.5, restitution=0.5))
+    disk = sim.add_wall(rd.MeshWall.shape("disk", radius=0.2, segments=24, material="m",
+                                          angular_velocity=(0, 0, 3.0), name="disk"))
+    sim.add_particles([[0.05, 0.0, 0.005]], 0.005, "m")
+    sim.run(0.1)
+    loads = sim.wall_loads()["disk"]
+    r = sim.positions[0, :2]
+    assert disk.point == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
+    v_contact = sim.velocities[0] + np.cross(sim.angular_velocities[0], [0, 0, -0.005])
+    surface = np.cross([0, 0, 3.0], [*r, 0.0])
+    assert np.linalg.norm(v_contact - surface) < 0.01 * np.linalg.norm(surface)
+    contact_force = sim.forces[0] - sim.masses[0] * np.array([0, 0, -9.81])
+    assert loads["force"] == pytest.approx(tuple(-contact_force), rel=1e-9, abs=1e-12)
+
+
+def test_wall_loads_of_a_plane_carry_the_weight_and_its_moment():
+    """Ten spheres at rest on a plane: the plane's force is their weight, its torque about its
+    point the weight's moment, sum of x_k x (-m_k g), each to 1e-6 (the bed settles to 1e-6)."""
+    sim = rd.Simulation(gravity=(0, 0, -9.81))
+    sim.add_material(rd.Material("m", 1e7, 0.3, 1000.0, friction=0.5, restitution=0.3))
+    sim.add_wall(rd.Plane(material="m", name="floor"))
+    x = np.column_stack([np.linspace(-0.1, 0.1, 10), np.linspace(0, 0.05, 10), np.full(10, 0.005)])
+    sim.add_particles(x, 0.005, "m")
+    sim.run(0.2)
+    loads = sim.wall_loads()["floor"]
+    weight = sim.masses.sum() * 9.81
+    assert loads["force"] == pytest.approx((0, 0, -weight), rel=1e-6, abs=1e-6 * weight)
+    moment = np.cross(sim.positions * [1, 1, 0], sim.masses[:, None] * np.array([0, 0, -9.81])).sum(axis=0)
+    assert loads["torque"] == pytest.approx(tuple(moment), rel=1e-6, abs=1e-6 * abs(moment).max())
+
+
+@pytest.mark.parametrize("where", ["vertex", "edge", "face"])
+def test_epsd_holds_a_sphere_on_a_10_degree_tessellated_slope(where):
+    """Case 2's hold (docs/models.md §13 T4): EPSD at mu_r = 0.2 > tan 10 deg holds a sphere at
+    rest on the tessellated plane, gravity tilted to 10 deg, with drift below 1e-7 m/s over 1 s,
+    when it rests on a vertex, on an edge and on a face (a rolling spring that reset when the
+    contact moved to another triangle would let it creep)."""
+    v, t = TESSELLATION
+    centre = np.abs(v[:, :2] - [0.1, 0.0]).sum(axis=1).argmin()
+    tri = np.nonzero((t == centre).any(axis=1))[0][0]
+    a, b, c = v[t[tri]]
+    at = {"vertex": v[centre], "edge": 0.5 * (a + b), "face": (a + b + c) / 3}[where][:2]
+    sim = ss.sphere_on_wall("epsd", settle=0.05, wall=tessellated_wall, at=at)
+    for k in range(1, 201):
+        b = ss.SLOPE * k / 200
+        sim.gravity = (ss.G * math.sin(b), 0.0, -ss.G * math.cos(b))
+        sim.run(steps=100)
+    sim.run(0.1)
+    x0 = sim.positions[0, 0]
+    sim.run(1.0)
+    assert abs(sim.positions[0, 0] - x0) / 1.0 < 1e-7
+
+
+def test_bad_mesh_walls_are_refused_with_one_line(tmp_path):
+    """A missing file, a shape that does not exist or lacks a dimension, and a mesh smaller than one
+    particle (a file in mm read as m, or the reverse) each get one line naming what is wrong."""
+    with pytest.raises(ParameterError, match="not found"):
+        rd.MeshWall.from_file(tmp_path / "nothing.stl")
+    with pytest.raises(ParameterError, match="'cone' is not known"):
+        rd.MeshWall.shape("cone", radius=1.0)
+    with pytest.raises(ParameterError, match="length missing"):
+        rd.MeshWall.shape("drum", radius=1.0)
+    path = rd.MeshWall.shape("box", size=(1.0, 1.0, 1.0)).mesh.write(tmp_path / "box_mm.stl")
+    sim = rd.Simulation()
+    sim.add_material(rd.Material("m", 1e7, 0.3, 1000.0))
+    sim.add_particles([[0.5, 0.5, 0.5]], 0.005, "m")
+    with pytest.raises(ParameterError, match="smaller than one particle"):
+        sim.add_wall(rd.MeshWall.from_file(path, scale=0.001, material="m"))
+
+
+def test_a_sphere_shot_through_a_thin_mesh_is_an_error_naming_it():
+    """A sphere at 20 m/s against a single sheet, with a skin large enough that the speed check
+    lets it through: the run stops with the particle, the wall and the step, not a silent pass."""
+    sim = rd.Simulation(gravity=(0, 0, 0), dt=1e-4, skin=0.05, check_timestep=False)
+    sim.add_material(rd.Material("m", 1e5, 0.3, 1000.0))
+    sim.add_wall(rd.MeshWall([[-1, -1, 0], [1, -1, 0], [0, 1, 0]], [[0, 1, 2]], material="m", name="sheet"))
+    sim.add_particles([[0, 0, 0.02]], 0.005, "m", velocity=(0, 0, -20.0))
+    with pytest.raises(SimulationError, match="particle 0 passed through mesh wall 'sheet'"):
+        sim.run(steps=100)

@@ -339,6 +339,8 @@ class EngineState:
 
     def to_arrays(self) -> dict:
         out = {name: getattr(self, name) for name in self.ARRAYS}
+        out["wall_load"] = self.wall_load
+        out.update(self.meshes.to_arrays())
         cl = self.contact_list
         total = cl.size
         out["nl_start"] = cl.start
@@ -356,6 +358,9 @@ class EngineState:
         for name in cls.ARRAYS:
             setattr(st, name, np.array(arrays[name]))
         st.contacts = st.contacts.astype(np.int32)  # int64 in older checkpoints
+        st.wall_load = np.array(arrays["wall_load"]) if "wall_load" in arrays else \
+            np.zeros((st.n * st.n_walls, WALL_LOAD_SIZE))  # absent in older checkpoints
+        st.meshes.from_arrays(arrays, st.n)
         if not st.energy.any():  # nothing summed (older checkpoints kept the zeros)
             st.energy = np.zeros((0, len(ENERGY_CHANNELS)))
         if not np.array_equal(st.ids, np.arange(st.n)):
@@ -500,6 +505,30 @@ class MeshState:
                 self.triangle_mesh, self.motion, self.material, self.candidate_start, self.candidates,
                 self.touch_triangle, self.touch_feature, self.touch_point, self.touch_slot, self.slot_triangle,
                 self.history, self.load, self.mesh_error, self.grid_start, self.grid_items)
+
+    CHECKPOINT = ("reference", "vertices", "built", "vertex_start", "triangle_start", "triangles", "neighbors",
+                  "triangle_mesh", "motion", "material", "slot_triangle", "history", "load")
+
+    def to_arrays(self) -> dict:
+        """The meshes' arrays for a checkpoint (none without a mesh)."""
+        if not self.n_meshes:
+            return {}
+        out = {f"mesh_{name}": getattr(self, name) for name in self.CHECKPOINT}
+        out["mesh_candidate_start"] = self.candidate_start  # the lists as built: a restored run goes on the same
+        out["mesh_candidates"] = self.candidates[:int(self.candidate_start[-1])] if self.n else self.candidates[:0]
+        return out
+
+    def from_arrays(self, arrays: dict, n: int):
+        self.n = n
+        if "mesh_triangles" not in arrays:
+            return
+        self._particle_arrays(n)
+        for name in self.CHECKPOINT:
+            setattr(self, name, np.array(arrays[f"mesh_{name}"]))
+        candidates = arrays["mesh_candidates"]
+        self.allocate(max(4 * n, int(len(candidates) * LIST_MARGIN) + 16))
+        self.candidates[:len(candidates)] = candidates
+        self.candidate_start[:] = arrays["mesh_candidate_start"]
 
     def save_contacts(self):
         return self.slot_triangle.copy(), self.history.copy()

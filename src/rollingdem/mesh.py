@@ -397,6 +397,12 @@ class MeshWall(Wall):
         self.mesh = _with_vertices(self.mesh, vertices)
         self.point = tuple(float(c) for c in point)
 
+    @classmethod
+    def from_description(cls, d: dict, material, mesh: TriangleMesh) -> "MeshWall":
+        """The wall ``describe`` described, with its mesh as it is now (``Simulation.restore``)."""
+        return cls(mesh, material=material, velocity=d["velocity"], angular_velocity=d["angular_velocity"],
+                   point=d["point"], name=d.get("name"))
+
     def describe(self) -> dict:
         return {"type": "mesh", "point": list(self.point), "velocity": list(self.velocity),
                 "angular_velocity": list(self.angular_velocity), "name": self.name,

@@ -24,6 +24,7 @@ from .kernels import engine_module
 from .errors import ParameterError, SimulationError, check_finite, check_integer, check_positive, check_vector
 from .materials import Material, MaterialTable
 from .timestep import SPRING_FRACTION
+from .mesh import MeshWall, TriangleMesh
 from .walls import INACTIVE, Wall, wall_from_dict
 
 __version__ = "0.1.0"
@@ -629,6 +630,8 @@ class Simulation:
         for wd in meta["walls"]:
             if wd is None:
                 sim._walls.append(_Removed(None))
+            elif wd["type"] == "mesh":  # its triangles are in the arrays, made into a wall below
+                sim._walls.append(wd)
             else:
                 wd = dict(wd)
                 mat = wd.pop("material")
@@ -639,9 +642,19 @@ class Simulation:
         if len(in_place) < len(st.wall_kind):  # a checkpoint of before 2026-12-02 keeps removed walls
             st.set_walls(st.wall_kind[in_place], st.wall_geom[in_place], st.wall_vel[in_place],
                          st.wall_omega[in_place], st.wall_mat[in_place], in_place.tolist())
-        sim._engine_walls = sim.walls
+        ms, m = st.meshes, 0
+        for k, wd in enumerate(sim._walls):  # the meshes in the engine's order, their triangles from the arrays
+            if isinstance(wd, dict):
+                v0, v1 = ms.vertex_start[m], ms.vertex_start[m + 1]
+                t0, t1 = ms.triangle_start[m], ms.triangle_start[m + 1]
+                mesh = TriangleMesh(ms.vertices[v0:v1], ms.triangles[t0:t1] - v0, label=f"mesh {wd.get('name')!r}")
+                sim._walls[k] = MeshWall.from_description(wd, wd["material"], mesh)
+                m += 1
+        sim._engine_walls = [wl for wl in sim.walls if wl.kind != WALL_MESH]
         for wl, g in zip(sim._engine_walls, sim._state.wall_geom):
             wl.update_from_geometry(g)
+        ms.names = [wl for wl in sim.walls if wl.kind == WALL_MESH]
+        sim.sync_walls_from_engine()
         sim.step = int(meta["step"])
         sim.time = float(meta["time"])
         origin = meta.get("time_origin", (sim.time, sim.step))  # absent in older checkpoints

@@ -153,7 +153,7 @@ def wall_from_dict(d: dict, material) -> Wall:
         if ext is not None and ext[0] == -math.inf and ext[1] == math.inf:
             ext = None
         return Cylinder(material=material, extent=ext, **d)
-    raise ParameterError(f"wall type = {kind!r} is not known: allowed are 'plane', 'cylinder'")
+    raise ParameterError(f"wall type = {kind!r} is not known: allowed are 'plane', 'cylinder', 'mesh'")
 
 
 @njit(cache=True, inline="always")

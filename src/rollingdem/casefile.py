@@ -17,7 +17,7 @@ import re
 
 import numpy as np
 import yaml
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Strict, Tag,
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PrivateAttr, Strict, Tag,
                       ValidationError, create_model)
 
 from .errors import ParameterError
@@ -96,7 +96,41 @@ class CylinderSpec(_Strict):
     angular_velocity: Vector = (0.0, 0.0, 0.0)
 
 
-WallSpec = Annotated[Union[PlaneSpec, CylinderSpec], Field(discriminator="type")]
+class RotateSpec(_Strict):
+    """A turn about the axis through ``point``: at ``angular_velocity`` (rad/s) in a motion, by
+    ``angle`` (degrees) in a placement."""
+    axis: Vector
+    point: Vector = (0.0, 0.0, 0.0)
+    angular_velocity: Optional[Number] = None
+    angle: Optional[Number] = None
+
+
+class MotionSpec(_Strict):
+    velocity: Vector = (0.0, 0.0, 0.0)
+    rotate: Optional[RotateSpec] = None
+
+
+class PlaceSpec(_Strict):
+    rotate: Optional[RotateSpec] = None
+    translate: Vector = (0.0, 0.0, 0.0)
+
+
+class MeshSpec(_Strict):
+    """A triangle-mesh wall: ``file`` (STL or OBJ, relative to the case file; ``scale`` 0.001 for mm)
+    or a ready-made ``shape`` with its ``size`` (its dimensions by name), placed by ``place``
+    (turned, then moved), moving by ``motion``."""
+    type: Literal["mesh"]
+    name: Optional[str] = None
+    material: str
+    file: Optional[str] = None
+    scale: Number = 1.0
+    shape: Optional[str] = None
+    size: dict[str, Any] = {}
+    place: Optional[PlaceSpec] = None
+    motion: Optional[MotionSpec] = None
+
+
+WallSpec = Annotated[Union[PlaneSpec, CylinderSpec, MeshSpec], Field(discriminator="type")]
 
 
 class BoxRegionSpec(_Strict):
@@ -185,11 +219,18 @@ class SetVelocitySpec(_Strict):
     angular_velocity: Optional[Vector] = None
 
 
+class WallMotionSpec(MotionSpec):
+    """A wall's motion from this stage on (``velocity``, ``rotate``: for a plane or cylinder the
+    rotation moves its surface, about its own point)."""
+    wall: str
+
+
 class StageSpec(_Strict):
     name: str = "run"
     duration: Number
     gravity: Optional[Vector] = None
     remove_walls: list[str] = []
+    wall_motion: list[WallMotionSpec] = []
     set_velocity: Optional[SetVelocitySpec] = None
 
 
@@ -223,6 +264,11 @@ class CaseSpec(_Strict):
     particles: list[ParticleSpec] = Field(min_length=1)
     stages: list[StageSpec] = Field(min_length=1)
     output: OutputSpec = OutputSpec()
+    _base: Path = PrivateAttr(default=Path("."))  # the case file's folder (load_case): mesh files are named from it
+
+    @property
+    def base_directory(self) -> Path:
+        return self._base
 
 
 _KIND_OF_INPUT = {
@@ -351,9 +397,12 @@ def load_case(path_or_dict) -> CaseSpec:
     """Read and validate a case file (YAML, or TOML by extension) or a mapping."""
     data, source = read_mapping(path_or_dict)
     try:
-        return CaseSpec.model_validate(data)
+        case = CaseSpec.model_validate(data)
     except ValidationError as err:
         raise ParameterError(_format_validation_error(err, source, data)) from None
+    if isinstance(path_or_dict, (str, Path)):
+        case._base = Path(path_or_dict).parent
+    return case
 
 
 def _radius(spec):
@@ -399,6 +448,9 @@ def build_simulation(case: CaseSpec):
         raise ParameterError(f"walls: name = {twice[0]!r} is not allowed: it names two walls; wall names must differ")
     for k, w in enumerate(case.walls):
         with where(f"walls.{k}"):
+            if w.type == "mesh":
+                sim.add_wall(_mesh_wall(w, case.base_directory))
+                continue
             d = w.model_dump(exclude={"type"})
             sim.add_wall(Plane(**d) if w.type == "plane" else Cylinder(**d))
     for k, p in enumerate(case.particles):
@@ -412,6 +464,54 @@ def build_simulation(case: CaseSpec):
                 sim.add_particles(p.positions, p.radius, p.material, velocity=p.velocity,
                                   angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap)
     return sim
+
+
+def _motion(spec) -> dict:
+    """Keyword arguments of a wall's motion (velocity, angular_velocity, point) from a MotionSpec."""
+    from .errors import check_finite, check_vector
+
+    if spec is None:
+        return {}
+    out = {"velocity": spec.velocity}
+    if spec.rotate is not None:
+        if spec.rotate.angular_velocity is None:
+            raise ParameterError("motion rotate: angular_velocity missing: give the turning rate (rad/s)")
+        axis = np.array(check_vector("motion rotate axis", spec.rotate.axis, unit=True))
+        out["angular_velocity"] = tuple(check_finite("motion rotate angular_velocity",
+                                                     spec.rotate.angular_velocity) * axis)
+        out["point"] = spec.rotate.point
+    return out
+
+
+def _mesh_wall(w: MeshSpec, base: Path):
+    """The MeshWall of a case's mesh block."""
+    from .errors import check_finite, check_vector
+    from .mesh import MeshWall
+
+    if (w.file is None) == (w.shape is None):
+        raise ParameterError(f"file = {w.file!r}, shape = {w.shape!r} is not allowed: give exactly one of file "
+                             "(an STL or OBJ file) and shape (drum, silo, hopper, disk, box, chute)")
+    if w.file is not None:
+        path = Path(w.file) if Path(w.file).is_absolute() else base / w.file
+        wall = MeshWall.from_file(path, material=w.material, scale=w.scale, name=w.name)
+    else:
+        wall = MeshWall.shape(w.shape, material=w.material, name=w.name, **w.size)
+    if w.place is not None:
+        from scipy.spatial.transform import Rotation
+
+        matrix, about = np.eye(3), np.zeros(3)
+        if w.place.rotate is not None:
+            axis = np.array(check_vector("place rotate axis", w.place.rotate.axis, unit=True))
+            angle = check_finite("place rotate angle", w.place.rotate.angle if w.place.rotate.angle is not None
+                                 else float("nan"))
+            matrix = Rotation.from_rotvec(np.radians(angle) * axis).as_matrix()
+            about = np.array(check_vector("place rotate point", w.place.rotate.point))
+        shift = about - matrix @ about + np.array(check_vector("place translate", w.place.translate))
+        wall = MeshWall(wall.mesh.moved(matrix, shift), material=w.material, name=w.name)
+    motion = _motion(w.motion)
+    if motion:
+        wall = MeshWall(wall.mesh, material=w.material, name=w.name, **motion)
+    return wall
 
 
 class _InCase:
@@ -456,6 +556,14 @@ def check_case(case: CaseSpec, sim=None):
                                      f"wall names are {', '.join(map(repr, sorted(in_place))) or 'none'}")
             in_place.discard(name)
             removed.add(name)
+        for m in stage.wall_motion:
+            if m.wall not in in_place:
+                raise ParameterError(f"{where}: wall_motion wall = {m.wall!r} is not allowed: no wall in place has "
+                                     f"that name; wall names are {', '.join(map(repr, sorted(in_place))) or 'none'}")
+            try:
+                _motion(m)
+            except ParameterError as err:
+                raise ParameterError(f"{where}: wall_motion {m.wall!r}: {err}") from None
         sv = stage.set_velocity
         if sv is not None:
             if sv.velocity is None and sv.angular_velocity is None:
@@ -565,6 +673,10 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
                 sim.gravity = stage.gravity
             for name in stage.remove_walls:  # check_case made sure each names a wall in place
                 sim.remove_wall(walls_by_name.pop(name))
+            for m in stage.wall_motion:
+                motion = _motion(m)
+                sim.set_wall_velocity(m.wall, motion["velocity"], motion.get("angular_velocity", (0.0, 0.0, 0.0)),
+                                      point=motion.get("point"))
             if stage.set_velocity is not None:
                 sv = stage.set_velocity
                 idx = np.arange(sim.n_particles) if sv.particles == "all" else sv.particles

@@ -53,9 +53,12 @@ class TimeSeries(Observer):
     """CSV time series: time, kinetic energies, contacts, dissipated energies, chosen particles.
 
     Columns: ``time, step, kinetic_translational, kinetic_rotational, kinetic_total, contacts,
-    dissipated_normal_damping, dissipated_sliding, dissipated_rolling, dissipated_twisting`` and,
-    for each chosen particle p, ``p{p}_x .. p{p}_z, p{p}_vx .., p{p}_wx .., p{p}_tx ..``
-    (position m, velocity m/s, angular velocity rad/s, torque N m).
+    dissipated_normal_damping, dissipated_sliding, dissipated_rolling, dissipated_twisting``; for
+    each chosen particle p, ``p{p}_x .. p{p}_z, p{p}_vx .., p{p}_wx .., p{p}_tx ..`` (position m,
+    velocity m/s, angular velocity rad/s, torque N m); and for each wall in place when the series
+    starts (by name, or ``#k``), ``wall_{name}_fx .. fz, wall_{name}_tx .. tz``: the force on it (N)
+    and its torque (N m) about its point (a mesh's turning point, default its centroid), empty once
+    it is removed (``Simulation.wall_loads``).
     """
 
     def __init__(self, path, interval: float, particles=()):
@@ -67,6 +70,7 @@ class TimeSeries(Observer):
         self.particles = [check_integer("time series particle", p, low=0) for p in particles]
         self._file = None
         self._writer = None
+        self._walls = None  # the walls' keys, fixed when the series starts
 
     def columns(self):
         cols = ["time", "step", "kinetic_translational", "kinetic_rotational", "kinetic_total", "contacts",
@@ -74,6 +78,8 @@ class TimeSeries(Observer):
         for p in self.particles:
             for q in ("x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "tx", "ty", "tz"):
                 cols.append(f"p{p}_{q}")
+        for name in self._walls or ():
+            cols += [f"wall_{name}_{q}" for q in ("fx", "fy", "fz", "tx", "ty", "tz")]
         return cols
 
     def check(self, sim):
@@ -85,6 +91,8 @@ class TimeSeries(Observer):
         self.check(sim)
         super().start(sim)
         sim.track_energy = True  # the dissipated-energy columns
+        if self._walls is None:
+            self._walls = list(sim.wall_loads())
         self.path.parent.mkdir(parents=True, exist_ok=True)
         exists = self.path.exists() and self.path.stat().st_size > 0
         self._file = open(self.path, "a", newline="")
@@ -100,6 +108,11 @@ class TimeSeries(Observer):
         for p in self.particles:
             for arr in (sim.positions, sim.velocities, sim.angular_velocities, sim.torques):
                 row += [repr(float(c)) for c in arr[p]]
+        if self._walls:
+            loads = sim.wall_loads()
+            for name in self._walls:
+                load = loads.get(name)
+                row += [repr(c) for c in (*load["force"], *load["torque"])] if load else [""] * 6
         self._writer.writerow(row)
         self._file.flush()
 
@@ -110,7 +123,9 @@ class TimeSeries(Observer):
 
 
 class VTKSnapshots(Observer):
-    """Particle snapshots as VTU files plus a PVD collection that ParaView opens.
+    """Particle snapshots as VTU files plus a PVD collection that ParaView opens; each mesh wall as
+    its own series beside them (``wall_{name}_{step}.vtu``, ``wall_{name}.pvd``: its triangles where they
+    are at that time), so the geometry moves with the particles.
 
     Point data: radius (m), velocity (m/s), angular_velocity (rad/s), material (index), id.
     """
@@ -120,6 +135,7 @@ class VTKSnapshots(Observer):
         self.directory = Path(directory)
         self.prefix = prefix
         self._entries: list[tuple[float, str]] = []
+        self._mesh_entries: dict[str, list[tuple[float, str]]] = {}
 
     def start(self, sim):
         super().start(sim)
@@ -131,17 +147,27 @@ class VTKSnapshots(Observer):
             "radius": sim.radii, "velocity": sim.velocities, "angular_velocity": sim.angular_velocities,
             "material": sim.material_indices.astype(np.int32), "id": np.arange(sim.n_particles, dtype=np.int32)})
         self._entries.append((sim.time, name))
-        self._write_pvd()
+        self._write_pvd(self.prefix, self._entries)
+        for label, mesh in sim.mesh_walls().items():
+            import meshio
 
-    def _write_pvd(self):
+            stem = f"wall_{label}"
+            mesh_name = f"{stem}_{sim.step:09d}.vtu"
+            meshio.write(self.directory / mesh_name, meshio.Mesh(mesh.vertices, [("triangle", mesh.triangles)]),
+                         binary=True)
+            entries = self._mesh_entries.setdefault(stem, [])
+            entries.append((sim.time, mesh_name))
+            self._write_pvd(stem, entries)
+
+    def _write_pvd(self, stem, entries):
         lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
                  "  <Collection>"]
-        for t, name in self._entries:
+        for t, name in entries:
             lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(name)}/>')
         lines += ["  </Collection>", "</VTKFile>", ""]
-        tmp = self.directory / f"{self.prefix}.pvd.tmp"
+        tmp = self.directory / f"{stem}.pvd.tmp"
         tmp.write_text("\n".join(lines))
-        tmp.replace(self.directory / f"{self.prefix}.pvd")
+        tmp.replace(self.directory / f"{stem}.pvd")
 
 
 def write_vtu(path, points: np.ndarray, point_data: dict) -> None:

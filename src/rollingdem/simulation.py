@@ -303,14 +303,21 @@ class Simulation:
                              + ("it was removed already" if any(w is wall for w in removed) else
                                 "it is not part of this simulation (add it with add_wall)"))
 
-    def set_wall_velocity(self, wall: Wall | str, velocity=None, angular_velocity=None) -> None:
-        """Give a wall (the object or its name) a new prescribed velocity (m/s) and/or surface
-        angular velocity (rad/s)."""
+    def set_wall_velocity(self, wall: Wall | str, velocity=None, angular_velocity=None, point=None) -> None:
+        """Give a wall (the object or its name) a new prescribed velocity (m/s) and/or angular
+        velocity (rad/s), from now on: a mesh turns about the axis through ``point`` (default: the
+        point it turned about), a plane or cylinder turns its surface about its own axis."""
         wall = self._own_wall(wall)
+        self.sync_walls_from_engine()
         if velocity is not None:
             wall.velocity = check_vector("wall velocity", velocity)
         if angular_velocity is not None:
-            wall.angular_velocity = check_vector("wall angular_velocity", angular_velocity)
+            wall.set_angular_velocity(angular_velocity)
+        if point is not None:
+            if wall.kind != WALL_MESH:
+                raise ParameterError(f"point = {point!r} is not allowed for wall {self._wall_label(wall)}: a plane or "
+                                     "cylinder turns about its own point; only a mesh wall takes a rotation point")
+            wall.point = check_vector("mesh point", point)
         self._sync_walls()
 
     def _wall_label(self, wall):
@@ -690,6 +697,17 @@ class Simulation:
             out[self._wall_key(wl)] = {"force": tuple(float(c) for c in force),
                                        "torque": tuple(float(c) for c in torque),
                                        "point": tuple(float(c) for c in about)}
+        return out
+
+    def mesh_walls(self) -> dict:
+        """Each mesh wall in place, as its ``TriangleMesh`` where it is now, by a file-safe label
+        (its name, else ``mesh{k}``)."""
+        self.sync_walls_from_engine()
+        out = {}
+        for k, wl in enumerate(self._walls):
+            if wl.kind == WALL_MESH:
+                label = "".join(c if c.isalnum() or c in "-_" else "_" for c in wl.name) if wl.name else f"mesh{k}"
+                out[label] = wl.mesh
         return out
 
     def _wall_key(self, wall) -> str:

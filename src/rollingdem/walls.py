@@ -29,6 +29,24 @@ class Wall:
         self.angular_velocity = check_vector("wall angular_velocity", angular_velocity)
         self.name = name
 
+    #: the direction a plane's or cylinder's angular velocity must lie along: its surface turns in
+    #: itself (a turntable, a drum), its geometry stays; a mesh turns as a whole instead
+    spin_axis_name = None
+
+    def set_angular_velocity(self, angular_velocity):
+        """Set the angular velocity (rad/s); a plane's must lie along its normal, a cylinder's along
+        its axis (else its surface would move out of itself while it stays: use a MeshWall)."""
+        omega = check_vector("wall angular_velocity", angular_velocity)
+        if self.spin_axis_name is not None:
+            axis = np.asarray(getattr(self, self.spin_axis_name))
+            w = np.asarray(omega)
+            off = np.linalg.norm(w - (w @ axis) * axis)
+            if off > 1e-12 * max(np.linalg.norm(w), 1e-300):
+                raise ParameterError(f"wall angular_velocity = {list(omega)} is not allowed for a {type(self).__name__.lower()}: "
+                                     f"it must lie along its {self.spin_axis_name} {list(axis)} (its surface turns in "
+                                     "itself); to turn the wall as a whole, use a MeshWall")
+        self.angular_velocity = omega
+
     def geometry(self) -> np.ndarray:
         raise NotImplementedError
 
@@ -61,12 +79,14 @@ class Plane(Wall):
     """
 
     kind = PLANE
+    spin_axis_name = "normal"
 
     def __init__(self, point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), material=None, velocity=(0.0, 0.0, 0.0),
                  angular_velocity=(0.0, 0.0, 0.0), name=None):
-        super().__init__(material, velocity, angular_velocity, name)
+        super().__init__(material, velocity, (0.0, 0.0, 0.0), name)
         self.point = check_vector("plane point", point)
         self.normal = check_vector("plane normal", normal, unit=True)
+        self.set_angular_velocity(angular_velocity)
 
     def geometry(self) -> np.ndarray:
         g = np.zeros(GEOMETRY_SIZE)
@@ -90,13 +110,15 @@ class Cylinder(Wall):
     """
 
     kind = CYLINDER
+    spin_axis_name = "axis"
 
     def __init__(self, radius, point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), extent=None, material=None,
                  velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), name=None):
-        super().__init__(material, velocity, angular_velocity, name)
+        super().__init__(material, velocity, (0.0, 0.0, 0.0), name)
         self.radius = check_positive("cylinder radius", radius, "m")
         self.point = check_vector("cylinder point", point)
         self.axis = check_vector("cylinder axis", axis, unit=True)
+        self.set_angular_velocity(angular_velocity)
         if extent is None:
             self.extent = (-math.inf, math.inf)
         else:

@@ -305,3 +305,84 @@ def test_a_checkpoint_of_a_turning_mesh_continues_bit_for_bit(tmp_path):
     np.testing.assert_array_equal(three.positions, one.positions)
     np.testing.assert_array_equal(three.walls[0].mesh.vertices, one.walls[0].mesh.vertices)
     assert three.wall_loads() == one.wall_loads()
+
+
+CASE = """\
+name: dish
+dt: 1.0e-5
+materials:
+  - {name: m, youngs_modulus: 1.0e7, poisson_ratio: 0.3, density: 1000.0, friction: 0.5, restitution: 0.5}
+walls:
+  - type: mesh
+    name: dish
+    material: m
+    file: dish.stl
+    scale: 0.001
+    motion: {rotate: {axis: [0, 0, 1], point: [0, 0, 0], angular_velocity: 2.0}}
+particles:
+  - positions: [[0.02, 0, 0.00499], [-0.02, 0, 0.00499]]
+    radius: 0.005
+    material: m
+    allow_overlap: true
+stages:
+  - {name: turn, duration: 0.01}
+  - name: stop
+    duration: 0.01
+    wall_motion: [{wall: dish, velocity: [0, 0, 0]}]
+output:
+  time_series: {interval: 0.005}
+  snapshots: {interval: 0.005}
+  plot: false
+"""
+
+
+def test_a_case_file_runs_a_turning_mesh_from_an_stl_in_mm_and_writes_its_series(tmp_path):
+    """A disk written as STL in mm, read at scale 0.001 next to the case file, turning at 2 rad/s
+    for 0.01 s, then stopped (the stage's wall_motion): the snapshots hold the dish's own VTU series,
+    turned by 0.02 rad at t = 0.01 s and no more after; the time series holds the dish's force,
+    the two spheres' weight to 1 %."""
+    import meshio
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+    from rollingdem.mesh import disk
+
+    disk(100.0, segments=12).write(tmp_path / "dish.stl")  # in mm
+    reference = rd.TriangleMesh.from_file(tmp_path / "dish.stl", scale=0.001)  # its vertices in the wall's order
+    (tmp_path / "case.yaml").write_text(CASE)
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "case.yaml"), "--out", str(tmp_path / "out"),
+                                      "--no-progress"])
+    assert result.exit_code == 0, result.output
+    snaps = tmp_path / "out" / "snapshots"
+    assert (snaps / "wall_dish.pvd").exists()
+    turned = meshio.read(snaps / "wall_dish_000001000.vtu").points
+    at_end = meshio.read(snaps / "wall_dish_000002000.vtu").points
+    angle = np.arctan2(turned[:, 1], turned[:, 0]) - np.arctan2(reference.vertices[:, 1], reference.vertices[:, 0])
+    rim = np.linalg.norm(reference.vertices, axis=1) > 0
+    np.testing.assert_allclose(np.mod(angle[rim] + np.pi, 2 * np.pi) - np.pi, 0.02, atol=1e-9)
+    np.testing.assert_allclose(at_end, turned, atol=1e-15)
+    import pandas as pd
+
+    series = pd.read_csv(tmp_path / "out" / "series.csv")
+    weight = 2 * 1000.0 * 4 / 3 * np.pi * 0.005 ** 3 * 9.81
+    assert series["wall_dish_fz"].iloc[-1] == pytest.approx(-weight, rel=0.01)
+
+
+@pytest.mark.parametrize("problem,vertices,triangles,expected", [
+    ("non-manifold", [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]], [[0, 1, 2], [0, 1, 3], [0, 1, 4]],
+     "is shared by more than two triangles"),
+    ("degenerate", [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]], [[0, 1, 2], [0, 1, 3]], "is degenerate"),
+])
+def test_a_case_file_refuses_a_broken_mesh_file_naming_it(tmp_path, problem, vertices, triangles, expected):
+    """A mesh file with an edge of three triangles, or a triangle of no area: exit status 2, one line
+    naming the file and the problem."""
+    import meshio
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+
+    meshio.write(tmp_path / "dish.stl", meshio.Mesh(np.array(vertices, dtype=float), [("triangle", np.array(triangles))]))
+    (tmp_path / "case.yaml").write_text(CASE)
+    result = CliRunner().invoke(app, ["check", str(tmp_path / "case.yaml")])
+    assert result.exit_code == 2
+    assert result.output.count("\n") == 1 and "dish.stl" in result.output and expected in result.output, result.output

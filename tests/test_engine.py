@@ -427,8 +427,8 @@ def test_pool_rows_packed_in_list_order_after_a_rebuild(table1):
     for _ in range(20):
         sim.run(steps=500)
         st = sim._state
-        particles, _, lists, _ = st.records()
-        kernel._rebuild(particles, lists, sim.skin, st.info)
+        particles, walls, lists, _ = st.records()
+        kernel._rebuild(particles, walls, lists, sim.skin, st.info)
         for rows, free, first in pool_rows(st):
             np.testing.assert_array_equal(rows, first + np.arange(len(rows)))
             assert free == []

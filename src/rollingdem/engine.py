@@ -11,9 +11,10 @@ import numpy as np
 from . import kernel_layout
 from .errors import SimulationError
 from .kernel_layout import (CONTACT_BLOCK, ENERGY_CHANNELS, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS,
-                            I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_MOTION_SIZE, MESH_SLOTS, STATUS_CAPACITY,
-                            STATUS_MESH_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE,
-                            WALL_LOAD_SIZE, ListArrays, ParticleArrays, Scratch, WallArrays, block_columns)
+                            I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS,
+                            STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
+                            TILE_ROWS, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_LOAD_SIZE, ListArrays,
+                            ParticleArrays, Scratch, WallArrays, block_columns)
 from .neighbors import ContactList
 from .threads import ThreadGovernor
 # list capacity = entries needed x this (16 bytes per entry and a pool row of 8 (history + 6) bytes,
@@ -264,6 +265,8 @@ class EngineState:
                     self.grow(int(self.info[I_NEEDED]))
                 elif self.info[I_STATUS] == STATUS_MESH_CAPACITY:
                     self.meshes.grow(int(self.info[I_NEEDED]))
+                elif self.info[I_STATUS] == STATUS_MESH_GRID_CAPACITY:
+                    self.meshes.grow_grid(int(self.info[I_NEEDED]))
                 elif self.info[I_STATUS] == STATUS_TOO_FAST:
                     if self.meshes.n_triangles and self.meshes.mesh_error.any():
                         return nsteps - remaining, self.meshes.error_message(self.ids)
@@ -326,6 +329,8 @@ class EngineState:
                 self.grow(int(self.info[I_NEEDED]))
             elif self.info[I_STATUS] == STATUS_MESH_CAPACITY:
                 self.meshes.grow(int(self.info[I_NEEDED]))
+            elif self.info[I_STATUS] == STATUS_MESH_GRID_CAPACITY:
+                self.meshes.grow_grid(int(self.info[I_NEEDED]))
             else:
                 break
         cl = self.contact_list  # grown perhaps: the arrays are new
@@ -397,6 +402,7 @@ class MeshState:
         self.triangle_mesh = np.zeros(0, dtype=np.int32)
         self.motion = np.zeros((0, MESH_MOTION_SIZE))
         self.material = np.zeros(0, dtype=np.int32)
+        self._grid_arrays()
         self._particle_arrays(0)
         self.allocate(0)
 
@@ -414,8 +420,14 @@ class MeshState:
         self.history = np.zeros((rows * MESH_SLOTS, self.history_size))
         self.load = np.zeros((rows * MESH_SLOTS, WALL_LOAD_SIZE))
         self.mesh_error = np.zeros(rows, dtype=np.int64)
-        self.grid_start = np.zeros(max(2 * rows, 64) + 1 if rows else 0, dtype=np.int64)
-        self.grid_items = np.zeros(rows, dtype=np.int64)
+
+    def _grid_arrays(self, items: int = 0):
+        """The triangle grid, to be binned again: up to 64 cells a triangle (at least 32768), ``items``
+        entries (at first 64 a triangle)."""
+        ntri = self.triangles.shape[0]
+        self.grid = np.zeros(len(MESH_GRID))
+        self.grid_start = np.zeros(max(64 * ntri, 32768) + 1 if ntri else 0, dtype=np.int64)
+        self.grid_items = np.zeros(max(items, 64 * ntri), dtype=np.int64)
 
     def allocate(self, capacity: int):
         """Room for ``capacity`` candidate entries (the contacts found are kept in them too)."""
@@ -427,6 +439,9 @@ class MeshState:
 
     def grow(self, needed: int):
         self.allocate(int(needed * LIST_MARGIN) + 16)
+
+    def grow_grid(self, needed: int):
+        self._grid_arrays(int(needed * LIST_MARGIN) + 16)
 
     def resize_particles(self, n: int):
         """Keep the slots of the first spheres, add empty ones up to n (none while there is no mesh)."""
@@ -479,6 +494,7 @@ class MeshState:
             self.motion[k, 3:6] = m["angular_velocity"]
             self.motion[k, 6:9] = m["point"]
         self.material = np.array([m["material"] for m in meshes], dtype=np.int32)
+        self._grid_arrays()
         if not meshes:
             self._particle_arrays(0)
             self.allocate(0)
@@ -504,7 +520,7 @@ class MeshState:
         return (self.reference, self.vertices, self.built, self.vertex_start, self.triangles, self.neighbors,
                 self.triangle_mesh, self.motion, self.material, self.candidate_start, self.candidates,
                 self.touch_triangle, self.touch_feature, self.touch_point, self.touch_slot, self.slot_triangle,
-                self.history, self.load, self.mesh_error, self.grid_start, self.grid_items)
+                self.history, self.load, self.mesh_error, self.grid, self.grid_start, self.grid_items)
 
     CHECKPOINT = ("reference", "vertices", "built", "vertex_start", "triangle_start", "triangles", "neighbors",
                   "triangle_mesh", "motion", "material", "slot_triangle", "history", "load")
@@ -525,6 +541,7 @@ class MeshState:
         self._particle_arrays(n)
         for name in self.CHECKPOINT:
             setattr(self, name, np.array(arrays[f"mesh_{name}"]))
+        self._grid_arrays()
         candidates = arrays["mesh_candidates"]
         self.allocate(max(4 * n, int(len(candidates) * LIST_MARGIN) + 16))
         self.candidates[:len(candidates)] = candidates

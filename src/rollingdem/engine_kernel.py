@@ -15,7 +15,8 @@ from numba.np.arrayobj import reshape_unchecked
 from rollingdem.kernel_layout import (BLOCK_SHIFT, CONTACT_BLOCK, CONTACT_INPUTS as IN, I_DRIFTED, I_FORCES_VALID,
                                       I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
                                       LANE_HITS, MESH_MOTION as MO, MESH_SLOTS, N_INPUTS, N_RESULTS, STATUS_CAPACITY,
-                                      STATUS_MESH_CAPACITY, STATUS_TOO_FAST, WALL_LOAD_SIZE)
+                                      STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
+                                      WALL_LOAD_SIZE)
 from rollingdem.integrator import kick_drift, kick_drift_one, kick_drift_serial, move_walls, next_drift_bound, undo_drift
 from rollingdem.neighbors import POOL_GROUP, free_row, list_rows, rebuild_neighbor_list, take_row
 from rollingdem.mesh_kernel import build_mesh_candidates, match_mesh_contacts, move_meshes, surface_velocity
@@ -633,10 +634,10 @@ def _rebuild(particles, walls, lists, skin, info):
         info[I_STATUS] = STATUS_CAPACITY
         info[I_NEEDED] = -total
         return False
-    total = build_mesh_candidates(particles.x, particles.radius, skin, walls)
-    if total < 0:
-        info[I_STATUS] = STATUS_MESH_CAPACITY
-        info[I_NEEDED] = -total
+    short, needed = build_mesh_candidates(particles.x, particles.radius, skin, walls)
+    if short:
+        info[I_STATUS] = STATUS_MESH_CAPACITY if short == 1 else STATUS_MESH_GRID_CAPACITY
+        info[I_NEEDED] = needed
         return False
     list_rows(particles.x.shape[0], lists.start, lists.i)
     info[I_REBUILDS] += 1

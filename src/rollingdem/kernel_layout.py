@@ -19,6 +19,7 @@ INFO_SIZE = len(INFO)
 STATUS_CAPACITY = 1  # the neighbor list outgrew its arrays: grow them to info[I_NEEDED] and call again
 STATUS_TOO_FAST = 2  # a particle would move more than skin/2 in one step
 STATUS_MESH_CAPACITY = 3  # the mesh candidate list outgrew its arrays: grow them to info[I_NEEDED]
+STATUS_MESH_GRID_CAPACITY = 4  # the triangle grid's entries outgrew their array: grow it to info[I_NEEDED]
 
 # wall kinds (``walls.Wall.kind``) and the length of a wall's geometry row
 WALL_INACTIVE = -1
@@ -39,6 +40,9 @@ MESH_SLOTS = 6
 #: through (px, py, pz) where the motion began, and the time since it began (s)
 MESH_MOTION = slots("vx", "vy", "vz", "wx", "wy", "wz", "px", "py", "pz", "elapsed")
 MESH_MOTION_SIZE = len(MESH_MOTION)
+#: the triangle grid's shape (``WallArrays.grid``): the reach it was binned for (m), cell size (m),
+#: origin (m), cells along x, y, z, and whether it holds the meshes as they are (1.0)
+MESH_GRID = slots("reach", "h", "x0", "y0", "z0", "nx", "ny", "nz", "valid")
 
 ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")  # columns of the dissipated energy
 
@@ -133,8 +137,9 @@ WallArrays = collections.namedtuple("WallArrays", (
     "mesh_load",         # (n * MESH_SLOTS, WALL_LOAD_SIZE) the slot's load at the last step
     "mesh_error",        # (n,) int64 1: more mesh contacts than MESH_SLOTS, 2: passed through the
                          #   surface; plus 4 x the mesh (the step stops as for a particle too fast)
-    "grid_start",        # (cells + 1,) int64 scratch of the candidate build: spheres per grid cell,
-    "grid_items",        # (n,) int64
+    "grid",              # (len(MESH_GRID),) the triangle grid's shape
+    "grid_start",        # (cells + 1,) int64 CSR rows: the triangles binned in each cell of the grid
+    "grid_items",        # (entries,) int64
 ))
 ListArrays = collections.namedtuple("ListArrays", (  # rollingdem.neighbors
     "start", "j", "i",          # CSR half list: row starts (n + 1), partner and row of each entry

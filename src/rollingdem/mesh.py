@@ -444,36 +444,51 @@ def _fan(center: int, ring: int, segments: int, reverse: bool) -> np.ndarray:
     return tri[:, [0, 2, 1]] if reverse else tri
 
 
-def drum(radius: float, length: float, segments: int = 48) -> TriangleMesh:
+def _rings_between(r0: float, z0: float, r1: float, z1: float, segments: int, rings: int) -> np.ndarray:
+    """``rings`` + 1 rings of ``segments`` vertices from (r0, z0) to (r1, z1), evenly spaced."""
+    f = np.linspace(0.0, 1.0, rings + 1)
+    return np.vstack([_ring(r0 + (r1 - r0) * a, z0 + (z1 - z0) * a, segments) for a in f])
+
+
+def _bands(first: int, segments: int, rings: int) -> np.ndarray:
+    return np.vstack([_band(first + k * segments, first + (k + 1) * segments, segments) for k in range(rings)])
+
+
+def drum(radius: float, length: float, segments: int = 48, rings: int = 1) -> TriangleMesh:
     """A closed drum: a cylinder of ``radius`` about the z axis from z = 0 to ``length`` with both end
-    caps, its side a regular polygon of ``segments`` sides; normals outward."""
+    caps, its side a regular polygon of ``segments`` sides in ``rings`` bands; normals outward."""
     radius, length, n = check_positive("radius", radius, "m"), check_positive("length", length, "m"), check_integer("segments", segments, low=3)
-    vertices = np.vstack([_ring(radius, 0.0, n), _ring(radius, length, n), [[0, 0, 0], [0, 0, length]]])
-    triangles = np.vstack([_band(0, n, n), _fan(2 * n, 0, n, reverse=True), _fan(2 * n + 1, n, n, reverse=False)])
+    rings = check_integer("rings", rings, low=1)
+    side = _rings_between(radius, 0.0, radius, length, n, rings)
+    top = rings * n
+    vertices = np.vstack([side, [[0, 0, 0], [0, 0, length]]])
+    c = len(side)
+    triangles = np.vstack([_bands(0, n, rings), _fan(c, 0, n, reverse=True), _fan(c + 1, top, n, reverse=False)])
     return TriangleMesh(vertices, triangles, label="drum")
 
 
-def silo(radius: float, height: float, orifice_radius: float, segments: int = 48) -> TriangleMesh:
+def silo(radius: float, height: float, orifice_radius: float, segments: int = 48, rings: int = 1) -> TriangleMesh:
     """A flat-bottomed cylindrical silo about the z axis, open at the top (z = ``height``), its floor
-    at z = 0 an annulus around a central orifice of ``orifice_radius``."""
+    at z = 0 an annulus around a central orifice of ``orifice_radius``; its wall in ``rings`` bands."""
     radius, height, n = check_positive("radius", radius, "m"), check_positive("height", height, "m"), check_integer("segments", segments, low=3)
     orifice_radius = check_positive("orifice_radius", orifice_radius, "m")
+    rings = check_integer("rings", rings, low=1)
     if orifice_radius >= radius:
         raise ParameterError(f"orifice_radius = {orifice_radius:g} is not allowed: must be < radius = {radius:g} m")
-    vertices = np.vstack([_ring(orifice_radius, 0.0, n), _ring(radius, 0.0, n), _ring(radius, height, n)])
-    triangles = np.vstack([_band(0, n, n)[:, [0, 2, 1]], _band(n, 2 * n, n)])
+    vertices = np.vstack([_ring(orifice_radius, 0.0, n), _rings_between(radius, 0.0, radius, height, n, rings)])
+    triangles = np.vstack([_band(0, n, n)[:, [0, 2, 1]], _bands(n, n, rings)])
     return TriangleMesh(vertices, triangles, label="silo")
 
 
-def hopper(top_radius: float, outlet_radius: float, height: float, segments: int = 48) -> TriangleMesh:
+def hopper(top_radius: float, outlet_radius: float, height: float, segments: int = 48, rings: int = 1) -> TriangleMesh:
     """A conical hopper: the frustum about the z axis from its outlet (``outlet_radius`` at z = 0) to
-    its open top (``top_radius`` at z = ``height``)."""
+    its open top (``top_radius`` at z = ``height``), in ``rings`` bands of 2 ``segments`` triangles."""
     top, height, n = check_positive("top_radius", top_radius, "m"), check_positive("height", height, "m"), check_integer("segments", segments, low=3)
     outlet = check_positive("outlet_radius", outlet_radius, "m")
+    rings = check_integer("rings", rings, low=1)
     if outlet >= top:
         raise ParameterError(f"outlet_radius = {outlet:g} is not allowed: must be < top_radius = {top:g} m")
-    vertices = np.vstack([_ring(outlet, 0.0, n), _ring(top, height, n)])
-    return TriangleMesh(vertices, _band(0, n, n), label="hopper")
+    return TriangleMesh(_rings_between(outlet, 0.0, top, height, n, rings), _bands(0, n, rings), label="hopper")
 
 
 def disk(radius: float, segments: int = 48) -> TriangleMesh:

@@ -7,7 +7,7 @@ import math
 
 from numba import njit
 
-from rollingdem.kernel_layout import MESH_MOTION as MO, MESH_SLOTS, WALL_LOAD_SIZE
+from rollingdem.kernel_layout import MESH_GRID as GR, MESH_MOTION as MO, MESH_SLOTS, WALL_LOAD_SIZE
 from rollingdem.mesh import closest_point_on_triangle, touching_features
 
 #: a new mesh contact takes over the history of an ended contact of the same mesh whose normal was
@@ -16,9 +16,69 @@ from rollingdem.mesh import closest_point_on_triangle, touching_features
 #: between faces, 3.75 deg on a 96-gon). Two contacts that both go on are two contacts: a sphere in a
 #: concave corner keeps one per face.
 CARRY_ANGLE_COS = math.cos(math.radians(20.0))
-#: at most this many grid cells per sphere in the candidate build (the cells grow beyond 2 R + skin
-#: where the spheres are sparse)
-CELLS_PER_SPHERE = 2
+
+#: the triangle grid's cell size / (R_max + skin): a sphere tests the triangles within about
+#: (1 + 1.7 GRID_CELL) (R + skin) of its centre; smaller cells test fewer, bin each triangle
+#: into more cells
+GRID_CELL = 0.75
+
+
+@njit(cache=True)
+def bin_triangles(reach, walls):
+    """Bin the triangles on a grid over the meshes' box grown by ``reach`` (R_max + skin): each
+    triangle goes into every cell its own box, grown by ``reach``, meets, so a cell lists every
+    triangle within ``reach`` of any point in it. Cells are ``GRID_CELL`` ``reach`` wide, wider
+    when the cells would outnumber ``walls.grid_start``. Returns 0, or the entries needed when
+    ``walls.grid_items`` is too short."""
+    vert, tri, grid = walls.vertices, walls.triangles, walls.grid
+    lox, loy, loz = vert[0, 0], vert[0, 1], vert[0, 2]
+    hix, hiy, hiz = lox, loy, loz
+    for v in range(vert.shape[0]):
+        lox, loy, loz = min(lox, vert[v, 0]), min(loy, vert[v, 1]), min(loz, vert[v, 2])
+        hix, hiy, hiz = max(hix, vert[v, 0]), max(hiy, vert[v, 1]), max(hiz, vert[v, 2])
+    lox, loy, loz = lox - reach, loy - reach, loz - reach
+    h = GRID_CELL * reach
+    ncell_max = walls.grid_start.shape[0] - 1
+    while True:
+        nx = int((hix + reach - lox) / h) + 1
+        ny = int((hiy + reach - loy) / h) + 1
+        nz = int((hiz + reach - loz) / h) + 1
+        if nx * ny * nz <= ncell_max:
+            break
+        h *= 1.25
+    cell_start, items = walls.grid_start, walls.grid_items
+    for c in range(nx * ny * nz + 1):
+        cell_start[c] = 0
+    for fill in range(2):  # count per cell into cell_start[c + 1], then fill with cell_start[c] as the cursor
+        for t in range(tri.shape[0]):
+            a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+            ix0 = int((min(vert[a, 0], vert[b, 0], vert[c, 0]) - reach - lox) / h)
+            iy0 = int((min(vert[a, 1], vert[b, 1], vert[c, 1]) - reach - loy) / h)
+            iz0 = int((min(vert[a, 2], vert[b, 2], vert[c, 2]) - reach - loz) / h)
+            ix1 = min(int((max(vert[a, 0], vert[b, 0], vert[c, 0]) + reach - lox) / h), nx - 1)
+            iy1 = min(int((max(vert[a, 1], vert[b, 1], vert[c, 1]) + reach - loy) / h), ny - 1)
+            iz1 = min(int((max(vert[a, 2], vert[b, 2], vert[c, 2]) + reach - loz) / h), nz - 1)
+            for ix in range(max(ix0, 0), ix1 + 1):
+                for iy in range(max(iy0, 0), iy1 + 1):
+                    for iz in range(max(iz0, 0), iz1 + 1):
+                        cell = (ix * ny + iy) * nz + iz
+                        if fill:
+                            items[cell_start[cell]] = t
+                            cell_start[cell] += 1
+                        else:
+                            cell_start[cell + 1] += 1
+        if not fill:
+            for cell in range(nx * ny * nz):
+                cell_start[cell + 1] += cell_start[cell]
+            if cell_start[nx * ny * nz] > items.shape[0]:
+                grid[GR.valid] = 0.0
+                return cell_start[nx * ny * nz]
+    for cell in range(nx * ny * nz, 0, -1):
+        cell_start[cell] = cell_start[cell - 1]
+    cell_start[0] = 0
+    grid[GR.reach], grid[GR.h], grid[GR.x0], grid[GR.y0], grid[GR.z0] = reach, h, lox, loy, loz
+    grid[GR.nx], grid[GR.ny], grid[GR.nz], grid[GR.valid] = nx, ny, nz, 1.0
+    return 0
 
 
 @njit(cache=True)
@@ -26,94 +86,66 @@ def build_mesh_candidates(x, radius, skin, walls):
     """The candidate rows: for each sphere i, the triangles within R_i + skin of its centre, in
     ascending order (``walls.candidate_start``, ``walls.candidates``). They stay complete while
     the sphere and the mesh each move less than skin/2 (the neighbor list's rule; ``move_meshes``
-    tells when a mesh has moved that far). Spheres are binned on a grid of cells at least
-    2 R_max + skin wide; each triangle visits the cells its box, grown by R_max + skin, meets, and
-    tests the spheres there by the exact distance. Returns the number of entries, or minus the
-    number needed when ``walls.candidates`` is too short (nothing else is changed then)."""
+    tells when a mesh has moved that far). The triangles are binned (``bin_triangles``) anew only
+    when a mesh moves or R_max + skin changed; a sphere tests the triangles of its own cell by
+    their exact distance, so the cost grows with the triangles near spheres, not with all of them.
+    Returns (0, entries), or (1, entries needed) when ``walls.candidates`` is too short, or (2,
+    entries needed) when ``walls.grid_items`` is (nothing else is changed then)."""
     n = x.shape[0]
     start = walls.candidate_start
     ntri = walls.triangles.shape[0]
     if ntri == 0 or n == 0:
-        return 0
-    for i in range(n + 1):
-        start[i] = 0
-    vert, tri = walls.vertices, walls.triangles
+        return 0, 0
+    vert, tri, grid = walls.vertices, walls.triangles, walls.grid
+    rmax = 0.0
+    for i in range(n):
+        rmax = max(rmax, radius[i])
+    reach = rmax + skin
+    moving = False
+    for m in range(walls.motion.shape[0]):
+        for c in range(6):
+            moving |= walls.motion[m, c] != 0.0
+    if moving or grid[GR.valid] == 0.0 or grid[GR.reach] != reach:
+        needed = bin_triangles(reach, walls)
+        if needed:
+            return 2, needed
     for v in range(vert.shape[0]):
         for d in range(3):
             walls.built[v, d] = vert[v, d]
-    lox, loy, loz = x[0, 0], x[0, 1], x[0, 2]
-    hix, hiy, hiz = lox, loy, loz
-    rmax = 0.0
-    for i in range(n):
-        lox, loy, loz = min(lox, x[i, 0]), min(loy, x[i, 1]), min(loz, x[i, 2])
-        hix, hiy, hiz = max(hix, x[i, 0]), max(hiy, x[i, 1]), max(hiz, x[i, 2])
-        rmax = max(rmax, radius[i])
-    reach = rmax + skin
-    h = 2.0 * rmax + skin
-    ncell_max = walls.grid_start.shape[0] - 1
-    while True:
-        nx = int((hix - lox) / h) + 1
-        ny = int((hiy - loy) / h) + 1
-        nz = int((hiz - loz) / h) + 1
-        if nx * ny * nz <= ncell_max:
-            break
-        h *= 1.25
-    cell_start, items = walls.grid_start, walls.grid_items
-    ncell = nx * ny * nz
-    for c in range(ncell + 1):
-        cell_start[c] = 0
-    for i in range(n):
-        c = (int((x[i, 0] - lox) / h) * ny + int((x[i, 1] - loy) / h)) * nz + int((x[i, 2] - loz) / h)
-        cell_start[c + 1] += 1
-    for c in range(ncell):
-        cell_start[c + 1] += cell_start[c]
-    for i in range(n):  # counting sort, cell_start[c] as the cursor, shifted back below
-        c = (int((x[i, 0] - lox) / h) * ny + int((x[i, 1] - loy) / h)) * nz + int((x[i, 2] - loz) / h)
-        items[cell_start[c]] = i
-        cell_start[c] += 1
-    for c in range(ncell, 0, -1):
-        cell_start[c] = cell_start[c - 1]
-    cell_start[0] = 0
-    cand = walls.candidates
-    total = 0
+    h, lox, loy, loz = grid[GR.h], grid[GR.x0], grid[GR.y0], grid[GR.z0]
+    nx, ny, nz = int(grid[GR.nx]), int(grid[GR.ny]), int(grid[GR.nz])
+    cell_start, items, cand = walls.grid_start, walls.grid_items, walls.candidates
+    start[0] = 0
     for fill in range(2):  # count per sphere into start[i + 1], then fill with start[i] as the cursor
-        for t in range(ntri):
-            a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-            ix0 = max(int(math.floor((min(vert[a, 0], vert[b, 0], vert[c, 0]) - reach - lox) / h)), 0)
-            iy0 = max(int(math.floor((min(vert[a, 1], vert[b, 1], vert[c, 1]) - reach - loy) / h)), 0)
-            iz0 = max(int(math.floor((min(vert[a, 2], vert[b, 2], vert[c, 2]) - reach - loz) / h)), 0)
-            ix1 = min(int(math.floor((max(vert[a, 0], vert[b, 0], vert[c, 0]) + reach - lox) / h)), nx - 1)
-            iy1 = min(int(math.floor((max(vert[a, 1], vert[b, 1], vert[c, 1]) + reach - loy) / h)), ny - 1)
-            iz1 = min(int(math.floor((max(vert[a, 2], vert[b, 2], vert[c, 2]) + reach - loz) / h)), nz - 1)
-            for ix in range(ix0, ix1 + 1):
-                for iy in range(iy0, iy1 + 1):
-                    for iz in range(iz0, iz1 + 1):
-                        cell = (ix * ny + iy) * nz + iz
-                        for m in range(cell_start[cell], cell_start[cell + 1]):
-                            i = items[m]
-                            q = closest_point_on_triangle(x[i, 0], x[i, 1], x[i, 2], vert[a, 0], vert[a, 1],
-                                                          vert[a, 2], vert[b, 0], vert[b, 1], vert[b, 2],
-                                                          vert[c, 0], vert[c, 1], vert[c, 2])
-                            dx, dy, dz = x[i, 0] - q[0], x[i, 1] - q[1], x[i, 2] - q[2]
-                            within = radius[i] + skin
-                            if dx * dx + dy * dy + dz * dz < within * within:
-                                if fill:
-                                    cand[start[i]] = t
-                                    start[i] += 1
-                                else:
-                                    start[i + 1] += 1
+        for i in range(n):
+            if not fill:
+                start[i + 1] = 0
+            fx, fy, fz = (x[i, 0] - lox) / h, (x[i, 1] - loy) / h, (x[i, 2] - loz) / h
+            if not (0.0 <= fx < nx and 0.0 <= fy < ny and 0.0 <= fz < nz):  # NaN too
+                continue
+            cell = (int(fx) * ny + int(fy)) * nz + int(fz)
+            within = radius[i] + skin
+            for m in range(cell_start[cell], cell_start[cell + 1]):
+                t = items[m]
+                a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+                q = closest_point_on_triangle(x[i, 0], x[i, 1], x[i, 2], vert[a, 0], vert[a, 1], vert[a, 2],
+                                              vert[b, 0], vert[b, 1], vert[b, 2], vert[c, 0], vert[c, 1], vert[c, 2])
+                dx, dy, dz = x[i, 0] - q[0], x[i, 1] - q[1], x[i, 2] - q[2]
+                if dx * dx + dy * dy + dz * dz < within * within:
+                    if fill:
+                        cand[start[i]] = t
+                        start[i] += 1
+                    else:
+                        start[i + 1] += 1
         if not fill:
             for i in range(n):
                 start[i + 1] += start[i]
-            total = start[n]
-            if total > cand.shape[0]:
-                for i in range(n + 1):
-                    start[i] = 0
-                return -total
+            if start[n] > cand.shape[0]:
+                return 1, start[n]
     for i in range(n, 0, -1):
         start[i] = start[i - 1]
     start[0] = 0
-    return total
+    return 0, start[n]
 
 
 @njit(cache=True)

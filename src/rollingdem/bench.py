@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import ParameterError, check_output_path
 
-SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling")
+SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling", "mesh-hopper")
 SCALING_SMALL = 20000
 SCALING_LARGE = 1_000_000
 SCALING_CHUNKS = 6
@@ -34,6 +34,15 @@ COLUMN_RADIUS_20K = 0.125  # m, for 20,000 spheres (LIGGGHTS reference input)
 FILL_HEIGHT = 0.80  # m, top of the insertion region (LIGGGHTS reference input)
 SETTLE = 0.6  # s
 SETTLE_CHECKPOINT = 0.05  # s of settling between checkpoints of a settle in progress
+# the mesh-hopper scene: a conical hopper (frustum) of 100 x 50 x 2 = 10,000 triangles, spheres of
+# radius 1.5 mm of Table 1's material dropped into it from a column and discharging through its
+# open outlet; timed from HOPPER_FILL s after the drop
+HOPPER = dict(top_radius=0.06, outlet_radius=0.012, height=0.08, segments=100, rings=50)
+HOPPER_RADIUS = 0.0015  # m
+HOPPER_DT = 4e-6  # s: the Hertz-time limit at the drop's impact speed (2.5 m/s) is 4.5e-6 s
+HOPPER_SKIN = 0.0006  # m
+HOPPER_REGION = (0.037, 0.045, 0.28)  # radius, z_min, z_max of the column the spheres start in (m)
+HOPPER_FILL = 0.1  # s
 DENSE_BED_MODELS = ("none", "cdt", "epsd", "epsd2", "epsd3", "rrlinear", "sds", "displacement_damping",
                     "force_proportional", "viscous")
 
@@ -163,6 +172,7 @@ class _Phases:
     contacts' rows, the forces and, for the neighbor search, the list: ``restore`` puts them back)."""
 
     def __init__(self, sim):
+        from .mesh_kernel import build_mesh_candidates
         from .neighbors import rebuild_neighbor_list
 
         st = sim._state
@@ -173,7 +183,10 @@ class _Phases:
         dt, skin, pp = sim.dt, sim.skin, sim.pair_parameters()
         particles, walls, lists, scratch = st.records()
         self.saved = [(owner, name, getattr(owner, name).copy())
-                      for owner, names in ((st, ("whist", "wtouch", "energy", "f", "t", "contacts", "x_ref")),
+                      for owner, names in ((st, ("whist", "wtouch", "wall_load", "energy", "f", "t", "contacts",
+                                                 "x_ref")),
+                                           (st.meshes, ("slot_triangle", "history", "load", "candidate_start",
+                                                        "candidates", "built")),
                                            (st.contact_list, ("pool", "contact_row", "groups", "start", "j", "i",
                                                               "tr_start", "tr_k")))
                       for name in names]
@@ -188,6 +201,7 @@ class _Phases:
         self.gather_plain = lambda: gather(dt, 0.0, gravity, pp, particles, no_walls, lists, 0.5 * skin)
         self.kick = lambda: kick_drift(0.0, particles, 0.5 * skin)
         self.rebuild = lambda: rebuild_neighbor_list(st.x, st.radius, skin, st.ids, st.x_ref, lists)
+        self.mesh_candidates = lambda: build_mesh_candidates(st.x, st.radius, skin, walls)
 
     def restore(self) -> None:
         for owner, name, arr in self.saved:
@@ -214,6 +228,8 @@ def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     gather_walls = _seconds_per_call(ph.gather_walls, repeats)
     gather_plain = _seconds_per_call(ph.gather_plain, repeats)
     split["walls"] = max(gather_walls - gather_plain, 0.0)
+    if sim._state.meshes.n_triangles:  # the mesh candidates are built with each neighbor list
+        split["walls"] += _seconds_per_call(ph.mesh_candidates, repeats) * rebuilds / max(steps, 1)
     split["integration and gathering"] = gather_plain + _seconds_per_call(ph.kick, repeats)
     split["neighbor search"] = _seconds_per_call(ph.rebuild, repeats) * rebuilds / max(steps, 1)
     ph.restore()  # the timing calls must leave the state as it was
@@ -318,6 +334,45 @@ def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, 
     wall, rebuilds = _time_run(sim, steps)
     note = f"settled state from {from_dump}" if from_dump else "settled state from the disk cache"
     return _result("column-collapse", "epsd", sim, steps, compile_s, wall, rebuilds, threads, note)
+
+
+def hopper_simulation(particles: int, seed: int = 1, echo=print):
+    """The mesh-hopper scene ``HOPPER_FILL`` s after the drop, from the disk cache or run now and
+    cached; the hopper's STL is written beside it (for the LIGGGHTS input)."""
+    from . import ContactModel, CylinderRegion, Material, MeshWall, Simulation, __version__
+    from .mesh import hopper
+
+    path = _cache_dir() / f"hopper_{particles}_seed{seed}_v{__version__}.npz"
+    if path.exists():
+        sim = Simulation.restore(path)
+        sim.track_energy = False
+        return sim
+    echo(f"dropping {particles} spheres into the hopper for {HOPPER_FILL} s (cached afterwards in {path.parent}) ...")
+    sim = Simulation(contact=ContactModel("hertz", rolling="epsd"), dt=HOPPER_DT, skin=HOPPER_SKIN)
+    sim.add_material(Material("table1", **TABLE1))
+    mesh = hopper(**HOPPER)
+    mesh.write(_cache_dir() / "hopper.stl")
+    sim.add_wall(MeshWall(mesh, material="table1", name="hopper"))
+    radius, z_min, z_max = HOPPER_REGION
+    sim.insert(CylinderRegion(radius, z_min, z_max), particles, HOPPER_RADIUS, "table1", seed=seed)
+    sim.run(HOPPER_FILL)
+    sim.checkpoint(path)
+    return sim
+
+
+def mesh_hopper(particles=20000, steps=5000, threads=None, echo=print) -> BenchResult:
+    """20,000 spheres discharging from a 10,000-triangle STL hopper (``HOPPER``)."""
+    import numba
+
+    from . import ContactModel
+
+    threads = threads or numba.get_num_threads()
+    compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
+    sim = hopper_simulation(particles, echo=echo)
+    wall, rebuilds = _time_run(sim, steps)
+    return _result("mesh-hopper", "epsd", sim, steps, compile_s, wall, rebuilds, threads,
+                   f"discharge from {HOPPER_FILL} s after the drop; hopper of {sim.walls[0].mesh.n_triangles} "
+                   "triangles")
 
 
 def single_particle(steps=150000, threads=None, echo=print) -> BenchResult:
@@ -493,6 +548,8 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
             results.append(column_collapse(particles or 20000, steps or 10000, threads, from_dump, echo))
         elif scene == "single-particle":
             results.append(single_particle(steps or 150000, threads, echo))
+        elif scene == "mesh-hopper":
+            results.append(mesh_hopper(particles or 20000, steps or 5000, threads, echo))
         elif scene == "slab":
             results.append(slab(particles or 20000, steps or 1000, threads, echo))
         elif scene in ("scaling", "collapse-scaling"):

@@ -454,12 +454,15 @@ def _bands(first: int, segments: int, rings: int) -> np.ndarray:
     return np.vstack([_band(first + k * segments, first + (k + 1) * segments, segments) for k in range(rings)])
 
 
-def drum(radius: float, length: float, segments: int = 48, rings: int = 1) -> TriangleMesh:
+def drum(radius: float, length: float, segments: int = 48, rings: int = 1, caps: bool = True) -> TriangleMesh:
     """A closed drum: a cylinder of ``radius`` about the z axis from z = 0 to ``length`` with both end
-    caps, its side a regular polygon of ``segments`` sides in ``rings`` bands; normals outward."""
+    caps (an open tube with ``caps=False``), its side a regular polygon of ``segments`` sides in
+    ``rings`` bands; normals outward."""
     radius, length, n = check_positive("radius", radius, "m"), check_positive("length", length, "m"), check_integer("segments", segments, low=3)
     rings = check_integer("rings", rings, low=1)
     side = _rings_between(radius, 0.0, radius, length, n, rings)
+    if not caps:
+        return TriangleMesh(side, _bands(0, n, rings), label="tube")
     top = rings * n
     vertices = np.vstack([side, [[0, 0, 0], [0, 0, length]]])
     c = len(side)

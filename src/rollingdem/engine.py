@@ -467,6 +467,14 @@ class MeshState:
         self.history = np.ascontiguousarray(self.history.reshape(-1, s, h)[perm].reshape(-1, h))
         self.load = np.ascontiguousarray(self.load.reshape(-1, s, WALL_LOAD_SIZE)[perm].reshape(-1, WALL_LOAD_SIZE))
         self.mesh_error = np.ascontiguousarray(self.mesh_error[perm])
+        if len(self.candidate_start) == len(perm) + 1:  # each sphere's candidate row goes with it
+            start = self.candidate_start
+            lengths = np.diff(start)[perm]
+            new_start = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+            total = int(new_start[-1])
+            source = np.repeat(start[:-1][perm] - new_start[:-1], lengths) + np.arange(total)
+            self.candidates[:total] = self.candidates[source]
+            self.candidate_start = new_start
 
     def set_meshes(self, meshes: list, carry: list):
         """Replace the meshes. Each is a dict of ``vertices``, ``triangles``, ``neighbors``,

@@ -66,7 +66,7 @@ def test_the_tessellation_is_what_the_seed_cases_ask_for():
     assert np.mean(np.abs(direction[:, 1]) < math.sin(math.radians(2.0))) < 0.02
 
 
-@pytest.mark.parametrize("rolling", ["cdt", "epsd"])
+@pytest.mark.parametrize("rolling", [pytest.param("cdt", marks=pytest.mark.slow), "epsd"])
 def test_case_1_on_a_random_tessellation_stops_where_the_plane_does(rolling):
     """Case 1 (rolling on a flat, docs/models.md §13 T2) on ~1,000 random triangles: the sphere
     crosses ~80 edges and passes by vertices; its stop distance equals the analytic 0.18836 m

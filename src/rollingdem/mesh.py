@@ -95,6 +95,8 @@ def _into_triangle(vertices, triangles, u, va, vb, qx, qy, qz, px, py, pz):
 
 #: relative tolerance of the feature tests: p counts as in a feature's region up to this much past it
 FEATURE_TOLERANCE = 1e-12
+#: two contacts whose points are closer than this x the radius are one (found from two triangles)
+SAME_POINT = 1e-9
 
 
 @njit(cache=True)
@@ -114,7 +116,9 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
     ``radius`` of p, so they are among the touching ones when the candidates hold every triangle
     that near. So a sphere crossing the shared edge of coplanar triangles has one contact with the
     face normal throughout, one on a convex edge or vertex with the normal from it to the centre,
-    and one per face in a concave corner (Voronoi regions of the surface's features)."""
+    and one per face in a concave corner (Voronoi regions of the surface's features). Two contacts
+    at the same point (within ``SAME_POINT`` R, as when round-off puts a point on a shared edge
+    inside both faces) count once."""
     r2 = radius * radius
     nkeep = lo
     for a in range(lo, hi):
@@ -167,6 +171,11 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
                         scale = math.sqrt((dx * dx + dy * dy + dz * dz) * (ex * ex + ey * ey + ez * ez))
                         if dx * ex + dy * ey + dz * ez > FEATURE_TOLERANCE * scale:
                             keep = False
+        for b in range(lo, n):  # the same point from two triangles (a centre over their shared edge,
+            # classed as inside both faces by round-off): one contact
+            ex, ey, ez = out_point[b, 0] - qx, out_point[b, 1] - qy, out_point[b, 2] - qz
+            if ex * ex + ey * ey + ez * ez <= (SAME_POINT * radius) ** 2:
+                keep = False
         if keep:
             out_tri[n] = t
             out_feature[n] = feature

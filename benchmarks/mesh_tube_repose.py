@@ -10,14 +10,14 @@ usage: python benchmarks/mesh_tube_repose.py [SEEDS]   (default 4)
 import sys
 
 import numpy as np
-import yaml
 
 from rollingdem.analysis import repose_angle
 from rollingdem.casefile import build_simulation, default_case_path, load_case
+from rollingdem.mapping_file import read_mapping
 
 
 def run(seed: int, segments):
-    data = yaml.safe_load(default_case_path().read_text())
+    data = read_mapping(default_case_path())[0]
     data["particles"][0]["seed"] = seed
     if segments is not None:
         data["walls"][1] = {"type": "mesh", "name": "tube", "material": "table1", "shape": "drum",

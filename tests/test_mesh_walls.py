@@ -414,11 +414,10 @@ def default_case_with_a_mesh_tube(segments):
     """The built-in default case (1,000 spheres settle in a tube on a plate, the tube goes, the
     column collapses), its tube the analytic cylinder (``segments`` None) or an open mesh tube of
     ``segments`` flat sides through the cylinder's radius."""
-    import yaml
-
     from rollingdem.casefile import default_case_path, load_case
+    from rollingdem.mapping_file import read_mapping
 
-    data = yaml.safe_load(default_case_path().read_text())
+    data = read_mapping(default_case_path())[0]
     if segments is not None:
         data["walls"][1] = {"type": "mesh", "name": "tube", "material": "table1", "shape": "drum",
                             "size": {"radius": 0.04, "length": 1.3, "segments": segments, "caps": False}}

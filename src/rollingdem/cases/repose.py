@@ -23,6 +23,7 @@ from ..errors import ParameterError
 from ..insertion import CylinderRegion, Uniform
 from ..materials import Material
 from ..simulation import Simulation
+from ..mesh import MeshWall
 from ..walls import Cylinder, Plane
 from .results import CaseResult, Check, pyplot
 from .single_sphere import DT, G, RADIUS, TABLE1
@@ -98,7 +99,7 @@ class Collapse:
 
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
              collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, aspect=1.0, dt=DT,
-             label=None) -> PileRun:
+             label=None, tube_segments=None) -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
     Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
@@ -111,7 +112,8 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     (:func:`rollingdem.analysis.touching`), at most ``MOVING_FRACTION`` (0.5 %) move faster than
     1e-3 sqrt(g d) (:func:`rollingdem.analysis.default_max_speed`). A sphere rolling alone over the
     plate (with little rolling resistance it may roll for seconds) and a few rattlers caged in
-    the pile do not change its surface. Then the angle is measured.
+    the pile do not change its surface. Then the angle is measured. With ``tube_segments`` the
+    tube is a triangle mesh of that many flat sides through the cylinder's radius.
     """
     for what, value, kind in (("material", material, PileMaterial), ("collapse", collapse, Collapse)):
         if not isinstance(value, kind):
@@ -124,7 +126,11 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     sim = Simulation(contact=ContactModel(normal, rolling=rolling, twisting=twisting), dt=dt)
     sim.add_material(material.as_material("m"))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m", name="plate"))
-    tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material="m", name="tube"))
+    if tube_segments is None:
+        tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material="m", name="tube"))
+    else:
+        tube = sim.add_wall(MeshWall.shape("drum", radius=tube_radius, length=2.0 * height + 0.1,
+                                           segments=tube_segments, caps=False, material="m", name="tube"))
     fill = height * PACKING / INSERT_PACKING
     sim.insert(CylinderRegion(tube_radius, 0.0, fill), count, dist, "m", seed=seed)
     # free fall from the top of the fill, then as long again to come to rest

@@ -309,7 +309,9 @@ def _time_run(sim, steps: int) -> tuple[float, int]:
 def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="", split_repeats=20) -> BenchResult:
     n = sim.n_particles
     contacts, neighbors = _contacts_per_particle(sim)
-    state_bytes = sum(a.nbytes for a in vars(sim._state).values() if isinstance(a, np.ndarray))
+    st = sim._state  # its arrays, the contact list's and the meshes'
+    state_bytes = sum(a.nbytes for owner in (st, st.contact_list, st.meshes) for a in vars(owner).values()
+                      if isinstance(a, np.ndarray))
     steps_on = sim._state.governor().steps_on
     if set(steps_on) - {threads}:  # the governor took threads away while other processes were busy
         shares = ", ".join(f"{k} thread{'s' if k > 1 else ''} for {s} steps"

@@ -186,7 +186,7 @@ class _Phases:
                       for owner, names in ((st, ("whist", "wtouch", "wall_load", "energy", "f", "t", "contacts",
                                                  "x_ref")),
                                            (st.meshes, ("slot_triangle", "history", "load", "candidate_start",
-                                                        "candidates", "built")),
+                                                        "candidates", "candidate_gap", "built")),
                                            (st.contact_list, ("pool", "contact_row", "groups", "start", "j", "i",
                                                               "tr_start", "tr_k")))
                       for name in names]

@@ -416,6 +416,7 @@ class MeshState:
 
     def _particle_arrays(self, rows: int):
         self.candidate_start = np.zeros(rows + 1 if rows else 0, dtype=np.int64)
+        self.candidate_gap = np.zeros(rows)  # 0: unknown, never skips
         self.slot_triangle = np.full((rows, MESH_SLOTS), -1, dtype=np.int64)
         self.history = np.zeros((rows * MESH_SLOTS, self.history_size))
         self.load = np.zeros((rows * MESH_SLOTS, WALL_LOAD_SIZE))
@@ -467,6 +468,7 @@ class MeshState:
         self.history = np.ascontiguousarray(self.history.reshape(-1, s, h)[perm].reshape(-1, h))
         self.load = np.ascontiguousarray(self.load.reshape(-1, s, WALL_LOAD_SIZE)[perm].reshape(-1, WALL_LOAD_SIZE))
         self.mesh_error = np.ascontiguousarray(self.mesh_error[perm])
+        self.candidate_gap = np.ascontiguousarray(self.candidate_gap[perm])
         if len(self.candidate_start) == len(perm) + 1:  # each sphere's candidate row goes with it
             start = self.candidate_start
             lengths = np.diff(start)[perm]
@@ -527,8 +529,9 @@ class MeshState:
         """The mesh fields of ``WallArrays``, in their order."""
         return (self.reference, self.vertices, self.built, self.vertex_start, self.triangles, self.neighbors,
                 self.triangle_mesh, self.motion, self.material, self.candidate_start, self.candidates,
-                self.touch_triangle, self.touch_feature, self.touch_point, self.touch_slot, self.slot_triangle,
-                self.history, self.load, self.mesh_error, self.grid, self.grid_start, self.grid_items)
+                self.candidate_gap, self.touch_triangle, self.touch_feature, self.touch_point, self.touch_slot,
+                self.slot_triangle, self.history, self.load, self.mesh_error, self.grid, self.grid_start,
+                self.grid_items)
 
     CHECKPOINT = ("reference", "vertices", "built", "vertex_start", "triangle_start", "triangles", "neighbors",
                   "triangle_mesh", "motion", "material", "slot_triangle", "history", "load")

@@ -14,7 +14,7 @@ from numba.np.arrayobj import reshape_unchecked
 
 from rollingdem.kernel_layout import (BLOCK_SHIFT, CONTACT_BLOCK, CONTACT_INPUTS as IN, I_DRIFTED, I_FORCES_VALID,
                                       I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
-                                      LANE_HITS, MESH_MOTION as MO, MESH_SLOTS, N_INPUTS, N_RESULTS, STATUS_CAPACITY,
+                                      LANE_HITS, MESH_GRID as GR, MESH_MOTION as MO, MESH_SLOTS, N_INPUTS, N_RESULTS, STATUS_CAPACITY,
                                       STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
                                       WALL_LOAD_SIZE)
 from rollingdem.integrator import kick_drift, kick_drift_one, kick_drift_serial, move_walls, next_drift_bound, undo_drift
@@ -452,23 +452,33 @@ def wall_load(load, k, res, cx, cy, cz):
 
 
 @njit(cache=True, inline="always")
-def mesh_contacts(i, dt, particles, walls, pair_params):
+def mesh_contacts(i, dt, particles, walls, pair_params, half_skin):
     """All triangle-mesh contacts of particle i, one per touched surface feature, each in its
     contact slot (``mesh_kernel.match_mesh_contacts``): total force and torque on i, energies,
     contact count. A mesh is a wall: R* = R_i, m* = m_i, its surface velocity at the contact point
-    v + omega x (c - o)."""
+    v + omega x (c - o). A sphere with no contact at the last step skips its candidates when it
+    cannot reach any: its gap to them at the build exceeds how far it has moved since (and a
+    moving mesh's skin/2)."""
     x, v, w = particles.x, particles.v, particles.w
     fx = fy = fz = 0.0
     tx = ty = tz = 0.0
     en = et = er = etw = 0.0
     ncontact = 0
     lo = walls.candidate_start[i]
-    if lo == walls.candidate_start[i + 1]:  # no triangle near: done, unless a contact just ended
+    gap = walls.candidate_gap[i]
+    if lo == walls.candidate_start[i + 1] or gap > 0.0:
         used = False
         for s in range(MESH_SLOTS):
             used |= walls.slot_triangle[i, s] >= 0
-        if not used:
-            return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+        if not used:  # no contact to end
+            if lo == walls.candidate_start[i + 1]:
+                return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+            ex = x[i, 0] - particles.x_ref[i, 0]
+            ey = x[i, 1] - particles.x_ref[i, 1]
+            ez = x[i, 2] - particles.x_ref[i, 2]
+            reach = math.sqrt(ex * ex + ey * ey + ez * ez) + (half_skin if walls.grid[GR.moving] != 0.0 else 0.0)
+            if gap > reach:
+                return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
     px, py, pz = x[i, 0], x[i, 1], x[i, 2]
     ri = particles.radius[i]
     mi = particles.mass[i]
@@ -535,7 +545,7 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     particles.contacts[i] += wres[10]
     stop = False
     if walls.triangles.shape[0] > 0:
-        mres = mesh_contacts(i, dt, particles, walls, pair_params)
+        mres = mesh_contacts(i, dt, particles, walls, pair_params, half_skin)
         fx += mres[0]
         fy += mres[1]
         fz += mres[2]

@@ -41,8 +41,9 @@ MESH_SLOTS = 6
 MESH_MOTION = slots("vx", "vy", "vz", "wx", "wy", "wz", "px", "py", "pz", "elapsed")
 MESH_MOTION_SIZE = len(MESH_MOTION)
 #: the triangle grid's shape (``WallArrays.grid``): the reach it was binned for (m), cell size (m),
-#: origin (m), cells along x, y, z, and whether it holds the meshes as they are (1.0)
-MESH_GRID = slots("reach", "h", "x0", "y0", "z0", "nx", "ny", "nz", "valid")
+#: origin (m), cells along x, y, z, whether it holds the meshes as they are (1.0), and whether a
+#: mesh moves (1.0)
+MESH_GRID = slots("reach", "h", "x0", "y0", "z0", "nx", "ny", "nz", "valid", "moving")
 
 ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")  # columns of the dissipated energy
 
@@ -128,6 +129,7 @@ WallArrays = collections.namedtuple("WallArrays", (
     "mesh_material",     # (meshes,) int32
     "candidate_start",   # (n + 1,) int64 CSR rows: the triangles within R_i + skin of each sphere
     "candidates",        # (capacity,) int64 their triangles, built with the neighbor list
+    "candidate_gap",     # (n,) the least distance to them minus R_i, at the build (m); 0: unknown
     "touch_triangle",    # (capacity,) int64 scratch of a sphere's contacts, in its own candidate rows:
     "touch_feature",     # (capacity,) int64   triangle, feature (rollingdem.mesh.FACE ...), contact point,
     "touch_point",       # (capacity, 3)       and slot

@@ -89,6 +89,8 @@ def build_mesh_candidates(x, radius, skin, walls):
     tells when a mesh has moved that far). The triangles are binned (``bin_triangles``) anew only
     when a mesh moves or R_max + skin changed; a sphere tests the triangles of its own cell by
     their exact distance, so the cost grows with the triangles near spheres, not with all of them.
+    ``walls.candidate_gap[i]``: the least distance from sphere i's centre to its candidates, less
+    R_i (``engine_kernel.mesh_contacts`` skips a sphere that cannot have reached them since).
     Returns (0, entries), or (1, entries needed) when ``walls.candidates`` is too short, or (2,
     entries needed) when ``walls.grid_items`` is (nothing else is changed then)."""
     n = x.shape[0]
@@ -109,6 +111,8 @@ def build_mesh_candidates(x, radius, skin, walls):
         needed = bin_triangles(reach, walls)
         if needed:
             return 2, needed
+    grid[GR.moving] = 1.0 if moving else 0.0
+    gap = walls.candidate_gap
     for v in range(vert.shape[0]):
         for d in range(3):
             walls.built[v, d] = vert[v, d]
@@ -120,6 +124,7 @@ def build_mesh_candidates(x, radius, skin, walls):
         for i in range(n):
             if not fill:
                 start[i + 1] = 0
+                gap[i] = math.inf
             fx, fy, fz = (x[i, 0] - lox) / h, (x[i, 1] - loy) / h, (x[i, 2] - loz) / h
             if not (0.0 <= fx < nx and 0.0 <= fy < ny and 0.0 <= fz < nz):  # NaN too
                 continue
@@ -131,12 +136,14 @@ def build_mesh_candidates(x, radius, skin, walls):
                 q = closest_point_on_triangle(x[i, 0], x[i, 1], x[i, 2], vert[a, 0], vert[a, 1], vert[a, 2],
                                               vert[b, 0], vert[b, 1], vert[b, 2], vert[c, 0], vert[c, 1], vert[c, 2])
                 dx, dy, dz = x[i, 0] - q[0], x[i, 1] - q[1], x[i, 2] - q[2]
-                if dx * dx + dy * dy + dz * dz < within * within:
+                d2 = dx * dx + dy * dy + dz * dz
+                if d2 < within * within:
                     if fill:
                         cand[start[i]] = t
                         start[i] += 1
                     else:
                         start[i + 1] += 1
+                        gap[i] = min(gap[i], math.sqrt(d2) - radius[i])
         if not fill:
             for i in range(n):
                 start[i + 1] += start[i]

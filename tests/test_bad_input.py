@@ -430,3 +430,19 @@ def test_pile_run_refuses_settings_that_are_not_its_dataclasses():
         pile_run(material={"friction": 0.5})
     with pytest.raises(rd.ParameterError, match=r"^collapse = 1.5 is not allowed: .*Collapse$"):
         pile_run(collapse=1.5)
+
+
+def test_an_existing_output_file_may_be_written_again(tmp_path):
+    """``--json results.json`` where results.json exists (a second run of a script) is allowed; a
+    file where a folder is wanted, or a folder where a file is, is refused."""
+    from rollingdem.errors import ParameterError, check_output_path
+
+    old = tmp_path / "results.json"
+    old.write_text("{}")
+    assert check_output_path("--json", old, folder=False) == old
+    with pytest.raises(ParameterError, match="it is a file; must be a folder"):
+        check_output_path("--out", old)
+    with pytest.raises(ParameterError, match="it is a folder; must be a file name"):
+        check_output_path("--json", tmp_path, folder=False)
+    with pytest.raises(ParameterError, match="is a file; must be a folder"):
+        check_output_path("--json", old / "x.json", folder=False)

@@ -134,7 +134,8 @@ def check_output_path(name: str, path, *, folder: bool = True):
             raise ParameterError(f"{name} = {str(path)!r} is not allowed: it is a file; must be a folder")
         if not folder and path.is_dir():
             raise ParameterError(f"{name} = {str(path)!r} is not allowed: it is a folder; must be a file name")
-    for above in (path, *path.absolute().parents):
+    # the folders it goes in (an existing output file is overwritten)
+    for above in ((path,) if folder else ()) + tuple(path.absolute().parents):
         if above.exists():
             if not above.is_dir():
                 raise ParameterError(f"{name} = {str(path)!r} is not allowed: {above} is a file; must be a folder")

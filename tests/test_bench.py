@@ -13,7 +13,6 @@ from rollingdem.cli import app
 from rollingdem.errors import ParameterError
 
 
-@pytest.mark.slow  # the command end to end measures a cold compile in a fresh process: 40 s of the default suite
 def test_bench_json_reports_the_scene(tmp_path):
     out = tmp_path / "b.json"
     tic = time.perf_counter()

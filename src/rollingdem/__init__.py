@@ -19,7 +19,7 @@ from . import contact as _contact  # noqa: E402
 from . import convert  # noqa: E402
 from .contact import ContactModel  # noqa: E402
 from .errors import ParameterError, SimulationError  # noqa: E402
-from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform  # noqa: E402
+from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform, rough_base  # noqa: E402
 from .materials import Material, MaterialTable  # noqa: E402
 from .mesh import MeshWall, TriangleMesh  # noqa: E402
 from .observers import Callback, Checkpoints, Observer, TimeSeries, VTKSnapshots  # noqa: E402
@@ -32,6 +32,6 @@ globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (r
 __all__ = [
     "convert", "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "TriangleMesh", "TimeSeries",
     "VTKSnapshots", "Checkpoints", "Callback", "Observer", "BoxRegion", "CylinderRegion", "Uniform", "Normal",
-    "Discrete", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
+    "Discrete", "rough_base", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
     *_contact.SUBMODELS,
 ]

@@ -50,6 +50,7 @@ class EngineState:
         # (0, 4): a kernel without TRACK_ENERGY never touches it (32 B/p saved)
         self.energy = np.zeros((0, len(ENERGY_CHANNELS)))
         self.contacts = np.zeros(n, dtype=np.int32)  # contacts per sphere: int32 is plenty, 4 B/p less
+        self.fixed = np.zeros(n, dtype=np.uint8)
         self.x_ref = np.zeros((n, 3))
         self.ids = np.zeros(n, dtype=np.int64)
         self._slots = None  # slot of each id, once the slots were re-sorted
@@ -79,7 +80,7 @@ class EngineState:
     def rebuild_list(self, skin: float) -> int:
         """Rebuild the neighbor list at the present positions, carrying the contacts over (the
         arrays grow as needed); returns its number of entries."""
-        return self.contact_list.rebuild(self.x, self.radius, skin, self.ids, self.x_ref, self.grow)
+        return self.contact_list.rebuild(self.x, self.radius, skin, self.ids, self.fixed, self.x_ref, self.grow)
 
     def derive_wall_touch(self):
         """``wtouch[i * n_walls + w]``: whether particle i touched wall w at the last step (it keeps a
@@ -100,8 +101,9 @@ class EngineState:
             self.contact_list.index()
 
     # --- particles and walls -----------------------------------------------------------------
-    def append_particles(self, x, v, w, radius, mass, inertia, mat):
-        """Append particles; existing indices, list entries and history keep their meaning."""
+    def append_particles(self, x, v, w, radius, mass, inertia, mat, fixed=None):
+        """Append particles (``fixed``: one flag each, default free); existing indices, list entries
+        and history keep their meaning."""
         n0 = self.n
         m = x.shape[0]
         self.x = np.concatenate([self.x, x])
@@ -116,6 +118,8 @@ class EngineState:
         if len(self.energy):
             self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
         self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int32)])
+        self.fixed = np.concatenate([self.fixed, np.zeros(m, dtype=np.uint8) if fixed is None
+                                     else np.asarray(fixed, dtype=np.uint8)])
         self.x_ref = np.concatenate([self.x_ref, x])
         self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
         if self._slots is not None:
@@ -191,7 +195,7 @@ class EngineState:
         inv = np.empty(n, dtype=np.int64)
         inv[perm] = np.arange(n)
         for name in ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts",
-                     "x_ref"):
+                     "fixed", "x_ref"):
             if len(getattr(self, name)) == n:  # energy may be unallocated
                 setattr(self, name, np.ascontiguousarray(getattr(self, name)[perm]))
         if self.n_walls:
@@ -227,7 +231,7 @@ class EngineState:
         """The kernel's four records (``rollingdem.kernel_layout``), of the arrays as they are now
         (the arrays are replaced when they grow: records are made for each call)."""
         return (ParticleArrays(self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
-                               self.ids, self.x_ref, self.energy, self.contacts),
+                               self.ids, self.x_ref, self.energy, self.contacts, self.fixed),
                 WallArrays(self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat, self.whist,
                            self.wtouch, self.wall_load, *self.meshes.arrays()),
                 self.contact_list.arrays(),
@@ -345,6 +349,8 @@ class EngineState:
     def to_arrays(self) -> dict:
         out = {name: getattr(self, name) for name in self.ARRAYS}
         out["wall_load"] = self.wall_load
+        if self.fixed.any():
+            out["fixed"] = self.fixed
         out.update(self.meshes.to_arrays())
         cl = self.contact_list
         total = cl.size
@@ -363,6 +369,7 @@ class EngineState:
         for name in cls.ARRAYS:
             setattr(st, name, np.array(arrays[name]))
         st.contacts = st.contacts.astype(np.int32)  # int64 in older checkpoints
+        st.fixed = np.array(arrays["fixed"], dtype=np.uint8) if "fixed" in arrays else np.zeros(st.n, dtype=np.uint8)
         st.wall_load = np.array(arrays["wall_load"]) if "wall_load" in arrays else \
             np.zeros((st.n * st.n_walls, WALL_LOAD_SIZE))  # absent in older checkpoints
         st.meshes.from_arrays(arrays, st.n)

@@ -205,11 +205,18 @@ def entry_inputs(i, k, particles, lists):
     mj = mass[j]
     ai = mi * ri * ri
     aj = mj * rj * rj
+    m_eff = mi * mj / (mi + mj)
+    inertia_r = INERTIA_R_FACTOR * ai * aj / (ai + aj)
+    if particles.fixed[i] | particles.fixed[j]:
+        # a fixed partner has infinite mass and inertia, as a wall (LAMMPS's frozen atoms in the
+        # granular pair styles): the free partner's own
+        free = j if particles.fixed[i] else uint32(i)
+        m_eff = mass[free]
+        inertia_r = INERTIA_R_FACTOR * mass[free] * radius[free] * radius[free]
     return True, j, row, (dx * inv_dist, dy * inv_dist, dz * inv_dist, overlap,
                           v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
                           w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
-                          ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, mi * mj / (mi + mj),
-                          INERTIA_R_FACTOR * ai * aj / (ai + aj))
+                          ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, m_eff, inertia_r)
 
 
 @njit(cache=True, inline="always")
@@ -523,6 +530,8 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     more from where the list was built, 1 if its next drift would: the skin is too small)."""
     x, v, w, f, t, mass, inertia = particles.x, particles.v, particles.w, particles.f, particles.t, particles.mass, \
         particles.inertia
+    if particles.fixed[i]:  # it keeps the sum of its pair forces (the load on it), and stays
+        return 0, 0
     fx = f[i, 0]
     fy = f[i, 1]
     fz = f[i, 2]
@@ -580,7 +589,7 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     # the next step's opening half kick and drift, also when i is too fast (the chunk then stops
     # and undo_drift takes them back), but not when i is not finite
     if kick == 2.0 and step_move - step_move == 0.0:
-        exceed = kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, particles.x_ref, half_skin)
+        exceed = kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, particles.x_ref, particles.fixed, half_skin)
     return exceed, fast
 
 
@@ -639,7 +648,8 @@ def gather_serial(dt, kick, gravity, pair_params, particles, walls, lists, half_
 
 @njit(cache=True)
 def _rebuild(particles, walls, lists, skin, info):
-    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.x_ref, lists)
+    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.fixed, particles.x_ref,
+                                  lists)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY
         info[I_NEEDED] = -total

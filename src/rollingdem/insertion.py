@@ -715,3 +715,55 @@ def _fill(region: Region, r_all: np.ndarray, rng, ex: np.ndarray, er: np.ndarray
     x_out = np.empty((n, 3))
     x_out[order] = placed_x
     return x_out, n_placed, None
+
+
+# --- a rough base --------------------------------------------------------------------------------
+ROUGH_BASE_SPACING = 2.2
+"""Default centre spacing of ``rough_base``, in radii: gaps of 0.2 R, too narrow for a sphere of the
+same size to sink in, wide enough for the default jitter."""
+
+
+def rough_base(radius, extent, spacing=None, jitter=None, seed=0, z=0.0) -> np.ndarray:
+    """Centres of a jittered hexagonal layer of spheres resting on the plane at height ``z``: a rough
+    base to add with ``sim.add_particles(base, radius, material, fixed=True)``, as the repose studies
+    in PFC and LIGGGHTS glue a layer of particles to the floor.
+
+    ``extent`` = ((x_min, x_max), (y_min, y_max)) (m): every sphere lies inside it. Rows of spheres
+    ``spacing`` apart (default 2.2 ``radius``), every other row shifted half a spacing; each centre
+    moved in the plane by a random vector of length up to ``jitter`` (default: half the gap,
+    (spacing - 2 radius) / 2, the most that keeps the spheres apart). Centres at z + radius.
+    Reproducible from ``seed``. Returns (N, 3) positions.
+    """
+    r = check_positive("radius", radius, "m")
+    try:
+        ext = np.array(extent, dtype=np.float64)
+    except (TypeError, ValueError):
+        ext = None
+    if ext is None or ext.shape != (2, 2) or not np.isfinite(ext).all():
+        raise ParameterError(f"extent = {extent!r} is not allowed: must be ((x_min, x_max), (y_min, y_max)) in m")
+    a = ROUGH_BASE_SPACING * r if spacing is None else check_positive("spacing", spacing, "m")
+    if a < 2.0 * r:
+        raise ParameterError(f"spacing = {a:g} is not allowed: must be >= 2 radius = {2 * r:g} m (the spheres "
+                             "would overlap)")
+    jit = 0.5 * (a - 2.0 * r) if jitter is None else check_non_negative("jitter", jitter, "m")
+    if a - 2.0 * jit < 2.0 * r * (1.0 - 1e-12):
+        raise ParameterError(f"jitter = {jit:g} is not allowed with spacing = {a:g} m and radius = {r:g} m: must be "
+                             f"<= (spacing - 2 radius) / 2 = {0.5 * (a - 2 * r):g} m, or neighbors could overlap")
+    z0 = check_finite("z", z)
+    for axis, (lo, hi) in zip("xy", ext):
+        if hi - lo < 2.0 * (r + jit):
+            raise ParameterError(f"extent along {axis} = ({lo:g}, {hi:g}) is not allowed: must be at least "
+                                 f"2 (radius + jitter) = {2 * (r + jit):g} m wide to hold one sphere")
+    row = a * math.sqrt(3.0) / 2.0
+    margin = r + jit
+    ys = np.arange(ext[1, 0] + margin, ext[1, 1] - margin + 1e-12 * a, row)
+    points = []
+    for k, y in enumerate(ys):
+        xs = np.arange(ext[0, 0] + margin + (0.5 * a if k % 2 else 0.0), ext[0, 1] - margin + 1e-12 * a, a)
+        points.append(np.column_stack([xs, np.full(len(xs), y)]))
+    xy = np.concatenate(points) if points else np.zeros((0, 2))
+    rng = np.random.default_rng(seed)
+    angle = rng.uniform(0.0, 2.0 * math.pi, len(xy))
+    length = jit * np.sqrt(rng.uniform(0.0, 1.0, len(xy)))  # uniform over the disk of radius jitter
+    xy = xy + np.column_stack([length * np.cos(angle), length * np.sin(angle)])
+    return np.column_stack([xy, np.full(len(xy), z0 + r)])

@@ -20,9 +20,12 @@ def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
 
 
 @njit(cache=True, inline="always")
-def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin):
+def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, half_skin):
     """Opening half kick and drift of particle i; 1 if it is now skin/2 or more from where the list
-    was built (NaN: 1). Arrays, not the record: it is inlined into a prange body."""
+    was built (NaN: 1). A fixed particle stays. Arrays, not the record: it is inlined into a prange
+    body."""
+    if fixed[i]:
+        return 0
     a = 0.5 * dt / mass[i]
     b = 0.5 * dt / inertia[i]
     for d in range(3):
@@ -40,20 +43,20 @@ def kick_drift(dt, particles, half_skin):
     """Opening half kick and drift of velocity Verlet; the count of particles now skin/2 or more
     from where the list was built."""
     x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
-    mass, inertia, x_ref = particles.mass, particles.inertia, particles.x_ref
+    mass, inertia, x_ref, fixed = particles.mass, particles.inertia, particles.x_ref, particles.fixed
     nexceed = 0
     for i in prange(x.shape[0]):
-        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
+        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, half_skin)
     return nexceed
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def kick_drift_serial(dt, particles, half_skin):
     x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
-    mass, inertia, x_ref = particles.mass, particles.inertia, particles.x_ref
+    mass, inertia, x_ref, fixed = particles.mass, particles.inertia, particles.x_ref, particles.fixed
     nexceed = 0
     for i in range(x.shape[0]):
-        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, half_skin)
+        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, half_skin)
     return nexceed
 
 
@@ -66,6 +69,8 @@ def undo_drift(dt, particles):
     x, v, w, f, t, mass, inertia = particles.x, particles.v, particles.w, particles.f, particles.t, particles.mass, \
         particles.inertia
     for i in range(x.shape[0]):
+        if particles.fixed[i]:
+            continue
         a = 0.5 * dt / mass[i]
         vx = v[i, 0] - a * f[i, 0]
         vy = v[i, 1] - a * f[i, 1]

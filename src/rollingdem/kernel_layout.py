@@ -106,6 +106,8 @@ ParticleArrays = collections.namedtuple("ParticleArrays", (
     "x_ref",      # (n, 3) position at the last neighbor-list build
     "energy",     # (n, 4) dissipated energy per ENERGY_CHANNELS, or (0, 4) when not summed
     "contacts",   # (n,) int32 contacts of the last step
+    "fixed",      # (n,) uint8 1: a fixed particle (never moves; walls and gravity skip it; its
+                  #   contacts take the free partner's mass and rolling inertia, as a wall's)
 ))
 WallArrays = collections.namedtuple("WallArrays", (
     "kind",              # (walls,) int32 WALL_PLANE, WALL_CYLINDER

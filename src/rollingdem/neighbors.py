@@ -98,9 +98,9 @@ def _grid(x, radius, skin, max_cells):
 
 
 @njit(cache=True, parallel=True)
-def _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, fill):
+def _scan_pairs(x, radius, skin, ids, fixed, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, fill):
     """For each i, the j with ids[j] > ids[i] in the 27 surrounding cells with |x_i - x_j| < R_i + R_j
-    + skin: counted into ``counts`` (fill = False, the other arrays untouched) or written, sorted by
+    + skin, not both fixed: counted into ``counts`` (fill = False, the other arrays untouched) or written, sorted by
     id, into its row of ``new_j`` (fill = True)."""
     n = x.shape[0]
     for i in prange(n):
@@ -114,6 +114,7 @@ def _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, cou
         zi = x[i, 2]
         ri = radius[i]
         idi = ids[i]
+        fixed_i = fixed[i]
         for dz in range(-1, 2):
             z = cz + dz
             if z < 0 or z >= dims[2]:
@@ -134,7 +135,8 @@ def _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, cou
                     ddz = zi - x[j, 2]
                     # one test, mostly false, instead of the id test first (true for half the
                     # candidates, in no pattern: a mispredicted branch each other time)
-                    if (ids[j] > idi) & (ddx * ddx + ddy * ddy + ddz * ddz < cut * cut):
+                    if (ids[j] > idi) & ((fixed[j] & fixed_i) == 0) & \
+                            (ddx * ddx + ddy * ddy + ddz * ddz < cut * cut):
                         if fill:
                             new_j[k] = j
                         k += 1
@@ -264,9 +266,9 @@ def list_rows(n, nl_start, nl_i):
 
 
 @njit(cache=True)
-def rebuild_neighbor_list(x, radius, skin, ids, x_ref, lists):
+def rebuild_neighbor_list(x, radius, skin, ids, fixed, x_ref, lists):
     """Rebuild the half list (``lists``, a ``kernel_layout.ListArrays``) at the current positions,
-    carrying contact history over; ``x_ref`` gets the positions it was built at.
+    carrying contact history over (pairs of two fixed particles are left out); ``x_ref`` gets the positions it was built at.
 
     Returns the number of list entries, or minus the capacity needed when ``nl_j`` is too short
     (nothing is changed then: the caller grows the arrays and calls again). The contact rows move
@@ -289,7 +291,8 @@ def rebuild_neighbor_list(x, radius, skin, ids, x_ref, lists):
     _bin_particles(x, cell, lo, dims, cell_start, cell_items, cell_of)
     # np.bool_, not a literal False/True: a literal compiles _scan_pairs once per value (1.5 s more
     # of a cold compile, and the rebuild no faster: 16.6 and 16.1 ms on the 20,000-sphere column)
-    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, np.bool_(False))
+    _scan_pairs(x, radius, skin, ids, fixed, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
+                np.bool_(False))
     total = 0
     for i in range(n):
         total += counts[i]
@@ -299,7 +302,8 @@ def rebuild_neighbor_list(x, radius, skin, ids, x_ref, lists):
     nl_start[0] = 0
     for i in range(n):
         nl_start[i + 1] = nl_start[i] + counts[i]
-    _scan_pairs(x, radius, skin, ids, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j, np.bool_(True))
+    _scan_pairs(x, radius, skin, ids, fixed, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
+                np.bool_(True))
     _drop_lost_contacts(n, ids, nl_start, nl_j, pool, tr_start, tr_k)
     _place_contacts(n, nl_start, nl_j, contact_row, pool, tr_start, tr_k, groups)
     _transpose(n, nl_start, nl_j, tr_start, tr_k)
@@ -398,11 +402,11 @@ class ContactList:
         return int(self.start[-1]) if self.start.size else 0
 
     # --- building --------------------------------------------------------------------------
-    def rebuild(self, x, radius, skin, ids, x_ref, grow) -> int:
+    def rebuild(self, x, radius, skin, ids, fixed, x_ref, grow) -> int:
         """Rebuild at the present positions, carrying the contacts over; ``grow(needed)`` is called
         while the arrays are too short. Returns the number of entries."""
         while True:
-            total = rebuild_neighbor_list(x, radius, skin, ids, x_ref, self.arrays())
+            total = rebuild_neighbor_list(x, radius, skin, ids, fixed, x_ref, self.arrays())
             if total >= 0:
                 list_rows(self.rows, self.start, self.i)
                 return total

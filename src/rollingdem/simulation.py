@@ -114,10 +114,14 @@ class Simulation:
         return self._state.n
 
     def add_particles(self, positions, radius, material, velocity=None, angular_velocity=None,
-                      allow_overlap: bool = False) -> np.ndarray:
+                      allow_overlap: bool = False, fixed: bool = False) -> np.ndarray:
         """Add spheres; returns their indices. ``radius`` is a number or one per sphere (m).
 
-        Spheres that overlap each other or a wall are refused unless ``allow_overlap``.
+        Spheres that overlap each other or a wall are refused unless ``allow_overlap``. ``fixed``
+        spheres never move (a rough base, an obstacle): they touch free spheres with their material
+        and radius, as a partner of infinite mass and inertia, and neither walls nor each other
+        (pairs of fixed spheres are left out of the neighbor list, so a base costs only its
+        contacts with free spheres); ``forces`` holds the load the free spheres put on them.
         """
         try:
             x = np.array(positions, dtype=np.float64, ndmin=2)
@@ -139,6 +143,11 @@ class Simulation:
             raise ParameterError(f"radius of particle {k} = {r[k]:g} is not allowed: must be > 0 (m)")
         v = self._vectors("velocity", velocity, m)
         w = self._vectors("angular_velocity", angular_velocity, m)
+        if not isinstance(fixed, (bool, np.bool_)):
+            raise ParameterError(f"fixed = {_short(fixed)} is not allowed: must be True or False")
+        if fixed and (v.any() or w.any()):
+            raise ParameterError("velocity / angular_velocity of fixed particles is not allowed: a fixed particle "
+                                 "never moves; leave them out (or add the particles with fixed=False)")
         mat_idx = (self.materials.index(material) if not isinstance(material, (list, tuple, np.ndarray))
                    else None)
         if mat_idx is None:
@@ -153,7 +162,8 @@ class Simulation:
         density = np.array([self.materials.materials[k].density for k in mats])
         mass = density * (4.0 / 3.0) * math.pi * r ** 3
         first = self.n_particles
-        self._state.append_particles(x, v, w, r, mass, SOLID_SPHERE * mass * r ** 2, mats)
+        self._state.append_particles(x, v, w, r, mass, SOLID_SPHERE * mass * r ** 2, mats,
+                                     np.full(m, bool(fixed), dtype=np.uint8))
         self._pair_params = None
         return np.arange(first, first + m)
 
@@ -380,9 +390,20 @@ class Simulation:
     def material_indices(self) -> np.ndarray:
         return self._state.by_id(self._state.mat)
 
+    @property
+    def fixed(self) -> np.ndarray:
+        """Whether each particle is fixed (``add_particles(..., fixed=True)``), bool."""
+        return self._state.by_id(self._state.fixed).astype(bool)
+
     def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
         """Set translational (m/s) and/or angular (rad/s) velocities of some particles."""
-        idx = self._state.slots(self._indices(indices))
+        ids = self._indices(indices)
+        idx = self._state.slots(ids)
+        held = self._state.fixed[idx] != 0
+        if held.any() and any(np.any(vec) for vec in (velocity, angular_velocity) if vec is not None):
+            raise ParameterError(f"indices = {_short(indices)} is not allowed with a nonzero velocity: particle "
+                                 f"{int(ids[np.argmax(held)])} is fixed and never moves; leave the fixed particles "
+                                 "out (sim.fixed says which they are)")
         if velocity is not None:
             self._state.v[idx] = self._vectors("velocity", velocity, len(idx))
         if angular_velocity is not None:

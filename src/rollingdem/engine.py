@@ -53,6 +53,9 @@ class EngineState:
         self.fixed = np.zeros(n, dtype=np.uint8)
         self.x_ref = np.zeros((n, 3))
         self.ids = np.zeros(n, dtype=np.int64)
+        # each particle's number for good (VTK ``id``), as ids are renumbered when particles go
+        self.tags = np.zeros(n, dtype=np.int64)
+        self.next_tag = 0
         self._slots = None  # slot of each id, once the slots were re-sorted
         self._governor = None  # made by governor() when first used
         self.steps_since_sort = 0
@@ -122,6 +125,8 @@ class EngineState:
                                      else np.asarray(fixed, dtype=np.uint8)])
         self.x_ref = np.concatenate([self.x_ref, x])
         self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
+        self.tags = np.concatenate([self.tags, np.arange(self.next_tag, self.next_tag + m, dtype=np.int64)])
+        self.next_tag += m
         if self._slots is not None:
             self._slots = np.concatenate([self._slots, np.arange(n0, n0 + m, dtype=np.int64)])
         wall_hist = self.whist.reshape(n0, self.n_walls, self.history_size) if n0 else None
@@ -194,8 +199,7 @@ class EngineState:
             return
         inv = np.empty(n, dtype=np.int64)
         inv[perm] = np.arange(n)
-        for name in ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts",
-                     "fixed", "x_ref"):
+        for name in self.PER_PARTICLE:
             if len(getattr(self, name)) == n:  # energy may be unallocated
                 setattr(self, name, np.ascontiguousarray(getattr(self, name)[perm]))
         if self.n_walls:
@@ -208,6 +212,51 @@ class EngineState:
         self.contact_list.reorder(perm, inv)  # rows move with their particle
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
+
+    PER_PARTICLE = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "tags", "energy", "contacts",
+                    "fixed", "x_ref")
+
+    def remove(self, gone: np.ndarray) -> None:
+        """Take out the particles of the slots where ``gone`` is True. The others keep their state
+        and every contact among them its history; their ids are renumbered in the same order (so
+        each pair keeps its orientation in the half list), their tags stay. Forces are computed
+        anew at the next step, without the particles that went."""
+        gone = np.asarray(gone, dtype=bool)
+        if not gone.any():
+            return
+        keep = ~gone
+        n, h = self.n, self.history_size
+        arrays = self.to_arrays()
+        for name in self.PER_PARTICLE:
+            if len(arrays[name]) == n:
+                arrays[name] = arrays[name][keep]
+        arrays["ids"] = np.argsort(np.argsort(arrays["ids"], kind="stable"), kind="stable").astype(np.int64)
+        for name, width in (("whist", h), ("wall_load", WALL_LOAD_SIZE)):
+            arrays[name] = arrays[name].reshape(n, self.n_walls, width)[keep].reshape(-1, width)
+        if self.meshes.n_meshes:
+            arrays["mesh_slot_triangle"] = arrays["mesh_slot_triangle"][keep]
+            for name, width in (("mesh_history", h), ("mesh_load", WALL_LOAD_SIZE)):
+                arrays[name] = arrays[name].reshape(n, MESH_SLOTS, width)[keep].reshape(-1, width)
+            arrays["mesh_candidate_start"] = np.zeros(keep.sum() + 1, dtype=np.int64)  # built again
+            arrays["mesh_candidates"] = arrays["mesh_candidates"][:0]
+        start = arrays["nl_start"].astype(np.int64)
+        row = np.repeat(np.arange(n), np.diff(start))
+        j = arrays["nl_j"].astype(np.int64)
+        entry = keep[row] & keep[j]
+        slot = np.cumsum(keep) - 1
+        arrays["nl_j"] = slot[j[entry]].astype(np.int32)
+        arrays["hist"] = arrays["hist"][entry]
+        arrays["tr_k"] = arrays["tr_k"][entry]
+        arrays["nl_start"] = np.concatenate([[0], np.cumsum(np.bincount(slot[row[entry]], minlength=int(keep.sum())))])
+        arrays["tr_start"] = np.zeros_like(arrays["nl_start"])
+        fresh = EngineState.from_arrays(arrays, h)
+        names = self.meshes.names
+        for key, value in fresh.__dict__.items():
+            if key not in ("_governor", "_blocks", "_lanes"):
+                setattr(self, key, value)
+        self.meshes.names = names
+        self.info[I_FORCES_VALID] = 0
+        self.info[I_NEED_REBUILD] = 1
 
     # --- running -------------------------------------------------------------------------------
     def contact_blocks(self):
@@ -349,8 +398,9 @@ class EngineState:
     def to_arrays(self) -> dict:
         out = {name: getattr(self, name) for name in self.ARRAYS}
         out["wall_load"] = self.wall_load
-        if self.fixed.any():
-            out["fixed"] = self.fixed
+        out["tags"] = self.tags
+        out["next_tag"] = np.array(self.next_tag)
+        out["fixed"] = self.fixed
         out.update(self.meshes.to_arrays())
         cl = self.contact_list
         total = cl.size
@@ -370,6 +420,8 @@ class EngineState:
             setattr(st, name, np.array(arrays[name]))
         st.contacts = st.contacts.astype(np.int32)  # int64 in older checkpoints
         st.fixed = np.array(arrays["fixed"], dtype=np.uint8) if "fixed" in arrays else np.zeros(st.n, dtype=np.uint8)
+        st.tags = np.array(arrays["tags"]) if "tags" in arrays else st.ids.copy()
+        st.next_tag = int(arrays["next_tag"]) if "next_tag" in arrays else st.n
         st.wall_load = np.array(arrays["wall_load"]) if "wall_load" in arrays else \
             np.zeros((st.n * st.n_walls, WALL_LOAD_SIZE))  # absent in older checkpoints
         st.meshes.from_arrays(arrays, st.n)

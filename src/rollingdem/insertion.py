@@ -145,6 +145,7 @@ class SizeDistribution:
     """Base class of radius distributions; ``sample(rng, n)`` gives n radii (m)."""
 
     max_radius: float
+    min_radius: float
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
         raise NotImplementedError
@@ -155,7 +156,7 @@ class Constant(SizeDistribution):
 
     def __init__(self, radius):
         self.radius = check_positive("radius", radius, "m")
-        self.max_radius = self.radius
+        self.max_radius = self.min_radius = self.radius
 
     def sample(self, rng, n):
         return np.full(int(n), self.radius)
@@ -174,6 +175,7 @@ class Uniform(SizeDistribution):
             raise ParameterError(f"Uniform low = {_fmt(self.low)} is not allowed: must be <= high "
                                  f"= {_fmt(self.high)} (m)")
         self.max_radius = self.high
+        self.min_radius = self.low
 
     def sample(self, rng, n):
         return rng.uniform(self.low, self.high, int(n))
@@ -211,6 +213,7 @@ class Normal(SizeDistribution):
                                      f"lies too far in the tail of mean = {_fmt(self.mean)}, std = {_fmt(self.std)} "
                                      f"(probability {self._p:.2g} < 1e-4)")
         self.max_radius = self.high
+        self.min_radius = self.low
 
     def sample(self, rng, n):
         n = int(n)
@@ -257,6 +260,7 @@ class Discrete(SizeDistribution):
         self.values = np.array(vals)
         self.weights = np.array(w) / sum(w)
         self.max_radius = float(self.values[self.weights > 0].max())
+        self.min_radius = float(self.values[self.weights > 0].min())
 
     def sample(self, rng, n):
         return rng.choice(self.values, size=int(n), p=self.weights)

@@ -58,7 +58,11 @@ class TimeSeries(Observer):
     velocity m/s, angular velocity rad/s, torque N m); and for each wall in place when the series
     starts (by name, or ``#k``), ``wall_{name}_fx .. fz, wall_{name}_tx .. tz``: the force on it (N)
     and its torque (N m) about its point (a mesh's turning point, default its centroid), empty once
-    it is removed (``Simulation.wall_loads``).
+    it is removed (``Simulation.wall_loads``); for each outlet and inflow (by name, or ``#k``),
+    ``outlet_{name}_count``, ``outlet_{name}_mass`` (taken out, cumulative, kg) and
+    ``inflow_{name}_count``, ``_mass``, ``_shortfall`` (inserted, cumulative; due but not placed at
+    its last action). A chosen particle is the one with that ``particle_ids`` number; its columns
+    are empty once an outlet has taken it out.
     """
 
     def __init__(self, path, interval: float, particles=()):
@@ -71,6 +75,7 @@ class TimeSeries(Observer):
         self._file = None
         self._writer = None
         self._walls = None  # the walls' keys, fixed when the series starts
+        self._boundaries = None  # the outlets' and inflows' columns, as well
 
     def columns(self):
         cols = ["time", "step", "kinetic_translational", "kinetic_rotational", "kinetic_total", "contacts",
@@ -80,7 +85,7 @@ class TimeSeries(Observer):
                 cols.append(f"p{p}_{q}")
         for name in self._walls or ():
             cols += [f"wall_{name}_{q}" for q in ("fx", "fy", "fz", "tx", "ty", "tz")]
-        return cols
+        return cols + list(self._boundaries or ())
 
     def check(self, sim):
         for p in self.particles:
@@ -93,6 +98,7 @@ class TimeSeries(Observer):
         sim.track_energy = True  # the dissipated-energy columns
         if self._walls is None:
             self._walls = list(sim.wall_loads())
+            self._boundaries = list(sim.boundary_counts())
         self.path.parent.mkdir(parents=True, exist_ok=True)
         exists = self.path.exists() and self.path.stat().st_size > 0
         self._file = open(self.path, "a", newline="")
@@ -105,14 +111,22 @@ class TimeSeries(Observer):
         diss = sim.dissipated_energy()
         row = [repr(sim.time), sim.step, repr(tr), repr(rot), repr(tr + rot), sim.number_of_contacts()]
         row += [repr(v) for v in diss.values()]
-        for p in self.particles:
-            for arr in (sim.positions, sim.velocities, sim.angular_velocities, sim.torques):
-                row += [repr(float(c)) for c in arr[p]]
+        if self.particles:
+            tags = sim.particle_ids
+            rows = np.searchsorted(tags, self.particles)
+            arrays = (sim.positions, sim.velocities, sim.angular_velocities, sim.torques)
+        for p, k in zip(self.particles, rows if self.particles else ()):
+            present = k < len(tags) and tags[k] == p
+            for arr in arrays:
+                row += [repr(float(c)) for c in arr[k]] if present else [""] * 3
         if self._walls:
             loads = sim.wall_loads()
             for name in self._walls:
                 load = loads.get(name)
                 row += [repr(c) for c in (*load["force"], *load["torque"])] if load else [""] * 6
+        if self._boundaries:
+            counts = sim.boundary_counts()
+            row += [repr(counts[c]) if c in counts else "" for c in self._boundaries]
         self._writer.writerow(row)
         self._file.flush()
 
@@ -127,7 +141,8 @@ class VTKSnapshots(Observer):
     its own series beside them (``wall_{name}_{step}.vtu``, ``wall_{name}.pvd``: its triangles where they
     are at that time), so the geometry moves with the particles.
 
-    Point data: radius (m), velocity (m/s), angular_velocity (rad/s), material (index), id.
+    Point data: radius (m), velocity (m/s), angular_velocity (rad/s), material (index), fixed (1 for a
+    fixed particle), id (``Simulation.particle_ids``: a particle keeps it when others are taken out).
     """
 
     def __init__(self, directory, interval: float, prefix: str = "particles"):
@@ -145,7 +160,8 @@ class VTKSnapshots(Observer):
         name = f"{self.prefix}_{sim.step:09d}.vtu"
         write_vtu(self.directory / name, sim.positions, {
             "radius": sim.radii, "velocity": sim.velocities, "angular_velocity": sim.angular_velocities,
-            "material": sim.material_indices.astype(np.int32), "id": np.arange(sim.n_particles, dtype=np.int32)})
+            "material": sim.material_indices.astype(np.int32), "fixed": sim.fixed.astype(np.uint8),
+            "id": sim.particle_ids.astype(np.int64)})
         self._entries.append((sim.time, name))
         self._write_pvd(self.prefix, self._entries)
         for label, mesh in sim.mesh_walls().items():

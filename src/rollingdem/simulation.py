@@ -59,6 +59,8 @@ class Simulation:
         self.check_timestep = bool(check_timestep)
         self.track_energy = bool(track_energy)
         self._walls: list[Wall] = []
+        self._outlets: list = []  # rollingdem.boundaries.Outlet
+        self._inflows: list = []  # rollingdem.boundaries.Inflow
         self._engine_walls: list[Wall] = []  # the walls in place, in the engine's order
         self._state = EngineState(self.contact.history_size)
         self.step = 0
@@ -97,7 +99,9 @@ class Simulation:
     def skin(self) -> float:
         if self._skin is not None:
             return self._skin
-        return 0.4 * float(self._state.radius.max()) if self.n_particles else 1e-3
+        radii = [float(self._state.radius.max())] if self.n_particles else []
+        radii += [inflow.radius.max_radius for inflow in self._inflows]
+        return 0.4 * max(radii) if radii else 1e-3
 
     def add_material(self, material: Material) -> int:
         self._pair_params = None
@@ -251,6 +255,108 @@ class Simulation:
         order = spatial_order(x, 2.0 * float(r.max()))  # neighbors in space get nearby indices
         return self.add_particles(x[order], r[order], material, velocity=velocity)
 
+    # --- outlets and inflows ------------------------------------------------------------------
+    def add_outlet(self, region, name: str | None = None, interval: float | None = None):
+        """Take out every free particle whose centre enters ``region`` (``BoxRegion``,
+        ``CylinderRegion``), every ``interval`` s (default 1e-3); the time series counts them and
+        their mass, cumulative, per outlet (``outlet_{name}_count``, ``outlet_{name}_mass``). The
+        other particles keep their contacts and history; their indices close up (``particle_ids``
+        keeps each particle's number for good). Returns the ``Outlet``."""
+        from .boundaries import Outlet
+
+        outlet = Outlet(region, name, interval)
+        self._check_boundary_name(outlet)
+        free = self._state.fixed == 0
+        if free.sum() > 1 and outlet.inside(self._state.x[free]).all():
+            raise ParameterError(f"outlet region {region!r} is not allowed: it contains every free particle (all "
+                                 f"{int(free.sum())}), so it would empty the scene at once; must cover only the way out")
+        for inflow in self._inflows:
+            self._check_outlet_inflow(outlet, inflow)
+        self._outlets.append(outlet)
+        return outlet
+
+    def add_inflow(self, region, radius, material, rate: float | None = None, mass_rate: float | None = None,
+                   velocity=None, seed: int = 0, name: str | None = None, interval: float | None = None,
+                   start: float | None = None):
+        """Insert particles into ``region`` during the runs, at ``rate`` particles/s or ``mass_rate``
+        kg/s from ``start`` (default now), every ``interval`` s (default 1e-3): at random places
+        where they overlap neither a particle nor a wall, reproducibly from ``seed``, with
+        ``velocity``. ``radius`` is a number or a distribution (``rd.Uniform`` ...). What finds no room
+        waits for the next interval; a warning says so once, and the time series' ``inflow_{name}
+        _shortfall`` counts it. Returns the ``Inflow``."""
+        from .boundaries import Inflow
+
+        self.materials.index(material)
+        inflow = Inflow(region, radius, material, rate=rate, mass_rate=mass_rate, velocity=velocity, seed=seed,
+                        name=name, interval=interval, start=self.time if start is None else start)
+        self._check_boundary_name(inflow)
+        for outlet in self._outlets:
+            self._check_outlet_inflow(outlet, inflow)
+        self._inflows.append(inflow)
+        return inflow
+
+    def _check_boundary_name(self, new):
+        if new.name is not None and any(b.name == new.name for b in self._outlets + self._inflows if b.kind == new.kind):
+            raise ParameterError(f"{new.kind} name = {new.name!r} is not allowed: another {new.kind} has it; names "
+                                 "must differ")
+
+    @staticmethod
+    def _check_outlet_inflow(outlet, inflow):
+        lo, hi = inflow.region.bounds()
+        corners = np.array([[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1]) for c in (lo[2], hi[2])])
+        if outlet.inside(corners).all():
+            raise ParameterError(f"outlet region {outlet.region!r} is not allowed with inflow region {inflow.region!r}: "
+                                 "it contains the whole inflow region, so every inserted particle would be taken "
+                                 "out at once")
+
+    @property
+    def outlets(self) -> list:
+        return list(self._outlets)
+
+    @property
+    def inflows(self) -> list:
+        return list(self._inflows)
+
+    def boundary_counts(self) -> dict:
+        """The cumulative counts of each outlet and inflow, by time-series column."""
+        out = {}
+        for group in (self._outlets, self._inflows):
+            for k, b in enumerate(group):
+                out.update(zip(b.columns(b.name or f"#{k}"), b.values()))
+        return out
+
+    def _next_boundary_step(self) -> int | None:
+        steps = [b.next_step(self.step, self.dt) for b in self._outlets + self._inflows]
+        return min(steps) if steps else None
+
+    def _apply_boundaries(self) -> None:
+        """The outlets and inflows due at this step: removal first, then insertion."""
+        st = self._state
+        for outlet in self._outlets:
+            if not outlet.due(self.step, self.dt) or st.n == 0:
+                continue
+            gone = outlet.inside(st.x) & (st.fixed == 0)
+            if gone.any():
+                outlet.count += int(gone.sum())
+                outlet.mass += float(st.mass[gone].sum())
+                st.remove(gone)
+        for inflow in self._inflows:
+            if not inflow.due(self.step, self.dt) or self.time < inflow.start:
+                continue
+            density = self.materials[inflow.material].density
+            radii = inflow.radii_due(self.time, density)
+            walls = [w for w in self._walls if w.kind != INACTIVE]
+            self.sync_walls_from_engine()
+            x = inflow.place(radii, st.x, st.radius, walls)
+            placed = np.isfinite(x[:, 0])
+            if placed.any():
+                r = radii[placed]
+                self.add_particles(x[placed], r, inflow.material, velocity=inflow.velocity, allow_overlap=True)
+                inflow.count += int(placed.sum())
+                inflow.mass += float((density * (4.0 / 3.0) * math.pi * r ** 3).sum())
+            inflow.actions += 1
+            inflow.note_shortfall(int((~placed).sum()), self.time)
+
     # --- walls ---------------------------------------------------------------------------------
     @property
     def walls(self) -> list[Wall]:
@@ -391,6 +497,12 @@ class Simulation:
         return self._state.by_id(self._state.mat)
 
     @property
+    def particle_ids(self) -> np.ndarray:
+        """Each particle's number for good, in the order of ``positions``: the index it had when it
+        was added (equal to its index until an outlet takes particles out)."""
+        return self._state.by_id(self._state.tags)
+
+    @property
     def fixed(self) -> np.ndarray:
         """Whether each particle is fixed (``add_particles(..., fixed=True)``), bool."""
         return self._state.by_id(self._state.fixed).astype(bool)
@@ -452,19 +564,24 @@ class Simulation:
     def time_step_limits(self) -> list[tuple[str, float]]:
         """Each criterion of docs/models.md §2 that applies: (description, largest allowed dt)."""
         st = self._state
-        if st.n == 0:
+        if st.n == 0 and not self._inflows:
             return []
         limits = []
         normal = self.contact.normal
         for k, mat in enumerate(self.materials.materials):
             sel = st.mat == k
-            if not sel.any():
+            # the spheres an inflow will insert count as if they were there
+            coming = [(i.radius.min_radius, float(np.linalg.norm(i.velocity))) for i in self._inflows
+                      if self.materials.index(i.material) == k]
+            if not sel.any() and not coming:
                 continue
-            rmin = float(st.radius[sel].min())
-            mmin = float(st.mass[sel].min())
+            rmin = min(([float(st.radius[sel].min())] if sel.any() else []) + [r for r, _ in coming])
+            mmin = min(([float(st.mass[sel].min())] if sel.any() else [])
+                       + [mat.density * (4.0 / 3.0) * math.pi * r ** 3 for r, _ in coming])
             pair = self.materials.pair(k, k)
             speed = np.sqrt((st.v[sel] ** 2).sum(axis=1))
-            impact = 2.0 * float(speed[np.isfinite(speed)].max(initial=0.0))  # a non-finite v is reported apart
+            fastest = max([float(speed[np.isfinite(speed)].max(initial=0.0))] + [v for _, v in coming])
+            impact = 2.0 * fastest  # a non-finite v is reported apart
             limits += normal.time_step_limits(mat, pair, rmin, mmin, impact)
             r_eff = 0.5 * rmin
             kn, kt, overlap = normal.reference_stiffness(pair, r_eff, 0.5 * mmin, rmin)
@@ -542,7 +659,9 @@ class Simulation:
                 ob.maybe_observe(self, force=True)
             chunk = 64
             while self.step < end:
-                nxt = min([end, self.step + chunk] + [ob.next_step(self) for ob in observers])
+                boundary = self._next_boundary_step()
+                nxt = min([end, self.step + chunk] + [ob.next_step(self) for ob in observers]
+                          + ([boundary] if boundary is not None else []))
                 todo = max(nxt - self.step, 1)
                 tic = _time.perf_counter()
                 done, problem = self._state.advance(kernel, todo, self.dt, self._gravity, self.skin,
@@ -556,6 +675,7 @@ class Simulation:
                 # aim at ~0.25 s of work per call so the progress bar and Ctrl-C stay responsive
                 if elapsed > 0:
                     chunk = int(min(max(todo * 0.25 / elapsed, 1), 1_000_000))
+                self._apply_boundaries()
                 for ob in observers:
                     ob.maybe_observe(self)
                 if bar:
@@ -621,6 +741,8 @@ class Simulation:
             "walls": [None if wl.kind == INACTIVE else {**wl.describe(), "name": wl.name,
                                                           "material": self.materials[wl.material].name}
                       for wl in self._walls],
+            "outlets": [o.describe() for o in self._outlets],
+            "inflows": [i.describe() for i in self._inflows],
         }
         arrays = self._state.to_arrays()
         tmp = path.with_name(path.name + ".tmp.npz")
@@ -683,6 +805,10 @@ class Simulation:
             wl.update_from_geometry(g)
         ms.names = [wl for wl in sim.walls if wl.kind == WALL_MESH]
         sim.sync_walls_from_engine()
+        from .boundaries import Inflow, Outlet
+
+        sim._outlets = [Outlet.from_description(d) for d in meta.get("outlets", [])]
+        sim._inflows = [Inflow.from_description(d) for d in meta.get("inflows", [])]
         sim.step = int(meta["step"])
         sim.time = float(meta["time"])
         origin = meta.get("time_origin", (sim.time, sim.step))  # absent in older checkpoints

@@ -12,7 +12,7 @@ from . import kernel_layout
 from .errors import SimulationError
 from .kernel_layout import (CONTACT_BLOCK, ENERGY_CHANNELS, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS,
                             I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS,
-                            STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
+                            PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
                             TILE_ROWS, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_LOAD_SIZE, ListArrays,
                             ParticleArrays, Scratch, WallArrays, block_columns)
 from .neighbors import ContactList
@@ -28,6 +28,16 @@ MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start, tr_k and c
 # unequal work), hence the threshold.
 SORT_ABOVE = 50_000  # particles
 SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
+
+
+def periodic_box(periodic: dict) -> np.ndarray:
+    """The kernel's periodic box (``kernel_layout.PERIODIC_BOX``) of ``{"x": (lo, hi), ...}``."""
+    box = np.zeros(PERIODIC_BOX_SIZE)
+    for axis, (lo, hi) in periodic.items():
+        a = "xyz".index(axis)
+        box[a], box[3 + a], box[6 + a] = lo, hi - lo, 1.0 / (hi - lo)
+    box[9] = 1.0 if periodic else 0.0
+    return box
 
 
 class EngineState:
@@ -51,6 +61,7 @@ class EngineState:
         self.energy = np.zeros((0, len(ENERGY_CHANNELS)))
         self.contacts = np.zeros(n, dtype=np.int32)  # contacts per sphere: int32 is plenty, 4 B/p less
         self.fixed = np.zeros(n, dtype=np.uint8)
+        self.image = np.zeros((n, 3), dtype=np.int32)
         self.x_ref = np.zeros((n, 3))
         self.ids = np.zeros(n, dtype=np.int64)
         # each particle's number for good (VTK ``id``), as ids are renumbered when particles go
@@ -83,7 +94,8 @@ class EngineState:
     def rebuild_list(self, skin: float) -> int:
         """Rebuild the neighbor list at the present positions, carrying the contacts over (the
         arrays grow as needed); returns its number of entries."""
-        return self.contact_list.rebuild(self.x, self.radius, skin, self.ids, self.fixed, self.x_ref, self.grow)
+        return self.contact_list.rebuild(self.x, self.radius, skin, self.ids, self.fixed, self.image, self.x_ref,
+                                         self.grow)
 
     def derive_wall_touch(self):
         """``wtouch[i * n_walls + w]``: whether particle i touched wall w at the last step (it keeps a
@@ -123,6 +135,7 @@ class EngineState:
         self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int32)])
         self.fixed = np.concatenate([self.fixed, np.zeros(m, dtype=np.uint8) if fixed is None
                                      else np.asarray(fixed, dtype=np.uint8)])
+        self.image = np.concatenate([self.image, np.zeros((m, 3), dtype=np.int32)])
         self.x_ref = np.concatenate([self.x_ref, x])
         self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
         self.tags = np.concatenate([self.tags, np.arange(self.next_tag, self.next_tag + m, dtype=np.int64)])
@@ -214,7 +227,7 @@ class EngineState:
         self.steps_since_sort = 0
 
     PER_PARTICLE = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "tags", "energy", "contacts",
-                    "fixed", "x_ref")
+                    "fixed", "image", "x_ref")
 
     def remove(self, gone: np.ndarray) -> None:
         """Take out the particles of the slots where ``gone`` is True. The others keep their state
@@ -280,7 +293,7 @@ class EngineState:
         """The kernel's four records (``rollingdem.kernel_layout``), of the arrays as they are now
         (the arrays are replaced when they grow: records are made for each call)."""
         return (ParticleArrays(self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
-                               self.ids, self.x_ref, self.energy, self.contacts, self.fixed),
+                               self.ids, self.x_ref, self.energy, self.contacts, self.image, self.fixed),
                 WallArrays(self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat, self.whist,
                            self.wtouch, self.wall_load, *self.meshes.arrays()),
                 self.contact_list.arrays(),
@@ -401,6 +414,8 @@ class EngineState:
         out["tags"] = self.tags
         out["next_tag"] = np.array(self.next_tag)
         out["fixed"] = self.fixed
+        out["image"] = self.image
+        out["periodic_box"] = self.contact_list.box
         out.update(self.meshes.to_arrays())
         cl = self.contact_list
         total = cl.size
@@ -420,6 +435,7 @@ class EngineState:
             setattr(st, name, np.array(arrays[name]))
         st.contacts = st.contacts.astype(np.int32)  # int64 in older checkpoints
         st.fixed = np.array(arrays["fixed"], dtype=np.uint8) if "fixed" in arrays else np.zeros(st.n, dtype=np.uint8)
+        st.image = np.array(arrays["image"], dtype=np.int32) if "image" in arrays else np.zeros((st.n, 3), np.int32)
         st.tags = np.array(arrays["tags"]) if "tags" in arrays else st.ids.copy()
         st.next_tag = int(arrays["next_tag"]) if "next_tag" in arrays else st.n
         st.wall_load = np.array(arrays["wall_load"]) if "wall_load" in arrays else \
@@ -430,6 +446,8 @@ class EngineState:
         if not np.array_equal(st.ids, np.arange(st.n)):
             st._slots = np.argsort(st.ids)
         cl = st.contact_list = ContactList(history_size, rows=st.n)
+        if "periodic_box" in arrays:
+            cl.box[:] = arrays["periodic_box"]
         cl.start[:] = arrays["nl_start"]  # int64 in older checkpoints
         cl.tr_start[:] = arrays["tr_start"]
         total = int(arrays["nl_j"].shape[0])

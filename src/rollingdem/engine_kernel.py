@@ -14,11 +14,11 @@ from numba.np.arrayobj import reshape_unchecked
 
 from rollingdem.kernel_layout import (BLOCK_SHIFT, CONTACT_BLOCK, CONTACT_INPUTS as IN, I_DRIFTED, I_FORCES_VALID,
                                       I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
-                                      LANE_HITS, MESH_GRID as GR, MESH_MOTION as MO, MESH_SLOTS, N_INPUTS, N_RESULTS, STATUS_CAPACITY,
+                                      LANE_HITS, MESH_GRID as GR, PERIODIC_BOX as PB, MESH_MOTION as MO, MESH_SLOTS, N_INPUTS, N_RESULTS, STATUS_CAPACITY,
                                       STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
                                       WALL_LOAD_SIZE)
 from rollingdem.integrator import kick_drift, kick_drift_one, kick_drift_serial, move_walls, next_drift_bound, undo_drift
-from rollingdem.neighbors import POOL_GROUP, free_row, list_rows, rebuild_neighbor_list, take_row
+from rollingdem.neighbors import POOL_GROUP, free_row, list_rows, minimum_image, rebuild_neighbor_list, take_row
 from rollingdem.mesh_kernel import build_mesh_candidates, match_mesh_contacts, move_meshes, surface_velocity
 from rollingdem.walls import wall_contact_geometry
 from rollingdem.contact.frame import SERIES_ANGLE, contact_frame, contact_frame_series, spin_angle, stored_normal
@@ -185,6 +185,11 @@ def entry_inputs(i, k, particles, lists):
     dx = x[i, 0] - x[j, 0]
     dy = x[i, 1] - x[j, 1]
     dz = x[i, 2] - x[j, 2]
+    box = lists.box
+    if box[PB.periodic] != 0.0:
+        dx = minimum_image(dx, box[PB.lx], box[PB.inv_lx])
+        dy = minimum_image(dy, box[PB.ly], box[PB.inv_ly])
+        dz = minimum_image(dz, box[PB.lz], box[PB.inv_lz])
     ri = radius[i]
     rj = radius[j]
     d2 = dx * dx + dy * dy + dz * dz
@@ -243,12 +248,27 @@ def queue_inputs(col, n, g):
 
 
 @njit(cache=True, inline="always")
-def candidate_entries(k0, k1, x, radius, nl_j, nl_i, contact_row, lanes):
+def candidate_entries(k0, k1, x, radius, nl_j, nl_i, contact_row, lanes, box):
     """Entries k0..k1-1 whose spheres may touch now or touched at the last step, in ascending k, into
     the rows ``LANE_HITS..`` of ``lanes``; returns their count. One flat loop without branches over
     the entries of many rows (a loop per row mispredicts its exit once per row). The test is looser
-    than ``entry_inputs``' by a relative 1e-12: an entry on the edge is left to it to decide."""
+    than ``entry_inputs``' by a relative 1e-12: an entry on the edge is left to it to decide. In a
+    periodic box, a loop of its own with the minimum image."""
     nhit = uint64(0)
+    if box[PB.periodic] != 0.0:
+        lx, ly, lz = box[PB.lx], box[PB.ly], box[PB.lz]
+        ilx, ily, ilz = box[PB.inv_lx], box[PB.inv_ly], box[PB.inv_lz]
+        for kk in range(k0, k1):
+            k = uint64(kk)
+            i = uint32(nl_i[k])
+            j = uint32(nl_j[k])
+            dx = minimum_image(x[i, 0] - x[j, 0], lx, ilx)
+            dy = minimum_image(x[i, 1] - x[j, 1], ly, ily)
+            dz = minimum_image(x[i, 2] - x[j, 2], lz, ilz)
+            reach = radius[i] + radius[j]
+            lanes[uint64(LANE_HITS) + (nhit >> uint64(BLOCK_SHIFT)), nhit & uint64(CONTACT_BLOCK - 1)] = kk
+            nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (contact_row[k] >= 0))
+        return np.int64(nhit)
     for kk in range(k0, k1):
         k = uint64(kk)
         i = uint32(nl_i[k])
@@ -329,7 +349,7 @@ def pair_rows(lo, hi, dt, particles, lists, pair_params, block, lanes):
     kend = lists.start[hi]
     for k0 in range(lists.start[lo], kend, tile):
         nhit = candidate_entries(k0, min(k0 + tile, kend), particles.x, particles.radius, lists.j, lists.i,
-                                 lists.contact_row, lanes)
+                                 lists.contact_row, lanes, lists.box)
         for e in range(nhit):
             k = uint64(lanes[LANE_HITS + (e >> BLOCK_SHIFT), e & (CONTACT_BLOCK - 1)])
             i = uint32(lists.i[k])
@@ -648,8 +668,8 @@ def gather_serial(dt, kick, gravity, pair_params, particles, walls, lists, half_
 
 @njit(cache=True)
 def _rebuild(particles, walls, lists, skin, info):
-    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.fixed, particles.x_ref,
-                                  lists)
+    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.fixed, particles.image,
+                                  particles.x_ref, lists)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY
         info[I_NEEDED] = -total

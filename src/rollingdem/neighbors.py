@@ -7,10 +7,12 @@ speed: docs/performance.md."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit, prange, uint32, uint64
 
-from .kernel_layout import ListArrays
+from .kernel_layout import PERIODIC_BOX as PB, PERIODIC_BOX_SIZE, ListArrays
 
 POOL_GROUP = 256  # list rows per group of the contact pool (the pair pass's threads take whole groups)
 PAIR_TERMS = 6  # pool columns after the history: F_ij (force on i) and T_j (torque on j) of the step
@@ -58,20 +60,23 @@ def _counting_sort(keys, nitems, nkeys, start, items):
 
 
 @njit(cache=True)
-def _bin_particles(x, cell_size, lo, dims, cell_start, cell_items, cell_of):
-    """Counting sort of particles into cells; items of a cell in ascending particle index."""
+def _bin_particles(x, cells, lo, dims, cell_start, cell_items, cell_of):
+    """Counting sort of particles into cells (edges ``cells`` along x, y, z); items of a cell in
+    ascending particle index."""
     n = x.shape[0]
     for i in range(n):
-        cx = min(max(int((x[i, 0] - lo[0]) / cell_size), 0), dims[0] - 1)
-        cy = min(max(int((x[i, 1] - lo[1]) / cell_size), 0), dims[1] - 1)
-        cz = min(max(int((x[i, 2] - lo[2]) / cell_size), 0), dims[2] - 1)
+        cx = min(max(int((x[i, 0] - lo[0]) / cells[0]), 0), dims[0] - 1)
+        cy = min(max(int((x[i, 1] - lo[1]) / cells[1]), 0), dims[1] - 1)
+        cz = min(max(int((x[i, 2] - lo[2]) / cells[2]), 0), dims[2] - 1)
         cell_of[i] = (cz * dims[1] + cy) * dims[0] + cx
     _counting_sort(cell_of, n, dims[0] * dims[1] * dims[2], cell_start, cell_items)
 
 
 @njit(cache=True)
-def _grid(x, radius, skin, max_cells):
-    """Bounding box, cell edge >= 2 R_max + skin, and grid dimensions (at most max_cells cells)."""
+def _grid(x, radius, skin, max_cells, box):
+    """Bounding box, cell edges >= 2 R_max + skin, and grid dimensions (at most max_cells cells).
+    Along a periodic axis the cells tile the box's length exactly (so that the cells at its two ends
+    are neighbors)."""
     n = x.shape[0]
     lox = loy = loz = np.inf
     hix = hiy = hiz = -np.inf
@@ -85,24 +90,76 @@ def _grid(x, radius, skin, max_cells):
         hiz = max(hiz, x[i, 2])
         rmax = max(rmax, radius[i])
     cell = 2.0 * rmax + skin
-    vol = (hix - lox + cell) * (hiy - loy + cell) * (hiz - loz + cell)
-    cell = max(cell, (vol / max_cells) ** (1.0 / 3.0))
-    while True:  # the volume estimate can round the count over the cap
-        nx = max(1, int((hix - lox) / cell) + 1)
-        ny = max(1, int((hiy - loy) / cell) + 1)
-        nz = max(1, int((hiz - loz) / cell) + 1)
-        if nx * ny * nz <= max_cells:
+    if box[PB.periodic] == 0.0:
+        vol = (hix - lox + cell) * (hiy - loy + cell) * (hiz - loz + cell)
+        cell = max(cell, (vol / max_cells) ** (1.0 / 3.0))
+        while True:  # the volume estimate can round the count over the cap
+            nx = max(1, int((hix - lox) / cell) + 1)
+            ny = max(1, int((hiy - loy) / cell) + 1)
+            nz = max(1, int((hiz - loz) / cell) + 1)
+            if nx * ny * nz <= max_cells:
+                break
+            cell *= 1.05
+        return (lox, loy, loz), (nx, ny, nz), (cell, cell, cell)
+    lo = [lox, loy, loz]
+    span = [hix - lox + cell, hiy - loy + cell, hiz - loz + cell]
+    for d in range(3):
+        if box[PB.lx + d] > 0.0:
+            lo[d] = box[PB.lox + d]
+            span[d] = box[PB.lx + d]
+    cell = max(cell, (span[0] * span[1] * span[2] / max_cells) ** (1.0 / 3.0))
+    dims = [1, 1, 1]
+    edges = [cell, cell, cell]
+    while True:
+        for d in range(3):
+            if box[PB.lx + d] > 0.0:
+                dims[d] = max(1, int(span[d] / cell))
+                edges[d] = span[d] / dims[d]
+            else:
+                dims[d] = max(1, int((span[d] - cell) / cell) + 1)
+        if dims[0] * dims[1] * dims[2] <= max_cells:
             break
         cell *= 1.05
-    return (lox, loy, loz), (nx, ny, nz), cell
+    return (lo[0], lo[1], lo[2]), (dims[0], dims[1], dims[2]), (edges[0], edges[1], edges[2])
+
+
+@njit(cache=True)
+def wrap_positions(x, image, box):
+    """Put every centre back into the periodic box along its periodic axes, counting the lengths it
+    moved in ``image`` (the unwrapped position is x + image L)."""
+    if box[PB.periodic] == 0.0:
+        return
+    for d in range(3):
+        length = box[PB.lx + d]
+        if length == 0.0:
+            continue
+        lo = box[PB.lox + d]
+        inv = box[PB.inv_lx + d]
+        for i in range(x.shape[0]):
+            s = math.floor((x[i, d] - lo) * inv)
+            if s != 0.0:
+                x[i, d] -= s * length
+                image[i, d] += np.int32(s)
+
+
+@njit(cache=True, inline="always")
+def minimum_image(d, length, inv_length):
+    """The shortest of d + k L over whole k (d itself, exactly, where L = 1/L = 0)."""
+    return d - length * np.rint(d * inv_length)
 
 
 @njit(cache=True, parallel=True)
-def _scan_pairs(x, radius, skin, ids, fixed, dims, cell_start, cell_items, cell_of, counts, new_start, new_j, fill):
-    """For each i, the j with ids[j] > ids[i] in the 27 surrounding cells with |x_i - x_j| < R_i + R_j
-    + skin, not both fixed: counted into ``counts`` (fill = False, the other arrays untouched) or written, sorted by
-    id, into its row of ``new_j`` (fill = True)."""
+def _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, counts, new_start, new_j,
+                fill):
+    """For each i, the j with ids[j] > ids[i] in the 27 surrounding cells (across the ends of a
+    periodic axis) with |x_i - x_j| < R_i + R_j + skin (the minimum image), not both fixed: counted
+    into ``counts`` (fill = False, the other arrays untouched) or written, sorted by id, into its row
+    of ``new_j`` (fill = True). A periodic axis has at least 2 cells (its length is at least twice
+    the cutoff); with 2, the cells on either side are the same one and are visited once."""
     n = x.shape[0]
+    lx, ly, lz = box[PB.lx], box[PB.ly], box[PB.lz]
+    ilx, ily, ilz = box[PB.inv_lx], box[PB.inv_ly], box[PB.inv_lz]
+    wrap_x = lx > 0.0 and dims[0] >= 3
     for i in prange(n):
         c = cell_of[i]
         cx = c % dims[0]
@@ -118,28 +175,41 @@ def _scan_pairs(x, radius, skin, ids, fixed, dims, cell_start, cell_items, cell_
         for dz in range(-1, 2):
             z = cz + dz
             if z < 0 or z >= dims[2]:
-                continue
+                if lz == 0.0 or dims[2] < 3:
+                    continue
+                z = (z + dims[2]) % dims[2]
             for dy in range(-1, 2):
                 y = cy + dy
                 if y < 0 or y >= dims[1]:
-                    continue
-                # the three cells x-1, x, x+1 of this row are consecutive, so their items are too
+                    if ly == 0.0 or dims[1] < 3:
+                        continue
+                    y = (y + dims[1]) % dims[1]
+                # the three cells x-1, x, x+1 of this row are consecutive, so their items are too;
+                # at the ends of a periodic x, the cell across the end is a second range
                 row = (z * dims[1] + y) * dims[0]
                 first = cell_start[row + max(cx - 1, 0)]
                 last = cell_start[row + min(cx + 1, dims[0] - 1) + 1]
-                for m in range(first, last):
-                    j = uint32(cell_items[uint64(m)])  # unsigned: no wraparound test per index
-                    cut = ri + radius[j] + skin
-                    ddx = xi - x[j, 0]
-                    ddy = yi - x[j, 1]
-                    ddz = zi - x[j, 2]
-                    # one test, mostly false, instead of the id test first (true for half the
-                    # candidates, in no pattern: a mispredicted branch each other time)
-                    if (ids[j] > idi) & ((fixed[j] & fixed_i) == 0) & \
-                            (ddx * ddx + ddy * ddy + ddz * ddz < cut * cut):
-                        if fill:
-                            new_j[k] = j
-                        k += 1
+                across = row + dims[0] - 1 if cx == 0 else row
+                first2 = last2 = first
+                if wrap_x and (cx == 0 or cx == dims[0] - 1):
+                    first2 = cell_start[across]
+                    last2 = cell_start[across + 1]
+                for part in range(2):
+                    a = first if part == 0 else first2
+                    b = last if part == 0 else last2
+                    for m in range(a, b):
+                        j = uint32(cell_items[uint64(m)])  # unsigned: no wraparound test per index
+                        cut = ri + radius[j] + skin
+                        ddx = minimum_image(xi - x[j, 0], lx, ilx)
+                        ddy = minimum_image(yi - x[j, 1], ly, ily)
+                        ddz = minimum_image(zi - x[j, 2], lz, ilz)
+                        # one test, mostly false, instead of the id test first (true for half the
+                        # candidates, in no pattern: a mispredicted branch each other time)
+                        if (ids[j] > idi) & ((fixed[j] & fixed_i) == 0) & \
+                                (ddx * ddx + ddy * ddy + ddz * ddz < cut * cut):
+                            if fill:
+                                new_j[k] = j
+                            k += 1
         if not fill:
             counts[i] = k
             continue
@@ -266,9 +336,10 @@ def list_rows(n, nl_start, nl_i):
 
 
 @njit(cache=True)
-def rebuild_neighbor_list(x, radius, skin, ids, fixed, x_ref, lists):
+def rebuild_neighbor_list(x, radius, skin, ids, fixed, image, x_ref, lists):
     """Rebuild the half list (``lists``, a ``kernel_layout.ListArrays``) at the current positions,
-    carrying contact history over (pairs of two fixed particles are left out); ``x_ref`` gets the positions it was built at.
+    carrying contact history over (pairs of two fixed particles are left out); the centres are first
+    put back into the periodic box (``wrap_positions``); ``x_ref`` gets the positions it was built at.
 
     Returns the number of list entries, or minus the capacity needed when ``nl_j`` is too short
     (nothing is changed then: the caller grows the arrays and calls again). The contact rows move
@@ -286,12 +357,14 @@ def rebuild_neighbor_list(x, radius, skin, ids, fixed, x_ref, lists):
         nl_start[0] = 0
         tr_start[0] = 0
         return 0
+    box = lists.box
+    wrap_positions(x, image, box)
     max_cells = cell_start.shape[0] - 1
-    lo, dims, cell = _grid(x, radius, skin, max_cells)
-    _bin_particles(x, cell, lo, dims, cell_start, cell_items, cell_of)
+    lo, dims, cells = _grid(x, radius, skin, max_cells, box)
+    _bin_particles(x, cells, lo, dims, cell_start, cell_items, cell_of)
     # np.bool_, not a literal False/True: a literal compiles _scan_pairs once per value (1.5 s more
     # of a cold compile, and the rebuild no faster: 16.6 and 16.1 ms on the 20,000-sphere column)
-    _scan_pairs(x, radius, skin, ids, fixed, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
+    _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
                 np.bool_(False))
     total = 0
     for i in range(n):
@@ -302,7 +375,7 @@ def rebuild_neighbor_list(x, radius, skin, ids, fixed, x_ref, lists):
     nl_start[0] = 0
     for i in range(n):
         nl_start[i + 1] = nl_start[i] + counts[i]
-    _scan_pairs(x, radius, skin, ids, fixed, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
+    _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
                 np.bool_(True))
     _drop_lost_contacts(n, ids, nl_start, nl_j, pool, tr_start, tr_k)
     _place_contacts(n, nl_start, nl_j, contact_row, pool, tr_start, tr_k, groups)
@@ -350,6 +423,7 @@ class ContactList:
 
     def __init__(self, history_size: int, rows: int = 0, capacity: int = 16):
         self.history_size = history_size
+        self.box = np.zeros(PERIODIC_BOX_SIZE)  # no periodic axis
         self.rows = 0
         self._allocate_rows(rows)
         self.allocate(capacity)
@@ -394,7 +468,7 @@ class ContactList:
     def arrays(self) -> ListArrays:
         """The kernel's record of the list (made anew: the arrays are replaced when they grow)."""
         return ListArrays(self.start, self.j, self.i, self.pool, self.contact_row, self.groups, self.tr_start,
-                          self.tr_k, self.cell_start, self.cell_items, self.cell_of, self.counts)
+                          self.tr_k, self.cell_start, self.cell_items, self.cell_of, self.counts, self.box)
 
     @property
     def size(self) -> int:
@@ -402,11 +476,11 @@ class ContactList:
         return int(self.start[-1]) if self.start.size else 0
 
     # --- building --------------------------------------------------------------------------
-    def rebuild(self, x, radius, skin, ids, fixed, x_ref, grow) -> int:
+    def rebuild(self, x, radius, skin, ids, fixed, image, x_ref, grow) -> int:
         """Rebuild at the present positions, carrying the contacts over; ``grow(needed)`` is called
         while the arrays are too short. Returns the number of entries."""
         while True:
-            total = rebuild_neighbor_list(x, radius, skin, ids, fixed, x_ref, self.arrays())
+            total = rebuild_neighbor_list(x, radius, skin, ids, fixed, image, x_ref, self.arrays())
             if total >= 0:
                 list_rows(self.rows, self.start, self.i)
                 return total

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .contact.model import ContactModel
-from .engine import EngineState
+from .engine import EngineState, periodic_box
 from .kernel_layout import ENERGY_CHANNELS, I_FORCES_VALID, WALL_MESH
 from .kernels import engine_module
 from .errors import ParameterError, SimulationError, check_finite, check_integer, check_positive, check_vector
@@ -41,6 +41,11 @@ class Simulation:
     dt: time step (s); default: the largest step the checks allow (0.2 x Rayleigh time, ...).
     skin: neighbor-list skin (m); default 0.4 x the largest radius.
     check_timestep: refuse a run whose dt exceeds the stable limit (docs/models.md §2).
+    periodic: periodic boundaries, ``{"x": (x_min, x_max), ...}`` for any of x, y, z (m): a particle
+        that leaves at one end comes back at the other, and pairs across the ends are ordinary
+        contacts (the minimum image); each length must be at least 2 (2 R_max + skin). Walls may
+        coexist (a chute floor under an x-periodic flow). ``positions`` are put back into the box
+        at each neighbor-list build; ``unwrapped_positions`` count the lengths crossed.
     track_energy: sum the energy dissipated in the contacts (``dissipated_energy``), by normal
         damping, sliding, rolling and twisting. Off by default, as in LIGGGHTS and LAMMPS: the
         bookkeeping costs about 12 % of the contact forces. A ``TimeSeries`` observer turns it on
@@ -48,7 +53,8 @@ class Simulation:
     """
 
     def __init__(self, contact: ContactModel | None = None, gravity=(0.0, 0.0, -9.81), dt: float | None = None,
-                 skin: float | None = None, check_timestep: bool = True, track_energy: bool = False):
+                 skin: float | None = None, check_timestep: bool = True, track_energy: bool = False,
+                 periodic: dict | None = None):
         self.contact = contact if contact is not None else ContactModel()
         if not isinstance(self.contact, ContactModel):
             raise ParameterError(f"contact = {contact!r} is not allowed: must be a rollingdem.ContactModel")
@@ -63,6 +69,8 @@ class Simulation:
         self._inflows: list = []  # rollingdem.boundaries.Inflow
         self._engine_walls: list[Wall] = []  # the walls in place, in the engine's order
         self._state = EngineState(self.contact.history_size)
+        self.periodic = self._check_periodic(periodic)
+        self._state.contact_list.box[:] = periodic_box(self.periodic)
         self.step = 0
         self.time = 0.0
         # (time, step) where the present dt took over: time = t0 + (step - s0) dt, one product, so
@@ -161,6 +169,7 @@ class Simulation:
             mats = np.array([self.materials.index(mm) for mm in material], dtype=np.int32)
         else:
             mats = np.full(m, mat_idx, dtype=np.int32)
+        self._check_in_box(x)
         if not allow_overlap:
             self._check_no_overlap(x, r)
         density = np.array([self.materials.materials[k].density for k in mats])
@@ -209,18 +218,20 @@ class Simulation:
         first = self._state.n
         allx = np.concatenate([self._state.x, x])
         allr = np.concatenate([self._state.radius, r])
-        tree = cKDTree(allx)
-        # each new sphere against every sphere before it within its radius plus the largest radius
+        imgx, imgr, source = self._with_images(allx, allr, 2.0 * float(allr.max()))
+        tree = cKDTree(imgx)
+        # each new sphere against every sphere (or periodic image) before it within its radius plus
+        # the largest radius
         for k, near in enumerate(tree.query_ball_point(x, r + allr.max())):
             near = np.asarray(near, dtype=np.int64)
             i = first + k
-            near = near[near < i]
+            near = near[source[near] < i]
             if near.size == 0:
                 continue
-            gap = np.linalg.norm(allx[near] - allx[i], axis=1) - allr[near] - allr[i]
-            bad = gap < -tolerance * (allr[near] + allr[i])
+            gap = np.linalg.norm(imgx[near] - allx[i], axis=1) - imgr[near] - allr[i]
+            bad = gap < -tolerance * (imgr[near] + allr[i])
             if bad.any():
-                j = int(near[np.argmax(bad)])
+                j = int(source[near[np.argmax(bad)]])
                 j = int(self._state.ids[j]) if j < first else j  # as the user numbers them
                 g = float(gap[np.argmax(bad)])
                 raise ParameterError(f"particles {min(i, j)} and {max(i, j)} overlap by {-g:.3g} m at insertion: "
@@ -254,6 +265,74 @@ class Simulation:
                            max_attempts=max_attempts)
         order = spatial_order(x, 2.0 * float(r.max()))  # neighbors in space get nearby indices
         return self.add_particles(x[order], r[order], material, velocity=velocity)
+
+    # --- periodic boundaries ------------------------------------------------------------------
+    @staticmethod
+    def _check_periodic(periodic) -> dict:
+        """``{"x": (lo, hi), ...}`` checked: axes among x, y, z, each lo < hi finite."""
+        if periodic is None:
+            return {}
+        if not isinstance(periodic, dict):
+            raise ParameterError(f"periodic = {_short(periodic)} is not allowed: must be a mapping of axes to "
+                                 "(min, max), e.g. {'x': (-0.05, 0.05)}")
+        out = {}
+        for axis, ends in periodic.items():
+            if axis not in ("x", "y", "z"):
+                raise ParameterError(f"periodic axis = {axis!r} is not allowed: must be 'x', 'y' or 'z'")
+            try:
+                lo, hi = (float(v) for v in ends)
+            except (TypeError, ValueError):
+                raise ParameterError(f"periodic {axis} = {_short(ends)} is not allowed: must be (min, max) in m") from None
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ParameterError(f"periodic {axis} = ({lo:g}, {hi:g}) is not allowed: must be finite with "
+                                     "min < max (m)")
+            out[axis] = (lo, hi)
+        return {axis: out[axis] for axis in "xyz" if axis in out}
+
+    def _check_periodic_length(self) -> None:
+        """Each periodic length holds at least two neighbor-list cutoffs, 2 (2 R_max + skin): a pair
+        within the cutoff then has one image within it, the one the minimum image finds."""
+        if not self.periodic or not self.n_particles:
+            return
+        rmax = max([float(self._state.radius.max())] + [i.radius.max_radius for i in self._inflows])
+        need = 2.0 * (2.0 * rmax + self.skin)
+        for axis, (lo, hi) in self.periodic.items():
+            if hi - lo < need:
+                raise ParameterError(f"periodic {axis} length = {hi - lo:g} m is not allowed: must be at least "
+                                     f"2 (2 R_max + skin) = {need:g} m (R_max = {rmax:g} m, skin = {self.skin:g} m), "
+                                     "or a particle could touch two images of another")
+
+    def _check_in_box(self, x: np.ndarray) -> None:
+        for axis, (lo, hi) in self.periodic.items():
+            a = "xyz".index(axis)
+            bad = (x[:, a] < lo) | (x[:, a] >= hi)
+            if bad.any():
+                k = int(np.argmax(bad))
+                raise ParameterError(f"position of particle {self.n_particles + k} = {x[k].tolist()} is not allowed: "
+                                     f"{axis} must be in the periodic box [{lo:g}, {hi:g}) m")
+
+    def _with_images(self, x: np.ndarray, r: np.ndarray, reach: float):
+        """``x``, ``r`` and the periodic images of those within ``reach`` of a periodic end;
+        returns (positions, radii, index of each one's original)."""
+        source = np.arange(len(x))
+        for axis, (lo, hi) in self.periodic.items():
+            a, length = "xyz".index(axis), hi - lo
+            low, high = x[:, a] < lo + reach, x[:, a] > hi - reach
+            up, down = x[low].copy(), x[high].copy()
+            up[:, a] += length
+            down[:, a] -= length
+            x = np.concatenate([x, up, down])
+            r = np.concatenate([r, r[low], r[high]])
+            source = np.concatenate([source, source[low], source[high]])
+        return x, r, source
+
+    @property
+    def unwrapped_positions(self) -> np.ndarray:
+        """Positions with the periodic lengths each particle crossed added back (``positions`` where
+        no axis is periodic)."""
+        st = self._state
+        box = st.contact_list.box
+        return self._state.by_id(st.x + st.image * box[3:6])
 
     # --- outlets and inflows ------------------------------------------------------------------
     def add_outlet(self, region, name: str | None = None, interval: float | None = None):
@@ -347,7 +426,9 @@ class Simulation:
             radii = inflow.radii_due(self.time, density)
             walls = [w for w in self._walls if w.kind != INACTIVE]
             self.sync_walls_from_engine()
-            x = inflow.place(radii, st.x, st.radius, walls)
+            reach = 2.0 * float(max(st.radius.max(initial=0.0), inflow.radius.max_radius))
+            near_x, near_r, _ = self._with_images(st.x, st.radius, reach)
+            x = inflow.place(radii, near_x, near_r, walls)
             placed = np.isfinite(x[:, 0])
             if placed.any():
                 r = radii[placed]
@@ -646,6 +727,7 @@ class Simulation:
             if wall.kind == WALL_MESH:
                 self._check_mesh_size(wall, self._state.radius)
         self._check_dt()
+        self._check_periodic_length()
         for ob in observers:
             ob.check(self)  # all refusals before any observer writes
         bar = _Progress(self, steps, label) if progress else None
@@ -741,6 +823,7 @@ class Simulation:
             "walls": [None if wl.kind == INACTIVE else {**wl.describe(), "name": wl.name,
                                                           "material": self.materials[wl.material].name}
                       for wl in self._walls],
+            "periodic": {axis: list(ends) for axis, ends in self.periodic.items()},
             "outlets": [o.describe() for o in self._outlets],
             "inflows": [i.describe() for i in self._inflows],
         }
@@ -775,7 +858,8 @@ class Simulation:
                                  f"{what}") from None
         contact = ContactModel.from_dict(meta["contact"])
         sim = cls(contact=contact, gravity=meta["gravity"], dt=meta["dt"], skin=meta["skin"],
-                  check_timestep=meta["check_timestep"], track_energy=meta.get("track_energy", True))
+                  check_timestep=meta["check_timestep"], track_energy=meta.get("track_energy", True),
+                  periodic=meta.get("periodic"))
         sim.materials = MaterialTable.from_dict(meta["materials"])
         for wd in meta["walls"]:
             if wd is None:

@@ -136,3 +136,51 @@ def test_an_outlet_over_an_inflow_is_refused(table1):
     sim.add_inflow(rd.BoxRegion((0, 0, 0), (0.1, 0.1, 0.1)), RP, "m", rate=10)
     with pytest.raises(ParameterError, match="contains the whole inflow region"):
         sim.add_outlet(rd.BoxRegion((-1, -1, -1), (1, 1, 1)))
+
+
+CASE = """\
+name: chute-slice
+materials:
+  - {name: m, youngs_modulus: 4.0e7, poisson_ratio: 0.49, density: 1056.0, friction: 0.5, restitution: 0.5}
+periodic: {x: [-0.02, 0.02]}
+walls:
+  - {type: plane, name: floor, material: m}
+particles:
+  - {rough_base: {radius: 0.0015, extent: [[-0.02, 0.02], [-0.02, 0.02]], seed: 1}, material: m}
+inflows:
+  - {name: pour, region: {type: box, lo: [-0.015, -0.015, 0.02], hi: [0.015, 0.015, 0.03]}, radius: 0.0015,
+     material: m, rate: 3000, velocity: [0.5, 0, 0]}
+outlets:
+  - {name: side, region: {type: box, lo: [-0.03, 0.012, 0.004], hi: [0.03, 0.03, 0.04]}}
+stages:
+  - {name: pour, duration: 0.03}
+output:
+  time_series: {interval: 0.005}
+  snapshots: {interval: 0.015}
+  plot: false
+"""
+
+
+def test_a_case_file_with_a_rough_base_an_inflow_an_outlet_and_a_periodic_axis_runs(tmp_path):
+    """The four from a case file, through ``rollingdem run``: the counts in the time series, the
+    fixed flag and the ids in the snapshots, the box in the final checkpoint."""
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+    import meshio
+
+    case = tmp_path / "case.yaml"
+    case.write_text(CASE)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(out), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    with open(out / "series.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    last = rows[-1]
+    assert int(last["inflow_pour_count"]) == pytest.approx(3000 * float(last["time"]), abs=3000 * 1e-3)
+    final = rd.Simulation.restore(out / "final.npz")
+    assert final.periodic == {"x": (-0.02, 0.02)}
+    n_base = int(final.fixed.sum())
+    assert final.n_particles == n_base + int(last["inflow_pour_count"]) - int(last["outlet_side_count"])
+    snap = meshio.read(sorted((out / "snapshots").glob("particles_*.vtu"))[-1]).point_data
+    assert snap["fixed"].sum() == n_base and np.array_equal(snap["id"], final.particle_ids)

@@ -18,7 +18,8 @@ import numpy as np
 
 from .errors import ParameterError, check_output_path
 
-SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling", "mesh-hopper")
+SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling", "mesh-hopper",
+          "rough-bed")
 SCALING_SMALL = 20000
 SCALING_LARGE = 1_000_000
 SCALING_CHUNKS = 6
@@ -43,6 +44,10 @@ HOPPER_DT = 4e-6  # s: the Hertz-time limit at the drop's impact speed (2.5 m/s)
 HOPPER_SKIN = 0.0006  # m
 HOPPER_REGION = (0.037, 0.045, 0.28)  # radius, z_min, z_max of the column the spheres start in (m)
 HOPPER_FILL = 0.1  # s
+# the rough-bed scene: free spheres settled on a rough base of half as many fixed ones (rd.rough_base,
+# spacing 2.2 R), and the same number settled on the bare plate, in a square box of side planes
+ROUGH_BED_SETTLE = 0.3  # s
+ROUGH_BED_CHUNKS = 6
 DENSE_BED_MODELS = ("none", "cdt", "epsd", "epsd2", "epsd3", "rrlinear", "sds", "displacement_damping",
                     "force_proportional", "viscous")
 
@@ -531,6 +536,72 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene=
     return results
 
 
+def rough_bed_simulation(particles: int, rough: bool, seed: int = 1, echo=print):
+    """``particles`` spheres settled for ``ROUGH_BED_SETTLE`` s in a square box on a rough base of
+    particles / 2 fixed spheres (``rough``) or on the bare plate; from the disk cache or built now."""
+    from . import BoxRegion, Plane, Simulation, __version__, rough_base
+    from .insertion import ROUGH_BASE_SPACING
+
+    path = _cache_dir() / f"roughbed_{particles}_{'rough' if rough else 'plate'}_seed{seed}_v{__version__}.npz"
+    if path.exists():
+        sim = Simulation.restore(path)
+        sim.track_energy = False
+        return sim
+    echo(f"settling {particles} spheres on {'a rough base' if rough else 'the plate'} for {ROUGH_BED_SETTLE} s "
+         f"(cached afterwards in {path.parent}) ...")
+    side = math.sqrt(0.5 * particles * math.sqrt(3.0) / 2.0) * ROUGH_BASE_SPACING * RADIUS
+    half = 0.5 * side
+    sim = _column_simulation()
+    for axis in (0, 1):
+        for sign in (-1.0, 1.0):
+            point, normal = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+            point[axis], normal[axis] = sign * half, -sign
+            sim.add_wall(Plane(point=point, normal=normal, material="table1"))
+    floor = 0.0
+    if rough:
+        sim.add_particles(rough_base(RADIUS, ((-half, half), (-half, half)), seed=seed), RADIUS, "table1", fixed=True)
+        floor = 2.0 * RADIUS
+    height = particles * 4.0 / 3.0 * math.pi * RADIUS ** 3 / (0.3 * side * side)
+    sim.insert(BoxRegion((-half, -half, floor), (half, half, floor + height)), particles, RADIUS, "table1", seed=seed)
+    sim.run(ROUGH_BED_SETTLE)
+    sim.checkpoint(path)
+    sim.track_energy = False
+    return sim
+
+
+def rough_bed(particles=20000, steps=2000, threads=None, echo=print) -> list[BenchResult]:
+    """``particles`` free spheres at rest on ``particles`` / 2 fixed ones, against the same number on
+    the bare plate: timed in ``ROUGH_BED_CHUNKS`` chunks taken in turn; the note of the first gives
+    its cost per free particle-step against the second."""
+    import numba
+
+    from . import ContactModel
+
+    threads = threads or numba.get_num_threads()
+    compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
+    sims = [rough_bed_simulation(particles, True, echo=echo), rough_bed_simulation(particles, False, echo=echo)]
+    for sim in sims:
+        _warm_up(sim)
+    walls = np.zeros((2, ROUGH_BED_CHUNKS))
+    rebuilds = [0, 0]
+    for c in range(ROUGH_BED_CHUNKS):
+        todo = steps * (c + 1) // ROUGH_BED_CHUNKS - steps * c // ROUGH_BED_CHUNKS
+        for s, sim in enumerate(sims):
+            walls[s, c], done = _timed_steps(sim, todo)
+            rebuilds[s] += done
+    ratios = walls[0] / walls[1]
+    results = []
+    for s, (sim, what) in enumerate(zip(sims, ("on a rough base", "on the plate"))):
+        free = int((~sim.fixed).sum())
+        r = _result("rough-bed", "epsd", sim, steps, compile_s, float(walls[s].sum()), rebuilds[s], threads,
+                    f"{free} free spheres at rest {what}, in a square box; in {ROUGH_BED_CHUNKS} chunks in turn; "
+                    f"{free * steps / walls[s].sum() / 1e6:.2f} M free particle-steps/s")
+        results.append(r)
+    results[0].note += (f": cost per free particle-step {walls[0].sum() / walls[1].sum():.3f}x that on the plate "
+                        f"(chunk by chunk {', '.join(f'{r:.3f}' for r in ratios)}; median {np.median(ratios):.3f}x)")
+    return results
+
+
 def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump=None, models=None,
               echo=print) -> list[BenchResult]:
     unknown = [s for s in scenes if s not in SCENES]
@@ -554,6 +625,10 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
             results.append(mesh_hopper(particles or 20000, steps or 5000, threads, echo))
         elif scene == "slab":
             results.append(slab(particles or 20000, steps or 1000, threads, echo))
+        elif scene == "rough-bed":
+            pair = rough_bed(particles or 20000, steps or 2000, threads, echo)
+            echo(format_row(pair[0]))
+            results += pair
         elif scene in ("scaling", "collapse-scaling"):
             pair = scaling(particles or SCALING_LARGE, steps or 300, threads, echo,
                            "slab" if scene == "scaling" else "column-collapse")

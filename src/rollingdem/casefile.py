@@ -1,7 +1,7 @@
 """Case files (YAML or TOML): the same scene as the Python API, validated before anything runs.
 
-A case file has the keys ``name``, ``materials``, ``pairs``, ``contact``, ``walls``, ``particles``,
-``stages`` and ``output`` (see ``rollingdem/cases/default.yaml`` for a complete example). Every
+A case file has the keys ``name``, ``materials``, ``pairs``, ``contact``, ``periodic``, ``walls``,
+``particles``, ``outlets``, ``inflows``, ``stages`` and ``output`` (see ``rollingdem/cases/default.yaml`` for a complete example). Every
 mapping is strict: an unknown or misspelled key is an error that names the key and lists the allowed
 ones; a missing key names what is missing.
 """
@@ -200,17 +200,59 @@ class ListSpec(_Strict):
     velocity: Optional[Union[Vector, list[Vector]]] = None
     angular_velocity: Optional[Union[Vector, list[Vector]]] = None
     allow_overlap: bool = False
+    fixed: bool = False
+
+
+class RoughBaseShape(_Strict):
+    radius: Number
+    extent: tuple[tuple[Number, Number], tuple[Number, Number]]
+    spacing: Optional[Number] = None
+    jitter: Optional[Number] = None
+    seed: Whole = 0
+    z: Number = 0.0
+
+
+class RoughBaseSpec(_Strict):
+    """Fixed spheres in a jittered hexagonal layer (``rd.rough_base``)."""
+    rough_base: RoughBaseShape
+    material: str
 
 
 def _particle_kind(value):
-    """A particle block with an ``insert`` key fills a region; any other lists its spheres."""
+    """A particle block with an ``insert`` key fills a region, one with ``rough_base`` lays a fixed
+    base; any other lists its spheres."""
     if isinstance(value, dict):
-        return "insert" if "insert" in value else "list"
-    return "insert" if isinstance(value, InsertSpec) else "list" if isinstance(value, ListSpec) else None
+        return "insert" if "insert" in value else "rough_base" if "rough_base" in value else "list"
+    return {InsertSpec: "insert", RoughBaseSpec: "rough_base", ListSpec: "list"}.get(type(value))
 
 
-ParticleSpec = Annotated[Union[Annotated[InsertSpec, Tag("insert")], Annotated[ListSpec, Tag("list")]],
-                         Discriminator(_particle_kind)]
+ParticleSpec = Annotated[Union[Annotated[InsertSpec, Tag("insert")], Annotated[RoughBaseSpec, Tag("rough_base")],
+                               Annotated[ListSpec, Tag("list")]], Discriminator(_particle_kind)]
+
+
+class OutletSpec(_Strict):
+    region: RegionSpec
+    name: Optional[str] = None
+    interval: Optional[Number] = None
+
+
+class InflowSpec(_Strict):
+    region: RegionSpec
+    radius: RadiusSpec
+    material: str
+    rate: Optional[Number] = None
+    mass_rate: Optional[Number] = None
+    velocity: Optional[Vector] = None
+    seed: Whole = 0
+    name: Optional[str] = None
+    interval: Optional[Number] = None
+    start: Optional[Number] = None
+
+
+class PeriodicSpec(_Strict):
+    x: Optional[tuple[Number, Number]] = None
+    y: Optional[tuple[Number, Number]] = None
+    z: Optional[tuple[Number, Number]] = None
 
 
 class SetVelocitySpec(_Strict):
@@ -260,8 +302,11 @@ class CaseSpec(_Strict):
     materials: list[MaterialSpec] = Field(min_length=1)
     pairs: list[PairSpec] = []
     contact: ContactSpec = ContactSpec()
+    periodic: Optional[PeriodicSpec] = None
     walls: list[WallSpec] = []
     particles: list[ParticleSpec] = Field(min_length=1)
+    outlets: list[OutletSpec] = []
+    inflows: list[InflowSpec] = []
     stages: list[StageSpec] = Field(min_length=1)
     output: OutputSpec = OutputSpec()
     _base: Path = PrivateAttr(default=Path("."))  # the case file's folder (load_case): mesh files are named from it
@@ -425,15 +470,17 @@ CASE_HINTS = {"check_timestep": "set check_timestep: false in the case file",
 def build_simulation(case: CaseSpec):
     """The Simulation a case describes (materials, walls, particles), before any stage runs."""
     from . import ContactModel, Cylinder, Material, Plane, Simulation
-    from .insertion import BoxRegion, CylinderRegion
+    from .insertion import rough_base
 
     def where(key):
         return _InCase(key)
 
     with where("contact"):
         contact = ContactModel(**case.contact.model_dump())
-    sim = Simulation(contact=contact, gravity=case.gravity, dt=case.dt, skin=case.skin,
-                     check_timestep=case.check_timestep)
+    periodic = {k: v for k, v in case.periodic.model_dump().items() if v is not None} if case.periodic else None
+    with where("periodic"):
+        sim = Simulation(contact=contact, gravity=case.gravity, dt=case.dt, skin=case.skin,
+                         check_timestep=case.check_timestep, periodic=periodic)
     sim.hints.update(CASE_HINTS)
     for k, m in enumerate(case.materials):
         with where(f"materials.{k}"):
@@ -456,14 +503,27 @@ def build_simulation(case: CaseSpec):
     for k, p in enumerate(case.particles):
         with where(f"particles.{k}"):
             if isinstance(p, InsertSpec):
-                r = p.insert
-                region = (BoxRegion(r.lo, r.hi) if r.type == "box"
-                          else CylinderRegion(r.radius, r.z_min, r.z_max, center=r.center))
-                sim.insert(region, p.count, _radius(p.radius), p.material, seed=p.seed, velocity=p.velocity)
+                sim.insert(_region(p.insert), p.count, _radius(p.radius), p.material, seed=p.seed, velocity=p.velocity)
+            elif isinstance(p, RoughBaseSpec):
+                base = rough_base(**p.rough_base.model_dump())
+                sim.add_particles(base, p.rough_base.radius, p.material, fixed=True)
             else:
                 sim.add_particles(p.positions, p.radius, p.material, velocity=p.velocity,
-                                  angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap)
+                                  angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap, fixed=p.fixed)
+    for k, o in enumerate(case.outlets):
+        with where(f"outlets.{k}"):
+            sim.add_outlet(_region(o.region), name=o.name, interval=o.interval)
+    for k, i in enumerate(case.inflows):
+        with where(f"inflows.{k}"):
+            sim.add_inflow(_region(i.region), _radius(i.radius), i.material, rate=i.rate, mass_rate=i.mass_rate,
+                           velocity=i.velocity, seed=i.seed, name=i.name, interval=i.interval, start=i.start)
     return sim
+
+
+def _region(r):
+    from .insertion import BoxRegion, CylinderRegion
+
+    return BoxRegion(r.lo, r.hi) if r.type == "box" else CylinderRegion(r.radius, r.z_min, r.z_max, center=r.center)
 
 
 def _motion(spec) -> dict:
@@ -538,6 +598,8 @@ def check_case(case: CaseSpec, sim=None):
     from .errors import check_non_negative, check_positive, check_vector
 
     sim = build_simulation(case) if sim is None else sim
+    with _InCase("periodic"):
+        sim._check_periodic_length()
     n = sim.n_particles
     in_place = {w.name for w in sim.walls if w.name}
     removed: set[str] = set()
@@ -602,7 +664,7 @@ def _check_first_time_step(sim, sv) -> None:
     saved = (st.v.copy(), st.w.copy(), int(st.info[I_FORCES_VALID]))
     try:
         if sv is not None:
-            idx = np.arange(sim.n_particles) if sv.particles == "all" else sv.particles
+            idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles
             sim.set_velocities(idx, sv.velocity, sv.angular_velocity)
         sim.check_time_step()
     finally:
@@ -679,7 +741,7 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
                                       point=motion.get("point"))
             if stage.set_velocity is not None:
                 sv = stage.set_velocity
-                idx = np.arange(sim.n_particles) if sv.particles == "all" else sv.particles
+                idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles
                 sim.set_velocities(idx, sv.velocity, sv.angular_velocity)
             t0 = time.perf_counter()
             steps0 = sim.step

@@ -31,12 +31,12 @@ SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
 
 
 def periodic_box(periodic: dict) -> np.ndarray:
-    """The kernel's periodic box (``kernel_layout.PERIODIC_BOX``) of ``{"x": (lo, hi), ...}``."""
-    box = np.zeros(PERIODIC_BOX_SIZE)
+    """The kernel's periodic box (``kernel_layout.PERIODIC_BOX``) of ``{"x": (lo, hi), ...}``: empty
+    without a periodic axis."""
+    box = np.zeros(PERIODIC_BOX_SIZE if periodic else 0)
     for axis, (lo, hi) in periodic.items():
         a = "xyz".index(axis)
         box[a], box[3 + a], box[6 + a] = lo, hi - lo, 1.0 / (hi - lo)
-    box[9] = 1.0 if periodic else 0.0
     return box
 
 
@@ -60,7 +60,7 @@ class EngineState:
         # (0, 4): a kernel without TRACK_ENERGY never touches it (32 B/p saved)
         self.energy = np.zeros((0, len(ENERGY_CHANNELS)))
         self.contacts = np.zeros(n, dtype=np.int32)  # contacts per sphere: int32 is plenty, 4 B/p less
-        self.fixed = np.zeros(n, dtype=np.uint8)
+        self.fixed = np.zeros(0, dtype=np.uint8)  # (n,) once a particle is fixed (kernel_layout)
         self.image = np.zeros((n, 3), dtype=np.int32)
         self.x_ref = np.zeros((n, 3))
         self.ids = np.zeros(n, dtype=np.int64)
@@ -85,6 +85,11 @@ class EngineState:
     @property
     def n(self) -> int:
         return self.x.shape[0]
+
+    @property
+    def is_fixed(self) -> np.ndarray:
+        """Whether each slot's particle is fixed, bool (n,)."""
+        return self.fixed != 0 if len(self.fixed) else np.zeros(self.n, dtype=bool)
 
     @property
     def n_walls(self) -> int:
@@ -133,8 +138,9 @@ class EngineState:
         if len(self.energy):
             self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
         self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int32)])
-        self.fixed = np.concatenate([self.fixed, np.zeros(m, dtype=np.uint8) if fixed is None
-                                     else np.asarray(fixed, dtype=np.uint8)])
+        flags = np.zeros(m, dtype=np.uint8) if fixed is None else np.asarray(fixed, dtype=np.uint8)
+        if len(self.fixed) or flags.any():
+            self.fixed = np.concatenate([self.fixed if len(self.fixed) else np.zeros(n0, dtype=np.uint8), flags])
         self.image = np.concatenate([self.image, np.zeros((m, 3), dtype=np.int32)])
         self.x_ref = np.concatenate([self.x_ref, x])
         self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
@@ -434,7 +440,9 @@ class EngineState:
         for name in cls.ARRAYS:
             setattr(st, name, np.array(arrays[name]))
         st.contacts = st.contacts.astype(np.int32)  # int64 in older checkpoints
-        st.fixed = np.array(arrays["fixed"], dtype=np.uint8) if "fixed" in arrays else np.zeros(st.n, dtype=np.uint8)
+        st.fixed = np.array(arrays["fixed"], dtype=np.uint8) if "fixed" in arrays else np.zeros(0, dtype=np.uint8)
+        if not st.fixed.any():
+            st.fixed = np.zeros(0, dtype=np.uint8)
         st.image = np.array(arrays["image"], dtype=np.int32) if "image" in arrays else np.zeros((st.n, 3), np.int32)
         st.tags = np.array(arrays["tags"]) if "tags" in arrays else st.ids.copy()
         st.next_tag = int(arrays["next_tag"]) if "next_tag" in arrays else st.n
@@ -447,7 +455,7 @@ class EngineState:
             st._slots = np.argsort(st.ids)
         cl = st.contact_list = ContactList(history_size, rows=st.n)
         if "periodic_box" in arrays:
-            cl.box[:] = arrays["periodic_box"]
+            cl.box = np.array(arrays["periodic_box"], dtype=np.float64)
         cl.start[:] = arrays["nl_start"]  # int64 in older checkpoints
         cl.tr_start[:] = arrays["tr_start"]
         total = int(arrays["nl_j"].shape[0])

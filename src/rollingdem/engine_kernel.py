@@ -186,7 +186,7 @@ def entry_inputs(i, k, particles, lists):
     dy = x[i, 1] - x[j, 1]
     dz = x[i, 2] - x[j, 2]
     box = lists.box
-    if box[PB.periodic] != 0.0:
+    if box.shape[0] != 0:
         dx = minimum_image(dx, box[PB.lx], box[PB.inv_lx])
         dy = minimum_image(dy, box[PB.ly], box[PB.inv_ly])
         dz = minimum_image(dz, box[PB.lz], box[PB.inv_lz])
@@ -212,7 +212,7 @@ def entry_inputs(i, k, particles, lists):
     aj = mj * rj * rj
     m_eff = mi * mj / (mi + mj)
     inertia_r = INERTIA_R_FACTOR * ai * aj / (ai + aj)
-    if particles.fixed[i] | particles.fixed[j]:
+    if particles.fixed.shape[0] != 0 and (particles.fixed[i] | particles.fixed[j]):
         # a fixed partner has infinite mass and inertia, as a wall (LAMMPS's frozen atoms in the
         # granular pair styles): the free partner's own
         free = j if particles.fixed[i] else uint32(i)
@@ -255,7 +255,7 @@ def candidate_entries(k0, k1, x, radius, nl_j, nl_i, contact_row, lanes, box):
     than ``entry_inputs``' by a relative 1e-12: an entry on the edge is left to it to decide. In a
     periodic box, a loop of its own with the minimum image."""
     nhit = uint64(0)
-    if box[PB.periodic] != 0.0:
+    if box.shape[0] != 0:
         lx, ly, lz = box[PB.lx], box[PB.ly], box[PB.lz]
         ilx, ily, ilz = box[PB.inv_lx], box[PB.inv_ly], box[PB.inv_lz]
         for kk in range(k0, k1):
@@ -550,7 +550,7 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     more from where the list was built, 1 if its next drift would: the skin is too small)."""
     x, v, w, f, t, mass, inertia = particles.x, particles.v, particles.w, particles.f, particles.t, particles.mass, \
         particles.inertia
-    if particles.fixed[i]:  # it keeps the sum of its pair forces (the load on it), and stays
+    if particles.fixed.shape[0] != 0 and particles.fixed[i]:  # it keeps the sum of its pair forces, and stays
         return 0, 0
     fx = f[i, 0]
     fy = f[i, 1]

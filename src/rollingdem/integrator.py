@@ -24,7 +24,7 @@ def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, half_skin)
     """Opening half kick and drift of particle i; 1 if it is now skin/2 or more from where the list
     was built (NaN: 1). A fixed particle stays. Arrays, not the record: it is inlined into a prange
     body."""
-    if fixed[i]:
+    if fixed.shape[0] != 0 and fixed[i]:
         return 0
     a = 0.5 * dt / mass[i]
     b = 0.5 * dt / inertia[i]
@@ -69,7 +69,7 @@ def undo_drift(dt, particles):
     x, v, w, f, t, mass, inertia = particles.x, particles.v, particles.w, particles.f, particles.t, particles.mass, \
         particles.inertia
     for i in range(x.shape[0]):
-        if particles.fixed[i]:
+        if particles.fixed.shape[0] != 0 and particles.fixed[i]:
             continue
         a = 0.5 * dt / mass[i]
         vx = v[i, 0] - a * f[i, 0]

@@ -108,7 +108,8 @@ ParticleArrays = collections.namedtuple("ParticleArrays", (
     "contacts",   # (n,) int32 contacts of the last step
     "image",      # (n, 3) int32 periodic images crossed: the unwrapped position is x + image L
     "fixed",      # (n,) uint8 1: a fixed particle (never moves; walls and gravity skip it; its
-                  #   contacts take the free partner's mass and rolling inertia, as a wall's)
+                  #   contacts take the free partner's mass and rolling inertia, as a wall's);
+                  #   (0,) while no particle is fixed, so that the loops skip the test
 ))
 WallArrays = collections.namedtuple("WallArrays", (
     "kind",              # (walls,) int32 WALL_PLANE, WALL_CYLINDER
@@ -151,12 +152,13 @@ ListArrays = collections.namedtuple("ListArrays", (  # rollingdem.neighbors
     "pool", "contact_row", "groups",  # contact pool: rows (history, F_ij, T_j), each entry's row, group heads
     "tr_start", "tr_k",         # transposed index: entries where each particle is the second partner
     "cell_start", "cell_items", "cell_of", "counts",  # cell-list scratch of a rebuild
-    "box",                      # (PERIODIC_BOX_SIZE,) the periodic box (PERIODIC_BOX)
+    "box",                      # (PERIODIC_BOX_SIZE,) the periodic box (PERIODIC_BOX); (0,) without one
 ))
 #: the periodic box (``ListArrays.box``): per axis its low end (m), its length L (m) and 1/L, L and
-#: 1/L 0.0 along an axis that is not periodic (the minimum image d - L rint(d / L) is then d, exactly);
-#: ``periodic`` 1.0 if any axis is
-PERIODIC_BOX = slots("lox", "loy", "loz", "lx", "ly", "lz", "inv_lx", "inv_ly", "inv_lz", "periodic")
+#: 1/L 0.0 along an axis that is not periodic (the minimum image d - L rint(d / L) is then d, exactly).
+#: A scene without a periodic axis has an empty box: the loops test its length, which the compiler
+#: hoists out of them
+PERIODIC_BOX = slots("lox", "loy", "loz", "lx", "ly", "lz", "inv_lx", "inv_ly", "inv_lz")
 PERIODIC_BOX_SIZE = len(PERIODIC_BOX)
 Scratch = collections.namedtuple("Scratch", (
     "blocks",  # (threads, BLOCK columns x CONTACT_BLOCK) float64 block buffers of the pair pass

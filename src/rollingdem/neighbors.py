@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit, prange, uint32, uint64
 
-from .kernel_layout import PERIODIC_BOX as PB, PERIODIC_BOX_SIZE, ListArrays
+from .kernel_layout import PERIODIC_BOX as PB, ListArrays
 
 POOL_GROUP = 256  # list rows per group of the contact pool (the pair pass's threads take whole groups)
 PAIR_TERMS = 6  # pool columns after the history: F_ij (force on i) and T_j (torque on j) of the step
@@ -90,7 +90,7 @@ def _grid(x, radius, skin, max_cells, box):
         hiz = max(hiz, x[i, 2])
         rmax = max(rmax, radius[i])
     cell = 2.0 * rmax + skin
-    if box[PB.periodic] == 0.0:
+    if box.shape[0] == 0:
         vol = (hix - lox + cell) * (hiy - loy + cell) * (hiz - loz + cell)
         cell = max(cell, (vol / max_cells) ** (1.0 / 3.0))
         while True:  # the volume estimate can round the count over the cap
@@ -127,7 +127,7 @@ def _grid(x, radius, skin, max_cells, box):
 def wrap_positions(x, image, box):
     """Put every centre back into the periodic box along its periodic axes, counting the lengths it
     moved in ``image`` (the unwrapped position is x + image L)."""
-    if box[PB.periodic] == 0.0:
+    if box.shape[0] == 0:
         return
     for d in range(3):
         length = box[PB.lx + d]
@@ -157,9 +157,15 @@ def _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, 
     of ``new_j`` (fill = True). A periodic axis has at least 2 cells (its length is at least twice
     the cutoff); with 2, the cells on either side are the same one and are visited once."""
     n = x.shape[0]
-    lx, ly, lz = box[PB.lx], box[PB.ly], box[PB.lz]
-    ilx, ily, ilz = box[PB.inv_lx], box[PB.inv_ly], box[PB.inv_lz]
+    periodic = box.shape[0] != 0
+    lx = box[PB.lx] if periodic else 0.0
+    ly = box[PB.ly] if periodic else 0.0
+    lz = box[PB.lz] if periodic else 0.0
+    ilx = box[PB.inv_lx] if periodic else 0.0
+    ily = box[PB.inv_ly] if periodic else 0.0
+    ilz = box[PB.inv_lz] if periodic else 0.0
     wrap_x = lx > 0.0 and dims[0] >= 3
+    has_fixed = fixed.shape[0] != 0
     for i in prange(n):
         c = cell_of[i]
         cx = c % dims[0]
@@ -171,7 +177,7 @@ def _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, 
         zi = x[i, 2]
         ri = radius[i]
         idi = ids[i]
-        fixed_i = fixed[i]
+        fixed_i = has_fixed and fixed[i] != 0
         for dz in range(-1, 2):
             z = cz + dz
             if z < 0 or z >= dims[2]:
@@ -189,24 +195,27 @@ def _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, 
                 row = (z * dims[1] + y) * dims[0]
                 first = cell_start[row + max(cx - 1, 0)]
                 last = cell_start[row + min(cx + 1, dims[0] - 1) + 1]
-                across = row + dims[0] - 1 if cx == 0 else row
-                first2 = last2 = first
-                if wrap_x and (cx == 0 or cx == dims[0] - 1):
-                    first2 = cell_start[across]
-                    last2 = cell_start[across + 1]
-                for part in range(2):
-                    a = first if part == 0 else first2
-                    b = last if part == 0 else last2
-                    for m in range(a, b):
+                parts = 2 if wrap_x and (cx == 0 or cx == dims[0] - 1) else 1
+                for part in range(parts):
+                    if part == 1:
+                        across = row + dims[0] - 1 if cx == 0 else row
+                        first = cell_start[across]
+                        last = cell_start[across + 1]
+                    for m in range(first, last):
                         j = uint32(cell_items[uint64(m)])  # unsigned: no wraparound test per index
                         cut = ri + radius[j] + skin
-                        ddx = minimum_image(xi - x[j, 0], lx, ilx)
-                        ddy = minimum_image(yi - x[j, 1], ly, ily)
-                        ddz = minimum_image(zi - x[j, 2], lz, ilz)
+                        ddx = xi - x[j, 0]
+                        ddy = yi - x[j, 1]
+                        ddz = zi - x[j, 2]
+                        if periodic:
+                            ddx = minimum_image(ddx, lx, ilx)
+                            ddy = minimum_image(ddy, ly, ily)
+                            ddz = minimum_image(ddz, lz, ilz)
                         # one test, mostly false, instead of the id test first (true for half the
                         # candidates, in no pattern: a mispredicted branch each other time)
-                        if (ids[j] > idi) & ((fixed[j] & fixed_i) == 0) & \
-                                (ddx * ddx + ddy * ddy + ddz * ddz < cut * cut):
+                        if (ids[j] > idi) & (ddx * ddx + ddy * ddy + ddz * ddz < cut * cut):
+                            if fixed_i and fixed[j] != 0:  # two fixed particles never touch
+                                continue
                             if fill:
                                 new_j[k] = j
                             k += 1
@@ -423,7 +432,7 @@ class ContactList:
 
     def __init__(self, history_size: int, rows: int = 0, capacity: int = 16):
         self.history_size = history_size
-        self.box = np.zeros(PERIODIC_BOX_SIZE)  # no periodic axis
+        self.box = np.zeros(0)  # no periodic axis (``engine.periodic_box``)
         self.rows = 0
         self._allocate_rows(rows)
         self.allocate(capacity)

@@ -70,7 +70,7 @@ class Simulation:
         self._engine_walls: list[Wall] = []  # the walls in place, in the engine's order
         self._state = EngineState(self.contact.history_size)
         self.periodic = self._check_periodic(periodic)
-        self._state.contact_list.box[:] = periodic_box(self.periodic)
+        self._state.contact_list.box = periodic_box(self.periodic)
         self.step = 0
         self.time = 0.0
         # (time, step) where the present dt took over: time = t0 + (step - s0) dt, one product, so
@@ -332,7 +332,7 @@ class Simulation:
         no axis is periodic)."""
         st = self._state
         box = st.contact_list.box
-        return self._state.by_id(st.x + st.image * box[3:6])
+        return st.by_id(st.x + st.image * box[3:6]) if len(box) else st.by_id(st.x).copy()
 
     # --- outlets and inflows ------------------------------------------------------------------
     def add_outlet(self, region, name: str | None = None, interval: float | None = None):
@@ -345,7 +345,7 @@ class Simulation:
 
         outlet = Outlet(region, name, interval)
         self._check_boundary_name(outlet)
-        free = self._state.fixed == 0
+        free = ~self._state.is_fixed
         if free.sum() > 1 and outlet.inside(self._state.x[free]).all():
             raise ParameterError(f"outlet region {region!r} is not allowed: it contains every free particle (all "
                                  f"{int(free.sum())}), so it would empty the scene at once; must cover only the way out")
@@ -414,7 +414,7 @@ class Simulation:
         for outlet in self._outlets:
             if not outlet.due(self.step, self.dt) or st.n == 0:
                 continue
-            gone = outlet.inside(st.x) & (st.fixed == 0)
+            gone = outlet.inside(st.x) & ~st.is_fixed
             if gone.any():
                 outlet.count += int(gone.sum())
                 outlet.mass += float(st.mass[gone].sum())
@@ -586,13 +586,13 @@ class Simulation:
     @property
     def fixed(self) -> np.ndarray:
         """Whether each particle is fixed (``add_particles(..., fixed=True)``), bool."""
-        return self._state.by_id(self._state.fixed).astype(bool)
+        return self._state.by_id(self._state.is_fixed)
 
     def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
         """Set translational (m/s) and/or angular (rad/s) velocities of some particles."""
         ids = self._indices(indices)
         idx = self._state.slots(ids)
-        held = self._state.fixed[idx] != 0
+        held = self._state.is_fixed[idx]
         if held.any() and any(np.any(vec) for vec in (velocity, angular_velocity) if vec is not None):
             raise ParameterError(f"indices = {_short(indices)} is not allowed with a nonzero velocity: particle "
                                  f"{int(ids[np.argmax(held)])} is fixed and never moves; leave the fixed particles "

@@ -163,7 +163,8 @@ def angle_of_repose(params: dict) -> dict:
                             restitution=p["e"], rolling_damping=p["eta_r"])
     collapse = Collapse(max_time=p["max_collapse"], sample=0.02, lift_speed=p["lift_speed"] or None)
     run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], seed=p["seed"], material=material,
-                   collapse=collapse, polydispersity=p["polydispersity"], dt=p["dt"])
+                   collapse=collapse, polydispersity=p["polydispersity"], dt=p["dt"],
+                   base="rough" if p["rough_base"] else "plate")
     a = run.angle
     return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
             "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
@@ -208,7 +209,9 @@ CASES: dict[str, SweepCase] = {
            Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
            Parameter("max_collapse", 3.0, "longest collapse before the pile counts as unsettled", "s", low=0.0,
                      low_open=True),
-           Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p), R = 5 mm", low=0.0, high=0.9)),
+           Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p), R = 5 mm", low=0.0, high=0.9),
+           Parameter("rough_base", 0, "1: the pile stands on a base of fixed spheres (rollingdem.rough_base) on "
+                                      "the plate; 0: on the bare plate", low=0, high=1, integer=True)),
         {"angle": "deg, cone fit (rollingdem.analysis.repose_angle)", "slice_std": "deg, spread over azimuthal slices",
          "r_squared": "cone fit R²", "settled_at": "s after the tube is removed", "note": "why no angle"},
         "angle", stochastic=True,

@@ -19,8 +19,8 @@ import pandas as pd
 
 from ..analysis import ReposeAngle, default_max_speed, plot_pile, repose_angle, touching
 from ..contact.model import ContactModel
-from ..errors import ParameterError
-from ..insertion import CylinderRegion, Uniform
+from ..errors import ParameterError, check_choice
+from ..insertion import CylinderRegion, Uniform, rough_base
 from ..materials import Material
 from ..simulation import Simulation
 from ..mesh import MeshWall
@@ -32,6 +32,7 @@ POLYDISPERSITY = 0.2  # radii uniform in R (1 +- 0.2)
 MOVING_FRACTION = 0.005  # of the spheres: a pile with fewer still moving counts as settled
 PACKING = 0.6  # nominal solid fraction of the settled column, used to size the tube
 INSERT_PACKING = 0.3  # solid fraction of the random insertion (it tops out near 0.35)
+ROUGH_BASE_EXTENT = 12.0  # tube radii: the side of the square rough base under a pile
 
 
 def column_size(count, radius=RADIUS, polydispersity=0.0, aspect=1.0) -> tuple[float, float]:
@@ -99,7 +100,7 @@ class Collapse:
 
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
              collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, aspect=1.0, dt=DT,
-             label=None, tube_segments=None) -> PileRun:
+             label=None, tube_segments=None, base="plate") -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
     Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
@@ -113,7 +114,11 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     1e-3 sqrt(g d) (:func:`rollingdem.analysis.default_max_speed`). A sphere rolling alone over the
     plate (with little rolling resistance it may roll for seconds) and a few rattlers caged in
     the pile do not change its surface. Then the angle is measured. With ``tube_segments`` the
-    tube is a triangle mesh of that many flat sides through the cylinder's radius.
+    tube is a triangle mesh of that many flat sides through the cylinder's radius. ``base``: the bare
+    plate ("plate", the report's case 3) or a rough base ("rough") of fixed spheres of the mean radius
+    (``rollingdem.rough_base``, over a square ``ROUGH_BASE_EXTENT`` tube radii wide) on it, as the
+    PFC and LIGGGHTS repose studies glue one to the floor: on the bare plate, spheres with little
+    rolling resistance roll away and no pile forms.
     """
     for what, value, kind in (("material", material, PileMaterial), ("collapse", collapse, Collapse)):
         if not isinstance(value, kind):
@@ -126,13 +131,20 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     sim = Simulation(contact=ContactModel(normal, rolling=rolling, twisting=twisting), dt=dt)
     sim.add_material(material.as_material("m"))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m", name="plate"))
+    check_choice("base", base, ("plate", "rough"))
+    floor = 0.0
+    if base == "rough":
+        half = 0.5 * ROUGH_BASE_EXTENT * tube_radius
+        sim.add_particles(rough_base(RADIUS, ((-half, half), (-half, half)), seed=seed), RADIUS, "m", fixed=True)
+        floor = 2.0 * RADIUS
     if tube_segments is None:
         tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material="m", name="tube"))
     else:
         tube = sim.add_wall(MeshWall.shape("drum", radius=tube_radius, length=2.0 * height + 0.1,
                                            segments=tube_segments, caps=False, material="m", name="tube"))
     fill = height * PACKING / INSERT_PACKING
-    sim.insert(CylinderRegion(tube_radius, 0.0, fill), count, dist, "m", seed=seed)
+    sim.insert(CylinderRegion(tube_radius, floor, floor + fill), count, dist, "m", seed=seed)
+    free = ~sim.fixed
     # free fall from the top of the fill, then as long again to come to rest
     sim.run(2.0 * math.sqrt(2.0 * fill / G) + 0.1)
     if lift_speed:
@@ -140,8 +152,8 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
         lift_time = (height + 4.0 * RADIUS) / lift_speed  # its lower edge clears the column top
     else:
         sim.remove_wall(tube)
-    inertia = 0.4 * sim.masses * sim.radii ** 2
-    limit = default_max_speed(sim.radii)
+    inertia = 0.4 * sim.masses[free] * sim.radii[free] ** 2
+    limit = default_max_speed(sim.radii[free])
     ke, t, settled_at = [], 0.0, math.nan
     while t < max_collapse - 1e-9:
         sim.run(sample)
@@ -149,10 +161,10 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
         if lift_speed and t >= lift_time - 1e-9 and tube in sim.walls:
             sim.remove_wall(tube)  # clear of the pile
         trans, rot = sim.kinetic_energy()
-        ke.append((t, trans, rot, 0.5 * float(np.dot(inertia, sim.angular_velocities[:, 2] ** 2))))
+        ke.append((t, trans, rot, 0.5 * float(np.dot(inertia, sim.angular_velocities[free, 2] ** 2))))
         if t >= collapse.min_time - 1e-9 and tube not in sim.walls:
-            pile = touching(sim.positions, sim.radii)
-            speed = np.linalg.norm(sim.velocities[pile], axis=1)
+            pile = touching(sim.positions[free], sim.radii[free])
+            speed = np.linalg.norm(sim.velocities[free][pile], axis=1)
             if np.count_nonzero(speed >= limit) <= MOVING_FRACTION * count:
                 settled_at = t
                 break
@@ -162,11 +174,12 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
         error = f"the pile did not settle within {max_collapse} s"
     else:
         try:
-            angle = repose_angle(sim.positions, sim.radii)
+            angle = repose_angle(sim.positions[free], sim.radii[free])
         except ValueError as err:  # too flat or too small to fit a cone: say so
             error = str(err)
-    return PileRun(label or str(rolling), ke[:, 0], ke[:, 1], ke[:, 2], ke[:, 3], sim.positions.copy(),
-                   sim.radii.copy(), sim.velocities.copy(), angle, error, settled_at, time.perf_counter() - tic)
+    return PileRun(label or str(rolling), ke[:, 0], ke[:, 1], ke[:, 2], ke[:, 3], sim.positions[free].copy(),
+                   sim.radii[free].copy(), sim.velocities[free].copy(), angle, error, settled_at,
+                   time.perf_counter() - tic)
 
 
 QUICK_PILE, FULL_PILE = 1000, 10000  # spheres in case 3

@@ -84,15 +84,17 @@ def test_an_inflow_with_no_room_says_so_once_and_counts_the_shortfall(table1):
     assert inflow.shortfall > 0 and abs(inflow.count + inflow.shortfall - 1e5 * sim.time) <= 1e5 * 1e-3
 
 
-def test_a_restart_with_fixed_particles_an_outlet_and_an_inflow_continues_bit_for_bit(table1, tmp_path):
-    """The checkpoint written in the middle holds the outlet's and inflow's counts and the inflow's
-    random stream position: the restored run inserts and removes the same particles at the same
-    steps, to the last bit."""
+def test_a_restart_with_fixed_particles_an_outlet_an_inflow_and_a_periodic_axis_continues_bit_for_bit(table1,
+                                                                                                       tmp_path):
+    """The checkpoint written in the middle holds the outlet's and inflow's counts, the inflow's
+    random stream position and the periodic box with each particle's images: the restored run
+    inserts and removes the same particles at the same steps, to the last bit."""
     def scene():
-        sim = rd.Simulation(gravity=(0, 0, -G), dt=4e-6)
+        sim = rd.Simulation(gravity=(0, 0, -G), dt=4e-6, periodic={"y": (-0.02, 0.02)})
         sim.add_material(table1(friction=0.5, rolling_friction=0.1))
         sim.add_particles(rd.rough_base(RP, ((-0.02, 0.02), (-0.02, 0.02)), seed=1), RP, "m", fixed=True)
-        sim.add_inflow(rd.CylinderRegion(0.015, 0.015, 0.03), RP, "m", rate=3000, interval=5e-4, seed=3)
+        sim.add_inflow(rd.CylinderRegion(0.015, 0.015, 0.03), RP, "m", rate=3000, interval=5e-4, seed=3,
+                       velocity=(0, 0.4, 0))  # along the periodic axis
         # it catches what falls on the side x > 5 mm
         sim.add_outlet(rd.BoxRegion((0.005, -0.03, 0.004), (0.03, 0.03, 0.01)), name="edge")
         return sim
@@ -106,7 +108,8 @@ def test_a_restart_with_fixed_particles_an_outlet_and_an_inflow_continues_bit_fo
     again = rd.Simulation.restore(tmp_path / "mid.npz")
     again.run(0.03)
     assert whole.n_particles == again.n_particles and whole.inflows[0].count == again.inflows[0].count
-    for name in ("positions", "velocities", "angular_velocities", "particle_ids", "fixed"):
+    assert whole._state.image[:, 1].any()  # particles crossed the periodic ends
+    for name in ("positions", "velocities", "angular_velocities", "particle_ids", "fixed", "unwrapped_positions"):
         assert np.array_equal(getattr(whole, name), getattr(again, name)), name
     assert whole.outlets[0].count == again.outlets[0].count > 0  # the outlet took some out after the restart
     assert first.outlets[0].count < whole.outlets[0].count
@@ -182,5 +185,7 @@ def test_a_case_file_with_a_rough_base_an_inflow_an_outlet_and_a_periodic_axis_r
     assert final.periodic == {"x": (-0.02, 0.02)}
     n_base = int(final.fixed.sum())
     assert final.n_particles == n_base + int(last["inflow_pour_count"]) - int(last["outlet_side_count"])
-    snap = meshio.read(sorted((out / "snapshots").glob("particles_*.vtu"))[-1]).point_data
-    assert snap["fixed"].sum() == n_base and np.array_equal(snap["id"], final.particle_ids)
+    snap = meshio.read(sorted((out / "snapshots").glob("particles_*.vtu"))[-1])
+    assert snap.point_data["fixed"].sum() == n_base and np.array_equal(snap.point_data["id"], final.particle_ids)
+    assert snap.field_data["periodic_box"][:2].tolist() == [-0.02, 0.02]
+    assert snap.field_data["removed"][0] == int(last["outlet_side_count"]) and float(last["time"]) == final.time

@@ -143,6 +143,9 @@ class VTKSnapshots(Observer):
 
     Point data: radius (m), velocity (m/s), angular_velocity (rad/s), material (index), fixed (1 for a
     fixed particle), id (``Simulation.particle_ids``: a particle keeps it when others are taken out).
+    Field data: time (s), removed (particles the outlets took out so far), and with periodic
+    boundaries periodic_box, (x_min, x_max, y_min, y_max, z_min, z_max), NaN along an axis that is
+    not periodic.
     """
 
     def __init__(self, directory, interval: float, prefix: str = "particles"):
@@ -161,7 +164,7 @@ class VTKSnapshots(Observer):
         write_vtu(self.directory / name, sim.positions, {
             "radius": sim.radii, "velocity": sim.velocities, "angular_velocity": sim.angular_velocities,
             "material": sim.material_indices.astype(np.int32), "fixed": sim.fixed.astype(np.uint8),
-            "id": sim.particle_ids.astype(np.int64)})
+            "id": sim.particle_ids.astype(np.int64)}, field_data=_field_data(sim))
         self._entries.append((sim.time, name))
         self._write_pvd(self.prefix, self._entries)
         for label, mesh in sim.mesh_walls().items():
@@ -186,8 +189,19 @@ class VTKSnapshots(Observer):
         tmp.replace(self.directory / f"{stem}.pvd")
 
 
-def write_vtu(path, points: np.ndarray, point_data: dict) -> None:
-    """Write points and their point data as a VTU unstructured grid of vertex cells (base64 binary)."""
+def _field_data(sim) -> dict:
+    out = {"time": np.array([sim.time]), "removed": np.array([sum(o.count for o in sim.outlets)], dtype=np.int64)}
+    if sim.periodic:
+        box = np.full(6, np.nan)
+        for axis, (lo, hi) in sim.periodic.items():
+            box[2 * "xyz".index(axis):2 * "xyz".index(axis) + 2] = (lo, hi)
+        out["periodic_box"] = box
+    return out
+
+
+def write_vtu(path, points: np.ndarray, point_data: dict, field_data: dict | None = None) -> None:
+    """Write points and their point data (and whole-grid field data) as a VTU unstructured grid of
+    vertex cells (base64 binary)."""
     import base64
 
     n = points.shape[0]
@@ -214,7 +228,13 @@ def write_vtu(path, points: np.ndarray, point_data: dict) -> None:
 
     out = ['<?xml version="1.0"?>',
            '<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">',
-           "  <UnstructuredGrid>", f'    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">', "      <PointData>"]
+           "  <UnstructuredGrid>"]
+    if field_data:
+        out.append("    <FieldData>")
+        out += ["  " + data_array(name, arr).replace(" format=", f' NumberOfTuples="{len(arr)}" format=', 1)
+                for name, arr in field_data.items()]
+        out.append("    </FieldData>")
+    out += [f'    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">', "      <PointData>"]
     for name, arr in point_data.items():
         out.append(data_array(name, arr))
     out += ["      </PointData>", "      <Points>", data_array("Points", points.astype(np.float64)),

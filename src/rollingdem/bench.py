@@ -311,6 +311,22 @@ def _time_run(sim, steps: int) -> tuple[float, int]:
     return _timed_steps(sim, steps)
 
 
+def _in_turn(sims, steps: int, chunks: int) -> tuple[np.ndarray, list[int]]:
+    """Each scene warmed up, then ``steps`` steps of each in ``chunks`` chunks taken in turn, so that
+    they see the same moments of a shared machine's load: (seconds per scene and chunk, rebuilds
+    per scene)."""
+    for sim in sims:
+        _warm_up(sim)
+    walls = np.zeros((len(sims), chunks))
+    rebuilds = [0] * len(sims)
+    for c in range(chunks):
+        todo = steps * (c + 1) // chunks - steps * c // chunks
+        for s, sim in enumerate(sims):
+            walls[s, c], done = _timed_steps(sim, todo)
+            rebuilds[s] += done
+    return walls, rebuilds
+
+
 def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="", split_repeats=20) -> BenchResult:
     n = sim.n_particles
     contacts, neighbors = _contacts_per_particle(sim)
@@ -516,15 +532,7 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene=
     else:
         raise ParameterError(f"scene = {scene!r} is not a scaling scene: use 'slab', 'column-collapse' or "
                              "'column-bed'")
-    for sim in sims:
-        _warm_up(sim)
-    walls = np.zeros((2, SCALING_CHUNKS))
-    rebuilds = [0, 0]
-    for c in range(SCALING_CHUNKS):
-        todo = steps * (c + 1) // SCALING_CHUNKS - steps * c // SCALING_CHUNKS
-        for s, sim in enumerate(sims):
-            walls[s, c], done = _timed_steps(sim, todo)
-            rebuilds[s] += done
+    walls, rebuilds = _in_turn(sims, steps, SCALING_CHUNKS)
     ratios = (walls[1] / sims[1].n_particles) / (walls[0] / sims[0].n_particles)
     whole = (walls[1].sum() / sims[1].n_particles) / (walls[0].sum() / sims[0].n_particles)
     results = [_result(scene, "epsd", sim, steps, compile_s, float(walls[s].sum()), rebuilds[s], threads,
@@ -580,15 +588,7 @@ def rough_bed(particles=20000, steps=2000, threads=None, echo=print) -> list[Ben
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
     sims = [rough_bed_simulation(particles, True, echo=echo), rough_bed_simulation(particles, False, echo=echo)]
-    for sim in sims:
-        _warm_up(sim)
-    walls = np.zeros((2, ROUGH_BED_CHUNKS))
-    rebuilds = [0, 0]
-    for c in range(ROUGH_BED_CHUNKS):
-        todo = steps * (c + 1) // ROUGH_BED_CHUNKS - steps * c // ROUGH_BED_CHUNKS
-        for s, sim in enumerate(sims):
-            walls[s, c], done = _timed_steps(sim, todo)
-            rebuilds[s] += done
+    walls, rebuilds = _in_turn(sims, steps, ROUGH_BED_CHUNKS)
     ratios = walls[0] / walls[1]
     results = []
     for s, (sim, what) in enumerate(zip(sims, ("on a rough base", "on the plate"))):

@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 
-from rollingdem.cases.repose import pile_run
+from rollingdem.cases.repose import PileSetup, pile_run
 from rollingdem.casefile import build_simulation, default_case_path, load_case
 from rollingdem.mapping_file import read_mapping
 
@@ -25,7 +25,7 @@ def run(seed: int, segments):
     sim = build_simulation(load_case(data))
     sim.run(0.6)
     height = float(np.sort(sim.positions[:, 2] + sim.radii)[-50:].mean())
-    pile = pile_run("epsd", count=1000, seed=seed, tube_segments=segments)
+    pile = pile_run("epsd", count=1000, seed=seed, setup=PileSetup(tube_segments=segments))
     return height, pile.angle.angle if pile.angle is not None else float("nan")
 
 

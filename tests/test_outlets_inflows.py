@@ -133,6 +133,22 @@ def test_outlet_and_inflow_refusals(table1, call, words):
         call(sim)
 
 
+def test_an_inflow_reaching_out_of_the_periodic_box_is_refused(table1):
+    sim = rd.Simulation(periodic={"x": (0.0, 0.05)})
+    sim.add_material(table1())
+    with pytest.raises(ParameterError, match=r"along the periodic x it reaches \[0, 0.1\], outside the box"):
+        sim.add_inflow(rd.BoxRegion((0, 0, 0), (0.1, 0.1, 0.1)), RP, "m", rate=10)
+
+
+def test_the_command_line_prints_a_warning_on_one_line():
+    import warnings
+
+    import rollingdem.cli  # noqa: F401 - it sets the format
+
+    line = warnings.formatwarning("an inflow at t = 0.1 s: 3 particle(s) found no room", RuntimeWarning, "x.py", 1)
+    assert line == "warning: an inflow at t = 0.1 s: 3 particle(s) found no room\n"
+
+
 def test_an_outlet_over_an_inflow_is_refused(table1):
     sim = rd.Simulation()
     sim.add_material(table1())

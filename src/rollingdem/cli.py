@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Optional
 
@@ -11,6 +12,14 @@ from .errors import ParameterError, SimulationError, check_output_path
 
 app = typer.Typer(add_completion=False, no_args_is_help=False,
                   help="rollingdem: DEM simulation of spheres, built around rolling resistance.")
+
+
+def _one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """A run's warning (an inflow without room) on the command line: one line, ``warning: ...``."""
+    return f"warning: {message}\n"
+
+
+warnings.formatwarning = _one_line_warning
 
 
 def _refuse(err) -> None:

@@ -46,6 +46,7 @@ class EngineState:
     def __init__(self, history_size: int):
         self.history_size = history_size
         self._blocks = self._lanes = None  # scratch of the pair pass, see contact_blocks
+        self._one_material = None  # (mat, whether all particles are of one material), see contact_blocks
         n = 0
         self.x = np.zeros((n, 3))
         self.v = np.zeros((n, 3))
@@ -288,7 +289,9 @@ class EngineState:
         import numba
 
         threads = numba.get_num_threads()
-        one_material = self.n == 0 or bool((self.mat[:self.n] == self.mat[0]).all())
+        if self._one_material is None or self._one_material[0] is not self.mat:  # the array is replaced when it changes
+            self._one_material = (self.mat, self.n == 0 or bool((self.mat[:self.n] == self.mat[0]).all()))
+        one_material = self._one_material[1]
         width = block_columns(self.history_size) * CONTACT_BLOCK if one_material else 0
         if self._blocks is None or self._blocks.shape != (threads, width):
             self._blocks = np.zeros((threads, width))

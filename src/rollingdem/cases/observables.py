@@ -156,7 +156,7 @@ def inclined_wall(params: dict) -> dict:
 # --- angle-of-repose -------------------------------------------------------------------------------
 def angle_of_repose(params: dict) -> dict:
     """A pile from a lifted tube and its measured angle (NaN with a note when it cannot be fitted)."""
-    from .repose import Collapse, PileMaterial, pile_run
+    from .repose import Collapse, PileMaterial, PileSetup, pile_run
 
     p = CASES["angle-of-repose"].resolve(params)
     material = PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
@@ -164,7 +164,7 @@ def angle_of_repose(params: dict) -> dict:
     collapse = Collapse(max_time=p["max_collapse"], sample=0.02, lift_speed=p["lift_speed"] or None)
     run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], seed=p["seed"], material=material,
                    collapse=collapse, polydispersity=p["polydispersity"], dt=p["dt"],
-                   base="rough" if p["rough_base"] else "plate")
+                   setup=PileSetup(base="rough" if p["rough_base"] else "plate"))
     a = run.angle
     return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
             "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,

@@ -98,13 +98,27 @@ class Collapse:
     lift_speed: float | None = None
 
 
+@dataclass(frozen=True)
+class PileSetup:
+    """Where the column stands: its height in tube diameters (``aspect``), the tube (with
+    ``tube_segments``, a triangle mesh of that many flat sides through the cylinder's radius, else
+    the cylinder) and the floor (``base``: "plate", the bare plate; "rough", a rough base of fixed
+    spheres of the mean radius on it, ``rollingdem.rough_base``, over a square ``ROUGH_BASE_EXTENT``
+    tube radii wide, as the PFC and LIGGGHTS repose studies glue one to the floor: on the bare
+    plate, spheres with little rolling resistance roll away and no pile forms)."""
+
+    aspect: float = 1.0
+    tube_segments: int | None = None
+    base: str = "plate"
+
+
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
-             collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, aspect=1.0, dt=DT,
-             label=None, tube_segments=None, base="plate") -> PileRun:
+             collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT, label=None,
+             setup: PileSetup = PileSetup()) -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
     Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
-    tube on a plate and settle into a column ``aspect`` diameters high (a monodisperse column
+    tube on a plate and settle into a column ``setup.aspect`` diameters high (a monodisperse column
     orders into layers on a flat plate and then spreads into a monolayer); ``material`` sets what
     may differ from Table 1. Then the tube is removed at once (the report's case 3) or, with
     ``collapse.lift_speed`` (m/s), lifted as in the PFC example. The collapse runs at least
@@ -113,35 +127,32 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     (:func:`rollingdem.analysis.touching`), at most ``MOVING_FRACTION`` (0.5 %) move faster than
     1e-3 sqrt(g d) (:func:`rollingdem.analysis.default_max_speed`). A sphere rolling alone over the
     plate (with little rolling resistance it may roll for seconds) and a few rattlers caged in
-    the pile do not change its surface. Then the angle is measured. With ``tube_segments`` the
-    tube is a triangle mesh of that many flat sides through the cylinder's radius. ``base``: the bare
-    plate ("plate", the report's case 3) or a rough base ("rough") of fixed spheres of the mean radius
-    (``rollingdem.rough_base``, over a square ``ROUGH_BASE_EXTENT`` tube radii wide) on it, as the
-    PFC and LIGGGHTS repose studies glue one to the floor: on the bare plate, spheres with little
-    rolling resistance roll away and no pile forms.
+    the pile do not change its surface. Then the angle is measured. ``setup``: the tube and the
+    floor (``PileSetup``).
     """
-    for what, value, kind in (("material", material, PileMaterial), ("collapse", collapse, Collapse)):
+    for what, value, kind in (("material", material, PileMaterial), ("collapse", collapse, Collapse),
+                              ("setup", setup, PileSetup)):
         if not isinstance(value, kind):
             raise ParameterError(f"{what} = {value!r} is not allowed: must be a "
                                  f"rollingdem.cases.repose.{kind.__name__}")
     lift_speed, sample, max_collapse = collapse.lift_speed, collapse.sample, collapse.max_time
     tic = time.perf_counter()
     dist = Uniform(RADIUS * (1 - polydispersity), RADIUS * (1 + polydispersity)) if polydispersity else RADIUS
-    tube_radius, height = column_size(count, RADIUS, polydispersity, aspect)
+    tube_radius, height = column_size(count, RADIUS, polydispersity, setup.aspect)
     sim = Simulation(contact=ContactModel(normal, rolling=rolling, twisting=twisting), dt=dt)
     sim.add_material(material.as_material("m"))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m", name="plate"))
-    check_choice("base", base, ("plate", "rough"))
+    check_choice("base", setup.base, ("plate", "rough"))
     floor = 0.0
-    if base == "rough":
+    if setup.base == "rough":
         half = 0.5 * ROUGH_BASE_EXTENT * tube_radius
         sim.add_particles(rough_base(RADIUS, ((-half, half), (-half, half)), seed=seed), RADIUS, "m", fixed=True)
         floor = 2.0 * RADIUS
-    if tube_segments is None:
+    if setup.tube_segments is None:
         tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material="m", name="tube"))
     else:
         tube = sim.add_wall(MeshWall.shape("drum", radius=tube_radius, length=2.0 * height + 0.1,
-                                           segments=tube_segments, caps=False, material="m", name="tube"))
+                                           segments=setup.tube_segments, caps=False, material="m", name="tube"))
     fill = height * PACKING / INSERT_PACKING
     sim.insert(CylinderRegion(tube_radius, floor, floor + fill), count, dist, "m", seed=seed)
     free = ~sim.fixed

@@ -147,7 +147,7 @@ class Inflow(Boundary):
         self.rate = None if rate is None else check_positive("inflow rate", rate, "particles/s")
         self.mass_rate = None if mass_rate is None else check_positive("inflow mass_rate", mass_rate, "kg/s")
         self.radius = as_distribution(radius)
-        rmax = self._largest_radius()
+        rmax = self.radius.max_radius
         if not self.region.fits(rmax):
             raise ParameterError(f"inflow region {self.region!r} is not allowed: a sphere of radius {rmax:g} m does not "
                                  "fit in it; must be larger than one particle")
@@ -162,9 +162,6 @@ class Inflow(Boundary):
         self.shortfall = 0
         self.actions = 0  # actions so far: each draws from its own random stream (seed, action)
         self.warned = False
-
-    def _largest_radius(self) -> float:
-        return float(self.radius.max_radius)
 
     def values(self) -> list:
         return [self.count, self.mass, self.shortfall]

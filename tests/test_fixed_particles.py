@@ -132,3 +132,15 @@ def test_fixed_particle_refusals(table1):
     with pytest.raises(ParameterError, match="particle 0 is fixed"):
         sim.set_velocities([0, 1], velocity=(0, 0, 1))
     sim.set_velocities([1], velocity=(0, 0, 1))
+
+
+def test_a_fixed_sphere_may_lie_across_a_wall_that_never_touches_it(table1):
+    """Walls skip fixed particles, so a rough base may reach under and beyond a tube standing on
+    it: added after the tube it is accepted, where a free sphere there is refused."""
+    sim = rd.Simulation(contact=rd.ContactModel("hertz"), dt=1e-5)
+    sim.add_material(table1())
+    sim.add_wall(rd.Cylinder(radius=0.04, material="m", name="tube"))
+    sim.add_particles(rd.rough_base(0.005, ((-0.1, 0.1), (-0.1, 0.1)), seed=1), 0.005, "m", fixed=True)
+    assert sim.fixed.all() and sim.n_particles > 100
+    with pytest.raises(ParameterError, match="overlaps wall 'tube'"):
+        sim.add_particles([[0.09, 0.0, 0.02]], 0.005, "m")

@@ -411,8 +411,8 @@ def test_a_case_file_refuses_a_broken_mesh_file_naming_it(tmp_path, problem, ver
 
 # --- acceptance runs (slow: their figures are in issue 27's closing note) ------------------------
 def default_case_with_a_mesh_tube(segments):
-    """The built-in default case (1,000 spheres settle in a tube on a plate, the tube goes, the
-    column collapses), its tube the analytic cylinder (``segments`` None) or an open mesh tube of
+    """The built-in default case (2,000 spheres settle in a tube on a rough base, the tube goes,
+    the column collapses), its tube the analytic cylinder (``segments`` None) or an open mesh tube of
     ``segments`` flat sides through the cylinder's radius."""
     from rollingdem.casefile import default_case_path, load_case
     from rollingdem.mapping_file import read_mapping
@@ -420,7 +420,8 @@ def default_case_with_a_mesh_tube(segments):
     data = read_mapping(default_case_path())[0]
     if segments is not None:
         data["walls"][1] = {"type": "mesh", "name": "tube", "material": "table1", "shape": "drum",
-                            "size": {"radius": 0.04, "length": 1.3, "segments": segments, "caps": False}}
+                            "size": {"radius": data["walls"][1]["radius"], "length": 1.3, "segments": segments,
+                                     "caps": False}}
     data["output"] = {"time_series": None, "plot": False}
     return load_case(data)
 

@@ -285,8 +285,15 @@ class IntervalSpec(_Strict):
     interval: Number
 
 
+class ReposeOutputSpec(_Strict):
+    """Measure the pile at the end (``rollingdem.analysis.repose_angle``) on a floor at ``floor``
+    (m; default the top of the highest fixed sphere, else 0)."""
+    floor: Optional[Number] = None
+
+
 class OutputSpec(_Strict):
     directory: Optional[str] = None
+    repose_angle: Optional[ReposeOutputSpec] = None
     time_series: Optional[SeriesSpec] = SeriesSpec()
     snapshots: Optional[IntervalSpec] = None
     checkpoint: Optional[IntervalSpec] = None
@@ -750,6 +757,8 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
             steps = sim.step - steps0
             summary["stages"].append({"name": stage.name, "steps": steps, "wall_seconds": wall,
                                       "particle_steps_per_second": sim.n_particles * steps / wall if wall else None})
+        if case.output.repose_angle is not None:
+            summary["repose_angle"] = _measure_pile(sim, case.output.repose_angle, outdir, echo)
     except ParameterError as err:  # refused later on (a stage's dt after the state changed): say where
         failure = err
         raise ParameterError(f"stage {stage.name!r} at t = {sim.time:.6g} s: {err} (the outputs so far are in "
@@ -770,6 +779,30 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
                 echo(f"  (kinetic-energy plot failed: {err})")
     echo(f"  done: {sim.step} steps in {summary['wall_seconds']:.1f} s; outputs in {outdir}")
     return summary
+
+
+def _measure_pile(sim, spec: ReposeOutputSpec, outdir: Path, echo) -> dict:
+    """The repose angle of the free spheres at the end of the run, printed, in ``pile.png`` and
+    returned for summary.json; a pile the cone fit refuses (too flat, too small) is said, not raised."""
+    from .analysis import plot_pile, repose_angle
+
+    free = ~sim.fixed
+    if spec.floor is not None:
+        floor = float(spec.floor)
+    elif sim.fixed.any():
+        floor = float(np.max(sim.positions[sim.fixed, 2] + sim.radii[sim.fixed]))
+    else:
+        floor = 0.0
+    try:
+        a = repose_angle(sim.positions[free], sim.radii[free], floor=floor)
+    except ParameterError as err:
+        echo(f"  repose angle: not measured: {err}")
+        return {"angle": None, "note": str(err)}
+    plot_pile(sim.positions[free], sim.radii[free], a, path=outdir / "pile.png")
+    echo(f"  repose angle: {a.angle:.1f} deg (cone fit R² {a.r_squared:.2f}; {len(a.slice_angles)} azimuthal "
+         f"slices {a.slice_mean:.1f} ± {a.slice_std:.1f} deg); pile and cone in {outdir / 'pile.png'}")
+    return {"angle": a.angle, "r_squared": a.r_squared, "slice_mean": a.slice_mean, "slice_std": a.slice_std,
+            "floor": floor}
 
 
 def plot_kinetic_energy(series_csv, png, title=""):

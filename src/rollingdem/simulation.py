@@ -79,6 +79,7 @@ class Simulation:
         self._pair_params = None
         self._dt_passed = None  # (scene key, fastest speeds) when dt last passed _check_dt
         self._modules = {}  # engine modules by (contact, track_energy, serial)
+        self._stepped = set()  # ids of the engine modules this simulation has stepped with (compiled)
         # how a user turns a check off, as the refusal tells it; a case file names its own keys
         self.hints = {"check_timestep": "pass check_timestep=False to the Simulation",
                       "allow_overlap": "pass allow_overlap=True"}
@@ -173,7 +174,7 @@ class Simulation:
             mats = np.full(m, mat_idx, dtype=np.int32)
         self._check_in_box(x)
         if not allow_overlap:
-            self._check_no_overlap(x, r)
+            self._check_no_overlap(x, r, walls=not fixed)  # walls never touch a fixed particle
         density = np.array([self.materials.materials[k].density for k in mats])
         mass = density * (4.0 / 3.0) * math.pi * r ** 3
         first = self.n_particles
@@ -214,7 +215,7 @@ class Simulation:
             raise ParameterError(f"{name} = {_short(value)} is not allowed: components must be finite")
         return arr
 
-    def _check_no_overlap(self, x, r, tolerance=1e-12):
+    def _check_no_overlap(self, x, r, tolerance=1e-12, walls=True):
         from scipy.spatial import cKDTree
 
         first = self._state.n
@@ -238,7 +239,7 @@ class Simulation:
                 g = float(gap[np.argmax(bad)])
                 raise ParameterError(f"particles {min(i, j)} and {max(i, j)} overlap by {-g:.3g} m at insertion: "
                                      f"positions must not overlap ({self.hints['allow_overlap']} to accept it)")
-        for wl in self._walls:
+        for wl in self._walls if walls else ():
             if wl.kind == INACTIVE:
                 continue
             ov = wl.overlap(x, r)
@@ -766,13 +767,15 @@ class Simulation:
         self._check_periodic_length()
         for ob in observers:
             ob.check(self)  # all refusals before any observer writes
-        bar = _Progress(self, steps, label) if progress else None
+        bar = None
         end = self.step + steps
         for ob in observers:
             ob.start(self)
         failure = None
         try:
             kernel = self.engine_module()  # after the observers start: a TimeSeries turns on track_energy
+            if progress:
+                bar = _Progress(self, steps, label, warm=id(kernel) in self._stepped)
             for ob in observers:
                 ob.maybe_observe(self, force=True)
             chunk = 64
@@ -785,6 +788,7 @@ class Simulation:
                 done, problem = self._state.advance(kernel, todo, self.dt, self._gravity, self.skin,
                                                     self.pair_parameters())
                 elapsed = _time.perf_counter() - tic
+                self._stepped.add(id(kernel))
                 self.step += done
                 self.time = self._time_origin[0] + (self.step - self._time_origin[1]) * self.dt
                 self._check_finite_state()
@@ -1002,29 +1006,48 @@ def _short(value, width: int = 60) -> str:
     return text if len(text) <= width else text[:width - 3] + "..."
 
 
-class _Progress:
-    """tqdm bar over simulated time with steps/s and time left."""
+def _clock(seconds: float) -> str:
+    """``m:ss`` or ``h:mm:ss``."""
+    m, sec = divmod(int(round(seconds)), 60)
+    h, m = divmod(m, 60)
+    return f"{h}:{m:02d}:{sec:02d}" if h else f"{m}:{sec:02d}"
 
-    def __init__(self, sim, steps, label):
+
+class _Progress:
+    """tqdm bar over simulated time with steps/s and time left. Until the first chunk of steps is
+    back it says "compiling" (the first call compiles the kernel, or loads it from Numba's cache),
+    and the rate and the time left count only the chunks after it; ``warm``: the kernel has run
+    before, so the first chunk counts too and nothing is said of compiling."""
+
+    def __init__(self, sim, steps, label, warm=False):
         from tqdm import tqdm
 
         self.total_time = steps * sim.dt
         import sys
 
-        self.bar = tqdm(total=round(self.total_time, 12), desc=label, unit="s(sim)", unit_scale=False,
-                        mininterval=0.5 if sys.stderr.isatty() else 10.0,
-                        bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.4g}/{total:.4g} s "
-                                   "[{elapsed}<{remaining}{postfix}]")
+        self.label = label
+        self.bar = tqdm(total=round(self.total_time, 12), desc=label if warm else f"{label} (compiling)", unit="s(sim)",
+                        unit_scale=False, mininterval=0.5 if sys.stderr.isatty() else 10.0,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.4g}/{total:.4g} s [{elapsed}{postfix}]")
         self.dt = sim.dt
-        self.steps = 0
+        self.total_steps = steps
+        self.warm = warm
+        self.done = 0
+        self.steps = 0  # after the first chunk
         self.wall = 0.0
 
     def update(self, sim, todo, elapsed):
-        self.steps += todo
-        self.wall += elapsed
-        inc = todo * self.dt
-        self.bar.set_postfix_str(f"{self.steps / max(self.wall, 1e-9):,.0f} steps/s", refresh=False)
-        self.bar.update(min(inc, self.bar.total - self.bar.n))
+        self.done += todo
+        if self.done == todo and not self.warm:  # the first chunk: compile time, not the stepping rate
+            self.bar.set_description_str(self.label, refresh=False)
+        else:
+            self.steps += todo
+            self.wall += elapsed
+        if self.steps:
+            rate = self.steps / max(self.wall, 1e-9)
+            left = max(self.total_steps - self.done, 0) / rate
+            self.bar.set_postfix_str(f"{rate:,.0f} steps/s, {_clock(left)} left", refresh=False)
+        self.bar.update(min(todo * self.dt, self.bar.total - self.bar.n))
 
     def close(self):
         self.bar.close()

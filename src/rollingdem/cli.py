@@ -202,7 +202,8 @@ def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML)
 
 
 @app.command()
-def calibrate(case: str = typer.Option(..., "--case", "-c", help="rolling-flat, inclined-wall or angle-of-repose."),
+def calibrate(case: str = typer.Option(..., "--case", "-c", help="rolling-flat, inclined-wall, angle-of-repose or "
+                                                                  "rotating-drum."),
               target: float = typer.Option(..., "--target", help="Measured value of the observable (e.g. a repose "
                                            "angle in degrees)."),
               uncertainty: float = typer.Option(0.0, "--uncertainty", "-u", help="Standard uncertainty (one sigma) "

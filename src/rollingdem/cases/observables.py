@@ -11,6 +11,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+import numpy as np
+
 from ..errors import ParameterError, check_choice, check_finite
 
 __all__ = ["CASES", "SweepCase", "Parameter", "get_case", "resolve_rolling"]
@@ -171,6 +173,30 @@ def angle_of_repose(params: dict) -> dict:
             "note": run.angle_error[:200]}
 
 
+# --- rotating-drum ---------------------------------------------------------------------------------
+def rotating_drum(params: dict) -> dict:
+    """A periodic slice of a drum turning in the rolling regime: its dynamic angle and the rest."""
+    from ..intervals import confidence_interval
+    from .drum import BLOCKS, DrumSetup, drum_run
+    from .repose import PileMaterial
+
+    p = CASES["rotating-drum"].resolve(params)
+    material = PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
+                            restitution=p["e"], rolling_damping=p["eta_r"])
+    setup = DrumSetup(drum_diameters=p["drum_diameters"], slice_diameters=p["slice_diameters"], fill=p["fill"],
+                      froude=p["froude"], gravity=p["gravity"], wall_friction=p["wall_friction"],
+                      spin_up=p["spin_up"], measure=p["measure"], samples=p["samples"])
+    run = drum_run(resolve_rolling(p["model"]), p["twisting"], material, setup, radius=p["radius"],
+                   polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
+    # successive samples are correlated: the 95 % interval is over the means of BLOCKS blocks
+    blocks = [b.mean() for b in np.array_split(run.angle, min(BLOCKS, len(run.angle)))]
+    return {"angle": float(run.angle.mean()), "angle_ci": confidence_interval(blocks)[1],
+            "angle_std": float(run.angle.std(ddof=1)) if len(run.angle) > 1 else math.nan,
+            "com_angle": float(run.com_angle.mean()), "torque": float(run.torque.mean()),
+            "flowing_depth": run.flowing_depth, "passive_speed_ratio": run.passive_speed_ratio,
+            "omega": run.omega, "particles": run.particles}
+
+
 def _common(mu=0.8, mur=0.2, mur_range=(0.02, 1.0), mur_low_open=False):
     return (Parameter("model", "epsd", "rolling resistance model (rollingdem.contact.ROLLING_MODELS or a "
                                        "validation label such as 'epsd (liggghts)')", choice="rolling"),
@@ -216,6 +242,37 @@ CASES: dict[str, SweepCase] = {
          "r_squared": "cone fit R²", "settled_at": "s after the tube is removed", "note": "why no angle"},
         "angle", stochastic=True,
         description="pile from a lifted tube, repose angle by cone fit (report case 3 / PFC study)"),
+    "rotating-drum": SweepCase(
+        "rotating-drum", rotating_drum,
+        _common(mu=0.5, mur=0.2, mur_range=(0.0, 0.6))
+        + (Parameter("twisting", "none", "twisting model (rollingdem.contact.TWISTING_MODELS)", choice="twisting"),
+           Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
+           Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
+           Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
+           Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
+           Parameter("drum_diameters", 15.0, "drum radius in mean sphere diameters", low=4.0),
+           Parameter("slice_diameters", 5.0, "length of the periodic slice along the axis, in mean diameters",
+                     low=2.0),
+           Parameter("fill", 0.3, "the bed's share of the drum's cross-section (at solid fraction 0.6)", low=0.05,
+                     high=0.6),
+           Parameter("froude", 5e-3, "Froude number omega^2 R / g (rolling regime: 1e-4 to 1e-2)", low=0.0,
+                     low_open=True, high=1.0),
+           Parameter("gravity", 9.81, "gravitational acceleration g", "m/s^2", low=0.0, low_open=True),
+           Parameter("wall_friction", 1.0, "sliding friction of the spheres on the drum wall", low=0.0),
+           Parameter("spin_up", 90.0, "drum rotation before the first sample", "deg", low=0.0),
+           Parameter("measure", 90.0, "drum rotation over which the samples are taken", "deg", low=0.0,
+                     low_open=True),
+           Parameter("samples", 20, "samples of the bed", low=4, integer=True)),
+        {"angle": "deg, dynamic angle of repose: line fit of the free surface's middle third (mean over samples)",
+         "angle_ci": "deg, 95 % Student-t half-width over blocks of samples",
+         "angle_std": "deg, fluctuation of the angle from sample to sample",
+         "com_angle": "deg, angle of the bed's centre of mass from below the axis",
+         "torque": "N m/m, driving torque per metre of drum length",
+         "flowing_depth": "m, depth at the chord's middle where the downslope speed falls to zero",
+         "passive_speed_ratio": "speed of the passive zone over omega r (1: solid-body rotation)",
+         "omega": "rad/s, the drum's angular velocity", "particles": "spheres in the slice"},
+        "angle", stochastic=True,
+        description="a periodic slice of a drum turning in the rolling regime (docs/studies.md)"),
 }
 
 

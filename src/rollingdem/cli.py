@@ -95,7 +95,8 @@ def _set_threads(threads):
 def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-o", help="Output folder."),
              case: Optional[list[str]] = typer.Option(None, "--case", "-c", help="Run only this case (repeatable): "
                                                       "inclined-wall, rolling-flat, rolling-slope, angle-of-repose, "
-                                                      "repose-sweep."),
+                                                      "repose-sweep, repose-rough-base, rotating-drum, "
+                                                      "silo-discharge."),
              model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Only this model (repeatable), "
                                                        "e.g. epsd, 'cdt (liggghts)': each case runs those of its models "
                                                        "named; repose-sweep sweeps one. A case that runs none of them "

@@ -33,7 +33,11 @@ def available_cases() -> dict:
         from .repose_study import repose_sweep
     except ImportError:  # the pile cases need rollingdem.analysis
         return cases
-    cases.update({"angle-of-repose": repose.angle_of_repose, "repose-sweep": repose_sweep})
+    from .cases import experiments
+
+    cases.update({"angle-of-repose": repose.angle_of_repose, "repose-sweep": repose_sweep,
+                  "repose-rough-base": experiments.repose_rough_base, "rotating-drum": experiments.rotating_drum,
+                  "silo-discharge": experiments.silo_discharge})
     return cases
 
 
@@ -51,7 +55,9 @@ def case_models() -> dict[str, tuple[str, list[str]]]:
     except ImportError:  # the pile cases need rollingdem.analysis
         return table
     table["angle-of-repose"] = ("models", list(REPOSE_MODELS))
-    table["repose-sweep"] = ("model", sorted(ROLLING_MODELS) + [m for m in labels if m not in ROLLING_MODELS])
+    one_model = sorted(ROLLING_MODELS) + [m for m in labels if m not in ROLLING_MODELS]
+    for name in ("repose-sweep", "repose-rough-base", "rotating-drum", "silo-discharge"):
+        table[name] = ("model", one_model)
     return table
 
 

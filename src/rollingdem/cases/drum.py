@@ -35,9 +35,10 @@ class DrumSetup:
     """The drum and how it turns. Lengths in mean particle diameters d: the drum's radius
     (``drum_diameters``) and the periodic slice's length along the axis (``slice_diameters``);
     ``fill``, the bed's share of the cross-section (at the bed's bulk solid fraction 0.6);
-    ``froude`` = omega^2 R / g and ``gravity`` g (m/s^2); ``wall_friction``, the sliding friction
-    of the spheres on the drum's wall (high, so that the bed does not slip on it, as on a lined
-    drum); ``spin_up`` degrees of turning before the first sample and ``measure`` degrees over
+    ``froude`` = omega^2 R / g and ``gravity`` g (m/s^2); ``wall_friction`` and
+    ``wall_rolling_friction``, the sliding and rolling friction of the spheres on the drum's wall
+    (high, so that the bed neither slides nor rolls on it, as on a drum lined with glued grains);
+    ``spin_up`` degrees of turning before the first sample and ``measure`` degrees over
     which ``samples`` samples are taken."""
 
     drum_diameters: float = 15.0
@@ -46,7 +47,7 @@ class DrumSetup:
     froude: float = 5e-3
     gravity: float = 9.81
     wall_friction: float = 1.0
-    wall_rolling_friction: float | None = None
+    wall_rolling_friction: float = 1.0
     spin_up: float = 90.0
     measure: float = 90.0
     samples: int = 20
@@ -67,6 +68,7 @@ class DrumRun:
     flowing_depth: float  # m, from the profile of every sample
     flowing_depth_blocks: np.ndarray  # m, one per block of samples
     passive_speed_ratio: float
+    wall_layer_speed_ratio: float
     positions: np.ndarray
     radii: np.ndarray
     wall_time: float = math.nan
@@ -169,8 +171,7 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
                      periodic={"z": (0.0, length)})
     sim.add_material(material.as_material("m"))
     sim.add_material(material.as_material("wall"))
-    sim.set_pair("m", "wall", friction=setup.wall_friction, **(
-        {} if setup.wall_rolling_friction is None else {"rolling_friction": setup.wall_rolling_friction}))
+    sim.set_pair("m", "wall", friction=setup.wall_friction, rolling_friction=setup.wall_rolling_friction)
     drum = sim.add_wall(Cylinder(big_r, point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), material="wall", name="drum"))
     sim.insert(CylinderRegion(big_r - r_max, r_max, length - r_max), count, dist, "m", seed=seed)
     sim.run(2.0 * math.sqrt(4.0 * big_r / g) + 0.2)  # fall across the drum, then as long again to settle
@@ -192,15 +193,19 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
               for part in np.array_split(np.arange(len(profiles)), min(BLOCKS, len(profiles)))
               for part in [[profiles[i] for i in part]]]
     layer = flowing_depth(np.concatenate([p[0] for p in profiles]), np.concatenate([p[1] for p in profiles]), d)
-    # the passive zone: off the wall's first layer, two diameters below the flowing layer
-    dot = norm = 0.0
+    # below the flowing layer by two diameters: the passive zone off the wall's first layer, and
+    # that first layer (the spheres touching the wall)
+    sums = np.zeros((2, 2))
+    r_max = float(sim.radii.max())
     for x, v, slope, point in states:
         rho = np.hypot(x[:, 0], x[:, 1])
         below = -((x[:, :2] - point) @ (np.array([-slope, 1.0]) / math.hypot(1.0, slope)))
-        zone = (rho > 0.5 * big_r) & (rho < big_r - 1.5 * d) & (below > (layer if np.isfinite(layer) else 0.0) + 2 * d)
-        solid = omega * np.column_stack([-x[zone, 1], x[zone, 0]])
-        dot += float(np.sum(v[zone, :2] * solid))
-        norm += float(np.sum(solid * solid))
+        deep = below > (layer if np.isfinite(layer) else 0.0) + 2 * d
+        zones = ((rho > 0.5 * big_r) & (rho < big_r - 1.5 * d) & deep, (rho > big_r - 1.05 * r_max) & deep)
+        for k, zone in enumerate(zones):
+            solid = omega * np.column_stack([-x[zone, 1], x[zone, 0]])
+            sums[k] += (np.sum(v[zone, :2] * solid), np.sum(solid * solid))
+    ratio = [a / b if b else math.nan for a, b in sums]
     return DrumRun(omega, big_r, length, sim.n_particles, np.array(angle), np.array(com), np.array(torque),
-                   np.array(moment), layer, np.array(blocks), dot / norm if norm else math.nan, sim.positions.copy(), sim.radii.copy(),
-                   time.perf_counter() - tic)
+                   np.array(moment), layer, np.array(blocks), ratio[0], ratio[1], sim.positions.copy(),
+                   sim.radii.copy(), time.perf_counter() - tic)

@@ -185,6 +185,7 @@ def rotating_drum(params: dict) -> dict:
                             restitution=p["e"], rolling_damping=p["eta_r"])
     setup = DrumSetup(drum_diameters=p["drum_diameters"], slice_diameters=p["slice_diameters"], fill=p["fill"],
                       froude=p["froude"], gravity=p["gravity"], wall_friction=p["wall_friction"],
+                      wall_rolling_friction=p["wall_rolling_friction"],
                       spin_up=p["spin_up"], measure=p["measure"], samples=p["samples"])
     run = drum_run(resolve_rolling(p["model"]), p["twisting"], material, setup, radius=p["radius"],
                    polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
@@ -194,7 +195,52 @@ def rotating_drum(params: dict) -> dict:
             "angle_std": float(run.angle.std(ddof=1)) if len(run.angle) > 1 else math.nan,
             "com_angle": float(run.com_angle.mean()), "torque": float(run.torque.mean()),
             "flowing_depth": run.flowing_depth, "passive_speed_ratio": run.passive_speed_ratio,
+            "wall_layer_speed_ratio": run.wall_layer_speed_ratio,
             "omega": run.omega, "particles": run.particles}
+
+
+# --- silo-discharge --------------------------------------------------------------------------------
+def silo_discharge(params: dict) -> dict:
+    """A flat-bottomed silo emptied through its orifice: the steady mass flow rate and the rest."""
+    from .repose import PileMaterial
+    from .silo import WINDOW, SiloSetup, discharge_rate, silo_run
+
+    p = CASES["silo-discharge"].resolve(params)
+    material = PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
+                            restitution=p["e"], rolling_damping=p["eta_r"])
+    setup = SiloSetup(orifice_diameters=p["orifice_diameters"], silo_diameters=p["silo_diameters"] or None,
+                      fill_diameters=p["fill_diameters"] or None, gravity=p["gravity"], max_time=p["max_time"],
+                      clog_time=p["clog_time"])
+    run = silo_run(resolve_rolling(p["model"]), p["twisting"], material, setup, radius=p["radius"],
+                   polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
+    w, half = discharge_rate(run.t, run.discharged, run.bed_mass, blocks=5)
+    return {"flow_rate": w, "flow_rate_ci": half,
+            "flow_rate_first": discharge_rate(run.t, run.discharged, run.bed_mass, window=WINDOW[:2])[0],
+            "flow_rate_second": discharge_rate(run.t, run.discharged, run.bed_mass, window=WINDOW[1:])[0],
+            "bulk_density": run.bulk_density, "orifice_density": run.orifice_density, "clogged": int(run.clogged),
+            "orifice": run.orifice, "particles": run.particles}
+
+
+# --- repose-rough-base -----------------------------------------------------------------------------
+def repose_rough_base(params: dict) -> dict:
+    """The lifted-cylinder pile on a rough base of fixed spheres, every protocol choice a parameter."""
+    from .repose import Collapse, PileMaterial, PileSetup, pile_run
+
+    p = CASES["repose-rough-base"].resolve(params)
+    material = PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
+                            restitution=p["e"], rolling_damping=p["eta_r"], poisson_ratio=p["poisson_ratio"],
+                            density=p["density"])
+    base_radius = p["base_radius"] or p["radius"]
+    setup = PileSetup(base="rough", radius=p["radius"], tube_radius=p["tube_radius"] or None,
+                      base_radius=base_radius, base_spacing=p["base_spacing"] * base_radius,
+                      base_jitter=p["base_jitter"] * base_radius, clearance=2.0 * p["radius"] * p["clearance"])
+    collapse = Collapse(max_time=p["max_collapse"], sample=0.02, lift_speed=p["lift_speed"] or None)
+    run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], seed=p["seed"], material=material,
+                   collapse=collapse, polydispersity=p["polydispersity"], dt=p["dt"], setup=setup)
+    a = run.angle
+    return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
+            "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
+            "note": run.angle_error[:200]}
 
 
 def _common(mu=0.8, mur=0.2, mur_range=(0.02, 1.0), mur_low_open=False):
@@ -259,6 +305,7 @@ CASES: dict[str, SweepCase] = {
                      low_open=True, high=1.0),
            Parameter("gravity", 9.81, "gravitational acceleration g", "m/s^2", low=0.0, low_open=True),
            Parameter("wall_friction", 1.0, "sliding friction of the spheres on the drum wall", low=0.0),
+           Parameter("wall_rolling_friction", 1.0, "rolling friction of the spheres on the drum wall", low=0.0),
            Parameter("spin_up", 90.0, "drum rotation before the first sample", "deg", low=0.0),
            Parameter("measure", 90.0, "drum rotation over which the samples are taken", "deg", low=0.0,
                      low_open=True),
@@ -270,9 +317,61 @@ CASES: dict[str, SweepCase] = {
          "torque": "N m/m, driving torque per metre of drum length",
          "flowing_depth": "m, depth at the chord's middle where the downslope speed falls to zero",
          "passive_speed_ratio": "speed of the passive zone over omega r (1: solid-body rotation)",
+         "wall_layer_speed_ratio": "speed of the spheres touching the wall, below the flowing layer, over omega r",
          "omega": "rad/s, the drum's angular velocity", "particles": "spheres in the slice"},
         "angle", stochastic=True,
         description="a periodic slice of a drum turning in the rolling regime (docs/studies.md)"),
+    "silo-discharge": SweepCase(
+        "silo-discharge", silo_discharge,
+        _common(mu=0.5, mur=0.2, mur_range=(0.0, 0.6))
+        + (Parameter("twisting", "none", "twisting model (rollingdem.contact.TWISTING_MODELS)", choice="twisting"),
+           Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
+           Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
+           Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
+           Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
+           Parameter("orifice_diameters", 6.0, "orifice diameter D0 in mean sphere diameters d", low=1.0),
+           Parameter("silo_diameters", 0.0, "silo diameter in d (0: max(2.5 D0, D0 + 30 d))", low=0.0),
+           Parameter("fill_diameters", 0.0, "settled fill height in d (0: one silo diameter)", low=0.0),
+           Parameter("gravity", 9.81, "gravitational acceleration g", "m/s^2", low=0.0, low_open=True),
+           Parameter("max_time", 60.0, "longest discharge", "s", low=0.0, low_open=True),
+           Parameter("clog_time", 1.0, "time without a particle out that counts as clogged", "s", low=0.0,
+                     low_open=True)),
+        {"flow_rate": "kg/s, steady mass flow rate W: slope of the discharged mass from 5 % to 65 % of the bed",
+         "flow_rate_ci": "kg/s, 95 % Student-t half-width over 5 sub-windows",
+         "flow_rate_first": "kg/s, W from 5 % to 35 % of the bed discharged",
+         "flow_rate_second": "kg/s, W from 35 % to 65 %",
+         "bulk_density": "kg/m^3, of the settled bed before the orifice opens",
+         "orifice_density": "kg/m^3, in the cylinder D0 wide and D0/2 high above the orifice, during the discharge",
+         "clogged": "1 when the orifice clogged", "orifice": "m, the orifice diameter D0",
+         "particles": "spheres in the silo"},
+        "flow_rate", stochastic=True,
+        description="a flat-bottomed silo emptied through a circular orifice (docs/studies.md)"),
+    "repose-rough-base": SweepCase(
+        "repose-rough-base", repose_rough_base,
+        _common(mu=0.6, mur=0.1, mur_range=(0.0, 0.6))
+        + (Parameter("twisting", "none", "twisting model (rollingdem.contact.TWISTING_MODELS)", choice="twisting"),
+           Parameter("count", 2000, "spheres in the column", low=50, integer=True),
+           Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
+           Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
+           Parameter("tube_radius", 0.0, "cylinder radius (0: sized so that the column is one diameter high at "
+                                         "solid fraction 0.6; 6 d for 2,000 spheres)", "m", low=0.0),
+           Parameter("lift_speed", 0.1, "cylinder lift speed (0: removed at once)", "m/s", low=0.0),
+           Parameter("clearance", 1.0, "how far the lifted cylinder's lower edge rises above the column's top "
+                                       "before it is removed, in mean diameters", low=0.0),
+           Parameter("base_radius", 0.0, "radius of the base's fixed spheres (0: R)", "m", low=0.0),
+           Parameter("base_spacing", 2.2, "spacing of the base's spheres, in base radii", low=2.0),
+           Parameter("base_jitter", 0.1, "random shift of each base sphere in the plane, at most, in base radii",
+                     low=0.0),
+           Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
+           Parameter("poisson_ratio", 0.49, "Poisson's ratio", low=0.0, high=0.5),
+           Parameter("density", 1056.0, "particle density", "kg/m^3", low=0.0, low_open=True),
+           Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
+           Parameter("max_collapse", 3.0, "longest collapse before the pile counts as unsettled", "s", low=0.0,
+                     low_open=True)),
+        {"angle": "deg, cone fit (rollingdem.analysis.repose_angle)", "slice_std": "deg, spread over azimuthal slices",
+         "r_squared": "cone fit R²", "settled_at": "s after the cylinder starts to lift", "note": "why no angle"},
+        "angle", stochastic=True,
+        description="the lifted-cylinder pile on a rough base of fixed spheres (PFC and LIGGGHTS protocol)"),
 }
 
 

@@ -78,12 +78,14 @@ class PileMaterial:
     youngs_modulus: float = TABLE1["youngs_modulus"]
     restitution: float = TABLE1["restitution"]
     rolling_damping: float = TABLE1["rolling_damping"]
+    poisson_ratio: float = TABLE1["poisson_ratio"]
+    density: float = TABLE1["density"]
 
     def as_material(self, name: str) -> Material:
         """Table 1 with these values, as a :class:`rollingdem.Material` called ``name``."""
-        return Material(name, **dict(TABLE1, youngs_modulus=self.youngs_modulus, friction=self.friction,
-                                     rolling_friction=self.rolling_friction, restitution=self.restitution,
-                                     rolling_damping=self.rolling_damping))
+        return Material(name, youngs_modulus=self.youngs_modulus, poisson_ratio=self.poisson_ratio,
+                        density=self.density, friction=self.friction, rolling_friction=self.rolling_friction,
+                        restitution=self.restitution, rolling_damping=self.rolling_damping)
 
 
 @dataclass(frozen=True)
@@ -105,11 +107,22 @@ class PileSetup:
     the cylinder) and the floor (``base``: "plate", the bare plate; "rough", a rough base of fixed
     spheres of the mean radius on it, ``rollingdem.rough_base``, over a square ``ROUGH_BASE_EXTENT``
     tube radii wide, as the PFC and LIGGGHTS repose studies glue one to the floor: on the bare
-    plate, spheres with little rolling resistance roll away and no pile forms)."""
+    plate, spheres with little rolling resistance roll away and no pile forms). The sizes: the
+    spheres' mean ``radius`` (m); ``tube_radius`` (m; None: sized for ``aspect`` by
+    :func:`column_size`); the base spheres' ``base_radius`` (None: the mean radius), ``base_spacing``
+    and ``base_jitter`` (None: ``rollingdem.rough_base``'s defaults); ``clearance``, how far (m;
+    None: two mean radii) the tube's lower edge rises above the settled column's top before the
+    lifted tube is removed."""
 
     aspect: float = 1.0
     tube_segments: int | None = None
     base: str = "plate"
+    radius: float = RADIUS
+    tube_radius: float | None = None
+    base_radius: float | None = None
+    base_spacing: float | None = None
+    base_jitter: float | None = None
+    clearance: float | None = None
 
 
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
@@ -137,8 +150,11 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
                                  f"rollingdem.cases.repose.{kind.__name__}")
     lift_speed, sample, max_collapse = collapse.lift_speed, collapse.sample, collapse.max_time
     tic = time.perf_counter()
-    dist = Uniform(RADIUS * (1 - polydispersity), RADIUS * (1 + polydispersity)) if polydispersity else RADIUS
-    tube_radius, height = column_size(count, RADIUS, polydispersity, setup.aspect)
+    radius = setup.radius
+    dist = Uniform(radius * (1 - polydispersity), radius * (1 + polydispersity)) if polydispersity else radius
+    tube_radius, height = column_size(count, radius, polydispersity, setup.aspect)
+    if setup.tube_radius is not None:  # the same column volume in the tube given
+        tube_radius, height = setup.tube_radius, height * (tube_radius / setup.tube_radius) ** 2
     sim = Simulation(contact=ContactModel(normal, rolling=rolling, twisting=twisting), dt=dt)
     sim.add_material(material.as_material("m"))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m", name="plate"))
@@ -146,8 +162,10 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     floor = 0.0
     if setup.base == "rough":
         half = 0.5 * ROUGH_BASE_EXTENT * tube_radius
-        sim.add_particles(rough_base(RADIUS, ((-half, half), (-half, half)), seed=seed), RADIUS, "m", fixed=True)
-        floor = 2.0 * RADIUS
+        base_radius = setup.base_radius or radius
+        sim.add_particles(rough_base(base_radius, ((-half, half), (-half, half)), spacing=setup.base_spacing,
+                                     jitter=setup.base_jitter, seed=seed), base_radius, "m", fixed=True)
+        floor = 2.0 * base_radius
     if setup.tube_segments is None:
         tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material="m", name="tube"))
     else:
@@ -160,7 +178,10 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     sim.run(2.0 * math.sqrt(2.0 * fill / G) + 0.1)
     if lift_speed:
         sim.set_wall_velocity(tube, velocity=(0.0, 0.0, lift_speed))
-        lift_time = (height + 4.0 * RADIUS) / lift_speed  # its lower edge clears the column top
+        clearance = setup.clearance if setup.clearance is not None else 2.0 * radius
+        # its lower edge clears the settled column's top (2 radii above the nominal height: a
+        # narrow column stands higher, column_size)
+        lift_time = (height + 2.0 * radius + clearance) / lift_speed
     else:
         sim.remove_wall(tube)
     inertia = 0.4 * sim.masses[free] * sim.radii[free] ** 2

@@ -16,7 +16,8 @@ SOURCE = Path(__file__).parents[1] / "src" / PACKAGE
 
 
 #: Modules above the sweep machinery; no case (nor anything a case imports) may import them.
-ABOVE_CASES = {"rollingdem.sweep", "rollingdem.repose_study", "rollingdem.calibration", "rollingdem.validate",
+ABOVE_CASES = {"rollingdem.sweep", "rollingdem.repose_study", "rollingdem.calibration", "rollingdem.joint_calibration",
+               "rollingdem.validate",
                "rollingdem.cli"}
 
 

@@ -203,39 +203,89 @@ def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML)
 
 
 @app.command()
-def calibrate(case: str = typer.Option(..., "--case", "-c", help="rolling-flat, inclined-wall, angle-of-repose or "
-                                                                  "rotating-drum."),
-              target: float = typer.Option(..., "--target", help="Measured value of the observable (e.g. a repose "
-                                           "angle in degrees)."),
-              uncertainty: float = typer.Option(0.0, "--uncertainty", "-u", help="Standard uncertainty (one sigma) "
-                                                "of the target."),
+def calibrate(target: list[str] = typer.Option(..., "--target", help="What was measured (repeatable): "
+                                               "CASE.OBSERVABLE=VALUE±U (e.g. angle-of-repose.angle=32.5±1.0), or with "
+                                               "--case a number (and --uncertainty)."),
+              free: Optional[list[str]] = typer.Option(None, "--free", help="A parameter to find (repeatable): NAME or "
+                                                       "NAME=LOW:HIGH (default: mur)."),
               fix: Optional[list[str]] = typer.Option(None, "--fix", help="NAME=VALUE held fixed (repeatable), e.g. "
-                                                      "mu=0.5, model=epsd."),
-              free: str = typer.Option("mur", "--free", help="The parameter to find: NAME or NAME=LOW:HIGH."),
-              observable: Optional[str] = typer.Option(None, "--observable", help="Observable to match (default: "
-                                                       "the case's: angle, distance, critical_angle)."),
+                                                      "mu=0.5, model=epsd; in every case that has it."),
+              case: Optional[str] = typer.Option(None, "--case", "-c", help="With a numeric --target: its case "
+                                                 "(rolling-flat, inclined-wall, angle-of-repose, repose-rough-base, "
+                                                 "rotating-drum, silo-discharge)."),
+              uncertainty: float = typer.Option(0.0, "--uncertainty", "-u", help="With a numeric --target: its "
+                                                "standard uncertainty (one sigma)."),
+              observable: Optional[str] = typer.Option(None, "--observable", help="With a numeric --target: the "
+                                                       "observable (default: the case's: angle, distance, ...)."),
               seeds: Optional[int] = typer.Option(None, "--seeds", help="Runs per point (default 3 for a random "
                                                   "case, 1 for a deterministic one)."),
-              coarse: int = typer.Option(5, "--coarse", help="Points of the first sweep over the range."),
-              refine: int = typer.Option(4, "--refine", help="Points added per refinement round."),
-              rounds: int = typer.Option(2, "--rounds", help="Refinement rounds."),
+              coarse: int = typer.Option(5, "--coarse", help="One free parameter: points of the first sweep."),
+              refine: int = typer.Option(4, "--refine", help="One free parameter: points added per round."),
+              initial: Optional[int] = typer.Option(None, "--initial", help="Several free parameters or targets: "
+                                                    "Latin-hypercube points first (default 4 per free parameter + 2)."),
+              per_round: int = typer.Option(4, "--per-round", help="Several free parameters or targets: points "
+                                            "added per round."),
+              rounds: Optional[int] = typer.Option(None, "--rounds", help="Refinement rounds (default 2 for one free "
+                                                   "parameter and target, else 3)."),
               out: Path = typer.Option(Path("rollingdem-calibration"), "--out", "-o", help="Output folder."),
               workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Worker processes."),
               scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address."),
               progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
-    """Find the free parameter whose simulated observable matches a measured target, with a 95 % interval."""
+    """Find the free parameters whose simulated observables match the measured targets, with their
+    95 % region. One numeric target and one free parameter: a monotone search; otherwise a
+    Gaussian-process surrogate with sequential design (docs/studies.md, "Calibration")."""
     from .calibration import Execution, Search, calibrate as run_calibration, parse_assignments, parse_free
+    from .joint_calibration import JointSearch, Target, calibrate_joint, parse_target
 
     _check_out(out)
     try:
-        result = run_calibration(case, target, uncertainty, fix=parse_assignments(fix, "fix"), free=parse_free(free),
-                                 observable=observable, seeds=seeds,
-                                 search=Search(coarse=coarse, refine=refine, rounds=rounds), out=out,
-                                 execution=Execution(workers=workers, scheduler=scheduler), progress=progress,
-                                 echo=typer.echo)
+        frees = [parse_free(f) for f in (free or ["mur"])]
+        execution = Execution(workers=workers, scheduler=scheduler)
+        fixed = parse_assignments(fix, "fix")
+        numeric = [t for t in target if "=" not in t]
+        if numeric and len(numeric) < len(target):
+            raise ParameterError(f"target = {numeric[0]!r} is not allowed beside CASE.OBSERVABLE=VALUE targets: give "
+                                 "every target as CASE.OBSERVABLE=VALUE±U")
+        if numeric:
+            if case is None:
+                raise ParameterError(f"target = {numeric[0]!r} is not allowed without --case: give --case, or write "
+                                     "the target as CASE.OBSERVABLE=VALUE±U")
+            if len(numeric) > 1:
+                raise ParameterError("target: several numbers are not allowed with --case: give each as "
+                                     "CASE.OBSERVABLE=VALUE±U")
+            try:
+                value = float(numeric[0])
+            except ValueError:
+                raise ParameterError(f"target = {numeric[0]!r} is not allowed: must be a number, or "
+                                     "CASE.OBSERVABLE=VALUE±U") from None
+            if len(frees) == 1:
+                result = run_calibration(case, value, uncertainty, fix=fixed, free=frees[0], observable=observable,
+                                         seeds=seeds, search=Search(coarse=coarse, refine=refine,
+                                                                    rounds=2 if rounds is None else rounds),
+                                         out=out, execution=execution, progress=progress, echo=typer.echo)
+                typer.echo(f"figure: {result.figures[0]}")
+                typer.echo(f"result: {Path(out) / 'calibration.json'}")
+                return
+            from .cases.observables import get_case
+
+            targets = [Target(case, observable or get_case(case).default_observable, value, uncertainty)]
+        else:
+            for what, given in (("--case", case), ("--observable", observable)):
+                if given is not None:
+                    raise ParameterError(f"{what} = {given!r} is not allowed with CASE.OBSERVABLE=VALUE targets: "
+                                         "each target names its case and observable")
+            if uncertainty:
+                raise ParameterError(f"--uncertainty = {uncertainty:g} is not allowed with CASE.OBSERVABLE=VALUE "
+                                     "targets: write each target's as VALUE±U")
+            targets = [parse_target(t) for t in target]
+        result = calibrate_joint(targets, {name: rng for name, rng in frees}, fix=fixed, seeds=seeds,
+                                 search=JointSearch(initial=initial, rounds=3 if rounds is None else rounds,
+                                                    per_round=per_round),
+                                 out=out, execution=execution, progress=progress, echo=typer.echo)
     except ParameterError as err:
         _refuse(err)
-    typer.echo(f"figure: {result.figures[0]}")
+    for f in result.figures:
+        typer.echo(f"figure: {f}")
     typer.echo(f"result: {Path(out) / 'calibration.json'}")
 
 

@@ -72,7 +72,7 @@ def rotating_drum(quick=False, outdir=None, progress=None, runner=map, model="ep
     change with g (within the 95 % interval of the difference); the spheres touching the wall
     below the flowing layer move at omega r within 2 %."""
     tic = time.perf_counter()
-    base = {"model": model, "mu": 0.5, "mur": 0.2, **(DRUM_QUICK if quick else {})}
+    base = {"model": model, "mu": 0.5, "mur": 0.2, "gravity": 9.81, **(DRUM_QUICK if quick else {})}
     points = [dict(base, mur=m) for m in (0.05, 0.2, 0.4)] + [dict(base, mu=m) for m in (0.3, 0.8)]
     points.append(dict(base, gravity=4 * 9.81))
     seeds = [1] if quick else [1, 2, 3]

@@ -82,6 +82,7 @@ class SweepCase:
     default_observable: str
     stochastic: bool  # does the seed change the result?
     description: str = ""
+    targets: dict = field(default_factory=dict)  # observable -> (low, high) it can reach: what calibration may match
     by_name: dict = field(default=None, compare=False, repr=False)
 
     def __post_init__(self):
@@ -261,7 +262,8 @@ CASES: dict[str, SweepCase] = {
         _common(mur_range=(0.05, 0.6), mur_low_open=True)
         + (Parameter("v0", 1.0, "launch speed", "m/s", low=0.0, low_open=True, high=10.0),),
         {"distance": "m, from launch to rest", "stop_time": "s, first sample below 1 mm/s"}, "distance",
-        stochastic=False, description="one Table-1 sphere launched at v0 on a flat (report case 1)"),
+        stochastic=False, description="one Table-1 sphere launched at v0 on a flat (report case 1)",
+        targets={"distance": (0.0, math.inf), "stop_time": (0.0, math.inf)}),
     "inclined-wall": SweepCase(
         "inclined-wall", inclined_wall,
         _common(mur_range=(0.05, 0.7), mur_low_open=True)
@@ -270,7 +272,7 @@ CASES: dict[str, SweepCase] = {
                      high=89.0),
            Parameter("rel_tol", 2e-3, "bisection width, relative in tan(beta)", low=1e-5, high=0.1)),
         {"critical_angle": "deg, theory atan(mu_r)"}, "critical_angle", stochastic=False,
-        description="critical inclination for a given mu_r (report case 0)"),
+        description="critical inclination for a given mu_r (report case 0)", targets={"critical_angle": (0.0, 90.0)}),
     "angle-of-repose": SweepCase(
         "angle-of-repose", angle_of_repose,
         _common(mu=0.5, mur=0.2, mur_range=(0.05, 0.6))
@@ -287,7 +289,8 @@ CASES: dict[str, SweepCase] = {
         {"angle": "deg, cone fit (rollingdem.analysis.repose_angle)", "slice_std": "deg, spread over azimuthal slices",
          "r_squared": "cone fit R²", "settled_at": "s after the tube is removed", "note": "why no angle"},
         "angle", stochastic=True,
-        description="pile from a lifted tube, repose angle by cone fit (report case 3 / PFC study)"),
+        description="pile from a lifted tube, repose angle by cone fit (report case 3 / PFC study)",
+        targets={"angle": (0.0, 90.0)}),
     "rotating-drum": SweepCase(
         "rotating-drum", rotating_drum,
         _common(mu=0.5, mur=0.2, mur_range=(0.0, 0.6))
@@ -320,7 +323,9 @@ CASES: dict[str, SweepCase] = {
          "wall_layer_speed_ratio": "speed of the spheres touching the wall, below the flowing layer, over omega r",
          "omega": "rad/s, the drum's angular velocity", "particles": "spheres in the slice"},
         "angle", stochastic=True,
-        description="a periodic slice of a drum turning in the rolling regime (docs/studies.md)"),
+        description="a periodic slice of a drum turning in the rolling regime (docs/studies.md)",
+        targets={"angle": (0.0, 90.0), "com_angle": (0.0, 90.0), "torque": (0.0, math.inf),
+                 "flowing_depth": (0.0, math.inf)}),
     "silo-discharge": SweepCase(
         "silo-discharge", silo_discharge,
         _common(mu=0.5, mur=0.2, mur_range=(0.0, 0.6))
@@ -345,7 +350,8 @@ CASES: dict[str, SweepCase] = {
          "clogged": "1 when the orifice clogged", "orifice": "m, the orifice diameter D0",
          "particles": "spheres in the silo"},
         "flow_rate", stochastic=True,
-        description="a flat-bottomed silo emptied through a circular orifice (docs/studies.md)"),
+        description="a flat-bottomed silo emptied through a circular orifice (docs/studies.md)",
+        targets={"flow_rate": (0.0, math.inf), "bulk_density": (0.0, math.inf)}),
     "repose-rough-base": SweepCase(
         "repose-rough-base", repose_rough_base,
         _common(mu=0.6, mur=0.1, mur_range=(0.0, 0.6))
@@ -371,7 +377,8 @@ CASES: dict[str, SweepCase] = {
         {"angle": "deg, cone fit (rollingdem.analysis.repose_angle)", "slice_std": "deg, spread over azimuthal slices",
          "r_squared": "cone fit R²", "settled_at": "s after the cylinder starts to lift", "note": "why no angle"},
         "angle", stochastic=True,
-        description="the lifted-cylinder pile on a rough base of fixed spheres (PFC and LIGGGHTS protocol)"),
+        description="the lifted-cylinder pile on a rough base of fixed spheres (PFC and LIGGGHTS protocol)",
+        targets={"angle": (0.0, 90.0)}),
 }
 
 

@@ -104,6 +104,7 @@ def rotating_drum(quick=False, outdir=None, progress=None, runner=map, model="ep
         plt = pyplot()
         fig, axes = plt.subplots(1, 2, figsize=(10, 4))
         for ax, key, fixed in ((axes[0], "mur", ("mu", 0.5)), (axes[1], "mu", ("mur", 0.2))):
+            ax.set_prop_cycle(color=plt.get_cmap("tab10").colors)
             sel = g0[np.isclose(g0[fixed[0]], fixed[1])].sort_values(key)
             ax.errorbar(sel[key], sel["angle mean"], yerr=sel["angle 95% CI"], fmt="o-", capsize=3, label="surface")
             ax.plot(sel[key], sel["com_angle"], "s--", label="centre of mass")
@@ -162,6 +163,7 @@ def silo_discharge(quick=False, outdir=None, progress=None, runner=map, model="e
     if outdir is not None and len(ok):
         plt = pyplot()
         fig, ax = plt.subplots(figsize=(6, 4))
+        ax.set_prop_cycle(color=plt.get_cmap("tab10").colors)
         ax.errorbar(ok["orifice_diameters"], ok["flow_rate"], yerr=ok["flow_rate_ci"], fmt="o", capsize=3,
                     label="simulated W, 95 % interval")
         x = np.linspace(ok["orifice"].min(), ok["orifice"].max(), 50)
@@ -205,6 +207,7 @@ def repose_rough_base(quick=False, outdir=None, progress=None, runner=map, model
     if outdir is not None:
         plt = pyplot()
         fig, ax = plt.subplots(figsize=(6.5, 4.2))
+        ax.set_prop_cycle(color=plt.get_cmap("tab10").colors)  # distinct neighbours, unlike tab20's pairs
         for mu in (0.2, 0.6):
             sel = table[np.isclose(table["mu"], mu)]
             ax.errorbar(sel["mur"], sel["angle mean"], yerr=sel["angle 95% CI"], fmt="o-", capsize=3,

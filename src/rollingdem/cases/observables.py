@@ -159,11 +159,10 @@ def inclined_wall(params: dict) -> dict:
 # --- angle-of-repose -------------------------------------------------------------------------------
 def angle_of_repose(params: dict) -> dict:
     """A pile from a lifted tube and its measured angle (NaN with a note when it cannot be fitted)."""
-    from .repose import Collapse, PileMaterial, PileSetup, pile_run
+    from .repose import Collapse, PileSetup, pile_run
 
     p = CASES["angle-of-repose"].resolve(params)
-    material = PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
-                            restitution=p["e"], rolling_damping=p["eta_r"])
+    material = _pile_material(p)
     collapse = Collapse(max_time=p["max_collapse"], sample=0.02, lift_speed=p["lift_speed"] or None)
     run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], seed=p["seed"], material=material,
                    collapse=collapse, polydispersity=p["polydispersity"], dt=p["dt"],
@@ -179,11 +178,9 @@ def rotating_drum(params: dict) -> dict:
     """A periodic slice of a drum turning in the rolling regime: its dynamic angle and the rest."""
     from ..intervals import confidence_interval
     from .drum import BLOCKS, DrumSetup, drum_run
-    from .repose import PileMaterial
 
     p = CASES["rotating-drum"].resolve(params)
-    material = PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
-                            restitution=p["e"], rolling_damping=p["eta_r"])
+    material = _pile_material(p)
     setup = DrumSetup(drum_diameters=p["drum_diameters"], slice_diameters=p["slice_diameters"], fill=p["fill"],
                       froude=p["froude"], gravity=p["gravity"], wall_friction=p["wall_friction"],
                       wall_rolling_friction=p["wall_rolling_friction"],
@@ -203,12 +200,10 @@ def rotating_drum(params: dict) -> dict:
 # --- silo-discharge --------------------------------------------------------------------------------
 def silo_discharge(params: dict) -> dict:
     """A flat-bottomed silo emptied through its orifice: the steady mass flow rate and the rest."""
-    from .repose import PileMaterial
     from .silo import WINDOW, SiloSetup, discharge_rate, silo_run
 
     p = CASES["silo-discharge"].resolve(params)
-    material = PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
-                            restitution=p["e"], rolling_damping=p["eta_r"])
+    material = _pile_material(p)
     setup = SiloSetup(orifice_diameters=p["orifice_diameters"], silo_diameters=p["silo_diameters"] or None,
                       fill_diameters=p["fill_diameters"] or None, gravity=p["gravity"], max_time=p["max_time"],
                       clog_time=p["clog_time"])
@@ -225,12 +220,10 @@ def silo_discharge(params: dict) -> dict:
 # --- repose-rough-base -----------------------------------------------------------------------------
 def repose_rough_base(params: dict) -> dict:
     """The lifted-cylinder pile on a rough base of fixed spheres, every protocol choice a parameter."""
-    from .repose import Collapse, PileMaterial, PileSetup, pile_run
+    from .repose import Collapse, PileSetup, pile_run
 
     p = CASES["repose-rough-base"].resolve(params)
-    material = PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
-                            restitution=p["e"], rolling_damping=p["eta_r"], poisson_ratio=p["poisson_ratio"],
-                            density=p["density"])
+    material = _pile_material(p)
     base_radius = p["base_radius"] or p["radius"]
     setup = PileSetup(base="rough", radius=p["radius"], tube_radius=p["tube_radius"] or None,
                       base_radius=base_radius, base_spacing=p["base_spacing"] * base_radius,
@@ -254,6 +247,27 @@ def _common(mu=0.8, mur=0.2, mur_range=(0.02, 1.0), mur_low_open=False):
             Parameter("e", 0.5, "coefficient of restitution", low=0.0, high=1.0, low_open=True,
                       calibration_range=(0.1, 0.9)),
             Parameter("seed", 1, "random seed (insertion)", low=0, integer=True))
+
+
+def _granular():
+    """The parameters of an experiment with a bed of spheres: _common's, the twisting model, the
+    spheres' size and stiffness, the time step."""
+    return (_common(mu=0.5, mur=0.2, mur_range=(0.0, 0.6))
+            + (Parameter("twisting", "none", "twisting model (rollingdem.contact.TWISTING_MODELS)", choice="twisting"),
+               Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
+               Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
+               Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
+               Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True)))
+
+
+def _pile_material(p: dict):
+    """The spheres' material of an experiment's parameters (Table 1's Poisson ratio and density
+    unless given)."""
+    from .repose import PileMaterial
+
+    extra = {k: p[k] for k in ("poisson_ratio", "density") if k in p}
+    return PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
+                        restitution=p["e"], rolling_damping=p["eta_r"], **extra)
 
 
 CASES: dict[str, SweepCase] = {
@@ -293,13 +307,8 @@ CASES: dict[str, SweepCase] = {
         targets={"angle": (0.0, 90.0)}),
     "rotating-drum": SweepCase(
         "rotating-drum", rotating_drum,
-        _common(mu=0.5, mur=0.2, mur_range=(0.0, 0.6))
-        + (Parameter("twisting", "none", "twisting model (rollingdem.contact.TWISTING_MODELS)", choice="twisting"),
-           Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
-           Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
-           Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
-           Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
-           Parameter("drum_diameters", 15.0, "drum radius in mean sphere diameters", low=4.0),
+        _granular()
+        + (Parameter("drum_diameters", 15.0, "drum radius in mean sphere diameters", low=4.0),
            Parameter("slice_diameters", 5.0, "length of the periodic slice along the axis, in mean diameters",
                      low=2.0),
            Parameter("fill", 0.3, "the bed's share of the drum's cross-section (at solid fraction 0.6)", low=0.05,
@@ -328,13 +337,8 @@ CASES: dict[str, SweepCase] = {
                  "flowing_depth": (0.0, math.inf)}),
     "silo-discharge": SweepCase(
         "silo-discharge", silo_discharge,
-        _common(mu=0.5, mur=0.2, mur_range=(0.0, 0.6))
-        + (Parameter("twisting", "none", "twisting model (rollingdem.contact.TWISTING_MODELS)", choice="twisting"),
-           Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
-           Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
-           Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
-           Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
-           Parameter("orifice_diameters", 6.0, "orifice diameter D0 in mean sphere diameters d", low=1.0),
+        _granular()
+        + (Parameter("orifice_diameters", 6.0, "orifice diameter D0 in mean sphere diameters d", low=1.0),
            Parameter("silo_diameters", 0.0, "silo diameter in d (0: max(2.5 D0, D0 + 30 d))", low=0.0),
            Parameter("fill_diameters", 0.0, "settled fill height in d (0: one silo diameter)", low=0.0),
            Parameter("gravity", 9.81, "gravitational acceleration g", "m/s^2", low=0.0, low_open=True),

@@ -225,8 +225,8 @@ def test_the_default_case_ends_at_rest_and_measures_its_pile(tmp_path):
     """``rollingdem run`` with no file (about 2 minutes on 2 cores): the kinetic energy at the end
     is below 1e-8 of its peak in the collapse. On the rough base the pile comes to rest to
     round-off (measured: 2e-15 J against a peak of 0.9 J). The same collapse on the bare plate
-    ends on a plateau of spin about the vertical of spheres that rolled off (README): 6e-5 J of a
-    0.4 J peak, 2e-7 J with Marshall twisting, 1.5e-4 and 5e-7 of the peak, which this bound
+    ends on a plateau of spin about the vertical of spheres that rolled off (README): 1.2e-4 J of a
+    0.4 J peak, 2e-7 J with Marshall twisting, 3e-4 and 5e-7 of the peak, which this bound
     refuses. The collapse leaves a pile whose angle is measured: 2,000 spheres at mu_r = 0.2 on a
     rough base stand at 14 degrees (one seed); any angle from 5 degrees (a pile a few layers high)
     up passes, a spread monolayer (no cone to fit) does not."""

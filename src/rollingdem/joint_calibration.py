@@ -411,7 +411,7 @@ def _summarise(targets, box, fixed, post: _Posterior, names, lows, highs, stats,
                    + "; more seeds, smaller uncertainties or another target narrow it")
     rng = np.random.default_rng(1)
     pick = rng.choice(len(cells), size=2000, p=weights)
-    cell = (highs - lows) / (GRID.get(d, 1) if d in GRID else 1e9)
+    cell = (highs - lows) / GRID[d] if d in GRID else 0.0  # a Sobol sample has no cells to spread over
     samples = x[pick] + (rng.random((2000, d)) - 0.5) * cell
     runs = sum(int(len(t)) for t in tables.values())
     return JointCalibration(targets, {n: list(box[n]) for n in names}, fixed, best, maximum,

@@ -189,10 +189,13 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
         moment.append(g * float(np.dot(sim.masses, x[:, 0])) / length)
         states.append((x, v, slope, (xm, ym)))
     profiles = [flowing_layer(x, v, slope, point, d) for x, v, slope, point in states]
-    blocks = [flowing_depth(np.concatenate([p[0] for p in part]), np.concatenate([p[1] for p in part]), d)
-              for part in np.array_split(np.arange(len(profiles)), min(BLOCKS, len(profiles)))
-              for part in [[profiles[i] for i in part]]]
-    layer = flowing_depth(np.concatenate([p[0] for p in profiles]), np.concatenate([p[1] for p in profiles]), d)
+
+    def depth_of(part):
+        return flowing_depth(np.concatenate([p[0] for p in part]), np.concatenate([p[1] for p in part]), d)
+
+    blocks = [depth_of([profiles[i] for i in idx])
+              for idx in np.array_split(np.arange(len(profiles)), min(BLOCKS, len(profiles)))]
+    layer = depth_of(profiles)
     # below the flowing layer by two diameters: the passive zone off the wall's first layer, and
     # that first layer (the spheres touching the wall)
     sums = np.zeros((2, 2))

@@ -144,3 +144,17 @@ def test_a_fixed_sphere_may_lie_across_a_wall_that_never_touches_it(table1):
     assert sim.fixed.all() and sim.n_particles > 100
     with pytest.raises(ParameterError, match="overlaps wall 'tube'"):
         sim.add_particles([[0.09, 0.0, 0.02]], 0.005, "m")
+
+
+@pytest.mark.parametrize("floor", [0.0, 2 * R, 2 * 1.5 * R])
+def test_the_lifted_tube_clears_the_column_on_whatever_floor(floor):
+    """The tube rises from the plate (z = 0); the column stands on the floor (the rough base's top,
+    2 base radii; 0 on the plate) and reaches 2 radii above its nominal height. At the clearing
+    time the tube's edge is the clearance above that top, whatever the floor: without the floor
+    term a rough base of radius R would leave the edge level with the top at the default clearance."""
+    from rollingdem.cases.repose import column_size, tube_clearing_time
+
+    _, height = column_size(1000, R, 0.2, 1.0)
+    speed, clearance = 0.1, 2 * R
+    edge = speed * tube_clearing_time(floor, height, R, clearance, speed)
+    assert edge - (floor + height + 2 * R) == pytest.approx(clearance, rel=1e-12)

@@ -143,6 +143,28 @@ def flowing_depth(depth, speed, diameter: float) -> float:
     return float(centre[j - 1] + mean[j - 1] * (centre[j] - centre[j - 1]) / (mean[j - 1] - mean[j]))
 
 
+def rotation_ratios(samples, omega: float, drum_radius: float, layer: float, diameter: float,
+                    r_max: float) -> tuple[float, float]:
+    """How closely the bed below the flowing layer turns with the drum: sum(v . u) / sum(u . u) over
+    the spheres of every sample, u = omega (-y, x) the solid-body velocity about the drum's axis.
+    Two zones, both deeper than ``layer`` + 2 ``diameter`` below the surface line: the passive
+    zone off the wall (radius from half the drum's to 1.5 d short of the wall) and the wall layer
+    (the spheres touching it, radius beyond the wall's less 1.05 ``r_max``). ``samples``: (positions,
+    velocities, surface slope, a point on the surface line) per sample; 1 is solid-body rotation."""
+    sums = np.zeros((2, 2))
+    for x, v, slope, point in samples:
+        rho = np.hypot(x[:, 0], x[:, 1])
+        below = -((x[:, :2] - point) @ (np.array([-slope, 1.0]) / math.hypot(1.0, slope)))
+        deep = below > (layer if np.isfinite(layer) else 0.0) + 2 * diameter
+        zones = ((rho > 0.5 * drum_radius) & (rho < drum_radius - 1.5 * diameter) & deep,
+                 (rho > drum_radius - 1.05 * r_max) & deep)
+        for k, zone in enumerate(zones):
+            solid = omega * np.column_stack([-x[zone, 1], x[zone, 0]])
+            sums[k] += (np.sum(v[zone, :2] * solid), np.sum(solid * solid))
+    ratio = [a / b if b else math.nan for a, b in sums]
+    return ratio[0], ratio[1]
+
+
 def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: DrumSetup = DrumSetup(),
              radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None) -> DrumRun:
     """One drum: filled, settled, turned at the Froude number ``setup.froude``, sampled.
@@ -196,19 +218,7 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     blocks = [depth_of([profiles[i] for i in idx])
               for idx in np.array_split(np.arange(len(profiles)), min(BLOCKS, len(profiles)))]
     layer = depth_of(profiles)
-    # below the flowing layer by two diameters: the passive zone off the wall's first layer, and
-    # that first layer (the spheres touching the wall)
-    sums = np.zeros((2, 2))
-    r_max = float(sim.radii.max())
-    for x, v, slope, point in states:
-        rho = np.hypot(x[:, 0], x[:, 1])
-        below = -((x[:, :2] - point) @ (np.array([-slope, 1.0]) / math.hypot(1.0, slope)))
-        deep = below > (layer if np.isfinite(layer) else 0.0) + 2 * d
-        zones = ((rho > 0.5 * big_r) & (rho < big_r - 1.5 * d) & deep, (rho > big_r - 1.05 * r_max) & deep)
-        for k, zone in enumerate(zones):
-            solid = omega * np.column_stack([-x[zone, 1], x[zone, 0]])
-            sums[k] += (np.sum(v[zone, :2] * solid), np.sum(solid * solid))
-    ratio = [a / b if b else math.nan for a, b in sums]
+    passive, wall_layer = rotation_ratios(states, omega, big_r, layer, d, float(sim.radii.max()))
     return DrumRun(omega, big_r, length, sim.n_particles, np.array(angle), np.array(com), np.array(torque),
-                   np.array(moment), layer, np.array(blocks), ratio[0], ratio[1], sim.positions.copy(),
+                   np.array(moment), layer, np.array(blocks), passive, wall_layer, sim.positions.copy(),
                    sim.radii.copy(), time.perf_counter() - tic)

@@ -199,20 +199,21 @@ def rotating_drum(params: dict) -> dict:
 
 # --- silo-discharge --------------------------------------------------------------------------------
 def silo_discharge(params: dict) -> dict:
-    """A flat-bottomed silo emptied through its orifice: the steady mass flow rate and the rest."""
-    from .silo import WINDOW, SiloSetup, discharge_rate, silo_run
+    """A flat-bottomed silo discharging at a steady head: the mass flow rate and the rest."""
+    from .silo import BLOCKS, SiloSetup, discharge_rate, silo_run
 
     p = CASES["silo-discharge"].resolve(params)
     material = _pile_material(p)
     setup = SiloSetup(orifice_diameters=p["orifice_diameters"], silo_diameters=p["silo_diameters"] or None,
-                      fill_diameters=p["fill_diameters"] or None, gravity=p["gravity"], max_time=p["max_time"],
-                      clog_time=p["clog_time"])
+                      fill_diameters=p["fill_diameters"] or None, gravity=p["gravity"], transient=p["transient"],
+                      measured=p["measured"], max_time=p["max_time"], clog_time=p["clog_time"])
     run = silo_run(resolve_rolling(p["model"]), p["twisting"], material, setup, radius=p["radius"],
                    polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
-    w, half = discharge_rate(run.t, run.discharged, run.bed_mass, blocks=5)
+    lo, hi = run.window
+    w, half = discharge_rate(run.t, run.discharged, run.window, blocks=BLOCKS)
     return {"flow_rate": w, "flow_rate_ci": half,
-            "flow_rate_first": discharge_rate(run.t, run.discharged, run.bed_mass, window=WINDOW[:2])[0],
-            "flow_rate_second": discharge_rate(run.t, run.discharged, run.bed_mass, window=WINDOW[1:])[0],
+            "flow_rate_first": discharge_rate(run.t, run.discharged, (lo, 0.5 * (lo + hi)))[0],
+            "flow_rate_second": discharge_rate(run.t, run.discharged, (0.5 * (lo + hi), hi))[0],
             "bulk_density": run.bulk_density, "orifice_density": run.orifice_density, "clogged": int(run.clogged),
             "orifice": run.orifice, "particles": run.particles}
 
@@ -340,21 +341,24 @@ CASES: dict[str, SweepCase] = {
         _granular()
         + (Parameter("orifice_diameters", 6.0, "orifice diameter D0 in mean sphere diameters d", low=1.0),
            Parameter("silo_diameters", 0.0, "silo diameter in d (0: max(2.5 D0, D0 + 30 d))", low=0.0),
-           Parameter("fill_diameters", 0.0, "settled fill height in d (0: one silo diameter)", low=0.0),
+           Parameter("fill_diameters", 0.0, "settled fill height in d, held during the discharge (0: 20 d, at "
+                                            "least 2 D0)", low=0.0),
            Parameter("gravity", 9.81, "gravitational acceleration g", "m/s^2", low=0.0, low_open=True),
+           Parameter("transient", 200, "spheres out after the opening before W is measured", low=0, integer=True),
+           Parameter("measured", 1000, "spheres out over which W is measured", low=10, integer=True),
            Parameter("max_time", 60.0, "longest discharge", "s", low=0.0, low_open=True),
            Parameter("clog_time", 1.0, "time without a particle out that counts as clogged", "s", low=0.0,
                      low_open=True)),
-        {"flow_rate": "kg/s, steady mass flow rate W: slope of the discharged mass from 5 % to 65 % of the bed",
+        {"flow_rate": "kg/s, steady mass flow rate W: slope of the discharged mass over the measured spheres",
          "flow_rate_ci": "kg/s, 95 % Student-t half-width over 5 sub-windows",
-         "flow_rate_first": "kg/s, W from 5 % to 35 % of the bed discharged",
-         "flow_rate_second": "kg/s, W from 35 % to 65 %",
+         "flow_rate_first": "kg/s, W over the first half of the measured spheres",
+         "flow_rate_second": "kg/s, W over the second half",
          "bulk_density": "kg/m^3, of the settled bed before the orifice opens",
-         "orifice_density": "kg/m^3, in the cylinder D0 wide and D0/2 high above the orifice, during the discharge",
+         "orifice_density": "kg/m^3, in the cylinder D0 wide and D0/2 high above the orifice, while W is measured",
          "clogged": "1 when the orifice clogged", "orifice": "m, the orifice diameter D0",
          "particles": "spheres in the silo"},
         "flow_rate", stochastic=True,
-        description="a flat-bottomed silo emptied through a circular orifice (docs/studies.md)",
+        description="a flat-bottomed silo discharging through a circular orifice at a steady head (docs/studies.md)",
         targets={"flow_rate": (0.0, math.inf), "bulk_density": (0.0, math.inf)}),
     "repose-rough-base": SweepCase(
         "repose-rough-base", repose_rough_base,

@@ -125,6 +125,14 @@ class PileSetup:
     clearance: float | None = None
 
 
+def tube_clearing_time(floor: float, height: float, radius: float, clearance: float, lift_speed: float) -> float:
+    """Time (s) for the lifted tube's lower edge, rising from the plate (z = 0) at ``lift_speed``,
+    to stand ``clearance`` above the settled column's top: the floor (the rough base's top, 0 on
+    the plate), the column's nominal ``height`` and 2 radii more (a narrow column stands higher,
+    :func:`column_size`)."""
+    return (floor + height + 2.0 * radius + clearance) / lift_speed
+
+
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
              collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT, label=None,
              setup: PileSetup = PileSetup()) -> PileRun:
@@ -179,9 +187,7 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     if lift_speed:
         sim.set_wall_velocity(tube, velocity=(0.0, 0.0, lift_speed))
         clearance = setup.clearance if setup.clearance is not None else 2.0 * radius
-        # its lower edge clears the settled column's top (2 radii above the nominal height: a
-        # narrow column stands higher, column_size)
-        lift_time = (height + 2.0 * radius + clearance) / lift_speed
+        lift_time = tube_clearing_time(floor, height, radius, clearance, lift_speed)
     else:
         sim.remove_wall(tube)
     inertia = 0.4 * sim.masses[free] * sim.radii[free] ** 2

@@ -1,9 +1,10 @@
-"""Silo discharge: a flat-bottomed silo emptied through a circular orifice, and its flow rate.
+"""Silo discharge: a flat-bottomed silo discharging through a circular orifice, and its flow rate.
 
 :func:`silo_run` fills a cylindrical silo (a triangle mesh: wall and a floor around a central
 orifice, ``rollingdem.MeshWall.shape("silo")``) with the orifice plugged, lets the bed settle,
-opens the orifice and counts the mass an outlet below it takes out. The steady mass flow rate W is
-the slope of the discharged mass over time in the middle of the discharge
+opens the orifice and counts the mass an outlet below it takes out; each sphere taken out is put
+back on top of the bed, so the fill height stays and the flow is steady for as long as it is
+measured. The steady mass flow rate W is the slope of the discharged mass over time
 (:func:`discharge_rate`); Beverloo's law, W = C rho_b sqrt(g) (D0 - k d)^(5/2), relates it to
 the orifice's diameter D0 (:func:`beverloo_fit`). docs/studies.md, "Silo discharge".
 """
@@ -24,9 +25,6 @@ from ..simulation import Simulation
 from .repose import PileMaterial
 from .single_sphere import RADIUS
 
-#: the discharged mass fractions between which W is measured, and the two halves compared for the
-#: independence from the fill height: the start leaves out the opening's transient
-WINDOW = (0.05, 0.35, 0.65)
 BLOCKS = 5  # sub-windows whose rates give the 95 % interval of W
 SEGMENTS = 96  # polygon sides of the silo and its orifice: the orifice's area is 0.07 % short of the circle's
 
@@ -35,14 +33,17 @@ SEGMENTS = 96  # polygon sides of the silo and its orifice: the orifice's area i
 class SiloSetup:
     """The silo, in mean particle diameters d: the orifice's diameter D0 (``orifice_diameters``),
     the silo's (``silo_diameters``; None: max(2.5 D0, D0 + 30 d), wide enough that its wall does
-    not change the flow) and the bed's settled height (``fill_diameters``; None: one silo
-    diameter). ``gravity`` g (m/s^2); ``max_time`` s of discharge at most, and ``clog_time`` s
-    without a particle out count as a clogged orifice."""
+    not change the flow) and the bed's settled height (``fill_diameters``; None: 20 d, at least
+    2 D0). ``gravity`` g (m/s^2). W is measured over ``measured`` spheres out, after the first
+    ``transient`` (the opening's); ``max_time`` s of discharge at most, and ``clog_time`` s
+    without a sphere out count as a clogged orifice."""
 
     orifice_diameters: float = 6.0
     silo_diameters: float | None = None
     fill_diameters: float | None = None
     gravity: float = 9.81
+    transient: int = 200
+    measured: int = 1000
     max_time: float = 60.0
     clog_time: float = 1.0
 
@@ -50,16 +51,18 @@ class SiloSetup:
         """(D0, silo diameter, fill height) in diameters."""
         d0 = self.orifice_diameters
         ds = self.silo_diameters if self.silo_diameters is not None else max(2.5 * d0, d0 + 30.0)
-        return d0, ds, self.fill_diameters if self.fill_diameters is not None else ds
+        return d0, ds, self.fill_diameters if self.fill_diameters is not None else max(20.0, 2.0 * d0)
 
 
 @dataclass
 class SiloRun:
-    """A discharge: times (s) and discharged mass (kg), the bed's mass and bulk density before the
-    orifice opened, the solid fraction sampled near the orifice during the discharge."""
+    """A discharge: times (s) and discharged mass (kg), the discharged masses between which W is
+    measured (``window``), the bed's mass and bulk density before the orifice opened, the solid
+    fraction sampled near the orifice while W is measured."""
 
     t: np.ndarray
     discharged: np.ndarray
+    window: tuple[float, float]
     bed_mass: float
     bulk_density: float
     orifice_density: float
@@ -92,16 +95,16 @@ def cylinder_points(radius, z_lo, z_hi, n=4000, seed=0) -> np.ndarray:
     return np.column_stack([rho * np.cos(phi), rho * np.sin(phi), rng.uniform(z_lo, z_hi, n)])
 
 
-def discharge_rate(t, discharged, bed_mass, window=(WINDOW[0], WINDOW[2]), blocks=1) -> tuple[float, float]:
-    """The slope (kg/s) of the discharged mass over time between the fractions ``window`` of
-    ``bed_mass`` (least squares over the samples within), and with ``blocks`` > 1 the 95 %
-    Student-t half-width over the slopes of that many equal sub-windows; NaN where the discharge
-    did not reach the window's end."""
+def discharge_rate(t, discharged, window, blocks=1) -> tuple[float, float]:
+    """The slope (kg/s) of the discharged mass over time between the discharged masses ``window``
+    (kg; least squares over the samples within), and with ``blocks`` > 1 the 95 % Student-t
+    half-width over the slopes of that many equal sub-windows; NaN where the discharge did not
+    reach the window's end."""
     from scipy import stats
 
     t, m = np.asarray(t, float), np.asarray(discharged, float)
-    lo, hi = window[0] * bed_mass, window[1] * bed_mass
-    if not len(m) or m[-1] < hi:
+    lo, hi = window
+    if not len(m) or not hi > lo or m[-1] < hi:
         return math.nan, math.nan
     edges = np.linspace(lo, hi, blocks + 1)
 
@@ -143,13 +146,14 @@ def beverloo_fit(orifices, rates, bulk_density, diameter, gravity=9.81, exponent
 def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: SiloSetup = SiloSetup(),
              radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None,
              sample: float = 0.02) -> SiloRun:
-    """One silo: filled with the orifice plugged, settled, opened, discharged.
+    """One silo: filled with the orifice plugged, settled, opened, discharged at a steady head.
 
     Spheres of radius uniform in ``radius`` (1 +- ``polydispersity``) of ``material`` fill the
-    silo of ``setup`` to about ``setup.fill_diameters`` d (at a bulk solid fraction of 0.6). The
-    discharged mass is sampled every ``sample`` s until the fraction ``WINDOW[2]`` of the bed (and
-    a tenth more) is out, the orifice clogs (``setup.clog_time`` s without a particle out) or
-    ``setup.max_time`` s pass."""
+    silo of ``setup`` to about ``setup.fill_diameters`` d (at a bulk solid fraction of 0.6). Every
+    ``sample`` s the spheres the outlet took out are inserted again (new radii from the same
+    distribution) in a layer 2 d thick just above the settled bed, so the fill height stays. The
+    discharge runs until ``setup.transient + setup.measured`` spheres are out, the orifice clogs
+    (``setup.clog_time`` s without a sphere out) or ``setup.max_time`` s pass."""
     for what, value, kind in (("material", material, PileMaterial), ("setup", setup, SiloSetup)):
         if not isinstance(value, kind):
             raise ParameterError(f"{what} = {value!r} is not allowed: must be a rollingdem.cases.silo.{kind.__name__}")
@@ -163,36 +167,44 @@ def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     dist = Uniform(radius * (1.0 - polydispersity), r_max) if polydispersity else radius
     count = int(round(0.6 * math.pi / 4.0 * ds ** 2 * fill
                       / (4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2))))
-    top = 2.0 * fill + 2.0 * d  # the random insertion packs at about 0.3
+    poured = 2.2 * fill + 2.0 * d  # the random insertion packs at about 0.3
+    top = poured + 4.0 * d  # room for the layer put back
     sim = Simulation(contact=ContactModel("hertz", rolling=rolling, twisting=twisting), gravity=(0.0, 0.0, -g), dt=dt)
     sim.add_material(material.as_material("m"))
     rings = max(1, int(round(top / (math.pi * ds / SEGMENTS))))  # near-square wall triangles
     sim.add_wall(MeshWall.shape("silo", radius=0.5 * ds, height=top, orifice_radius=0.5 * d0, segments=SEGMENTS,
                                 rings=rings, material="m", name="silo"))
     plug = sim.add_wall(MeshWall.shape("disk", radius=0.5 * d0, segments=SEGMENTS, material="m", name="plug"))
-    sim.insert(CylinderRegion(0.5 * ds - r_max, r_max, top - r_max), count, dist, "m", seed=seed)
-    sim.run(2.0 * math.sqrt(2.0 * top / g) + 0.2)  # the fall from the top, then as long again to settle
+    sim.insert(CylinderRegion(0.5 * ds - r_max, r_max, poured - r_max), count, dist, "m", seed=seed)
+    sim.run(2.0 * math.sqrt(2.0 * poured / g) + 0.2)  # the fall from the top, then as long again to settle
     bed_mass = float(sim.masses.sum())
     height = float(np.percentile(sim.positions[:, 2] + sim.radii, 95))
-    inner = cylinder_points(0.5 * ds - 3 * d, 3 * d, max(height - 3 * d, 4 * d), seed=seed)
+    # 3 d off the wall, the floor and the top (a quarter of the height in a shallow bed)
+    inner = cylinder_points(0.5 * ds - 3 * d, min(3 * d, 0.25 * height), max(height - 3 * d, 0.75 * height), seed=seed)
     bulk = solid_fraction(sim.positions, sim.radii, inner) * material.as_material("m").density
     sim.remove_wall(plug)
     outlet = sim.add_outlet(BoxRegion((-ds, -ds, -ds), (ds, ds, -2.0 * r_max)), name="orifice", interval=sample / 4)
+    refill = CylinderRegion(0.5 * ds - r_max, height + r_max, height + r_max + 2.0 * d)
     near = cylinder_points(0.5 * d0, 0.0, 0.5 * d0, seed=seed + 1)
     t, out, fractions = [0.0], [0.0], []
-    last_flow, clogged = 0.0, False
-    goal = (WINDOW[2] + 0.1) * bed_mass
-    while out[-1] < goal and t[-1] < setup.max_time - 1e-9:
+    last_flow, clogged, start = 0.0, False, math.nan
+    while outlet.count < setup.transient + setup.measured and t[-1] < setup.max_time - 1e-9:
+        before = outlet.count
         sim.run(sample)
         t.append(t[-1] + sample)
         out.append(outlet.mass)
-        if out[-1] > out[-2]:
+        if outlet.count > before:
             last_flow = t[-1]
+            sim.insert(refill, outlet.count - before, dist, "m", seed=seed * 100_003 + len(t))
         elif t[-1] - last_flow >= setup.clog_time:
             clogged = True
             break
-        if WINDOW[0] * bed_mass <= out[-1] <= WINDOW[2] * bed_mass:
+        if outlet.count >= setup.transient:
+            if math.isnan(start):
+                start = out[-1]
             fractions.append(solid_fraction(sim.positions, sim.radii, near))
     density = material.as_material("m").density
-    return SiloRun(np.array(t), np.array(out), bed_mass, bulk, float(np.mean(fractions)) * density if fractions
-                   else math.nan, count, clogged, d0, d, time.perf_counter() - tic)
+    done = outlet.count >= setup.transient + setup.measured
+    return SiloRun(np.array(t), np.array(out), (start, out[-1] if done else math.nan), bed_mass, bulk,
+                   float(np.mean(fractions)) * density if fractions else math.nan, count, clogged, d0, d,
+                   time.perf_counter() - tic)

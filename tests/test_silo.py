@@ -43,3 +43,29 @@ def test_solid_fraction_of_a_simple_cubic_packing():
     points = cylinder_points(0.04, -0.04, 0.04, seed=2)
     assert solid_fraction(centres, r, points) == pytest.approx(math.pi / 6, abs=0.032)
     assert solid_fraction(centres, 0.5 * r, points) == pytest.approx(math.pi / 48, abs=0.02)  # an eighth as much
+
+
+@pytest.mark.slow
+def test_a_silo_at_a_steady_head_flows_at_a_beverloo_rate():
+    """A silo 16 d wide, filled 10 d high, D0 = 6 d, mu = 0.5, mu_r = 0.1. Beverloo's law with the
+    measured ranges of C (0.45 to 0.75) and k (1 to 3) bounds W at this D0 and bulk density; W over
+    the first half of the measured spheres equals the second's within the two halves' spread
+    (each half's rate is the mean of ~500 spheres out: the 95 % interval of the whole, doubled,
+    bounds it). The settled bed poured at random packs between random loose and random close
+    (solid fraction 0.55 to 0.66)."""
+    from rollingdem.cases.observables import CASES, _pile_material
+    from rollingdem.cases.silo import SiloSetup, silo_run
+
+    p = CASES["silo-discharge"].resolve({"mu": 0.5, "mur": 0.1})
+    material = _pile_material(p)
+    run = silo_run("epsd", "none", material, SiloSetup(6.0, 16.0, 10.0), seed=1, dt=p["dt"])
+    assert not run.clogged
+    w, half = discharge_rate(run.t, run.discharged, run.window, blocks=5)
+    d, rho_b = run.diameter, run.bulk_density
+    assert 0.55 < rho_b / material.as_material("m").density < 0.66
+    beverloo = [c * rho_b * math.sqrt(9.81) * (run.orifice - k * d) ** 2.5 for c, k in ((0.45, 3.0), (0.75, 1.0))]
+    assert beverloo[0] < w < beverloo[1]
+    lo, hi = run.window
+    first = discharge_rate(run.t, run.discharged, (lo, 0.5 * (lo + hi)))[0]
+    second = discharge_rate(run.t, run.discharged, (0.5 * (lo + hi), hi))[0]
+    assert abs(first - second) < 2 * half

@@ -147,17 +147,25 @@ def rotation_ratios(samples, omega: float, drum_radius: float, layer: float, dia
                     r_max: float) -> tuple[float, float]:
     """How closely the bed below the flowing layer turns with the drum: sum(v . u) / sum(u . u) over
     the spheres of every sample, u = omega (-y, x) the solid-body velocity about the drum's axis.
-    Two zones, both deeper than ``layer`` + 2 ``diameter`` below the surface line: the passive
-    zone off the wall (radius from half the drum's to 1.5 d short of the wall) and the wall layer
-    (the spheres touching it, radius beyond the wall's less 1.05 ``r_max``). ``samples``: (positions,
-    velocities, surface slope, a point on the surface line) per sample; 1 is solid-body rotation."""
+    Two zones, both deeper than ``layer`` + 2 ``diameter`` below the surface line and within the
+    middle third of the arc along which such spheres touch the wall (seen from the axis): the
+    passive zone off the wall (radius from half the drum's to 1.5 d short of the wall) and the
+    wall layer (the spheres touching it, radius beyond the wall's less 1.05 ``r_max``). Towards
+    the arc's ends, where the flowing layer meets the wall, the bed creeps: it lags the drum by
+    several per cent (docs/studies.md, "The rotating drum"). ``samples``: (positions, velocities,
+    surface slope, a point on the surface line) per sample; 1 is solid-body rotation."""
     sums = np.zeros((2, 2))
     for x, v, slope, point in samples:
         rho = np.hypot(x[:, 0], x[:, 1])
         below = -((x[:, :2] - point) @ (np.array([-slope, 1.0]) / math.hypot(1.0, slope)))
         deep = below > (layer if np.isfinite(layer) else 0.0) + 2 * diameter
-        zones = ((rho > 0.5 * drum_radius) & (rho < drum_radius - 1.5 * diameter) & deep,
-                 (rho > drum_radius - 1.05 * r_max) & deep)
+        wall = (rho > drum_radius - 1.05 * r_max) & deep
+        if not wall.any():
+            continue
+        phi = np.arctan2(x[:, 0], -x[:, 1])  # about the axis, 0 at the drum's bottom
+        lo, hi = phi[wall].min(), phi[wall].max()
+        middle = np.abs(phi - 0.5 * (lo + hi)) < (hi - lo) / 6.0
+        zones = ((rho > 0.5 * drum_radius) & (rho < drum_radius - 1.5 * diameter) & deep & middle, wall & middle)
         for k, zone in enumerate(zones):
             solid = omega * np.column_stack([-x[zone, 1], x[zone, 0]])
             sums[k] += (np.sum(v[zone, :2] * solid), np.sum(solid * solid))

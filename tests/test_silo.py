@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from rollingdem.cases.silo import beverloo_fit, cylinder_points, discharge_rate, solid_fraction
+from rollingdem.cases.silo import (beverloo_exponent_interval, beverloo_fit, cylinder_points, discharge_rate,
+                                   solid_fraction)
 
 
 def test_discharge_rate_is_the_slope_over_the_measured_window():
@@ -32,6 +33,40 @@ def test_beverloo_fit_recovers_c_and_k_and_the_exponent():
     assert c == pytest.approx(0.58, rel=1e-9) and k == pytest.approx(1.4, rel=1e-9) and n == 2.5
     c, k, n = beverloo_fit(d0, w, rho_b, d, g)
     assert n == pytest.approx(2.5, abs=1e-3) and k == pytest.approx(1.4, abs=0.01)
+
+
+def test_beverloo_fit_weighs_each_rate_by_its_error():
+    """Exact Beverloo rates at D0 = 5 to 10 d, one of them 50 % too high but with an error ten times
+    itself, the others known to 0.1 %: weighted, the fit returns C = 0.58 and k = 1.4 to 1e-6;
+    unweighted, the bad rate pulls C off by more than 20 %."""
+    d, rho_b = 0.004, 1500.0
+    d0 = np.array([5, 6.25, 7.5, 8.75, 10]) * d
+    w = 0.58 * rho_b * math.sqrt(9.81) * (d0 - 1.4 * d) ** 2.5
+    bad = w.copy()
+    bad[2] *= 1.5
+    errors = 0.001 * w
+    errors[2] = 10 * w[2]
+    c, k, _ = beverloo_fit(d0, bad, rho_b, d, exponent=2.5, errors=errors)
+    assert c == pytest.approx(0.58, rel=1e-6) and k == pytest.approx(1.4, rel=1e-6)
+    assert abs(beverloo_fit(d0, bad, rho_b, d, exponent=2.5)[0] - 0.58) > 0.2 * 0.58
+
+
+@pytest.mark.parametrize("exponent", [2.5, 3.0])
+def test_the_exponent_interval_holds_the_true_exponent_and_narrows_with_the_errors(exponent):
+    """Rates made with the exponent n (k = 1.4) at D0 = 5 to 10 d: the 95 % interval of the freely
+    fitted exponent holds n and narrows as the rates' errors shrink; at 0.5 % errors it is about
+    +-0.1 wide and leaves out the other exponent, 0.5 away."""
+    d, rho_b = 0.004, 1500.0
+    d0 = np.array([5, 6.25, 7.5, 8.75, 10]) * d
+    w = 0.58 * rho_b * math.sqrt(9.81) * (d0 - 1.4 * d) ** exponent
+    widths = []
+    for rel in (0.05, 0.02, 0.005):
+        lo, hi = beverloo_exponent_interval(d0, w, rel * w, rho_b, d)
+        assert lo <= exponent <= hi
+        widths.append(hi - lo)
+    assert widths[0] > widths[1] > widths[2] and widths[2] < 0.3
+    lo, hi = beverloo_exponent_interval(d0, w, 0.005 * w, rho_b, d)
+    assert not lo <= 5.5 - exponent <= hi
 
 
 def test_solid_fraction_of_a_simple_cubic_packing():

@@ -135,10 +135,13 @@ def silo_discharge(quick=False, outdir=None, progress=None, runner=map, model="e
     """The silo at 4 (quick) or 5 orifice sizes from 5 d to 8 or 10 d, one seed each, at a steady
     head; the smallest orifice again at half the fill height. Checks: Beverloo's law with the
     exponent 5/2 fits with k between 1 and 3 and C between 0.45 and 0.75 (the range of measured
-    and simulated glass beads and sand); the exponent fitted freely is 2.5 +- 0.2; W at half the
+    and simulated glass beads and sand); 5/2 lies within the 95 % interval of the exponent fitted
+    freely; W at half the
     fill height equals W at the full within 5 % (or the 95 % interval of their ratio, if wider):
     it does not depend on the fill height."""
-    from .silo import beverloo_fit
+    from scipy import stats
+
+    from .silo import BLOCKS, beverloo_exponent_interval, beverloo_fit
 
     tic = time.perf_counter()
     sizes = SILO_QUICK if quick else SILO_FULL
@@ -158,17 +161,22 @@ def silo_discharge(quick=False, outdir=None, progress=None, runner=map, model="e
     d = 2 * CASES["silo-discharge"].by_name["radius"].default
     rho_b = float(ok["bulk_density"].mean()) if len(ok) else math.nan
     checks = []
-    if len(ok) >= 3:
-        c, k, _ = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d, exponent=2.5)
-        _, _, n = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d)
+    # a rate's standard error: its 95 % half-width over the sub-windows / t(0.975, blocks - 1)
+    errors = ok["flow_rate_ci"] / stats.t.ppf(0.975, BLOCKS - 1)
+    if len(ok) >= 4 and np.all(errors > 0):
+        c, k, _ = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d, exponent=2.5, errors=errors)
+        _, _, n = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d, errors=errors)
+        n_lo, n_hi = beverloo_exponent_interval(ok["orifice"], ok["flow_rate"], errors, rho_b, d)
     else:
-        c = k = n = math.nan
+        c = k = n = n_lo = n_hi = math.nan
     checks += [Check("silo-discharge", model, "Beverloo k (exponent 5/2)", k, 2.0, 1.0, relative=False,
                      source="Beverloo et al. (1961), Nedderman (1992): k from 1 to 3"),
                Check("silo-discharge", model, "Beverloo C (exponent 5/2)", c, 0.6, 0.15, relative=False,
                      source="Beverloo et al. (1961), Nedderman (1992): C from 0.45 to 0.75"),
-               Check("silo-discharge", model, "exponent of (D0 - k d), fitted", n, 2.5, 0.2, relative=False,
-                     source="Beverloo: W ~ (D0 - k d)^(5/2), dimensional analysis")]
+               Check("silo-discharge", model, f"exponent of (D0 - k d), fitted freely, 95 % interval "
+                     f"[{n_lo:.2f}, {n_hi:.2f}]", n, 2.5, (n - n_lo) if n > 2.5 else (n_hi - n), relative=False,
+                     source="Beverloo: W ~ (D0 - k d)^(5/2), dimensional analysis; tolerance: 5/2 within "
+                            "the fitted exponent's 95 % interval")]
     at = table[np.isclose(table["orifice_diameters"], sizes["orifices"][0])].set_index("fill_diameters")
     high, low = at.loc[sizes["fill"]], at.loc[0.5 * sizes["fill"]]
     ratio = low["flow_rate"] / high["flow_rate"]
@@ -183,7 +191,8 @@ def silo_discharge(quick=False, outdir=None, progress=None, runner=map, model="e
                                f"{sizes['gap']:g} d) wide, filled {sizes['fill']:g} d high and held there (the "
                                f"spheres out are put back on top); W over {sizes['measured']} spheres out. Beverloo "
                                f"fit over {len(ok)} orifices with rho_b = {rho_b:.1f} kg/m^3 (the settled beds'): "
-                               f"C = {c:.3f}, k = {k:.2f} (exponent 5/2); exponent fitted freely {n:.2f}. "
+                               f"C = {c:.3f}, k = {k:.2f} (exponent 5/2), weighted by the rates' errors; exponent fitted "
+                               f"freely {n:.2f}, 95 % interval [{n_lo:.2f}, {n_hi:.2f}]. "
                                "docs/studies.md, \"Silo discharge\"."])
     if outdir is not None and len(ok):
         plt = pyplot()

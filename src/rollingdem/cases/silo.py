@@ -121,26 +121,51 @@ def discharge_rate(t, discharged, window, blocks=1) -> tuple[float, float]:
     return float(w), float(half)
 
 
-def beverloo_fit(orifices, rates, bulk_density, diameter, gravity=9.81, exponent=None):
+def beverloo_fit(orifices, rates, bulk_density, diameter, gravity=9.81, exponent=None, errors=None):
     """Beverloo's law W = C rho_b sqrt(g) (D0 - k d)^n fitted to flow rates ``rates`` (kg/s) at
     orifice diameters ``orifices`` (m): (C, k, n), with n held at ``exponent`` (5/2 for Beverloo's
-    law) or, with None, fitted too. Least squares on W^(1/n) (linear in D0 for a given n)."""
+    law) or, with None, fitted too (bounded to [1, 6]). Least squares on W^(1/n), linear in D0 for
+    a given n, and n by the least sum of squares in W; with ``errors`` (the rates' standard errors,
+    kg/s) both weighted by them (W^(1/n)'s error is W^(1/n) errors / (n W)), so that a rate known
+    to 1 % counts as much as it should beside one known to 10 %."""
     from scipy.optimize import minimize_scalar
 
     d0, w = np.asarray(orifices, float), np.asarray(rates, float)
+    sigma = np.ones_like(w) if errors is None else np.asarray(errors, float)
     scale = bulk_density * math.sqrt(gravity)
 
     def line(n):
         y = (w / scale) ** (1.0 / n)  # = C^(1/n) (D0 - k d)
-        slope, intercept = np.polyfit(d0, y, 1)
-        return slope, intercept, float(np.sum((w - scale * np.maximum(slope * d0 + intercept, 0) ** n) ** 2))
+        slope, intercept = np.polyfit(d0, y, 1, w=n * w / (y * sigma))
+        return slope, intercept, float(np.sum(((w - scale * np.maximum(slope * d0 + intercept, 0) ** n) / sigma) ** 2))
 
     if exponent is None:
-        n = minimize_scalar(lambda n: line(n)[2], bounds=(1.0, 4.0), method="bounded").x
+        n = minimize_scalar(lambda n: line(n)[2], bounds=(1.0, 6.0), method="bounded").x
     else:
         n = exponent
     slope, intercept, _ = line(n)
     return float(slope ** n), float(-intercept / slope / diameter), float(n)
+
+
+def beverloo_exponent_interval(orifices, rates, errors, bulk_density, diameter, gravity=9.81,
+                               grid=np.linspace(1.0, 6.0, 501)) -> tuple[float, float]:
+    """The 95 % interval of Beverloo's exponent n fitted freely (with C and k) to ``rates`` with
+    standard errors ``errors``: the n on ``grid`` whose best weighted sum of squares is within
+    3.84 (chi-square, one degree of freedom) of the least, after scaling the errors so that the
+    best fit's reduced chi-square is at least 1 (the errors of few blocks can understate the
+    scatter between orifices)."""
+    d0, w, sigma = (np.asarray(v, float) for v in (orifices, rates, errors))
+    scale = bulk_density * math.sqrt(gravity)
+    chi2 = []
+    for n in grid:
+        y = (w / scale) ** (1.0 / n)
+        slope, intercept = np.polyfit(d0, y, 1, w=n * w / (y * sigma))
+        chi2.append(np.sum(((w - scale * np.maximum(slope * d0 + intercept, 0) ** n) / sigma) ** 2))
+    chi2 = np.array(chi2)
+    dof = max(len(w) - 3, 1)
+    chi2 = chi2 / max(1.0, chi2.min() / dof)
+    inside = grid[chi2 <= chi2.min() + 3.84]
+    return float(inside.min()), float(inside.max())
 
 
 def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: SiloSetup = SiloSetup(),

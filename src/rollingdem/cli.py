@@ -101,8 +101,8 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
                                                        "e.g. epsd, 'cdt (liggghts)': each case runs those of its models "
                                                        "named; repose-sweep sweeps one. A case that runs none of them "
                                                        "is left out (refused if named with --case)."),
-             quick: bool = typer.Option(False, "--quick", help="Reduced sizes (about 30 minutes on 2 cores, "
-                                                                 "half of it the three experiments)."),
+             quick: bool = typer.Option(False, "--quick", help="Reduced sizes (about 25 minutes on 2 cores, "
+                                                                 "10 of them the three experiments)."),
              workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Simulations side by side, one "
                                                    "thread each (default: one per core; 1: one after the other here)."),
              scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address "

@@ -120,8 +120,8 @@ def rotating_drum(quick=False, outdir=None, progress=None, runner=map, model="ep
 
 
 # --- silo discharge --------------------------------------------------------------------------------
-#: orifices D0 (d), from 5 d: below about 4.9 d spheres clog the orifice before a steady flow is
-#: measured (Zuriguel et al. 2005); the silo's diameter max(2.5 D0, D0 + ``gap``) d; the fill
+#: orifices D0 (d), from 5 d: below about 4.9 d a silo of spheres clogs after avalanches of finite
+#: mean size (Zuriguel et al. 2005), so a run may stop before W is measured; the silo's diameter max(2.5 D0, D0 + ``gap``) d; the fill
 #: height (d), held; the spheres measured per run. The full sizes keep 30 d of wall gap; the quick
 #: silo keeps 2.5 D0 but only 10 d
 SILO_QUICK = {"orifices": (5.0, 6.0, 7.0, 8.0), "gap": 10.0, "fill": 12.0, "measured": 1000}

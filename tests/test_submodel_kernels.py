@@ -44,6 +44,7 @@ ETA_R = 0.2    # (0.3 + 0.1) / 2
 # A contact state (all made up, O(1) in SI-scaled units of a 5 mm sphere contact).
 R_EFF = 0.0025
 M_EFF = 4e-4
+NO_HISTORY = np.zeros((1, 1))  # the normal laws here declare no history
 I_R = 1.75e-8
 DT = 1e-5
 KN, KT = 2e4, 2e4 * 2 / 7
@@ -89,7 +90,7 @@ def test_hertz_normal_by_hand():
     a halved (or otherwise wrong) tangential dashpot gamma_t, a wrong sign of the normal dashpot."""
     p, off, _ = row(dict(normal="hertz"), "normal")
     delta, vn, r_eff, m_eff = 2e-5, -0.7, 0.003, M_EFF
-    f_el, f_damp, kn, kt, gamma_t = hertz_normal(delta, vn, r_eff, m_eff, p, off)
+    f_el, f_damp, kn, kt, gamma_t = hertz_normal(NO_HISTORY, 0, 0, delta, vn, r_eff, m_eff, p, off)
     a = math.sqrt(r_eff * delta)
     c = -2 * math.sqrt(5 / 6) * beta(E_REST)
     gamma_n = c * math.sqrt(2 * E_STAR * a * m_eff)
@@ -109,7 +110,7 @@ def test_hooke_normal_by_hand():
     vc, ratio = 1.3, 2 / 7
     p, off, _ = row(dict(normal=rd.Hooke(characteristic_velocity=vc, tangential_stiffness_ratio=ratio)), "normal")
     delta, vn, r_eff, m_eff = 3e-5, 0.4, 0.003, M_EFF
-    f_el, f_damp, kn, kt, gamma_t = hooke_normal(delta, vn, r_eff, m_eff, p, off)
+    f_el, f_damp, kn, kt, gamma_t = hooke_normal(NO_HISTORY, 0, 0, delta, vn, r_eff, m_eff, p, off)
     delta_h = (15 * m_eff * vc ** 2 / (16 * E_STAR * math.sqrt(r_eff))) ** 0.4
     kn_hand = m_eff * vc ** 2 / delta_h ** 2
     gamma_n = -2 * beta(E_REST) * math.sqrt(m_eff * kn_hand)
@@ -130,7 +131,7 @@ def test_linear_normal_by_hand(zeta_n):
     p, off, _ = row(dict(normal=rd.Linear(kn, ks, normal_damping_ratio=zeta_n, shear_damping_ratio=zeta_s)),
                     "normal")
     delta, vn = 4e-5, -0.3
-    f_el, f_damp, kn_out, kt_out, gamma_t = linear_normal(delta, vn, 0.003, M_EFF, p, off)
+    f_el, f_damp, kn_out, kt_out, gamma_t = linear_normal(NO_HISTORY, 0, 0, delta, vn, 0.003, M_EFF, p, off)
     zn = -beta(E_REST) if zeta_n is None else zeta_n
     assert (f_el, kn_out, kt_out) == (pytest.approx(kn * delta, rel=RT), kn, ks)
     assert f_damp == pytest.approx(-2 * zn * math.sqrt(M_EFF * kn) * vn, rel=RT)

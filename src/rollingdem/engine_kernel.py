@@ -31,6 +31,7 @@ NORMAL_PARAMS = 6  # @@NORMAL_PARAMS
 TANGENTIAL_PARAMS = 8  # @@TANGENTIAL_PARAMS
 ROLLING_PARAMS = 8  # @@ROLLING_PARAMS
 TWISTING_PARAMS = 8  # @@TWISTING_PARAMS
+NORMAL_HISTORY = 3  # @@NORMAL_HISTORY
 TANGENTIAL_HISTORY = 3  # @@TANGENTIAL_HISTORY
 ROLLING_HISTORY = 6  # @@ROLLING_HISTORY
 TWISTING_HISTORY = 6  # @@TWISTING_HISTORY
@@ -93,7 +94,7 @@ def contact_in_frame(hist, k, frame, g, p, dt):
     vty = vcy - vcn * ny
     vtz = vcz - vcn * nz
 
-    f_el, f_damp, kn, kt, gamma_t = normal_force(overlap, vn, r_eff, m_eff, p, NORMAL_PARAMS)
+    f_el, f_damp, kn, kt, gamma_t = normal_force(hist, k, NORMAL_HISTORY, overlap, vn, r_eff, m_eff, p, NORMAL_PARAMS)
     fn = f_el + f_damp
     normal = (f_el, fn, kn, kt, gamma_t)  # NORMAL_RESULT
     ftx, fty, ftz, e_t = tangential_force(hist, k, TANGENTIAL_HISTORY, g, frame, (vtx, vty, vtz), normal, dt, p,

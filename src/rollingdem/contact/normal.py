@@ -2,8 +2,11 @@
 
 Compiled function of the slot "normal" (arguments: docs/architecture.md; results: docs/models.md §0)::
 
-    normal_force(overlap, normal_velocity, r_eff, m_eff, p, params_at)
+    normal_force(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p, params_at)
         -> (force_elastic, force_damping, normal_stiffness, tangential_stiffness, tangential_damping)
+
+``hist[k, history_at:]`` is the contact's own declared history (none for the laws here, whose
+force follows from the overlap and its rate alone).
 """
 
 from __future__ import annotations
@@ -49,7 +52,7 @@ HERTZ_PARAMETERS = slots("damping_factor", "tangential_damping_ratio")
 
 
 @njit(cache=True, inline="always")
-def hertz_normal(overlap, normal_velocity, r_eff, m_eff, p, params_at):
+def hertz_normal(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p, params_at):
     """Hertz-Mindlin (no-slip), LIGGGHTS ``normal_model_hertz.h`` / EDEM.
 
     a = sqrt(R* delta); S_n = 2 E* a; k_n = 4/3 E* a; F_el = k_n delta;
@@ -68,7 +71,7 @@ HOOKE_PARAMETERS = slots("damping_factor", "characteristic_velocity", "tangentia
 
 
 @njit(cache=True, inline="always")
-def hooke_normal(overlap, normal_velocity, r_eff, m_eff, p, params_at):
+def hooke_normal(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p, params_at):
     """Hooke with stiffness from a characteristic velocity V_c, LIGGGHTS ``normal_model_hooke.h``.
 
     k_n = 16/15 sqrt(R*) E* [15 m* V_c^2 / (16 sqrt(R*) E*)]^(1/5)  (= m* V_c^2 / delta_H^2);
@@ -87,13 +90,38 @@ LINEAR_PARAMETERS = slots("normal_stiffness", "shear_stiffness", "normal_damping
 
 
 @njit(cache=True, inline="always")
-def linear_normal(overlap, normal_velocity, r_eff, m_eff, p, params_at):
+def linear_normal(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p, params_at):
     """PFC-style linear contact with given k_n, k_s and dashpots gamma = 2 zeta sqrt(m* k)."""
     kn = p[params_at + LINEAR_PARAMETERS.normal_stiffness]
     ks = p[params_at + LINEAR_PARAMETERS.shear_stiffness]
     gamma_n = p[params_at + LINEAR_PARAMETERS.normal_damping_factor] * math.sqrt(m_eff * kn)
     gamma_t = p[params_at + LINEAR_PARAMETERS.shear_damping_factor] * math.sqrt(m_eff * ks)
     return kn * overlap, -gamma_n * normal_velocity, kn, ks, gamma_t
+
+
+WALTON_BRAUN_PARAMETERS = slots("loading_stiffness", "unloading_stiffness", "tangential_stiffness", "damping_factor")
+WALTON_BRAUN_HISTORY = slots("force_unclipped", "overlap_before")
+
+
+@njit(cache=True, inline="always")
+def walton_braun_normal(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p, params_at):
+    """Walton & Braun (1986) hysteretic spring, in incremental form (docs/models.md).
+
+    F~ <- min(k1 delta, F~ + k2 (delta - delta_before)), F~ = 0 at first touch; F_el = max(0, F~).
+    Loading follows k1; unloading and reloading follow k2 = k1 / e^2 from the residual overlap
+    delta_0 = delta_max (1 - k1 / k2), back to the k1 line; F~ is kept unclipped, so a reload after
+    the overlap fell below delta_0 starts from delta_0, not from where the force was last zero.
+    A binary impact rebounds with e = sqrt(k1 / k2) at every speed. Optional dashpot
+    gamma_n = c sqrt(m* k2); k_n = k1 for the rolling and tangential springs, k_t = ratio k1.
+    """
+    k1 = p[params_at + WALTON_BRAUN_PARAMETERS.loading_stiffness]
+    k2 = p[params_at + WALTON_BRAUN_PARAMETERS.unloading_stiffness]
+    f = min(k1 * overlap, hist[k, history_at + WALTON_BRAUN_HISTORY.force_unclipped]
+            + k2 * (overlap - hist[k, history_at + WALTON_BRAUN_HISTORY.overlap_before]))
+    hist[k, history_at + WALTON_BRAUN_HISTORY.force_unclipped] = f
+    hist[k, history_at + WALTON_BRAUN_HISTORY.overlap_before] = overlap
+    gamma_n = p[params_at + WALTON_BRAUN_PARAMETERS.damping_factor] * math.sqrt(m_eff * k2)
+    return max(f, 0.0), -gamma_n * normal_velocity, k1, p[params_at + WALTON_BRAUN_PARAMETERS.tangential_stiffness], 0.0
 
 
 def rayleigh_limit(material, r_min):
@@ -236,5 +264,50 @@ class Linear(NormalModel):
         return self.normal_stiffness, self.shear_stiffness, math.sqrt(m_eff / self.normal_stiffness)
 
 
-__all__ = ["NormalModel", "Hertz", "Hooke", "Linear", "hertz_normal", "hooke_normal", "linear_normal", "hertz_damping_factor",
+class WaltonBraun(NormalModel):
+    """Walton & Braun's (1986) hysteretic ("partially latching") spring (docs/models.md): loading
+    stiffness k1, unloading and reloading k2 = k1 / e^2 with the pair's restitution e, so that a
+    binary impact rebounds with e whatever its speed; no dashpot by default.
+
+    Parameters
+    ----------
+    loading_stiffness: k1 (N/m), > 0.
+    tangential_stiffness_ratio: k_t / k1 (-), > 0; the tangential spring's stiffness.
+    damping_ratio: zeta (-), >= 0, of an optional dashpot 2 zeta sqrt(m* k2) that damps the
+        oscillations of enduring contacts along the elastic k2 line; with zeta > 0 an impact's
+        restitution falls below e.
+    """
+
+    name = "walton_braun"
+    parameters = WALTON_BRAUN_PARAMETERS
+    history = WALTON_BRAUN_HISTORY
+    function = staticmethod(walton_braun_normal)
+
+    def __init__(self, loading_stiffness: float = 1e5, tangential_stiffness_ratio: float = 1.0,
+                 damping_ratio: float = 0.0):
+        self.loading_stiffness = check_positive("walton_braun loading_stiffness", loading_stiffness, "N/m")
+        self.tangential_stiffness_ratio = check_positive("walton_braun tangential_stiffness_ratio",
+                                                         tangential_stiffness_ratio)
+        self.damping_ratio = check_non_negative("walton_braun damping_ratio", damping_ratio)
+
+    def pair_values(self, pair):
+        k1 = self.loading_stiffness
+        return (k1, k1 / pair.restitution ** 2, self.tangential_stiffness_ratio * k1, 2.0 * self.damping_ratio)
+
+    def settings(self):
+        return {"loading_stiffness": self.loading_stiffness,
+                "tangential_stiffness_ratio": self.tangential_stiffness_ratio, "damping_ratio": self.damping_ratio}
+
+    def reference_stiffness(self, pair, r_eff, m_eff, r_min):
+        k1 = self.loading_stiffness
+        return k1, self.tangential_stiffness_ratio * k1, math.sqrt(m_eff / k1)  # peak overlap at 1 m/s
+
+    def time_step_limits(self, material, pair, r_min, m_min, impact_speed):
+        # the unloading line is the stiffest: k2 = k1 / e^2
+        m_eff = 0.5 * m_min
+        k2 = self.loading_stiffness / pair.restitution ** 2
+        return spring_limits(k2, self.tangential_stiffness_ratio * self.loading_stiffness, m_eff)
+
+
+__all__ = ["NormalModel", "Hertz", "Hooke", "Linear", "WaltonBraun", "walton_braun_normal", "hertz_normal", "hooke_normal", "linear_normal", "hertz_damping_factor",
            "restitution_beta", "linear_damping_ratio"]

@@ -121,9 +121,9 @@ def rotating_drum(quick=False, outdir=None, progress=None, runner=map, model="ep
 
 # --- silo discharge --------------------------------------------------------------------------------
 #: orifices D0 (d), from 5 d: below about 4.9 d a silo of spheres clogs after avalanches of finite
-#: mean size (Zuriguel et al. 2005), so a run may stop before W is measured; the silo's diameter max(2.5 D0, D0 + ``gap``) d; the fill
-#: height (d), held; the spheres measured per run. The full sizes keep 30 d of wall gap; the quick
-#: silo keeps 2.5 D0 but only 10 d
+#: mean size (Zuriguel et al. 2005), so a run may stop before W is measured; the silo's diameter
+#: max(2.5 D0, D0 + ``gap``) d; the fill height (d), held; the spheres measured per run. The full
+#: sizes keep 30 d of wall gap; the quick silo keeps 2.5 D0 but only 10 d
 SILO_QUICK = {"orifices": (5.0, 6.0, 7.0, 8.0), "gap": 10.0, "fill": 12.0, "measured": 1000}
 SILO_FULL = {"orifices": (5.0, 6.25, 7.5, 8.75, 10.0), "gap": 30.0, "fill": 20.0, "measured": 2000}
 #: the validation's material: a glass-bead-like friction (Beverloo's C and k ranges are for glass
@@ -136,9 +136,8 @@ def silo_discharge(quick=False, outdir=None, progress=None, runner=map, model="e
     head; the smallest orifice again at half the fill height. Checks: Beverloo's law with the
     exponent 5/2 fits with k between 1 and 3 and C between 0.45 and 0.75 (the range of measured
     and simulated glass beads and sand); 5/2 lies within the 95 % interval of the exponent fitted
-    freely; W at half the
-    fill height equals W at the full within 5 % (or the 95 % interval of their ratio, if wider):
-    it does not depend on the fill height."""
+    freely; W at half the fill height equals W at the full within 5 % (or the 95 % interval of
+    their ratio, if wider): it does not depend on the fill height."""
     from scipy import stats
 
     from .silo import BLOCKS, beverloo_exponent_interval, beverloo_fit

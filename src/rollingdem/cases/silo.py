@@ -121,29 +121,32 @@ def discharge_rate(t, discharged, window, blocks=1) -> tuple[float, float]:
     return float(w), float(half)
 
 
+def _beverloo_line(d0, w, sigma, scale, n):
+    """For the exponent n: the weighted least-squares line through W^(1/n) = C^(1/n) (D0 - k d)
+    (W^(1/n)'s error is W^(1/n) sigma / (n W)), and the weighted sum of squares in W it leaves."""
+    y = (w / scale) ** (1.0 / n)
+    slope, intercept = np.polyfit(d0, y, 1, w=n * w / (y * sigma))
+    return slope, intercept, float(np.sum(((w - scale * np.maximum(slope * d0 + intercept, 0) ** n) / sigma) ** 2))
+
+
 def beverloo_fit(orifices, rates, bulk_density, diameter, gravity=9.81, exponent=None, errors=None):
     """Beverloo's law W = C rho_b sqrt(g) (D0 - k d)^n fitted to flow rates ``rates`` (kg/s) at
     orifice diameters ``orifices`` (m): (C, k, n), with n held at ``exponent`` (5/2 for Beverloo's
     law) or, with None, fitted too (bounded to [1, 6]). Least squares on W^(1/n), linear in D0 for
     a given n, and n by the least sum of squares in W; with ``errors`` (the rates' standard errors,
-    kg/s) both weighted by them (W^(1/n)'s error is W^(1/n) errors / (n W)), so that a rate known
-    to 1 % counts as much as it should beside one known to 10 %."""
+    kg/s) both weighted by them, so that a rate known to 1 % counts as much as it should beside one
+    known to 10 %."""
     from scipy.optimize import minimize_scalar
 
     d0, w = np.asarray(orifices, float), np.asarray(rates, float)
     sigma = np.ones_like(w) if errors is None else np.asarray(errors, float)
     scale = bulk_density * math.sqrt(gravity)
-
-    def line(n):
-        y = (w / scale) ** (1.0 / n)  # = C^(1/n) (D0 - k d)
-        slope, intercept = np.polyfit(d0, y, 1, w=n * w / (y * sigma))
-        return slope, intercept, float(np.sum(((w - scale * np.maximum(slope * d0 + intercept, 0) ** n) / sigma) ** 2))
-
     if exponent is None:
-        n = minimize_scalar(lambda n: line(n)[2], bounds=(1.0, 6.0), method="bounded").x
+        n = minimize_scalar(lambda n: _beverloo_line(d0, w, sigma, scale, n)[2], bounds=(1.0, 6.0),
+                            method="bounded").x
     else:
         n = exponent
-    slope, intercept, _ = line(n)
+    slope, intercept, _ = _beverloo_line(d0, w, sigma, scale, n)
     return float(slope ** n), float(-intercept / slope / diameter), float(n)
 
 
@@ -156,14 +159,8 @@ def beverloo_exponent_interval(orifices, rates, errors, bulk_density, diameter, 
     scatter between orifices)."""
     d0, w, sigma = (np.asarray(v, float) for v in (orifices, rates, errors))
     scale = bulk_density * math.sqrt(gravity)
-    chi2 = []
-    for n in grid:
-        y = (w / scale) ** (1.0 / n)
-        slope, intercept = np.polyfit(d0, y, 1, w=n * w / (y * sigma))
-        chi2.append(np.sum(((w - scale * np.maximum(slope * d0 + intercept, 0) ** n) / sigma) ** 2))
-    chi2 = np.array(chi2)
-    dof = max(len(w) - 3, 1)
-    chi2 = chi2 / max(1.0, chi2.min() / dof)
+    chi2 = np.array([_beverloo_line(d0, w, sigma, scale, n)[2] for n in grid])
+    chi2 = chi2 / max(1.0, chi2.min() / max(len(w) - 3, 1))
     inside = grid[chi2 <= chi2.min() + 3.84]
     return float(inside.min()), float(inside.max())
 

@@ -104,3 +104,14 @@ def test_a_silo_at_a_steady_head_flows_at_a_beverloo_rate():
     first = discharge_rate(run.t, run.discharged, (lo, 0.5 * (lo + hi)))[0]
     second = discharge_rate(run.t, run.discharged, (0.5 * (lo + hi), hi))[0]
     assert abs(first - second) < 2 * half
+
+
+@pytest.mark.parametrize("field, value, words", [("measured", 0, "measured = 0 is not allowed"),
+                                                 ("transient", -1, "transient = -1 is not allowed"),
+                                                 ("measured", 2.5, "measured = 2.5 is not allowed")])
+def test_silo_refuses_a_count_of_spheres_that_cannot_be(field, value, words):
+    from rollingdem.cases.silo import SiloSetup, silo_run
+    from rollingdem.errors import ParameterError
+
+    with pytest.raises(ParameterError, match=words):
+        silo_run(setup=SiloSetup(**{field: value}))

@@ -54,6 +54,21 @@ def test_a_prescribed_overlap_path_gives_the_classical_forces():
     np.testing.assert_allclose(f[ends], [100.0, 20.0, 0.0, 20.0, 120.0, 40.0], rtol=1e-9, atol=1e-9)
 
 
+def test_the_optional_dashpot_and_the_stiffnesses_it_reports():
+    """With the damping factor c = 2 zeta the dashpot force is -c sqrt(m* k2) v_n (k2, the elastic
+    line it damps); k_n = k1 and k_t = the tangential stiffness slot go to the other springs."""
+    m_eff, zeta, k2, kt, vn = 1e-3, 0.05, 4 * K1, 0.3 * K1, -0.2
+    p = np.zeros(4)
+    p[list(WALTON_BRAUN_PARAMETERS)] = (K1, k2, kt, 2 * zeta)
+    hist = np.zeros((1, 2))
+    f_el, f_damp, kn, kt_out, gamma_t = walton_braun_normal(hist, 0, 0, 1e-4, vn, R, m_eff, p, 0)
+    assert f_el == pytest.approx(K1 * 1e-4, rel=1e-12)
+    assert f_damp == pytest.approx(-2 * zeta * math.sqrt(m_eff * k2) * vn, rel=1e-12)
+    assert (kn, kt_out, gamma_t) == (K1, kt, 0.0)
+    assert rd.WaltonBraun(loading_stiffness=K1, tangential_stiffness_ratio=0.3, damping_ratio=zeta).pair_row(
+        type("Pair", (), {"restitution": 0.5})()) == pytest.approx((K1, k2, kt, 2 * zeta))
+
+
 def head_on(e, table1, speed):
     sim = rd.Simulation(contact=rd.ContactModel(normal=rd.WaltonBraun(loading_stiffness=K1)), gravity=(0, 0, 0))
     sim.add_material(table1(restitution=e, friction=0.5))

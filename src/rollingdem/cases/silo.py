@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..contact.model import ContactModel
-from ..errors import ParameterError
+from ..errors import ParameterError, check_integer
 from ..insertion import BoxRegion, CylinderRegion, Uniform
 from ..mesh import MeshWall
 from ..simulation import Simulation
@@ -179,6 +179,8 @@ def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     for what, value, kind in (("material", material, PileMaterial), ("setup", setup, SiloSetup)):
         if not isinstance(value, kind):
             raise ParameterError(f"{what} = {value!r} is not allowed: must be a rollingdem.cases.silo.{kind.__name__}")
+    check_integer("transient", setup.transient, low=0)
+    check_integer("measured", setup.measured, low=10)  # the 5 sub-windows of W need a few spheres each
     tic = time.perf_counter()
     d = 2.0 * radius
     d0, ds, fill = (v * d for v in setup.sizes())

@@ -45,6 +45,9 @@ HERTZ = K + ("tests/test_hertz_damping.py",)
 TWIST = K + ("tests/test_twisting.py",)
 A = "src/rollingdem/analysis.py"
 PILES = ("tests/test_analysis.py",)
+WB = ("tests/test_walton_braun.py",)
+WT = ("tests/test_walton_tangential.py",)
+COH = ("tests/test_cohesion.py",)
 MUTATIONS = [
     # --- normal (contact/normal.py) and the material pair ------------------------------------------
     M("hertz k_n = 4/3 E* a -> E* a", C + "normal.py", "kn = (4.0 / 3.0) * p[P_YOUNG] * a", "kn = 1.0 * p[P_YOUNG] * a", HERTZ),
@@ -56,17 +59,43 @@ MUTATIONS = [
       "math.sqrt(2.0 / 3.0) * restitution_beta(e)", HERTZ),
     M("hooke stiffness 16/15 -> 4/3", C + "normal.py", "(16.0 / 15.0) * sr * young", "(4.0 / 3.0) * sr * young", K),
     M("hooke tangential dashpot halved", C + "normal.py",
-      "HOOKE_PARAMETERS.tangential_stiffness_ratio] * kn,\n            gamma_n)",
-      "HOOKE_PARAMETERS.tangential_stiffness_ratio] * kn,\n            0.5 * gamma_n)", K),
+      "HOOKE_PARAMETERS.tangential_stiffness_ratio] * kn,\n            gamma_n, 0.0)",
+      "HOOKE_PARAMETERS.tangential_stiffness_ratio] * kn,\n            0.5 * gamma_n, 0.0)", K),
     M("linear shear dashpot from k_n", C + "normal.py", "shear_damping_factor] * math.sqrt(m_eff * ks)",
       "shear_damping_factor] * math.sqrt(m_eff * kn)", K),
     M("effective shear modulus: factor 2 lost", "src/rollingdem/materials.py", "inv = (2.0 * (2.0 - a.poisson_ratio)",
       "inv = ((2.0 - a.poisson_ratio)", K),
+    M("walton_braun k2 = k1/e^2 -> k1/e", C + "normal.py", "ratio = 1.0 / pair.restitution ** 2",
+      "ratio = 1.0 / pair.restitution", WB),
+    M("walton_braun keeps the clipped force", C + "normal.py",
+      "hist[k, history_at + WALTON_BRAUN_HISTORY.force_unclipped] = f\n",
+      "hist[k, history_at + WALTON_BRAUN_HISTORY.force_unclipped] = max(f, 0.0)\n", WB),
+    M("walton_braun hysteresis with the end-of-step force", C + "normal.py", "0.5 * (f_old + f_el) * step",
+      "f_el * step", WB),
+    M("walton_braun equivalent stiffness 16/15 -> 4/3", C + "normal.py", "(16.0 / 15.0) * sr * young",
+      "(4.0 / 3.0) * sr * young", WB),
+    M("jkr adhesion sqrt(8 pi w E* a^3) -> sqrt(6 ...)", C + "cohesion.py",
+      "math.sqrt(8.0 * math.pi * w * young * a * a * a)", "math.sqrt(6.0 * math.pi * w * young * a * a * a)", COH),
+    M("jkr separation 3/4 -> 1", C + "cohesion.py", "JKR_HISTORY.separation_limit] = 0.75 * (",
+      "JKR_HISTORY.separation_limit] = 1.0 * (", COH),
+    M("jkr energy without the surface term", C + "cohesion.py", "+ math.pi * surface_energy * a * a)",
+      "+ 0.0 * a * a)", COH),
+    M("sjkr circle 4 d^2 -> 2 d^2", C + "cohesion.py", "/ (4.0 * d * d)", "/ (2.0 * d * d)", COH),
+    M("sjkr wall circle 2 R -> R", C + "cohesion.py", "overlap * (2.0 * ri - overlap)", "overlap * (ri - overlap)",
+      COH),
     # --- tangential (contact/tangential.py) ------------------------------------------------------
+    M("walton shrinking branch normalised by mu N - T*", C + "tangential.py",
+      "room = 1.0 - (turning - t) / (mu_n + turning)", "room = 1.0 - (turning - t) / (mu_n - turning)", WT),
+    M("walton turning point not taken", C + "tangential.py", "turning = t  # a turning point",
+      "turning = turning  # a turning point", WT),
+    M("walton T* keeps its sign through zero", C + "tangential.py", "        turning = -turning\n",
+      "        turning = turning\n", WT),
+    M("walton force not scaled with N", C + "tangential.py", "scale = n_force / n_before", "scale = 1.0", WT),
     M("coulomb limit on abs(F_n) instead of max(F_n, 0)", C + "tangential.py", "limit = p[P_FRICTION] * max(normal_force, 0.0)",
       "limit = p[P_FRICTION] * abs(normal_force)", K),
     M("tangential history not carried with the frame", C + "tangential.py",
-      "    carry_with_frame(hist, k, history_at, frame)\n", "    pass\n", K),
+      "    gamma_t = normal[NR.tangential_damping]\n    carry_with_frame(hist, k, history_at, frame)\n",
+      "    gamma_t = normal[NR.tangential_damping]\n", K),
     M("tangential spring backed out without the dashpot", C + "tangential.py", "xx = -(fx + gamma_t * vtx) / kt",
       "xx = -fx / kt", K),
     M("tangential dissipation ignores the stored energy", C + "tangential.py", "stored_before = 0.5 * kt *",

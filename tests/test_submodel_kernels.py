@@ -90,7 +90,7 @@ def test_hertz_normal_by_hand():
     a halved (or otherwise wrong) tangential dashpot gamma_t, a wrong sign of the normal dashpot."""
     p, off, _ = row(dict(normal="hertz"), "normal")
     delta, vn, r_eff, m_eff = 2e-5, -0.7, 0.003, M_EFF
-    f_el, f_damp, kn, kt, gamma_t = hertz_normal(NO_HISTORY, 0, 0, delta, vn, r_eff, m_eff, p, off)
+    f_el, f_damp, kn, kt, gamma_t, hysteresis = hertz_normal(NO_HISTORY, 0, 0, delta, vn, r_eff, m_eff, p, off)
     a = math.sqrt(r_eff * delta)
     c = -2 * math.sqrt(5 / 6) * beta(E_REST)
     gamma_n = c * math.sqrt(2 * E_STAR * a * m_eff)
@@ -99,6 +99,7 @@ def test_hertz_normal_by_hand():
     assert f_damp == pytest.approx(-gamma_n * vn, rel=RT) and f_damp > 0  # approaching: pushes apart
     assert kt == pytest.approx(8 * G_STAR * a, rel=RT)
     assert gamma_t == pytest.approx(c * math.sqrt(8 * G_STAR * a * m_eff), rel=RT)
+    assert hysteresis == 0.0  # elastic: the dashpot's loss is the kernel's to count
 
 
 def test_hooke_normal_by_hand():
@@ -110,7 +111,7 @@ def test_hooke_normal_by_hand():
     vc, ratio = 1.3, 2 / 7
     p, off, _ = row(dict(normal=rd.Hooke(characteristic_velocity=vc, tangential_stiffness_ratio=ratio)), "normal")
     delta, vn, r_eff, m_eff = 3e-5, 0.4, 0.003, M_EFF
-    f_el, f_damp, kn, kt, gamma_t = hooke_normal(NO_HISTORY, 0, 0, delta, vn, r_eff, m_eff, p, off)
+    f_el, f_damp, kn, kt, gamma_t, hysteresis = hooke_normal(NO_HISTORY, 0, 0, delta, vn, r_eff, m_eff, p, off)
     delta_h = (15 * m_eff * vc ** 2 / (16 * E_STAR * math.sqrt(r_eff))) ** 0.4
     kn_hand = m_eff * vc ** 2 / delta_h ** 2
     gamma_n = -2 * beta(E_REST) * math.sqrt(m_eff * kn_hand)
@@ -120,6 +121,7 @@ def test_hooke_normal_by_hand():
     assert f_damp == pytest.approx(-gamma_n * vn, rel=RT) and f_damp < 0  # separating: pulls
     assert kt == pytest.approx(ratio * kn_hand, rel=RT)
     assert gamma_t == pytest.approx(gamma_n, rel=RT)
+    assert hysteresis == 0.0
 
 
 @pytest.mark.parametrize("zeta_n", [None, 0.4])
@@ -131,11 +133,12 @@ def test_linear_normal_by_hand(zeta_n):
     p, off, _ = row(dict(normal=rd.Linear(kn, ks, normal_damping_ratio=zeta_n, shear_damping_ratio=zeta_s)),
                     "normal")
     delta, vn = 4e-5, -0.3
-    f_el, f_damp, kn_out, kt_out, gamma_t = linear_normal(NO_HISTORY, 0, 0, delta, vn, 0.003, M_EFF, p, off)
+    f_el, f_damp, kn_out, kt_out, gamma_t, hysteresis = linear_normal(NO_HISTORY, 0, 0, delta, vn, 0.003, M_EFF, p, off)
     zn = -beta(E_REST) if zeta_n is None else zeta_n
     assert (f_el, kn_out, kt_out) == (pytest.approx(kn * delta, rel=RT), kn, ks)
     assert f_damp == pytest.approx(-2 * zn * math.sqrt(M_EFF * kn) * vn, rel=RT)
     assert gamma_t == pytest.approx(2 * zeta_s * math.sqrt(M_EFF * ks), rel=RT)
+    assert hysteresis == 0.0
 
 
 # --- tangential -------------------------------------------------------------------------------------

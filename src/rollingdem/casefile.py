@@ -64,6 +64,8 @@ class PairSpec(_Strict):
     rolling_friction: Optional[Number] = None
     restitution: Optional[Number] = None
     rolling_damping: Optional[Number] = None
+    surface_energy: Optional[Number] = None
+    cohesion_energy_density: Optional[Number] = None
 
 
 class ContactSpec(_Strict):
@@ -72,6 +74,7 @@ class ContactSpec(_Strict):
     tangential: Any = "history"
     rolling: Any = "none"
     twisting: Any = "none"
+    cohesion: Any = "none"
 
 
 class PlaneSpec(_Strict):

@@ -26,15 +26,19 @@ from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
 from rollingdem.contact.tangential import history_spring as tangential_force  # @@TANGENTIAL
 from rollingdem.contact.rolling import no_rolling as rolling_moment  # @@ROLLING
 from rollingdem.contact.twisting import no_twisting as twisting_moment  # @@TWISTING
+from rollingdem.contact.cohesion import no_cohesion as cohesion_force  # @@COHESION
 
 NORMAL_PARAMS = 6  # @@NORMAL_PARAMS
 TANGENTIAL_PARAMS = 8  # @@TANGENTIAL_PARAMS
 ROLLING_PARAMS = 8  # @@ROLLING_PARAMS
 TWISTING_PARAMS = 8  # @@TWISTING_PARAMS
+COHESION_PARAMS = 8  # @@COHESION_PARAMS
 NORMAL_HISTORY = 3  # @@NORMAL_HISTORY
 TANGENTIAL_HISTORY = 3  # @@TANGENTIAL_HISTORY
 ROLLING_HISTORY = 6  # @@ROLLING_HISTORY
 TWISTING_HISTORY = 6  # @@TWISTING_HISTORY
+COHESION_HISTORY = 6  # @@COHESION_HISTORY
+DETACH_AT = -1  # @@DETACH_AT
 TRACK_ENERGY = 1  # @@TRACK_ENERGY
 ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
@@ -94,9 +98,13 @@ def contact_in_frame(hist, k, frame, g, p, dt):
     vty = vcy - vcn * ny
     vtz = vcz - vcn * nz
 
-    f_el, f_damp, kn, kt, gamma_t = normal_force(hist, k, NORMAL_HISTORY, overlap, vn, r_eff, m_eff, p, NORMAL_PARAMS)
+    # a contact kept past touching (DETACH_AT >= 0) reaches the normal law at zero overlap
+    f_el, f_damp, kn, kt, gamma_t, e_n = normal_force(hist, k, NORMAL_HISTORY, max(overlap, 0.0) if DETACH_AT >= 0
+                                                      else overlap, vn, r_eff, m_eff, p, NORMAL_PARAMS)
     fn = f_el + f_damp
     normal = (f_el, fn, kn, kt, gamma_t)  # NORMAL_RESULT
+    f_coh, e_coh = cohesion_force(hist, k, COHESION_HISTORY, g, normal, p, COHESION_PARAMS)
+    fn += f_coh
     ftx, fty, ftz, e_t = tangential_force(hist, k, TANGENTIAL_HISTORY, g, frame, (vtx, vty, vtz), normal, dt, p,
                                           TANGENTIAL_PARAMS)
     mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, ROLLING_HISTORY, g, frame, normal, dt, p,
@@ -113,7 +121,7 @@ def contact_in_frame(hist, k, frame, g, p, dt):
     return (fn * nx + ftx, fn * ny + fty, fn * nz + ftz,
             -lever_i * cx - mix - m_tw * nx, -lever_i * cy - miy - m_tw * ny, -lever_i * cz - miz - m_tw * nz,
             -lever_j * cx + mjx + m_tw * nx, -lever_j * cy + mjy + m_tw * ny, -lever_j * cz + mjz + m_tw * nz,
-            -f_damp * vn * dt if TRACK_ENERGY else 0.0, e_t if TRACK_ENERGY else 0.0,
+            e_n + e_coh - f_damp * vn * dt if TRACK_ENERGY else 0.0, e_t if TRACK_ENERGY else 0.0,
             e_r if TRACK_ENERGY else 0.0, e_tw if TRACK_ENERGY else 0.0)
 
 
@@ -196,7 +204,8 @@ def entry_inputs(i, k, particles, lists):
     d2 = dx * dx + dy * dy + dz * dz
     reach = ri + rj
     row = lists.contact_row[k]
-    if d2 >= reach * reach:
+    if d2 >= reach * reach and not (DETACH_AT >= 0 and row >= 0
+                                    and d2 < (reach + lists.pool[row, DETACH_AT]) * (reach + lists.pool[row, DETACH_AT])):
         if row >= 0:
             free_row(lists.pool, lists.groups, uint64(i) // uint64(POOL_GROUP), row)
             lists.contact_row[k] = -1
@@ -427,7 +436,7 @@ def wall_contacts(i, dt, particles, walls, pair_params):
     for wl in range(nwall):
         k = i * uint64(nwall) + uint64(wl)
         overlap, nx, ny, nz = wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom)
-        if overlap <= 0.0:
+        if overlap <= 0.0 and not (DETACH_AT >= 0 and wtouch[k] and overlap > -whist[k, DETACH_AT]):
             if wtouch[k]:  # the contact just ended: its springs go (a byte, not the history row)
                 wtouch[k] = 0
                 for s2 in range(whist.shape[1]):

@@ -20,7 +20,7 @@ from pathlib import Path
 SERIAL_PASSES = ("advance", "pair_forces", "gather", "kick_drift")  # name -> name_serial
 _SERIAL_NAME = re.compile(r"\b(" + "|".join(SERIAL_PASSES) + r")\(")
 _ALIASES = {"NORMAL": "normal_force", "TANGENTIAL": "tangential_force", "ROLLING": "rolling_moment",
-            "TWISTING": "twisting_moment"}
+            "TWISTING": "twisting_moment", "COHESION": "cohesion_force"}
 
 _LOADED: dict[str, object] = {}
 _BY_CLASSES: dict[tuple, object] = {}

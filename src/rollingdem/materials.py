@@ -2,7 +2,7 @@
 
 :class:`Material`; :class:`MaterialTable`, the materials of a scene with the effective moduli E*
 and G* of each pair and its coefficients (friction, rolling friction, restitution, rolling
-damping): the mean of the two materials' values unless set for the pair (``set_pair``)."""
+damping, surface energy, cohesion energy density): the mean of the two materials' values unless set for the pair (``set_pair``)."""
 
 from __future__ import annotations
 
@@ -26,6 +26,10 @@ class Material:
         steepest slope on which a sphere rests (seed report eq. 1).
     restitution: coefficient of restitution e, in (0, 1].
     rolling_damping: rolling viscous damping ratio eta_r (-), >= 0 (seed report eq. 10).
+    surface_energy: w (J/m^2), >= 0: the work of adhesion per unit area that the ``jkr`` cohesion
+        law takes (pull-off force 3/2 pi w R*; LAMMPS's ``jkr`` gamma is w / 2).
+    cohesion_energy_density: k_c (J/m^3), >= 0: the ``sjkr`` cohesion law's F = k_c A (LIGGGHTS's
+        ``cohesionEnergyDensity``).
     """
 
     name: str
@@ -36,6 +40,8 @@ class Material:
     rolling_friction: float = 0.0
     restitution: float = 0.5
     rolling_damping: float = 0.0
+    surface_energy: float = 0.0
+    cohesion_energy_density: float = 0.0
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
@@ -50,6 +56,9 @@ class Material:
         object.__setattr__(self, "restitution", check_range(p + "restitution", self.restitution, 0.0, 1.0,
                                                             low_open=True))
         object.__setattr__(self, "rolling_damping", check_non_negative(p + "rolling_damping", self.rolling_damping))
+        object.__setattr__(self, "surface_energy", check_non_negative(p + "surface_energy", self.surface_energy, "J/m^2"))
+        object.__setattr__(self, "cohesion_energy_density",
+                           check_non_negative(p + "cohesion_energy_density", self.cohesion_energy_density, "J/m^3"))
 
     @property
     def shear_modulus(self) -> float:
@@ -57,7 +66,8 @@ class Material:
         return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
 
 
-PAIR_COEFFICIENTS = ("friction", "rolling_friction", "restitution", "rolling_damping")
+PAIR_COEFFICIENTS = ("friction", "rolling_friction", "restitution", "rolling_damping", "surface_energy",
+                     "cohesion_energy_density")
 
 
 @dataclass(frozen=True)
@@ -70,6 +80,8 @@ class PairProperties:
     rolling_friction: float
     restitution: float
     rolling_damping: float
+    surface_energy: float = 0.0
+    cohesion_energy_density: float = 0.0
 
 
 def effective_youngs_modulus(a: Material, b: Material) -> float:

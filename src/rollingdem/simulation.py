@@ -678,6 +678,7 @@ class Simulation:
             fastest = max([float(speed[np.isfinite(speed)].max(initial=0.0))] + [v for _, v in coming])
             impact = 2.0 * fastest  # a non-finite v is reported apart
             limits += normal.time_step_limits(mat, pair, rmin, mmin, impact)
+            limits += self.contact.cohesion.time_step_limits(mat, pair, rmin, mmin)
             r_eff = 0.5 * rmin
             kn, kt, overlap = normal.reference_stiffness(pair, r_eff, 0.5 * mmin, rmin)
             inertia = SOLID_SPHERE * mmin * rmin ** 2
@@ -718,6 +719,21 @@ class Simulation:
                                      f"({label}): choose dt <= {limit:.4g} s, or {self.hints['check_timestep']} "
                                      "to run anyway")
         self._dt_passed = (key, speeds)
+
+    def _check_contact_reach(self):
+        """A cohesion law whose contacts last past touching (``jkr``) needs the neighbor list to
+        reach that far: refuse a skin shorter than the largest pair's separation limit."""
+        cohesion = self.contact.cohesion
+        st = self._state
+        if cohesion.detach_slot is None or st.n == 0:
+            return
+        r_eff = 0.5 * float(st.radius.max())
+        n = len(self.materials.materials)
+        reach = max(cohesion.separation_limit(self.materials.pair(a, b), r_eff) for a in range(n) for b in range(n))
+        if reach > self.skin:
+            raise ParameterError(f"skin = {self.skin:.4g} m is not allowed with cohesion {cohesion.name!r}: its "
+                                 f"contacts last until the spheres are {reach:.4g} m apart, and the neighbor list "
+                                 f"must reach that far; give skin >= {reach:.4g} m")
 
     def _fastest_per_material(self) -> np.ndarray:
         """Each material's largest finite particle speed squared (0 without particles of it)."""
@@ -764,6 +780,7 @@ class Simulation:
             if wall.kind == WALL_MESH:
                 self._check_mesh_size(wall, self._state.radius)
         self._check_dt()
+        self._check_contact_reach()
         self._check_periodic_length()
         for ob in observers:
             ob.check(self)  # all refusals before any observer writes

@@ -24,10 +24,10 @@ from .errors import ParameterError
 
 def available_cases() -> dict:
     """Case name -> function(models=None, quick=False, outdir=None, progress=None) -> CaseResult."""
-    from .cases import validation
+    from .cases import contact_laws, validation
 
     cases = {"inclined-wall": validation.inclined_wall, "rolling-flat": validation.rolling_flat,
-             "rolling-slope": validation.rolling_slope}
+             "rolling-slope": validation.rolling_slope, "contact-laws": contact_laws.contact_laws}
     try:
         from .cases import repose
         from .repose_study import repose_sweep

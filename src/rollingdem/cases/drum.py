@@ -197,11 +197,12 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     # <r^3> = R^3 (1 + p^2) for radii uniform in R (1 +- p)
     count = int(round(setup.fill * math.pi * big_r ** 2 * length * 0.6
                       / (4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2))))
-    sim = Simulation(contact=ContactModel("hertz", rolling=rolling, twisting=twisting), gravity=(0.0, -g, 0.0), dt=dt,
-                     periodic={"z": (0.0, length)})
+    contact = ContactModel("hertz", rolling=rolling, twisting=twisting, cohesion=material.cohesion)
+    sim = Simulation(contact=contact, gravity=(0.0, -g, 0.0), dt=dt, periodic={"z": (0.0, length)})
     sim.add_material(material.as_material("m"))
-    sim.add_material(material.as_material("wall"))
-    sim.set_pair("m", "wall", friction=setup.wall_friction, rolling_friction=setup.wall_rolling_friction)
+    sim.add_material(material.wall_material("wall"))
+    sim.set_pair("m", "wall", friction=setup.wall_friction, rolling_friction=setup.wall_rolling_friction,
+                 surface_energy=0.0, cohesion_energy_density=0.0)
     drum = sim.add_wall(Cylinder(big_r, point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), material="wall", name="drum"))
     sim.insert(CylinderRegion(big_r - r_max, r_max, length - r_max), count, dist, "m", seed=seed)
     sim.run(2.0 * math.sqrt(4.0 * big_r / g) + 0.2)  # fall across the drum, then as long again to settle

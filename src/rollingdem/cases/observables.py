@@ -31,7 +31,7 @@ class Parameter:
     high: float | None = None
     low_open: bool = False
     integer: bool = False
-    choice: str = ""  # "rolling" or "twisting": a model name
+    choice: str = ""  # "rolling", "twisting" or "cohesion": a model name
     calibration_range: tuple[float, float] | None = None
 
     def check(self, value: Any) -> Any:
@@ -42,12 +42,11 @@ class Parameter:
             if self.choice == "rolling":
                 resolve_rolling(value, self.name)
             else:
-                from ..contact import TWISTING_MODELS
-                from ..contact.base import make_submodel
+                from ..contact.base import _REGISTRIES, make_submodel
 
-                check_choice(self.name, value, TWISTING_MODELS)
+                check_choice(self.name, value, _REGISTRIES[self.choice])
                 try:
-                    make_submodel("twisting", value)
+                    make_submodel(self.choice, value)
                 except ParameterError as err:  # a model that needs parameters of its own (sds)
                     raise ParameterError(f"{self.name} = {value!r} is not allowed: {err}") from None
             return value
@@ -250,6 +249,17 @@ def _common(mu=0.8, mur=0.2, mur_range=(0.02, 1.0), mur_low_open=False):
             Parameter("seed", 1, "random seed (insertion)", low=0, integer=True))
 
 
+def _cohesion():
+    """The cohesion law and its two material parameters (docs/models.md §1.6), which calibration can
+    fit as it fits mu_r."""
+    return (Parameter("cohesion", "none", "cohesion law (rollingdem.contact.COHESION_MODELS): none, sjkr, jkr",
+                      choice="cohesion"),
+            Parameter("surface_energy", 0.0, "work of adhesion w of the spheres (cohesion jkr)", "J/m^2", low=0.0,
+                      calibration_range=(0.0, 0.5)),
+            Parameter("cohesion_energy_density", 0.0, "cohesion energy density k_c of the spheres (cohesion sjkr)",
+                      "J/m^3", low=0.0, calibration_range=(0.0, 2e5)))
+
+
 def _granular():
     """The parameters of an experiment with a bed of spheres: _common's, the twisting model, the
     spheres' size and stiffness, the time step."""
@@ -258,7 +268,8 @@ def _granular():
                Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
                Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
                Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
-               Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True)))
+               Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True))
+            + _cohesion())
 
 
 def _pile_material(p: dict):
@@ -266,7 +277,8 @@ def _pile_material(p: dict):
     unless given)."""
     from .repose import PileMaterial
 
-    extra = {k: p[k] for k in ("poisson_ratio", "density") if k in p}
+    extra = {k: p[k] for k in ("poisson_ratio", "density", "cohesion", "surface_energy", "cohesion_energy_density")
+             if k in p}
     return PileMaterial(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
                         restitution=p["e"], rolling_damping=p["eta_r"], **extra)
 
@@ -300,7 +312,8 @@ CASES: dict[str, SweepCase] = {
                      low_open=True),
            Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p), R = 5 mm", low=0.0, high=0.9),
            Parameter("rough_base", 0, "1: the pile stands on a base of fixed spheres (rollingdem.rough_base) on "
-                                      "the plate; 0: on the bare plate", low=0, high=1, integer=True)),
+                                      "the plate; 0: on the bare plate", low=0, high=1, integer=True))
+        + _cohesion(),
         {"angle": "deg, cone fit (rollingdem.analysis.repose_angle)", "slice_std": "deg, spread over azimuthal slices",
          "r_squared": "cone fit R²", "settled_at": "s after the tube is removed", "note": "why no angle"},
         "angle", stochastic=True,
@@ -381,7 +394,8 @@ CASES: dict[str, SweepCase] = {
            Parameter("density", 1056.0, "particle density", "kg/m^3", low=0.0, low_open=True),
            Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
            Parameter("max_collapse", 3.0, "longest collapse before the pile counts as unsettled", "s", low=0.0,
-                     low_open=True)),
+                     low_open=True))
+        + _cohesion(),
         {"angle": "deg, cone fit (rollingdem.analysis.repose_angle)", "slice_std": "deg, spread over azimuthal slices",
          "r_squared": "cone fit R²", "settled_at": "s after the cylinder starts to lift", "note": "why no angle"},
         "angle", stochastic=True,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -70,8 +70,10 @@ class PileRun:
 class PileMaterial:
     """The pile's material where it may differ from Table 1 (whose Poisson ratio 0.49 and density
     1056 kg/m^3 it keeps): sliding and rolling friction coefficients, Young's modulus (Pa),
-    coefficient of restitution and rolling viscous damping ratio. Checked by
-    :class:`rollingdem.Material` when the pile is built."""
+    coefficient of restitution and rolling viscous damping ratio; the cohesion law (``cohesion``:
+    "none", "sjkr", "jkr", docs/models.md §1.6) and its parameters, the work of adhesion
+    ``surface_energy`` (J/m^2) and the ``cohesion_energy_density`` (J/m^3). Checked by
+    :class:`rollingdem.Material` and :class:`rollingdem.ContactModel` when the pile is built."""
 
     friction: float = TABLE1["friction"]
     rolling_friction: float = TABLE1["rolling_friction"]
@@ -80,12 +82,21 @@ class PileMaterial:
     rolling_damping: float = TABLE1["rolling_damping"]
     poisson_ratio: float = TABLE1["poisson_ratio"]
     density: float = TABLE1["density"]
+    cohesion: str = "none"
+    surface_energy: float = 0.0
+    cohesion_energy_density: float = 0.0
 
     def as_material(self, name: str) -> Material:
         """Table 1 with these values, as a :class:`rollingdem.Material` called ``name``."""
         return Material(name, youngs_modulus=self.youngs_modulus, poisson_ratio=self.poisson_ratio,
                         density=self.density, friction=self.friction, rolling_friction=self.rolling_friction,
-                        restitution=self.restitution, rolling_damping=self.rolling_damping)
+                        restitution=self.restitution, rolling_damping=self.rolling_damping,
+                        surface_energy=self.surface_energy, cohesion_energy_density=self.cohesion_energy_density)
+
+    def wall_material(self, name: str) -> Material:
+        """The walls' material: the spheres', without cohesion (the spheres stick to each other, not
+        to the tube, the plate or the drum); ``Simulation.set_pair`` must zero the pair's too."""
+        return replace(self, surface_energy=0.0, cohesion_energy_density=0.0).as_material(name)
 
 
 @dataclass(frozen=True)
@@ -163,9 +174,15 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     tube_radius, height = column_size(count, radius, polydispersity, setup.aspect)
     if setup.tube_radius is not None:  # the same column volume in the tube given
         tube_radius, height = setup.tube_radius, height * (tube_radius / setup.tube_radius) ** 2
-    sim = Simulation(contact=ContactModel(normal, rolling=rolling, twisting=twisting), dt=dt)
+    contact = ContactModel(normal, rolling=rolling, twisting=twisting, cohesion=material.cohesion)
+    sim = Simulation(contact=contact, dt=dt)
     sim.add_material(material.as_material("m"))
-    sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m", name="plate"))
+    walls = "m"
+    if material.cohesion != "none":  # cohesive spheres, not cohesive to the plate and the tube
+        walls = "wall"
+        sim.add_material(material.wall_material(walls))
+        sim.set_pair("m", walls, surface_energy=0.0, cohesion_energy_density=0.0)
+    sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material=walls, name="plate"))
     check_choice("base", setup.base, ("plate", "rough"))
     floor = 0.0
     if setup.base == "rough":
@@ -175,10 +192,10 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
                                      jitter=setup.base_jitter, seed=seed), base_radius, "m", fixed=True)
         floor = 2.0 * base_radius
     if setup.tube_segments is None:
-        tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material="m", name="tube"))
+        tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material=walls, name="tube"))
     else:
         tube = sim.add_wall(MeshWall.shape("drum", radius=tube_radius, length=2.0 * height + 0.1,
-                                           segments=setup.tube_segments, caps=False, material="m", name="tube"))
+                                           segments=setup.tube_segments, caps=False, material=walls, name="tube"))
     fill = height * PACKING / INSERT_PACKING
     sim.insert(CylinderRegion(tube_radius, floor, floor + fill), count, dist, "m", seed=seed)
     free = ~sim.fixed

@@ -193,12 +193,18 @@ def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
                       / (4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2))))
     poured = 2.2 * fill + 2.0 * d  # the random insertion packs at about 0.3
     top = poured + 4.0 * d  # room for the layer put back
-    sim = Simulation(contact=ContactModel("hertz", rolling=rolling, twisting=twisting), gravity=(0.0, 0.0, -g), dt=dt)
+    contact = ContactModel("hertz", rolling=rolling, twisting=twisting, cohesion=material.cohesion)
+    sim = Simulation(contact=contact, gravity=(0.0, 0.0, -g), dt=dt)
     sim.add_material(material.as_material("m"))
+    walls = "m"
+    if material.cohesion != "none":  # cohesive spheres, not cohesive to the silo
+        walls = "wall"
+        sim.add_material(material.wall_material(walls))
+        sim.set_pair("m", walls, surface_energy=0.0, cohesion_energy_density=0.0)
     rings = max(1, int(round(top / (math.pi * ds / SEGMENTS))))  # near-square wall triangles
     sim.add_wall(MeshWall.shape("silo", radius=0.5 * ds, height=top, orifice_radius=0.5 * d0, segments=SEGMENTS,
-                                rings=rings, material="m", name="silo"))
-    plug = sim.add_wall(MeshWall.shape("disk", radius=0.5 * d0, segments=SEGMENTS, material="m", name="plug"))
+                                rings=rings, material=walls, name="silo"))
+    plug = sim.add_wall(MeshWall.shape("disk", radius=0.5 * d0, segments=SEGMENTS, material=walls, name="plug"))
     sim.insert(CylinderRegion(0.5 * ds - r_max, r_max, poured - r_max), count, dist, "m", seed=seed)
     sim.run(2.0 * math.sqrt(2.0 * poured / g) + 0.2)  # the fall from the top, then as long again to settle
     bed_mass = float(sim.masses.sum())

@@ -1,14 +1,15 @@
-"""Contact sub-models (normal, tangential, rolling, twisting) and their composition. Every
+"""Contact sub-models (normal, tangential, rolling, twisting, cohesion) and their composition. Every
 registered sub-model class is exported here by its class name: a law added to one of the slot
 modules needs no edit of an export list."""
 
-from . import normal, rolling, tangential, twisting  # noqa: F401 (defining the classes registers them)
-from .base import NORMAL_MODELS, ROLLING_MODELS, TANGENTIAL_MODELS, TWISTING_MODELS, SubModel
+from . import cohesion, normal, rolling, tangential, twisting  # noqa: F401 (defining the classes registers them)
+from .base import COHESION_MODELS, NORMAL_MODELS, ROLLING_MODELS, TANGENTIAL_MODELS, TWISTING_MODELS, SubModel
 from .model import ContactModel
 
-SUBMODELS = {cls.__name__: cls for registry in (NORMAL_MODELS, TANGENTIAL_MODELS, ROLLING_MODELS, TWISTING_MODELS)
+SUBMODELS = {cls.__name__: cls for registry in (NORMAL_MODELS, TANGENTIAL_MODELS, ROLLING_MODELS, TWISTING_MODELS,
+                                                                 COHESION_MODELS)
              for cls in registry.values()}
 globals().update(SUBMODELS)
 
 __all__ = ["SubModel", "ContactModel", "NORMAL_MODELS", "TANGENTIAL_MODELS", "ROLLING_MODELS", "TWISTING_MODELS",
-           *SUBMODELS]
+           "COHESION_MODELS", *SUBMODELS]

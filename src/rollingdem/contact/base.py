@@ -28,8 +28,9 @@ NORMAL_MODELS: dict[str, type] = {}
 TANGENTIAL_MODELS: dict[str, type] = {}
 ROLLING_MODELS: dict[str, type] = {}
 TWISTING_MODELS: dict[str, type] = {}
+COHESION_MODELS: dict[str, type] = {}
 _REGISTRIES = {"normal": NORMAL_MODELS, "tangential": TANGENTIAL_MODELS, "rolling": ROLLING_MODELS,
-               "twisting": TWISTING_MODELS}
+               "twisting": TWISTING_MODELS, "cohesion": COHESION_MODELS}
 
 
 NO_SLOTS = slots()
@@ -38,7 +39,7 @@ NO_SLOTS = slots()
 class SubModel:
     """Base of all contact sub-models.
 
-    Class attributes: ``slot`` ("normal", "tangential", "rolling", "twisting"), ``name`` (as
+    Class attributes: ``slot`` ("normal", "tangential", "rolling", "twisting", "cohesion"), ``name`` (as
     case files give it), ``parameters`` and ``history`` (``slots``: the per-pair floats after the
     common ones, and the per-contact history), ``function`` (the compiled law, as a
     ``staticmethod``). ``history_size`` and ``n_parameters`` follow from the declarations.

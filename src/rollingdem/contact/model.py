@@ -1,4 +1,4 @@
-"""ContactModel: the contact law, a normal, a tangential, a rolling and a twisting sub-model, and
+"""ContactModel: the contact law, a normal, a tangential, a rolling, a twisting and a cohesion sub-model, and
 the layout of their per-pair parameters and per-contact history in the kernel's rows. The engine
 built for it lives in ``rollingdem.kernels``."""
 
@@ -11,7 +11,7 @@ from .base import N_COMMON, SubModel, make_submodel
 
 
 class ContactModel:
-    """The contact law: normal + tangential + rolling + twisting sub-models.
+    """The contact law: normal + tangential + rolling + twisting + cohesion sub-models.
 
     Parameters
     ----------
@@ -19,25 +19,29 @@ class ContactModel:
     tangential: "history" (default).
     rolling: "none" (default), "cdt", ... (``rollingdem.contact.ROLLING_MODELS``).
     twisting: "none" (default).
+    cohesion: "none" (default), "sjkr", "jkr" (``rollingdem.contact.COHESION_MODELS``).
 
     Particle-particle and particle-wall contacts use the same sub-model functions.
     """
 
-    def __init__(self, normal="hertz", tangential="history", rolling="none", twisting="none"):
+    def __init__(self, normal="hertz", tangential="history", rolling="none", twisting="none", cohesion="none"):
         self.normal = make_submodel("normal", normal)
         self.tangential = make_submodel("tangential", tangential)
         self.rolling = make_submodel("rolling", rolling)
         self.twisting = make_submodel("twisting", twisting)
+        self.cohesion = make_submodel("cohesion", cohesion)
+        self.cohesion.check_normal(self.normal)
 
     @property
-    def submodels(self) -> tuple[SubModel, SubModel, SubModel, SubModel]:
-        return (self.normal, self.tangential, self.rolling, self.twisting)
+    def submodels(self) -> tuple[SubModel, ...]:
+        return (self.normal, self.tangential, self.rolling, self.twisting, self.cohesion)
 
     # --- layout -----------------------------------------------------------------------------
     def layout(self) -> dict[str, int]:
         """Where each sub-model's declared parameters start in a pair's row (``NORMAL_PARAMS``, ...,
         after the ``N_COMMON`` common ones) and its history in a contact's (``ROLLING_HISTORY``, ...,
-        after the stored normal), and the rows' lengths (``N_PARAMS``, ``HISTORY_SIZE``)."""
+        after the stored normal), the rows' lengths (``N_PARAMS``, ``HISTORY_SIZE``), and the history
+        column a contact that lasts past touching keeps its reach in (``DETACH_AT``, -1 for none)."""
         out = {}
         params_at = N_COMMON
         history_at = HISTORY_FRAME
@@ -49,6 +53,8 @@ class ContactModel:
             history_at += sub.history_size
         out["N_PARAMS"] = params_at
         out["HISTORY_SIZE"] = history_at
+        slot = self.cohesion.detach_slot
+        out["DETACH_AT"] = -1 if slot is None else out["COHESION_HISTORY"] + self.cohesion.history._fields.index(slot)
         return out
 
     @property
@@ -79,4 +85,4 @@ class ContactModel:
 
     def __repr__(self):
         return (f"ContactModel(normal={self.normal!r}, tangential={self.tangential!r}, "
-                f"rolling={self.rolling!r}, twisting={self.twisting!r})")
+                f"rolling={self.rolling!r}, twisting={self.twisting!r}, cohesion={self.cohesion!r})")

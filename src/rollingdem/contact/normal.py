@@ -3,10 +3,13 @@
 Compiled function of the slot "normal" (arguments: docs/architecture.md; results: docs/models.md §0)::
 
     normal_force(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p, params_at)
-        -> (force_elastic, force_damping, normal_stiffness, tangential_stiffness, tangential_damping)
+        -> (force_elastic, force_damping, normal_stiffness, tangential_stiffness, tangential_damping,
+            dissipation)
 
-``hist[k, history_at:]`` is the contact's own declared history (none for the laws here, whose
-force follows from the overlap and its rate alone).
+``hist[k, history_at:]`` is the contact's own declared history (none for the elastic laws, whose
+force follows from the overlap and its rate alone). ``dissipation`` is the energy (J) the law lost
+in the step besides its dashpot's (whose share the kernel counts, -force_damping v_n dt): the
+hysteresis of a plastic law, 0 for an elastic one.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import math
 
 from numba import njit
 
-from ..errors import check_non_negative, check_positive
+from ..errors import ParameterError, check_choice, check_non_negative, check_positive
 from ..timestep import (HERTZ_FRACTION, RAYLEIGH_FRACTION, SPRING_FRACTION, hertz_contact_time,
                         rayleigh_time_step, spring_period)
 from .base import P_SHEAR, P_YOUNG, SubModel, slots
@@ -64,7 +67,18 @@ def hertz_normal(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p,
     kn = (4.0 / 3.0) * p[P_YOUNG] * a
     st = 8.0 * p[P_SHEAR] * a
     gamma_n = p[params_at + HERTZ_PARAMETERS.damping_factor] * math.sqrt(sn * m_eff)
-    return kn * overlap, -gamma_n * normal_velocity, kn, st, gamma_n * p[params_at + HERTZ_PARAMETERS.tangential_damping_ratio]
+    return (kn * overlap, -gamma_n * normal_velocity, kn, st,
+            gamma_n * p[params_at + HERTZ_PARAMETERS.tangential_damping_ratio], 0.0)
+
+
+@njit(cache=True, inline="always")
+def equivalent_stiffness(young, r_eff, m_eff, characteristic_velocity):
+    """The linear spring that stores at the Hertz peak overlap of an impact at V_c the energy Hertz
+    would: k = 16/15 sqrt(R*) E* [15 m* V_c^2 / (16 sqrt(R*) E*)]^(1/5) (LIGGGHTS
+    ``normal_model_hooke.h``; = (16/15)^(4/5) (V_c R* E*^2 sqrt(m*))^(2/5))."""
+    sr = math.sqrt(r_eff)
+    return (16.0 / 15.0) * sr * young * (15.0 * m_eff * characteristic_velocity * characteristic_velocity
+                                         / (16.0 * sr * young)) ** 0.2
 
 
 HOOKE_PARAMETERS = slots("damping_factor", "characteristic_velocity", "tangential_stiffness_ratio")
@@ -77,13 +91,10 @@ def hooke_normal(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p,
     k_n = 16/15 sqrt(R*) E* [15 m* V_c^2 / (16 sqrt(R*) E*)]^(1/5)  (= m* V_c^2 / delta_H^2);
     k_t = ratio k_n; gamma_n = 2 zeta sqrt(m* k_n); gamma_t = gamma_n.
     """
-    young = p[P_YOUNG]
-    sr = math.sqrt(r_eff)
-    vc = p[params_at + HOOKE_PARAMETERS.characteristic_velocity]
-    kn = (16.0 / 15.0) * sr * young * (15.0 * m_eff * vc * vc / (16.0 * sr * young)) ** 0.2
+    kn = equivalent_stiffness(p[P_YOUNG], r_eff, m_eff, p[params_at + HOOKE_PARAMETERS.characteristic_velocity])
     gamma_n = p[params_at + HOOKE_PARAMETERS.damping_factor] * math.sqrt(m_eff * kn)
     return (kn * overlap, -gamma_n * normal_velocity, kn, p[params_at + HOOKE_PARAMETERS.tangential_stiffness_ratio] * kn,
-            gamma_n)
+            gamma_n, 0.0)
 
 
 LINEAR_PARAMETERS = slots("normal_stiffness", "shear_stiffness", "normal_damping_factor", "shear_damping_factor")
@@ -96,32 +107,44 @@ def linear_normal(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p
     ks = p[params_at + LINEAR_PARAMETERS.shear_stiffness]
     gamma_n = p[params_at + LINEAR_PARAMETERS.normal_damping_factor] * math.sqrt(m_eff * kn)
     gamma_t = p[params_at + LINEAR_PARAMETERS.shear_damping_factor] * math.sqrt(m_eff * ks)
-    return kn * overlap, -gamma_n * normal_velocity, kn, ks, gamma_t
+    return kn * overlap, -gamma_n * normal_velocity, kn, ks, gamma_t, 0.0
 
 
-WALTON_BRAUN_PARAMETERS = slots("loading_stiffness", "unloading_stiffness", "tangential_stiffness", "damping_factor")
+WALTON_BRAUN_PARAMETERS = slots("loading_stiffness", "characteristic_velocity", "unloading_ratio",
+                                "tangential_stiffness_ratio", "damping_factor", "reported_stiffness_ratio")
 WALTON_BRAUN_HISTORY = slots("force_unclipped", "overlap_before")
 
 
 @njit(cache=True, inline="always")
 def walton_braun_normal(hist, k, history_at, overlap, normal_velocity, r_eff, m_eff, p, params_at):
-    """Walton & Braun (1986) hysteretic spring, in incremental form (docs/models.md).
+    """Walton & Braun (1986) hysteretic spring, in incremental form (docs/models.md §1.4).
 
     F~ <- min(k1 delta, F~ + k2 (delta - delta_before)), F~ = 0 at first touch; F_el = max(0, F~).
     Loading follows k1; unloading and reloading follow k2 = k1 / e^2 from the residual overlap
     delta_0 = delta_max (1 - k1 / k2), back to the k1 line; F~ is kept unclipped, so a reload after
     the overlap fell below delta_0 starts from delta_0, not from where the force was last zero.
-    A binary impact rebounds with e = sqrt(k1 / k2) at every speed. Optional dashpot
-    gamma_n = c sqrt(m* k2); k_n = k1 for the rolling and tangential springs, k_t = ratio k1.
+    A binary impact rebounds with e = sqrt(k1 / k2) at every speed. k1 is given, or (V_c > 0) the
+    Hertz-equivalent spring of ``equivalent_stiffness``. Optional dashpot gamma_n = c sqrt(m* k2);
+    k_n = k1 (or k2) for the rolling springs, k_t = ratio k1.
+    Hysteresis: the work 1/2 (F_before + F_el) (delta - delta_before) minus the change of the energy
+    the k2 line would give back, F^2 / (2 k2); 0 along the k2 line, (1 - k1/k2) k1 delta d(delta)
+    along the k1 line.
     """
-    k1 = p[params_at + WALTON_BRAUN_PARAMETERS.loading_stiffness]
-    k2 = p[params_at + WALTON_BRAUN_PARAMETERS.unloading_stiffness]
-    f = min(k1 * overlap, hist[k, history_at + WALTON_BRAUN_HISTORY.force_unclipped]
-            + k2 * (overlap - hist[k, history_at + WALTON_BRAUN_HISTORY.overlap_before]))
+    vc = p[params_at + WALTON_BRAUN_PARAMETERS.characteristic_velocity]
+    k1 = (p[params_at + WALTON_BRAUN_PARAMETERS.loading_stiffness] if vc == 0.0
+          else equivalent_stiffness(p[P_YOUNG], r_eff, m_eff, vc))
+    k2 = k1 * p[params_at + WALTON_BRAUN_PARAMETERS.unloading_ratio]
+    f_before = hist[k, history_at + WALTON_BRAUN_HISTORY.force_unclipped]
+    step = overlap - hist[k, history_at + WALTON_BRAUN_HISTORY.overlap_before]
+    f = min(k1 * overlap, f_before + k2 * step)
     hist[k, history_at + WALTON_BRAUN_HISTORY.force_unclipped] = f
     hist[k, history_at + WALTON_BRAUN_HISTORY.overlap_before] = overlap
+    f_el = max(f, 0.0)
+    f_old = max(f_before, 0.0)
+    hysteresis = 0.5 * (f_old + f_el) * step - (f_el * f_el - f_old * f_old) / (2.0 * k2)
     gamma_n = p[params_at + WALTON_BRAUN_PARAMETERS.damping_factor] * math.sqrt(m_eff * k2)
-    return max(f, 0.0), -gamma_n * normal_velocity, k1, p[params_at + WALTON_BRAUN_PARAMETERS.tangential_stiffness], 0.0
+    return (f_el, -gamma_n * normal_velocity, k1 * p[params_at + WALTON_BRAUN_PARAMETERS.reported_stiffness_ratio],
+            p[params_at + WALTON_BRAUN_PARAMETERS.tangential_stiffness_ratio] * k1, 0.0, hysteresis)
 
 
 def rayleigh_limit(material, r_min):
@@ -218,9 +241,7 @@ class Hooke(NormalModel):
                 "tangential_stiffness_ratio": self.tangential_stiffness_ratio}
 
     def reference_stiffness(self, pair, r_eff, m_eff, r_min):
-        vc = self.characteristic_velocity
-        e = pair.effective_youngs_modulus
-        kn = (16 / 15) * math.sqrt(r_eff) * e * (15 * m_eff * vc ** 2 / (16 * math.sqrt(r_eff) * e)) ** 0.2
+        kn = equivalent_stiffness(pair.effective_youngs_modulus, r_eff, m_eff, self.characteristic_velocity)
         return kn, self.tangential_stiffness_ratio * kn, math.sqrt(m_eff / kn)  # peak overlap at 1 m/s
 
     def time_step_limits(self, material, pair, r_min, m_min, impact_speed):
@@ -265,49 +286,78 @@ class Linear(NormalModel):
 
 
 class WaltonBraun(NormalModel):
-    """Walton & Braun's (1986) hysteretic ("partially latching") spring (docs/models.md): loading
-    stiffness k1, unloading and reloading k2 = k1 / e^2 with the pair's restitution e, so that a
-    binary impact rebounds with e whatever its speed; no dashpot by default.
+    """Walton & Braun's (1986) hysteretic ("partially latching") spring (docs/models.md §1.4):
+    loading stiffness k1, unloading and reloading k2 = k1 / e^2 with the pair's restitution e, so
+    that a binary impact rebounds with e whatever its speed; no dashpot by default.
 
     Parameters
     ----------
-    loading_stiffness: k1 (N/m), > 0.
-    tangential_stiffness_ratio: k_t / k1 (-), > 0; the tangential spring's stiffness.
+    loading_stiffness: k1 (N/m), > 0; 1e5 when neither it nor ``characteristic_velocity`` is given.
+    characteristic_velocity: V_c (m/s), > 0, instead of ``loading_stiffness``: k1 per contact is
+        the Hertz-equivalent spring at V_c (as ``hooke``), from E*, R* and m*.
+    tangential_stiffness_ratio: k_t / k1 (-), > 0; the tangential spring's (initial) stiffness.
     damping_ratio: zeta (-), >= 0, of an optional dashpot 2 zeta sqrt(m* k2) that damps the
         oscillations of enduring contacts along the elastic k2 line; with zeta > 0 an impact's
         restitution falls below e.
+    kn_source: "loading" (k1, default) or "unloading" (k2): the stiffness k_n the rolling springs
+        take (EPSD's k_r = 2.25 k_n mu_r^2 R*^2).
     """
 
     name = "walton_braun"
     parameters = WALTON_BRAUN_PARAMETERS
     history = WALTON_BRAUN_HISTORY
     function = staticmethod(walton_braun_normal)
+    DEFAULT_LOADING_STIFFNESS = 1e5
 
-    def __init__(self, loading_stiffness: float = 1e5, tangential_stiffness_ratio: float = 1.0,
-                 damping_ratio: float = 0.0):
-        self.loading_stiffness = check_positive("walton_braun loading_stiffness", loading_stiffness, "N/m")
+    def __init__(self, loading_stiffness: float | None = None, characteristic_velocity: float | None = None,
+                 tangential_stiffness_ratio: float = 1.0, damping_ratio: float = 0.0, kn_source: str = "loading"):
+        if loading_stiffness is not None and characteristic_velocity is not None:
+            raise ParameterError(f"walton_braun characteristic_velocity = {characteristic_velocity!r} is not "
+                                 f"allowed together with loading_stiffness = {loading_stiffness!r}: give one of them")
+        self.loading_stiffness = (None if loading_stiffness is None
+                                  else check_positive("walton_braun loading_stiffness", loading_stiffness, "N/m"))
+        self.characteristic_velocity = (None if characteristic_velocity is None
+                                        else check_positive("walton_braun characteristic_velocity",
+                                                            characteristic_velocity, "m/s"))
         self.tangential_stiffness_ratio = check_positive("walton_braun tangential_stiffness_ratio",
                                                          tangential_stiffness_ratio)
         self.damping_ratio = check_non_negative("walton_braun damping_ratio", damping_ratio)
+        self.kn_source = check_choice("walton_braun kn_source", kn_source, ("loading", "unloading"))
+
+    @property
+    def k1(self) -> float | None:
+        """The given loading stiffness (N/m); None when it follows from ``characteristic_velocity``."""
+        if self.characteristic_velocity is not None:
+            return None
+        return self.DEFAULT_LOADING_STIFFNESS if self.loading_stiffness is None else self.loading_stiffness
 
     def pair_values(self, pair):
-        k1 = self.loading_stiffness
-        return (k1, k1 / pair.restitution ** 2, self.tangential_stiffness_ratio * k1, 2.0 * self.damping_ratio)
+        ratio = 1.0 / pair.restitution ** 2
+        return (self.k1 or 0.0, self.characteristic_velocity or 0.0, ratio, self.tangential_stiffness_ratio,
+                2.0 * self.damping_ratio, ratio if self.kn_source == "unloading" else 1.0)
 
     def settings(self):
-        return {"loading_stiffness": self.loading_stiffness,
-                "tangential_stiffness_ratio": self.tangential_stiffness_ratio, "damping_ratio": self.damping_ratio}
+        return {"loading_stiffness": self.loading_stiffness, "characteristic_velocity": self.characteristic_velocity,
+                "tangential_stiffness_ratio": self.tangential_stiffness_ratio, "damping_ratio": self.damping_ratio,
+                "kn_source": self.kn_source}
+
+    def loading_stiffness_of(self, pair, r_eff, m_eff) -> float:
+        """k1 (N/m) of a contact of effective radius r_eff and mass m_eff."""
+        if self.characteristic_velocity is None:
+            return self.k1
+        return equivalent_stiffness(pair.effective_youngs_modulus, r_eff, m_eff, self.characteristic_velocity)
 
     def reference_stiffness(self, pair, r_eff, m_eff, r_min):
-        k1 = self.loading_stiffness
-        return k1, self.tangential_stiffness_ratio * k1, math.sqrt(m_eff / k1)  # peak overlap at 1 m/s
+        k1 = self.loading_stiffness_of(pair, r_eff, m_eff)
+        kn = k1 / pair.restitution ** 2 if self.kn_source == "unloading" else k1
+        return kn, self.tangential_stiffness_ratio * k1, math.sqrt(m_eff / k1)  # peak overlap at 1 m/s
 
     def time_step_limits(self, material, pair, r_min, m_min, impact_speed):
         # the unloading line is the stiffest: k2 = k1 / e^2
         m_eff = 0.5 * m_min
-        k2 = self.loading_stiffness / pair.restitution ** 2
-        return spring_limits(k2, self.tangential_stiffness_ratio * self.loading_stiffness, m_eff)
+        k1 = self.loading_stiffness_of(pair, 0.5 * r_min, m_eff)
+        return spring_limits(k1 / pair.restitution ** 2, self.tangential_stiffness_ratio * k1, m_eff)
 
 
-__all__ = ["NormalModel", "Hertz", "Hooke", "Linear", "WaltonBraun", "walton_braun_normal", "hertz_normal", "hooke_normal", "linear_normal", "hertz_damping_factor",
+__all__ = ["NormalModel", "Hertz", "Hooke", "Linear", "WaltonBraun", "walton_braun_normal", "equivalent_stiffness", "hertz_normal", "hooke_normal", "linear_normal", "hertz_damping_factor",
            "restitution_beta", "linear_damping_ratio"]

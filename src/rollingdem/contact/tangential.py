@@ -12,6 +12,7 @@ import math
 
 from numba import njit
 
+from ..errors import check_positive
 from ..kernel_layout import NORMAL_RESULT as NR
 from .base import P_FRICTION, SubModel, slots
 from .frame import carry_with_frame
@@ -72,9 +73,142 @@ def history_spring(hist, k, history_at, g, frame, slip, normal, dt, p, params_at
 
 
 class HistorySpring(SubModel):
-    """Tangential history spring with Coulomb limit and dashpot (the only tangential model so far)."""
+    """Tangential history spring with Coulomb limit and dashpot (docs/models.md §1.2)."""
 
     slot = "tangential"
     name = "history"
     history = slots("spring_x", "spring_y", "spring_z")  # xi (m), carried with the contact frame
     function = staticmethod(history_spring)
+
+
+WALTON_TANGENTIAL_PARAMETERS = slots("exponent")
+WALTON_TANGENTIAL_HISTORY = slots("force_x", "force_y", "force_z", "turning_force", "normal_force_before",
+                                  "direction")
+
+
+@njit(cache=True, inline="always")
+def walton_tangential(hist, k, history_at, g, frame, slip, normal, dt, p, params_at):
+    """Walton's micro-slip law (Walton & Braun 1986; Walton 1993), a Mindlin-Deresiewicz-like
+    spring whose stiffness falls as the force nears the Coulomb limit (docs/models.md §1.5).
+
+    T is the spring force, carried with the contact frame and scaled with N / N_before (T / mu N
+    kept), and T* (signed along T) the force where the loading last turned. The slip
+    ds = v_t dt splits into ds_par along T and ds_perp across it; with t = |T| and K_0 the initial
+    stiffness (the normal law's k_t):
+        |T| growing:   K = K_0 [1 - (t - T*) / (mu N - T*)]^gamma
+        |T| shrinking: K = K_0 [1 - (T* - t) / (mu N + T*)]^gamma
+    t <- t + K ds_par, T <- t T^ + K_0 ds_perp, |T| <= mu N; gamma = 1/3 gives Mindlin's loading
+    curve T = mu N [1 - (1 - s/s*)^(3/2)], s* = 3 mu N / (2 K_0). A change of the sign of ds_par
+    is a turning point (T* <- t); T passing through zero flips T^ and the sign of T*, which
+    continues the same branch. F_t = -T - gamma_t v_t, capped at mu max(N, 0) as ``history_spring``.
+    Dissipation: the work of F_t minus the change of |T|^2 / (2 K_0), exact over closed cycles.
+    """
+    vtx, vty, vtz = slip
+    n_force = max(normal[NR.force_elastic], 0.0)
+    k0 = normal[NR.tangential_stiffness]
+    gamma_t = normal[NR.tangential_damping]
+    mu_n = p[P_FRICTION] * n_force
+    carry_with_frame(hist, k, history_at, frame)
+    tx = hist[k, history_at + WALTON_TANGENTIAL_HISTORY.force_x]
+    ty = hist[k, history_at + WALTON_TANGENTIAL_HISTORY.force_y]
+    tz = hist[k, history_at + WALTON_TANGENTIAL_HISTORY.force_z]
+    turning = hist[k, history_at + WALTON_TANGENTIAL_HISTORY.turning_force]
+    direction = hist[k, history_at + WALTON_TANGENTIAL_HISTORY.direction]
+    n_before = hist[k, history_at + WALTON_TANGENTIAL_HISTORY.normal_force_before]
+    if n_before > 0.0:
+        scale = n_force / n_before
+        tx *= scale
+        ty *= scale
+        tz *= scale
+        turning *= scale
+    stored_before = (tx * tx + ty * ty + tz * tz) / (2.0 * k0) if k0 > 0.0 else 0.0
+    dsx = vtx * dt
+    dsy = vty * dt
+    dsz = vtz * dt
+    t = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if t > 0.0:
+        ux = tx / t
+        uy = ty / t
+        uz = tz / t
+    else:
+        ds = math.sqrt(dsx * dsx + dsy * dsy + dsz * dsz)
+        ux = dsx / ds if ds > 0.0 else 0.0
+        uy = dsy / ds if ds > 0.0 else 0.0
+        uz = dsz / ds if ds > 0.0 else 0.0
+        turning = 0.0
+    ds_par = dsx * ux + dsy * uy + dsz * uz
+    step = 1.0 if ds_par >= 0.0 else -1.0
+    if step != direction:
+        turning = t  # a turning point (the first step counts as one from T = 0)
+    gamma = p[params_at + WALTON_TANGENTIAL_PARAMETERS.exponent]
+    if mu_n > 0.0:
+        if step > 0.0:
+            room = 1.0 - (t - turning) / (mu_n - turning) if mu_n > turning else 0.0
+        else:
+            room = 1.0 - (turning - t) / (mu_n + turning)
+        stiffness = k0 * max(room, 0.0) ** gamma
+    else:
+        stiffness = 0.0
+    t_new = t + stiffness * ds_par
+    if t_new < 0.0:  # through zero: the same branch, seen from the other side
+        t_new = -t_new
+        ux = -ux
+        uy = -uy
+        uz = -uz
+        turning = -turning
+        step = 1.0
+    tx = t_new * ux + k0 * (dsx - ds_par * ux)
+    ty = t_new * uy + k0 * (dsy - ds_par * uy)
+    tz = t_new * uz + k0 * (dsz - ds_par * uz)
+    t2 = tx * tx + ty * ty + tz * tz
+    if t2 > mu_n * mu_n:
+        s = mu_n / math.sqrt(t2)
+        tx *= s
+        ty *= s
+        tz *= s
+    fx = -tx - gamma_t * vtx
+    fy = -ty - gamma_t * vty
+    fz = -tz - gamma_t * vtz
+    f2 = fx * fx + fy * fy + fz * fz
+    if f2 > mu_n * mu_n:
+        s = mu_n / math.sqrt(f2)
+        fx *= s
+        fy *= s
+        fz *= s
+        tx = -(fx + gamma_t * vtx)
+        ty = -(fy + gamma_t * vty)
+        tz = -(fz + gamma_t * vtz)
+    hist[k, history_at + WALTON_TANGENTIAL_HISTORY.force_x] = tx
+    hist[k, history_at + WALTON_TANGENTIAL_HISTORY.force_y] = ty
+    hist[k, history_at + WALTON_TANGENTIAL_HISTORY.force_z] = tz
+    hist[k, history_at + WALTON_TANGENTIAL_HISTORY.turning_force] = turning
+    hist[k, history_at + WALTON_TANGENTIAL_HISTORY.normal_force_before] = n_force
+    hist[k, history_at + WALTON_TANGENTIAL_HISTORY.direction] = step
+    stored_after = (tx * tx + ty * ty + tz * tz) / (2.0 * k0) if k0 > 0.0 else 0.0
+    work_on_contact = -(fx * vtx + fy * vty + fz * vtz) * dt
+    return fx, fy, fz, work_on_contact - (stored_after - stored_before)
+
+
+class WaltonTangential(SubModel):
+    """Walton's micro-slip tangential law (docs/models.md §1.5): the stiffness falls from the
+    normal law's k_t to 0 as the force nears mu N, with turning points (Masing-like unloading).
+
+    Parameters
+    ----------
+    exponent: gamma (-), > 0; 1/3 (default) gives Mindlin's monotonic loading curve.
+    """
+
+    slot = "tangential"
+    name = "walton"
+    parameters = WALTON_TANGENTIAL_PARAMETERS
+    history = WALTON_TANGENTIAL_HISTORY  # T (N, carried with the frame), T*, N before, loading direction
+    function = staticmethod(walton_tangential)
+
+    def __init__(self, exponent: float = 1.0 / 3.0):
+        self.exponent = check_positive("walton exponent", exponent)
+
+    def pair_values(self, pair):
+        return (self.exponent,)
+
+    def settings(self):
+        return {"exponent": self.exponent}

@@ -49,7 +49,13 @@ HOPPER_FILL = 0.1  # s
 ROUGH_BED_SETTLE = 0.3  # s
 ROUGH_BED_CHUNKS = 6
 DENSE_BED_MODELS = ("none", "cdt", "epsd", "epsd2", "epsd3", "rrlinear", "sds", "displacement_damping",
-                    "force_proportional", "viscous")
+                    "force_proportional", "viscous", "walton_braun", "walton", "sjkr", "jkr")
+# the contact laws of dense-bed other than Hertz + history + a rolling model: each on Hertz-history
+# without rolling resistance but for the law named, so that its cost reads against "none"
+CONTACT_LAW_VARIANTS = {"walton_braun": {"normal": {"model": "walton_braun", "characteristic_velocity": 1.0}},
+                        "walton": {"tangential": "walton"}, "sjkr": {"cohesion": "sjkr"}, "jkr": {"cohesion": "jkr"}}
+# a weak cohesion, so that the bed's state stays near the others' (Bond number about 0.1)
+VARIANT_COHESION = {"cohesion_energy_density": 1e4, "surface_energy": 0.01}
 
 
 @dataclass
@@ -80,11 +86,22 @@ def _cache_dir() -> Path:
     return kernel_cache_dir().parent / "bench"
 
 
-def _column_simulation(rolling: str = "epsd"):
-    from . import ContactModel, Material, Plane, Simulation
+def bench_contact(rolling="epsd"):
+    """The contact model of a bench label: a rolling model (or spec) on Hertz-history, or one of
+    ``CONTACT_LAW_VARIANTS``."""
+    from . import ContactModel
 
-    sim = Simulation(contact=ContactModel("hertz", rolling=rolling), dt=DT, skin=SKIN)
-    sim.add_material(Material("table1", **TABLE1))
+    if isinstance(rolling, str) and rolling in CONTACT_LAW_VARIANTS:
+        return ContactModel(**{"normal": "hertz", **CONTACT_LAW_VARIANTS[rolling]})
+    return ContactModel("hertz", rolling=rolling)
+
+
+def _column_simulation(rolling: str = "epsd"):
+    from . import Material, Plane, Simulation
+
+    sim = Simulation(contact=bench_contact(rolling), dt=DT, skin=SKIN)
+    cohesive = isinstance(rolling, str) and rolling in CONTACT_LAW_VARIANTS
+    sim.add_material(Material("table1", **TABLE1, **(VARIANT_COHESION if cohesive else {})))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1", name="plate"))
     return sim
 
@@ -414,7 +431,8 @@ def single_particle(steps=150000, threads=None, echo=print) -> BenchResult:
 
 
 def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS, echo=print) -> list[BenchResult]:
-    """The settled column, cylinder kept, once per rolling model from the same positions and velocities.
+    """The settled column, cylinder kept, once per rolling model (and contact law of
+    ``CONTACT_LAW_VARIANTS``) from the same positions and velocities.
 
     The cost of a model is measured on the identical state, one step in, before the runs part
     (without rolling resistance the bed rearranges and loses half its contacts within 2,000
@@ -424,7 +442,6 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     """
     import numba
 
-    from . import ContactModel
     from .cases.single_sphere import validation_models
 
     threads = threads or numba.get_num_threads()
@@ -433,7 +450,7 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     sims, compiles = {}, {}
     for model in models:
         spec = specs.get(model, model)
-        compiles[model] = compile_time(ContactModel("hertz", rolling=spec), particles)
+        compiles[model] = compile_time(bench_contact(spec), particles)
         sim = _column_from_state(spec, base.positions, base.radii, base.velocities, base.angular_velocities)
         sim.run(steps=1, progress=False)
         sims[model] = sim

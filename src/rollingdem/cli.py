@@ -147,8 +147,9 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
                                               "150,000 single-particle, 2,000 dense-bed and rough-bed, 1,000 slab, "
                                               "300 scaling and collapse-scaling, 5,000 mesh-hopper)."),
           threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
-          model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Rolling models of dense-bed "
-                                                    "(repeatable; default: none and every model)."),
+          model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Rolling models and contact laws "
+                                                    "(walton_braun, walton, sjkr, jkr) of dense-bed (repeatable; "
+                                                    "default: none and every one)."),
           from_dump: Optional[Path] = typer.Option(None, "--from-dump", help="Start column-collapse from the settled "
                                                    "state the LIGGGHTS reference input writes (write_dump custom)."),
           json_out: Optional[Path] = typer.Option(None, "--json", help="Write the results to this JSON file.")):

@@ -97,17 +97,20 @@ class SJKR(Cohesion):
 
 
 JKR_PARAMETERS = slots("surface_energy")
-JKR_HISTORY = slots("separation_limit", "overlap_before", "force_before", "energy_before")
+JKR_HISTORY = slots("separation_limit", "overlap_before", "force_before", "energy_before", "root_before",
+                    "energy_at_separation")
 
 
 @njit(cache=True, inline="always")
-def jkr_contact_radius(overlap, r_eff, young, surface_energy):
-    """The JKR contact radius a of the stable branch at ``overlap``: the root a >= a_f of
-    delta = a^2 / R* - sqrt(2 pi w a / E*), by Newton's method on x = sqrt(a) (g(x) = x^4/R* -
-    c x - delta is convex there, so Newton from a start right of the root falls onto it without
-    overshoot; the start (R* max(delta, 0))^(1/4) + (c R*)^(1/3) is right of it)."""
-    c = math.sqrt(2.0 * math.pi * surface_energy / young)
-    x = (r_eff * max(overlap, 0.0)) ** 0.25 + (c * r_eff) ** (1.0 / 3.0)
+def jkr_root(overlap, r_eff, c, x):
+    """x = sqrt(a), a the JKR contact radius of the stable branch at ``overlap``: the root
+    x >= x_f of g(x) = x^4 / R* - c x - delta (delta = a^2/R* - sqrt(2 pi w a / E*), c = sqrt(2 pi
+    w / E*)), by Newton's method from ``x`` (the last step's root). g is convex right of x_f, where
+    g' = 0: from a start between x_f and the root the first step lands right of the root, and from
+    there Newton falls onto it without overshoot. A start at or left of x_f (a fresh contact: 0) is
+    replaced by (R* max(delta, 0))^(1/4) + (c R*)^(1/3), which is right of the root."""
+    if 4.0 * x * x * x / r_eff - c <= 0.0:
+        x = (r_eff * max(overlap, 0.0)) ** 0.25 + (c * r_eff) ** (1.0 / 3.0)
     for _ in range(60):
         x3 = x * x * x
         slope = 4.0 * x3 / r_eff - c
@@ -115,49 +118,58 @@ def jkr_contact_radius(overlap, r_eff, young, surface_energy):
             break
         step = (x3 * x / r_eff - c * x - overlap) / slope
         x -= step
-        if step <= 1e-15 * x:
+        if abs(step) <= 1e-15 * x:
             break
-    return x * x
+    return x
 
 
 @njit(cache=True, inline="always")
-def jkr_energy(a, r_eff, young, surface_energy):
-    """V(a) = 8 E* a^5 / (15 R*^2) - 4/(3 R*) sqrt(2 pi w E*) a^(7/2) + pi w a^2, whose change along
-    the JKR curve is the work int F d(delta) (d/da of it is F(a) d(delta)/da)."""
-    return (8.0 * young * a ** 5 / (15.0 * r_eff * r_eff)
-            - 4.0 / (3.0 * r_eff) * math.sqrt(2.0 * math.pi * surface_energy * young) * a ** 3.5
-            + math.pi * surface_energy * a * a)
+def jkr_energy(x, r_eff, young, c, surface_energy):
+    """V(a) = 8 E* a^5 / (15 R*^2) - 4/(3 R*) sqrt(2 pi w E*) a^(7/2) + pi w a^2 at a = x^2 (with
+    sqrt(2 pi w E*) = E* c), whose change along the JKR curve is the work int F d(delta): dV/da is
+    F(a) d(delta)/da."""
+    a = x * x
+    a2 = a * a
+    return (8.0 * young * a2 * a2 * a / (15.0 * r_eff * r_eff) - 4.0 * young * c * a2 * a * x / (3.0 * r_eff)
+            + math.pi * surface_energy * a2)
 
 
 @njit(cache=True, inline="always")
 def jkr_cohesion(hist, k, history_at, g, normal, p, params_at):
-    """JKR (Johnson, Kendall & Roberts 1971) on Hertz: with the contact radius a of the stable
-    branch (``jkr_contact_radius``), F_JKR = 4 E* a^3 / (3 R*) - sqrt(8 pi w E* a^3); returns
-    F_JKR minus the normal law's elastic force (Hertz's), so that the pair feels F_JKR plus the
-    dashpot. The contact forms at touching and lasts until the separation
+    """JKR (Johnson, Kendall & Roberts 1971) on Hertz: with the contact radius a = x^2 of the stable
+    branch (``jkr_root``), F_JKR = 4 E* a^3 / (3 R*) - sqrt(8 pi w E* a^3); returns F_JKR minus
+    the normal law's elastic force (Hertz's), so that the pair feels F_JKR plus the dashpot. The
+    contact forms at touching and lasts until the separation
     delta_c = -(3/4) (pi^2 w^2 R* / E*^2)^(1/3) (kept in ``separation_limit``); pull-off at
     -3/2 pi w R*. Dissipation: the step's work of the force minus the change of its energy
     U = V(a) - V(a_f) - 8/15 E* sqrt(R*) delta^(5/2) (zero at detachment, so the loss of a whole
-    approach and separation, int_delta_c^0 |F_JKR| d(delta), is counted when the contact forms)."""
+    approach and separation, int_delta_c^0 |F_JKR| d(delta), is counted when the contact forms).
+    What depends on R* alone (delta_c, V(a_f)) is computed at the contact's first step and kept."""
     overlap = g[IN.overlap]
     r_eff = g[IN.r_eff]
     young = p[P_YOUNG]
     w = p[params_at + JKR_PARAMETERS.surface_energy]
-    a = jkr_contact_radius(overlap, r_eff, young, w)
-    force_jkr = 4.0 * young * a * a * a / (3.0 * r_eff) - math.sqrt(8.0 * math.pi * w * young * a * a * a)
-    force = force_jkr - normal[NR.force_elastic]
-    a_f = (math.pi * w * r_eff * r_eff / (8.0 * young)) ** (1.0 / 3.0)
-    hertz_energy = 8.0 / 15.0 * young * math.sqrt(r_eff) * max(overlap, 0.0) ** 2.5
-    energy = jkr_energy(a, r_eff, young, w) - jkr_energy(a_f, r_eff, young, w) - hertz_energy
+    c = math.sqrt(2.0 * math.pi * w / young)
     fresh = hist[k, history_at + JKR_HISTORY.separation_limit] == 0.0
-    before = 0.0 if fresh else hist[k, history_at + JKR_HISTORY.overlap_before]
-    work = 0.5 * (hist[k, history_at + JKR_HISTORY.force_before] + force) * (overlap - before)
+    if fresh:
+        x_f = (0.25 * c * r_eff) ** (1.0 / 3.0)
+        hist[k, history_at + JKR_HISTORY.separation_limit] = 3.0 * x_f ** 4 / r_eff
+        hist[k, history_at + JKR_HISTORY.energy_at_separation] = jkr_energy(x_f, r_eff, young, c, w)
+        hist[k, history_at + JKR_HISTORY.overlap_before] = 0.0
+    x = jkr_root(overlap, r_eff, c, hist[k, history_at + JKR_HISTORY.root_before])
+    a = x * x
+    force = 4.0 * young * a * a * a / (3.0 * r_eff) - 2.0 * young * c * a * x - normal[NR.force_elastic]
+    positive = max(overlap, 0.0)
+    hertz_energy = 8.0 / 15.0 * young * math.sqrt(r_eff) * positive * positive * math.sqrt(positive)
+    energy = (jkr_energy(x, r_eff, young, c, w) - hist[k, history_at + JKR_HISTORY.energy_at_separation]
+              - hertz_energy)
+    work = 0.5 * (hist[k, history_at + JKR_HISTORY.force_before] + force) * (
+        overlap - hist[k, history_at + JKR_HISTORY.overlap_before])
     dissipation = work - (energy - hist[k, history_at + JKR_HISTORY.energy_before])
-    hist[k, history_at + JKR_HISTORY.separation_limit] = 0.75 * (math.pi * math.pi * w * w * r_eff
-                                                                 / (young * young)) ** (1.0 / 3.0)
     hist[k, history_at + JKR_HISTORY.overlap_before] = overlap
     hist[k, history_at + JKR_HISTORY.force_before] = force
     hist[k, history_at + JKR_HISTORY.energy_before] = energy
+    hist[k, history_at + JKR_HISTORY.root_before] = x
     return force, dissipation
 
 
@@ -205,4 +217,4 @@ class JKR(Cohesion):
 
 
 __all__ = ["Cohesion", "NoCohesion", "SJKR", "JKR", "no_cohesion", "sjkr_cohesion", "jkr_cohesion", "contact_area",
-           "jkr_contact_radius", "jkr_separation_limit"]
+           "jkr_root", "jkr_separation_limit"]

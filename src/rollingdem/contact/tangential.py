@@ -81,6 +81,16 @@ class HistorySpring(SubModel):
     function = staticmethod(history_spring)
 
 
+@njit(cache=True, inline="always")
+def capped(x, y, z, limit):
+    """(x, y, z) scaled to the length ``limit`` if longer, and whether it was."""
+    v2 = x * x + y * y + z * z
+    if v2 > limit * limit:
+        s = limit / math.sqrt(v2)
+        return x * s, y * s, z * s, True
+    return x, y, z, False
+
+
 WALTON_TANGENTIAL_PARAMETERS = slots("exponent")
 WALTON_TANGENTIAL_HISTORY = slots("force_x", "force_y", "force_z", "turning_force", "normal_force_before",
                                   "direction")
@@ -160,21 +170,9 @@ def walton_tangential(hist, k, history_at, g, frame, slip, normal, dt, p, params
     tx = t_new * ux + k0 * (dsx - ds_par * ux)
     ty = t_new * uy + k0 * (dsy - ds_par * uy)
     tz = t_new * uz + k0 * (dsz - ds_par * uz)
-    t2 = tx * tx + ty * ty + tz * tz
-    if t2 > mu_n * mu_n:
-        s = mu_n / math.sqrt(t2)
-        tx *= s
-        ty *= s
-        tz *= s
-    fx = -tx - gamma_t * vtx
-    fy = -ty - gamma_t * vty
-    fz = -tz - gamma_t * vtz
-    f2 = fx * fx + fy * fy + fz * fz
-    if f2 > mu_n * mu_n:
-        s = mu_n / math.sqrt(f2)
-        fx *= s
-        fy *= s
-        fz *= s
+    tx, ty, tz, _ = capped(tx, ty, tz, mu_n)
+    fx, fy, fz, slipping = capped(-tx - gamma_t * vtx, -ty - gamma_t * vty, -tz - gamma_t * vtz, mu_n)
+    if slipping:
         tx = -(fx + gamma_t * vtx)
         ty = -(fy + gamma_t * vty)
         tz = -(fz + gamma_t * vtz)

@@ -192,3 +192,27 @@ def test_a_sphere_dropped_on_a_plane_rebounds_with_e(e, table1):
         sim.run(steps=100)
         apex = max(apex, sim.positions[0, 2] - R)
     assert math.sqrt(apex / h0) == pytest.approx(e, rel=0.02)
+
+
+@pytest.mark.parametrize("kn_source", ["loading", "unloading"])
+def test_rolling_resistance_on_walton_braun(table1, kn_source):
+    """A rolling model on Walton-Braun takes its force as F_n: a sphere set rolling without slip at
+    v0 = 0.3 m/s on a plane, CDT with mu_r = 0.2 (M = mu_r R F_n, F_n = m g once at rest), stops
+    after 7 v0^2 / (10 mu_r g) = 32.1 mm (the report's T2 without its sliding phase), within 1 %:
+    the residual normal oscillation along the k2 line, damped by the dashpot, and the spin-up of
+    the contact's rotational spring are far below that. kn_source does not change it (CDT has no
+    spring)."""
+    mu_r, v0, g = 0.2, 0.3, 9.81
+    sim = rd.Simulation(contact=rd.ContactModel(
+        normal=rd.WaltonBraun(loading_stiffness=K1, damping_ratio=0.5, kn_source=kn_source), rolling="cdt"),
+        dt=5e-6)
+    sim.add_material(table1(restitution=0.5, friction=0.5, rolling_friction=mu_r))
+    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
+    sim.add_particles([[0, 0, R]], radius=R, material="m")
+    sim.run(0.02)  # at rest on the plane
+    x0 = sim.positions[0, 0]
+    sim.set_velocities([0], velocity=(v0, 0, 0), angular_velocity=(0, v0 / R, 0))
+    stop = 7 * v0 / (5 * mu_r * g)  # the deceleration is 5/7 mu_r g
+    sim.run(1.2 * stop)
+    assert abs(sim.velocities[0, 0]) < 1e-3
+    assert sim.positions[0, 0] - x0 == pytest.approx(7 * v0 ** 2 / (10 * mu_r * g), rel=0.01)

@@ -48,6 +48,7 @@ PILES = ("tests/test_analysis.py",)
 WB = ("tests/test_walton_braun.py",)
 WT = ("tests/test_walton_tangential.py",)
 COH = ("tests/test_cohesion.py",)
+BOND = ("tests/test_bonds.py",)
 MUTATIONS = [
     # --- normal (contact/normal.py) and the material pair ------------------------------------------
     M("hertz k_n = 4/3 E* a -> E* a", C + "normal.py", "kn = (4.0 / 3.0) * p[P_YOUNG] * a", "kn = 1.0 * p[P_YOUNG] * a", HERTZ),
@@ -83,6 +84,14 @@ MUTATIONS = [
     M("sjkr circle 4 d^2 -> 2 d^2", C + "cohesion.py", "/ (4.0 * d * d)", "/ (2.0 * d * d)", COH),
     M("sjkr wall circle 2 R -> R", C + "cohesion.py", "overlap * (2.0 * ri - overlap)", "overlap * (ri - overlap)",
       COH),
+    M("bond bending stiffness from k_s", "src/rollingdem/bonds.py", "kn * area, ks * area, kn * bending",
+      "kn * area, ks * area, ks * bending", BOND),
+    M("bond compression weakens in shear", "src/rollingdem/bonds.py", "p[BOND_PARAMETERS.cohesion] - fn / area",
+      "p[BOND_PARAMETERS.cohesion] + fn / area", BOND),
+    M("bond shear not carried with the frame", "src/rollingdem/bonds.py",
+      "    carry_with_frame(state, b, BOND_STATE.shear_x, frame)\n", "", BOND),
+    M("bond moment factor left out of the tensile stress", "src/rollingdem/bonds.py",
+      "sigma = fn / area + beta *", "sigma = fn / area + 0.0 *", BOND),
     # --- tangential (contact/tangential.py) ------------------------------------------------------
     M("walton shrinking branch normalised by mu N - T*", C + "tangential.py",
       "room = 1.0 - (turning - t) / (mu_n + turning)", "room = 1.0 - (turning - t) / (mu_n - turning)", WT),

@@ -17,6 +17,7 @@ _os.environ.setdefault("GOMP_SPINCOUNT", "30000")
 
 from . import contact as _contact  # noqa: E402
 from . import convert  # noqa: E402
+from .bonds import ParallelBond  # noqa: E402
 from .contact import ContactModel  # noqa: E402
 from .errors import ParameterError, SimulationError  # noqa: E402
 from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform, rough_base  # noqa: E402
@@ -30,7 +31,7 @@ from .walls import Cylinder, Plane  # noqa: E402
 globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (rd.EPSD, rd.Hertz, ...)
 
 __all__ = [
-    "convert", "Simulation", "ContactModel", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "TriangleMesh", "TimeSeries",
+    "convert", "Simulation", "ContactModel", "ParallelBond", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "TriangleMesh", "TimeSeries",
     "VTKSnapshots", "Checkpoints", "Callback", "Observer", "BoxRegion", "CylinderRegion", "Uniform", "Normal",
     "Discrete", "rough_base", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
     *_contact.SUBMODELS,

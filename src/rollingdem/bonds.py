@@ -4,10 +4,10 @@
 A bond is a disc of cement of radius R = lambda min(R_i, R_j) at the contact point, carrying a
 normal force F_n (tension positive), a shear force F_s, a twisting moment M_t and a bending moment
 M_b, updated incrementally with the bond frame. ``ParallelBond`` holds the parameters and makes a
-bond's parameter row (``BOND_PARAMETERS``); ``parallel_bond`` is the compiled update of one bond,
-which the engine's bond pass calls (``BOND_STATE`` is a bond's row of load and frame). The bond
-list, its pass in the step and its outputs are not built yet: the functions here are the bond law,
-tested on their own (tests/test_bonds.py).
+bond's parameter row (``kernel_layout.BOND_PARAMETERS``); ``parallel_bond`` is the compiled update
+of one bond, which the engine's bond pass (``engine_kernel.bond_forces``) calls for every intact
+bond (``kernel_layout.BOND_STATE`` is a bond's row of load and frame). ``Simulation.add_bonds``
+makes bonds.
 """
 
 from __future__ import annotations
@@ -18,18 +18,8 @@ from numba import njit
 
 from .contact.frame import carry_with_frame, contact_frame
 from .errors import ParameterError, check_non_negative, check_positive, check_range
-from .kernel_layout import slots
+from .kernel_layout import BOND_PARAMETERS, BOND_STATE, slots
 
-#: a bond's row of load and frame: F_n (N, tension positive), F_s (N, on i), M_t (N m, about n,
-#: on i), M_b (N m, on i), the bond normal of the last step (j to i)
-BOND_STATE = slots("normal_force", "shear_x", "shear_y", "shear_z", "twisting_moment", "bending_x", "bending_y",
-                   "bending_z", "nx", "ny", "nz")
-#: a bond's parameter row: its stiffnesses K_n = k_n A, K_s = k_s A (N/m), K_b = k_n I, K_t = k_s J
-#: (N m/rad), section A (m^2), I, J (m^4) and radius R (m), strengths (Pa), tan(friction angle),
-#: moment-contribution factor
-BOND_PARAMETERS = slots("normal_stiffness", "shear_stiffness", "bending_stiffness", "twisting_stiffness", "area",
-                        "bending_inertia", "polar_inertia", "bond_radius", "tensile_strength", "cohesion",
-                        "friction_tangent", "moment_factor")
 BOND_INTACT, BOND_BROKEN_TENSION, BOND_BROKEN_SHEAR = 0, 1, 2
 
 #: the geometry of a bond: (n, v_i - v_j, w_i, w_j, lever_i, lever_j), levers R_i - delta/2 and

@@ -10,7 +10,7 @@ import numpy as np
 
 from . import kernel_layout
 from .errors import SimulationError
-from .kernel_layout import (CONTACT_BLOCK, ENERGY_CHANNELS, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS,
+from .kernel_layout import (BOND_LOAD_SIZE, BOND_PARAMETERS, BOND_STATE, CONTACT_BLOCK, ENERGY_CHANNELS, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS,
                             I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS,
                             PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
                             TILE_ROWS, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_LOAD_SIZE, ListArrays,
@@ -82,6 +82,13 @@ class EngineState:
         self.meshes = MeshState(history_size)
         self.info = np.zeros(INFO_SIZE, dtype=np.int64)
         self.contact_list = ContactList(history_size)
+        self.bond_pairs = np.zeros((0, 2), dtype=np.int64)
+        self.bond_state = np.zeros((0, len(BOND_STATE)))
+        self.bond_parameters = np.zeros((0, len(BOND_PARAMETERS)))
+        self.bond_status = np.zeros(0, dtype=np.int64)
+        self.bond_load = np.zeros((0, BOND_LOAD_SIZE))
+        self.bond_start = np.zeros(0, dtype=np.int64)
+        self.bond_ends = np.zeros(0, dtype=np.int64)
 
     @property
     def n(self) -> int:
@@ -161,6 +168,8 @@ class EngineState:
         self.wall_load = load.reshape(self.n * self.n_walls, WALL_LOAD_SIZE)
         self.derive_wall_touch()
         self.meshes.resize_particles(self.n)
+        if len(self.bond_pairs):
+            self.index_bonds()
         self.info[I_NEED_REBUILD] = 1
         self.info[I_FORCES_VALID] = 0
         self.steps_since_sort = SORT_EVERY  # the new particles come in the user's order: sort at the next run
@@ -208,6 +217,34 @@ class EngineState:
         """A per-particle array in id order (the array itself while the slots are in id order)."""
         return arr if self._slots is None else arr[self._slots]
 
+    # --- bonds --------------------------------------------------------------------------------
+    def add_bonds(self, pairs: np.ndarray, parameters: np.ndarray) -> None:
+        """Append intact, unloaded bonds between the slots ``pairs`` (m, 2), with their parameter rows."""
+        m = len(pairs)
+        self.bond_pairs = np.concatenate([self.bond_pairs, np.asarray(pairs, dtype=np.int64).reshape(m, 2)])
+        self.bond_state = np.concatenate([self.bond_state, np.zeros((m, len(BOND_STATE)))])
+        self.bond_parameters = np.concatenate([self.bond_parameters, np.asarray(parameters, dtype=float)])
+        self.bond_status = np.concatenate([self.bond_status, np.zeros(m, dtype=np.int64)])
+        self.bond_load = np.concatenate([self.bond_load, np.zeros((m, BOND_LOAD_SIZE))])
+        self.index_bonds()
+        self.info[I_FORCES_VALID] = 0
+
+    def index_bonds(self) -> None:
+        """Each particle's bond ends in ascending order (``bond_start``, ``bond_ends``), the order the
+        gather sums them in; empty arrays without bonds (the loops then skip them)."""
+        nb = len(self.bond_pairs)
+        if nb == 0:
+            self.bond_start = np.zeros(0, dtype=np.int64)
+            self.bond_ends = np.zeros(0, dtype=np.int64)
+            return
+        owner = np.concatenate([self.bond_pairs[:, 0], self.bond_pairs[:, 1]])
+        code = np.concatenate([2 * np.arange(nb), 2 * np.arange(nb) + 1])
+        order = np.lexsort((code, owner))
+        self.bond_ends = np.ascontiguousarray(code[order], dtype=np.int64)
+        self.bond_start = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=self.n))]).astype(np.int64)
+
+    BOND_ARRAYS = ("bond_pairs", "bond_state", "bond_parameters", "bond_status", "bond_load")
+
     def sort(self, cell_size: float) -> None:
         """Re-sort the slots in Morton order of the positions; the neighbor list, its history and
         every per-particle array follow, so the next step computes exactly the same contacts."""
@@ -230,6 +267,9 @@ class EngineState:
             self.derive_wall_touch()
         self.meshes.reorder(perm)
         self.contact_list.reorder(perm, inv)  # rows move with their particle
+        if len(self.bond_pairs):
+            self.bond_pairs = inv[self.bond_pairs]
+            self.index_bonds()
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
 
@@ -269,6 +309,11 @@ class EngineState:
         arrays["tr_k"] = arrays["tr_k"][entry]
         arrays["nl_start"] = np.concatenate([[0], np.cumsum(np.bincount(slot[row[entry]], minlength=int(keep.sum())))])
         arrays["tr_start"] = np.zeros_like(arrays["nl_start"])
+        if len(self.bond_pairs):  # a bond goes with either of its particles
+            held = keep[self.bond_pairs].all(axis=1)
+            for name in self.BOND_ARRAYS:
+                arrays[name] = arrays[name][held]
+            arrays["bond_pairs"] = slot[arrays["bond_pairs"]]
         fresh = EngineState.from_arrays(arrays, h)
         names = self.meshes.names
         for key, value in fresh.__dict__.items():
@@ -302,7 +347,9 @@ class EngineState:
         """The kernel's four records (``rollingdem.kernel_layout``), of the arrays as they are now
         (the arrays are replaced when they grow: records are made for each call)."""
         return (ParticleArrays(self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
-                               self.ids, self.x_ref, self.energy, self.contacts, self.image, self.fixed),
+                               self.ids, self.x_ref, self.energy, self.contacts, self.image, self.fixed,
+                               self.bond_pairs, self.bond_state, self.bond_parameters, self.bond_status,
+                               self.bond_load, self.bond_start, self.bond_ends),
                 WallArrays(self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat, self.whist,
                            self.wtouch, self.wall_load, *self.meshes.arrays()),
                 self.contact_list.arrays(),
@@ -395,7 +442,7 @@ class EngineState:
         total = self.rebuild_list(skin)
         cl = self.contact_list
         saved = (cl.pool[:total].copy(), cl.contact_row[:total].copy(), cl.groups.copy(), self.whist.copy(),
-                 self.energy.copy())
+                 self.energy.copy(), self.bond_state.copy(), self.bond_status.copy())
         mesh_saved = self.meshes.save_contacts()
         while True:
             self.info[I_FORCES_VALID] = 0
@@ -409,7 +456,8 @@ class EngineState:
             else:
                 break
         cl = self.contact_list  # grown perhaps: the arrays are new
-        cl.pool[:total], cl.contact_row[:total], cl.groups[:], self.whist[:], self.energy[:] = saved
+        (cl.pool[:total], cl.contact_row[:total], cl.groups[:], self.whist[:], self.energy[:], self.bond_state[:],
+         self.bond_status[:]) = saved
         self.meshes.restore_contacts(mesh_saved)
         self.derive_wall_touch()
 
@@ -425,6 +473,7 @@ class EngineState:
         out["fixed"] = self.fixed
         out["image"] = self.image
         out["periodic_box"] = self.contact_list.box
+        out.update({name: getattr(self, name) for name in self.BOND_ARRAYS})
         out.update(self.meshes.to_arrays())
         cl = self.contact_list
         total = cl.size
@@ -452,6 +501,10 @@ class EngineState:
         st.wall_load = np.array(arrays["wall_load"]) if "wall_load" in arrays else \
             np.zeros((st.n * st.n_walls, WALL_LOAD_SIZE))  # absent in older checkpoints
         st.meshes.from_arrays(arrays, st.n)
+        if "bond_pairs" in arrays:  # absent in older checkpoints
+            for name in cls.BOND_ARRAYS:
+                setattr(st, name, np.array(arrays[name]))
+            st.index_bonds()
         if not st.energy.any():  # nothing summed (older checkpoints kept the zeros)
             st.energy = np.zeros((0, len(ENERGY_CHANNELS)))
         if not np.array_equal(st.ids, np.arange(st.n)):

@@ -21,6 +21,7 @@ from rollingdem.integrator import kick_drift, kick_drift_one, kick_drift_serial,
 from rollingdem.neighbors import POOL_GROUP, free_row, list_rows, minimum_image, rebuild_neighbor_list, take_row
 from rollingdem.mesh_kernel import build_mesh_candidates, match_mesh_contacts, move_meshes, surface_velocity
 from rollingdem.walls import wall_contact_geometry
+from rollingdem.bonds import BOND_INTACT, parallel_bond
 from rollingdem.contact.frame import SERIES_ANGLE, contact_frame, contact_frame_series, spin_angle, stored_normal
 from rollingdem.contact.normal import hertz_normal as normal_force  # @@NORMAL
 from rollingdem.contact.tangential import history_spring as tangential_force  # @@TANGENTIAL
@@ -624,6 +625,67 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+def bond_forces(dt, particles, box):
+    """Every intact bond through ``bonds.parallel_bond`` (docs/models.md §1.7): its load row, which
+    the gather adds to its two particles. A bond that breaks gets the mode it broke in
+    (``bond_status``) and a zero load; a broken bond is skipped. Bond b writes row b alone."""
+    x, v, w, radius = particles.x, particles.v, particles.w, particles.radius
+    pairs, state, params, status, load = (particles.bond_pairs, particles.bond_state, particles.bond_parameters,
+                                          particles.bond_status, particles.bond_load)
+    for b in range(pairs.shape[0]):
+        if status[b] != BOND_INTACT:
+            continue
+        i = pairs[b, 0]
+        j = pairs[b, 1]
+        dx = x[i, 0] - x[j, 0]
+        dy = x[i, 1] - x[j, 1]
+        dz = x[i, 2] - x[j, 2]
+        if box.shape[0] != 0:
+            dx = minimum_image(dx, box[PB.lx], box[PB.inv_lx])
+            dy = minimum_image(dy, box[PB.ly], box[PB.inv_ly])
+            dz = minimum_image(dz, box[PB.lz], box[PB.inv_lz])
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+        overlap = radius[i] + radius[j] - dist
+        g = (dx / dist, dy / dist, dz / dist, v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+             w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2], radius[i] - 0.5 * overlap, radius[j] - 0.5 * overlap)
+        fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, mode = parallel_bond(state, b, params[b], g, dt)
+        load[b, 0] = fx
+        load[b, 1] = fy
+        load[b, 2] = fz
+        load[b, 3] = tix
+        load[b, 4] = tiy
+        load[b, 5] = tiz
+        load[b, 6] = tjx
+        load[b, 7] = tjy
+        load[b, 8] = tjz
+        status[b] = mode
+
+
+@njit(cache=True, inline="always")
+def gather_bonds(lo, hi, particles):
+    """Particles lo..hi-1: the load of each of their bonds (the force on i, minus it on j, the torque
+    on each), in the ascending order of ``bond_ends``."""
+    f, t, load, start, ends = particles.f, particles.t, particles.bond_load, particles.bond_start, particles.bond_ends
+    for q in range(lo, hi):
+        for e in range(start[q], start[q + 1]):
+            b = ends[e] >> 1
+            if ends[e] & 1 == 0:
+                f[q, 0] += load[b, 0]
+                f[q, 1] += load[b, 1]
+                f[q, 2] += load[b, 2]
+                t[q, 0] += load[b, 3]
+                t[q, 1] += load[b, 4]
+                t[q, 2] += load[b, 5]
+            else:
+                f[q, 0] -= load[b, 0]
+                f[q, 1] -= load[b, 1]
+                f[q, 2] -= load[b, 2]
+                t[q, 0] += load[b, 6]
+                t[q, 1] += load[b, 7]
+                t[q, 2] += load[b, 8]
+
+
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params, half_skin):
     """Particles lo..hi-1: the pair terms where each is the second partner, subtracted from (F) and
     added to (T) its row sums in ascending entry order (one flat loop over their transposed
@@ -643,6 +705,8 @@ def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params,
         t[j, 0] += pool[r, P_TORQUE_J]
         t[j, 1] += pool[r, P_TORQUE_J + 1]
         t[j, 2] += pool[r, P_TORQUE_J + 2]
+    if particles.bond_start.shape[0] != 0:
+        gather_bonds(lo, hi, particles)
     nexceed = 0
     nfast = 0
     for q in range(lo, hi):
@@ -709,6 +773,10 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         # the pair pass and the gather are called here and in the loop, not through one function
         # of their own, which would compile the whole kernel once more (1 s of a cold compile)
         pair_forces(dt, pair_params, particles, lists, scratch)
+        if particles.bond_pairs.shape[0] != 0:
+            # the bonds' load as it is: no motion in this evaluation to add (dt 0), so a fresh bond
+            # starts unloaded and a run resumed after a change of the scene adds nothing twice
+            bond_forces(0.0, particles, lists.box)
         exceed, fast = gather(dt, 0.0, gravity, pair_params, particles, walls, lists, half_skin)
         info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
@@ -731,6 +799,8 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         drift = step + 1 < nsteps
         kick = 2.0 if drift else 1.0
         pair_forces(dt, pair_params, particles, lists, scratch)
+        if particles.bond_pairs.shape[0] != 0:
+            bond_forces(dt, particles, lists.box)
         exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin)
         info[I_NEED_REBUILD] = exceed
         info[I_TOO_FAST] = fast

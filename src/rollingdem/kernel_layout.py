@@ -110,7 +110,29 @@ ParticleArrays = collections.namedtuple("ParticleArrays", (
     "fixed",      # (n,) uint8 1: a fixed particle (never moves; walls and gravity skip it; its
                   #   contacts take the free partner's mass and rolling inertia, as a wall's);
                   #   (0,) while no particle is fixed, so that the loops skip the test
+    # the particles' bonds (rollingdem.bonds); every array empty while there is none
+    "bond_pairs",       # (bonds, 2) int64 the two particles' slots, i then j (the bond normal is j to i)
+    "bond_state",       # (bonds, len(BOND_STATE)) the bond's load and frame
+    "bond_parameters",  # (bonds, len(BOND_PARAMETERS))
+    "bond_status",      # (bonds,) int64 BOND_INTACT, or the mode it broke in
+    "bond_load",        # (bonds, BOND_LOAD_SIZE) the last step's force on i and torques on i and j
+    "bond_start",       # (n + 1,) int64 CSR rows: each particle's bond ends
+    "bond_ends",        # (2 bonds,) int64 2 b for the bond's i, 2 b + 1 for its j, each row in ascending order
 ))
+#: a bond's row of load and frame: F_n (N, tension positive), F_s (N, on i), M_t (N m, about n,
+#: on i), M_b (N m, on i), the bond normal of the last step (j to i)
+BOND_STATE = slots("normal_force", "shear_x", "shear_y", "shear_z", "twisting_moment", "bending_x", "bending_y",
+                   "bending_z", "nx", "ny", "nz")
+#: a bond's parameter row: its stiffnesses K_n = k_n A, K_s = k_s A (N/m), K_b = k_n I, K_t = k_s J
+#: (N m/rad), section A (m^2), I, J (m^4) and radius R (m), strengths (Pa), tan(friction angle),
+#: moment-contribution factor
+BOND_PARAMETERS = slots("normal_stiffness", "shear_stiffness", "bending_stiffness", "twisting_stiffness", "area",
+                        "bending_inertia", "polar_inertia", "bond_radius", "tensile_strength", "cohesion",
+                        "friction_tangent", "moment_factor")
+#: a bond's load row (``ParticleArrays.bond_load``): the force on i, the torques on i and on j (the
+#: force on j is minus that on i)
+BOND_LOAD = slots("fx", "fy", "fz", "tix", "tiy", "tiz", "tjx", "tjy", "tjz")
+BOND_LOAD_SIZE = len(BOND_LOAD)
 WallArrays = collections.namedtuple("WallArrays", (
     "kind",              # (walls,) int32 WALL_PLANE, WALL_CYLINDER
     "geometry",          # (walls, WALL_GEOMETRY_SIZE) see rollingdem.walls

@@ -87,13 +87,13 @@ def engine_module(contact, track_energy: bool = False, serial: bool | None = Non
 def _dependency_hash(contact, source: str) -> str:
     import numba
 
-    from . import integrator, kernel_layout, neighbors, walls
+    from . import bonds, integrator, kernel_layout, neighbors, walls
     from .contact import frame
 
     h = hashlib.sha256(source.encode())
     names = {sub.compiled_function()[0] for sub in contact.submodels}
     modules = {sys.modules[name] if name in sys.modules else importlib.import_module(name) for name in names}
-    for mod in sorted(modules | {neighbors, frame, kernel_layout, integrator, walls}, key=lambda m: m.__name__):
+    for mod in sorted(modules | {neighbors, frame, kernel_layout, integrator, walls, bonds}, key=lambda m: m.__name__):
         h.update(inspect.getsource(mod).encode())
     h.update(numba.__version__.encode())
     return h.hexdigest()[:16]

@@ -61,7 +61,8 @@ class TimeSeries(Observer):
     it is removed (``Simulation.wall_loads``); for each outlet and inflow (by name, or ``#k``),
     ``outlet_{name}_count``, ``outlet_{name}_mass`` (taken out, cumulative, kg) and
     ``inflow_{name}_count``, ``_mass``, ``_shortfall`` (inserted, cumulative; due but not placed at
-    its last action). A chosen particle is the one with that ``particle_ids`` number; its columns
+    its last action). With bonds when the series starts: ``bonds_intact``, ``bonds_broken_tension``,
+    ``bonds_broken_shear``. A chosen particle is the one with that ``particle_ids`` number; its columns
     are empty once an outlet has taken it out.
     """
 
@@ -76,6 +77,7 @@ class TimeSeries(Observer):
         self._writer = None
         self._walls = None  # the walls' keys, fixed when the series starts
         self._boundaries = None  # the outlets' and inflows' columns, as well
+        self._bonds = None  # and the bond counts' (none without bonds)
 
     def columns(self):
         cols = ["time", "step", "kinetic_translational", "kinetic_rotational", "kinetic_total", "contacts",
@@ -85,7 +87,7 @@ class TimeSeries(Observer):
                 cols.append(f"p{p}_{q}")
         for name in self._walls or ():
             cols += [f"wall_{name}_{q}" for q in ("fx", "fy", "fz", "tx", "ty", "tz")]
-        return cols + list(self._boundaries or ())
+        return cols + list(self._boundaries or ()) + list(self._bonds or ())
 
     def check(self, sim):
         for p in self.particles:
@@ -99,6 +101,7 @@ class TimeSeries(Observer):
         if self._walls is None:
             self._walls = list(sim.wall_loads())
             self._boundaries = list(sim.boundary_counts())
+            self._bonds = list(sim.bond_counts())
         self.path.parent.mkdir(parents=True, exist_ok=True)
         exists = self.path.exists() and self.path.stat().st_size > 0
         self._file = open(self.path, "a", newline="")
@@ -127,6 +130,9 @@ class TimeSeries(Observer):
         if self._boundaries:
             counts = sim.boundary_counts()
             row += [repr(counts[c]) if c in counts else "" for c in self._boundaries]
+        if self._bonds:
+            counts = sim.bond_counts()
+            row += [repr(counts.get(c, 0)) for c in self._bonds]
         self._writer.writerow(row)
         self._file.flush()
 
@@ -145,7 +151,9 @@ class VTKSnapshots(Observer):
     fixed particle), id (``Simulation.particle_ids``: a particle keeps it when others are taken out).
     Field data: time (s), removed (particles the outlets took out so far), and with periodic
     boundaries periodic_box, (x_min, x_max, y_min, y_max, z_min, z_max), NaN along an axis that is
-    not periodic.
+    not periodic. With bonds, ``bonds_{step}.vtu`` / ``bonds.pvd``: each bond a line between its
+    particles' centres, with cell data status (0 intact, 1 broken in tension, 2 in shear),
+    normal_force (N, tension positive), shear_force (N), twisting_moment and bending_moment (N m).
     """
 
     def __init__(self, directory, interval: float, prefix: str = "particles"):
@@ -167,6 +175,20 @@ class VTKSnapshots(Observer):
             "id": sim.particle_ids.astype(np.int64)}, field_data=_field_data(sim))
         self._entries.append((sim.time, name))
         self._write_pvd(self.prefix, self._entries)
+        bonds = sim.bonds()
+        if len(bonds):
+            import meshio
+
+            bond_name = f"bonds_{sim.step:09d}.vtu"
+            status = bonds["status"].map({"intact": 0, "tension": 1, "shear": 2}).to_numpy(np.int32)
+            data = {"status": [status]} | {q: [bonds[q].to_numpy(float)] for q in
+                                           ("normal_force", "shear_force", "twisting_moment", "bending_moment")}
+            meshio.write(self.directory / bond_name,
+                         meshio.Mesh(sim.positions, [("line", bonds[["i", "j"]].to_numpy(np.int64))], cell_data=data),
+                         binary=True)
+            entries = self._mesh_entries.setdefault("bonds", [])
+            entries.append((sim.time, bond_name))
+            self._write_pvd("bonds", entries)
         for label, mesh in sim.mesh_walls().items():
             import meshio
 

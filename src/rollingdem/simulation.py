@@ -19,7 +19,7 @@ import numpy as np
 
 from .contact.model import ContactModel
 from .engine import EngineState, periodic_box
-from .kernel_layout import ENERGY_CHANNELS, I_FORCES_VALID, WALL_MESH
+from .kernel_layout import BOND_PARAMETERS, BOND_STATE, ENERGY_CHANNELS, I_FORCES_VALID, WALL_MESH
 from .kernels import engine_module
 from .errors import ParameterError, SimulationError, check_finite, check_integer, check_positive, check_vector
 from .materials import Material, MaterialTable
@@ -598,6 +598,94 @@ class Simulation:
         """Whether each particle is fixed (``add_particles(..., fixed=True)``), bool."""
         return self._state.by_id(self._state.is_fixed)
 
+    # --- bonds -------------------------------------------------------------------------------------
+    def add_bonds(self, bond, pairs=None, gap=None) -> int:
+        """Bond pairs of particles with ``bond`` (a ``rollingdem.ParallelBond``, docs/models.md §1.7):
+        the ``pairs`` of particle indices given, or every pair whose surface gap is at most ``gap``
+        (m; negative: overlapping by at least -gap), as PFC's bond gap. The bonds start unloaded at
+        the pairs' present distance; the pair's contact acts beside its bond (PFC). Pairs across a
+        periodic boundary are not found by ``gap``: give them as ``pairs``. Returns how many bonds
+        were made."""
+        from .bonds import ParallelBond
+
+        if not isinstance(bond, ParallelBond):
+            raise ParameterError(f"bond = {bond!r} is not allowed: must be a rollingdem.ParallelBond")
+        if (pairs is None) == (gap is None):
+            raise ParameterError(f"pairs = {pairs!r}, gap = {gap!r} is not allowed: give exactly one of pairs "
+                                 "(particle index pairs) and gap (m)")
+        st = self._state
+        if pairs is None:
+            from scipy.spatial import cKDTree
+
+            gap = check_finite("gap", gap)
+            x, r = self.positions, self.radii
+            reach = 2.0 * float(r.max(initial=0.0)) + gap
+            found = np.array(sorted(cKDTree(x).query_pairs(reach)) if len(x) > 1 and reach > 0 else [],
+                             dtype=np.int64).reshape(-1, 2)
+            if len(found):
+                surface = np.linalg.norm(x[found[:, 0]] - x[found[:, 1]], axis=1) - r[found[:, 0]] - r[found[:, 1]]
+                found = found[surface <= gap]
+            ids = found
+        else:
+            try:
+                ids = np.asarray(pairs)
+                ok = ids.ndim == 2 and ids.shape[1] == 2 and (ids.size == 0 or np.issubdtype(ids.dtype, np.integer))
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ParameterError(f"pairs = {pairs!r} is not allowed: must be a list of [i, j] particle index pairs")
+            ids = ids.astype(np.int64)
+            bad = (ids < 0) | (ids >= self.n_particles)
+            if bad.any():
+                raise ParameterError(f"pairs: particle {int(ids[bad][0])} is not allowed: the indices run from 0 to "
+                                     f"{self.n_particles - 1}")
+            same = ids[:, 0] == ids[:, 1]
+            if same.any():
+                raise ParameterError(f"pairs: [{ids[same][0, 0]}, {ids[same][0, 1]}] is not allowed: a bond between "
+                                     "a particle and itself")
+        slots = st.slots(ids.ravel()).reshape(-1, 2)
+        key = np.sort(np.concatenate([st.bond_pairs, slots]), axis=1)
+        if len(np.unique(key, axis=0)) < len(key):
+            raise ParameterError("pairs: a pair is bonded twice (in the pairs given, or already): each pair takes one "
+                                 "bond")
+        rows = [bond.parameter_row(st.radius[i], st.radius[j]) for i, j in slots]
+        st.add_bonds(slots, np.array(rows).reshape(-1, len(BOND_PARAMETERS)))
+        return len(slots)
+
+    def bonds(self):
+        """The bonds as a table (pandas): particles i and j, ``status`` (intact, tension, shear: the
+        mode it broke in), the normal force F_n (N, tension positive), |F_s| (N), M_t and |M_b| (N m)."""
+        import pandas as pd
+
+        st = self._state
+        ids = np.argsort(st._slots) if st._slots is not None else np.arange(st.n)  # slot -> id
+        s = st.bond_state
+        names = np.array(["intact", "tension", "shear"])
+        return pd.DataFrame({
+            "i": ids[st.bond_pairs[:, 0]], "j": ids[st.bond_pairs[:, 1]], "status": names[st.bond_status],
+            "normal_force": s[:, BOND_STATE.normal_force],
+            "shear_force": np.linalg.norm(s[:, [BOND_STATE.shear_x, BOND_STATE.shear_y, BOND_STATE.shear_z]], axis=1),
+            "twisting_moment": s[:, BOND_STATE.twisting_moment],
+            "bending_moment": np.linalg.norm(s[:, [BOND_STATE.bending_x, BOND_STATE.bending_y, BOND_STATE.bending_z]],
+                                             axis=1)})
+
+    def bond_counts(self) -> dict[str, int]:
+        """``bonds_intact``, ``bonds_broken_tension``, ``bonds_broken_shear``; empty without bonds."""
+        st = self._state
+        if not len(st.bond_pairs):
+            return {}
+        counts = np.bincount(st.bond_status, minlength=3)
+        return {"bonds_intact": int(counts[0]), "bonds_broken_tension": int(counts[1]),
+                "bonds_broken_shear": int(counts[2])}
+
+    def bond_energy(self) -> float:
+        """The strain energy (J) of the intact bonds (docs/models.md §1.7)."""
+        from .bonds import bond_energy
+
+        st = self._state
+        return float(sum(bond_energy(st.bond_state, b, st.bond_parameters[b]) for b in range(len(st.bond_pairs))
+                         if st.bond_status[b] == 0))
+
     def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
         """Set translational (m/s) and/or angular (rad/s) velocities of some particles."""
         ids = self._indices(indices)
@@ -688,7 +776,28 @@ class Simulation:
                     # worst case, centres held: omega^2 = k_rot (1/I_i + 1/I_j)
                     per = 2.0 * math.pi / math.sqrt(k_rot * 2.0 / inertia)
                     limits.append((f"{sub.slot} spring ({sub.name}) period {per:.4g} s / 10", SPRING_FRACTION * per))
+        limits += self._bond_limits()
         return limits
+
+    def _bond_limits(self) -> list[tuple[str, float]]:
+        """The intact bonds' stiffest mode (docs/models.md §1.7): with K_n, K_s, K_b, K_t its springs,
+        omega^2 = K_n (1/m_i + 1/m_j) (axial), K_s (1/m_i + 1/m_j + R_i^2/I_i + R_j^2/I_j) (shear with
+        rotation), K_b (1/I_i + 1/I_j) (bending), K_t (1/I_i + 1/I_j) (twisting); a tenth of its period."""
+        st = self._state
+        live = st.bond_status == 0
+        if not live.any():
+            return []
+        i, j = st.bond_pairs[live, 0], st.bond_pairs[live, 1]
+        p = st.bond_parameters[live]
+        inv_m = 1.0 / st.mass[i] + 1.0 / st.mass[j]
+        inv_i = 1.0 / st.inertia[i] + 1.0 / st.inertia[j]
+        lever = st.radius[i] ** 2 / st.inertia[i] + st.radius[j] ** 2 / st.inertia[j]
+        omega2 = np.max([p[:, BOND_PARAMETERS.normal_stiffness] * inv_m,
+                         p[:, BOND_PARAMETERS.shear_stiffness] * (inv_m + lever),
+                         p[:, BOND_PARAMETERS.bending_stiffness] * inv_i,
+                         p[:, BOND_PARAMETERS.twisting_stiffness] * inv_i])
+        per = 2.0 * math.pi / math.sqrt(omega2)
+        return [(f"bond period {per:.4g} s / 10", SPRING_FRACTION * per)]
 
     def stable_time_step(self) -> float:
         """The largest dt all criteria allow (s)."""

@@ -344,3 +344,35 @@ def test_bonds_follow_their_particles_through_an_outlet_and_a_sort():
     assert table[["i", "j"]].to_numpy().tolist() == [[0, 1], [1, 2]]  # by id, as before
     d = np.linalg.norm(sim.positions[table["i"]] - sim.positions[table["j"]], axis=1)
     np.testing.assert_allclose(d, 2 * R + GAP, rtol=1e-6)
+
+
+def test_an_exclusive_bond_keeps_the_contact_and_its_rolling_resistance_off():
+    """BP-5's hand-over: two spheres pressed 10 um into each other, bonded, spun against each other
+    (bending the bond), with EPSD rolling resistance. With contact_while_bonded = "exclusive" they
+    hold no contact while the bond holds: torques and motion are those of the bond alone (equal,
+    bit for bit, to the same pair without rolling resistance). With "parallel" (PFC) the contact
+    acts beside the bond: Hertz pushes them apart and EPSD adds its moment. Pulled apart at 5 m/s
+    the exclusive bond breaks."""
+    import rollingdem as rd
+
+    def pressed(mode, rolling):
+        sim = rd.Simulation(contact=rd.ContactModel(rolling=rolling), gravity=(0, 0, 0), dt=1e-6)
+        sim.add_material(rd.Material("m", youngs_modulus=1e8, poisson_ratio=0.3, density=RHO, restitution=0.5,
+                                     rolling_friction=0.3))
+        sim.add_particles([[R - 5e-6, 0, 0], [-R + 5e-6, 0, 0]], radius=R, material="m",
+                          angular_velocity=[[0, 0, 0.5], [0, 0, -0.5]], allow_overlap=True)
+        sim.add_bonds(ParallelBond(youngs_modulus=1e8, contact_while_bonded=mode), gap=0.0)
+        sim.run(steps=300)
+        return sim
+
+    alone = pressed("exclusive", "none")
+    exclusive = pressed("exclusive", "epsd")
+    parallel = pressed("parallel", "epsd")
+    assert exclusive.number_of_contacts() == 0 and parallel.number_of_contacts() == 1
+    assert np.array_equal(exclusive.torques, alone.torques)
+    assert np.array_equal(exclusive.positions, alone.positions)
+    assert not np.allclose(parallel.torques, exclusive.torques, rtol=1e-3)
+    assert parallel.positions[0, 0] > exclusive.positions[0, 0]  # Hertz pushed them apart
+    exclusive.set_velocities([0, 1], velocity=[[2.5, 0, 0], [-2.5, 0, 0]])
+    exclusive.run(steps=100)
+    assert exclusive.bonds()["status"][0] == "tension"

@@ -17,7 +17,7 @@ import math
 from numba import njit
 
 from .contact.frame import carry_with_frame, contact_frame
-from .errors import ParameterError, check_non_negative, check_positive, check_range
+from .errors import ParameterError, check_choice, check_non_negative, check_positive, check_range
 from .kernel_layout import BOND_PARAMETERS, BOND_STATE, slots
 
 BOND_INTACT, BOND_BROKEN_TENSION, BOND_BROKEN_SHEAR = 0, 1, 2
@@ -136,11 +136,14 @@ class ParallelBond:
     cohesion: c (Pa), > 0 (``pb_coh``): the shear strength without normal stress.
     friction_angle: phi (degrees), in [0, 90) (``pb_fa``): the shear strength is c - (F_n/A) tan phi.
     moment_factor: beta (-), in [0, 1] (``pb_mcf``): the share of the moments in the peak stresses.
+    contact_while_bonded: "parallel" (default, PFC): the pair's contact acts beside the bond;
+        "exclusive" (STAR-CCM+, LAMMPS): no contact while the bond holds, and a fresh one (no
+        history: sliding and rolling springs from zero) once it broke.
     """
 
     def __init__(self, youngs_modulus: float, stiffness_ratio: float = 2.5, radius_multiplier: float = 1.0,
                  tensile_strength: float = 1e6, cohesion: float = 1e6, friction_angle: float = 0.0,
-                 moment_factor: float = 1.0):
+                 moment_factor: float = 1.0, contact_while_bonded: str = "parallel"):
         self.youngs_modulus = check_positive("bond youngs_modulus", youngs_modulus, "Pa")
         self.stiffness_ratio = check_positive("bond stiffness_ratio", stiffness_ratio)
         self.radius_multiplier = check_positive("bond radius_multiplier", radius_multiplier)
@@ -150,6 +153,8 @@ class ParallelBond:
         if self.friction_angle >= 90.0:
             raise ParameterError(f"bond friction_angle = {friction_angle!r} is not allowed: must be in [0, 90) degrees")
         self.moment_factor = check_range("bond moment_factor", moment_factor, 0.0, 1.0)
+        self.contact_while_bonded = check_choice("bond contact_while_bonded", contact_while_bonded,
+                                                 ("parallel", "exclusive"))
 
     def parameter_row(self, radius_i: float, radius_j: float) -> tuple[float, ...]:
         """The ``BOND_PARAMETERS`` of a bond between spheres of these radii: R = lambda min(R_i, R_j),
@@ -160,12 +165,14 @@ class ParallelBond:
         kn = self.youngs_modulus / (radius_i + radius_j)
         ks = kn / self.stiffness_ratio
         return (kn * area, ks * area, kn * bending, ks * polar, area, bending, polar, radius, self.tensile_strength,
-                self.cohesion, math.tan(math.radians(self.friction_angle)), self.moment_factor)
+                self.cohesion, math.tan(math.radians(self.friction_angle)), self.moment_factor,
+                1.0 if self.contact_while_bonded == "exclusive" else 0.0)
 
     def settings(self) -> dict:
         return {"youngs_modulus": self.youngs_modulus, "stiffness_ratio": self.stiffness_ratio,
                 "radius_multiplier": self.radius_multiplier, "tensile_strength": self.tensile_strength,
-                "cohesion": self.cohesion, "friction_angle": self.friction_angle, "moment_factor": self.moment_factor}
+                "cohesion": self.cohesion, "friction_angle": self.friction_angle, "moment_factor": self.moment_factor,
+                "contact_while_bonded": self.contact_while_bonded}
 
     def __repr__(self):
         return "ParallelBond(" + ", ".join(f"{k}={v!r}" for k, v in self.settings().items()) + ")"

@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit, prange, uint32, uint64
 from numba.np.arrayobj import reshape_unchecked
 
-from rollingdem.kernel_layout import (BLOCK_SHIFT, CONTACT_BLOCK, CONTACT_INPUTS as IN, I_DRIFTED, I_FORCES_VALID,
+from rollingdem.kernel_layout import (BLOCK_SHIFT, BOND_PARAMETERS, CONTACT_BLOCK, CONTACT_INPUTS as IN, I_DRIFTED, I_FORCES_VALID,
                                       I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
                                       LANE_HITS, MESH_GRID as GR, PERIODIC_BOX as PB, MESH_MOTION as MO, MESH_SLOTS, N_INPUTS, N_RESULTS, STATUS_CAPACITY,
                                       STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
@@ -186,6 +186,18 @@ NO_INPUTS = (0.0,) * N_INPUTS
 
 
 @njit(cache=True, inline="always")
+def bonded_exclusively(i, j, particles):
+    """Whether particles i and j hold an intact bond that keeps their contact off (``exclusive``)."""
+    pairs, status, ends = particles.bond_pairs, particles.bond_status, particles.bond_ends
+    for e in range(particles.bond_start[i], particles.bond_start[i + 1]):
+        b = ends[e] >> 1
+        if (pairs[b, 1 - (ends[e] & 1)] == j and status[b] == BOND_INTACT
+                and particles.bond_parameters[b, BOND_PARAMETERS.exclusive] != 0.0):
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
 def entry_inputs(i, k, particles, lists):
     """Entry k (row i) of the half list: (whether the spheres touch, j, the contact's pool row, its
     ``CONTACT_INPUTS``). A contact that starts takes a pool row of its group (history zeroed); one
@@ -205,8 +217,11 @@ def entry_inputs(i, k, particles, lists):
     d2 = dx * dx + dy * dy + dz * dz
     reach = ri + rj
     row = lists.contact_row[k]
-    if d2 >= reach * reach and not (DETACH_AT >= 0 and row >= 0
-                                    and d2 < (reach + lists.pool[row, DETACH_AT]) * (reach + lists.pool[row, DETACH_AT])):
+    apart = d2 >= reach * reach and not (DETACH_AT >= 0 and row >= 0
+                                         and d2 < (reach + lists.pool[row, DETACH_AT]) * (reach + lists.pool[row, DETACH_AT]))
+    if not apart and particles.bond_start.shape[0] != 0:
+        apart = bonded_exclusively(uint64(i), uint64(j), particles)
+    if apart:
         if row >= 0:
             free_row(lists.pool, lists.groups, uint64(i) // uint64(POOL_GROUP), row)
             lists.contact_row[k] = -1

@@ -415,6 +415,8 @@ def contact_laws(models=None, quick=False, outdir=None, progress=None, runner=ma
         ax.plot(AGGLOMERATE_SPEEDS, [100 * b["broken_in_tension"] for b in breakage.values()], "s--",
                 label="in tension")
         ax.set_xscale("log")
+        ax.set_xticks(AGGLOMERATE_SPEEDS, [f"{v:g}" for v in AGGLOMERATE_SPEEDS])
+        ax.minorticks_off()
         ax.set_xlabel("impact speed (m/s)")
         ax.set_ylabel("bonds broken (%)")
         ax.set_title("Bonded agglomerate dropped on a plate")

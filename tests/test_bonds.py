@@ -376,3 +376,40 @@ def test_an_exclusive_bond_keeps_the_contact_and_its_rolling_resistance_off():
     exclusive.set_velocities([0, 1], velocity=[[2.5, 0, 0], [-2.5, 0, 0]])
     exclusive.run(steps=100)
     assert exclusive.bonds()["status"][0] == "tension"
+
+
+def test_bonds_from_a_case_file(tmp_path):
+    """A case file's stage makes bonds (by gap) before it runs; the time series counts them; a
+    stage's bad bond gets one line naming it, exit status 2."""
+    import pandas as pd
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+
+    text = f"""\
+name: pair
+gravity: [0, 0, 0]
+dt: 1.0e-6
+materials:
+  - {{name: m, youngs_modulus: 1.0e8, poisson_ratio: 0.3, density: 2500.0}}
+particles:
+  - positions: [[{-R - GAP / 2}, 0, 0], [{R + GAP / 2}, 0, 0]]
+    radius: {R}
+    material: m
+    velocity: [[-2.5, 0, 0], [2.5, 0, 0]]
+stages:
+  - {{name: pull, duration: 2.0e-4, bonds: {{gap: {2 * GAP}, youngs_modulus: 1.0e8}}}}
+output:
+  time_series: {{interval: 1.0e-5}}
+  plot: false
+"""
+    case = tmp_path / "case.yaml"
+    case.write_text(text)
+    ran = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "out"), "--no-progress"])
+    assert ran.exit_code == 0, ran.output
+    assert "1 bonds" in ran.output
+    series = pd.read_csv(tmp_path / "out" / "series.csv")
+    assert series["bonds_intact"].iloc[0] == 1 and series["bonds_broken_tension"].iloc[-1] == 1
+    case.write_text(text.replace("youngs_modulus: 1.0e8}}", "youngs_modulus: 1.0e8, radius_multiplier: 0}}"))
+    bad = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "bad"), "--no-progress"])
+    assert bad.exit_code == 2 and "stage 'pull': bonds: bond radius_multiplier = 0" in bad.output, bad.output

@@ -270,6 +270,27 @@ class WallMotionSpec(MotionSpec):
     wall: str
 
 
+class BondSpec(_Strict):
+    """Bonds made when the stage starts (``Simulation.add_bonds``, docs/models.md §1.7): between the
+    ``pairs`` given or every pair at most ``gap`` (m) apart, with ``rollingdem.ParallelBond``'s
+    parameters."""
+    gap: Optional[Number] = None
+    pairs: Optional[list[tuple[Whole, Whole]]] = None
+    youngs_modulus: Number
+    stiffness_ratio: Number = 2.5
+    radius_multiplier: Number = 1.0
+    tensile_strength: Number = 1e6
+    cohesion: Number = 1e6
+    friction_angle: Number = 0.0
+    moment_factor: Number = 1.0
+    contact_while_bonded: str = "parallel"
+
+    def parallel_bond(self):
+        from .bonds import ParallelBond
+
+        return ParallelBond(**self.model_dump(exclude={"gap", "pairs"}))
+
+
 class StageSpec(_Strict):
     name: str = "run"
     duration: Number
@@ -277,6 +298,7 @@ class StageSpec(_Strict):
     remove_walls: list[str] = []
     wall_motion: list[WallMotionSpec] = []
     set_velocity: Optional[SetVelocitySpec] = None
+    bonds: Optional[BondSpec] = None
 
 
 class SeriesSpec(_Strict):
@@ -651,6 +673,18 @@ def check_case(case: CaseSpec, sim=None):
                                          f"[0, {n - 1}] (the case has {n} particles)")
             if k == 0:
                 first_velocities = sv
+        if stage.bonds is not None:
+            b = stage.bonds
+            if (b.gap is None) == (b.pairs is None):
+                raise ParameterError(f"{where}: bonds is not allowed without exactly one of gap (m) and pairs")
+            try:
+                b.parallel_bond()
+            except ParameterError as err:
+                raise ParameterError(f"{where}: bonds: {err}") from None
+            for i, j in b.pairs or ():
+                if not (0 <= i < n and 0 <= j < n) or i == j:
+                    raise ParameterError(f"{where}: bonds pairs = [{i}, {j}] is not allowed: must be two different "
+                                         f"particles in [0, {n - 1}]")
     out = case.output
     for key in ("time_series", "snapshots", "checkpoint"):
         block = getattr(out, key)
@@ -753,6 +787,9 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
                 sv = stage.set_velocity
                 idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles
                 sim.set_velocities(idx, sv.velocity, sv.angular_velocity)
+            if stage.bonds is not None:
+                made = sim.add_bonds(stage.bonds.parallel_bond(), pairs=stage.bonds.pairs, gap=stage.bonds.gap)
+                echo(f"  stage {stage.name!r}: {made} bonds")
             t0 = time.perf_counter()
             steps0 = sim.step
             sim.run(stage.duration, observers=observers, progress=progress, label=stage.name)

@@ -90,6 +90,8 @@ MUTATIONS = [
       "p[BOND_PARAMETERS.cohesion] + fn / area", BOND),
     M("bond shear not carried with the frame", "src/rollingdem/bonds.py",
       "    carry_with_frame(state, b, BOND_STATE.shear_x, frame)\n", "", BOND),
+    M("bond normal dashpot with the wrong sign", "src/rollingdem/bonds.py", "fn_total = fn + cn * vcn",
+      "fn_total = fn - cn * vcn", BOND),
     M("bond moment factor left out of the tensile stress", "src/rollingdem/bonds.py",
       "sigma = fn / area + beta *", "sigma = fn / area + 0.0 *", BOND),
     # --- tangential (contact/tangential.py) ------------------------------------------------------

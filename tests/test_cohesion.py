@@ -67,7 +67,8 @@ def test_jkr_pull_off_zero_load_and_separation():
 def jkr_pair(speed, dt_fraction=400, approach=True):
     """Two equal spheres meeting head on (or, with approach False, leaving a fresh contact) at a
     relative speed ``speed``, no dashpot (e = 1), dt a ``dt_fraction``-th of the zero-load period."""
-    sim = rd.Simulation(contact=rd.ContactModel(cohesion="jkr"), gravity=(0, 0, 0))
+    # energy summed in every JKR run: one kernel for all of them
+    sim = rd.Simulation(contact=rd.ContactModel(cohesion="jkr"), gravity=(0, 0, 0), track_energy=True)
     sim.add_material(rd.Material("m", youngs_modulus=E, poisson_ratio=NU, density=RHO, restitution=1.0,
                                  friction=0.5, surface_energy=W))
     gap = 1e-7 if approach else -2.5e-7  # parting from about the zero-load overlap

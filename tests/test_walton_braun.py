@@ -99,7 +99,7 @@ def test_a_characteristic_velocity_gives_the_hertz_peak_overlap(table1):
     the largest overlap equals delta_H within 1 % (a step of dt v = 1e-3 delta_H)."""
     v = 0.5
     sim = rd.Simulation(contact=rd.ContactModel(normal=rd.WaltonBraun(characteristic_velocity=2 * v)),
-                        gravity=(0, 0, 0))
+                        gravity=(0, 0, 0), track_energy=True)  # the impact test's kernel: one compile fewer
     mat = table1(restitution=0.5, friction=0.5)
     sim.add_material(mat)
     sim.add_particles([[-R - 1e-4, 0, 0], [R + 1e-4, 0, 0]], radius=R, material="m",
@@ -116,7 +116,8 @@ def test_a_characteristic_velocity_gives_the_hertz_peak_overlap(table1):
 
 
 def head_on(e, table1, speed):
-    sim = rd.Simulation(contact=rd.ContactModel(normal=rd.WaltonBraun(loading_stiffness=K1)), gravity=(0, 0, 0))
+    sim = rd.Simulation(contact=rd.ContactModel(normal=rd.WaltonBraun(loading_stiffness=K1)), gravity=(0, 0, 0),
+                        track_energy=True)
     sim.add_material(table1(restitution=e, friction=0.5))
     gap = 0.2 * R
     sim.add_particles([[-R - gap, 0, 0], [R + gap, 0, 0]], radius=R, material="m",
@@ -180,7 +181,8 @@ def test_a_sphere_dropped_on_a_plane_rebounds_with_e(e, table1):
     pair contact does): e = sqrt(rebound height / drop height) within 1 %. Gravity acting during
     the contact shifts e by about g t_c / v_0 (t_c = (pi/2) sqrt(m/k1) (1 + e), 2 ms here against
     v_0 = 2 m/s: 1 %), so the tolerance is 2 %."""
-    sim = rd.Simulation(contact=rd.ContactModel(normal=rd.WaltonBraun(loading_stiffness=K1)), dt=5e-6)
+    sim = rd.Simulation(contact=rd.ContactModel(normal=rd.WaltonBraun(loading_stiffness=K1)), dt=5e-6,
+                        track_energy=True)  # the impact test's kernel
     sim.add_material(table1(restitution=e, friction=0.5))
     sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
     h0 = 0.2
@@ -201,11 +203,12 @@ def test_rolling_resistance_on_walton_braun(table1, kn_source):
     after 7 v0^2 / (10 mu_r g) = 32.1 mm (the report's T2 without its sliding phase), within 1 %:
     the residual normal oscillation along the k2 line, damped by the dashpot, and the spin-up of
     the contact's rotational spring are far below that. kn_source does not change it (CDT has no
-    spring)."""
+    spring). The tangential law is Walton's (no slip here, so it does not matter; the sliding
+    test of tests/test_walton_tangential.py runs the same kernel: one compile fewer)."""
     mu_r, v0, g = 0.2, 0.3, 9.81
     sim = rd.Simulation(contact=rd.ContactModel(
-        normal=rd.WaltonBraun(loading_stiffness=K1, damping_ratio=0.5, kn_source=kn_source), rolling="cdt"),
-        dt=5e-6)
+        normal=rd.WaltonBraun(loading_stiffness=K1, damping_ratio=0.5, kn_source=kn_source), tangential="walton",
+        rolling="cdt"), dt=5e-6)
     sim.add_material(table1(restitution=0.5, friction=0.5, rolling_friction=mu_r))
     sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
     sim.add_particles([[0, 0, R]], radius=R, material="m")

@@ -77,6 +77,9 @@ def parallel_bond(state, b, p, g, dt):
     mbx = state[b, BOND_STATE.bending_x] - kb * (dwx - dwn * nx) * dt
     mby = state[b, BOND_STATE.bending_y] - kb * (dwy - dwn * ny) * dt
     mbz = state[b, BOND_STATE.bending_z] - kb * (dwz - dwn * nz) * dt
+    # the dashpots act beside the springs, on the relative motion (not stored, not in the stresses)
+    cn, cs = p[BOND_PARAMETERS.normal_damping], p[BOND_PARAMETERS.shear_damping]
+    cb, ct = p[BOND_PARAMETERS.bending_damping], p[BOND_PARAMETERS.twisting_damping]
     # stresses at the rim and failure
     area, radius, beta = p[BOND_PARAMETERS.area], p[BOND_PARAMETERS.bond_radius], p[BOND_PARAMETERS.moment_factor]
     sigma = fn / area + beta * math.sqrt(mbx * mbx + mby * mby + mbz * mbz) * radius / p[BOND_PARAMETERS.bending_inertia]
@@ -100,13 +103,25 @@ def parallel_bond(state, b, p, g, dt):
     state[b, BOND_STATE.nx] = nx
     state[b, BOND_STATE.ny] = ny
     state[b, BOND_STATE.nz] = nz
+    if mode != BOND_INTACT:
+        cn = cs = cb = ct = 0.0
+    fn_total = fn + cn * vcn  # tension positive: opening (vcn > 0) pulls back harder
+    fx = fsx - cs * (vcx - vcn * nx)
+    fy = fsy - cs * (vcy - vcn * ny)
+    fz = fsz - cs * (vcz - vcn * nz)
+    mt_total = mt - ct * dwn
+    mx = mbx - cb * (dwx - dwn * nx)
+    my = mby - cb * (dwy - dwn * ny)
+    mz = mbz - cb * (dwz - dwn * nz)
     # n x F_s: the shear force's lever torque
-    cx = ny * fsz - nz * fsy
-    cy = nz * fsx - nx * fsz
-    cz = nx * fsy - ny * fsx
-    return (-fn * nx + fsx, -fn * ny + fsy, -fn * nz + fsz,
-            -lever_i * cx + mt * nx + mbx, -lever_i * cy + mt * ny + mby, -lever_i * cz + mt * nz + mbz,
-            -lever_j * cx - mt * nx - mbx, -lever_j * cy - mt * ny - mby, -lever_j * cz - mt * nz - mbz, mode)
+    cx = ny * fz - nz * fy
+    cy = nz * fx - nx * fz
+    cz = nx * fy - ny * fx
+    return (-fn_total * nx + fx, -fn_total * ny + fy, -fn_total * nz + fz,
+            -lever_i * cx + mt_total * nx + mx, -lever_i * cy + mt_total * ny + my,
+            -lever_i * cz + mt_total * nz + mz,
+            -lever_j * cx - mt_total * nx - mx, -lever_j * cy - mt_total * ny - my,
+            -lever_j * cz - mt_total * nz - mz, mode)
 
 
 @njit(cache=True)
@@ -136,6 +151,9 @@ class ParallelBond:
     cohesion: c (Pa), > 0 (``pb_coh``): the shear strength without normal stress.
     friction_angle: phi (degrees), in [0, 90) (``pb_fa``): the shear strength is c - (F_n/A) tan phi.
     moment_factor: beta (-), in [0, 1] (``pb_mcf``): the share of the moments in the peak stresses.
+    damping_ratio: zeta (-), >= 0 (default 0, as PFC's bond): dashpots beside the bond's four springs,
+        c = 2 zeta sqrt(m* K_n), 2 zeta sqrt(m* K_s), 2 zeta sqrt(I* K_b), 2 zeta sqrt(I* K_t) with
+        m* and I* = I_i I_j / (I_i + I_j) the pair's reduced mass and inertia (quasi-static loading).
     contact_while_bonded: "parallel" (default, PFC): the pair's contact acts beside the bond;
         "exclusive" (STAR-CCM+, LAMMPS): no contact while the bond holds, and a fresh one (no
         history: sliding and rolling springs from zero) once it broke.
@@ -143,7 +161,7 @@ class ParallelBond:
 
     def __init__(self, youngs_modulus: float, stiffness_ratio: float = 2.5, radius_multiplier: float = 1.0,
                  tensile_strength: float = 1e6, cohesion: float = 1e6, friction_angle: float = 0.0,
-                 moment_factor: float = 1.0, contact_while_bonded: str = "parallel"):
+                 moment_factor: float = 1.0, damping_ratio: float = 0.0, contact_while_bonded: str = "parallel"):
         self.youngs_modulus = check_positive("bond youngs_modulus", youngs_modulus, "Pa")
         self.stiffness_ratio = check_positive("bond stiffness_ratio", stiffness_ratio)
         self.radius_multiplier = check_positive("bond radius_multiplier", radius_multiplier)
@@ -153,26 +171,37 @@ class ParallelBond:
         if self.friction_angle >= 90.0:
             raise ParameterError(f"bond friction_angle = {friction_angle!r} is not allowed: must be in [0, 90) degrees")
         self.moment_factor = check_range("bond moment_factor", moment_factor, 0.0, 1.0)
+        self.damping_ratio = check_non_negative("bond damping_ratio", damping_ratio)
         self.contact_while_bonded = check_choice("bond contact_while_bonded", contact_while_bonded,
                                                  ("parallel", "exclusive"))
 
-    def parameter_row(self, radius_i: float, radius_j: float) -> tuple[float, ...]:
-        """The ``BOND_PARAMETERS`` of a bond between spheres of these radii: R = lambda min(R_i, R_j),
-        A = pi R^2, I = pi R^4 / 4, J = pi R^4 / 2, k_n = E / (R_i + R_j), k_s = k_n / kappa."""
+    def parameter_row(self, radius_i: float, radius_j: float, masses=(math.inf, math.inf),
+                      inertias=(math.inf, math.inf)) -> tuple[float, ...]:
+        """The ``BOND_PARAMETERS`` of a bond between spheres of these radii (and masses and moments of
+        inertia, which the dashpots need): R = lambda min(R_i, R_j), A = pi R^2, I = pi R^4 / 4,
+        J = pi R^4 / 2, k_n = E / (R_i + R_j), k_s = k_n / kappa."""
         radius = self.radius_multiplier * min(radius_i, radius_j)
         area = math.pi * radius ** 2
         bending, polar = math.pi * radius ** 4 / 4.0, math.pi * radius ** 4 / 2.0
         kn = self.youngs_modulus / (radius_i + radius_j)
         ks = kn / self.stiffness_ratio
-        return (kn * area, ks * area, kn * bending, ks * polar, area, bending, polar, radius, self.tensile_strength,
-                self.cohesion, math.tan(math.radians(self.friction_angle)), self.moment_factor,
-                1.0 if self.contact_while_bonded == "exclusive" else 0.0)
+        stiffness = (kn * area, ks * area, kn * bending, ks * polar)
+        damping = (0.0,) * 4
+        inv_m = 1.0 / masses[0] + 1.0 / masses[1]
+        inv_i = 1.0 / inertias[0] + 1.0 / inertias[1]
+        if self.damping_ratio > 0.0 and inv_m > 0.0 and inv_i > 0.0:  # (two fixed spheres: nothing to damp)
+            m_eff, i_eff = 1.0 / inv_m, 1.0 / inv_i
+            damping = tuple(2.0 * self.damping_ratio * math.sqrt(m * k)
+                            for m, k in zip((m_eff, m_eff, i_eff, i_eff), stiffness))
+        return (*stiffness, area, bending, polar, radius, self.tensile_strength, self.cohesion,
+                math.tan(math.radians(self.friction_angle)), self.moment_factor,
+                1.0 if self.contact_while_bonded == "exclusive" else 0.0, *damping)
 
     def settings(self) -> dict:
         return {"youngs_modulus": self.youngs_modulus, "stiffness_ratio": self.stiffness_ratio,
                 "radius_multiplier": self.radius_multiplier, "tensile_strength": self.tensile_strength,
                 "cohesion": self.cohesion, "friction_angle": self.friction_angle, "moment_factor": self.moment_factor,
-                "contact_while_bonded": self.contact_while_bonded}
+                "damping_ratio": self.damping_ratio, "contact_while_bonded": self.contact_while_bonded}
 
     def __repr__(self):
         return "ParallelBond(" + ", ".join(f"{k}={v!r}" for k, v in self.settings().items()) + ")"

@@ -283,6 +283,7 @@ class BondSpec(_Strict):
     cohesion: Number = 1e6
     friction_angle: Number = 0.0
     moment_factor: Number = 1.0
+    damping_ratio: Number = 0.0
     contact_while_bonded: str = "parallel"
 
     def parallel_bond(self):

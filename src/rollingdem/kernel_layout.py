@@ -125,10 +125,12 @@ BOND_STATE = slots("normal_force", "shear_x", "shear_y", "shear_z", "twisting_mo
                    "bending_z", "nx", "ny", "nz")
 #: a bond's parameter row: its stiffnesses K_n = k_n A, K_s = k_s A (N/m), K_b = k_n I, K_t = k_s J
 #: (N m/rad), section A (m^2), I, J (m^4) and radius R (m), strengths (Pa), tan(friction angle),
-#: moment-contribution factor, 1.0 if the pair's contact is off while the bond holds
+#: moment-contribution factor, 1.0 if the pair's contact is off while the bond holds, and the
+#: dashpots' coefficients (N s/m, N m s/rad)
 BOND_PARAMETERS = slots("normal_stiffness", "shear_stiffness", "bending_stiffness", "twisting_stiffness", "area",
                         "bending_inertia", "polar_inertia", "bond_radius", "tensile_strength", "cohesion",
-                        "friction_tangent", "moment_factor", "exclusive")
+                        "friction_tangent", "moment_factor", "exclusive", "normal_damping", "shear_damping",
+                        "bending_damping", "twisting_damping")
 #: a bond's load row (``ParticleArrays.bond_load``): the force on i, the torques on i and on j (the
 #: force on j is minus that on i)
 BOND_LOAD = slots("fx", "fy", "fz", "tix", "tiy", "tiz", "tjx", "tjy", "tjz")

@@ -648,7 +648,11 @@ class Simulation:
         if len(np.unique(key, axis=0)) < len(key):
             raise ParameterError("pairs: a pair is bonded twice (in the pairs given, or already): each pair takes one "
                                  "bond")
-        rows = [bond.parameter_row(st.radius[i], st.radius[j]) for i, j in slots]
+        fixed = st.is_fixed  # a fixed sphere is a partner of infinite mass and inertia
+        mass = np.where(fixed, np.inf, st.mass)
+        inertia = np.where(fixed, np.inf, st.inertia)
+        rows = [bond.parameter_row(st.radius[i], st.radius[j], (mass[i], mass[j]), (inertia[i], inertia[j]))
+                for i, j in slots]
         st.add_bonds(slots, np.array(rows).reshape(-1, len(BOND_PARAMETERS)))
         return len(slots)
 
@@ -789,9 +793,10 @@ class Simulation:
             return []
         i, j = st.bond_pairs[live, 0], st.bond_pairs[live, 1]
         p = st.bond_parameters[live]
-        inv_m = 1.0 / st.mass[i] + 1.0 / st.mass[j]
-        inv_i = 1.0 / st.inertia[i] + 1.0 / st.inertia[j]
-        lever = st.radius[i] ** 2 / st.inertia[i] + st.radius[j] ** 2 / st.inertia[j]
+        free = (~st.is_fixed).astype(float)  # a fixed sphere: infinite mass and inertia
+        inv_m = free[i] / st.mass[i] + free[j] / st.mass[j]
+        inv_i = free[i] / st.inertia[i] + free[j] / st.inertia[j]
+        lever = free[i] * st.radius[i] ** 2 / st.inertia[i] + free[j] * st.radius[j] ** 2 / st.inertia[j]
         omega2 = np.max([p[:, BOND_PARAMETERS.normal_stiffness] * inv_m,
                          p[:, BOND_PARAMETERS.shear_stiffness] * (inv_m + lever),
                          p[:, BOND_PARAMETERS.bending_stiffness] * inv_i,

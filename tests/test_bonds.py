@@ -432,50 +432,28 @@ def test_the_bond_dashpot_damps_the_axial_mode_at_its_ratio():
     np.testing.assert_allclose(ratio, math.exp(-2 * math.pi * 0.05 / math.sqrt(1 - 0.05 ** 2)), rtol=0.01)
 
 
-def chain_under_gravity(gravity):
-    """BP-3: a chain of N = 10 B1 bonds (11 spheres 0.1 mm apart along x, the first fixed, exclusive
-    bonds with dashpots zeta = 0.7), loaded by its own weight for 16 s: the free end's mean
-    displacement over the last 2 s, against the statically determinate chain (each bond a hinge at
-    its contact point with its springs: bond k carries the weight of the spheres beyond it)."""
-    import rollingdem as rd
-
-    n, lb = 10, 2 * R + GAP
-    sim = rd.Simulation(gravity=gravity)
-    sim.add_material(rd.Material("m", youngs_modulus=1e8, poisson_ratio=0.3, density=RHO, restitution=0.5))
-    sim.add_particles([[0, 0, 0]], radius=R, material="m", fixed=True)
-    sim.add_particles([[k * lb, 0, 0] for k in range(1, n + 1)], radius=R, material="m")
-    bond = ParallelBond(youngs_modulus=1e8, stiffness_ratio=2.5, tensile_strength=1e9, cohesion=1e9,
-                        damping_ratio=0.7, contact_while_bonded="exclusive")
-    sim.add_bonds(bond, pairs=[[k - 1, k] for k in range(1, n + 1)])
-    sim.dt = 0.5 * sim.stable_time_step()
-    tip = []
-    for _ in range(320):
-        sim.run(0.05)
-        tip.append(sim.positions[n] - (n * lb, 0, 0))
-    return np.mean(tip[-40:], axis=0), dict(zip(BOND_PARAMETERS._fields, bond.parameter_row(R, R))), n, lb
-
-
 def test_a_bonded_cantilever_bends_as_the_hinged_chain():
-    """BP-3 under the chain's own weight F = m g per sphere, across the chain: bond k (contact point
-    at x_k = (k - 1/2) L_b) carries V_k = (N - k + 1) F and M_k = F sum_{m >= k} (m L_b - x_k); the
-    part beyond it turns by M_k / K_b about the contact point and shifts by V_k / K_s, so the tip
-    sinks by sum_k M_k / K_b (N L_b - x_k) + V_k / K_s = 1.5058 mm (delta / L = 0.75 %; for a single
-    tip force this sum is the spec's F L^3/(3 E I) (1 - 1/(4 N^2)) + N F / K_s). Within 1e-3, the
-    spec's tolerance at this deflection."""
-    (dx, dy, dz), k, n, lb = chain_under_gravity((0, -9.81, 0))
-    f = RHO * 4 / 3 * math.pi * R ** 3 * 9.81
-    expected = 0.0
-    for b in range(1, n + 1):
-        xc = (b - 0.5) * lb
-        moment = f * sum(m * lb - xc for m in range(b, n + 1))
-        expected += moment / k["bending_stiffness"] * (n * lb - xc) + (n - b + 1) * f / k["shear_stiffness"]
+    """BP-3: a chain of N = 10 B1 bonds from a fixed sphere (exclusive bonds, dashpots zeta = 0.7,
+    16 s) under its own weight across it: the tip's mean over the last 2 s sinks as the statically
+    determinate chain of hinged springs (``hinged_chain_deflection``: each bond turns about its
+    contact point by M/K_b and shifts by V/K_s) does, 1.5058 mm (delta / L = 0.75 %), within 1e-3,
+    the spec's tolerance at this deflection."""
+    from rollingdem.cases.contact_laws import bonded_chain, hinged_chain_deflection
+
+    (dx, dy, dz), k, lb = bonded_chain((0, -9.81, 0))
+    expected = hinged_chain_deflection(MASS * 9.81, 10, lb, k["bending_stiffness"], k["shear_stiffness"])
     assert -dy == pytest.approx(expected, rel=1e-3)
     assert expected == pytest.approx(1.5058e-3, rel=1e-4)
+    # one force at the tip: the sum is the spec's closed form
+    one = hinged_chain_deflection(1.0, 1, lb, k["bending_stiffness"], k["shear_stiffness"])
+    assert one == pytest.approx(lb ** 3 / (3 * 1e8 / (2 * R) * lb * k["bending_inertia"]) * (1 - 1 / 4)
+                                + 1 / k["shear_stiffness"], rel=1e-12)
 
 
 def test_a_bonded_chain_stretches_under_its_weight():
     """BP-3b: the chain hanging along its axis from its fixed sphere (gravity along +x, away from it):
     bond k carries (N - k + 1) m g, so the free end moves m g N (N + 1) / (2 K_n) out, within 1e-3."""
-    (dx, dy, dz), k, n, lb = chain_under_gravity((9.81, 0, 0))
-    f = RHO * 4 / 3 * math.pi * R ** 3 * 9.81
-    assert dx == pytest.approx(f * n * (n + 1) / (2 * k["normal_stiffness"]), rel=1e-3)
+    from rollingdem.cases.contact_laws import bonded_chain
+
+    (dx, dy, dz), k, lb = bonded_chain((9.81, 0, 0))
+    assert dx == pytest.approx(MASS * 9.81 * 10 * 11 / (2 * k["normal_stiffness"]), rel=1e-3)

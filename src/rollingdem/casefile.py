@@ -270,26 +270,33 @@ class WallMotionSpec(MotionSpec):
     wall: str
 
 
-class BondSpec(_Strict):
+class _BondBase(_Strict):
     """Bonds made when the stage starts (``Simulation.add_bonds``, docs/models.md §1.7): between the
     ``pairs`` given or every pair at most ``gap`` (m) apart, with ``rollingdem.ParallelBond``'s
-    parameters."""
+    parameters (the other keys)."""
     gap: Optional[Number] = None
     pairs: Optional[list[tuple[Whole, Whole]]] = None
-    youngs_modulus: Number
-    stiffness_ratio: Number = 2.5
-    radius_multiplier: Number = 1.0
-    tensile_strength: Number = 1e6
-    cohesion: Number = 1e6
-    friction_angle: Number = 0.0
-    moment_factor: Number = 1.0
-    damping_ratio: Number = 0.0
-    contact_while_bonded: str = "parallel"
 
     def parallel_bond(self):
         from .bonds import ParallelBond
 
         return ParallelBond(**self.model_dump(exclude={"gap", "pairs"}))
+
+
+def _bond_spec():
+    """The schema of a stage's bonds: gap or pairs, and ``ParallelBond``'s parameters as its
+    constructor declares them (one list of names and defaults)."""
+    import inspect
+
+    from .bonds import ParallelBond
+
+    kinds = {"float": Number, "str": str}
+    spec = {name: (kinds[p.annotation], ... if p.default is p.empty else p.default)
+            for name, p in inspect.signature(ParallelBond).parameters.items()}
+    return create_model("BondSpec", __base__=_BondBase, **spec)
+
+
+BondSpec = _bond_spec()
 
 
 class StageSpec(_Strict):

@@ -41,6 +41,9 @@ TWISTING_HISTORY = 6  # @@TWISTING_HISTORY
 COHESION_HISTORY = 6  # @@COHESION_HISTORY
 DETACH_AT = -1  # @@DETACH_AT
 TRACK_ENERGY = 1  # @@TRACK_ENERGY
+# whether some bond keeps its pair's contact off (``ParallelBond(contact_while_bonded="exclusive")``):
+# a kernel of its own, as the check costs the pair pass of every other scene a third
+EXCLUSIVE_BONDS = 0  # @@EXCLUSIVE_BONDS
 ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
 N_PARAMS = 8  # @@N_PARAMS
@@ -219,7 +222,7 @@ def entry_inputs(i, k, particles, lists):
     row = lists.contact_row[k]
     apart = d2 >= reach * reach and not (DETACH_AT >= 0 and row >= 0
                                          and d2 < (reach + lists.pool[row, DETACH_AT]) * (reach + lists.pool[row, DETACH_AT]))
-    if not apart and particles.bond_start.shape[0] != 0:
+    if EXCLUSIVE_BONDS and not apart:
         apart = bonded_exclusively(uint64(i), uint64(j), particles)
     if apart:
         if row >= 0:

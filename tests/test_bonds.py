@@ -22,8 +22,8 @@ N = (1.0, 0.0, 0.0)  # the bond normal, from j to i
 
 def test_b1_section_and_stiffnesses():
     """A = pi R^2 = 3.14159e-4 m^2, I = 7.85398e-9, J = 1.57080e-8 m^4; K_n = k_n A = 1.57080e6 N/m,
-    K_s = 6.28319e5 N/m, K_b = k_n I = 39.2699 N m/rad, K_t = k_s J = 31.4159 N m/rad (the spec's
-    B1 table, to its 6 digits)."""
+    K_s = 6.28319e5 N/m, K_b = k_n I = 39.2699 N m/rad, K_t = k_s J = 31.4159 N m/rad (to 6
+    digits)."""
     p = dict(zip(BOND_PARAMETERS._fields, B1.parameter_row(R, R)))
     expected = dict(area=3.14159e-4, bending_inertia=7.85398e-9, polar_inertia=1.57080e-8, normal_stiffness=1.57080e6,
                     shear_stiffness=6.28319e5, bending_stiffness=39.2699, twisting_stiffness=31.4159, bond_radius=R)
@@ -212,7 +212,7 @@ def test_a_bonded_pair_oscillates_at_its_mode_frequencies(mode):
 
 
 def energy_drift(dt, spin=0.0):
-    """BP-4's pair (the spec's layout: the first sphere at -x) run for 0.2 s: the largest relative
+    """BP-4's pair (the first sphere at -x) run for 0.2 s: the largest relative
     change of kinetic plus bond strain energy, sampled 200 times."""
     import rollingdem as rd
 
@@ -235,9 +235,9 @@ def energy_drift(dt, spin=0.0):
 def test_a_free_bonded_pair_keeps_its_energy():
     """BP-4: B1 pair with velocities (0, 0, -0.02), (0.01, 0.03, 0.01) m/s and spins (3, -2, 5),
     (-4, 1, 2) rad/s, no damping, 0.2 s: kinetic plus bond strain energy stays within 1e-4 of the
-    start at dt = 2e-6 s (measured 9.0e-5, the spec's 9.2e-5), and the error is of second order:
+    start at dt = 2e-6 s (measured 9.0e-5), and the error is of second order:
     over 3 times smaller at 1e-6 s (measured 2.4e-5). With a rigid spin of 20 rad/s across the bond
-    added, within 2e-4 at 2e-6 s (first order there, as the spec measured: the mid-step velocity
+    added, within 2e-4 at 2e-6 s (first order there: the mid-step velocity
     meets the end-of-step normal)."""
     coarse = energy_drift(2e-6)
     assert coarse < 1e-4
@@ -437,14 +437,14 @@ def test_a_bonded_cantilever_bends_as_the_hinged_chain():
     16 s) under its own weight across it: the tip's mean over the last 2 s sinks as the statically
     determinate chain of hinged springs (``hinged_chain_deflection``: each bond turns about its
     contact point by M/K_b and shifts by V/K_s) does, 1.5058 mm (delta / L = 0.75 %), within 1e-3,
-    the spec's tolerance at this deflection."""
+    ample for a deflection of 0.75 % of the length."""
     from rollingdem.cases.contact_laws import bonded_chain, hinged_chain_deflection
 
     (dx, dy, dz), k, lb = bonded_chain((0, -9.81, 0))
     expected = hinged_chain_deflection(MASS * 9.81, 10, lb, k["bending_stiffness"], k["shear_stiffness"])
     assert -dy == pytest.approx(expected, rel=1e-3)
     assert expected == pytest.approx(1.5058e-3, rel=1e-4)
-    # one force at the tip: the sum is the spec's closed form
+    # one force at the tip: the sum is the closed form F L^3/(3 E I) (1 - 1/(4 N^2)) + N F / K_s
     one = hinged_chain_deflection(1.0, 1, lb, k["bending_stiffness"], k["shear_stiffness"])
     assert one == pytest.approx(lb ** 3 / (3 * 1e8 / (2 * R) * lb * k["bending_inertia"]) * (1 - 1 / 4)
                                 + 1 / k["shear_stiffness"], rel=1e-12)
@@ -457,3 +457,13 @@ def test_a_bonded_chain_stretches_under_its_weight():
 
     (dx, dy, dz), k, lb = bonded_chain((9.81, 0, 0))
     assert dx == pytest.approx(MASS * 9.81 * 10 * 11 / (2 * k["normal_stiffness"]), rel=1e-3)
+
+
+def test_the_time_step_check_takes_the_stiffest_bond_mode():
+    """For the B1 pair the stiffest mode is shear with rotation, omega^2 = K_s (2/m + 2 R^2 / I) =
+    7 K_s / m (20,494 rad/s): the bond limit is a tenth of its period, 3.066e-5 s."""
+    sim = bonded_pair()
+    (label, limit), = [x for x in sim.time_step_limits() if x[0].startswith("bond")]
+    k = dict(zip(BOND_PARAMETERS._fields, B1.parameter_row(R, R)))
+    assert limit == pytest.approx(0.1 * 2 * math.pi / math.sqrt(7 * k["shear_stiffness"] / MASS), rel=1e-12)
+    assert math.sqrt(7 * k["shear_stiffness"] / MASS) == pytest.approx(20494, rel=1e-4)

@@ -218,3 +218,14 @@ def test_the_experiments_take_a_cohesion_law():
             CASES[case].resolve({"cohesion": "dmt"})
         with pytest.raises(ParameterError, match="surface_energy"):
             CASES[case].resolve({"surface_energy": -1.0})
+
+
+def test_the_jkr_time_step_is_a_fiftieth_of_the_zero_load_period():
+    """The JKR limit: T = 2 pi sqrt(m* / k) at the zero-load contact radius a_0, k = dF/d(delta) =
+    F'(a) / delta'(a) from the parametric curve, over 50."""
+    a0 = (9 * math.pi * W * R_EFF ** 2 / (2 * E_STAR)) ** (1 / 3)
+    h = 1e-6 * a0
+    slope = (jkr_force(a0 + h) - jkr_force(a0 - h)) / (jkr_overlap(a0 + h) - jkr_overlap(a0 - h))
+    sim = jkr_pair(1.0)
+    (label, limit), = [x for x in sim.time_step_limits() if x[0].startswith("JKR")]
+    assert limit == pytest.approx(2 * math.pi * math.sqrt(M_EFF / slope) / 50, rel=1e-6)

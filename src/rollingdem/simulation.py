@@ -662,7 +662,7 @@ class Simulation:
         import pandas as pd
 
         st = self._state
-        ids = np.argsort(st._slots) if st._slots is not None else np.arange(st.n)  # slot -> id
+        ids = st.ids  # slot -> id
         s = st.bond_state
         names = np.array(["intact", "tension", "shear"])
         return pd.DataFrame({

@@ -68,7 +68,7 @@ def wb_impact(e: float, speed: float) -> dict:
 
 
 def wb_path() -> dict:
-    """WB-2: the law stepped along the spec's overlap path (k1 = 1e5 N/m, e = 0.5): the forces at its
+    """WB-2: the law stepped along the benchmark's overlap path (docs/studies.md) (k1 = 1e5 N/m, e = 0.5): the forces at its
     turning points, and the energy the first loop (0 -> 1 mm -> 0.75 mm) dissipates."""
     from ..contact.normal import WALTON_BRAUN_HISTORY, WALTON_BRAUN_PARAMETERS, walton_braun_normal
 
@@ -215,7 +215,7 @@ def jkr_sticking_velocity(quick: bool) -> tuple[float, float]:
     return 0.5 * (lo + hi), analytic
 
 
-# BP: the spec's bond set B1 (R = 1 cm, rho = 2500 kg/m^3, E = 1e8 Pa, kappa = 2.5, sigma_c = c = 1 MPa)
+# BP: the bond set B1 of docs/studies.md (R = 1 cm, rho = 2500 kg/m^3, E = 1e8 Pa, kappa = 2.5, sigma_c = c = 1 MPa)
 BOND_R, BOND_RHO, BOND_GAP = 0.01, 2500.0, 1e-4
 
 
@@ -270,7 +270,7 @@ def bond_mode_period(mode: str) -> tuple[float, float]:
 
 
 def bond_energy_drift(dt: float) -> float:
-    """BP-4: the B1 pair with the spec's velocities and spins, 0.2 s: the largest relative change of
+    """BP-4: the B1 pair with the benchmark's velocities and spins, 0.2 s: the largest relative change of
     kinetic plus bond strain energy (200 samples)."""
     sim = bonded_pair(((0, 0, -0.02), (0.01, 0.03, 0.01)), ((3, -2, 5), (-4, 1, 2)), dt, strength=1e9)
     e0 = sum(sim.kinetic_energy())
@@ -336,7 +336,7 @@ def hinged_chain_deflection(force: float, bonds: int, spacing: float, bending_st
     free sphere: bond k (contact point at x_k = (k - 1/2) L_b) carries V_k = (N - k + 1) F and
     M_k = F sum_{m >= k} (m L_b - x_k); the part beyond it turns by M_k / K_b about the contact point
     and shifts by V_k / K_s: sum_k M_k / K_b (N L_b - x_k) + V_k / K_s. (For one force at the tip this
-    is the spec's F L^3/(3 E I) (1 - 1/(4 N^2)) + N F / K_s.)"""
+    is the closed form F L^3/(3 E I) (1 - 1/(4 N^2)) + N F / K_s.)"""
     total = 0.0
     for b in range(1, bonds + 1):
         xc = (b - 0.5) * spacing
@@ -405,7 +405,7 @@ def contact_laws(models=None, quick=False, outdir=None, progress=None, runner=ma
     path = wb_path()
     for n, (f, ref) in enumerate(zip(path["forces"], (100.0, 60.0, 100.0, 120.0, 40.0, 0.0, 0.0, 40.0))):
         check("walton_braun", f"WB-2 force at the path's turning point {n + 1} (N)", f, ref, 1e-9, relative=False,
-              source="MODELS_CONTACTS WB-2 path, exact")
+              source="the classical form along the path, exact")
     check("walton_braun", "WB-2 first loop's dissipation (J)", path["first_loop"], 0.0375, 1e-9,
           source="(1 - e^2) 1/2 k1 delta_max^2")
     check("walton_braun", "WB-3 rebound / impact speed at z = R", wb_drop(), 0.49617, 2e-3,
@@ -437,7 +437,7 @@ def contact_laws(models=None, quick=False, outdir=None, progress=None, runner=ma
         check("parallel_bond", f"BP-2 {mode} break load (N or N m)", loads[mode], reference, 1e-3,
               source="sigma_c A, c A, sigma_c I / R, c J / R")
     check("parallel_bond", "BP-4 energy drift over 0.2 s at dt = 2e-6 s", bond_energy_drift(2e-6), 1e-4, 0.0,
-          bound="upper", source="spec bound 1e-4 (second order)")
+          bound="upper", source="bound 1e-4, second-order integration")
     weight = BOND_RHO * 4 / 3 * math.pi * BOND_R ** 3 * 9.81
     (_, sag, _), k, lb = bonded_chain((0, -9.81, 0))
     check("parallel_bond", "BP-3 chain of 10 bonds under its weight: tip deflection (m)", -sag,

@@ -94,6 +94,11 @@ MUTATIONS = [
       "fn_total = fn - cn * vcn", BOND),
     M("bond moment factor left out of the tensile stress", "src/rollingdem/bonds.py",
       "sigma = fn / area + beta *", "sigma = fn / area + 0.0 *", BOND),
+    M("rolling resistance on a parallel-bonded contact", "src/rollingdem/engine_kernel.py",
+      "return contact_of(hist, k, g, p, dt, False)", "return contact_of(hist, k, g, p, dt, True)", BOND),
+    M("a parallel bond taken for an exclusive one", "src/rollingdem/engine_kernel.py",
+      "apart = bonded(uint64(i), uint64(j), particles, True)", "apart = bonded(uint64(i), uint64(j), particles, False)",
+      BOND),
     # --- tangential (contact/tangential.py) ------------------------------------------------------
     M("walton shrinking branch normalised by mu N - T*", C + "tangential.py",
       "room = 1.0 - (turning - t) / (mu_n + turning)", "room = 1.0 - (turning - t) / (mu_n - turning)", WT),

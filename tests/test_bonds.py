@@ -346,36 +346,79 @@ def test_bonds_follow_their_particles_through_an_outlet_and_a_sort():
     np.testing.assert_allclose(d, 2 * R + GAP, rtol=1e-6)
 
 
-def test_an_exclusive_bond_keeps_the_contact_and_its_rolling_resistance_off():
-    """BP-5's hand-over: two spheres pressed 10 um into each other, bonded, spun against each other
-    (bending the bond), with EPSD rolling resistance. With contact_while_bonded = "exclusive" they
-    hold no contact while the bond holds: torques and motion are those of the bond alone (equal,
-    bit for bit, to the same pair without rolling resistance). With "parallel" (PFC) the contact
-    acts beside the bond: Hertz pushes them apart and EPSD adds its moment. Pulled apart at 5 m/s
-    the exclusive bond breaks."""
+def pressed_pair(mode, rolling, tensile_strength=1e6, steps=300):
+    """Two spheres pressed 10 um into each other, bonded (B1's stiffness), spun against each other
+    at 1 rad/s (bending the bond), with rolling resistance ``rolling`` (mu_r = 0.3), run ``steps``."""
     import rollingdem as rd
 
-    def pressed(mode, rolling):
-        sim = rd.Simulation(contact=rd.ContactModel(rolling=rolling), gravity=(0, 0, 0), dt=1e-6)
-        sim.add_material(rd.Material("m", youngs_modulus=1e8, poisson_ratio=0.3, density=RHO, restitution=0.5,
-                                     rolling_friction=0.3))
-        sim.add_particles([[R - 5e-6, 0, 0], [-R + 5e-6, 0, 0]], radius=R, material="m",
-                          angular_velocity=[[0, 0, 0.5], [0, 0, -0.5]], allow_overlap=True)
-        sim.add_bonds(ParallelBond(youngs_modulus=1e8, contact_while_bonded=mode), gap=0.0)
-        sim.run(steps=300)
-        return sim
+    sim = rd.Simulation(contact=rd.ContactModel(rolling=rolling), gravity=(0, 0, 0), dt=1e-6)
+    sim.add_material(rd.Material("m", youngs_modulus=1e8, poisson_ratio=0.3, density=RHO, restitution=0.5,
+                                 rolling_friction=0.3))
+    sim.add_particles([[R - 5e-6, 0, 0], [-R + 5e-6, 0, 0]], radius=R, material="m",
+                      angular_velocity=[[0, 0, 0.5], [0, 0, -0.5]], allow_overlap=True)
+    sim.add_bonds(ParallelBond(youngs_modulus=1e8, tensile_strength=tensile_strength, cohesion=1e6,
+                               contact_while_bonded=mode), gap=0.0)
+    sim.run(steps=steps)
+    return sim
 
-    alone = pressed("exclusive", "none")
-    exclusive = pressed("exclusive", "epsd")
-    parallel = pressed("parallel", "epsd")
+
+def rolling_spring(sim):
+    """The spring moment M_k (``SPRING_HISTORY``) of the pair's contact, or zeros without one."""
+    lists = sim._state.contact_list
+    hist = lists.entry_history()
+    at = sim.contact.layout()["ROLLING_HISTORY"]
+    touching = np.nonzero(lists.contact_row[:lists.size] >= 0)[0]
+    return hist[touching[0], at:at + 3] if len(touching) else np.zeros(3)
+
+
+def test_a_bond_keeps_rolling_resistance_off_while_it_holds():
+    """BP-5's hand-over, on the pressed pair with EPSD rolling resistance. While the bond holds, no
+    rolling moment acts between the pair in either mode: with ``exclusive`` there is no contact,
+    and the motion is bit for bit that of the pair without rolling resistance; with ``parallel``
+    (PFC) Hertz and sliding act beside the bond, the rolling spring stays at exactly zero, and the
+    motion is again bit for bit that without rolling resistance. Pulled apart at 5 m/s the
+    exclusive bond breaks."""
+    exclusive_alone = pressed_pair("exclusive", "none")
+    exclusive = pressed_pair("exclusive", "epsd")
+    parallel_alone = pressed_pair("parallel", "none")
+    parallel = pressed_pair("parallel", "epsd")
     assert exclusive.number_of_contacts() == 0 and parallel.number_of_contacts() == 1
-    assert np.array_equal(exclusive.torques, alone.torques)
-    assert np.array_equal(exclusive.positions, alone.positions)
-    assert not np.allclose(parallel.torques, exclusive.torques, rtol=1e-3)
+    for a, b in ((exclusive, exclusive_alone), (parallel, parallel_alone)):
+        assert np.array_equal(a.torques, b.torques)
+        assert np.array_equal(a.positions, b.positions)
+        assert np.array_equal(a.angular_velocities, b.angular_velocities)
+    assert np.array_equal(rolling_spring(parallel), np.zeros(3))
     assert parallel.positions[0, 0] > exclusive.positions[0, 0]  # Hertz pushed them apart
     exclusive.set_velocities([0, 1], velocity=[[2.5, 0, 0], [-2.5, 0, 0]])
     exclusive.run(steps=100)
     assert exclusive.bonds()["status"][0] == "tension"
+
+
+def test_rolling_resistance_starts_from_zero_when_a_parallel_bond_breaks():
+    """BP-5 after the break. A weak parallel bond (sigma_c = 2 kPa) on the pressed pair breaks in
+    bending: its bending mode (omega = sqrt(2 K_b / I) = 1.37e4 rad/s) turns the 1 rad/s relative
+    spin into a moment K_b theta that reaches sigma_c I/R = 1.57e-3 N m after about 40 steps. Up to
+    the break the contact's rolling spring is zero; one step after it, EPSD's spring holds one
+    increment, k_r |w_i - w_j| dt with k_r = 2.25 k_n mu_r^2 R*^2 and k_n = 4/3 E* sqrt(R* delta):
+    it starts from zero (an accumulated spring would hold tens of increments). Tolerance 2 %: over
+    the step the overlap and spins change by less than 1e-3."""
+    sim = pressed_pair("parallel", "epsd", tensile_strength=2e3, steps=1)
+    for _ in range(200):
+        if sim.bonds()["status"][0] != "intact":
+            break
+        assert np.array_equal(rolling_spring(sim), np.zeros(3))
+        sim.run(steps=1)
+    assert sim.bonds()["status"][0] == "tension"  # bending counts in the tensile criterion
+    assert np.array_equal(rolling_spring(sim), np.zeros(3))
+    w = sim.angular_velocities
+    sim.run(steps=1)
+    w = 0.5 * (w + sim.angular_velocities)
+    e_star = 1e8 / (2 * (1 - 0.3 ** 2))
+    r_star = R / 2
+    overlap = 2 * R - np.linalg.norm(sim.positions[0] - sim.positions[1])
+    k_r = 2.25 * (4 / 3) * e_star * math.sqrt(r_star * overlap) * 0.3 ** 2 * r_star ** 2
+    spring = rolling_spring(sim)
+    assert np.linalg.norm(spring) == pytest.approx(k_r * abs(w[0, 2] - w[1, 2]) * 1e-6, rel=0.02)
 
 
 def test_bonds_from_a_case_file(tmp_path):
@@ -457,6 +500,19 @@ def test_a_bonded_chain_stretches_under_its_weight():
 
     (dx, dy, dz), k, lb = bonded_chain((9.81, 0, 0))
     assert dx == pytest.approx(MASS * 9.81 * 10 * 11 / (2 * k["normal_stiffness"]), rel=1e-3)
+
+
+def test_a_bonded_chain_twists_as_torsion_springs_in_series():
+    """BP-3c: the chain of 10 bonds from its fixed sphere, started in its slowest twisting mode,
+    turns with the period 2 pi / (2 sqrt(K_t / I) sin(pi / 42)) = 4.854e-3 s of ten torsion
+    springs in series (each bond's twisting moment on both of its spheres, with opposite signs).
+    Tolerance 1e-4: at 1000 steps per period the integrator's period error is (omega dt)^2 / 24,
+    2e-6, and the crossings are interpolated linearly."""
+    from rollingdem.cases.contact_laws import twisting_chain_period
+
+    period, expected = twisting_chain_period()
+    assert expected == pytest.approx(4.854e-3, rel=1e-4)
+    assert period == pytest.approx(expected, rel=1e-4)
 
 
 def test_the_time_step_check_takes_the_stiffest_bond_mode():

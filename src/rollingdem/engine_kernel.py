@@ -41,9 +41,10 @@ TWISTING_HISTORY = 6  # @@TWISTING_HISTORY
 COHESION_HISTORY = 6  # @@COHESION_HISTORY
 DETACH_AT = -1  # @@DETACH_AT
 TRACK_ENERGY = 1  # @@TRACK_ENERGY
-# whether some bond keeps its pair's contact off (``ParallelBond(contact_while_bonded="exclusive")``):
-# a kernel of its own, as the check costs the pair pass of every other scene a third
-EXCLUSIVE_BONDS = 0  # @@EXCLUSIVE_BONDS
+# whether the scene holds bonds: a kernel of its own, as the per-entry bond check (an exclusive bond
+# keeps its pair's contact off, a parallel one its rolling and twisting moments) costs the pair pass
+# of every other scene a third
+BONDED_PAIRS = 0  # @@BONDED_PAIRS
 ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
 N_PARAMS = 8  # @@N_PARAMS
@@ -63,12 +64,12 @@ GATHER_RUN = 256  # particles per call of gather_rows: the call is negligible, t
 INERTIA_R_FACTOR = 1.4  # I + m R^2 = 1.4 m R^2 for a solid sphere (seed report eq. 12)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def contact(hist, k, g, p, dt):
+@njit(cache=True, inline="always")
+def contact_of(hist, k, g, p, dt, moments):
     """One contact, its inputs ``g`` (``CONTACT_INPUTS``): the ``CONTACT_RESULTS`` (force on i,
     torque on i, torque on j, dissipated energies). (rvx, rvy, rvz) is the velocity of i's centre
     relative to j's centre (for a wall: relative to the wall's surface velocity at the contact,
-    with lever_j = 0)."""
+    with lever_j = 0). Without ``moments`` (a compile-time constant) no rolling or twisting moment."""
     nx, ny, nz = g[IN.nx], g[IN.ny], g[IN.nz]
     onx = hist[k, 0]
     ony = hist[k, 1]
@@ -81,11 +82,25 @@ def contact(hist, k, g, p, dt):
         onz = nz
     frame = contact_frame(onx, ony, onz, nx, ny, nz, spin_angle(nx, ny, nz, g[IN.wix], g[IN.wiy], g[IN.wiz], g[IN.wjx],
                                                                 g[IN.wjy], g[IN.wjz], dt))
-    return contact_in_frame(hist, k, frame, g, p, dt)
+    return contact_in_frame(hist, k, frame, g, p, dt, moments)
+
+
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+def contact(hist, k, g, p, dt):
+    """``contact_of`` with every moment."""
+    return contact_of(hist, k, g, p, dt, True)
+
+
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+def bonded_contact(hist, k, g, p, dt):
+    """The contact of a pair held by an intact ``parallel`` bond: no rolling or twisting moment (the
+    bond's bending and twisting springs resist that motion, docs/models.md §1.7), and their
+    history stays zero, so that they start fresh at the break."""
+    return contact_of(hist, k, g, p, dt, False)
 
 
 @njit(cache=True, inline="always")
-def contact_in_frame(hist, k, frame, g, p, dt):
+def contact_in_frame(hist, k, frame, g, p, dt, moments):
     """The body of ``contact`` once the frame change is known."""
     (nx, ny, nz, overlap, rvx, rvy, rvz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff, m_eff,
      inertia_r) = g
@@ -111,9 +126,11 @@ def contact_in_frame(hist, k, frame, g, p, dt):
     fn += f_coh
     ftx, fty, ftz, e_t = tangential_force(hist, k, TANGENTIAL_HISTORY, g, frame, (vtx, vty, vtz), normal, dt, p,
                                           TANGENTIAL_PARAMS)
-    mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, ROLLING_HISTORY, g, frame, normal, dt, p,
-                                                       ROLLING_PARAMS, ROLLING_MODES)
-    m_tw, e_tw = twisting_moment(hist, k, TWISTING_HISTORY, g, normal, dt, p, TWISTING_PARAMS)
+    mix = miy = miz = mjx = mjy = mjz = e_r = m_tw = e_tw = 0.0
+    if moments:
+        mix, miy, miz, mjx, mjy, mjz, e_r = rolling_moment(hist, k, ROLLING_HISTORY, g, frame, normal, dt, p,
+                                                           ROLLING_PARAMS, ROLLING_MODES)
+        m_tw, e_tw = twisting_moment(hist, k, TWISTING_HISTORY, g, normal, dt, p, TWISTING_PARAMS)
     hist[k, 0] = nx
     hist[k, 1] = ny
     hist[k, 2] = nz
@@ -153,7 +170,7 @@ def block_contacts(block, p, dt):
         phi = spin_angle(g[IN.nx], g[IN.ny], g[IN.nz], g[IN.wix], g[IN.wiy], g[IN.wiz], g[IN.wjx], g[IN.wjy], g[IN.wjz],
                          dt)
         frame = contact_frame_series(onx, ony, onz, g[IN.nx], g[IN.ny], g[IN.nz], phi)
-        res = contact_in_frame(col, n, frame, g, p, dt)
+        res = contact_in_frame(col, n, frame, g, p, dt, True)
         for c in range(N_RESULTS):
             col[n, B_OUT + c] = res[c]
 
@@ -189,13 +206,13 @@ NO_INPUTS = (0.0,) * N_INPUTS
 
 
 @njit(cache=True, inline="always")
-def bonded_exclusively(i, j, particles):
-    """Whether particles i and j hold an intact bond that keeps their contact off (``exclusive``)."""
+def bonded(i, j, particles, exclusive):
+    """Whether particles i and j hold an intact bond whose ``exclusive`` flag is ``exclusive``."""
     pairs, status, ends = particles.bond_pairs, particles.bond_status, particles.bond_ends
     for e in range(particles.bond_start[i], particles.bond_start[i + 1]):
         b = ends[e] >> 1
         if (pairs[b, 1 - (ends[e] & 1)] == j and status[b] == BOND_INTACT
-                and particles.bond_parameters[b, BOND_PARAMETERS.exclusive] != 0.0):
+                and (particles.bond_parameters[b, BOND_PARAMETERS.exclusive] != 0.0) == exclusive):
             return True
     return False
 
@@ -222,8 +239,8 @@ def entry_inputs(i, k, particles, lists):
     row = lists.contact_row[k]
     apart = d2 >= reach * reach and not (DETACH_AT >= 0 and row >= 0
                                          and d2 < (reach + lists.pool[row, DETACH_AT]) * (reach + lists.pool[row, DETACH_AT]))
-    if EXCLUSIVE_BONDS and not apart:
-        apart = bonded_exclusively(uint64(i), uint64(j), particles)
+    if BONDED_PAIRS and not apart:
+        apart = bonded(uint64(i), uint64(j), particles, True)
     if apart:
         if row >= 0:
             free_row(lists.pool, lists.groups, uint64(i) // uint64(POOL_GROUP), row)
@@ -324,7 +341,10 @@ def pair_row(i, dt, particles, lists, pair_params):
         touching, j, row, g = entry_inputs(i, k, particles, lists)
         if not touching:
             continue
-        res = contact(pool, np.int64(row), g, pair_params[mat[i], mat[j]], dt)
+        if BONDED_PAIRS and bonded(uint64(i), uint64(j), particles, False):
+            res = bonded_contact(pool, np.int64(row), g, pair_params[mat[i], mat[j]], dt)
+        else:
+            res = contact(pool, np.int64(row), g, pair_params[mat[i], mat[j]], dt)
         fx += res[0]
         fy += res[1]
         fz += res[2]
@@ -400,7 +420,12 @@ def pair_rows(lo, hi, dt, particles, lists, pair_params, block, lanes):
             phi = spin_angle(g[IN.nx], g[IN.ny], g[IN.nz], g[IN.wix], g[IN.wiy], g[IN.wiz], g[IN.wjx], g[IN.wjy],
                              g[IN.wjz], dt)
             lanes[2, n] = 0 if abs(phi) < SERIES_ANGLE else 1
-            if lanes[2, n]:
+            if BONDED_PAIRS and bonded(uint64(i), uint64(j), particles, False):
+                lanes[2, n] = 1  # computed here, as a fast spin is
+                res = bonded_contact(pool, np.int64(row), g, p, dt)
+                for c in range(N_RESULTS):
+                    col[un, B_SCALAR + c] = res[c]
+            elif lanes[2, n]:
                 res = contact(pool, np.int64(row), g, p, dt)
                 for c in range(N_RESULTS):
                     col[un, B_SCALAR + c] = res[c]

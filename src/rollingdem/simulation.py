@@ -729,12 +729,12 @@ class Simulation:
     def engine_module(self):
         """The compiled engine module this simulation steps with (``rollingdem.kernels``)."""
         st = self._state
-        exclusive = bool(len(st.bond_pairs)) and bool((st.bond_parameters[:, BOND_PARAMETERS.exclusive] != 0.0).any())
-        key = (id(self.contact), self.track_energy, st.serial(), exclusive)
+        bonded_pairs = bool(len(st.bond_pairs))
+        key = (id(self.contact), self.track_energy, st.serial(), bonded_pairs)
         held = self._modules.get(key)
         if held is None or held[0] is not self.contact:
             held = self._modules[key] = (self.contact, engine_module(self.contact, self.track_energy, serial=key[2],
-                                                                     exclusive_bonds=exclusive))
+                                                                     bonded_pairs=bonded_pairs))
         return held[1]
 
     def dissipated_energy(self) -> dict[str, float]:

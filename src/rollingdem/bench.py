@@ -20,6 +20,7 @@ from .errors import ParameterError, check_output_path
 
 SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling", "mesh-hopper",
           "rough-bed")
+GPU_SCENES = ("column-collapse", "slab")  # the scenes ``--backend cuda`` times
 SCALING_SMALL = 20000
 SCALING_LARGE = 1_000_000
 SCALING_CHUNKS = 6
@@ -351,27 +352,42 @@ def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="
     state_bytes = sum(a.nbytes for owner in (st, st.contact_list, st.meshes) for a in vars(owner).values()
                       if isinstance(a, np.ndarray))
     steps_on = sim._state.governor().steps_on
-    if set(steps_on) - {threads}:  # the governor took threads away while other processes were busy
+    if sim.backend != "cpu":
+        note = (note + "; " if note else "") + f"on the GPU ({sim.backend}): the phases are not split"
+    elif set(steps_on) - {threads}:  # the governor took threads away while other processes were busy
         shares = ", ".join(f"{k} thread{'s' if k > 1 else ''} for {s} steps"
                            for k, s in sorted(steps_on.items(), reverse=True))
         note = (note + "; " if note else "") + f"other processes were busy: {shares}"
     return BenchResult(scene=scene, model=model, particles=n, steps=steps, threads=threads, wall_s=wall,
                        particle_steps_per_s=n * steps / wall, compile_s=compile_s, contacts_per_particle=contacts,
                        neighbors_per_particle=neighbors, rebuilds=rebuilds,
-                       split_s_per_step=_split(sim, split_repeats, rebuilds, steps),
+                       split_s_per_step=_split(sim, split_repeats, rebuilds, steps) if sim.backend == "cpu" else {},
                        peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
                        state_bytes_per_particle=state_bytes / n, note=note)
 
 
-def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, echo=print) -> BenchResult:
-    import numba
-
+def _timed_on(sim, backend: str, steps: int, particles: int) -> tuple[float, float, int]:
+    """(compile or load seconds, timed seconds, rebuilds) of ``steps`` steps of ``sim`` on
+    ``backend``: on the GPU the kernels compile at the untimed first step, which is timed apart."""
     from . import ContactModel
 
+    if backend == "cpu":
+        compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
+        return (compile_s, *_time_run(sim, steps))
+    sim.backend = backend
+    tic = time.perf_counter()
+    _warm_up(sim)
+    compile_s = time.perf_counter() - tic
+    return (compile_s, *_timed_steps(sim, steps))
+
+
+def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, echo=print,
+                    backend="cpu") -> BenchResult:
+    import numba
+
     threads = threads or numba.get_num_threads()
-    compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
     sim = _collapse(column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo))
-    wall, rebuilds = _time_run(sim, steps)
+    compile_s, wall, rebuilds = _timed_on(sim, backend, steps, particles)
     note = f"settled state from {from_dump}" if from_dump else "settled state from the disk cache"
     return _result("column-collapse", "epsd", sim, steps, compile_s, wall, rebuilds, threads, note)
 
@@ -499,15 +515,12 @@ def write_liggghts_dump(path, positions, velocities, radius: float) -> Path:
     return path
 
 
-def slab(particles=20000, steps=1000, threads=None, echo=print) -> BenchResult:
+def slab(particles=20000, steps=1000, threads=None, echo=print, backend="cpu") -> BenchResult:
     import numba
 
-    from . import ContactModel
-
     threads = threads or numba.get_num_threads()
-    compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
     sim = _slab_simulation(particles)
-    wall, rebuilds = _time_run(sim, steps)
+    compile_s, wall, rebuilds = _timed_on(sim, backend, steps, particles)
     return _result("slab", "epsd", sim, steps, compile_s, wall, rebuilds, threads,
                    f"{SLAB_LAYERS} lattice layers falling onto a plate")
 
@@ -620,10 +633,22 @@ def rough_bed(particles=20000, steps=2000, threads=None, echo=print) -> list[Ben
 
 
 def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump=None, models=None,
-              echo=print) -> list[BenchResult]:
+              echo=print, backend="cpu") -> list[BenchResult]:
     unknown = [s for s in scenes if s not in SCENES]
     if unknown:
         raise ParameterError(f"scene = {', '.join(unknown)} is not known: allowed are {', '.join(SCENES)}")
+    from .simulation import BACKENDS
+
+    if backend not in BACKENDS:
+        raise ParameterError(f"backend = {backend!r} is not allowed: must be one of {', '.join(BACKENDS)}")
+    if backend != "cpu":
+        other = [s for s in scenes if s not in GPU_SCENES]
+        if other:
+            raise ParameterError(f"scene = {', '.join(other)} is not timed on backend {backend!r}: allowed there are "
+                                 f"{', '.join(GPU_SCENES)}")
+        from .cuda_target import require
+
+        require()
     if particles is not None and (isinstance(particles, bool) or not isinstance(particles, int) or particles < 1):
         raise ParameterError(f"particles = {particles!r} is not allowed: must be an integer >= 1")
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
@@ -635,13 +660,13 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
     results = []
     for scene in scenes:
         if scene == "column-collapse":
-            results.append(column_collapse(particles or 20000, steps or 10000, threads, from_dump, echo))
+            results.append(column_collapse(particles or 20000, steps or 10000, threads, from_dump, echo, backend))
         elif scene == "single-particle":
             results.append(single_particle(steps or 150000, threads, echo))
         elif scene == "mesh-hopper":
             results.append(mesh_hopper(particles or 20000, steps or 5000, threads, echo))
         elif scene == "slab":
-            results.append(slab(particles or 20000, steps or 1000, threads, echo))
+            results.append(slab(particles or 20000, steps or 1000, threads, echo, backend))
         elif scene == "rough-bed":
             pair = rough_bed(particles or 20000, steps or 2000, threads, echo)
             echo(format_row(pair[0]))

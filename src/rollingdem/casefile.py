@@ -338,6 +338,7 @@ class CaseSpec(_Strict):
     dt: Optional[Number] = None
     skin: Optional[Number] = None
     check_timestep: bool = True
+    backend: Optional[str] = None
     gravity: Vector = (0.0, 0.0, -9.81)
     materials: list[MaterialSpec] = Field(min_length=1)
     pairs: list[PairSpec] = []
@@ -521,6 +522,9 @@ def build_simulation(case: CaseSpec):
     with where("periodic"):
         sim = Simulation(contact=contact, gravity=case.gravity, dt=case.dt, skin=case.skin,
                          check_timestep=case.check_timestep, periodic=periodic)
+    if case.backend is not None:
+        with where("backend"):
+            sim.backend = case.backend
     sim.hints.update(CASE_HINTS)
     for k, m in enumerate(case.materials):
         with where(f"materials.{k}"):

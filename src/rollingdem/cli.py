@@ -63,7 +63,9 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
         out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default: "
                                            "rollingdem-output/<case name>, made fresh)."),
         threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
-        progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
+        progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+        backend: Optional[str] = typer.Option(None, "--backend", help="cpu or cuda (an NVIDIA GPU, docs/gpu.md); "
+                                              "default: the case file's backend key, else cpu.")):
     """Run a case file, or the built-in default case."""
     from . import casefile
 
@@ -71,12 +73,39 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
     _check_out(out)
     try:
         spec = casefile.load_case(case if case is not None else casefile.default_case_path())
+        if backend is not None:
+            from .simulation import BACKENDS
+
+            if backend not in BACKENDS:
+                raise ParameterError(f"--backend = {backend!r} is not allowed: must be one of {', '.join(BACKENDS)}")
+            spec.backend = backend
         casefile.run_case(spec, out=out, progress=progress, echo=typer.echo)
     except ParameterError as err:
         _refuse(err)
     except SimulationError as err:
         typer.echo(f"error: the run failed: {err}\n(outputs written so far are kept)", err=True)
         raise typer.Exit(1)
+
+
+def _set_backend(backend):
+    """``--backend`` for every simulation of this command, its workers' included (they inherit the
+    environment): refused at once if unknown or if it has no device."""
+    if backend is None:
+        return
+    import os
+
+    from .simulation import BACKENDS
+
+    if backend not in BACKENDS:
+        _refuse(f"--backend = {backend!r} is not allowed: must be one of {', '.join(BACKENDS)}")
+    if backend == "cuda":
+        from .cuda_target import require
+
+        try:
+            require()
+        except ParameterError as err:
+            _refuse(err)
+    os.environ["ROLLINGDEM_BACKEND"] = backend
 
 
 def _set_threads(threads):
@@ -107,13 +136,16 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
                                                    "thread each (default: one per core; 1: one after the other here)."),
              scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address "
                                                      "(tcp://host:port) to run on an existing cluster."),
-             progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
+             progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+             backend: Optional[str] = typer.Option(None, "--backend", help="cpu or cuda (an NVIDIA GPU, "
+                                                   "docs/gpu.md): where every case's simulations step.")):
     """Run the seed report's test cases and the repose-angle study; write report.md/.html and results.json.
 
     Exit status 1 when any check fails its tolerance."""
     from .validate import run_validation
 
     _check_out(out)
+    _set_backend(backend)
     try:
         results = run_validation(out, cases=case, quick=quick, progress=progress, models=model, workers=workers,
                                  scheduler=scheduler, echo=typer.echo)
@@ -152,7 +184,9 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
                                                     "default: none and every one)."),
           from_dump: Optional[Path] = typer.Option(None, "--from-dump", help="Start column-collapse from the settled "
                                                    "state the LIGGGHTS reference input writes (write_dump custom)."),
-          json_out: Optional[Path] = typer.Option(None, "--json", help="Write the results to this JSON file.")):
+          json_out: Optional[Path] = typer.Option(None, "--json", help="Write the results to this JSON file."),
+          backend: str = typer.Option("cpu", "--backend", help="cpu, or cuda (an NVIDIA GPU, docs/gpu.md: "
+                                      "column-collapse and slab).")):
     """Time standard scenes: particle-steps per second, where the time goes, memory, compile time."""
     from . import bench as bench_mod
 
@@ -161,7 +195,8 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
     _check_out(json_out, "--json", folder=False)
     try:
         results = bench_mod.run_bench(scenes=scene or ["column-collapse"], particles=particles, steps=steps,
-                                      threads=threads, from_dump=from_dump, models=model, echo=typer.echo)
+                                      threads=threads, from_dump=from_dump, models=model, echo=typer.echo,
+                                      backend=backend)
     except ParameterError as err:
         _refuse(err)
     if json_out is not None:

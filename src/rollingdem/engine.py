@@ -45,6 +45,8 @@ class EngineState:
 
     def __init__(self, history_size: int):
         self.history_size = history_size
+        self.backend = "cpu"  # or "cuda": the step loop runs on the GPU (rollingdem.gpu_engine)
+        self._cuda_loops = {}
         self._blocks = self._lanes = None  # scratch of the pair pass, see contact_blocks
         self._one_material = None  # (mat, whether all particles are of one material), see contact_blocks
         n = 0
@@ -416,7 +418,15 @@ class EngineState:
         return self.n < kernel_layout.SERIAL_BELOW or numba.get_num_threads() == 1
 
     def step_loop(self, kernel):
-        """The kernel's step loop for this scene: ``advance_serial`` or ``advance`` (threads)."""
+        """The kernel's step loop for this scene: ``advance_serial`` or ``advance`` (threads), or
+        on the GPU the ``CudaStepLoop`` of the kernel's functions."""
+        if self.backend == "cuda":
+            loop = self._cuda_loops.get(kernel.__name__)
+            if loop is None:
+                from .gpu_engine import CudaStepLoop
+
+                loop = self._cuda_loops[kernel.__name__] = CudaStepLoop(kernel)
+            return loop
         return kernel.advance_serial if self.serial() else kernel.advance
 
     def _too_fast_message(self, dt, skin):

@@ -17,7 +17,8 @@ from rollingdem.kernel_layout import (BLOCK_SHIFT, BOND_PARAMETERS, CONTACT_BLOC
                                       LANE_HITS, MESH_GRID as GR, PERIODIC_BOX as PB, MESH_MOTION as MO, MESH_SLOTS, N_INPUTS, N_RESULTS, STATUS_CAPACITY,
                                       STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
                                       WALL_LOAD_SIZE)
-from rollingdem.integrator import kick_drift, kick_drift_one, kick_drift_serial, move_walls, next_drift_bound, undo_drift
+from rollingdem.integrator import (kick_drift, kick_drift_one, kick_drift_range, kick_drift_serial, move_walls,
+                                   next_drift_bound, undo_drift)
 from rollingdem.neighbors import POOL_GROUP, free_row, list_rows, minimum_image, rebuild_neighbor_list, take_row
 from rollingdem.mesh_kernel import build_mesh_candidates, match_mesh_contacts, move_meshes, surface_velocity
 from rollingdem.walls import wall_contact_geometry
@@ -371,6 +372,15 @@ def pair_row(i, dt, particles, lists, pair_params):
         particles.energy[i, 2] += er
         particles.energy[i, 3] += etw
     particles.contacts[i] = ncontact
+
+
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+def pair_rows_scalar(lo, hi, dt, particles, lists, pair_params):
+    """Rows lo..hi-1 through the scalar ``pair_row``, compiled as ``pair_rows`` is: the GPU's pair
+    pass (``rollingdem.gpu_engine``), equal bit for bit to the CPU's for spheres of several
+    materials."""
+    for i in range(lo, hi):
+        pair_row(i, dt, particles, lists, pair_params)
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})

@@ -50,6 +50,18 @@ def kick_drift(dt, particles, half_skin):
     return nexceed
 
 
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+def kick_drift_range(lo, hi, dt, particles, half_skin):
+    """``kick_drift`` on particles lo..hi-1, compiled as it is (the GPU's drift kernel,
+    ``rollingdem.gpu_engine``)."""
+    x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
+    mass, inertia, x_ref, fixed = particles.mass, particles.inertia, particles.x_ref, particles.fixed
+    nexceed = 0
+    for i in range(lo, hi):
+        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, half_skin)
+    return nexceed
+
+
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def kick_drift_serial(dt, particles, half_skin):
     x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t

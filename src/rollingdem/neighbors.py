@@ -145,7 +145,7 @@ def wrap_positions(x, image, box):
 @njit(cache=True, inline="always")
 def minimum_image(d, length, inv_length):
     """The shortest of d + k L over whole k (d itself, exactly, where L = 1/L = 0)."""
-    return d - length * np.rint(d * inv_length)
+    return d - length * round(d * inv_length)
 
 
 @njit(cache=True, parallel=True)

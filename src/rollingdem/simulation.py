@@ -27,6 +27,19 @@ from .timestep import SPRING_FRACTION
 from .mesh import MeshWall, TriangleMesh
 from .walls import INACTIVE, Wall, wall_from_dict
 
+BACKENDS = ("cpu", "cuda")
+
+
+def default_backend() -> str:
+    """The backend of a Simulation not told one: ``ROLLINGDEM_BACKEND``, else ``"cpu"`` (how
+    ``rollingdem validate --backend`` reaches the simulations of every case and worker)."""
+    import os
+
+    value = os.environ.get("ROLLINGDEM_BACKEND", "") or "cpu"
+    if value not in BACKENDS:
+        raise ParameterError(f"ROLLINGDEM_BACKEND = {value!r} is not allowed: must be one of {', '.join(BACKENDS)}")
+    return value
+
 __version__ = "0.1.0"
 SOLID_SPHERE = 0.4  # I = 2/5 m R^2
 
@@ -50,11 +63,14 @@ class Simulation:
         damping, sliding, rolling and twisting. Off by default, as in LIGGGHTS and LAMMPS: the
         bookkeeping costs about 12 % of the contact forces. A ``TimeSeries`` observer turns it on
         (its columns hold the dissipated energies); it may be switched at any time and counts from then.
+    backend: where the steps run: ``"cpu"`` (Numba threads) or ``"cuda"`` (an NVIDIA GPU through
+        numba-cuda, docs/gpu.md); default: the environment variable ``ROLLINGDEM_BACKEND``, else
+        ``"cpu"``. It may be changed between runs, and a checkpoint of either restores on either.
     """
 
     def __init__(self, contact: ContactModel | None = None, gravity=(0.0, 0.0, -9.81), dt: float | None = None,
                  skin: float | None = None, check_timestep: bool = True, track_energy: bool = False,
-                 periodic: dict | None = None):
+                 periodic: dict | None = None, backend: str | None = None):
         self.contact = contact if contact is not None else ContactModel()
         if not isinstance(self.contact, ContactModel):
             raise ParameterError(f"contact = {contact!r} is not allowed: must be a rollingdem.ContactModel")
@@ -69,6 +85,7 @@ class Simulation:
         self._inflows: list = []  # rollingdem.boundaries.Inflow
         self._engine_walls: list[Wall] = []  # the walls in place, in the engine's order
         self._state = EngineState(self.contact.history_size)
+        self.backend = default_backend() if backend is None else backend
         self.periodic = self._check_periodic(periodic)
         self._state.contact_list.box = periodic_box(self.periodic)
         self.step = 0
@@ -85,6 +102,20 @@ class Simulation:
                       "allow_overlap": "pass allow_overlap=True"}
 
     # --- scene ---------------------------------------------------------------------------------
+    @property
+    def backend(self) -> str:
+        return self._state.backend
+
+    @backend.setter
+    def backend(self, value):
+        if value not in BACKENDS:
+            raise ParameterError(f"backend = {value!r} is not allowed: must be one of {', '.join(BACKENDS)}")
+        if value == "cuda":
+            from .cuda_target import require
+
+            require()
+        self._state.backend = value
+
     @property
     def gravity(self) -> tuple[float, float, float]:
         return tuple(self._gravity)
@@ -730,10 +761,12 @@ class Simulation:
         """The compiled engine module this simulation steps with (``rollingdem.kernels``)."""
         st = self._state
         bonded_pairs = bool(len(st.bond_pairs))
-        key = (id(self.contact), self.track_energy, st.serial(), bonded_pairs)
+        # the GPU steps with the module's functions, not its CPU step loop: nothing to compile ahead
+        serial = None if st.backend == "cuda" else st.serial()
+        key = (id(self.contact), self.track_energy, serial, bonded_pairs)
         held = self._modules.get(key)
         if held is None or held[0] is not self.contact:
-            held = self._modules[key] = (self.contact, engine_module(self.contact, self.track_energy, serial=key[2],
+            held = self._modules[key] = (self.contact, engine_module(self.contact, self.track_energy, serial=serial,
                                                                      bonded_pairs=bonded_pairs))
         return held[1]
 
@@ -1008,9 +1041,10 @@ class Simulation:
         return path
 
     @classmethod
-    def restore(cls, path) -> "Simulation":
+    def restore(cls, path, backend: str | None = None) -> "Simulation":
         """The simulation a checkpoint (``Simulation.checkpoint``, ``Checkpoints``, a run's
-        ``final.npz``) holds."""
+        ``final.npz``) holds, to step on ``backend`` (a checkpoint does not depend on the backend
+        that wrote it)."""
         path = Path(path)
         what = "must be a checkpoint .npz file written by Simulation.checkpoint"
         if not path.exists():
@@ -1045,6 +1079,7 @@ class Simulation:
                 mat = wd.pop("material")
                 sim._walls.append(wall_from_dict(wd, mat))
         sim._state = EngineState.from_arrays(arrays, contact.history_size)
+        sim.backend = default_backend() if backend is None else backend
         st = sim._state
         in_place = np.flatnonzero(st.wall_kind != INACTIVE)
         if len(in_place) < len(st.wall_kind):  # a checkpoint of before 2026-12-02 keeps removed walls

@@ -1,0 +1,196 @@
+"""The step loop on a CUDA GPU (``Simulation(backend="cuda")``, docs/gpu.md).
+
+The same step as the CPU engine's ``advance`` (``rollingdem.engine_kernel``), with its passes as
+CUDA kernels around the very functions the CPU compiles from the same generated module: the contact
+laws, the pair row, the gather, the walls, the bonds, the integrator. One physics source; only the
+driving differs:
+
+- pair pass: one thread per group of ``POOL_GROUP`` list rows (the rows that share a part of the
+  contact pool, which a thread must own), each row through the scalar ``pair_row`` (``pair_rows_scalar``);
+- bonds: one thread (``bond_forces``), each bond writing its own row;
+- gather: one thread per particle (``gather_rows`` on one particle): its own row's sum, the
+  entries where it is the second partner in list order, walls, gravity, the kicks and the drift;
+- neighbor list: rebuilt on the host between steps (the CPU's ``_rebuild``), the arrays copied
+  there and back.
+
+No force is summed with atomics: every particle's force is written by one thread in a fixed order,
+so runs are deterministic. The only atomics add up the step's two flag counts (integers).
+"""
+
+from __future__ import annotations
+
+import collections
+
+import numpy as np
+
+from . import cuda_target
+from .kernel_layout import (I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
+                            STATUS_TOO_FAST)
+from .neighbors import POOL_GROUP
+
+#: what a kernel needs besides the records; the flags count particles past skin/2 and too fast
+StepInputs = collections.namedtuple("StepInputs", ("gravity", "pair_params", "flags"))
+EXCEED, FAST = 0, 1
+
+_KERNELS = {}
+# ``numba.cuda``, from ``cuda_target`` when the first kernels are made: a global of this module, as
+# the kernels use it (the simulator swaps such a global for its own while they run)
+cuda = None
+
+
+def kernel_bodies(module) -> dict:
+    """The Python bodies of the CUDA kernels of an engine module (``rollingdem.kernels``), by name:
+    what ``cuda_kernels`` compiles, and what the PTX check compiles without a device."""
+    global cuda
+    cuda = cuda_target.cuda_module()
+    pair_rows_scalar, gather_rows, bond_forces = module.pair_rows_scalar, module.gather_rows, module.bond_forces
+    kick_drift_range, move_walls, move_meshes = module.kick_drift_range, module.move_walls, module.move_meshes
+    group = POOL_GROUP
+
+    def pairs(dt, particles, lists, step):
+        g = cuda.grid(1)
+        n = particles.x.shape[0]
+        if g * group < n:
+            pair_rows_scalar(g * group, min((g + 1) * group, n), dt, particles, lists, step.pair_params)
+
+    def bonds(dt, particles, lists):
+        if cuda.grid(1) == 0:
+            bond_forces(dt, particles, lists.box)
+
+    def gather(dt, kick, half_skin, particles, walls, lists, step):
+        i = cuda.grid(1)
+        if i < particles.x.shape[0]:
+            exceed, fast = gather_rows(i, i + 1, dt, kick, step.gravity, particles, walls, lists, step.pair_params,
+                                       half_skin)
+            if exceed:
+                cuda.atomic.add(step.flags, EXCEED, exceed)
+            if fast:
+                cuda.atomic.add(step.flags, FAST, fast)
+
+    def drift(dt, half_skin, particles, step):
+        i = cuda.grid(1)
+        if i < particles.x.shape[0]:
+            exceed = kick_drift_range(i, i + 1, dt, particles, half_skin)
+            if exceed:
+                cuda.atomic.add(step.flags, EXCEED, exceed)
+
+    def walls_move(dt, half_skin, walls, step):
+        if cuda.grid(1) == 0:
+            move_walls(dt, walls)
+            step.flags[EXCEED] += move_meshes(dt, walls, half_skin)
+
+    return dict(pairs=pairs, bonds=bonds, gather=gather, drift=drift, walls_move=walls_move)
+
+
+def cuda_kernels(module) -> dict:
+    """The CUDA kernels of an engine module, by name, made once (each compiled at its first launch)."""
+    kernels = _KERNELS.get(module.__name__)
+    if kernels is None:
+        cuda_target.require()
+        kernels = _KERNELS[module.__name__] = {name: cuda_target.kernel(body)
+                                               for name, body in kernel_bodies(module).items()}
+    return kernels
+
+
+class CudaStepLoop:
+    """A drop-in for the engine module's ``advance``: the same arguments (host records), the same
+    ``info`` bookkeeping, the steps on the GPU. The records go to the device at the call's start and
+    come back at its end and around each neighbor-list rebuild."""
+
+    def __init__(self, module):
+        self.module = module
+        self.kernels = cuda_kernels(module)
+
+    def __call__(self, nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info):
+        m, k = self.module, self.kernels
+        n = particles.x.shape[0]
+        groups = (n + POOL_GROUP - 1) // POOL_GROUP
+        half_skin = 0.5 * skin
+        host = (particles, walls, lists, StepInputs(np.asarray(gravity, dtype=np.float64), pair_params,
+                                                    np.zeros(2, dtype=np.int64)))
+        info[I_STATUS] = 0
+        info[I_STEPS_DONE] = 0
+        has_bonds = particles.bond_pairs.shape[0] != 0
+
+        def forces(dt_bonds, kick, dev):
+            cuda_target.launch(k["pairs"], groups, dt, dev[0], dev[2], dev[3])
+            if has_bonds:
+                cuda_target.launch(k["bonds"], 1, dt_bonds, dev[0], dev[2])
+            return self._flags(dev, lambda: cuda_target.launch(k["gather"], n, dt, kick, half_skin, *dev))
+
+        if info[I_FORCES_VALID] == 0:
+            info[I_DRIFTED] = 0
+            if not m._rebuild(particles, walls, lists, skin, info):
+                return
+            dev = self._upload(host)
+            try:
+                # as in ``advance``: a fresh bond adds no increment in this evaluation (dt 0)
+                _, fast = forces(0.0, 0.0, dev)
+            except BaseException:
+                self._download(dev, host)
+                raise
+            info[I_TOO_FAST] = fast
+            info[I_NEED_REBUILD] = 0
+            info[I_FORCES_VALID] = 1
+        else:
+            dev = self._upload(host)
+        try:
+            for step in range(nsteps):
+                if info[I_DRIFTED] == 0:
+                    if info[I_TOO_FAST] > 0:
+                        info[I_STATUS] = STATUS_TOO_FAST
+                        return
+                    exceed, _ = self._flags(dev, lambda: (
+                        cuda_target.launch(k["drift"], n, dt, half_skin, dev[0], dev[3]),
+                        cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3])))
+                    info[I_NEED_REBUILD] += exceed
+                    info[I_DRIFTED] = 1
+                if info[I_NEED_REBUILD] > 0:
+                    self._download(dev, host)
+                    dev = None
+                    if not m._rebuild(particles, walls, lists, skin, info):
+                        return  # drifted: the call after the arrays grow goes on from here
+                    info[I_NEED_REBUILD] = 0
+                    dev = self._upload(host)
+                drift = step + 1 < nsteps
+                exceed, fast = forces(dt, 2.0 if drift else 1.0, dev)
+                info[I_NEED_REBUILD] = exceed
+                info[I_TOO_FAST] = fast
+                info[I_STEPS_DONE] = step + 1
+                info[I_DRIFTED] = 0
+                if drift:
+                    if fast > 0:
+                        self._download(dev, host)
+                        dev = None
+                        m.undo_drift(dt, particles)
+                        info[I_STATUS] = STATUS_TOO_FAST
+                        return
+                    exceed, _ = self._flags(dev, lambda: cuda_target.launch(k["walls_move"], 1, dt, half_skin,
+                                                                            dev[1], dev[3]))
+                    info[I_NEED_REBUILD] += exceed
+                    info[I_DRIFTED] = 1
+        finally:
+            if dev is not None:
+                self._download(dev, host)
+
+    @staticmethod
+    def _flags(dev, launch):
+        """Zero the flag counts, run ``launch``, and read them back (a synchronisation)."""
+        flags = dev[3].flags
+        if cuda_target.simulated():
+            flags[:] = 0
+            launch()
+            return int(flags[EXCEED]), int(flags[FAST])
+        flags.copy_to_device(np.zeros(2, dtype=np.int64))
+        launch()
+        out = flags.copy_to_host()
+        return int(out[EXCEED]), int(out[FAST])
+
+    @staticmethod
+    def _upload(host):
+        return tuple(cuda_target.to_device(r) for r in host)
+
+    @staticmethod
+    def _download(dev, host):
+        for d, h in zip(dev[:3], host[:3]):
+            cuda_target.to_host(d, h)

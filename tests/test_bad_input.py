@@ -143,6 +143,8 @@ CATALOGUE = [
      "periodic y length = 0.01 m is not allowed: must be at least 2 (2 R_max + skin)"),
     ("periodic axis that does not exist", edit("walls:", "periodic: {w: [0, 1]}\nwalls:"),
      "key 'periodic.w': not a known key"),
+    ("unknown backend", edit("walls:", "backend: gpu\nwalls:"),
+     "backend = 'gpu' is not allowed: must be one of cpu, cuda"),
     ("outlet that holds every particle",
      edit("stages:", "outlets:\n  - {region: {type: box, lo: [-1, -1, -1], hi: [1, 1, 1]}}\nstages:"),
      "outlets.0: outlet region BoxRegion(lo=[-1.0, -1.0, -1.0], hi=[1.0, 1.0, 1.0]) is not allowed: it contains every"),
@@ -394,6 +396,8 @@ def test_commands_refuse_bad_files_and_options_in_one_line(tmp_path, afile):
     _refused(["run", case, "--out", afile, "--no-progress"], "is not allowed: it is a file; must be a folder")
     _refused(["run", case, "--out", afile / "sub", "--no-progress"], "is a file; must be a folder")
     _refused(["run", case, "--threads", 0], "--threads = 0 is not allowed")
+    for cmd in (["run", case, "--no-progress"], ["bench"], ["validate", "--out", tmp_path / "v", "--no-progress"]):
+        _refused(cmd + ["--backend", "gpu"], "backend = 'gpu' is not allowed: must be one of cpu, cuda")
     _refused(["bench", "--scene", "nope"], "scene = nope is not known: allowed are")
     _refused(["bench", "--from-dump", tmp_path], "--from-dump = ")
     _refused(["bench", "--json", tmp_path], "it is a folder; must be a file name")

@@ -75,6 +75,7 @@ class BenchResult:
     split_s_per_step: dict = field(default_factory=dict)
     peak_rss_mb: float = math.nan
     state_bytes_per_particle: float = math.nan
+    device_memory_bytes_per_particle: float = 0.0  # on the GPU: the arrays the step loop sends there
     note: str = ""
 
     def as_dict(self) -> dict:
@@ -363,7 +364,16 @@ def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="
                        neighbors_per_particle=neighbors, rebuilds=rebuilds,
                        split_s_per_step=_split(sim, split_repeats, rebuilds, steps) if sim.backend == "cpu" else {},
                        peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-                       state_bytes_per_particle=state_bytes / n, note=note)
+                       state_bytes_per_particle=state_bytes / n, note=note,
+                       device_memory_bytes_per_particle=_device_bytes(sim) / n)
+
+
+def _device_bytes(sim) -> int:
+    """The bytes of the records the GPU's step loop holds on the device (0 on the CPU)."""
+    if sim.backend == "cpu":
+        return 0
+    particles, walls, lists, _ = sim._state.records()
+    return sum(a.nbytes for record in (particles, walls, lists) for a in record)
 
 
 def _timed_on(sim, backend: str, steps: int, particles: int) -> tuple[float, float, int]:
@@ -688,7 +698,9 @@ def format_row(r: BenchResult) -> str:
             f"wall {r.wall_s:8.2f} s  {r.particle_steps_per_s / 1e6:7.2f} M particle-steps/s  "
             f"compile/load {r.compile_s:5.1f} s  contacts/p {r.contacts_per_particle:.2f}  "
             f"neighbors/p {r.neighbors_per_particle:.2f}  rebuilds {r.rebuilds}  "
-            f"state {r.state_bytes_per_particle:.0f} B/p  peak RSS {r.peak_rss_mb:.0f} MB\n"
+            f"state {r.state_bytes_per_particle:.0f} B/p  peak RSS {r.peak_rss_mb:.0f} MB"
+            + (f"  device {r.device_memory_bytes_per_particle:.0f} B/p" if r.device_memory_bytes_per_particle else "")
+            + "\n"
             f"{'':17s}per step: {split}" + (f"\n{'':17s}{r.note}" if r.note else ""))
 
 

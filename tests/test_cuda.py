@@ -98,8 +98,27 @@ SCENES = textwrap.dedent('''
             assert sim.unwrapped_positions[4, 0] > 0.004 > sim.positions[4, 0]
         return sim
 
+    def handed_over(backend):
+        """The pair's first 300 steps on the other backend, checkpointed, restored on ``backend``
+        for the last 300: a checkpoint does not depend on the backend that wrote it."""
+        import tempfile
+
+        other = "cpu" if backend == "cuda" else "cuda"
+        sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), dt=2e-6, backend=other)
+        material(sim, 0.2)
+        sim.add_particles([[0, 0, 0.0012], [0.0003, 0, -0.0012]], radius=1e-3, material=["glass", "glass 2"],
+                          velocity=[[0, 0, -0.5], [0, 0, 0.5]], angular_velocity=[[0, 3, 0], [1, 0, 0]])
+        sim.add_wall(rd.Plane(point=(0, 0, -0.003), normal=(0, 0, 1)))
+        sim.run(steps=300)
+        with tempfile.TemporaryDirectory() as folder:
+            path = sim.checkpoint(folder + "/c.npz")
+            sim = rd.Simulation.restore(path, backend=backend)
+        assert sim.backend == backend
+        sim.run(steps=300)
+        return sim
+
     out = {}
-    for name, make in (("mesh, bonds, periodic", bonded), ("pair", pair), ("pair of one material", lambda b: pair(b, ("glass", "glass"))),
+    for name, make in (("mesh, bonds, periodic", bonded), ("checkpoint handed over", handed_over), ("pair", pair), ("pair of one material", lambda b: pair(b, ("glass", "glass"))),
                        ("rolling epsd flat", lambda b: rolling(b, "epsd", 0.0)),
                        ("rolling cdt flat", lambda b: rolling(b, "cdt", 0.0)),
                        ("rolling epsd slope", lambda b: rolling(b, "epsd", 0.05)),
@@ -123,14 +142,15 @@ def simulated():
 
 
 @pytest.mark.parametrize("scene", ["pair", "rolling epsd flat", "rolling cdt flat", "rolling epsd slope",
-                                   "rolling cdt slope", "pile", "mesh, bonds, periodic"])
+                                   "rolling cdt slope", "pile", "mesh, bonds, periodic", "checkpoint handed over"])
 def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene):
     """Positions, velocities and spins after the run equal the CPU engine's bit for bit, and so do
     the contact counts: the GPU's kernels run the same compiled functions in the same order (each
     particle's force summed by one thread, in list order). The scenes take every kernel: pairs,
     walls, the kicks and the drift, neighbor-list rebuilds (the pile's spheres move more than
     skin/2), EPSD and CDT rolling on a flat and a sloped floor, and bonds (one breaking), a moving
-    triangle mesh, a fixed sphere and a periodic box. Their spheres are of two
+    triangle mesh, a fixed sphere and a periodic box. A checkpoint written on one backend restores
+    on the other and goes on as the run on that backend would. Their spheres are of two
     materials (the same glass), so that the CPU too takes the scalar pair path; the pile, 27
     spheres thrown into a box, amplifies a difference of one unit in the last place to 1e-7 m
     within 1000 steps, so it would show any."""
@@ -160,6 +180,9 @@ def test_the_scenes_exercise_what_they_claim(simulated):
     for model in ("epsd", "cdt"):
         assert np.asarray(simulated[f"rolling {model} flat"]["cpu"]["v"])[0, 0] < 0.1
     assert np.asarray(simulated["pile"]["cpu"]["v"])[:, 2].max() > 0
+    # the hand-over's two halves are the pair's 600 steps: its CPU half started on the GPU
+    for key in ("x", "v", "w"):
+        assert np.array_equal(simulated["checkpoint handed over"]["cpu"][key], simulated["pair"]["cpu"][key])
 
 
 def test_every_kernel_compiles_to_ptx_without_a_device():

@@ -132,13 +132,64 @@ SCENES = textwrap.dedent('''
 ''')
 
 
+PTX = textwrap.dedent('''
+    import numpy as np
+    from numba import typeof
+    import rollingdem as rd
+    from rollingdem import cuda_target, gpu_engine
+    from rollingdem.gpu_engine import StepInputs
+    from rollingdem.kernels import engine_module
+
+    sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"))
+    sim.add_material(rd.Material("m", youngs_modulus=1e7, poisson_ratio=0.3, density=2500.0))
+    sim.add_particles([[0, 0, 0.0011], [0, 0, -0.0011]], radius=1e-3, material="m")
+    sim.add_bonds(rd.ParallelBond(youngs_modulus=1e7, tensile_strength=1e6, cohesion=1e6), gap=1e-3)
+    sim.add_wall(rd.Plane(point=(0, 0, -0.01), normal=(0, 0, 1)))
+    # the module, not its CPU step loop: nothing is compiled for the CPU here
+    module = engine_module(sim.contact, sim.track_energy, bonded_pairs=True)
+    particles, walls, lists, _ = sim._state.records()
+    step = StepInputs(np.zeros(3), sim.pair_parameters(), np.zeros(2, dtype=np.int64))
+    args = dict(pairs=(1e-6, particles, lists, step), bonds=(1e-6, particles, lists),
+                gather=(1e-6, 2.0, 1e-4, particles, walls, lists, step), drift=(1e-6, 1e-4, particles, step),
+                walls_move=(1e-6, 1e-4, walls, step))
+    bodies = gpu_engine.kernel_bodies(module)
+    assert sorted(bodies) == sorted(args)
+    for cc in cuda_target.PTX_TARGETS:
+        for name, body in bodies.items():
+            ptx = cuda_target.compile_ptx(body, tuple(typeof(a) for a in args[name]), cc)
+            assert f".target sm_{cc[0]}{cc[1]}" in ptx, name
+            print(name, cc, len(ptx))
+    ''')
+
+
+class Child:
+    """A child Python process running ``code`` when its result is first asked for. One at a time:
+    run side by side they were slower, as each starts compile helpers of its own (2 cores)."""
+
+    def __init__(self, code, env):
+        self.code, self.env, self.done = code, env, None
+
+    def result(self):
+        if self.done is None:
+            self.done = subprocess.run([sys.executable, "-c", self.code], capture_output=True, text=True,
+                                       env=self.env, timeout=900)
+        return self.done.returncode, self.done.stdout, self.done.stderr
+
+
 @pytest.fixture(scope="module")
-def simulated():
+def children():
+    """The simulator's scenes and the PTX check, each in a child process: the simulator's switch is
+    read when ``numba.cuda`` is first imported, and the PTX check must not see it."""
+    cpu_only = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
+    return {"simulated": Child(SCENES, dict(os.environ, NUMBA_ENABLE_CUDASIM="1")), "ptx": Child(PTX, cpu_only)}
+
+
+@pytest.fixture(scope="module")
+def simulated(children):
     """Every scene run on the CPU engine and on the CUDA simulator, in one child process."""
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
-    done = subprocess.run([sys.executable, "-c", SCENES], capture_output=True, text=True, env=env, timeout=900)
-    assert done.returncode == 0, done.stderr[-3000:]
-    return json.loads(done.stdout)
+    returncode, stdout, stderr = children["simulated"].result()
+    assert returncode == 0, stderr[-3000:]
+    return json.loads(stdout)
 
 
 @pytest.mark.parametrize("scene", ["pair", "rolling epsd flat", "rolling cdt flat", "rolling epsd slope",
@@ -185,42 +236,14 @@ def test_the_scenes_exercise_what_they_claim(simulated):
         assert np.array_equal(simulated["checkpoint handed over"]["cpu"][key], simulated["pair"]["cpu"][key])
 
 
-def test_every_kernel_compiles_to_ptx_without_a_device():
+def test_every_kernel_compiles_to_ptx_without_a_device(children):
     """Each CUDA kernel, typed for a scene with pairs, walls and bonds, compiles to PTX for compute
     capabilities 8.0 and 9.0 with NVIDIA's NVVM (the ``nvidia-cuda-nvcc-cu12`` package): no GPU or
     driver is needed, and what the simulator accepts but the real compiler rejects fails here."""
     pytest.importorskip("numba_cuda", reason="numba-cuda is in the test extra")
-    code = textwrap.dedent('''
-        import numpy as np
-        from numba import typeof
-        import rollingdem as rd
-        from rollingdem import cuda_target, gpu_engine
-        from rollingdem.gpu_engine import StepInputs
-
-        sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"))
-        sim.add_material(rd.Material("m", youngs_modulus=1e7, poisson_ratio=0.3, density=2500.0))
-        sim.add_particles([[0, 0, 0.0011], [0, 0, -0.0011]], radius=1e-3, material="m")
-        sim.add_bonds(rd.ParallelBond(youngs_modulus=1e7, tensile_strength=1e6, cohesion=1e6), gap=1e-3)
-        sim.add_wall(rd.Plane(point=(0, 0, -0.01), normal=(0, 0, 1)))
-        sim.run(steps=1)
-        module = sim.engine_module()
-        particles, walls, lists, _ = sim._state.records()
-        step = StepInputs(np.zeros(3), sim.pair_parameters(), np.zeros(2, dtype=np.int64))
-        args = dict(pairs=(1e-6, particles, lists, step), bonds=(1e-6, particles, lists),
-                    gather=(1e-6, 2.0, 1e-4, particles, walls, lists, step), drift=(1e-6, 1e-4, particles, step),
-                    walls_move=(1e-6, 1e-4, walls, step))
-        bodies = gpu_engine.kernel_bodies(module)
-        assert sorted(bodies) == sorted(args)
-        for cc in cuda_target.PTX_TARGETS:
-            for name, body in bodies.items():
-                ptx = cuda_target.compile_ptx(body, tuple(typeof(a) for a in args[name]), cc)
-                assert f".target sm_{cc[0]}{cc[1]}" in ptx, name
-                print(name, cc, len(ptx))
-    ''')
-    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=900)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert done.stdout.count("\n") == 10
+    returncode, stdout, stderr = children["ptx"].result()
+    assert returncode == 0, stderr[-3000:]
+    assert stdout.count("\n") == 10
 
 
 def test_a_missing_gpu_is_one_clear_line():

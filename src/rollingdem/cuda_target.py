@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 from .errors import ParameterError
 
 #: compute capabilities the PTX check compiles for: A100 (8.0) and H100/H200 (9.0)
@@ -100,6 +102,13 @@ def to_host(device_record, host_record) -> None:
         return
     for d, h in zip(device_record, host_record):
         d.copy_to_host(h)
+
+
+def array_to_host(device_array) -> np.ndarray:
+    """A device array's values on the host (the simulator's is a host array already)."""
+    if simulated() or isinstance(device_array, np.ndarray):
+        return device_array
+    return device_array.copy_to_host()
 
 
 def compile_ptx(function, argument_types, cc) -> str:

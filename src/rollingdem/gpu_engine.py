@@ -5,8 +5,10 @@ CUDA kernels around the very functions the CPU compiles from the same generated 
 laws, the pair row, the gather, the walls, the bonds, the integrator. One physics source; only the
 driving differs:
 
-- pair pass: one thread per group of ``POOL_GROUP`` list rows (the rows that share a part of the
-  contact pool, which a thread must own), each row through the scalar ``pair_row`` (``pair_rows_scalar``);
+- pair pass: one thread per list row, through the scalar ``pair_row`` (``pair_rows_scalar``); the
+  module is compiled with ``ENTRY_POOL``, so that entry k's contact keeps pool row k (the CPU's
+  rows share their group's rows, which one thread must own). The history goes to that layout on
+  the way to the device and back to the CPU's on the way home;
 - bonds: one thread (``bond_forces``), each bond writing its own row;
 - gather: one thread per particle (``gather_rows`` on one particle): its own row's sum, the
   entries where it is the second partner in list order, walls, gravity, the kicks and the drift;
@@ -26,7 +28,7 @@ import numpy as np
 from . import cuda_target
 from .kernel_layout import (I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
                             STATUS_TOO_FAST)
-from .neighbors import POOL_GROUP
+from .neighbors import put_entry_history
 
 #: what a kernel needs besides the records; the flags count particles past skin/2 and too fast
 StepInputs = collections.namedtuple("StepInputs", ("gravity", "pair_params", "flags"))
@@ -45,13 +47,11 @@ def kernel_bodies(module) -> dict:
     cuda = cuda_target.cuda_module()
     pair_rows_scalar, gather_rows, bond_forces = module.pair_rows_scalar, module.gather_rows, module.bond_forces
     kick_drift_range, move_walls, move_meshes = module.kick_drift_range, module.move_walls, module.move_meshes
-    group = POOL_GROUP
 
     def pairs(dt, particles, lists, step):
-        g = cuda.grid(1)
-        n = particles.x.shape[0]
-        if g * group < n:
-            pair_rows_scalar(g * group, min((g + 1) * group, n), dt, particles, lists, step.pair_params)
+        i = cuda.grid(1)
+        if i < particles.x.shape[0]:
+            pair_rows_scalar(i, i + 1, dt, particles, lists, step.pair_params)
 
     def bonds(dt, particles, lists):
         if cuda.grid(1) == 0:
@@ -98,13 +98,14 @@ class CudaStepLoop:
     come back at its end and around each neighbor-list rebuild."""
 
     def __init__(self, module):
+        if not module.ENTRY_POOL:
+            raise ValueError("the GPU steps with a module compiled with entry_pool=True (rollingdem.kernels)")
         self.module = module
         self.kernels = cuda_kernels(module)
 
     def __call__(self, nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info):
         m, k = self.module, self.kernels
         n = particles.x.shape[0]
-        groups = (n + POOL_GROUP - 1) // POOL_GROUP
         half_skin = 0.5 * skin
         host = (particles, walls, lists, StepInputs(np.asarray(gravity, dtype=np.float64), pair_params,
                                                     np.zeros(2, dtype=np.int64)))
@@ -113,7 +114,7 @@ class CudaStepLoop:
         has_bonds = particles.bond_pairs.shape[0] != 0
 
         def forces(dt_bonds, kick, dev):
-            cuda_target.launch(k["pairs"], groups, dt, dev[0], dev[2], dev[3])
+            cuda_target.launch(k["pairs"], n, dt, dev[0], dev[2], dev[3])
             if has_bonds:
                 cuda_target.launch(k["bonds"], 1, dt_bonds, dev[0], dev[2])
             return self._flags(dev, lambda: cuda_target.launch(k["gather"], n, dt, kick, half_skin, *dev))
@@ -122,18 +123,18 @@ class CudaStepLoop:
             info[I_DRIFTED] = 0
             if not m._rebuild(particles, walls, lists, skin, info):
                 return
-            dev = self._upload(host)
+            dev = self._upload(host, m.HISTORY_SIZE)
             try:
                 # as in ``advance``: a fresh bond adds no increment in this evaluation (dt 0)
                 _, fast = forces(0.0, 0.0, dev)
             except BaseException:
-                self._download(dev, host)
+                self._download(dev, host, m.HISTORY_SIZE)
                 raise
             info[I_TOO_FAST] = fast
             info[I_NEED_REBUILD] = 0
             info[I_FORCES_VALID] = 1
         else:
-            dev = self._upload(host)
+            dev = self._upload(host, m.HISTORY_SIZE)
         try:
             for step in range(nsteps):
                 if info[I_DRIFTED] == 0:
@@ -146,12 +147,12 @@ class CudaStepLoop:
                     info[I_NEED_REBUILD] += exceed
                     info[I_DRIFTED] = 1
                 if info[I_NEED_REBUILD] > 0:
-                    self._download(dev, host)
+                    self._download(dev, host, m.HISTORY_SIZE)
                     dev = None
                     if not m._rebuild(particles, walls, lists, skin, info):
                         return  # drifted: the call after the arrays grow goes on from here
                     info[I_NEED_REBUILD] = 0
-                    dev = self._upload(host)
+                    dev = self._upload(host, m.HISTORY_SIZE)
                 drift = step + 1 < nsteps
                 exceed, fast = forces(dt, 2.0 if drift else 1.0, dev)
                 info[I_NEED_REBUILD] = exceed
@@ -160,7 +161,7 @@ class CudaStepLoop:
                 info[I_DRIFTED] = 0
                 if drift:
                     if fast > 0:
-                        self._download(dev, host)
+                        self._download(dev, host, m.HISTORY_SIZE)
                         dev = None
                         m.undo_drift(dt, particles)
                         info[I_STATUS] = STATUS_TOO_FAST
@@ -171,7 +172,7 @@ class CudaStepLoop:
                     info[I_DRIFTED] = 1
         finally:
             if dev is not None:
-                self._download(dev, host)
+                self._download(dev, host, m.HISTORY_SIZE)
 
     @staticmethod
     def _flags(dev, launch):
@@ -187,10 +188,26 @@ class CudaStepLoop:
         return int(out[EXCEED]), int(out[FAST])
 
     @staticmethod
-    def _upload(host):
-        return tuple(cuda_target.to_device(r) for r in host)
+    def _upload(host, history_size):
+        """The records on the device, the list's contacts moved to a pool row per entry."""
+        particles, walls, lists, step = host
+        total = int(lists.start[-1]) if lists.start.size else 0
+        rows = lists.contact_row[:total]
+        touching = np.nonzero(rows >= 0)[0]
+        pool = np.zeros_like(lists.pool)
+        pool[touching, :history_size] = lists.pool[rows[touching], :history_size]
+        contact_row = np.full_like(lists.contact_row, -1)
+        contact_row[touching] = touching
+        by_entry = lists._replace(pool=pool, contact_row=contact_row)
+        return tuple(cuda_target.to_device(r) for r in (particles, walls, by_entry, step))
 
     @staticmethod
-    def _download(dev, host):
-        for d, h in zip(dev[:3], host[:3]):
+    def _download(dev, host, history_size):
+        """The particles and walls back in place; the contacts back in the CPU's pool layout."""
+        for d, h in zip(dev[:2], host[:2]):
             cuda_target.to_host(d, h)
+        lists = host[2]
+        total = int(lists.start[-1]) if lists.start.size else 0
+        pool, contact_row = cuda_target.array_to_host(dev[2].pool), cuda_target.array_to_host(dev[2].contact_row)
+        hist = np.where((contact_row[:total] >= 0)[:, None], pool[:total, :history_size], 0.0)
+        put_entry_history(lists, hist, history_size)

@@ -527,19 +527,26 @@ class ContactList:
 
     def set_entry_history(self, hist: np.ndarray) -> None:
         """Put a history per entry (``entry_history``'s layout) into the pool, as a rebuild leaves
-        it: an entry is in contact iff it keeps a contact normal, each group's contacts at the
-        front of its rows in list order. Needs ``i`` (``index``)."""
-        total = self.size
-        touching = np.nonzero(np.any(hist[:total, :3] != 0.0, axis=1))[0]
-        group = self.i[touching] // POOL_GROUP
-        first_entry = self.start[np.minimum(np.arange(len(self.groups)) * POOL_GROUP, self.rows)]
-        rank = np.arange(len(touching)) - np.searchsorted(group, group)  # in its group, in list order
-        rows = first_entry[group] + rank
-        self.contact_row[:total] = -1
-        self.contact_row[touching] = rows
-        self.pool[rows, :self.history_size] = hist[touching]
-        self.groups[:, 0] = -1
-        self.groups[:, 1] = first_entry + np.bincount(group, minlength=len(self.groups))
+        it (``put_entry_history``). Needs ``i`` (``index``)."""
+        put_entry_history(self.arrays(), hist, self.history_size)
 
 
-__all__ = ["ContactList", "rebuild_neighbor_list", "list_rows", "brute_force_pairs", "spatial_order"]
+def put_entry_history(lists, hist: np.ndarray, history_size: int) -> None:
+    """Put a history per entry into a list record's pool, as a rebuild leaves it: an entry is in
+    contact iff it keeps a contact normal, each group's contacts at the front of its rows in list
+    order. Needs ``lists.i``."""
+    total = int(lists.start[-1]) if lists.start.size else 0
+    rows_n = lists.start.shape[0] - 1
+    touching = np.nonzero(np.any(hist[:total, :3] != 0.0, axis=1))[0]
+    group = lists.i[touching] // POOL_GROUP
+    first_entry = lists.start[np.minimum(np.arange(len(lists.groups)) * POOL_GROUP, rows_n)]
+    rank = np.arange(len(touching)) - np.searchsorted(group, group)  # in its group, in list order
+    rows = first_entry[group] + rank
+    lists.contact_row[:total] = -1
+    lists.contact_row[touching] = rows
+    lists.pool[rows, :history_size] = hist[touching]
+    lists.groups[:, 0] = -1
+    lists.groups[:, 1] = first_entry + np.bincount(group, minlength=len(lists.groups))
+
+
+__all__ = ["ContactList", "put_entry_history", "rebuild_neighbor_list", "list_rows", "brute_force_pairs", "spatial_order"]

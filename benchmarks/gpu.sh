@@ -36,14 +36,14 @@ print("rollingdem", rollingdem.__version__, "numba", numba.__version__, "numba-c
 EOF
 
 # the quick validation cases of a few spheres each, on the GPU backend
-part validate 240 rollingdem validate --backend cuda --quick -c rolling-flat -c rolling-slope -c inclined-wall \
+part validate 120 rollingdem validate --backend cuda --quick -c rolling-flat -c rolling-slope -c inclined-wall \
   -w 1 --no-progress -o "$out/validate"
 
 # speed: the slab (EPSD, Hertz with history) at 20,000, 10^6 and 10^7 spheres; the column-collapse at 20,000
-part slab-20k 90 rollingdem bench --backend cuda -s slab -n 20000 --steps 500 --json "$out/slab-20k.json"
-part slab-1M 150 rollingdem bench --backend cuda -s slab -n 1000000 --steps 100 --json "$out/slab-1M.json"
-part slab-10M 200 rollingdem bench --backend cuda -s slab -n 10000000 --steps 20 --json "$out/slab-10M.json"
-part collapse-20k 150 rollingdem bench --backend cuda -s column-collapse -n 20000 --steps 2000 \
+part slab-20k 60 rollingdem bench --backend cuda -s slab -n 20000 --steps 500 --json "$out/slab-20k.json"
+part slab-1M 110 rollingdem bench --backend cuda -s slab -n 1000000 --steps 100 --json "$out/slab-1M.json"
+part slab-10M 150 rollingdem bench --backend cuda -s slab -n 10000000 --steps 20 --json "$out/slab-10M.json"
+part collapse-20k 90 rollingdem bench --backend cuda -s column-collapse -n 20000 --steps 2000 \
   --json "$out/collapse-20k.json"
 python3 - "$out" <<'EOF'
 import json, pathlib, sys

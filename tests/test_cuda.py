@@ -146,7 +146,7 @@ PTX = textwrap.dedent('''
     sim.add_bonds(rd.ParallelBond(youngs_modulus=1e7, tensile_strength=1e6, cohesion=1e6), gap=1e-3)
     sim.add_wall(rd.Plane(point=(0, 0, -0.01), normal=(0, 0, 1)))
     # the module, not its CPU step loop: nothing is compiled for the CPU here
-    module = engine_module(sim.contact, sim.track_energy, bonded_pairs=True, entry_pool=True)
+    module = engine_module(sim.contact, sim.track_energy, bonded_pairs=True)
     particles, walls, lists, _ = sim._state.records()
     step = StepInputs(np.zeros(3), sim.pair_parameters(), np.zeros(2, dtype=np.int64))
     args = dict(pairs=(1e-6, particles, lists, step), bonds=(1e-6, particles, lists),

@@ -46,9 +46,6 @@ TRACK_ENERGY = 1  # @@TRACK_ENERGY
 # keeps its pair's contact off, a parallel one its rolling and twisting moments) costs the pair pass
 # of every other scene a third
 BONDED_PAIRS = 0  # @@BONDED_PAIRS
-# the GPU's contact pool (rollingdem.gpu_engine): entry k's contact keeps pool row k, so that each
-# list row may start and end its contacts on a thread of its own (the CPU's rows share a group's)
-ENTRY_POOL = 0  # @@ENTRY_POOL
 ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
 N_PARAMS = 8  # @@N_PARAMS
@@ -245,14 +242,17 @@ def entry_inputs(i, k, particles, lists):
                                          and d2 < (reach + lists.pool[row, DETACH_AT]) * (reach + lists.pool[row, DETACH_AT]))
     if BONDED_PAIRS and not apart:
         apart = bonded(uint64(i), uint64(j), particles, True)
+    # a list without pool groups keeps entry k's contact in pool row k (the GPU's, so that each
+    # list row may start and end its contacts on a thread of its own, rollingdem.gpu_engine); the
+    # test is made only when a contact starts or ends
     if apart:
         if row >= 0:
-            if not ENTRY_POOL:
+            if lists.groups.shape[0] != 0:
                 free_row(lists.pool, lists.groups, uint64(i) // uint64(POOL_GROUP), row)
             lists.contact_row[k] = -1
         return False, j, row, NO_INPUTS
     if row < 0:
-        if ENTRY_POOL:
+        if lists.groups.shape[0] == 0:
             row = np.int32(k)
             for q in range(HISTORY_SIZE):
                 lists.pool[k, q] = 0.0

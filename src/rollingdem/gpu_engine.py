@@ -6,9 +6,9 @@ laws, the pair row, the gather, the walls, the bonds, the integrator. One physic
 driving differs:
 
 - pair pass: one thread per list row, through the scalar ``pair_row`` (``pair_rows_scalar``); the
-  module is compiled with ``ENTRY_POOL``, so that entry k's contact keeps pool row k (the CPU's
-  rows share their group's rows, which one thread must own). The history goes to that layout on
-  the way to the device and back to the CPU's on the way home;
+  list goes to the device without pool groups, which makes entry k's contact keep pool row k (the
+  CPU's rows share their group's rows, which one thread must own). The history goes to that
+  layout on the way to the device and back to the CPU's on the way home;
 - bonds: one thread (``bond_forces``), each bond writing its own row;
 - gather: one thread per particle (``gather_rows`` on one particle): its own row's sum, the
   entries where it is the second partner in list order, walls, gravity, the kicks and the drift;
@@ -98,8 +98,6 @@ class CudaStepLoop:
     come back at its end and around each neighbor-list rebuild."""
 
     def __init__(self, module):
-        if not module.ENTRY_POOL:
-            raise ValueError("the GPU steps with a module compiled with entry_pool=True (rollingdem.kernels)")
         self.module = module
         self.kernels = cuda_kernels(module)
 
@@ -189,7 +187,8 @@ class CudaStepLoop:
 
     @staticmethod
     def _upload(host, history_size):
-        """The records on the device, the list's contacts moved to a pool row per entry."""
+        """The records on the device, the list's contacts moved to a pool row per entry (a list
+        without pool groups)."""
         particles, walls, lists, step = host
         total = int(lists.start[-1]) if lists.start.size else 0
         rows = lists.contact_row[:total]
@@ -198,7 +197,7 @@ class CudaStepLoop:
         pool[touching, :history_size] = lists.pool[rows[touching], :history_size]
         contact_row = np.full_like(lists.contact_row, -1)
         contact_row[touching] = touching
-        by_entry = lists._replace(pool=pool, contact_row=contact_row)
+        by_entry = lists._replace(pool=pool, contact_row=contact_row, groups=lists.groups[:0])
         return tuple(cuda_target.to_device(r) for r in (particles, walls, by_entry, step))
 
     @staticmethod

@@ -42,7 +42,7 @@ def kernel_cache_dir() -> Path:
         return fallback
 
 
-def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = False, entry_pool: bool = False) -> str:
+def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = False) -> str:
     """The template with ``contact``'s functions, layout and switches filled in."""
     from . import engine_kernel
 
@@ -59,8 +59,6 @@ def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = Fals
                 line = f"TRACK_ENERGY = {int(bool(track_energy))}"
             elif tag == "BONDED_PAIRS":
                 line = f"BONDED_PAIRS = {int(bool(bonded_pairs))}"
-            elif tag == "ENTRY_POOL":
-                line = f"ENTRY_POOL = {int(bool(entry_pool))}"
             elif tag == "ROLLING_MODES":
                 line = f"ROLLING_MODES = {tuple(int(m) for m in contact.rolling.kernel_modes())!r}"
             else:
@@ -69,22 +67,20 @@ def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = Fals
     return "\n".join(out + _serial_copies(out)) + "\n"
 
 
-def engine_module(contact, track_energy: bool = False, serial: bool | None = None, bonded_pairs: bool = False,
-                  entry_pool: bool = False):
+def engine_module(contact, track_energy: bool = False, serial: bool | None = None, bonded_pairs: bool = False):
     """The compiled engine module for ``contact`` (generated and imported once per process); with
     ``track_energy`` the one that also sums the dissipated energies, with ``bonded_pairs`` the one
     that checks each contact for an intact bond (an exclusive one keeps the contact off, a parallel
-    one its rolling and twisting moments), with ``entry_pool`` the GPU's (a pool row per list
-    entry, ``rollingdem.gpu_engine``). With ``serial`` (the step loop
+    one its rolling and twisting moments). With ``serial`` (the step loop
     the run takes: ``advance_serial`` if True, ``advance`` if False) a step loop not yet in the
     cache is compiled on two cores now (``rollingdem.precompile``)."""
     # the generated code depends on the sub-model classes and the rolling model's compile-time
     # switches only, never on parameter values
     key = (tuple((type(sub), sub.compiled_function()) for sub in contact.submodels) + (bool(track_energy),)
-           + tuple(contact.rolling.kernel_modes()) + (bool(bonded_pairs), bool(entry_pool)))
+           + tuple(contact.rolling.kernel_modes()) + (bool(bonded_pairs),))
     module = _BY_CLASSES.get(key)
     if module is None:
-        _BY_CLASSES[key] = module = _load(contact, bool(track_energy), bool(bonded_pairs), bool(entry_pool))
+        _BY_CLASSES[key] = module = _load(contact, bool(track_energy), bool(bonded_pairs))
     if serial is not None:
         from .precompile import prepare
 
@@ -107,8 +103,8 @@ def _dependency_hash(contact, source: str) -> str:
     return h.hexdigest()[:16]
 
 
-def _load(contact, track_energy: bool, bonded_pairs: bool = False, entry_pool: bool = False):
-    source = engine_source(contact, track_energy, bonded_pairs, entry_pool)
+def _load(contact, track_energy: bool, bonded_pairs: bool = False):
+    source = engine_source(contact, track_energy, bonded_pairs)
     digest = _dependency_hash(contact, source)
     names = "_".join(sub.compiled_function()[1] for sub in contact.submodels)  # laws sharing a function share the file
     modname = f"rollingdem_kernel_{names}_{digest}"

@@ -767,8 +767,7 @@ class Simulation:
         held = self._modules.get(key)
         if held is None or held[0] is not self.contact:
             held = self._modules[key] = (self.contact, engine_module(self.contact, self.track_energy, serial=serial,
-                                                                     bonded_pairs=bonded_pairs,
-                                                                     entry_pool=st.backend == "cuda"))
+                                                                     bonded_pairs=bonded_pairs))
         return held[1]
 
     def dissipated_energy(self) -> dict[str, float]:

@@ -647,18 +647,13 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
     unknown = [s for s in scenes if s not in SCENES]
     if unknown:
         raise ParameterError(f"scene = {', '.join(unknown)} is not known: allowed are {', '.join(SCENES)}")
-    from .simulation import BACKENDS
+    from .cuda_target import check_backend
 
-    if backend not in BACKENDS:
-        raise ParameterError(f"backend = {backend!r} is not allowed: must be one of {', '.join(BACKENDS)}")
-    if backend != "cpu":
-        other = [s for s in scenes if s not in GPU_SCENES]
-        if other:
-            raise ParameterError(f"scene = {', '.join(other)} is not timed on backend {backend!r}: allowed there are "
-                                 f"{', '.join(GPU_SCENES)}")
-        from .cuda_target import require
-
-        require()
+    other = [s for s in scenes if s not in GPU_SCENES]
+    if backend != "cpu" and other:
+        raise ParameterError(f"scene = {', '.join(other)} is not timed on backend {backend!r}: allowed there are "
+                             f"{', '.join(GPU_SCENES)}")
+    check_backend(backend)
     if particles is not None and (isinstance(particles, bool) or not isinstance(particles, int) or particles < 1):
         raise ParameterError(f"particles = {particles!r} is not allowed: must be an integer >= 1")
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):

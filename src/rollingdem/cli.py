@@ -74,11 +74,9 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
     try:
         spec = casefile.load_case(case if case is not None else casefile.default_case_path())
         if backend is not None:
-            from .simulation import BACKENDS
+            from .cuda_target import check_backend
 
-            if backend not in BACKENDS:
-                raise ParameterError(f"--backend = {backend!r} is not allowed: must be one of {', '.join(BACKENDS)}")
-            spec.backend = backend
+            spec.backend = check_backend(backend, "--backend")
         casefile.run_case(spec, out=out, progress=progress, echo=typer.echo)
     except ParameterError as err:
         _refuse(err)
@@ -94,18 +92,12 @@ def _set_backend(backend):
         return
     import os
 
-    from .simulation import BACKENDS
+    from .cuda_target import check_backend
 
-    if backend not in BACKENDS:
-        _refuse(f"--backend = {backend!r} is not allowed: must be one of {', '.join(BACKENDS)}")
-    if backend == "cuda":
-        from .cuda_target import require
-
-        try:
-            require()
-        except ParameterError as err:
-            _refuse(err)
-    os.environ["ROLLINGDEM_BACKEND"] = backend
+    try:
+        os.environ["ROLLINGDEM_BACKEND"] = check_backend(backend, "--backend")
+    except ParameterError as err:
+        _refuse(err)
 
 
 def _set_threads(threads):

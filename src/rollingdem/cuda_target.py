@@ -21,6 +21,8 @@ import numpy as np
 
 from .errors import ParameterError
 
+#: where a Simulation's steps run (``Simulation(backend=...)``)
+BACKENDS = ("cpu", "cuda")
 #: compute capabilities the PTX check compiles for: A100 (8.0) and H100/H200 (9.0)
 PTX_TARGETS = ((8, 0), (9, 0))
 INSTALL_HINT = 'install the GPU extra: pip install "rollingdem[cuda]"'
@@ -65,6 +67,16 @@ def require():
     return cuda
 
 
+def check_backend(value, name: str = "backend") -> str:
+    """``value`` if it names a backend this machine can step on; else one line naming ``name``
+    (an unknown backend, or for ``cuda`` what is missing, ``require``)."""
+    if value not in BACKENDS:
+        raise ParameterError(f"{name} = {value!r} is not allowed: must be one of {', '.join(BACKENDS)}")
+    if value == "cuda":
+        require()
+    return value
+
+
 def _driver_found(cuda) -> bool:
     try:
         cuda.cudadrv.driver.driver.get_device_count()
@@ -92,13 +104,13 @@ def to_device(record):
     record, so that the compiled functions run on NumPy arrays."""
     if simulated():
         return record
-    cuda = require()
+    cuda = cuda_module()
     return type(record)(*(cuda.to_device(a) for a in record))
 
 
 def to_host(device_record, host_record) -> None:
     """Copy a device record's arrays back into the host record's arrays, in place."""
-    if simulated() or device_record is host_record:
+    if simulated():
         return
     for d, h in zip(device_record, host_record):
         d.copy_to_host(h)

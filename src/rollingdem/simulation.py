@@ -26,19 +26,14 @@ from .materials import Material, MaterialTable
 from .timestep import SPRING_FRACTION
 from .mesh import MeshWall, TriangleMesh
 from .walls import INACTIVE, Wall, wall_from_dict
-
-BACKENDS = ("cpu", "cuda")
-
+from .cuda_target import check_backend
 
 def default_backend() -> str:
     """The backend of a Simulation not told one: ``ROLLINGDEM_BACKEND``, else ``"cpu"`` (how
     ``rollingdem validate --backend`` reaches the simulations of every case and worker)."""
     import os
 
-    value = os.environ.get("ROLLINGDEM_BACKEND", "") or "cpu"
-    if value not in BACKENDS:
-        raise ParameterError(f"ROLLINGDEM_BACKEND = {value!r} is not allowed: must be one of {', '.join(BACKENDS)}")
-    return value
+    return check_backend(os.environ.get("ROLLINGDEM_BACKEND", "") or "cpu", "ROLLINGDEM_BACKEND")
 
 __version__ = "0.1.0"
 SOLID_SPHERE = 0.4  # I = 2/5 m R^2
@@ -108,13 +103,7 @@ class Simulation:
 
     @backend.setter
     def backend(self, value):
-        if value not in BACKENDS:
-            raise ParameterError(f"backend = {value!r} is not allowed: must be one of {', '.join(BACKENDS)}")
-        if value == "cuda":
-            from .cuda_target import require
-
-            require()
-        self._state.backend = value
+        self._state.backend = check_backend(value)
 
     @property
     def gravity(self) -> tuple[float, float, float]:

@@ -25,6 +25,7 @@ SCENES = textwrap.dedent('''
     import json, sys
     import numpy as np
     import rollingdem as rd
+    from rollingdem.kernel_layout import I_REBUILDS
 
     def material(sim, mu_r):
         """Glass, twice under two names: spheres of two materials take the CPU's scalar pair path."""
@@ -98,6 +99,23 @@ SCENES = textwrap.dedent('''
             assert sim.unwrapped_positions[4, 0] > 0.004 > sim.positions[4, 0]
         return sim
 
+    def bed(backend):
+        """32 touching spheres in a periodic x-y box on a floor, stirred: with a small skin the list
+        is rebuilt on the device every few tens of steps while contacts last, so that each rebuild
+        carries contact history over."""
+        sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), dt=2e-6, backend=backend, skin=1e-5,
+                            periodic={"x": (-0.002, 0.002), "y": (-0.002, 0.002)})
+        material(sim, 0.2)
+        sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
+        g = (np.arange(4) - 1.5) * 0.000999
+        x = np.array([[a, b, 0.0004995 + 0.000999 * c] for c in range(2) for a in g for b in g])
+        k = np.arange(len(x))
+        sim.add_particles(x, radius=5e-4, material=["glass", "glass 2"] * 16, allow_overlap=True,
+                          velocity=np.c_[0.2 * np.sin(k), 0.2 * np.cos(1.3 * k), 0.1 * np.sin(2.1 * k)],
+                          angular_velocity=np.c_[20 * np.cos(k), 20 * np.sin(k), 0 * k])
+        sim.run(steps=300)
+        return sim
+
     def handed_over(backend):
         """The pair's first 300 steps on the other backend, checkpointed, restored on ``backend``
         for the last 300: a checkpoint does not depend on the backend that wrote it."""
@@ -122,12 +140,13 @@ SCENES = textwrap.dedent('''
                        ("rolling epsd flat", lambda b: rolling(b, "epsd", 0.0)),
                        ("rolling cdt flat", lambda b: rolling(b, "cdt", 0.0)),
                        ("rolling epsd slope", lambda b: rolling(b, "epsd", 0.05)),
-                       ("rolling cdt slope", lambda b: rolling(b, "cdt", 0.05)), ("pile", pile)):
+                       ("rolling cdt slope", lambda b: rolling(b, "cdt", 0.05)), ("pile", pile), ("bed", bed)):
         out[name] = {}
         for backend in ("cpu", "cuda"):
             sim = make(backend)
             out[name][backend] = dict(x=sim.positions.tolist(), v=sim.velocities.tolist(),
-                                      w=sim.angular_velocities.tolist(), contacts=sim.number_of_contacts())
+                                      w=sim.angular_velocities.tolist(), contacts=sim.number_of_contacts(),
+                                      rebuilds=int(sim._state.info[I_REBUILDS]))
     json.dump(out, sys.stdout)
 ''')
 
@@ -138,6 +157,7 @@ PTX = textwrap.dedent('''
     import rollingdem as rd
     from rollingdem import cuda_target, gpu_engine
     from rollingdem.gpu_engine import StepInputs
+    from rollingdem.gpu_neighbors import CountingSort, RebuildArrays, Scan
     from rollingdem.kernels import engine_module
 
     sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"))
@@ -149,9 +169,18 @@ PTX = textwrap.dedent('''
     module = engine_module(sim.contact, sim.track_energy, bonded_pairs=True)
     particles, walls, lists, _ = sim._state.records()
     step = StepInputs(np.zeros(3), sim.pair_parameters(), np.zeros(2, dtype=np.int64))
+    rebuild = RebuildArrays(np.zeros(7), np.zeros(9), np.zeros(4, dtype=np.int64), np.zeros((16, module.HISTORY_SIZE)))
+    scan, sort = Scan(lists.counts, lists.counts), CountingSort(lists.cell_of, lists.cell_start, lists.cell_items)
     args = dict(pairs=(1e-6, particles, lists, step), bonds=(1e-6, particles, lists),
                 gather=(1e-6, 2.0, 1e-4, particles, walls, lists, step), drift=(1e-6, 1e-4, particles, step),
-                walls_move=(1e-6, 1e-4, walls, step))
+                walls_move=(1e-6, 1e-4, walls, step, True),
+                prepare=(particles, lists, rebuild), bounds=(particles, rebuild), grid=(1e-4, 64, lists, rebuild),
+                bin_particles=(particles, lists, rebuild), count_rows=(1e-4, particles, lists, rebuild, 1),
+                count_contacts=(particles, lists), mesh_candidates=(1e-4, particles, walls, rebuild),
+                report=(particles, lists, rebuild), carry_out=(particles, lists, rebuild),
+                new_starts=(particles, lists), carry_in=(particles, lists, rebuild), zero=(scan, 1),
+                count_keys=(sort, 1), place_keys=(sort, 1), sort_groups=(sort, 1), chunk_sums=(scan, 1),
+                chunk_scan=(scan, 1))
     bodies = gpu_engine.kernel_bodies(module)
     assert sorted(bodies) == sorted(args)
     for cc in cuda_target.PTX_TARGETS:
@@ -193,7 +222,8 @@ def simulated(children):
 
 
 @pytest.mark.parametrize("scene", ["pair", "rolling epsd flat", "rolling cdt flat", "rolling epsd slope",
-                                   "rolling cdt slope", "pile", "mesh, bonds, periodic", "checkpoint handed over"])
+                                   "rolling cdt slope", "pile", "bed", "mesh, bonds, periodic",
+                                   "checkpoint handed over"])
 def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene):
     """Positions, velocities and spins after the run equal the CPU engine's bit for bit, and so do
     the contact counts: the GPU's kernels run the same compiled functions in the same order (each
@@ -231,6 +261,10 @@ def test_the_scenes_exercise_what_they_claim(simulated):
     for model in ("epsd", "cdt"):
         assert np.asarray(simulated[f"rolling {model} flat"]["cpu"]["v"])[0, 0] < 0.1
     assert np.asarray(simulated["pile"]["cpu"]["v"])[:, 2].max() > 0
+    # the bed's list is rebuilt often, with contacts to carry over: 32 spheres of a 4 x 4 x 2 stack
+    # on a floor touch in about 40 pairs and walls
+    assert simulated["bed"]["cpu"]["rebuilds"] >= 10 and simulated["bed"]["cpu"]["contacts"] >= 20
+    assert simulated["bed"]["cuda"]["rebuilds"] == simulated["bed"]["cpu"]["rebuilds"]
     # the hand-over's two halves are the pair's 600 steps: its CPU half started on the GPU
     for key in ("x", "v", "w"):
         assert np.array_equal(simulated["checkpoint handed over"]["cpu"][key], simulated["pair"]["cpu"][key])
@@ -243,7 +277,7 @@ def test_every_kernel_compiles_to_ptx_without_a_device(children):
     pytest.importorskip("numba_cuda", reason="numba-cuda is in the test extra")
     returncode, stdout, stderr = children["ptx"].result()
     assert returncode == 0, stderr[-3000:]
-    assert stdout.count("\n") == 10
+    assert stdout.count("\n") == 2 * 22
 
 
 def test_a_missing_gpu_is_one_clear_line():

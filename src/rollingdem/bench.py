@@ -369,11 +369,11 @@ def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="
 
 
 def _device_bytes(sim) -> int:
-    """The bytes of the records the GPU's step loop holds on the device (0 on the CPU)."""
+    """The bytes of the arrays the GPU's step loop held on the device at its last run: the records
+    and the rebuild's (0 on the CPU)."""
     if sim.backend == "cpu":
         return 0
-    particles, walls, lists, _ = sim._state.records()
-    return sum(a.nbytes for record in (particles, walls, lists) for a in record)
+    return max(loop.device_bytes for loop in sim._state._cuda_loops.values())
 
 
 def _timed_on(sim, backend: str, steps: int, particles: int) -> tuple[float, float, int]:

@@ -99,6 +99,20 @@ def launch(compiled, count: int, *args) -> None:
     compiled[(count + block - 1) // block, block](*args)
 
 
+def launch_blocks(compiled, blocks: int, threads: int, *args) -> None:
+    """Run ``compiled`` on ``blocks`` blocks of ``threads`` threads (a kernel that shares memory
+    within a block)."""
+    if blocks > 0:
+        compiled[blocks, threads](*args)
+
+
+def device_zeros(shape, dtype):
+    """A zeroed array on the device (a host array in the simulator)."""
+    if simulated():
+        return np.zeros(shape, dtype=dtype)
+    return cuda_module().to_device(np.zeros(shape, dtype=dtype))
+
+
 def to_device(record):
     """A record's arrays on the device (a record of device arrays); the simulator keeps the host
     record, so that the compiled functions run on NumPy arrays."""

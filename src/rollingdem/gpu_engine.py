@@ -12,11 +12,13 @@ driving differs:
 - bonds: one thread (``bond_forces``), each bond writing its own row;
 - gather: one thread per particle (``gather_rows`` on one particle): its own row's sum, the
   entries where it is the second partner in list order, walls, gravity, the kicks and the drift;
-- neighbor list: rebuilt on the host between steps (the CPU's ``_rebuild``), the arrays copied
-  there and back.
+- neighbor list: rebuilt on the device (``rollingdem.gpu_neighbors``), the same list as the CPU's.
 
 No force is summed with atomics: every particle's force is written by one thread in a fixed order,
-so runs are deterministic. The only atomics add up the step's two flag counts (integers).
+so runs are deterministic. Atomics add up the step's two flag counts and the rebuild's counting
+sorts (integers), and take the bounding box (float min and max): none of them makes the result
+depend on the threads' order. One synchronisation per step: the host reads the flag counts after
+the gather (and the walls' motion, which the device skips when a particle is too fast).
 """
 
 from __future__ import annotations
@@ -25,10 +27,10 @@ import collections
 
 import numpy as np
 
-from . import cuda_target
+from . import cuda_target, gpu_neighbors
 from .kernel_layout import (I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
                             STATUS_TOO_FAST)
-from .neighbors import put_entry_history
+from .neighbors import index_list, put_entry_history
 
 #: what a kernel needs besides the records; the flags count particles past skin/2 and too fast
 StepInputs = collections.namedtuple("StepInputs", ("gravity", "pair_params", "flags"))
@@ -74,12 +76,15 @@ def kernel_bodies(module) -> dict:
             if exceed:
                 cuda.atomic.add(step.flags, EXCEED, exceed)
 
-    def walls_move(dt, half_skin, walls, step):
-        if cuda.grid(1) == 0:
+    def walls_move(dt, half_skin, walls, step, unless_fast):
+        """The walls' and meshes' motion; none (``unless_fast``) after a gather that found a
+        particle too fast, whose drift the host undoes."""
+        if cuda.grid(1) == 0 and not (unless_fast and step.flags[FAST] != 0):
             move_walls(dt, walls)
             step.flags[EXCEED] += move_meshes(dt, walls, half_skin)
 
-    return dict(pairs=pairs, bonds=bonds, gather=gather, drift=drift, walls_move=walls_move)
+    return dict(pairs=pairs, bonds=bonds, gather=gather, drift=drift, walls_move=walls_move,
+                **gpu_neighbors.kernel_bodies(module))
 
 
 def cuda_kernels(module) -> dict:
@@ -95,11 +100,12 @@ def cuda_kernels(module) -> dict:
 class CudaStepLoop:
     """A drop-in for the engine module's ``advance``: the same arguments (host records), the same
     ``info`` bookkeeping, the steps on the GPU. The records go to the device at the call's start and
-    come back at its end and around each neighbor-list rebuild."""
+    come back at its end (or when the host must grow an array)."""
 
     def __init__(self, module):
         self.module = module
         self.kernels = cuda_kernels(module)
+        self.device_bytes = 0  # the arrays of the last upload
 
     def __call__(self, nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info):
         m, k = self.module, self.kernels
@@ -110,30 +116,30 @@ class CudaStepLoop:
         info[I_STATUS] = 0
         info[I_STEPS_DONE] = 0
         has_bonds = particles.bond_pairs.shape[0] != 0
+        dev, rebuild = self._upload(host, m.HISTORY_SIZE)
 
-        def forces(dt_bonds, kick, dev):
-            cuda_target.launch(k["pairs"], n, dt, dev[0], dev[2], dev[3])
-            if has_bonds:
-                cuda_target.launch(k["bonds"], 1, dt_bonds, dev[0], dev[2])
-            return self._flags(dev, lambda: cuda_target.launch(k["gather"], n, dt, kick, half_skin, *dev))
+        def forces(dt_bonds, kick, move_walls):
+            """Pairs, bonds, the gather (with the kicks and the drift), then the walls' motion:
+            the flag counts."""
+            def launches():
+                cuda_target.launch(k["pairs"], n, dt, dev[0], dev[2], dev[3])
+                if has_bonds:
+                    cuda_target.launch(k["bonds"], 1, dt_bonds, dev[0], dev[2])
+                cuda_target.launch(k["gather"], n, dt, kick, half_skin, *dev)
+                if move_walls:
+                    cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3], True)
+            return self._flags(dev, launches)
 
-        if info[I_FORCES_VALID] == 0:
-            info[I_DRIFTED] = 0
-            if not m._rebuild(particles, walls, lists, skin, info):
-                return
-            dev = self._upload(host, m.HISTORY_SIZE)
-            try:
-                # as in ``advance``: a fresh bond adds no increment in this evaluation (dt 0)
-                _, fast = forces(0.0, 0.0, dev)
-            except BaseException:
-                self._download(dev, host, m.HISTORY_SIZE)
-                raise
-            info[I_TOO_FAST] = fast
-            info[I_NEED_REBUILD] = 0
-            info[I_FORCES_VALID] = 1
-        else:
-            dev = self._upload(host, m.HISTORY_SIZE)
         try:
+            if info[I_FORCES_VALID] == 0:
+                info[I_DRIFTED] = 0
+                if not rebuild(skin, dev[0], dev[1], dev[2], info):
+                    return
+                # as in ``advance``: a fresh bond adds no increment in this evaluation (dt 0)
+                _, fast = forces(0.0, 0.0, False)
+                info[I_TOO_FAST] = fast
+                info[I_NEED_REBUILD] = 0
+                info[I_FORCES_VALID] = 1
             for step in range(nsteps):
                 if info[I_DRIFTED] == 0:
                     if info[I_TOO_FAST] > 0:
@@ -141,18 +147,17 @@ class CudaStepLoop:
                         return
                     exceed, _ = self._flags(dev, lambda: (
                         cuda_target.launch(k["drift"], n, dt, half_skin, dev[0], dev[3]),
-                        cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3])))
+                        cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3], False)))
                     info[I_NEED_REBUILD] += exceed
                     info[I_DRIFTED] = 1
                 if info[I_NEED_REBUILD] > 0:
-                    self._download(dev, host, m.HISTORY_SIZE)
-                    dev = None
-                    if not m._rebuild(particles, walls, lists, skin, info):
+                    if not rebuild(skin, dev[0], dev[1], dev[2], info):
                         return  # drifted: the call after the arrays grow goes on from here
                     info[I_NEED_REBUILD] = 0
-                    dev = self._upload(host, m.HISTORY_SIZE)
                 drift = step + 1 < nsteps
-                exceed, fast = forces(dt, 2.0 if drift else 1.0, dev)
+                # with the next step's drift (in the gather) the walls move, unless a particle was
+                # too fast: then the host undoes the drift, as ``advance`` does
+                exceed, fast = forces(dt, 2.0 if drift else 1.0, drift)
                 info[I_NEED_REBUILD] = exceed
                 info[I_TOO_FAST] = fast
                 info[I_STEPS_DONE] = step + 1
@@ -164,9 +169,6 @@ class CudaStepLoop:
                         m.undo_drift(dt, particles)
                         info[I_STATUS] = STATUS_TOO_FAST
                         return
-                    exceed, _ = self._flags(dev, lambda: cuda_target.launch(k["walls_move"], 1, dt, half_skin,
-                                                                            dev[1], dev[3]))
-                    info[I_NEED_REBUILD] += exceed
                     info[I_DRIFTED] = 1
         finally:
             if dev is not None:
@@ -185,10 +187,10 @@ class CudaStepLoop:
         out = flags.copy_to_host()
         return int(out[EXCEED]), int(out[FAST])
 
-    @staticmethod
-    def _upload(host, history_size):
-        """The records on the device, the list's contacts moved to a pool row per entry (a list
-        without pool groups)."""
+    def _upload(self, host, history_size):
+        """The records on the device and the rebuild for them. The list's contacts move to a pool
+        row per entry (a list without pool groups); ``cell_start`` and ``tr_start`` are one longer
+        there (``gpu_neighbors.DeviceRebuild``)."""
         particles, walls, lists, step = host
         total = int(lists.start[-1]) if lists.start.size else 0
         rows = lists.contact_row[:total]
@@ -197,16 +199,28 @@ class CudaStepLoop:
         pool[touching, :history_size] = lists.pool[rows[touching], :history_size]
         contact_row = np.full_like(lists.contact_row, -1)
         contact_row[touching] = touching
-        by_entry = lists._replace(pool=pool, contact_row=contact_row, groups=lists.groups[:0])
-        return tuple(cuda_target.to_device(r) for r in (particles, walls, by_entry, step))
+        by_entry = lists._replace(pool=pool, contact_row=contact_row, groups=lists.groups[:0],
+                                  cell_start=np.zeros(lists.cell_start.shape[0] + 1, dtype=lists.cell_start.dtype),
+                                  tr_start=np.append(lists.tr_start, lists.tr_start[-1]))
+        dev = tuple(cuda_target.to_device(r) for r in (particles, walls, by_entry, step))
+        rebuild = gpu_neighbors.DeviceRebuild(self.kernels, dev[0], dev[2], history_size,
+                                              lists.cell_start.shape[0] - 1, len(touching))
+        self.device_bytes = sum(a.nbytes for record in (*dev[:3], rebuild.arrays) for a in record) + \
+            sum(a.nbytes for a in rebuild.sums)
+        return dev, rebuild
 
     @staticmethod
     def _download(dev, host, history_size):
-        """The particles and walls back in place; the contacts back in the CPU's pool layout."""
+        """The particles and walls back in place; the list back, its contacts in the CPU's pool
+        layout."""
         for d, h in zip(dev[:2], host[:2]):
             cuda_target.to_host(d, h)
-        lists = host[2]
+        lists, device_lists = host[2], dev[2]
+        lists.start[:] = cuda_target.array_to_host(device_lists.start)
         total = int(lists.start[-1]) if lists.start.size else 0
-        pool, contact_row = cuda_target.array_to_host(dev[2].pool), cuda_target.array_to_host(dev[2].contact_row)
+        lists.j[:total] = cuda_target.array_to_host(device_lists.j)[:total]
+        index_list(lists)
+        pool = cuda_target.array_to_host(device_lists.pool)
+        contact_row = cuda_target.array_to_host(device_lists.contact_row)
         hist = np.where((contact_row[:total] >= 0)[:, None], pool[:total, :history_size], 0.0)
         put_entry_history(lists, hist, history_size)

@@ -59,24 +59,29 @@ def _counting_sort(keys, nitems, nkeys, start, items):
     start[0] = 0
 
 
+@njit(cache=True, inline="always")
+def cell_index(x, i, lo, cells, dims):
+    """The cell of particle i (edges ``cells`` from ``lo``, ``dims`` cells along x, y, z; a centre
+    outside the grid goes to the cell at its edge)."""
+    cx = min(max(int((x[i, 0] - lo[0]) / cells[0]), 0), dims[0] - 1)
+    cy = min(max(int((x[i, 1] - lo[1]) / cells[1]), 0), dims[1] - 1)
+    cz = min(max(int((x[i, 2] - lo[2]) / cells[2]), 0), dims[2] - 1)
+    return (cz * dims[1] + cy) * dims[0] + cx
+
+
 @njit(cache=True)
 def _bin_particles(x, cells, lo, dims, cell_start, cell_items, cell_of):
     """Counting sort of particles into cells (edges ``cells`` along x, y, z); items of a cell in
     ascending particle index."""
     n = x.shape[0]
     for i in range(n):
-        cx = min(max(int((x[i, 0] - lo[0]) / cells[0]), 0), dims[0] - 1)
-        cy = min(max(int((x[i, 1] - lo[1]) / cells[1]), 0), dims[1] - 1)
-        cz = min(max(int((x[i, 2] - lo[2]) / cells[2]), 0), dims[2] - 1)
-        cell_of[i] = (cz * dims[1] + cy) * dims[0] + cx
+        cell_of[i] = cell_index(x, i, lo, cells, dims)
     _counting_sort(cell_of, n, dims[0] * dims[1] * dims[2], cell_start, cell_items)
 
 
 @njit(cache=True)
 def _grid(x, radius, skin, max_cells, box):
-    """Bounding box, cell edges >= 2 R_max + skin, and grid dimensions (at most max_cells cells).
-    Along a periodic axis the cells tile the box's length exactly (so that the cells at its two ends
-    are neighbors)."""
+    """Bounding box, cell edges >= 2 R_max + skin, and grid dimensions (``grid_of_bounds``)."""
     n = x.shape[0]
     lox = loy = loz = np.inf
     hix = hiy = hiz = -np.inf
@@ -89,6 +94,14 @@ def _grid(x, radius, skin, max_cells, box):
         hiy = max(hiy, x[i, 1])
         hiz = max(hiz, x[i, 2])
         rmax = max(rmax, radius[i])
+    return grid_of_bounds(lox, loy, loz, hix, hiy, hiz, rmax, skin, max_cells, box)
+
+
+@njit(cache=True, inline="always")
+def grid_of_bounds(lox, loy, loz, hix, hiy, hiz, rmax, skin, max_cells, box):
+    """(lo, dims, cells) of the cell grid over the centres' bounding box: cell edges >= 2 R_max +
+    skin, at most max_cells cells. Along a periodic axis the cells tile the box's length exactly (so
+    that the cells at its two ends are neighbors)."""
     cell = 2.0 * rmax + skin
     if box.shape[0] == 0:
         vol = (hix - lox + cell) * (hiy - loy + cell) * (hiz - loz + cell)
@@ -101,26 +114,31 @@ def _grid(x, radius, skin, max_cells, box):
                 break
             cell *= 1.05
         return (lox, loy, loz), (nx, ny, nz), (cell, cell, cell)
-    lo = [lox, loy, loz]
-    span = [hix - lox + cell, hiy - loy + cell, hiz - loz + cell]
-    for d in range(3):
-        if box[PB.lx + d] > 0.0:
-            lo[d] = box[PB.lox + d]
-            span[d] = box[PB.lx + d]
-    cell = max(cell, (span[0] * span[1] * span[2] / max_cells) ** (1.0 / 3.0))
-    dims = [1, 1, 1]
-    edges = [cell, cell, cell]
+    # the three axes as scalars, not lists: the GPU's rebuild calls this too, and has no allocation
+    lx, ly, lz = box[PB.lx], box[PB.ly], box[PB.lz]
+    lo0, span0 = (box[PB.lox], lx) if lx > 0.0 else (lox, hix - lox + cell)
+    lo1, span1 = (box[PB.loy], ly) if ly > 0.0 else (loy, hiy - loy + cell)
+    lo2, span2 = (box[PB.loz], lz) if lz > 0.0 else (loz, hiz - loz + cell)
+    cell = max(cell, (span0 * span1 * span2 / max_cells) ** (1.0 / 3.0))
+    first = cell  # a closed axis keeps the first edge (its last cell takes what lies beyond)
     while True:
-        for d in range(3):
-            if box[PB.lx + d] > 0.0:
-                dims[d] = max(1, int(span[d] / cell))
-                edges[d] = span[d] / dims[d]
-            else:
-                dims[d] = max(1, int((span[d] - cell) / cell) + 1)
-        if dims[0] * dims[1] * dims[2] <= max_cells:
+        n0, e0 = _axis_cells(span0, lx > 0.0, cell, first)
+        n1, e1 = _axis_cells(span1, ly > 0.0, cell, first)
+        n2, e2 = _axis_cells(span2, lz > 0.0, cell, first)
+        if n0 * n1 * n2 <= max_cells:
             break
         cell *= 1.05
-    return (lo[0], lo[1], lo[2]), (dims[0], dims[1], dims[2]), (edges[0], edges[1], edges[2])
+    return (lo0, lo1, lo2), (n0, n1, n2), (e0, e1, e2)
+
+
+@njit(cache=True, inline="always")
+def _axis_cells(span, periodic, cell, first):
+    """(cells, edge) along one axis of a periodic box's grid: a periodic axis tiled exactly by cells
+    of at least ``cell``; a closed one counted with ``cell`` and cut at ``first``."""
+    if periodic:
+        count = max(1, int(span / cell))
+        return count, span / count
+    return max(1, int((span - cell) / cell) + 1), first
 
 
 @njit(cache=True)
@@ -129,17 +147,21 @@ def wrap_positions(x, image, box):
     moved in ``image`` (the unwrapped position is x + image L)."""
     if box.shape[0] == 0:
         return
+    for i in range(x.shape[0]):
+        wrap_one(i, x, image, box)
+
+
+@njit(cache=True, inline="always")
+def wrap_one(i, x, image, box):
+    """``wrap_positions`` for particle i (a periodic ``box``)."""
     for d in range(3):
         length = box[PB.lx + d]
         if length == 0.0:
             continue
-        lo = box[PB.lox + d]
-        inv = box[PB.inv_lx + d]
-        for i in range(x.shape[0]):
-            s = math.floor((x[i, d] - lo) * inv)
-            if s != 0.0:
-                x[i, d] -= s * length
-                image[i, d] += np.int32(s)
+        s = math.floor((x[i, d] - box[PB.lox + d]) * box[PB.inv_lx + d])
+        if s != 0.0:
+            x[i, d] -= s * length
+            image[i, d] += np.int32(s)
 
 
 @njit(cache=True, inline="always")
@@ -151,12 +173,23 @@ def minimum_image(d, length, inv_length):
 @njit(cache=True, parallel=True)
 def _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, counts, new_start, new_j,
                 fill):
-    """For each i, the j with ids[j] > ids[i] in the 27 surrounding cells (across the ends of a
-    periodic axis) with |x_i - x_j| < R_i + R_j + skin (the minimum image), not both fixed: counted
-    into ``counts`` (fill = False, the other arrays untouched) or written, sorted by id, into its row
-    of ``new_j`` (fill = True). A periodic axis has at least 2 cells (its length is at least twice
-    the cutoff); with 2, the cells on either side are the same one and are visited once."""
-    n = x.shape[0]
+    """``scan_row`` for every particle: the rows' lengths into ``counts`` (fill = False) or the rows
+    written (fill = True)."""
+    for i in prange(x.shape[0]):
+        k = scan_row(i, x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, new_start, new_j,
+                     fill)
+        if not fill:
+            counts[i] = k
+
+
+@njit(cache=True, inline="always")
+def scan_row(i, x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, new_start, new_j, fill):
+    """Row i of the half list: the j with ids[j] > ids[i] in the 27 cells around i's (across the
+    ends of a periodic axis) with |x_i - x_j| < R_i + R_j + skin (the minimum image), not both
+    fixed. Returns their count (fill = False: nothing written) or writes them, sorted by id, from
+    ``new_start[i]`` in ``new_j`` (fill = True). A periodic axis has at least 2 cells (its length is
+    at least twice the cutoff); with 2, the cells on either side are the same one and are visited
+    once."""
     periodic = box.shape[0] != 0
     lx = box[PB.lx] if periodic else 0.0
     ly = box[PB.ly] if periodic else 0.0
@@ -166,71 +199,70 @@ def _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, 
     ilz = box[PB.inv_lz] if periodic else 0.0
     wrap_x = lx > 0.0 and dims[0] >= 3
     has_fixed = fixed.shape[0] != 0
-    for i in prange(n):
-        c = cell_of[i]
-        cx = c % dims[0]
-        cy = (c // dims[0]) % dims[1]
-        cz = c // (dims[0] * dims[1])
-        k = new_start[i] if fill else 0
-        xi = x[i, 0]
-        yi = x[i, 1]
-        zi = x[i, 2]
-        ri = radius[i]
-        idi = ids[i]
-        fixed_i = has_fixed and fixed[i] != 0
-        for dz in range(-1, 2):
-            z = cz + dz
-            if z < 0 or z >= dims[2]:
-                if lz == 0.0 or dims[2] < 3:
+    c = cell_of[i]
+    cx = c % dims[0]
+    cy = (c // dims[0]) % dims[1]
+    cz = c // (dims[0] * dims[1])
+    k = new_start[i] if fill else 0
+    xi = x[i, 0]
+    yi = x[i, 1]
+    zi = x[i, 2]
+    ri = radius[i]
+    idi = ids[i]
+    fixed_i = has_fixed and fixed[i] != 0
+    for dz in range(-1, 2):
+        z = cz + dz
+        if z < 0 or z >= dims[2]:
+            if lz == 0.0 or dims[2] < 3:
+                continue
+            z = (z + dims[2]) % dims[2]
+        for dy in range(-1, 2):
+            y = cy + dy
+            if y < 0 or y >= dims[1]:
+                if ly == 0.0 or dims[1] < 3:
                     continue
-                z = (z + dims[2]) % dims[2]
-            for dy in range(-1, 2):
-                y = cy + dy
-                if y < 0 or y >= dims[1]:
-                    if ly == 0.0 or dims[1] < 3:
-                        continue
-                    y = (y + dims[1]) % dims[1]
-                # the three cells x-1, x, x+1 of this row are consecutive, so their items are too;
-                # at the ends of a periodic x, the cell across the end is a second range
-                row = (z * dims[1] + y) * dims[0]
-                first = cell_start[row + max(cx - 1, 0)]
-                last = cell_start[row + min(cx + 1, dims[0] - 1) + 1]
-                parts = 2 if wrap_x and (cx == 0 or cx == dims[0] - 1) else 1
-                for part in range(parts):
-                    if part == 1:
-                        across = row + dims[0] - 1 if cx == 0 else row
-                        first = cell_start[across]
-                        last = cell_start[across + 1]
-                    for m in range(first, last):
-                        j = uint32(cell_items[uint64(m)])  # unsigned: no wraparound test per index
-                        cut = ri + radius[j] + skin
-                        ddx = xi - x[j, 0]
-                        ddy = yi - x[j, 1]
-                        ddz = zi - x[j, 2]
-                        if periodic:
-                            ddx = minimum_image(ddx, lx, ilx)
-                            ddy = minimum_image(ddy, ly, ily)
-                            ddz = minimum_image(ddz, lz, ilz)
-                        # one test, mostly false, instead of the id test first (true for half the
-                        # candidates, in no pattern: a mispredicted branch each other time)
-                        if (ids[j] > idi) & (ddx * ddx + ddy * ddy + ddz * ddz < cut * cut):
-                            if fixed_i and fixed[j] != 0:  # two fixed particles never touch
-                                continue
-                            if fill:
-                                new_j[k] = j
-                            k += 1
-        if not fill:
-            counts[i] = k
-            continue
-        # insertion sort of the row: rows are short
-        a = new_start[i]
-        for p in range(a + 1, k):
-            v = new_j[p]
-            q = p - 1
-            while q >= a and ids[new_j[q]] > ids[v]:
-                new_j[q + 1] = new_j[q]
-                q -= 1
-            new_j[q + 1] = v
+                y = (y + dims[1]) % dims[1]
+            # the three cells x-1, x, x+1 of this row are consecutive, so their items are too;
+            # at the ends of a periodic x, the cell across the end is a second range
+            row = (z * dims[1] + y) * dims[0]
+            first = cell_start[row + max(cx - 1, 0)]
+            last = cell_start[row + min(cx + 1, dims[0] - 1) + 1]
+            parts = 2 if wrap_x and (cx == 0 or cx == dims[0] - 1) else 1
+            for part in range(parts):
+                if part == 1:
+                    across = row + dims[0] - 1 if cx == 0 else row
+                    first = cell_start[across]
+                    last = cell_start[across + 1]
+                for m in range(first, last):
+                    j = uint32(cell_items[uint64(m)])  # unsigned: no wraparound test per index
+                    cut = ri + radius[j] + skin
+                    ddx = xi - x[j, 0]
+                    ddy = yi - x[j, 1]
+                    ddz = zi - x[j, 2]
+                    if periodic:
+                        ddx = minimum_image(ddx, lx, ilx)
+                        ddy = minimum_image(ddy, ly, ily)
+                        ddz = minimum_image(ddz, lz, ilz)
+                    # one test, mostly false, instead of the id test first (true for half the
+                    # candidates, in no pattern: a mispredicted branch each other time)
+                    if (ids[j] > idi) & (ddx * ddx + ddy * ddy + ddz * ddz < cut * cut):
+                        if fixed_i and fixed[j] != 0:  # two fixed particles never touch
+                            continue
+                        if fill:
+                            new_j[k] = j
+                        k += 1
+    if not fill:
+        return k
+    # insertion sort of the row: rows are short
+    a = new_start[i]
+    for p in range(a + 1, k):
+        v = new_j[p]
+        q = p - 1
+        while q >= a and ids[new_j[q]] > ids[v]:
+            new_j[q + 1] = new_j[q]
+            q -= 1
+        new_j[q + 1] = v
+    return k
 
 
 @njit(cache=True)
@@ -498,8 +530,7 @@ class ContactList:
     def index(self) -> None:
         """The indices derived from the list (``start``, ``j``): the transposed index (``tr_start``,
         ``tr_k``) and each entry's row (``i``), as a rebuild makes them."""
-        _transpose(self.rows, self.start, self.j, self.tr_start, self.tr_k)
-        list_rows(self.rows, self.start, self.i)
+        index_list(self.arrays())
 
     def reorder(self, perm: np.ndarray, inv: np.ndarray) -> None:
         """Rows follow a re-sort of the particles (new row s is old row ``perm[s]``, ``inv`` its
@@ -531,6 +562,14 @@ class ContactList:
         put_entry_history(self.arrays(), hist, self.history_size)
 
 
+def index_list(lists) -> None:
+    """A list record's indices derived from its rows (``start``, ``j``): the transposed index
+    (``tr_start``, ``tr_k``) and each entry's row (``i``), as a rebuild makes them."""
+    rows = lists.start.shape[0] - 1
+    _transpose(rows, lists.start, lists.j, lists.tr_start, lists.tr_k)
+    list_rows(rows, lists.start, lists.i)
+
+
 def put_entry_history(lists, hist: np.ndarray, history_size: int) -> None:
     """Put a history per entry into a list record's pool, as a rebuild leaves it: an entry is in
     contact iff it keeps a contact normal, each group's contacts at the front of its rows in list
@@ -549,4 +588,4 @@ def put_entry_history(lists, hist: np.ndarray, history_size: int) -> None:
     lists.groups[:, 1] = first_entry + np.bincount(group, minlength=len(lists.groups))
 
 
-__all__ = ["ContactList", "put_entry_history", "rebuild_neighbor_list", "list_rows", "brute_force_pairs", "spatial_order"]
+__all__ = ["ContactList", "index_list", "put_entry_history", "rebuild_neighbor_list", "list_rows", "brute_force_pairs", "spatial_order"]

@@ -176,8 +176,8 @@ PTX = textwrap.dedent('''
                 walls_move=(1e-6, 1e-4, walls, step, True),
                 prepare=(particles, lists, rebuild), bounds=(particles, rebuild), grid=(1e-4, 64, lists, rebuild),
                 bin_particles=(particles, lists, rebuild), count_rows=(1e-4, particles, lists, rebuild, 1),
-                count_contacts=(particles, lists), mesh_candidates=(1e-4, particles, walls, rebuild),
-                report=(particles, lists, rebuild), carry_out=(particles, lists, rebuild),
+                count_contacts=(particles, lists), mesh_grid=(1e-4, walls, rebuild),
+                mesh_rows=(1e-4, particles, walls, rebuild, 1), report=(particles, walls, lists, rebuild), carry_out=(particles, lists, rebuild),
                 new_starts=(particles, lists), carry_in=(particles, lists, rebuild), zero=(scan, 1),
                 count_keys=(sort, 1), place_keys=(sort, 1), sort_groups=(sort, 1), chunk_sums=(scan, 1),
                 chunk_scan=(scan, 1))
@@ -277,7 +277,7 @@ def test_every_kernel_compiles_to_ptx_without_a_device(children):
     pytest.importorskip("numba_cuda", reason="numba-cuda is in the test extra")
     returncode, stdout, stderr = children["ptx"].result()
     assert returncode == 0, stderr[-3000:]
-    assert stdout.count("\n") == 2 * 22
+    assert stdout.count("\n") == 2 * 23
 
 
 def test_a_missing_gpu_is_one_clear_line():

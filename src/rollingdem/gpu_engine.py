@@ -174,18 +174,15 @@ class CudaStepLoop:
             if dev is not None:
                 self._download(dev, host, m.HISTORY_SIZE)
 
-    @staticmethod
-    def _flags(dev, launch):
-        """Zero the flag counts, run ``launch``, and read them back (a synchronisation)."""
-        flags = dev[3].flags
-        if cuda_target.simulated():
-            flags[:] = 0
-            launch()
-            return int(flags[EXCEED]), int(flags[FAST])
-        flags.copy_to_device(np.zeros(2, dtype=np.int64))
+    def _flags(self, dev, launch):
+        """Run ``launch`` and read the flag counts back (a synchronisation): what it added to them.
+        The counts only grow on the device (uploaded as zeros), so that no step zeroes them; a too
+        fast particle ends the call, so the count of those stays 0 until the launch that finds one."""
         launch()
-        out = flags.copy_to_host()
-        return int(out[EXCEED]), int(out[FAST])
+        counts = cuda_target.array_to_host(dev[3].flags)
+        added = int(counts[EXCEED]) - self._counted, int(counts[FAST])
+        self._counted = int(counts[EXCEED])
+        return added
 
     def _upload(self, host, history_size):
         """The records on the device and the rebuild for them. The list's contacts move to a pool
@@ -203,10 +200,11 @@ class CudaStepLoop:
                                   cell_start=np.zeros(lists.cell_start.shape[0] + 1, dtype=lists.cell_start.dtype),
                                   tr_start=np.append(lists.tr_start, lists.tr_start[-1]))
         dev = tuple(cuda_target.to_device(r) for r in (particles, walls, by_entry, step))
-        rebuild = gpu_neighbors.DeviceRebuild(self.kernels, dev[0], dev[2], history_size,
+        self._counted = 0  # particles past skin/2 counted on the device so far (``_flags``)
+        rebuild = gpu_neighbors.DeviceRebuild(self.kernels, dev[0], dev[1], dev[2], history_size,
                                               lists.cell_start.shape[0] - 1, len(touching))
         self.device_bytes = sum(a.nbytes for record in (*dev[:3], rebuild.arrays) for a in record) + \
-            sum(a.nbytes for a in rebuild.sums)
+            sum(a.nbytes for a in (*rebuild.sums, *rebuild.sums64))
         return dev, rebuild
 
     @staticmethod

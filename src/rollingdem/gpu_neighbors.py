@@ -8,16 +8,19 @@ with prefix sums and integer atomics whose order the result does not depend on:
 
 - the bounding box: float min and max (exact, in any order);
 - the counting sorts of particles into cells and of entries into the transposed index: integer
-  counts and slots taken with atomics, then each group sorted (cells by particle index, the
-  transposed index by entry), which is the CPU's order;
+  counts and slots taken with atomics; a cell's particles stay in the order the threads took
+  their slots (each list row is sorted by partner id afterwards), each particle's entries of the
+  transposed index are sorted (the gather sums in list order, as the CPU's);
 - the prefix sums: a chunk of values per thread, the chunks' totals prefix-summed in turn.
 
 Contact history goes from the old list to the new through a buffer of the contacts alone
 (``RebuildArrays.carry``): each contact's history and partner, in list order, then each new row
 merged with its old contacts by partner id. On the GPU each list entry keeps its contact in pool
-row k (``rollingdem.gpu_engine``). The triangle-mesh candidates are the CPU's function on one
-thread. One synchronisation per rebuild: the host reads the list's length (to grow its arrays when
-they are short) and the number of contacts (to grow the carry buffer).
+row k (``rollingdem.gpu_engine``). The triangle-mesh candidates are found the same way: the grid of
+triangles on one thread (``prepare_mesh_grid``), each sphere's row on a thread of its own
+(``mesh_candidate_row``). One synchronisation per rebuild: the host reads the list's length and
+the meshes' (to grow their arrays when they are short) and the number of contacts (to grow the
+carry buffer).
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ import numpy as np
 from . import cuda_target
 from .kernel_layout import I_NEEDED, I_REBUILDS, I_STATUS, STATUS_CAPACITY, STATUS_MESH_CAPACITY, \
     STATUS_MESH_GRID_CAPACITY
-from .mesh_kernel import build_mesh_candidates
+from .mesh_kernel import mesh_candidate_row, prepare_mesh_grid
 from .neighbors import cell_index, grid_of_bounds, scan_row, wrap_one
 
 #: the device's rebuild arrays: the centres' bounds (min x, y, z, max x, y, z, R_max), the grid
@@ -140,19 +143,36 @@ def kernel_bodies(module) -> dict:
                     c += 1
             lists.tr_start[i + 1] = c
 
-    def mesh_candidates(skin, particles, walls, rebuild):
-        """The triangle-mesh candidates, the CPU's function on one thread."""
+    def mesh_grid(skin, walls, rebuild):
+        """The triangle grid (one thread, ``prepare_mesh_grid``), R_max from the bounds."""
         if cuda.grid(1) == 0:
-            short, needed = build_mesh_candidates(particles.x, particles.radius, skin, walls)
-            rebuild.report[R_MESH_SHORT] = short
+            needed = prepare_mesh_grid(rebuild.bounds[6] + skin, walls)
+            rebuild.report[R_MESH_SHORT] = 2 if needed else 0
             rebuild.report[R_MESH_NEEDED] = needed
 
-    def report(particles, lists, rebuild):
-        """The new list's length (its rows' lengths prefix-summed) and the contacts to carry."""
+    def mesh_rows(skin, particles, walls, rebuild, fill):
+        """Each sphere's candidate triangles (``mesh_candidate_row``): their count into
+        ``candidate_start[i + 1]``, or (fill) written from ``candidate_start[i]``."""
+        i = cuda.grid(1)
+        if i < particles.x.shape[0] and rebuild.report[R_MESH_SHORT] == 0:
+            count = mesh_candidate_row(i, particles.x, particles.radius, skin, walls, fill != 0)
+            if fill == 0:
+                walls.candidate_start[i + 1] = count
+                if i == 0:
+                    walls.candidate_start[0] = 0
+
+    def report(particles, walls, lists, rebuild):
+        """The new list's length (its rows' lengths prefix-summed), the contacts to carry, and
+        whether the mesh candidates fit."""
         if cuda.grid(1) == 0:
             n = particles.x.shape[0]
             rebuild.report[R_ENTRIES] = lists.counts[n - 1]
             rebuild.report[R_CONTACTS] = lists.tr_start[n]
+            if walls.triangles.shape[0] != 0 and rebuild.report[R_MESH_SHORT] == 0:
+                total = walls.candidate_start[n]
+                if total > walls.candidates.shape[0]:
+                    rebuild.report[R_MESH_SHORT] = 1
+                    rebuild.report[R_MESH_NEEDED] = total
 
     def carry_out(particles, lists, rebuild):
         """Each old row's contacts, in list order, into the carry buffer: history and partner
@@ -254,7 +274,7 @@ def kernel_bodies(module) -> dict:
                 scan.values[i] = total
 
     return dict(prepare=prepare, bounds=bounds, grid=grid, bin_particles=bin_particles, count_rows=count_rows,
-                count_contacts=count_contacts, mesh_candidates=mesh_candidates, report=report, carry_out=carry_out,
+                count_contacts=count_contacts, mesh_grid=mesh_grid, mesh_rows=mesh_rows, report=report, carry_out=carry_out,
                 new_starts=new_starts, carry_in=carry_in, zero=zero, count_keys=count_keys, place_keys=place_keys,
                 sort_groups=sort_groups, chunk_sums=chunk_sums, chunk_scan=chunk_scan)
 
@@ -264,7 +284,7 @@ class DeviceRebuild:
     ``cell_start`` and ``tr_start`` are one longer on the device, as the counting sorts take it)
     and the launches."""
 
-    def __init__(self, kernels, particles, lists, history_size: int, max_cells: int, contacts: int):
+    def __init__(self, kernels, particles, walls, lists, history_size: int, max_cells: int, contacts: int):
         self.k = kernels
         self.max_cells = max_cells
         self.history_size = history_size
@@ -273,37 +293,47 @@ class DeviceRebuild:
         self.arrays = RebuildArrays(cuda_target.device_zeros(7, np.float64), cuda_target.device_zeros(9, np.float64),
                                     cuda_target.device_zeros(4, np.int64),
                                     cuda_target.device_zeros((self._carry_rows(contacts), history_size), np.float64))
-        # the chunk totals of each level of a prefix sum as long as the longest (the cells')
-        self.sums = []
-        length = max(max_cells + 2, n + 2)
+        # the chunk totals of each level of a prefix sum as long as the longest (the cells'); the
+        # mesh candidates' starts are int64
+        self.sums = self._levels(max(max_cells + 2, n + 2), np.int32)
+        self.sums64 = self._levels(n + 1 if walls.triangles.shape[0] else 0, np.int64)
+
+    @staticmethod
+    def _levels(length: int, dtype) -> list:
+        levels = []
         while length > 1:
             length = -(-length // scan_chunk())
-            self.sums.append(cuda_target.device_zeros(length, np.int32))
+            levels.append(cuda_target.device_zeros(length, dtype))
+        return levels
 
     @staticmethod
     def _carry_rows(contacts: int) -> int:
         return int(CARRY_SLACK * contacts) + 16
 
-    def scan(self, values, count: int, level: int = 0) -> None:
+    def scan(self, values, count: int, sums=None, level: int = 0) -> None:
         """``values[:count]`` replaced by its inclusive prefix sum: each chunk's total, those totals
-        prefix-summed (the next level), then each chunk's prefix sum from them."""
+        prefix-summed (the next level), then each chunk's prefix sum from them. ``sums``: the
+        levels' arrays of chunk totals, of the values' type (``self.sums``, int32, by default)."""
+        sums = self.sums if sums is None else sums
         chunks = -(-count // scan_chunk())
-        scan = Scan(values, self.sums[level] if level < len(self.sums) else values)
+        scan = Scan(values, sums[level] if level < len(sums) else values)
         if chunks > 1:
             cuda_target.launch(self.k["chunk_sums"], chunks, scan, count)
-            self.scan(self.sums[level], chunks, level + 1)
+            self.scan(sums[level], chunks, sums, level + 1)
         cuda_target.launch(self.k["chunk_scan"], chunks, scan, count)
 
-    def counting_sort(self, keys, start, items, count: int, groups: int) -> None:
-        """Items 0..count-1 grouped by ``keys`` in CSR form (``start[:groups + 1]``, ``items``),
-        each group in ascending order, as the CPU's ``_counting_sort``."""
+    def counting_sort(self, keys, start, items, count: int, groups: int, ordered: bool) -> None:
+        """Items 0..count-1 grouped by ``keys`` in CSR form (``start[:groups + 1]``, ``items``), as
+        the CPU's ``_counting_sort``; each group in ascending order if ``ordered`` (else in the
+        order the threads took their slots)."""
         k, launch = self.k, cuda_target.launch
         launch(k["zero"], groups + 2, Scan(start, start), groups + 2)
         sort = CountingSort(keys, start, items)
         launch(k["count_keys"], count, sort, count)
         self.scan(start, groups + 2)
         launch(k["place_keys"], count, sort, count)
-        launch(k["sort_groups"], groups, sort, groups)
+        if ordered:
+            launch(k["sort_groups"], groups, sort, groups)
 
     def __call__(self, skin, particles, walls, lists, info) -> bool:
         """Rebuild the list on the device; False (with ``info``'s status and need, nothing but the
@@ -316,14 +346,18 @@ class DeviceRebuild:
         launch(k["bounds"], min(n, BOUNDS_THREADS), particles, rb)
         launch(k["grid"], 1, skin, self.max_cells, lists, rb)
         launch(k["bin_particles"], n, particles, lists, rb)
-        self.counting_sort(lists.cell_of, lists.cell_start, lists.cell_items, n, self.max_cells)
+        # a cell's particles in any order: ``scan_row`` sorts each row by partner id
+        self.counting_sort(lists.cell_of, lists.cell_start, lists.cell_items, n, self.max_cells, False)
         launch(k["count_rows"], n, skin, particles, lists, rb, 0)
         self.scan(lists.counts, n)
         launch(k["count_contacts"], n, particles, lists)
         self.scan(lists.tr_start, n + 1)
-        if walls.triangles.shape[0] != 0:
-            launch(k["mesh_candidates"], 1, skin, particles, walls, rb)
-        launch(k["report"], 1, particles, lists, rb)
+        meshes = walls.triangles.shape[0] != 0
+        if meshes:
+            launch(k["mesh_grid"], 1, skin, walls, rb)
+            launch(k["mesh_rows"], n, skin, particles, walls, rb, 0)
+            self.scan(walls.candidate_start, n + 1, self.sums64)
+        launch(k["report"], 1, particles, walls, lists, rb)
         entries, contacts, mesh_short, mesh_needed = (int(v) for v in cuda_target.array_to_host(rb.report))
         if entries > lists.j.shape[0]:
             info[I_STATUS] = STATUS_CAPACITY
@@ -336,10 +370,13 @@ class DeviceRebuild:
         if contacts > rb.carry.shape[0]:
             rb = self.arrays = rb._replace(carry=cuda_target.device_zeros((self._carry_rows(contacts),
                                                                            self.history_size), np.float64))
+        if meshes:
+            launch(k["mesh_rows"], n, skin, particles, walls, rb, 1)
         launch(k["carry_out"], n, particles, lists, rb)
         launch(k["new_starts"], n, particles, lists)
         launch(k["count_rows"], n, skin, particles, lists, rb, 1)
         launch(k["carry_in"], n, particles, lists, rb)
-        self.counting_sort(lists.j, lists.tr_start, lists.tr_k, entries, n)
+        # the gather sums a particle's entries in list order, as on the CPU
+        self.counting_sort(lists.j, lists.tr_start, lists.tr_k, entries, n, True)
         info[I_REBUILDS] += 1
         return True

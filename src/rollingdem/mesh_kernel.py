@@ -94,15 +94,33 @@ def build_mesh_candidates(x, radius, skin, walls):
     Returns (0, entries), or (1, entries needed) when ``walls.candidates`` is too short, or (2,
     entries needed) when ``walls.grid_items`` is (nothing else is changed then)."""
     n = x.shape[0]
-    start = walls.candidate_start
-    ntri = walls.triangles.shape[0]
-    if ntri == 0 or n == 0:
+    if walls.triangles.shape[0] == 0 or n == 0:
         return 0, 0
-    vert, tri, grid = walls.vertices, walls.triangles, walls.grid
     rmax = 0.0
     for i in range(n):
         rmax = max(rmax, radius[i])
-    reach = rmax + skin
+    needed = prepare_mesh_grid(rmax + skin, walls)
+    if needed:
+        return 2, needed
+    start, cand = walls.candidate_start, walls.candidates
+    start[0] = 0
+    for i in range(n):
+        start[i + 1] = mesh_candidate_row(i, x, radius, skin, walls, False)
+    for i in range(n):
+        start[i + 1] += start[i]
+    if start[n] > cand.shape[0]:
+        return 1, start[n]
+    for i in range(n):
+        mesh_candidate_row(i, x, radius, skin, walls, True)
+    return 0, start[n]
+
+
+@njit(cache=True, inline="always")
+def prepare_mesh_grid(reach, walls):
+    """The triangle grid for ``reach`` (R_max + skin), binned anew when a mesh moves or ``reach``
+    changed, and the vertices as the candidates are built (``walls.built``). Returns 0, or the
+    grid entries needed (``bin_triangles``)."""
+    grid, vert = walls.grid, walls.vertices
     moving = False
     for m in range(walls.motion.shape[0]):
         for c in range(6):
@@ -110,49 +128,45 @@ def build_mesh_candidates(x, radius, skin, walls):
     if moving or grid[GR.valid] == 0.0 or grid[GR.reach] != reach:
         needed = bin_triangles(reach, walls)
         if needed:
-            return 2, needed
+            return needed
     grid[GR.moving] = 1.0 if moving else 0.0
-    gap = walls.candidate_gap
     for v in range(vert.shape[0]):
         for d in range(3):
             walls.built[v, d] = vert[v, d]
+    return 0
+
+
+@njit(cache=True, inline="always")
+def mesh_candidate_row(i, x, radius, skin, walls, fill):
+    """Sphere i's candidate triangles, those of its grid cell within R_i + skin, in ascending
+    order: counted, with ``walls.candidate_gap[i]`` (fill = False), or written from
+    ``walls.candidate_start[i]`` (fill = True). Returns their count."""
+    grid, vert, tri, gap = walls.grid, walls.vertices, walls.triangles, walls.candidate_gap
     h, lox, loy, loz = grid[GR.h], grid[GR.x0], grid[GR.y0], grid[GR.z0]
     nx, ny, nz = int(grid[GR.nx]), int(grid[GR.ny]), int(grid[GR.nz])
-    cell_start, items, cand = walls.grid_start, walls.grid_items, walls.candidates
-    start[0] = 0
-    for fill in range(2):  # count per sphere into start[i + 1], then fill with start[i] as the cursor
-        for i in range(n):
-            if not fill:
-                start[i + 1] = 0
-                gap[i] = math.inf
-            fx, fy, fz = (x[i, 0] - lox) / h, (x[i, 1] - loy) / h, (x[i, 2] - loz) / h
-            if not (0.0 <= fx < nx and 0.0 <= fy < ny and 0.0 <= fz < nz):  # NaN too
-                continue
-            cell = (int(fx) * ny + int(fy)) * nz + int(fz)
-            within = radius[i] + skin
-            for m in range(cell_start[cell], cell_start[cell + 1]):
-                t = items[m]
-                a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-                q = closest_point_on_triangle(x[i, 0], x[i, 1], x[i, 2], vert[a, 0], vert[a, 1], vert[a, 2],
-                                              vert[b, 0], vert[b, 1], vert[b, 2], vert[c, 0], vert[c, 1], vert[c, 2])
-                dx, dy, dz = x[i, 0] - q[0], x[i, 1] - q[1], x[i, 2] - q[2]
-                d2 = dx * dx + dy * dy + dz * dz
-                if d2 < within * within:
-                    if fill:
-                        cand[start[i]] = t
-                        start[i] += 1
-                    else:
-                        start[i + 1] += 1
-                        gap[i] = min(gap[i], math.sqrt(d2) - radius[i])
-        if not fill:
-            for i in range(n):
-                start[i + 1] += start[i]
-            if start[n] > cand.shape[0]:
-                return 1, start[n]
-    for i in range(n, 0, -1):
-        start[i] = start[i - 1]
-    start[0] = 0
-    return 0, start[n]
+    if not fill:
+        gap[i] = math.inf
+    fx, fy, fz = (x[i, 0] - lox) / h, (x[i, 1] - loy) / h, (x[i, 2] - loz) / h
+    if not (0.0 <= fx < nx and 0.0 <= fy < ny and 0.0 <= fz < nz):  # NaN too
+        return 0
+    cell = (int(fx) * ny + int(fy)) * nz + int(fz)
+    within = radius[i] + skin
+    first = walls.candidate_start[i] if fill else 0
+    count = 0
+    for m in range(walls.grid_start[cell], walls.grid_start[cell + 1]):
+        t = walls.grid_items[m]
+        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+        q = closest_point_on_triangle(x[i, 0], x[i, 1], x[i, 2], vert[a, 0], vert[a, 1], vert[a, 2],
+                                      vert[b, 0], vert[b, 1], vert[b, 2], vert[c, 0], vert[c, 1], vert[c, 2])
+        dx, dy, dz = x[i, 0] - q[0], x[i, 1] - q[1], x[i, 2] - q[2]
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 < within * within:
+            if fill:
+                walls.candidates[first + count] = t
+            else:
+                gap[i] = min(gap[i], math.sqrt(d2) - radius[i])
+            count += 1
+    return count
 
 
 @njit(cache=True)

@@ -280,3 +280,17 @@ def test_the_contract_refuses_a_law_that_breaks_its_declaration():
     finally:
         ROLLING_MODELS.pop("test_short", None)
         ROLLING_MODELS.pop("test_no_function", None)
+
+
+def test_the_kernel_name_hashes_every_module_it_compiles_in():
+    """Numba's disk cache checks only the file of the generated engine module, so that module's
+    name hashes the source of every package module whose compiled functions it takes in: each one
+    the template imports (the triangle-mesh passes and their geometry among them) and each one
+    those import. Without one of them, a change there would run the old compiled code."""
+    from rollingdem import engine_kernel, kernels
+
+    covered = kernels._package_imports({"rollingdem.engine_kernel"})
+    tree = ast.parse(Path(engine_kernel.__file__).read_text())
+    imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                if node.module and node.module.startswith(PACKAGE)}
+    assert imported <= covered and {"rollingdem.mesh_kernel", "rollingdem.mesh"} <= covered

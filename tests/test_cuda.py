@@ -116,6 +116,23 @@ SCENES = textwrap.dedent('''
         sim.run(steps=300)
         return sim
 
+    def fine_floor(backend):
+        """Three spheres rolling over a floor of 800 small triangles: each has about a hundred
+        candidate triangles, more than the candidate arrays first hold, so they grow."""
+        sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), dt=2e-6, backend=backend)
+        material(sim, 0.2)
+        ticks = np.linspace(-0.0025, 0.0025, 21)
+        vertices = np.array([[a, b, 0.0] for b in ticks for a in ticks])
+        quads = [(r * 21 + c, r * 21 + c + 1, (r + 1) * 21 + c + 1, (r + 1) * 21 + c) for r in range(20)
+                 for c in range(20)]
+        sim.add_wall(rd.MeshWall(vertices, [t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))],
+                                 material="glass"))
+        sim.add_particles([[-0.0012, -0.001, 0.00099], [0.0012, 0.0, 0.000995], [0.0, 0.0012, 0.00099]],
+                          radius=1e-3, material=["glass", "glass 2", "glass"], allow_overlap=True,
+                          velocity=[[0.2, 0, 0], [-0.1, 0.1, 0], [0, -0.2, 0]])
+        sim.run(steps=300)
+        return sim
+
     def handed_over(backend):
         """The pair's first 300 steps on the other backend, checkpointed, restored on ``backend``
         for the last 300: a checkpoint does not depend on the backend that wrote it."""
@@ -140,13 +157,15 @@ SCENES = textwrap.dedent('''
                        ("rolling epsd flat", lambda b: rolling(b, "epsd", 0.0)),
                        ("rolling cdt flat", lambda b: rolling(b, "cdt", 0.0)),
                        ("rolling epsd slope", lambda b: rolling(b, "epsd", 0.05)),
-                       ("rolling cdt slope", lambda b: rolling(b, "cdt", 0.05)), ("pile", pile), ("bed", bed)):
+                       ("rolling cdt slope", lambda b: rolling(b, "cdt", 0.05)), ("pile", pile), ("bed", bed),
+                       ("fine floor", fine_floor)):
         out[name] = {}
         for backend in ("cpu", "cuda"):
             sim = make(backend)
             out[name][backend] = dict(x=sim.positions.tolist(), v=sim.velocities.tolist(),
                                       w=sim.angular_velocities.tolist(), contacts=sim.number_of_contacts(),
-                                      rebuilds=int(sim._state.info[I_REBUILDS]))
+                                      rebuilds=int(sim._state.info[I_REBUILDS]),
+                                      candidates=int(sim._state.meshes.candidate_start[-1:].sum()))
     json.dump(out, sys.stdout)
 ''')
 
@@ -222,15 +241,17 @@ def simulated(children):
 
 
 @pytest.mark.parametrize("scene", ["pair", "rolling epsd flat", "rolling cdt flat", "rolling epsd slope",
-                                   "rolling cdt slope", "pile", "bed", "mesh, bonds, periodic",
+                                   "rolling cdt slope", "pile", "bed", "fine floor", "mesh, bonds, periodic",
                                    "checkpoint handed over"])
 def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene):
     """Positions, velocities and spins after the run equal the CPU engine's bit for bit, and so do
     the contact counts: the GPU's kernels run the same compiled functions in the same order (each
-    particle's force summed by one thread, in list order). The scenes take every kernel: pairs,
-    walls, the kicks and the drift, neighbor-list rebuilds (the pile's spheres move more than
-    skin/2), EPSD and CDT rolling on a flat and a sloped floor, and bonds (one breaking), a moving
-    triangle mesh, a fixed sphere and a periodic box. A checkpoint written on one backend restores
+    particle's force summed by one thread, in list order), and the list rebuilt on the device is
+    the CPU's. The scenes take every kernel: pairs, walls, the kicks and the drift, neighbor-list
+    rebuilds (the pile's spheres move more than skin/2; the bed's list is rebuilt every ~20 steps
+    with contacts to carry over), EPSD and CDT rolling on a flat and a sloped floor, and bonds (one
+    breaking), a moving triangle mesh, a fine mesh whose candidate arrays grow, a fixed sphere and a
+    periodic box. A checkpoint written on one backend restores
     on the other and goes on as the run on that backend would. Their spheres are of two
     materials (the same glass), so that the CPU too takes the scalar pair path; the pile, 27
     spheres thrown into a box, amplifies a difference of one unit in the last place to 1e-7 m
@@ -265,6 +286,9 @@ def test_the_scenes_exercise_what_they_claim(simulated):
     # on a floor touch in about 40 pairs and walls
     assert simulated["bed"]["cpu"]["rebuilds"] >= 10 and simulated["bed"]["cpu"]["contacts"] >= 20
     assert simulated["bed"]["cuda"]["rebuilds"] == simulated["bed"]["cpu"]["rebuilds"]
+    # the fine floor's spheres have more candidate triangles than the arrays first held (4 per sphere)
+    for backend in ("cpu", "cuda"):
+        assert simulated["fine floor"][backend]["candidates"] > 4 * 3
     # the hand-over's two halves are the pair's 600 steps: its CPU half started on the GPU
     for key in ("x", "v", "w"):
         assert np.array_equal(simulated["checkpoint handed over"]["cpu"][key], simulated["pair"]["cpu"][key])

@@ -687,14 +687,14 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def bond_forces(dt, particles, box):
-    """Every intact bond through ``bonds.parallel_bond`` (docs/models.md §1.7): its load row, which
-    the gather adds to its two particles. A bond that breaks gets the mode it broke in
-    (``bond_status``) and a zero load; a broken bond is skipped. Bond b writes row b alone."""
+def bond_forces(lo, hi, dt, particles, box):
+    """Bonds lo..hi-1, each intact one through ``bonds.parallel_bond`` (docs/models.md §1.7): its
+    load row, which the gather adds to its two particles. A bond that breaks gets the mode it broke
+    in (``bond_status``) and a zero load; a broken bond is skipped. Bond b writes row b alone."""
     x, v, w, radius = particles.x, particles.v, particles.w, particles.radius
     pairs, state, params, status, load = (particles.bond_pairs, particles.bond_state, particles.bond_parameters,
                                           particles.bond_status, particles.bond_load)
-    for b in range(pairs.shape[0]):
+    for b in range(lo, hi):
         if status[b] != BOND_INTACT:
             continue
         i = pairs[b, 0]
@@ -838,7 +838,7 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         if particles.bond_pairs.shape[0] != 0:
             # the bonds' load as it is: no motion in this evaluation to add (dt 0), so a fresh bond
             # starts unloaded and a run resumed after a change of the scene adds nothing twice
-            bond_forces(0.0, particles, lists.box)
+            bond_forces(0, particles.bond_pairs.shape[0], 0.0, particles, lists.box)
         exceed, fast = gather(dt, 0.0, gravity, pair_params, particles, walls, lists, half_skin)
         info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
@@ -862,7 +862,7 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         kick = 2.0 if drift else 1.0
         pair_forces(dt, pair_params, particles, lists, scratch)
         if particles.bond_pairs.shape[0] != 0:
-            bond_forces(dt, particles, lists.box)
+            bond_forces(0, particles.bond_pairs.shape[0], dt, particles, lists.box)
         exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin)
         info[I_NEED_REBUILD] = exceed
         info[I_TOO_FAST] = fast

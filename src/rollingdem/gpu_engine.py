@@ -9,7 +9,7 @@ driving differs:
   list goes to the device without pool groups, which makes entry k's contact keep pool row k (the
   CPU's rows share their group's rows, which one thread must own). The history goes to that
   layout on the way to the device and back to the CPU's on the way home;
-- bonds: one thread (``bond_forces``), each bond writing its own row;
+- bonds: one thread per bond (``bond_forces``), each writing its own row;
 - gather: one thread per particle (``gather_rows`` on one particle): its own row's sum, the
   entries where it is the second partner in list order, walls, gravity, the kicks and the drift;
 - neighbor list: rebuilt on the device (``rollingdem.gpu_neighbors``), the same list as the CPU's.
@@ -56,8 +56,9 @@ def kernel_bodies(module) -> dict:
             pair_rows_scalar(i, i + 1, dt, particles, lists, step.pair_params)
 
     def bonds(dt, particles, lists):
-        if cuda.grid(1) == 0:
-            bond_forces(dt, particles, lists.box)
+        b = cuda.grid(1)
+        if b < particles.bond_pairs.shape[0]:
+            bond_forces(b, b + 1, dt, particles, lists.box)
 
     def gather(dt, kick, half_skin, particles, walls, lists, step):
         i = cuda.grid(1)
@@ -115,7 +116,8 @@ class CudaStepLoop:
                                                     np.zeros(2, dtype=np.int64)))
         info[I_STATUS] = 0
         info[I_STEPS_DONE] = 0
-        has_bonds = particles.bond_pairs.shape[0] != 0
+        n_bonds = particles.bond_pairs.shape[0]
+        has_bonds = n_bonds != 0
         dev, rebuild = self._upload(host, m.HISTORY_SIZE)
 
         def forces(dt_bonds, kick, move_walls):
@@ -124,7 +126,7 @@ class CudaStepLoop:
             def launches():
                 cuda_target.launch(k["pairs"], n, dt, dev[0], dev[2], dev[3])
                 if has_bonds:
-                    cuda_target.launch(k["bonds"], 1, dt_bonds, dev[0], dev[2])
+                    cuda_target.launch(k["bonds"], n_bonds, dt_bonds, dev[0], dev[2])
                 cuda_target.launch(k["gather"], n, dt, kick, half_skin, *dev)
                 if move_walls:
                     cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3], True)

@@ -89,18 +89,45 @@ def engine_module(contact, track_energy: bool = False, serial: bool | None = Non
 
 
 def _dependency_hash(contact, source: str) -> str:
+    """A hash of the generated source, the sources of every package module it compiles in (the
+    template's imports and theirs, the laws' modules and theirs) and Numba's version: Numba's own
+    cache checks only the generated file, so a change in any module it inlines must rename it."""
     import numba
 
-    from . import bonds, integrator, kernel_layout, neighbors, walls
-    from .contact import frame
-
     h = hashlib.sha256(source.encode())
-    names = {sub.compiled_function()[0] for sub in contact.submodels}
-    modules = {sys.modules[name] if name in sys.modules else importlib.import_module(name) for name in names}
-    for mod in sorted(modules | {neighbors, frame, kernel_layout, integrator, walls, bonds}, key=lambda m: m.__name__):
-        h.update(inspect.getsource(mod).encode())
+    names = {sub.compiled_function()[0] for sub in contact.submodels} | {"rollingdem.engine_kernel"}
+    for name in sorted(_package_imports(names)):
+        module = sys.modules[name] if name in sys.modules else importlib.import_module(name)
+        h.update(inspect.getsource(module).encode())
     h.update(numba.__version__.encode())
     return h.hexdigest()[:16]
+
+
+def _package_imports(names: set[str]) -> set[str]:
+    """``names`` and the package modules they import, transitively (from their source)."""
+    import ast
+
+    seen, todo = set(), list(names)
+    while todo:
+        name = todo.pop()
+        if name in seen or not name.startswith("rollingdem"):
+            continue
+        seen.add(name)
+        module = sys.modules[name] if name in sys.modules else importlib.import_module(name)
+        package = name if hasattr(module, "__path__") else name.rpartition(".")[0]
+        for node in ast.walk(ast.parse(inspect.getsource(module))):
+            if isinstance(node, ast.ImportFrom):
+                base = importlib.util.resolve_name("." * node.level + (node.module or ""), package) \
+                    if node.level else node.module
+                if not base.startswith("rollingdem"):
+                    continue
+                todo.append(base)
+                if hasattr(importlib.import_module(base), "__path__"):  # ``from package import module``
+                    todo.extend(f"{base}.{a.name}" for a in node.names
+                                if importlib.util.find_spec(f"{base}.{a.name}") is not None)
+            elif isinstance(node, ast.Import):
+                todo.extend(a.name for a in node.names)
+    return seen
 
 
 def _load(contact, track_energy: bool, bonded_pairs: bool = False):

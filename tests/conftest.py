@@ -9,6 +9,16 @@ R = 0.005
 G = 9.81
 
 
+def pytest_collection_finish(session):
+    """Start the GPU backend's child processes (tests/test_cuda.py) once tests of that module are
+    selected, so that they run beside the rest of the suite instead of before its own tests."""
+    for item in session.items:
+        children = getattr(getattr(item, "module", None), "CHILDREN", None)
+        if children is not None:
+            children.start()
+            return
+
+
 @pytest.fixture
 def table1():
     def make(name="m", **kw):

@@ -10,11 +10,13 @@ at a relative 1e-9 of its scale. And every kernel compiles to PTX for compute ca
 compiler rejects fails here.
 """
 
+import atexit
 import json
 import os
 import subprocess
 import sys
 import textwrap
+import threading
 
 import numpy as np
 import pytest
@@ -210,32 +212,61 @@ PTX = textwrap.dedent('''
     ''')
 
 
-class Child:
-    """A child Python process running ``code`` when its result is first asked for. One at a time:
-    run side by side they were slower, as each starts compile helpers of its own (2 cores)."""
+class Children:
+    """The simulator's scenes and the PTX check, each in a child process (the simulator's switch is
+    read when ``numba.cuda`` is first imported, and the PTX check must not see it), one after the
+    other (side by side they were slower: each starts compile helpers of its own, on 2 cores). They
+    start as soon as the session has collected tests of this module (``conftest.py``), so that they
+    run while the rest of the suite does; a result waits for its child."""
 
-    def __init__(self, code, env):
-        self.code, self.env, self.done = code, env, None
+    def __init__(self):
+        cpu_only = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
+        self.jobs = {"simulated": (SCENES, dict(os.environ, NUMBA_ENABLE_CUDASIM="1")), "ptx": (PTX, cpu_only)}
+        self.results = {}
+        self.finished = {name: threading.Event() for name in self.jobs}
+        self.thread = None
+        self.running = None
 
-    def result(self):
-        if self.done is None:
-            self.done = subprocess.run([sys.executable, "-c", self.code], capture_output=True, text=True,
-                                       env=self.env, timeout=900)
-        return self.done.returncode, self.done.stdout, self.done.stderr
+    def start(self):
+        if self.thread is None:
+            self.thread = threading.Thread(target=self._run, daemon=True)
+            self.thread.start()
+            atexit.register(self._stop)
+
+    def _run(self):
+        for name, (code, env) in self.jobs.items():
+            try:
+                self.running = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                                                stderr=subprocess.PIPE, text=True, env=env)
+                stdout, stderr = self.running.communicate(timeout=900)
+                self.results[name] = (self.running.returncode, stdout, stderr)
+            except Exception as error:  # a timeout, or the process could not start
+                self._stop()
+                self.results[name] = (-1, "", repr(error))
+            self.finished[name].set()
+
+    def _stop(self):
+        if self.running is not None and self.running.poll() is None:
+            self.running.kill()
+
+    def result(self, name):
+        self.start()
+        self.finished[name].wait()
+        return self.results[name]
+
+
+CHILDREN = Children()
 
 
 @pytest.fixture(scope="module")
 def children():
-    """The simulator's scenes and the PTX check, each in a child process: the simulator's switch is
-    read when ``numba.cuda`` is first imported, and the PTX check must not see it."""
-    cpu_only = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
-    return {"simulated": Child(SCENES, dict(os.environ, NUMBA_ENABLE_CUDASIM="1")), "ptx": Child(PTX, cpu_only)}
+    return CHILDREN
 
 
 @pytest.fixture(scope="module")
 def simulated(children):
     """Every scene run on the CPU engine and on the CUDA simulator, in one child process."""
-    returncode, stdout, stderr = children["simulated"].result()
+    returncode, stdout, stderr = children.result("simulated")
     assert returncode == 0, stderr[-3000:]
     return json.loads(stdout)
 
@@ -299,7 +330,7 @@ def test_every_kernel_compiles_to_ptx_without_a_device(children):
     capabilities 8.0 and 9.0 with NVIDIA's NVVM (the ``nvidia-cuda-nvcc-cu12`` package): no GPU or
     driver is needed, and what the simulator accepts but the real compiler rejects fails here."""
     pytest.importorskip("numba_cuda", reason="numba-cuda is in the test extra")
-    returncode, stdout, stderr = children["ptx"].result()
+    returncode, stdout, stderr = children.result("ptx")
     assert returncode == 0, stderr[-3000:]
     assert stdout.count("\n") == 2 * 23
 

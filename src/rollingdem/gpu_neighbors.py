@@ -2,11 +2,12 @@
 
 The same list as the CPU's ``rebuild_neighbor_list`` (``rollingdem.neighbors``), entry for entry,
 built where the particles are: the per-particle work is the CPU's own compiled functions
-(``wrap_one``, ``grid_of_bounds``, ``cell_index``, ``scan_row``), called from one thread per
-particle; what the CPU does in serial loops (bounds, counting sorts, prefix sums) is done here
-with prefix sums and integer atomics whose order the result does not depend on:
+(``wrap_one``, ``centre_bounds``, ``grid_of_bounds``, ``cell_index``, ``scan_row``), called from
+one thread per particle; what the CPU does in serial loops (bounds, counting sorts, prefix sums)
+is done here with prefix sums and atomics whose order the result does not depend on:
 
-- the bounding box: float min and max (exact, in any order);
+- the bounding box: each thread's share (``centre_bounds``), then float min and max atomics
+  (exact, in any order);
 - the counting sorts of particles into cells and of entries into the transposed index: integer
   counts and slots taken with atomics; a cell's particles stay in the order the threads took
   their slots (each list row is sorted by partner id afterwards), each particle's entries of the
@@ -34,7 +35,7 @@ from . import cuda_target
 from .kernel_layout import I_NEEDED, I_REBUILDS, I_STATUS, STATUS_CAPACITY, STATUS_MESH_CAPACITY, \
     STATUS_MESH_GRID_CAPACITY
 from .mesh_kernel import mesh_candidate_row, prepare_mesh_grid
-from .neighbors import cell_index, grid_of_bounds, scan_row, wrap_one
+from .neighbors import cell_index, centre_bounds, grid_of_bounds, scan_row, wrap_one
 
 #: the device's rebuild arrays: the centres' bounds (min x, y, z, max x, y, z, R_max), the grid
 #: (lo x, y, z, cells along x, y, z, cell edges), the host's report (entries, contacts, the mesh
@@ -78,18 +79,8 @@ def kernel_bodies(module) -> dict:
 
     def bounds(particles, rebuild):
         """The centres' bounding box and R_max: a stride of particles per thread, then atomics."""
-        x, radius = particles.x, particles.radius
-        lox = loy = loz = math.inf
-        hix = hiy = hiz = -math.inf
-        rmax = 0.0
-        for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            lox = min(lox, x[i, 0])
-            loy = min(loy, x[i, 1])
-            loz = min(loz, x[i, 2])
-            hix = max(hix, x[i, 0])
-            hiy = max(hiy, x[i, 1])
-            hiz = max(hiz, x[i, 2])
-            rmax = max(rmax, radius[i])
+        lox, loy, loz, hix, hiy, hiz, rmax = centre_bounds(particles.x, particles.radius, cuda.grid(1),
+                                                           cuda.gridsize(1))
         b = rebuild.bounds
         cuda.atomic.min(b, 0, lox)
         cuda.atomic.min(b, 1, loy)

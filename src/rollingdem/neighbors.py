@@ -82,11 +82,18 @@ def _bin_particles(x, cells, lo, dims, cell_start, cell_items, cell_of):
 @njit(cache=True)
 def _grid(x, radius, skin, max_cells, box):
     """Bounding box, cell edges >= 2 R_max + skin, and grid dimensions (``grid_of_bounds``)."""
-    n = x.shape[0]
-    lox = loy = loz = np.inf
-    hix = hiy = hiz = -np.inf
+    lox, loy, loz, hix, hiy, hiz, rmax = centre_bounds(x, radius, 0, 1)
+    return grid_of_bounds(lox, loy, loz, hix, hiy, hiz, rmax, skin, max_cells, box)
+
+
+@njit(cache=True, inline="always")
+def centre_bounds(x, radius, first, stride):
+    """(min x, y, z, max x, y, z, R_max) over the particles first, first + stride, ... (all of them
+    from 0 with stride 1; a GPU thread's share with its own first and the grid's stride)."""
+    lox = loy = loz = math.inf
+    hix = hiy = hiz = -math.inf
     rmax = 0.0
-    for i in range(n):
+    for i in range(first, x.shape[0], stride):
         lox = min(lox, x[i, 0])
         loy = min(loy, x[i, 1])
         loz = min(loz, x[i, 2])
@@ -94,7 +101,7 @@ def _grid(x, radius, skin, max_cells, box):
         hiy = max(hiy, x[i, 1])
         hiz = max(hiz, x[i, 2])
         rmax = max(rmax, radius[i])
-    return grid_of_bounds(lox, loy, loz, hix, hiy, hiz, rmax, skin, max_cells, box)
+    return lox, loy, loz, hix, hiy, hiz, rmax
 
 
 @njit(cache=True, inline="always")

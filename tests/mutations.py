@@ -49,6 +49,7 @@ WB = ("tests/test_walton_braun.py",)
 WT = ("tests/test_walton_tangential.py",)
 COH = ("tests/test_cohesion.py",)
 BOND = ("tests/test_bonds.py",)
+GPU = ("tests/test_cuda.py::test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine",)
 MUTATIONS = [
     # --- normal (contact/normal.py) and the material pair ------------------------------------------
     M("hertz k_n = 4/3 E* a -> E* a", C + "normal.py", "kn = (4.0 / 3.0) * p[P_YOUNG] * a", "kn = 1.0 * p[P_YOUNG] * a", HERTZ),
@@ -184,6 +185,12 @@ MUTATIONS = [
       "particle_steps_per_s=n * steps / (0.5 * wall),", ("tests/test_bench.py",)),
     M("cylinder wall overlap off by 20 nm", "src/rollingdem/walls.py", "overlap = r + ri - wall_geom[wl, 6]",
       "overlap = r + ri - wall_geom[wl, 6] + 2e-8", ("tests/test_engine.py::test_cylinder_wall_holds_particles",)),
+    # --- the GPU's neighbor-list rebuild, on the simulator (gpu_neighbors.py) ------------------------
+    M("GPU rebuild drops the carried history", "src/rollingdem/gpu_neighbors.py",
+      "lists.pool[q, s] = rebuild.carry[c, s]", "lists.pool[q, s] = 0.0", GPU),
+    M("GPU transposed index left in the atomics' order", "src/rollingdem/gpu_neighbors.py",
+      "self.counting_sort(lists.j, lists.tr_start, lists.tr_k, entries, n, True)",
+      "self.counting_sort(lists.j, lists.tr_start, lists.tr_k, entries, n, False)", GPU),
 ]
 
 

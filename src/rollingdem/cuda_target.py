@@ -99,13 +99,6 @@ def launch(compiled, count: int, *args) -> None:
     compiled[(count + block - 1) // block, block](*args)
 
 
-def launch_blocks(compiled, blocks: int, threads: int, *args) -> None:
-    """Run ``compiled`` on ``blocks`` blocks of ``threads`` threads (a kernel that shares memory
-    within a block)."""
-    if blocks > 0:
-        compiled[blocks, threads](*args)
-
-
 def device_zeros(shape, dtype):
     """A zeroed array on the device (a host array in the simulator)."""
     if simulated():

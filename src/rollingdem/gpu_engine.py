@@ -117,7 +117,6 @@ class CudaStepLoop:
         info[I_STATUS] = 0
         info[I_STEPS_DONE] = 0
         n_bonds = particles.bond_pairs.shape[0]
-        has_bonds = n_bonds != 0
         dev, rebuild = self._upload(host, m.HISTORY_SIZE)
 
         def forces(dt_bonds, kick, move_walls):
@@ -125,8 +124,7 @@ class CudaStepLoop:
             the flag counts."""
             def launches():
                 cuda_target.launch(k["pairs"], n, dt, dev[0], dev[2], dev[3])
-                if has_bonds:
-                    cuda_target.launch(k["bonds"], n_bonds, dt_bonds, dev[0], dev[2])
+                cuda_target.launch(k["bonds"], n_bonds, dt_bonds, dev[0], dev[2])  # none without bonds
                 cuda_target.launch(k["gather"], n, dt, kick, half_skin, *dev)
                 if move_walls:
                     cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3], True)
@@ -203,8 +201,7 @@ class CudaStepLoop:
                                   tr_start=np.append(lists.tr_start, lists.tr_start[-1]))
         dev = tuple(cuda_target.to_device(r) for r in (particles, walls, by_entry, step))
         self._counted = 0  # particles past skin/2 counted on the device so far (``_flags``)
-        rebuild = gpu_neighbors.DeviceRebuild(self.kernels, dev[0], dev[1], dev[2], history_size,
-                                              lists.cell_start.shape[0] - 1, len(touching))
+        rebuild = gpu_neighbors.DeviceRebuild(self.kernels, dev[0], dev[1], dev[2], history_size, len(touching))
         self.device_bytes = sum(a.nbytes for record in (*dev[:3], rebuild.arrays) for a in record) + \
             sum(a.nbytes for a in (*rebuild.sums, *rebuild.sums64))
         return dev, rebuild

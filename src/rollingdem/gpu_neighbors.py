@@ -275,9 +275,9 @@ class DeviceRebuild:
     ``cell_start`` and ``tr_start`` are one longer on the device, as the counting sorts take it)
     and the launches."""
 
-    def __init__(self, kernels, particles, walls, lists, history_size: int, max_cells: int, contacts: int):
+    def __init__(self, kernels, particles, walls, lists, history_size: int, contacts: int):
         self.k = kernels
-        self.max_cells = max_cells
+        max_cells = self.max_cells = lists.cell_start.shape[0] - 2  # the host's length less one
         self.history_size = history_size
         n = particles.x.shape[0]
         self.n = n

@@ -191,6 +191,8 @@ MUTATIONS = [
     M("GPU transposed index left in the atomics' order", "src/rollingdem/gpu_neighbors.py",
       "self.counting_sort(lists.j, lists.tr_start, lists.tr_k, entries, n, True)",
       "self.counting_sort(lists.j, lists.tr_start, lists.tr_k, entries, n, False)", GPU),
+    M("GPU bench phases timed on the run's own arrays", "src/rollingdem/gpu_engine.py",
+      "self._upload(host, m.HISTORY_SIZE, copy=True)", "self._upload(host, m.HISTORY_SIZE, copy=False)", GPU),
 ]
 
 

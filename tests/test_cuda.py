@@ -102,7 +102,7 @@ SCENES = textwrap.dedent('''
             assert sim.unwrapped_positions[4, 0] > 0.004 > sim.positions[4, 0]
         return sim
 
-    def bed(backend):
+    def bed(backend, steps=300):
         """32 touching spheres in a periodic x-y box on a floor, stirred: with a small skin the list
         is rebuilt on the device every few tens of steps while contacts last, so that each rebuild
         carries contact history over."""
@@ -116,7 +116,18 @@ SCENES = textwrap.dedent('''
         sim.add_particles(x, radius=5e-4, material=["glass", "glass 2"] * 16, allow_overlap=True,
                           velocity=np.c_[0.2 * np.sin(k), 0.2 * np.cos(1.3 * k), 0.1 * np.sin(2.1 * k)],
                           angular_velocity=np.c_[20 * np.cos(k), 20 * np.sin(k), 0 * k])
-        sim.run(steps=300)
+        sim.run(steps=steps)
+        return sim
+
+    def bed_timed(backend):
+        """The bed's 300 steps with its phases timed for ``rollingdem bench`` half way (on the GPU):
+        the timing runs on a copy of the state, so the run goes on as if it had not happened."""
+        sim = bed(backend, 150)
+        if backend == "cuda":
+            from rollingdem.bench import _gpu_split
+
+            out["phases"] = _gpu_split(sim, 2, 1, 1)
+        sim.run(steps=150)
         return sim
 
     def fine_floor(backend):
@@ -184,7 +195,8 @@ SCENES = textwrap.dedent('''
                        ("rolling cdt flat", lambda b: rolling(b, "cdt", 0.0)),
                        ("rolling epsd slope", lambda b: rolling(b, "epsd", 0.05)),
                        ("rolling cdt slope", lambda b: rolling(b, "cdt", 0.05)), ("pile", pile), ("bed", bed),
-                       ("bed, slots in reverse", bed_reversed), ("fine floor", fine_floor)):
+                       ("bed, slots in reverse", bed_reversed), ("bed, phases timed", bed_timed),
+                       ("fine floor", fine_floor)):
         out[name] = {}
         for backend in ("cpu", "cuda"):
             sim = make(backend)
@@ -296,8 +308,8 @@ def simulated(children):
 
 
 @pytest.mark.parametrize("scene", ["pair", "rolling epsd flat", "rolling cdt flat", "rolling epsd slope",
-                                   "rolling cdt slope", "pile", "bed", "bed, slots in reverse", "fine floor",
-                                   "mesh, bonds, periodic", "checkpoint handed over"])
+                                   "rolling cdt slope", "pile", "bed", "bed, slots in reverse", "bed, phases timed",
+                                   "fine floor", "mesh, bonds, periodic", "checkpoint handed over"])
 def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene):
     """Positions, velocities and spins after the run equal the CPU engine's bit for bit, and so do
     the contact counts: the GPU's kernels run the same compiled functions in the same order (each
@@ -348,6 +360,19 @@ def test_the_scenes_exercise_what_they_claim(simulated):
     # the hand-over's two halves are the pair's 600 steps: its CPU half started on the GPU
     for key in ("x", "v", "w"):
         assert np.array_equal(simulated["checkpoint handed over"]["cpu"][key], simulated["pair"]["cpu"][key])
+
+
+def test_bench_times_each_gpu_phase_apart(simulated):
+    """``rollingdem bench --backend cuda`` splits a step as on the CPU (contact forces, walls,
+    integration and gathering, neighbor search) plus the host's share (its launches, which the
+    device's work overlaps, and the step's synchronisation), each timed on a copy of the state on
+    the device: the run it interrupts goes on bit for bit ("bed, phases timed" above)."""
+    split = simulated["phases"]
+    assert set(split) == {"contact forces", "walls", "integration and gathering", "neighbor search",
+                          "host launches (overlapped)", "flag read (synchronisation)"}
+    assert all(np.isfinite(v) and v >= 0 for v in split.values()), split
+    assert min(split["contact forces"], split["integration and gathering"], split["neighbor search"],
+               split["host launches (overlapped)"]) > 0, split
 
 
 def test_every_kernel_compiles_to_ptx_without_a_device(children):

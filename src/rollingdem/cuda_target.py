@@ -106,13 +106,20 @@ def device_zeros(shape, dtype):
     return cuda_module().to_device(np.zeros(shape, dtype=dtype))
 
 
-def to_device(record):
+def to_device(record, copy: bool = False):
     """A record's arrays on the device (a record of device arrays); the simulator keeps the host
-    record, so that the compiled functions run on NumPy arrays."""
+    record, so that the compiled functions run on NumPy arrays, or a copy of it (``copy``): arrays
+    that the kernels may change without changing the host's."""
     if simulated():
-        return record
+        return type(record)(*(a.copy() for a in record)) if copy else record
     cuda = cuda_module()
     return type(record)(*(cuda.to_device(a) for a in record))
+
+
+def synchronize() -> None:
+    """Wait for the device to finish the work launched so far (the simulator has none pending)."""
+    if not simulated():
+        cuda_module().synchronize()
 
 
 def to_host(device_record, host_record) -> None:

@@ -24,6 +24,8 @@ the gather (and the walls' motion, which the device skips when a particle is too
 from __future__ import annotations
 
 import collections
+import math
+import time
 
 import numpy as np
 
@@ -184,10 +186,59 @@ class CudaStepLoop:
         self._counted = int(counts[EXCEED])
         return added
 
-    def _upload(self, host, history_size):
+    def phase_seconds(self, repeats, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info):
+        """Seconds per call of each pass of a step, timed on a copy of the present state on the
+        device (the host's records stay as they are): ``repeats`` calls launched one after the
+        other, then one synchronisation; the same arguments as a call of the loop.
+
+        ``pairs`` (with the bonds), ``gather`` (with the walls and their motion), ``gather without
+        walls``, ``rebuild`` (the neighbor list, with its one read-back; NaN if its arrays are
+        short): the device's time. ``launch``: the host's time to launch a step's kernels, which
+        the device's work overlaps. ``flag read``: a read of the flag counts from an idle device,
+        the step's synchronisation."""
+        k, m = self.kernels, self.module
+        n, n_bonds, half_skin = particles.x.shape[0], particles.bond_pairs.shape[0], 0.5 * skin
+        host = (particles, walls, lists, StepInputs(np.asarray(gravity, dtype=np.float64), pair_params,
+                                                    np.zeros(2, dtype=np.int64)))
+        kept = self.device_bytes, self._counted  # the figures of the last run, not of this copy
+        dev, rebuild = self._upload(host, m.HISTORY_SIZE, copy=True)
+        self.device_bytes, self._counted = kept
+        no_walls = cuda_target.to_device(walls._make(a[:0] for a in walls), copy=True)
+        launch = cuda_target.launch
+
+        def timed(launches):
+            """(device seconds, host seconds) per call of ``launches``."""
+            launches()  # compiled, and the device warm
+            cuda_target.synchronize()
+            tic = time.perf_counter()
+            for _ in range(repeats):
+                launches()
+            launched = time.perf_counter() - tic
+            cuda_target.synchronize()
+            return (time.perf_counter() - tic) / repeats, launched / repeats
+
+        def pairs():
+            launch(k["pairs"], n, dt, dev[0], dev[2], dev[3])
+            launch(k["bonds"], n_bonds, dt, dev[0], dev[2])
+
+        def gather(walls_now):
+            launch(k["gather"], n, dt, 0.0, half_skin, dev[0], walls_now, dev[2], dev[3])
+            launch(k["walls_move"], 1, dt, half_skin, walls_now, dev[3], True)
+
+        (pair_s, pair_host), (gather_s, gather_host) = timed(pairs), timed(lambda: gather(dev[1]))
+        seconds = dict(pairs=pair_s, gather=gather_s, launch=pair_host + gather_host)
+        seconds["gather without walls"] = timed(lambda: gather(no_walls))[0]
+        seconds["flag read"] = timed(lambda: cuda_target.array_to_host(dev[3].flags))[0]
+        spare = info.copy()  # the rebuild's count and status are the copy's
+        seconds["rebuild"] = timed(lambda: rebuild(skin, dev[0], dev[1], dev[2], spare))[0] \
+            if rebuild(skin, dev[0], dev[1], dev[2], spare) else math.nan
+        return seconds
+
+    def _upload(self, host, history_size, copy=False):
         """The records on the device and the rebuild for them. The list's contacts move to a pool
         row per entry (a list without pool groups); ``cell_start`` and ``tr_start`` are one longer
-        there (``gpu_neighbors.DeviceRebuild``)."""
+        there (``gpu_neighbors.DeviceRebuild``). ``copy``: arrays the host does not share, also on
+        the simulator (``cuda_target.to_device``)."""
         particles, walls, lists, step = host
         total = int(lists.start[-1]) if lists.start.size else 0
         rows = lists.contact_row[:total]
@@ -199,7 +250,7 @@ class CudaStepLoop:
         by_entry = lists._replace(pool=pool, contact_row=contact_row, groups=lists.groups[:0],
                                   cell_start=np.zeros(lists.cell_start.shape[0] + 1, dtype=lists.cell_start.dtype),
                                   tr_start=np.append(lists.tr_start, lists.tr_start[-1]))
-        dev = tuple(cuda_target.to_device(r) for r in (particles, walls, by_entry, step))
+        dev = tuple(cuda_target.to_device(r, copy) for r in (particles, walls, by_entry, step))
         self._counted = 0  # particles past skin/2 counted on the device so far (``_flags``)
         rebuild = gpu_neighbors.DeviceRebuild(self.kernels, dev[0], dev[1], dev[2], history_size, len(touching))
         self.device_bytes = sum(a.nbytes for record in (*dev[:3], rebuild.arrays) for a in record) + \

@@ -204,6 +204,14 @@ SCENES = textwrap.dedent('''
                                       w=sim.angular_velocities.tolist(), contacts=sim.number_of_contacts(),
                                       rebuilds=int(sim._state.info[I_REBUILDS]),
                                       candidates=int(sim._state.meshes.candidate_start[-1:].sum()))
+    # the bench's column settles on the backend it is timed on (a few steps of it, cached apart)
+    import pathlib, tempfile
+    from unittest import mock
+    from rollingdem import bench
+    with tempfile.TemporaryDirectory() as folder, mock.patch.object(bench, "_cache_dir", lambda: pathlib.Path(folder)), \
+            mock.patch.object(bench, "SETTLE", 20 * bench.DT):
+        column = bench.settled_column(200, echo=lambda *a: None, backend="cuda")
+        out["column settled on"] = dict(backend=column.backend, steps=column.step, loops=len(column._state._cuda_loops))
     json.dump(out, sys.stdout)
 ''')
 
@@ -373,6 +381,12 @@ def test_bench_times_each_gpu_phase_apart(simulated):
     assert all(np.isfinite(v) and v >= 0 for v in split.values()), split
     assert min(split["contact forces"], split["integration and gathering"], split["neighbor search"],
                split["host launches (overlapped)"]) > 0, split
+
+
+def test_the_bench_column_settles_on_the_gpu(simulated):
+    """``rollingdem bench --backend cuda -s column-collapse`` settles a column it lacks on the GPU
+    (hours for 10^6 spheres on two cores): its steps ran through the GPU's step loop."""
+    assert simulated["column settled on"] == dict(backend="cuda", steps=20, loops=1)
 
 
 def test_every_kernel_compiles_to_ptx_without_a_device(children):

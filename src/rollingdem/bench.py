@@ -112,8 +112,11 @@ def column_radius(particles: int) -> float:
     return COLUMN_RADIUS_20K * math.sqrt(particles / 20000)
 
 
-def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=print):
-    """The settled column (cylinder still in place), from the disk cache or built now and cached."""
+def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=print, backend: str = "cpu",
+                   checkpoint_every: float | None = None):
+    """The settled column (cylinder still in place), from the disk cache or built now, settling on
+    ``backend``, and cached; a settle in progress is checkpointed every ``checkpoint_every``
+    seconds of simulated time (``SETTLE_CHECKPOINT`` by default; none if ``SETTLE`` or more)."""
     from . import Cylinder, CylinderRegion, Simulation, __version__
 
     path = _cache_dir() / f"column_{particles}_seed{seed}_{rolling}_v{__version__}.npz"
@@ -125,17 +128,18 @@ def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=pr
     # interrupted one resumes from its last checkpoint
     partial = path.with_name(path.stem + "_partial.npz")
     if partial.exists():
-        sim = Simulation.restore(partial)
+        sim = Simulation.restore(partial, backend=backend)
         echo(f"resuming the settling of {particles} spheres at t = {sim.time:.3f} of {SETTLE} s ({partial}) ...")
     else:
         echo(f"settling {particles} spheres for {SETTLE} s (cached afterwards in {path.parent}) ...")
         r_cyl = column_radius(particles)
         sim = _column_simulation(rolling)
+        sim.backend = backend
         sim.add_wall(Cylinder(r_cyl, material="table1", name="cylinder"))
         sim.insert(CylinderRegion(r_cyl, 0.0, FILL_HEIGHT), particles, RADIUS, "table1", seed=seed,
                    velocity=(0.0, 0.0, -0.5))
     total = round(SETTLE / sim.dt)
-    chunk = max(1, round(SETTLE_CHECKPOINT / sim.dt))
+    chunk = max(1, round((checkpoint_every or SETTLE_CHECKPOINT) / sim.dt))
     while sim.step < total:
         sim.run(steps=min(chunk, total - sim.step))
         if sim.step < total:
@@ -416,7 +420,8 @@ def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, 
     import numba
 
     threads = threads or numba.get_num_threads()
-    sim = _collapse(column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo))
+    sim = _collapse(column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo,
+                                                                                 backend=backend))
     compile_s, wall, rebuilds = _timed_on(sim, backend, steps, particles)
     note = f"settled state from {from_dump}" if from_dump else "settled state from the disk cache"
     return _result("column-collapse", "epsd", sim, steps, compile_s, wall, rebuilds, threads, note)

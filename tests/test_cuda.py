@@ -212,6 +212,26 @@ SCENES = textwrap.dedent('''
             mock.patch.object(bench, "SETTLE", 20 * bench.DT):
         column = bench.settled_column(200, echo=lambda *a: None, backend="cuda")
         out["column settled on"] = dict(backend=column.backend, steps=column.step, loops=len(column._state._cuda_loops))
+    # the rebuild's prefix sum and counting sort at the device's chunk, 64 values a thread (the
+    # scenes above take the simulator's 4): 5,000 values take three levels of chunk totals
+    from rollingdem import cuda_target, gpu_neighbors
+    from rollingdem.kernels import engine_module
+    with mock.patch.object(gpu_neighbors, "scan_chunk", lambda: 64):
+        bodies = gpu_neighbors.kernel_bodies(engine_module(rd.ContactModel(rolling="epsd"), False, serial=None))
+        rebuild = gpu_neighbors.DeviceRebuild.__new__(gpu_neighbors.DeviceRebuild)
+        rebuild.k = {name: cuda_target.kernel(bodies[name])
+                     for name in ("zero", "count_keys", "place_keys", "sort_groups", "chunk_sums", "chunk_scan")}
+        rebuild.sums = rebuild._levels(5002, np.int32)
+        rng = np.random.default_rng(7)
+        values = rng.integers(0, 50, 5000).astype(np.int32)
+        scanned = values.copy()
+        rebuild.scan(scanned, len(scanned))
+        keys = rng.integers(0, 300, 5000).astype(np.int32)
+        start, items = np.zeros(302, dtype=np.int32), np.zeros(5000, dtype=np.int32)
+        rebuild.counting_sort(keys, start, items, 5000, 300, True)
+    out["device chunk"] = dict(levels=len(rebuild.sums), scan=bool(np.array_equal(scanned, np.cumsum(values))),
+                               start=bool(np.array_equal(start[:301], np.r_[0, np.cumsum(np.bincount(keys, minlength=300))])),
+                               items=bool(np.array_equal(items, np.argsort(keys, kind="stable"))))
     json.dump(out, sys.stdout)
 ''')
 
@@ -387,6 +407,14 @@ def test_the_bench_column_settles_on_the_gpu(simulated):
     """``rollingdem bench --backend cuda -s column-collapse`` settles a column it lacks on the GPU
     (hours for 10^6 spheres on two cores): its steps ran through the GPU's step loop."""
     assert simulated["column settled on"] == dict(backend="cuda", steps=20, loops=1)
+
+
+def test_the_prefix_sum_and_counting_sort_at_the_devices_chunk(simulated):
+    """The rebuild's prefix sum and counting sort take 64 values a thread on a device (4 in the
+    simulator's scenes): at 64, the sum of 5,000 values through three levels of chunk totals is
+    NumPy's cumsum, and 5,000 keys sorted into 300 groups give NumPy's group starts and its stable
+    argsort, exactly (integers)."""
+    assert simulated["device chunk"] == dict(levels=3, scan=True, start=True, items=True)
 
 
 def test_every_kernel_compiles_to_ptx_without_a_device(children):

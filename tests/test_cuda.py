@@ -102,10 +102,11 @@ SCENES = textwrap.dedent('''
             assert sim.unwrapped_positions[4, 0] > 0.004 > sim.positions[4, 0]
         return sim
 
-    def bed(backend, steps=300):
+    def bed(backend, timed=True):
         """32 touching spheres in a periodic x-y box on a floor, stirred: with a small skin the list
         is rebuilt on the device every few tens of steps while contacts last, so that each rebuild
-        carries contact history over."""
+        carries contact history over. Half way, the GPU's phases are timed for ``rollingdem
+        bench`` (``timed``): on a copy of the state, so the run goes on as if it had not happened."""
         sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), dt=2e-6, backend=backend, skin=1e-5,
                             periodic={"x": (-0.002, 0.002), "y": (-0.002, 0.002)})
         material(sim, 0.2)
@@ -116,14 +117,8 @@ SCENES = textwrap.dedent('''
         sim.add_particles(x, radius=5e-4, material=["glass", "glass 2"] * 16, allow_overlap=True,
                           velocity=np.c_[0.2 * np.sin(k), 0.2 * np.cos(1.3 * k), 0.1 * np.sin(2.1 * k)],
                           angular_velocity=np.c_[20 * np.cos(k), 20 * np.sin(k), 0 * k])
-        sim.run(steps=steps)
-        return sim
-
-    def bed_timed(backend):
-        """The bed's 300 steps with its phases timed for ``rollingdem bench`` half way (on the GPU):
-        the timing runs on a copy of the state, so the run goes on as if it had not happened."""
-        sim = bed(backend, 150)
-        if backend == "cuda":
+        sim.run(steps=150)
+        if timed and backend == "cuda":
             from rollingdem.bench import _gpu_split
 
             out["phases"] = _gpu_split(sim, 2, 1, 1)
@@ -170,7 +165,7 @@ SCENES = textwrap.dedent('''
         """The bed with the counting sorts' slots taken in the opposite order of the threads: the
         list and the gather's order must not depend on which thread's atomic comes first."""
         if backend == "cpu":
-            return bed(backend)
+            return bed(backend, timed=False)
         from rollingdem import cuda_target, gpu_engine
 
         def place_keys_reversed(sort, count):
@@ -184,7 +179,7 @@ SCENES = textwrap.dedent('''
         for k in kernels.values():
             k["place_keys"] = cuda_target.kernel(place_keys_reversed)
         try:
-            return bed(backend)
+            return bed(backend, timed=False)
         finally:
             for name, k in kernels.items():
                 k["place_keys"] = saved.get(name, k["place_keys"])
@@ -195,8 +190,7 @@ SCENES = textwrap.dedent('''
                        ("rolling cdt flat", lambda b: rolling(b, "cdt", 0.0)),
                        ("rolling epsd slope", lambda b: rolling(b, "epsd", 0.05)),
                        ("rolling cdt slope", lambda b: rolling(b, "cdt", 0.05)), ("pile", pile), ("bed", bed),
-                       ("bed, slots in reverse", bed_reversed), ("bed, phases timed", bed_timed),
-                       ("fine floor", fine_floor)):
+                       ("bed, slots in reverse", bed_reversed), ("fine floor", fine_floor)):
         out[name] = {}
         for backend in ("cpu", "cuda"):
             sim = make(backend)
@@ -336,19 +330,18 @@ def simulated(children):
 
 
 @pytest.mark.parametrize("scene", ["pair", "rolling epsd flat", "rolling cdt flat", "rolling epsd slope",
-                                   "rolling cdt slope", "pile", "bed", "bed, slots in reverse", "bed, phases timed",
-                                   "fine floor", "mesh, bonds, periodic", "checkpoint handed over"])
+                                   "rolling cdt slope", "pile", "bed", "bed, slots in reverse", "fine floor", "mesh, bonds, periodic", "checkpoint handed over"])
 def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene):
     """Positions, velocities and spins after the run equal the CPU engine's bit for bit, and so do
     the contact counts: the GPU's kernels run the same compiled functions in the same order (each
     particle's force summed by one thread, in list order), and the list rebuilt on the device is
     the CPU's. The scenes take every kernel: pairs, walls, the kicks and the drift, neighbor-list
     rebuilds (the pile's spheres move more than skin/2; the bed's list is rebuilt every ~20 steps
-    with contacts to carry over, and again with the counting sorts' atomic slots taken in the
-    opposite order of the threads), EPSD and CDT rolling on a flat and a sloped floor, and bonds (one
-    breaking), a moving triangle mesh, a fine mesh whose candidate arrays grow, a fixed sphere and a
-    periodic box. A checkpoint written on one backend restores
-    on the other and goes on as the run on that backend would. Their spheres are of two
+    with contacts to carry over, its phases timed for the bench half way, and again with the
+    counting sorts' atomic slots taken in the opposite order of the threads), EPSD and CDT rolling
+    on a flat and a sloped floor, and bonds (one breaking), a moving triangle mesh, a fine mesh
+    whose candidate arrays grow, a fixed sphere and a periodic box. A checkpoint written on one
+    backend restores on the other and goes on as the run on that backend would. Their spheres are of two
     materials (the same glass), so that the CPU too takes the scalar pair path; the pile, 27
     spheres thrown into a box, amplifies a difference of one unit in the last place to 1e-7 m
     within 1000 steps, so it would show any."""
@@ -394,7 +387,7 @@ def test_bench_times_each_gpu_phase_apart(simulated):
     """``rollingdem bench --backend cuda`` splits a step as on the CPU (contact forces, walls,
     integration and gathering, neighbor search) plus the host's share (its launches, which the
     device's work overlaps, and the step's synchronisation), each timed on a copy of the state on
-    the device: the run it interrupts goes on bit for bit ("bed, phases timed" above)."""
+    the device: the run it interrupts goes on bit for bit (the "bed" scene, timed half way)."""
     split = simulated["phases"]
     assert set(split) == {"contact forces", "walls", "integration and gathering", "neighbor search",
                           "host launches (overlapped)", "flag read (synchronisation)"}

@@ -272,8 +272,8 @@ def _gpu_split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
     st = sim._state
     kernel = sim.engine_module()
     st.energy_for(kernel)
-    seconds = st.step_loop(kernel).phase_seconds(repeats, *st.kernel_args(sim.dt, np.asarray(sim.gravity),
-                                                                            sim.skin, sim.pair_parameters()))
+    seconds = st.step_loop(kernel).phase_seconds(repeats, *st.kernel_args(sim.dt, sim.gravity, sim.skin,
+                                                                            sim.pair_parameters()))
     return {"contact forces": seconds["pairs"],
             "walls": max(seconds["gather"] - seconds["gather without walls"], 0.0),
             "integration and gathering": seconds["gather without walls"],

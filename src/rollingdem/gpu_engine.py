@@ -114,12 +114,14 @@ class CudaStepLoop:
         m, k = self.module, self.kernels
         n = particles.x.shape[0]
         half_skin = 0.5 * skin
-        host = (particles, walls, lists, StepInputs(np.asarray(gravity, dtype=np.float64), pair_params,
-                                                    np.zeros(2, dtype=np.int64)))
+        host = self._host(gravity, pair_params, particles, walls, lists)
         info[I_STATUS] = 0
         info[I_STEPS_DONE] = 0
         n_bonds = particles.bond_pairs.shape[0]
         dev, rebuild = self._upload(host, m.HISTORY_SIZE)
+        self._counted = 0  # particles past skin/2 counted on the device so far (``_flags``)
+        self.device_bytes = sum(a.nbytes for record in (*dev[:3], rebuild.arrays) for a in record) + \
+            sum(a.nbytes for a in (*rebuild.sums, *rebuild.sums64))
 
         def forces(dt_bonds, kick, move_walls):
             """Pairs, bonds, the gather (with the kicks and the drift), then the walls' motion:
@@ -198,11 +200,8 @@ class CudaStepLoop:
         the step's synchronisation."""
         k, m = self.kernels, self.module
         n, n_bonds, half_skin = particles.x.shape[0], particles.bond_pairs.shape[0], 0.5 * skin
-        host = (particles, walls, lists, StepInputs(np.asarray(gravity, dtype=np.float64), pair_params,
-                                                    np.zeros(2, dtype=np.int64)))
-        kept = self.device_bytes, self._counted  # the figures of the last run, not of this copy
+        host = self._host(gravity, pair_params, particles, walls, lists)
         dev, rebuild = self._upload(host, m.HISTORY_SIZE, copy=True)
-        self.device_bytes, self._counted = kept
         no_walls = cuda_target.to_device(walls._make(a[:0] for a in walls), copy=True)
         launch = cuda_target.launch
 
@@ -230,9 +229,17 @@ class CudaStepLoop:
         seconds["gather without walls"] = timed(lambda: gather(no_walls))[0]
         seconds["flag read"] = timed(lambda: cuda_target.array_to_host(dev[3].flags))[0]
         spare = info.copy()  # the rebuild's count and status are the copy's
-        seconds["rebuild"] = timed(lambda: rebuild(skin, dev[0], dev[1], dev[2], spare))[0] \
-            if rebuild(skin, dev[0], dev[1], dev[2], spare) else math.nan
+        seconds["rebuild"] = math.nan  # unless the list's arrays are long enough
+        if rebuild(skin, dev[0], dev[1], dev[2], spare):
+            seconds["rebuild"] = timed(lambda: rebuild(skin, dev[0], dev[1], dev[2], spare))[0]
         return seconds
+
+    @staticmethod
+    def _host(gravity, pair_params, particles, walls, lists) -> tuple:
+        """The host's records of a call: the engine's three and the step's inputs, with flag counts
+        at zero."""
+        return (particles, walls, lists, StepInputs(np.asarray(gravity, dtype=np.float64), pair_params,
+                                                    np.zeros(2, dtype=np.int64)))
 
     def _upload(self, host, history_size, copy=False):
         """The records on the device and the rebuild for them. The list's contacts move to a pool
@@ -251,11 +258,7 @@ class CudaStepLoop:
                                   cell_start=np.zeros(lists.cell_start.shape[0] + 1, dtype=lists.cell_start.dtype),
                                   tr_start=np.append(lists.tr_start, lists.tr_start[-1]))
         dev = tuple(cuda_target.to_device(r, copy) for r in (particles, walls, by_entry, step))
-        self._counted = 0  # particles past skin/2 counted on the device so far (``_flags``)
-        rebuild = gpu_neighbors.DeviceRebuild(self.kernels, dev[0], dev[1], dev[2], history_size, len(touching))
-        self.device_bytes = sum(a.nbytes for record in (*dev[:3], rebuild.arrays) for a in record) + \
-            sum(a.nbytes for a in (*rebuild.sums, *rebuild.sums64))
-        return dev, rebuild
+        return dev, gpu_neighbors.DeviceRebuild(self.kernels, dev[0], dev[1], dev[2], history_size, len(touching))
 
     @staticmethod
     def _download(dev, host, history_size):

@@ -16,7 +16,7 @@ t0=time.perf_counter(); sim.run(steps=3000); t=time.perf_counter()-t0
 print(f"bed20k threads={threads} N={sim.n_particles} contacts/particle={sim.number_of_contacts()/sim.n_particles:.2f} "
       f"{sim.n_particles*3000/t/1e6:.2f} M particle-steps/s  (first call incl. compile/load {t_first:.1f}s)")
 # default case collapse stage
-from rollingdem.casefile import load_case, build_simulation, default_case_path
+from rollingdem.io.casefile import load_case, build_simulation, default_case_path
 spec = load_case(default_case_path()); sim = build_simulation(spec)
 sim.run(0.6)
 sim.remove_wall([w for w in sim.walls if w.name=="tube"][0])

@@ -41,8 +41,8 @@ else
 fi
 export PYTHONPATH="$PWD/src${PYTHONPATH:+:$PYTHONPATH}" PYTHONUNBUFFERED=1
 python3 - <<'EOF' 2>&1 | tee "$out/versions.txt" || { echo "the package cannot run here: see above"; exit 1; }
-import numba, rollingdem, rollingdem.bench, rollingdem.casefile, rollingdem.cli, rollingdem.validate  # what the parts import
-from rollingdem.cuda_target import require
+import numba, rollingdem, rollingdem.bench, rollingdem.io.casefile, rollingdem.cli, rollingdem.validate  # what the parts import
+from rollingdem.engine.cuda.target import require
 cuda = require()
 import numba_cuda
 device = cuda.get_current_device()

@@ -11,11 +11,11 @@ give the same forces to round-off, and prints: half ms, full ms, full/half, best
 
 It was written for the per-entry history rows of commit ae2afde and earlier (``git worktree add
 /tmp/ae2afde ae2afde`` and run it there with PYTHONPATH=/tmp/ae2afde/src): the contact pool that
-replaced them (``rollingdem.neighbors``) changes the half list's cost, not the comparison's answer
+replaced them (``rollingdem.engine.neighbors``) changes the half list's cost, not the comparison's answer
 (the full list does every contact twice)."""
 import time, sys, numpy as np, numba
-import rollingdem.engine
-if hasattr(rollingdem.engine.EngineState(6), "pool"):
+import rollingdem.engine.state
+if hasattr(rollingdem.engine.state.EngineState(6), "pool"):
     sys.exit("half_vs_full_list.py measures the per-entry history layout of commit ae2afde: run it from a checkout of it")
 from numba import njit, prange
 from rollingdem import bench

@@ -10,7 +10,8 @@ import sys
 import numba
 from numba import njit, prange, uint32, uint64
 
-from rollingdem import ContactModel, bench
+from rollingdem import ContactModel
+from rollingdem import bench
 
 numba.set_num_threads(2)
 STEPS = int(sys.argv[1]) if len(sys.argv) > 1 else 200

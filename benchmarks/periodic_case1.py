@@ -1,7 +1,7 @@
 """Case 1 (EPSD, v0 = 1 m/s) across an x-periodic boundary (L = 0.1 m) against the plane without one:
 the stop distance and the analytic 0.18836 m (issue 28). usage: python benchmarks/periodic_case1.py"""
 import rollingdem as rd
-from rollingdem.cases import single_sphere as ss
+from rollingdem.experiments import single_sphere as ss
 # EPSD across the periodic boundary
 sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), gravity=(0, 0, -ss.G), dt=ss.DT, periodic={"x": (-0.02, 0.08)})
 sim.add_material(rd.Material("table1", **ss.TABLE1))

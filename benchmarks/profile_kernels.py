@@ -31,7 +31,8 @@ OUT = Path(os.environ.get("PROFILE_OUT", tempfile.mkdtemp(prefix="rollingdem-pro
 def sampled_run():
     import numba
 
-    from rollingdem import Simulation, neighbors
+    from rollingdem import Simulation
+    from rollingdem.engine import neighbors
 
     numba.set_num_threads(THREADS)
     sim = Simulation.restore(os.environ["ROLLINGDEM_PROFILE_STATE"])

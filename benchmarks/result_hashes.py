@@ -107,9 +107,9 @@ def walls() -> dict:
 
 
 def rolling_flat(label, model) -> dict:
-    """Validation case 1 (``rollingdem.cases.single_sphere``): the sphere settled 0.2 s on the
+    """Validation case 1 (``rollingdem.experiments.single_sphere``): the sphere settled 0.2 s on the
     wall, launched at 1 m/s with no spin, 0.3 s of rolling."""
-    from rollingdem.cases.single_sphere import DT, sphere_on_wall
+    from rollingdem.experiments.single_sphere import DT, sphere_on_wall
 
     sim = sphere_on_wall(model, settle=0.0)
     sim.run(steps=round(0.2 / DT))
@@ -119,7 +119,7 @@ def rolling_flat(label, model) -> dict:
 
 
 def scenes() -> dict:
-    from rollingdem.cases.single_sphere import validation_models
+    from rollingdem.experiments.single_sphere import validation_models
 
     out = {"collapse": collapse, "slab": slab, "mixture": mixture, "walls": walls}
     for label, model in validation_models().items():
@@ -150,7 +150,7 @@ def main(argv=None) -> int:
         print(f"error: --check = {str(args.check)!r} is not allowed: no such file", file=sys.stderr)
         return 2
 
-    from rollingdem.threads import fix_threads
+    from rollingdem.engine.threads import fix_threads
 
     results, ok = {}, True
     for name in args.scene or list(all_scenes):

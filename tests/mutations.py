@@ -43,7 +43,7 @@ C = "src/rollingdem/contact/"
 K = ("tests/test_submodel_kernels.py", "tests/test_rolling_kernel.py")  # the kernels called on their own
 HERTZ = K + ("tests/test_hertz_damping.py",)
 TWIST = K + ("tests/test_twisting.py",)
-A = "src/rollingdem/analysis.py"
+A = "src/rollingdem/analysis/repose.py"
 PILES = ("tests/test_analysis.py",)
 WB = ("tests/test_walton_braun.py",)
 WT = ("tests/test_walton_tangential.py",)
@@ -65,7 +65,7 @@ MUTATIONS = [
       "HOOKE_PARAMETERS.tangential_stiffness_ratio] * kn,\n            0.5 * gamma_n, 0.0)", K),
     M("linear shear dashpot from k_n", C + "normal.py", "shear_damping_factor] * math.sqrt(m_eff * ks)",
       "shear_damping_factor] * math.sqrt(m_eff * kn)", K),
-    M("effective shear modulus: factor 2 lost", "src/rollingdem/materials.py", "inv = (2.0 * (2.0 - a.poisson_ratio)",
+    M("effective shear modulus: factor 2 lost", "src/rollingdem/scene/materials.py", "inv = (2.0 * (2.0 - a.poisson_ratio)",
       "inv = ((2.0 - a.poisson_ratio)", K),
     M("walton_braun k2 = k1/e^2 -> k1/e", C + "normal.py", "ratio = 1.0 / pair.restitution ** 2",
       "ratio = 1.0 / pair.restitution", WB),
@@ -85,19 +85,19 @@ MUTATIONS = [
     M("sjkr circle 4 d^2 -> 2 d^2", C + "cohesion.py", "/ (4.0 * d * d)", "/ (2.0 * d * d)", COH),
     M("sjkr wall circle 2 R -> R", C + "cohesion.py", "overlap * (2.0 * ri - overlap)", "overlap * (ri - overlap)",
       COH),
-    M("bond bending stiffness from k_s", "src/rollingdem/bonds.py", "kn * area, ks * area, kn * bending",
+    M("bond bending stiffness from k_s", "src/rollingdem/scene/bonds.py", "kn * area, ks * area, kn * bending",
       "kn * area, ks * area, ks * bending", BOND),
-    M("bond compression weakens in shear", "src/rollingdem/bonds.py", "p[BOND_PARAMETERS.cohesion] - fn / area",
+    M("bond compression weakens in shear", "src/rollingdem/scene/bonds.py", "p[BOND_PARAMETERS.cohesion] - fn / area",
       "p[BOND_PARAMETERS.cohesion] + fn / area", BOND),
-    M("bond shear not carried with the frame", "src/rollingdem/bonds.py",
+    M("bond shear not carried with the frame", "src/rollingdem/scene/bonds.py",
       "    carry_with_frame(state, b, BOND_STATE.shear_x, frame)\n", "", BOND),
-    M("bond normal dashpot with the wrong sign", "src/rollingdem/bonds.py", "fn_total = fn + cn * vcn",
+    M("bond normal dashpot with the wrong sign", "src/rollingdem/scene/bonds.py", "fn_total = fn + cn * vcn",
       "fn_total = fn - cn * vcn", BOND),
-    M("bond moment factor left out of the tensile stress", "src/rollingdem/bonds.py",
+    M("bond moment factor left out of the tensile stress", "src/rollingdem/scene/bonds.py",
       "sigma = fn / area + beta *", "sigma = fn / area + 0.0 *", BOND),
-    M("rolling resistance on a parallel-bonded contact", "src/rollingdem/engine_kernel.py",
+    M("rolling resistance on a parallel-bonded contact", "src/rollingdem/engine/step_template.py",
       "return contact_of(hist, k, g, p, dt, False)", "return contact_of(hist, k, g, p, dt, True)", BOND),
-    M("a parallel bond taken for an exclusive one", "src/rollingdem/engine_kernel.py",
+    M("a parallel bond taken for an exclusive one", "src/rollingdem/engine/step_template.py",
       "apart = bonded(uint64(i), uint64(j), particles, True)", "apart = bonded(uint64(i), uint64(j), particles, False)",
       BOND),
     # --- tangential (contact/tangential.py) ------------------------------------------------------
@@ -172,10 +172,10 @@ MUTATIONS = [
     M("pile radius: largest sector instead of the median", A, "return float(np.median(ext))",
       "return float(np.max(ext))", PILES),
     # --- cases, bench, walls ---------------------------------------------------------------------
-    M("repose case: the angle check compares EPSD2 with itself", "src/rollingdem/cases/repose.py",
+    M("repose case: the angle check compares EPSD2 with itself", "src/rollingdem/experiments/repose.py",
       'for m in ("epsd2", "epsd")]', 'for m in ("epsd2", "epsd2")]',
       ("tests/test_pile_cases.py::test_angle_check_of_case_3_on_stand_in_piles",)),
-    M("repose column 10 % too narrow", "src/rollingdem/cases/repose.py",
+    M("repose column 10 % too narrow", "src/rollingdem/experiments/repose.py",
       "tube = (solid / (PACKING * math.pi * 2.0 * aspect)) ** (1.0 / 3.0)",
       "tube = 0.9 * (solid / (PACKING * math.pi * 2.0 * aspect)) ** (1.0 / 3.0)",
       ("tests/test_parallel.py::test_column_size_holds_the_spheres",)),
@@ -183,15 +183,15 @@ MUTATIONS = [
       "return (pairs + walls) / n, 2 * cl.size / n", ("tests/test_bench.py",)),
     M("bench rate over half the wall time", "src/rollingdem/bench.py", "particle_steps_per_s=n * steps / wall,",
       "particle_steps_per_s=n * steps / (0.5 * wall),", ("tests/test_bench.py",)),
-    M("cylinder wall overlap off by 20 nm", "src/rollingdem/walls.py", "overlap = r + ri - wall_geom[wl, 6]",
+    M("cylinder wall overlap off by 20 nm", "src/rollingdem/scene/walls.py", "overlap = r + ri - wall_geom[wl, 6]",
       "overlap = r + ri - wall_geom[wl, 6] + 2e-8", ("tests/test_engine.py::test_cylinder_wall_holds_particles",)),
     # --- the GPU's neighbor-list rebuild, on the simulator (gpu_neighbors.py) ------------------------
-    M("GPU rebuild drops the carried history", "src/rollingdem/gpu_neighbors.py",
+    M("GPU rebuild drops the carried history", "src/rollingdem/engine/cuda/neighbors.py",
       "lists.pool[q, s] = rebuild.carry[c, s]", "lists.pool[q, s] = 0.0", GPU),
-    M("GPU transposed index left in the atomics' order", "src/rollingdem/gpu_neighbors.py",
+    M("GPU transposed index left in the atomics' order", "src/rollingdem/engine/cuda/neighbors.py",
       "self.counting_sort(lists.j, lists.tr_start, lists.tr_k, entries, n, True)",
       "self.counting_sort(lists.j, lists.tr_start, lists.tr_k, entries, n, False)", GPU),
-    M("GPU bench phases timed on the run's own arrays", "src/rollingdem/gpu_engine.py",
+    M("GPU bench phases timed on the run's own arrays", "src/rollingdem/engine/cuda/step_loop.py",
       "self._upload(host, m.HISTORY_SIZE, copy=True)", "self._upload(host, m.HISTORY_SIZE, copy=False)", GPU),
 ]
 

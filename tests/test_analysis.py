@@ -31,7 +31,7 @@ import matplotlib
 import numpy as np
 import pytest
 
-from rollingdem.analysis import ReposeAngle, default_max_speed, plot_pile, repose_angle, settled
+from rollingdem.analysis.repose import ReposeAngle, default_max_speed, plot_pile, repose_angle, settled
 from rollingdem.errors import ParameterError, SimulationError
 
 matplotlib.use("Agg")
@@ -407,7 +407,7 @@ def test_plot_pile_writes_png(tmp_path, small_pile):
 
 
 def test_touching_marks_spheres_in_contact_only():
-    from rollingdem.analysis import touching
+    from rollingdem.analysis.repose import touching
 
     d = 2 * RADIUS
     pos = np.array([[0, 0, RADIUS], [d * 1.01, 0, RADIUS],  # a pair with a gap of 1 % of d: touching

@@ -16,7 +16,7 @@ SOURCE = Path(__file__).parents[1] / "src" / PACKAGE
 
 
 #: Modules above the sweep machinery; no case (nor anything a case imports) may import them.
-ABOVE_CASES = {"rollingdem.sweep", "rollingdem.repose_study", "rollingdem.calibration", "rollingdem.joint_calibration",
+ABOVE_CASES = {"rollingdem.studies.sweep", "rollingdem.studies.repose_study", "rollingdem.studies.calibration", "rollingdem.studies.joint_calibration",
                "rollingdem.validate",
                "rollingdem.cli"}
 
@@ -116,9 +116,9 @@ def test_the_graph_sees_function_level_and_relative_imports():
     """The reader resolves what this test relies on: a relative import inside a function
     (observables imports cases.repose when the case runs) and ``from .. import module``."""
     graph = import_graph()
-    assert "rollingdem.cases.repose" in graph["rollingdem.cases.observables"]
-    assert "rollingdem.engine_kernel" in graph["rollingdem.kernels"]
-    assert "rollingdem.cases.observables" in graph["rollingdem.sweep"]
+    assert "rollingdem.experiments.repose" in graph["rollingdem.experiments.observables"]
+    assert "rollingdem.engine.step_template" in graph["rollingdem.engine.codegen"]
+    assert "rollingdem.experiments.observables" in graph["rollingdem.studies.sweep"]
 
 
 def test_the_import_graph_has_no_cycle():
@@ -133,7 +133,7 @@ def test_cases_never_reach_the_sweep_or_what_is_above_it():
     """engine below; analysis and cases; then sweep; then the studies, calibration, validate and
     the CLI: nothing a case imports, directly or not, is from the upper layers."""
     graph = import_graph()
-    for case in (m for m in graph if m.startswith("rollingdem.cases")):
+    for case in (m for m in graph if m.startswith("rollingdem.experiments")):
         reached, todo = set(), [case]
         while todo:
             for w in graph[todo.pop()]:
@@ -168,9 +168,9 @@ def test_worked_example_adds_a_rolling_law_without_editing_the_package(tmp_path,
     import math
     import sys
 
-    from rollingdem.cases.single_sphere import G, RADIUS, TABLE1, analytic_flat, rolling_flat_run, stop_time
-    from rollingdem.contact import ROLLING_MODELS
-    from rollingdem.contact.model import ContactModel
+    from rollingdem.experiments.single_sphere import G, RADIUS, TABLE1, analytic_flat, rolling_flat_run, stop_time
+    from rollingdem.physics.contact import ROLLING_MODELS
+    from rollingdem.physics.contact.model import ContactModel
 
     (tmp_path / "my_rolling_law.py").write_text(worked_example())
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -264,9 +264,9 @@ def test_the_contract_refuses_a_law_that_breaks_its_declaration():
     parameters (a wrong result, not an error)."""
     import pytest
 
-    from rollingdem.contact import ROLLING_MODELS, SubModel
-    from rollingdem.contact.rolling import no_rolling
-    from rollingdem.kernel_layout import slots
+    from rollingdem.physics.contact import ROLLING_MODELS, SubModel
+    from rollingdem.physics.contact.rolling import no_rolling
+    from rollingdem.engine.layout import slots
 
     with pytest.raises(TypeError, match="needs its compiled function"):
         type("NoFunction", (SubModel,), {"slot": "rolling", "name": "test_no_function"})
@@ -287,10 +287,11 @@ def test_the_kernel_name_hashes_every_module_it_compiles_in():
     name hashes the source of every package module whose compiled functions it takes in: each one
     the template imports (the triangle-mesh passes and their geometry among them) and each one
     those import. Without one of them, a change there would run the old compiled code."""
-    from rollingdem import engine_kernel, kernels
+    from rollingdem.engine import step_template as engine_kernel
+    from rollingdem.engine import codegen as kernels
 
-    covered = kernels._package_imports({"rollingdem.engine_kernel"})
+    covered = kernels._package_imports({"rollingdem.engine.step_template"})
     tree = ast.parse(Path(engine_kernel.__file__).read_text())
     imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
                 if node.module and node.module.startswith(PACKAGE)}
-    assert imported <= covered and {"rollingdem.mesh_kernel", "rollingdem.mesh"} <= covered
+    assert imported <= covered and {"rollingdem.engine.mesh_passes", "rollingdem.scene.mesh"} <= covered

@@ -213,7 +213,7 @@ def test_check_timestep_false_in_the_case_file_runs_anyway(tmp_path):
 
 
 def test_case_file_messages_name_the_case_file_key(tmp_path):
-    from rollingdem.casefile import check_case, load_case
+    from rollingdem.io.casefile import check_case, load_case
 
     case = tmp_path / "case.yaml"
     case.write_text(edit("name: tiny", "name: tiny\ndt: 1.0e-2"))
@@ -429,8 +429,8 @@ def test_python_api_refuses_output_and_input_paths_by_name(tmp_path):
     """The refusals the CLI makes up front hold for the Python functions too: an output folder that
     is a file, a dump that is a folder, a JSON path that is a folder; nothing is run or written."""
     from rollingdem.bench import column_from_dump, write_json
-    from rollingdem.calibration import Execution, calibrate
-    from rollingdem.sweep import run_sweep
+    from rollingdem.studies.calibration import Execution, calibrate
+    from rollingdem.studies.sweep import run_sweep
 
     afile = tmp_path / "afile"
     afile.write_text("x")
@@ -451,7 +451,7 @@ def test_python_api_refuses_output_and_input_paths_by_name(tmp_path):
 def test_sweep_refuses_a_twisting_model_that_needs_parameters():
     """A sweep parameter names a model only: 'sds' needs its constants, so it is refused when the
     sweep file is read, not as a failed run; 'marshall' (no parameters) is taken."""
-    from rollingdem.sweep import load_sweep
+    from rollingdem.studies.sweep import load_sweep
 
     spec = {"case": "angle-of-repose", "points": [{"mur": 0.1}], "seeds": 1}
     with pytest.raises(rd.ParameterError, match=r"twisting = 'sds' is not allowed: .*twisting_stiffness is missing"):
@@ -462,7 +462,7 @@ def test_sweep_refuses_a_twisting_model_that_needs_parameters():
 def test_pile_run_refuses_settings_that_are_not_its_dataclasses():
     """pile_run's grouped settings come as PileMaterial and Collapse; anything else (a dict of the
     old keywords, say) is refused by name before a sphere is made."""
-    from rollingdem.cases.repose import pile_run
+    from rollingdem.experiments.repose import pile_run
 
     with pytest.raises(rd.ParameterError, match=r"^material = \{'friction': 0.5\} is not allowed: .*PileMaterial"):
         pile_run(material={"friction": 0.5})

@@ -1,4 +1,4 @@
-"""The parallel bond (rollingdem.bonds, docs/models.md §1.7). Its law driven through prescribed
+"""The parallel bond (rollingdem.scene.bonds, docs/models.md §1.7). Its law driven through prescribed
 motions of a bonded pair: the section and stiffnesses of the reference set B1, the pure-mode and
 combined break loads of Potyondy & Cundall's criteria, the bond frame carried through a rigid
 rotation. Bonds in a simulation: a pair's mode frequencies (BP-1), its energy (BP-4), breaking,
@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from rollingdem.bonds import (BOND_BROKEN_SHEAR, BOND_BROKEN_TENSION, BOND_INPUTS, BOND_INTACT, BOND_PARAMETERS,
+from rollingdem.scene.bonds import (BOND_BROKEN_SHEAR, BOND_BROKEN_TENSION, BOND_INPUTS, BOND_INTACT, BOND_PARAMETERS,
                               BOND_STATE, ParallelBond, bond_energy, parallel_bond)
 from rollingdem.errors import ParameterError
 
@@ -481,7 +481,7 @@ def test_a_bonded_cantilever_bends_as_the_hinged_chain():
     determinate chain of hinged springs (``hinged_chain_deflection``: each bond turns about its
     contact point by M/K_b and shifts by V/K_s) does, 1.5058 mm (delta / L = 0.75 %), within 1e-3,
     ample for a deflection of 0.75 % of the length."""
-    from rollingdem.cases.contact_laws import bonded_chain, hinged_chain_deflection
+    from rollingdem.experiments.contact_laws import bonded_chain, hinged_chain_deflection
 
     (dx, dy, dz), k, lb = bonded_chain((0, -9.81, 0))
     expected = hinged_chain_deflection(MASS * 9.81, 10, lb, k["bending_stiffness"], k["shear_stiffness"])
@@ -496,7 +496,7 @@ def test_a_bonded_cantilever_bends_as_the_hinged_chain():
 def test_a_bonded_chain_stretches_under_its_weight():
     """BP-3b: the chain hanging along its axis from its fixed sphere (gravity along +x, away from it):
     bond k carries (N - k + 1) m g, so the free end moves m g N (N + 1) / (2 K_n) out, within 1e-3."""
-    from rollingdem.cases.contact_laws import bonded_chain
+    from rollingdem.experiments.contact_laws import bonded_chain
 
     (dx, dy, dz), k, lb = bonded_chain((9.81, 0, 0))
     assert dx == pytest.approx(MASS * 9.81 * 10 * 11 / (2 * k["normal_stiffness"]), rel=1e-3)
@@ -508,7 +508,7 @@ def test_a_bonded_chain_twists_as_torsion_springs_in_series():
     springs in series (each bond's twisting moment on both of its spheres, with opposite signs).
     Tolerance 1e-4: at 1000 steps per period the integrator's period error is (omega dt)^2 / 24,
     2e-6, and the crossings are interpolated linearly."""
-    from rollingdem.cases.contact_laws import twisting_chain_period
+    from rollingdem.experiments.contact_laws import twisting_chain_period
 
     period, expected = twisting_chain_period()
     assert expected == pytest.approx(4.854e-3, rel=1e-4)

@@ -17,8 +17,8 @@ import pytest
 from scipy.optimize import brentq
 
 import rollingdem as rd
-from rollingdem.calibration import Execution, Search, calibrate, monotone_inverse, parse_assignments, parse_free
-from rollingdem.cases.single_sphere import analytic_flat
+from rollingdem.studies.calibration import Execution, Search, calibrate, monotone_inverse, parse_assignments, parse_free
+from rollingdem.experiments.single_sphere import analytic_flat
 
 
 def test_inclined_wall_gives_back_tan_beta_with_the_interval_of_the_target(tmp_path):
@@ -77,9 +77,9 @@ def test_a_target_out_of_reach_is_refused_with_the_range_found(tmp_path):
     ({"search": Search(coarse=2)}, ["coarse = 2"]),
     ({"search": Search(refine=0)}, ["refine = 0", "integer >= 1"]),
     ({"search": Search(bootstrap=0)}, ["bootstrap = 0", "integer >= 1"]),
-    ({"search": {"coarse": 3}}, ["search = {'coarse': 3}", "rollingdem.calibration.Search"]),
+    ({"search": {"coarse": 3}}, ["search = {'coarse': 3}", "rollingdem.studies.calibration.Search"]),
     ({"execution": Execution(workers=0)}, ["workers = 0", "integer >= 1"]),
-    ({"execution": 2}, ["execution = 2", "rollingdem.calibration.Execution"]),
+    ({"execution": 2}, ["execution = 2", "rollingdem.studies.calibration.Execution"]),
     ({"free": ("mur", (0.4, 0.2))}, ["LOW < HIGH"]),
     ({"free": ("mur", (-0.1, 0.2))}, ["mur = -0.1"]),
     ({"fix": {"mur": 0.2}}, ["both fixed and free"]),
@@ -136,8 +136,8 @@ def test_angle_of_repose_calibration_is_reproduced_by_fresh_seeds(tmp_path):
     calibrated mu_r must give a mean angle whose 95 % interval overlaps the target's band
     (+- 1.96 x 1 deg): the calibration and the check are both limited by the seed scatter of a
     small pile (about 1.5 deg per pile)."""
-    from rollingdem.cases.observables import CASES
-    from rollingdem.intervals import confidence_interval
+    from rollingdem.experiments.observables import CASES
+    from rollingdem.analysis.intervals import confidence_interval
 
     fix = {"mu": 0.6, "count": 1000, "model": "epsd"}
     res = calibrate("angle-of-repose", 22.0, 1.0, fix=fix, free=("mur", (0.1, 0.8)), seeds=2,

@@ -1,4 +1,4 @@
-"""Cohesion laws (rollingdem.contact.cohesion, docs/models.md §1.6): JKR against its parametric
+"""Cohesion laws (rollingdem.physics.contact.cohesion, docs/models.md §1.6): JKR against its parametric
 force-overlap curve, its pull-off force, zero-load overlap, separation and sticking velocity;
 SJKR against the geometry of the contact circle; the refusals."""
 
@@ -9,9 +9,9 @@ import pytest
 from scipy.integrate import quad
 
 import rollingdem as rd
-from rollingdem.contact.cohesion import JKR_HISTORY, contact_area, jkr_cohesion, sjkr_cohesion
+from rollingdem.physics.contact.cohesion import JKR_HISTORY, contact_area, jkr_cohesion, sjkr_cohesion
 from rollingdem.errors import ParameterError
-from rollingdem.kernel_layout import contact_inputs
+from rollingdem.engine.layout import contact_inputs
 
 # 100 um spheres of a soft solid with a strong adhesion, so that the sticking velocity is cm/s
 R, E, NU, RHO, W = 1e-4, 1e7, 0.3, 2500.0, 0.1
@@ -189,8 +189,8 @@ def test_a_cohesive_pile_stands_steeper():
     largest pair pull, (2/3) pi^3 k_c^3 R*^2 / E*^2, about 0.8 of a sphere's weight): the cohesive
     piles are steeper, seed by seed, by a mean larger than the 95 % Student-t half-width of the
     differences (seeds 1-3 measured: 4.5 +- 3.7 degrees, on 21.8)."""
-    from rollingdem.cases.observables import CASES
-    from rollingdem.intervals import confidence_interval
+    from rollingdem.experiments.observables import CASES
+    from rollingdem.analysis.intervals import confidence_interval
 
     angles = {}
     for kc in (0.0, 7e4):
@@ -206,7 +206,7 @@ def test_a_cohesive_pile_stands_steeper():
 def test_the_experiments_take_a_cohesion_law():
     """The granular cases take the law and its parameters (so that calibrate can fit them), refuse
     an unknown law or a negative energy by name, and keep the walls free of cohesion."""
-    from rollingdem.cases.observables import CASES, _pile_material
+    from rollingdem.experiments.observables import CASES, _pile_material
 
     for case in ("angle-of-repose", "repose-rough-base", "rotating-drum", "silo-discharge"):
         p = CASES[case].resolve({"cohesion": "sjkr", "cohesion_energy_density": 2e4})

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
-from rollingdem import convert
+from rollingdem.scene import convert
 from conftest import R, TABLE1
 
 KN = 2e4

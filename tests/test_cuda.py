@@ -28,7 +28,7 @@ SCENES = textwrap.dedent('''
     import numpy as np
     import rollingdem as rd
     from numba import cuda  # a global: the simulator swaps it in a kernel's globals
-    from rollingdem.kernel_layout import I_REBUILDS
+    from rollingdem.engine.layout import I_REBUILDS
 
     def material(sim, mu_r):
         """Glass, twice under two names: spheres of two materials take the CPU's scalar pair path."""
@@ -166,7 +166,7 @@ SCENES = textwrap.dedent('''
         list and the gather's order must not depend on which thread's atomic comes first."""
         if backend == "cpu":
             return bed(backend, timed=False)
-        from rollingdem import cuda_target, gpu_engine
+        from rollingdem.engine.cuda import target as cuda_target, step_loop as gpu_engine
 
         def place_keys_reversed(sort, count):
             i = count - 1 - cuda.grid(1)
@@ -208,8 +208,8 @@ SCENES = textwrap.dedent('''
         out["column settled on"] = dict(backend=column.backend, steps=column.step, loops=len(column._state._cuda_loops))
     # the rebuild's prefix sum and counting sort at the device's chunk, 64 values a thread (the
     # scenes above take the simulator's 4): 5,000 values take three levels of chunk totals
-    from rollingdem import cuda_target, gpu_neighbors
-    from rollingdem.kernels import engine_module
+    from rollingdem.engine.cuda import target as cuda_target, neighbors as gpu_neighbors
+    from rollingdem.engine.codegen import engine_module
     with mock.patch.object(gpu_neighbors, "scan_chunk", lambda: 64):
         bodies = gpu_neighbors.kernel_bodies(engine_module(rd.ContactModel(rolling="epsd"), False, serial=None))
         rebuild = gpu_neighbors.DeviceRebuild.__new__(gpu_neighbors.DeviceRebuild)
@@ -234,10 +234,10 @@ PTX = textwrap.dedent('''
     import numpy as np
     from numba import typeof
     import rollingdem as rd
-    from rollingdem import cuda_target, gpu_engine
-    from rollingdem.gpu_engine import StepInputs
-    from rollingdem.gpu_neighbors import CountingSort, RebuildArrays, Scan
-    from rollingdem.kernels import engine_module
+    from rollingdem.engine.cuda import target as cuda_target, step_loop as gpu_engine
+    from rollingdem.engine.cuda.step_loop import StepInputs
+    from rollingdem.engine.cuda.neighbors import CountingSort, RebuildArrays, Scan
+    from rollingdem.engine.codegen import engine_module
 
     sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"))
     sim.add_material(rd.Material("m", youngs_modulus=1e7, poisson_ratio=0.3, density=2500.0))

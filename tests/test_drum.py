@@ -1,4 +1,4 @@
-"""The rotating drum (rollingdem.cases.drum): what is measured on a bed, on beds of known geometry,
+"""The rotating drum (rollingdem.experiments.drum): what is measured on a bed, on beds of known geometry,
 and one turning drum (slow)."""
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from rollingdem.cases.drum import com_angle, flowing_depth, flowing_layer, rotation_ratios, surface_angle
+from rollingdem.experiments.drum import com_angle, flowing_depth, flowing_layer, rotation_ratios, surface_angle
 
 D = 0.01  # m, sphere diameter
 
@@ -124,8 +124,8 @@ def test_a_turning_drum_holds_its_angle_and_the_torque_balances_the_weight():
     the surface's agree within 3 degrees (measured 36.7 and 35.9), the bed's surface being flat
     to the fit's scatter (sample-to-sample 2-3 degrees); the flowing layer is one to six diameters
     deep."""
-    from rollingdem.cases.drum import DrumSetup, drum_run
-    from rollingdem.cases.repose import PileMaterial
+    from rollingdem.experiments.drum import DrumSetup, drum_run
+    from rollingdem.experiments.repose import PileMaterial
 
     r = drum_run("epsd", material=PileMaterial(friction=0.5, rolling_friction=0.2, youngs_modulus=5e6), dt=2.5e-5,
                  setup=DrumSetup())

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
-from rollingdem.engine import EngineState
-from rollingdem.kernel_layout import I_REBUILDS
-from rollingdem.neighbors import POOL_GROUP, brute_force_pairs
+from rollingdem.engine.state import EngineState
+from rollingdem.engine.layout import I_REBUILDS
+from rollingdem.engine.neighbors import POOL_GROUP, brute_force_pairs
 from conftest import R
 
 
@@ -222,7 +222,7 @@ def test_energy_bookkeeping_changes_no_trajectory(table1, tmp_path):
 def test_same_result_for_any_thread_count(table1, monkeypatch):
     """Forces are gathered per particle in a fixed order: the serial path (small scenes, one
     thread) and the parallel path on all threads give the same bits."""
-    import rollingdem.kernel_layout as ek
+    import rollingdem.engine.layout as ek
 
     results = []
     for threads, serial_below in ((1, ek.SERIAL_BELOW), (numba.config.NUMBA_NUM_THREADS, 0)):
@@ -359,7 +359,7 @@ def test_spatial_resort_keeps_particles_history_and_physics(table1, monkeypatch,
     its index, every open contact keeps its springs. Right after a re-sort the forces agree to
     round-off (a lost spring would change them by O(1)); 1000 steps later, re-sorting every 50,
     positions agree to 1e-10 m (R = 5 mm: round-off grows, measured 2e-14 m)."""
-    import rollingdem.engine as eng
+    import rollingdem.engine.state as eng
 
     monkeypatch.setattr(eng, "SORT_ABOVE", 1 << 40)
     bed = _bed(table1)
@@ -393,7 +393,7 @@ def test_spatial_resort_keeps_particles_history_and_physics(table1, monkeypatch,
 
 
 def pool_rows(st):
-    """Check the contact pool's bookkeeping (``rollingdem.neighbors``) and return, per group, (the
+    """Check the contact pool's bookkeeping (``rollingdem.engine.neighbors``) and return, per group, (the
     rows of its contacts in list order, its free rows, its first row): each contact has a row of
     its own among its group's rows, below the group's next unused row; the free list holds the
     group's other rows below it, so no row is lost and none is shared."""
@@ -492,8 +492,8 @@ def test_blocked_pair_pass_matches_one_contact_at_a_time(table1, monkeypatch, tm
     multiply-adds differently in vector code, so from the same state the forces agree to 1e-12 of
     their largest value (round-off is 1e-16 per operation), and after 300 more steps of collisions
     to 1e-8 (the chaotic growth of that round-off; any change of the force law would be O(1))."""
-    from rollingdem.engine import EngineState
-    from rollingdem.engine_kernel import SERIES_ANGLE
+    from rollingdem.engine.state import EngineState
+    from rollingdem.engine.step_template import SERIES_ANGLE
 
     blocked = cluster(table1, n_side=7, rolling="epsd", fast_spin=3000.0)  # 6e-3 rad per step
     assert 3000.0 * blocked.dt * 0.5 > SERIES_ANGLE  # so some contacts do take the scalar lane

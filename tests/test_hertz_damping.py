@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import rollingdem as rd
-from rollingdem.contact.normal import hertz_damping_factor
+from rollingdem.physics.contact.normal import hertz_damping_factor
 
 
 def impact_restitution(c):

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from rollingdem.cases.single_sphere import rolling_threshold_speed, speed_down_incline
+from rollingdem.experiments.single_sphere import rolling_threshold_speed, speed_down_incline
 
 BETA = 20.0
 MODELS = ["cdt", "epsd", "epsd2", "epsd3", "rrlinear", {"model": "displacement_damping", "damping": 0.3},

@@ -1,4 +1,4 @@
-"""Random insertion of spheres (rollingdem.insertion): no overlaps, inside the region, clear walls,
+"""Random insertion of spheres (rollingdem.scene.insertion): no overlaps, inside the region, clear walls,
 reproducible, size distributions, and clear errors. No simulation is run here."""
 
 import math
@@ -8,9 +8,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 import rollingdem as rd
-from rollingdem import insertion
+from rollingdem.scene import insertion
 from rollingdem.errors import ParameterError
-from rollingdem.insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform, fill_region
+from rollingdem.scene.insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform, fill_region
 
 # Gaps are computed in float64 from coordinates of order 0.1 m: rounding is ~1e-17 m, so a gap
 # below -1e-12 m is a real overlap, not rounding.

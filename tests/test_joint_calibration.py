@@ -1,4 +1,4 @@
-"""Joint calibration (rollingdem.joint_calibration): targets, bad input refused before any run, the
+"""Joint calibration (rollingdem.studies.joint_calibration): targets, bad input refused before any run, the
 posterior of known surrogates, and a run through the sweep machinery."""
 
 import json
@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from rollingdem.cli import app
 from rollingdem.errors import ParameterError
-from rollingdem.joint_calibration import (JointSearch, Target, calibrate_joint, fit_surrogate, parse_target,
+from rollingdem.studies.joint_calibration import (JointSearch, Target, calibrate_joint, fit_surrogate, parse_target,
                                           posterior_grid, _hpd)
 
 
@@ -89,8 +89,8 @@ def test_rolling_flat_distance_and_stop_time_give_mu_r_through_the_sweep(tmp_pat
     than 0.02 (both observables fall as 1 / mu_r, so 0.5 % of them is about 0.5 % of mu_r).
     calibration.json, corner.png and observables.png are written; the runs table is resumable:
     a second call runs nothing."""
-    from rollingdem.calibration import Execution
-    from rollingdem.cases.single_sphere import analytic_flat
+    from rollingdem.studies.calibration import Execution
+    from rollingdem.experiments.single_sphere import analytic_flat
 
     _, _, t_stop, s = analytic_flat(1.0, 0.4, 0.15)
     targets = [Target("rolling-flat", "distance", s, 0.005 * s), Target("rolling-flat", "stop_time", t_stop,
@@ -119,9 +119,9 @@ def test_a_pile_and_a_drum_made_at_a_known_point_give_it_back(tmp_path):
     point, 10 + 2 x 4 points): the true point lies in the 95 % region. The pile's target alone
     cannot pin both: the result says so, and the curve of equally good solutions passes by the true
     point (which lies in its 95 % band). About 20 minutes on 2 cores."""
-    from rollingdem.calibration import Execution
-    from rollingdem.cases.observables import CASES
-    from rollingdem.intervals import confidence_interval
+    from rollingdem.studies.calibration import Execution
+    from rollingdem.experiments.observables import CASES
+    from rollingdem.analysis.intervals import confidence_interval
 
     pile = {"count": 1000, "lift_speed": 0.0, "max_collapse": 2.0}
     drum = {"samples": 8, "spin_up": 45.0, "measure": 45.0}

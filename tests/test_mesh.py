@@ -1,11 +1,11 @@
-"""Triangle meshes (rollingdem.mesh): the closest point of a triangle and its feature against an
+"""Triangle meshes (rollingdem.scene.mesh): the closest point of a triangle and its feature against an
 independent construction, the mesh checks, and reading STL and OBJ files."""
 
 import numpy as np
 import pytest
 
 from rollingdem.errors import ParameterError
-from rollingdem.mesh import (EDGE_AB, EDGE_BC, EDGE_CA, FACE, VERTEX_A, VERTEX_B, VERTEX_C, TriangleMesh,
+from rollingdem.scene.mesh import (EDGE_AB, EDGE_BC, EDGE_CA, FACE, VERTEX_A, VERTEX_B, VERTEX_C, TriangleMesh,
                              closest_points)
 
 EDGES = {(0, 1): EDGE_AB, (1, 2): EDGE_BC, (2, 0): EDGE_CA}
@@ -134,7 +134,7 @@ def free_edges(mesh):
 
 def test_closed_shapes_enclose_their_volume_with_outward_normals():
     """A positive signed volume means outward normals; the drum is the n-gon prism."""
-    from rollingdem import mesh
+    from rollingdem.scene import mesh
 
     drum = mesh.drum(0.1, 0.25, segments=24)
     assert free_edges(drum) == 0
@@ -145,7 +145,7 @@ def test_closed_shapes_enclose_their_volume_with_outward_normals():
 
 
 def test_open_shapes_have_the_area_of_their_polygonal_surfaces():
-    from rollingdem import mesh
+    from rollingdem.scene import mesh
 
     n, r_out, r_in, h = 16, 0.1, 0.02, 0.3
     silo = mesh.silo(r_out, h, r_in, segments=n)
@@ -161,7 +161,7 @@ def test_open_shapes_have_the_area_of_their_polygonal_surfaces():
 
 
 def test_a_shape_written_to_stl_reads_back_the_same(tmp_path):
-    from rollingdem import mesh
+    from rollingdem.scene import mesh
 
     hopper = mesh.hopper(0.1, 0.02, 0.1, segments=32)
     back = TriangleMesh.from_file(hopper.write(tmp_path / "hopper.stl"))
@@ -171,7 +171,7 @@ def test_a_shape_written_to_stl_reads_back_the_same(tmp_path):
 
 def test_a_moved_mesh_keeps_its_shape():
     """Rotated by 30 degrees about x and translated: area and enclosed volume unchanged to round-off."""
-    from rollingdem import mesh
+    from rollingdem.scene import mesh
 
     c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
     drum = mesh.drum(0.1, 0.25, segments=24)
@@ -191,16 +191,16 @@ def test_a_moved_mesh_keeps_its_shape():
     (lambda m: m.box((1, 1, 1)).moved(translation=(0, 1)), r"translation = \(0, 1\) is not allowed"),
 ])
 def test_bad_shape_arguments_are_refused(build, problem):
-    from rollingdem import mesh
+    from rollingdem.scene import mesh
 
     with pytest.raises(ParameterError, match=problem):
         build(mesh)
 
 
-# --- one contact per touched feature (docs: rollingdem.mesh.touching_features) ---------------------
+# --- one contact per touched feature (docs: rollingdem.scene.mesh.touching_features) ---------------------
 def contacts(mesh, p, radius):
     """(triangles, features, points) of the sphere at p against every triangle of the mesh."""
-    from rollingdem.mesh import touching_features
+    from rollingdem.scene.mesh import touching_features
 
     m = mesh.n_triangles
     tri, feat, pts = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64), np.zeros((m, 3))

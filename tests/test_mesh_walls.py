@@ -15,7 +15,7 @@ import pytest
 from scipy.spatial import Delaunay
 
 import rollingdem as rd
-from rollingdem.cases import single_sphere as ss
+from rollingdem.experiments import single_sphere as ss
 from rollingdem.errors import ParameterError, SimulationError
 
 R = ss.RADIUS
@@ -366,7 +366,7 @@ def test_a_case_file_runs_a_turning_mesh_from_an_stl_in_mm_and_writes_its_series
     from typer.testing import CliRunner
 
     from rollingdem.cli import app
-    from rollingdem.mesh import disk
+    from rollingdem.scene.mesh import disk
 
     disk(100.0, segments=12).write(tmp_path / "dish.stl")  # in mm
     reference = rd.TriangleMesh.from_file(tmp_path / "dish.stl", scale=0.001)  # its vertices in the wall's order
@@ -414,8 +414,8 @@ def default_case_with_a_mesh_tube(segments):
     """The built-in default case (2,000 spheres settle in a tube on a rough base, the tube goes,
     the column collapses), its tube the analytic cylinder (``segments`` None) or an open mesh tube of
     ``segments`` flat sides through the cylinder's radius."""
-    from rollingdem.casefile import default_case_path, load_case
-    from rollingdem.mapping_file import read_mapping
+    from rollingdem.io.casefile import default_case_path, load_case
+    from rollingdem.io.mapping_file import read_mapping
 
     data = read_mapping(default_case_path())[0]
     if segments is not None:
@@ -432,7 +432,7 @@ def test_a_96_sided_mesh_tube_settles_the_default_column_as_the_cylinder_does():
     height (mean top of its highest 50 spheres) within 2 % of the analytic cylinder's. The mesh's
     flat sides lie 0.05 % inside the circle (1 - cos(pi/96)); a contact counted twice, or lost at
     the strips' edges, would change the wall friction that holds the column up by far more."""
-    from rollingdem.casefile import build_simulation
+    from rollingdem.io.casefile import build_simulation
 
     heights = []
     for segments in (None, 96):

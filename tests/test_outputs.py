@@ -103,7 +103,7 @@ def test_cli_reports_bad_case_clearly(tmp_path):
 def test_default_case_is_valid():
     """The main job: 2,000 free spheres over a rough base (on which the pile ends at rest, README)
     and the pile measured at the end."""
-    from rollingdem.casefile import build_simulation, default_case_path, load_case
+    from rollingdem.io.casefile import build_simulation, default_case_path, load_case
 
     spec = load_case(default_case_path())
     sim = build_simulation(spec)
@@ -159,7 +159,7 @@ output: {{time_series: {{interval: 0.001}}, repose_angle: {{floor: 0.0}}}}
 def test_case_file_selects_rolling_and_twisting_models_with_their_parameters(tmp_path):
     """Every rolling model and its parity preset are reachable from a case file; a parameter the
     model does not have is refused with its name, its value and the allowed names."""
-    from rollingdem.casefile import build_simulation, load_case
+    from rollingdem.io.casefile import build_simulation, load_case
 
     case = tmp_path / "models.yaml"
     contact = ("contact: {normal: hertz, rolling: {model: epsd, parity: liggghts, damping_ratio: 0.1}, "
@@ -203,7 +203,7 @@ def test_progress_bar_says_compiling_and_leaves_the_compile_out_of_its_rate(tabl
     """The first chunk of a fresh kernel is its compilation: the bar says so, and its time counts
     in neither the steps/s nor the time left (a 30 s compile of 64 steps would show 2 steps/s and
     hours left). A kernel that has run before counts from the first chunk."""
-    from rollingdem.simulation import _Progress
+    from rollingdem.scene.simulation import _Progress
 
     sim = small_scene(table1)
     bar = _Progress(sim, 10_064, "settle")

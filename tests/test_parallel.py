@@ -1,11 +1,11 @@
-"""rollingdem.parallel: the runner that maps independent simulations over Dask workers."""
+"""rollingdem.studies.parallel: the runner that maps independent simulations over Dask workers."""
 
 import math
 
 import pytest
 
 import rollingdem as rd
-from rollingdem.parallel import runner
+from rollingdem.studies.parallel import runner
 
 
 def _square_and_threads(x):
@@ -47,8 +47,8 @@ def test_column_size_holds_the_spheres(table1):
     import numpy as np
     from scipy.spatial import cKDTree
 
-    from rollingdem.cases.repose import INSERT_PACKING, PACKING, POLYDISPERSITY, column_size
-    from rollingdem.cases.single_sphere import RADIUS
+    from rollingdem.experiments.repose import INSERT_PACKING, PACKING, POLYDISPERSITY, column_size
+    from rollingdem.experiments.single_sphere import RADIUS
 
     n = 1000
     tube, height = column_size(n, RADIUS, POLYDISPERSITY)

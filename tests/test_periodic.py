@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
-from rollingdem.cases import single_sphere as ss
+from rollingdem.experiments import single_sphere as ss
 from rollingdem.errors import ParameterError
 
 from conftest import R, TABLE1

@@ -1,6 +1,6 @@
 """A cold kernel compiles on two cores: a helper process fills Numba's cache with the scalar
 contact law, the neighbor search and the gather while the run compiles the pair pass and the
-drift (rollingdem.precompile); only the step loop the run takes is compiled."""
+drift (rollingdem.engine.precompile); only the step loop the run takes is compiled."""
 
 import os
 import subprocess
@@ -11,10 +11,10 @@ from pathlib import Path
 import pytest
 
 import rollingdem as rd
-from rollingdem import precompile
-from rollingdem.contact.model import ContactModel
-from rollingdem.kernels import engine_module
-from rollingdem.precompile import is_cached, prepare
+from rollingdem.engine import precompile
+from rollingdem.physics.contact.model import ContactModel
+from rollingdem.engine.codegen import engine_module
+from rollingdem.engine.precompile import is_cached, prepare
 
 
 def test_no_helper_for_a_cached_step_loop_or_when_switched_off(monkeypatch):
@@ -68,7 +68,7 @@ def test_a_cold_kernel_compiles_on_two_processes_with_the_same_result(tmp_path):
     helper's lock is gone; both processes' functions are in the cache, and the serial step loop,
     which this run does not take, is not compiled."""
     script = ("import numpy as np, numba, rollingdem as rd\n"
-              "from rollingdem.contact.model import ContactModel\n"
+              "from rollingdem.physics.contact.model import ContactModel\n"
               "numba.set_num_threads(2)\n"
               "sim = rd.Simulation(contact=ContactModel('hertz', rolling='epsd2'), dt=1e-6)\n"
               "sim.add_material(rd.Material('m', youngs_modulus=1e7, poisson_ratio=0.3, density=1000.0))\n"

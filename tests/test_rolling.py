@@ -5,7 +5,7 @@ import pytest
 
 import rollingdem as rd
 from conftest import R
-from rollingdem.cases.single_sphere import analytic_flat, rolling_flat_run, stop_time
+from rollingdem.experiments.single_sphere import analytic_flat, rolling_flat_run, stop_time
 
 MU, MU_R = 0.8, 0.2
 

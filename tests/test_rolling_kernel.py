@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
-from rollingdem.contact.frame import contact_frame
-from rollingdem.contact.rolling import spring_rolling
-from rollingdem.kernel_layout import contact_inputs
-from rollingdem.kernels import engine_module
+from rollingdem.physics.contact.frame import contact_frame
+from rollingdem.physics.contact.rolling import spring_rolling
+from rollingdem.engine.layout import contact_inputs
+from rollingdem.engine.codegen import engine_module
 
 R_EFF = 0.0025
 KN, KT = 2e4, 2e4 * 2 / 7
@@ -243,7 +243,7 @@ def test_parity_presets_compile_their_switches_as_constants():
     """The spring models' parity switches are constants of the generated kernel (the vector loop
     then computes only the branches taken): one kernel per preset, shared by the models of one
     preset; the class's own switches (stiffness, damping) stay in the parameter row."""
-    from rollingdem.contact.rolling import CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL
+    from rollingdem.physics.contact.rolling import CAP_SPRING, FORCE_ABS_TOTAL, HISTORY_GLOBAL
 
     default = engine_module(rd.ContactModel("hertz", rolling="epsd"))
     assert engine_module(rd.ContactModel("hertz", rolling="epsd2")) is default

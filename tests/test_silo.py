@@ -1,4 +1,4 @@
-"""Silo discharge (rollingdem.cases.silo): the flow rate, Beverloo's fit and the solid fraction on
+"""Silo discharge (rollingdem.experiments.silo): the flow rate, Beverloo's fit and the solid fraction on
 data of known answer, and one discharge (slow)."""
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from rollingdem.cases.silo import (beverloo_exponent_interval, beverloo_fit, cylinder_points, discharge_rate,
+from rollingdem.experiments.silo import (beverloo_exponent_interval, beverloo_fit, cylinder_points, discharge_rate,
                                    solid_fraction)
 
 
@@ -88,8 +88,8 @@ def test_a_silo_at_a_steady_head_flows_at_a_beverloo_rate():
     (each half's rate is the mean of ~500 spheres out: the 95 % interval of the whole, doubled,
     bounds it). The settled bed poured at random packs between random loose and random close
     (solid fraction 0.55 to 0.66)."""
-    from rollingdem.cases.observables import CASES, _pile_material
-    from rollingdem.cases.silo import SiloSetup, silo_run
+    from rollingdem.experiments.observables import CASES, _pile_material
+    from rollingdem.experiments.silo import SiloSetup, silo_run
 
     p = CASES["silo-discharge"].resolve({"mu": 0.5, "mur": 0.1})
     material = _pile_material(p)
@@ -110,7 +110,7 @@ def test_a_silo_at_a_steady_head_flows_at_a_beverloo_rate():
                                                  ("transient", -1, "transient = -1 is not allowed"),
                                                  ("measured", 2.5, "measured = 2.5 is not allowed")])
 def test_silo_refuses_a_count_of_spheres_that_cannot_be(field, value, words):
-    from rollingdem.cases.silo import SiloSetup, silo_run
+    from rollingdem.experiments.silo import SiloSetup, silo_run
     from rollingdem.errors import ParameterError
 
     with pytest.raises(ParameterError, match=words):

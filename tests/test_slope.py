@@ -7,7 +7,7 @@ import pytest
 
 import rollingdem as rd
 from conftest import G
-from rollingdem.cases.single_sphere import analytic_slope, creep_speed, rolling_slope_run
+from rollingdem.experiments.single_sphere import analytic_slope, creep_speed, rolling_slope_run
 
 THETA = math.radians(10.0)
 

@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
-from rollingdem.kernel_layout import contact_inputs
-from rollingdem.contact.frame import contact_frame
-from rollingdem.contact.normal import hertz_normal, hooke_normal, linear_normal
-from rollingdem.contact.tangential import history_spring
-from rollingdem.contact.twisting import spring_twisting
+from rollingdem.engine.layout import contact_inputs
+from rollingdem.physics.contact.frame import contact_frame
+from rollingdem.physics.contact.normal import hertz_normal, hooke_normal, linear_normal
+from rollingdem.physics.contact.tangential import history_spring
+from rollingdem.physics.contact.twisting import spring_twisting
 
 RT = 1e-12  # relative round-off allowance of one kernel call (see module docstring)
 

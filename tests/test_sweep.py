@@ -18,8 +18,8 @@ import pandas as pd
 import pytest
 
 import rollingdem as rd
-from rollingdem.cases.single_sphere import analytic_flat
-from rollingdem.sweep import expand, load_sweep, read_table, run_id, run_sweep
+from rollingdem.experiments.single_sphere import analytic_flat
+from rollingdem.studies.sweep import expand, load_sweep, read_table, run_id, run_sweep
 
 FLAT = {"case": "rolling-flat", "fixed": {"model": "epsd", "mu": 0.8},
         "grid": {"mur": [0.1, 0.2, 0.3, 0.4], "v0": [0.5, 1.0]}, "seeds": 1}
@@ -183,7 +183,7 @@ def test_validation_repose_sweep_runs_through_the_sweep_table(tmp_path):
     rolling_frictions=(0.4,), seeds=(s,)), s = 1..6, 13-60 s each). The trend of the angle with
     mu and mu_r is tested on the quick sweep's 2000-sphere piles (test_pile_cases.py, slow). Here:
     the case's point is the run's row (one seed: its mean is that run's angle, no interval)."""
-    from rollingdem.repose_study import repose_sweep
+    from rollingdem.studies.repose_study import repose_sweep
 
     kwargs = dict(outdir=tmp_path, count=600, frictions=(0.6,), rolling_frictions=(0.4,), seeds=(1,))
     first = repose_sweep(**kwargs)

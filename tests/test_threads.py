@@ -1,4 +1,4 @@
-"""rollingdem.threads: a run steps on the cores that other processes leave free."""
+"""rollingdem.engine.threads: a run steps on the cores that other processes leave free."""
 
 import time
 
@@ -6,8 +6,8 @@ import numba
 import numpy as np
 import pytest
 
-import rollingdem.kernel_layout as ek
-import rollingdem.threads as th
+import rollingdem.engine.layout as ek
+import rollingdem.engine.threads as th
 from test_engine import cluster
 
 

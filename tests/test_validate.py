@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 import rollingdem as rd
 from rollingdem import validate
-from rollingdem.cases.results import CaseResult, Check
+from rollingdem.experiments.results import CaseResult, Check
 from rollingdem.cli import app
 
 
@@ -76,14 +76,14 @@ def test_cli_exit_status(tmp_path, monkeypatch):
 
 
 def test_unknown_model_is_refused():
-    from rollingdem.cases import rolling_flat
+    from rollingdem.experiments import rolling_flat
     with pytest.raises(rd.ParameterError, match="models = \\['epsd9'\\] are not known"):
         rolling_flat(models=["epsd9"])
 
 
 def test_student_t_interval_matches_the_table_value():
     """Three values 1, 2, 3: mean 2, s = 1, t(0.975, 2 dof) = 4.303 (printed tables): 4.303 / sqrt(3)."""
-    from rollingdem.intervals import confidence_interval
+    from rollingdem.analysis.intervals import confidence_interval
     mean, half = confidence_interval([1.0, 2.0, 3.0, math.nan])
     assert mean == 2.0 and half == pytest.approx(4.303 / math.sqrt(3), abs=1e-3)
     assert math.isnan(confidence_interval([5.0])[1])
@@ -94,7 +94,7 @@ def test_repose_trend_checks_use_the_measured_points():
     points, pass on a rising table, fail on a falling one, and fail when nothing is measured."""
     import pandas as pd
 
-    from rollingdem.repose_study import sweep_checks
+    from rollingdem.studies.repose_study import sweep_checks
 
     def table(angles):
         rows = [{"mu": mu, "mu_r": mur, "angle mean (deg)": a, "95 % CI ± (deg)": 0.5}
@@ -120,8 +120,8 @@ def test_repose_sweep_runs_creeping_piles_again_longer(tmp_path, monkeypatch):
     mu_r = 1 needs 4 s (> 3.5 s, the full sweep's limit; < 7 s)."""
     from types import SimpleNamespace
 
-    from rollingdem.cases import repose
-    from rollingdem.repose_study import repose_sweep
+    from rollingdem.experiments import repose
+    from rollingdem.studies.repose_study import repose_sweep
 
     calls = []
 

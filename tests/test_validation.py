@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
-from rollingdem.casefile import load_case
+from rollingdem.io.casefile import load_case
 from conftest import TABLE1, R
 
 
@@ -204,7 +204,7 @@ def test_case_file_misspelled_key(tmp_path):
 def test_case_file_bad_value(tmp_path):
     p = tmp_path / "c.yaml"
     p.write_text(CASE.replace("radius: 0.005", "radius: -0.005"))
-    from rollingdem.casefile import build_simulation
+    from rollingdem.io.casefile import build_simulation
 
     with pytest.raises(rd.ParameterError, match="radius of particle 0 = -0.005"):
         build_simulation(load_case(p))

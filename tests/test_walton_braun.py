@@ -1,4 +1,4 @@
-"""Walton-Braun's hysteretic normal law (rollingdem.contact.normal.walton_braun_normal): a
+"""Walton-Braun's hysteretic normal law (rollingdem.physics.contact.normal.walton_braun_normal): a
 prescribed overlap path against the classical form, and binary impacts whose restitution is e at
 every speed."""
 
@@ -9,7 +9,7 @@ import pytest
 
 import rollingdem as rd
 from conftest import R
-from rollingdem.contact.normal import WALTON_BRAUN_HISTORY, WALTON_BRAUN_PARAMETERS, walton_braun_normal
+from rollingdem.physics.contact.normal import WALTON_BRAUN_HISTORY, WALTON_BRAUN_PARAMETERS, walton_braun_normal
 from rollingdem.errors import ParameterError
 
 K1 = 1e5  # N/m

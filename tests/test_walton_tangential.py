@@ -1,4 +1,4 @@
-"""Walton's micro-slip tangential law (rollingdem.contact.tangential.walton_tangential) against
+"""Walton's micro-slip tangential law (rollingdem.physics.contact.tangential.walton_tangential) against
 Mindlin's loading curve and the Masing unloading curve it gives after a turn at full slip (WB-4),
 and in a run on top of Walton-Braun's normal law."""
 
@@ -9,10 +9,10 @@ import pytest
 
 import rollingdem as rd
 from conftest import R
-from rollingdem.contact.frame import contact_frame
-from rollingdem.contact.tangential import WALTON_TANGENTIAL_HISTORY, walton_tangential
+from rollingdem.physics.contact.frame import contact_frame
+from rollingdem.physics.contact.tangential import WALTON_TANGENTIAL_HISTORY, walton_tangential
 from rollingdem.errors import ParameterError
-from rollingdem.kernel_layout import contact_inputs
+from rollingdem.engine.layout import contact_inputs
 
 N, MU, K0 = 10.0, 0.5, 1e5  # N, -, N/m
 S_STAR = 3 * MU * N / (2 * K0)  # 7.5e-5 m: full slip of Mindlin's curve

@@ -11,22 +11,22 @@ _numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 # unset). Measured on 2 cores, column-collapse 20,000 spheres, 2 threads: quiet 8.9-10.3 M
 # particle-steps/s (3,000: 7.5-8.7 M; 300,000: 9.5-9.8 M); with a busy process on one core
 # 2.8-2.9 M (3,000: 3.7-3.8 M), which is why a run that was not given --threads steps on the
-# cores other processes leave free (rollingdem.threads). A user's own setting wins; set before
+# cores other processes leave free (rollingdem.engine.threads). A user's own setting wins; set before
 # libgomp is loaded.
 _os.environ.setdefault("GOMP_SPINCOUNT", "30000")
 
-from . import contact as _contact  # noqa: E402
-from . import convert  # noqa: E402
-from .bonds import ParallelBond  # noqa: E402
-from .contact import ContactModel  # noqa: E402
-from .errors import ParameterError, SimulationError  # noqa: E402
-from .insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform, rough_base  # noqa: E402
-from .materials import Material, MaterialTable  # noqa: E402
-from .mesh import MeshWall, TriangleMesh  # noqa: E402
-from .observers import Callback, Checkpoints, Observer, TimeSeries, VTKSnapshots  # noqa: E402
-from .simulation import Simulation, __version__  # noqa: E402
-from .timestep import hertz_contact_time, rayleigh_time_step  # noqa: E402
-from .walls import Cylinder, Plane  # noqa: E402
+from rollingdem.physics import contact as _contact  # noqa: E402
+from rollingdem.scene import convert  # noqa: E402
+from rollingdem.scene.bonds import ParallelBond  # noqa: E402
+from rollingdem.physics.contact import ContactModel  # noqa: E402
+from rollingdem.errors import ParameterError, SimulationError  # noqa: E402
+from rollingdem.scene.insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform, rough_base  # noqa: E402
+from rollingdem.scene.materials import Material, MaterialTable  # noqa: E402
+from rollingdem.scene.mesh import MeshWall, TriangleMesh  # noqa: E402
+from rollingdem.io.observers import Callback, Checkpoints, Observer, TimeSeries, VTKSnapshots  # noqa: E402
+from rollingdem.scene.simulation import Simulation, __version__  # noqa: E402
+from rollingdem.physics.timestep import hertz_contact_time, rayleigh_time_step  # noqa: E402
+from rollingdem.scene.walls import Cylinder, Plane  # noqa: E402
 
 globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (rd.EPSD, rd.Hertz, ...)
 

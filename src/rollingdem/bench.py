@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ParameterError, check_output_path
+from rollingdem.errors import ParameterError, check_output_path
 
 SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling", "mesh-hopper",
           "rough-bed")
@@ -83,7 +83,7 @@ class BenchResult:
 
 
 def _cache_dir() -> Path:
-    from .kernels import kernel_cache_dir
+    from rollingdem.engine.codegen import kernel_cache_dir
 
     return kernel_cache_dir().parent / "bench"
 
@@ -91,7 +91,7 @@ def _cache_dir() -> Path:
 def bench_contact(rolling="epsd"):
     """The contact model of a bench label: a rolling model (or spec) on Hertz-history, or one of
     ``CONTACT_LAW_VARIANTS``."""
-    from . import ContactModel
+    from rollingdem import ContactModel
 
     if isinstance(rolling, str) and rolling in CONTACT_LAW_VARIANTS:
         return ContactModel(**{"normal": "hertz", **CONTACT_LAW_VARIANTS[rolling]})
@@ -99,7 +99,7 @@ def bench_contact(rolling="epsd"):
 
 
 def _column_simulation(rolling: str = "epsd"):
-    from . import Material, Plane, Simulation
+    from rollingdem import Material, Plane, Simulation
 
     sim = Simulation(contact=bench_contact(rolling), dt=DT, skin=SKIN)
     cohesive = isinstance(rolling, str) and rolling in CONTACT_LAW_VARIANTS
@@ -117,7 +117,7 @@ def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=pr
     """The settled column (cylinder still in place), from the disk cache or built now, settling on
     ``backend``, and cached; a settle in progress is checkpointed every ``checkpoint_every``
     seconds of simulated time (``SETTLE_CHECKPOINT`` by default; none if ``SETTLE`` or more)."""
-    from . import Cylinder, CylinderRegion, Simulation, __version__
+    from rollingdem import Cylinder, CylinderRegion, Simulation, __version__
 
     path = _cache_dir() / f"column_{particles}_seed{seed}_{rolling}_v{__version__}.npz"
     if path.exists():
@@ -173,7 +173,7 @@ def column_from_dump(path, rolling: str = "epsd"):
 
 def _column_from_state(rolling, positions, radii, velocities, angular_velocities=None):
     """A column scene (plate, cylinder scaled to the count) holding the given spheres as they are."""
-    from . import Cylinder
+    from rollingdem import Cylinder
 
     sim = _column_simulation(rolling)
     sim.add_wall(Cylinder(column_radius(len(positions)), material="table1", name="cylinder"))
@@ -200,8 +200,8 @@ class _Phases:
     contacts' rows, the forces and, for the neighbor search, the list: ``restore`` puts them back)."""
 
     def __init__(self, sim):
-        from .mesh_kernel import build_mesh_candidates
-        from .neighbors import rebuild_neighbor_list
+        from rollingdem.engine.mesh_passes import build_mesh_candidates
+        from rollingdem.engine.neighbors import rebuild_neighbor_list
 
         st = sim._state
         self.state = st
@@ -314,8 +314,8 @@ def compile_time(contact, spheres: int = 2) -> float:
     ``SERIAL_BELOW`` spheres or on one thread, ``advance`` on threads otherwise): one step of 2
     (or ``SERIAL_BELOW``) spheres on a plate, two of them stacked (a pair contact and a wall
     contact)."""
-    from . import Material, Plane, Simulation
-    from .kernel_layout import SERIAL_BELOW
+    from rollingdem import Material, Plane, Simulation
+    from rollingdem.engine.layout import SERIAL_BELOW
 
     tic = time.perf_counter()
     sim = Simulation(contact=contact, dt=DT, skin=SKIN)
@@ -337,7 +337,7 @@ def _warm_up(sim) -> None:
 
 def _timed_steps(sim, steps: int) -> tuple[float, int]:
     """(seconds, neighbor rebuilds) of ``steps`` steps."""
-    from .kernel_layout import I_REBUILDS
+    from rollingdem.engine.layout import I_REBUILDS
 
     before = int(sim._state.info[I_REBUILDS])
     tic = time.perf_counter()
@@ -403,7 +403,7 @@ def _device_bytes(sim) -> int:
 def _timed_on(sim, backend: str, steps: int, particles: int) -> tuple[float, float, int]:
     """(compile or load seconds, timed seconds, rebuilds) of ``steps`` steps of ``sim`` on
     ``backend``: on the GPU the kernels compile at the untimed first step, which is timed apart."""
-    from . import ContactModel
+    from rollingdem import ContactModel
 
     if backend == "cpu":
         compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
@@ -430,8 +430,8 @@ def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, 
 def hopper_simulation(particles: int, seed: int = 1, echo=print):
     """The mesh-hopper scene ``HOPPER_FILL`` s after the drop, from the disk cache or run now and
     cached; the hopper's STL is written beside it (for the LIGGGHTS input)."""
-    from . import ContactModel, CylinderRegion, Material, MeshWall, Simulation, __version__
-    from .mesh import hopper
+    from rollingdem import ContactModel, CylinderRegion, Material, MeshWall, Simulation, __version__
+    from rollingdem.scene.mesh import hopper
 
     path = _cache_dir() / f"hopper_{particles}_seed{seed}_v{__version__}.npz"
     if path.exists():
@@ -455,7 +455,7 @@ def mesh_hopper(particles=20000, steps=5000, threads=None, echo=print) -> BenchR
     """20,000 spheres discharging from a 10,000-triangle STL hopper (``HOPPER``)."""
     import numba
 
-    from . import ContactModel
+    from rollingdem import ContactModel
 
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
@@ -469,8 +469,8 @@ def mesh_hopper(particles=20000, steps=5000, threads=None, echo=print) -> BenchR
 def single_particle(steps=150000, threads=None, echo=print) -> BenchResult:
     import numba
 
-    from . import ContactModel
-    from .cases.single_sphere import sphere_on_wall, validation_models
+    from rollingdem import ContactModel
+    from rollingdem.experiments.single_sphere import sphere_on_wall, validation_models
 
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling=validation_models()["epsd"]))
@@ -493,7 +493,7 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     """
     import numba
 
-    from .cases.single_sphere import validation_models
+    from rollingdem.experiments.single_sphere import validation_models
 
     threads = threads or numba.get_num_threads()
     base = settled_column(particles, echo=echo)
@@ -581,7 +581,7 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene=
     particle-step against the first, over the whole run and chunk by chunk."""
     import numba
 
-    from . import ContactModel
+    from rollingdem import ContactModel
 
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
@@ -612,8 +612,8 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene=
 def rough_bed_simulation(particles: int, rough: bool, seed: int = 1, echo=print):
     """``particles`` spheres settled for ``ROUGH_BED_SETTLE`` s in a square box on a rough base of
     particles / 2 fixed spheres (``rough``) or on the bare plate; from the disk cache or built now."""
-    from . import BoxRegion, Plane, Simulation, __version__, rough_base
-    from .insertion import ROUGH_BASE_SPACING
+    from rollingdem import BoxRegion, Plane, Simulation, __version__, rough_base
+    from rollingdem.scene.insertion import ROUGH_BASE_SPACING
 
     path = _cache_dir() / f"roughbed_{particles}_{'rough' if rough else 'plate'}_seed{seed}_v{__version__}.npz"
     if path.exists():
@@ -648,7 +648,7 @@ def rough_bed(particles=20000, steps=2000, threads=None, echo=print) -> list[Ben
     its cost per free particle-step against the second."""
     import numba
 
-    from . import ContactModel
+    from rollingdem import ContactModel
 
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
@@ -672,7 +672,7 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
     unknown = [s for s in scenes if s not in SCENES]
     if unknown:
         raise ParameterError(f"scene = {', '.join(unknown)} is not known: allowed are {', '.join(SCENES)}")
-    from .cuda_target import check_backend
+    from rollingdem.engine.cuda.target import check_backend
 
     other = [s for s in scenes if s not in GPU_SCENES]
     if backend != "cpu" and other:
@@ -727,7 +727,7 @@ def format_row(r: BenchResult) -> str:
 def write_json(results: list[BenchResult], path) -> Path:
     import platform
 
-    from . import __version__
+    from rollingdem import __version__
 
     path = check_output_path("json", path, folder=False)
     path.parent.mkdir(parents=True, exist_ok=True)

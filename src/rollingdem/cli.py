@@ -8,7 +8,7 @@ from typing import Optional
 
 import typer
 
-from .errors import ParameterError, SimulationError, check_output_path
+from rollingdem.errors import ParameterError, SimulationError, check_output_path
 
 app = typer.Typer(add_completion=False, no_args_is_help=False,
                   help="rollingdem: DEM simulation of spheres, built around rolling resistance.")
@@ -45,7 +45,7 @@ def _check_in_file(path, option: str) -> None:
 
 def _version(value: bool):
     if value:
-        from . import __version__
+        from rollingdem import __version__
 
         typer.echo(f"rollingdem {__version__}")
         raise typer.Exit()
@@ -67,14 +67,14 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
         backend: Optional[str] = typer.Option(None, "--backend", help="cpu or cuda (an NVIDIA GPU, docs/gpu.md); "
                                               "default: the case file's backend key, else cpu.")):
     """Run a case file, or the built-in default case."""
-    from . import casefile
+    from rollingdem.io import casefile
 
     _set_threads(threads)
     _check_out(out)
     try:
         spec = casefile.load_case(case if case is not None else casefile.default_case_path())
         if backend is not None:
-            from .cuda_target import check_backend
+            from rollingdem.engine.cuda.target import check_backend
 
             spec.backend = check_backend(backend, "--backend")
         casefile.run_case(spec, out=out, progress=progress, echo=typer.echo)
@@ -92,7 +92,7 @@ def _set_backend(backend):
         return
     import os
 
-    from .cuda_target import check_backend
+    from rollingdem.engine.cuda.target import check_backend
 
     try:
         os.environ["ROLLINGDEM_BACKEND"] = check_backend(backend, "--backend")
@@ -107,7 +107,7 @@ def _set_threads(threads):
 
     if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
         _refuse(f"--threads = {threads} is not allowed: must be in [1, {numba.config.NUMBA_NUM_THREADS}]")
-    from .threads import fix_threads
+    from rollingdem.engine.threads import fix_threads
 
     fix_threads(threads)  # what the user asked for, whatever the machine's load
 
@@ -134,7 +134,7 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
     """Run the seed report's test cases and the repose-angle study; write report.md/.html and results.json.
 
     Exit status 1 when any check fails its tolerance."""
-    from .validate import run_validation
+    from rollingdem.validate import run_validation
 
     _check_out(out)
     _set_backend(backend)
@@ -180,7 +180,7 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
           backend: str = typer.Option("cpu", "--backend", help="cpu, or cuda (an NVIDIA GPU, docs/gpu.md: "
                                       "column-collapse and slab).")):
     """Time standard scenes: particle-steps per second, where the time goes, memory, compile time."""
-    from . import bench as bench_mod
+    from rollingdem import bench as bench_mod
 
     _set_threads(threads)
     _check_in_file(from_dump, "--from-dump")
@@ -213,7 +213,7 @@ def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML)
     """Run a case over a grid, list or Latin-hypercube sample of parameters and seeds, on Dask.
 
     Exit status 1 when any run failed (its error is in runs.csv; the others still ran)."""
-    from .sweep import run_sweep
+    from rollingdem.studies.sweep import run_sweep
 
     _check_in_file(sweep_file, "sweep file")
     _check_out(out)
@@ -263,8 +263,8 @@ def calibrate(target: list[str] = typer.Option(..., "--target", help="What was m
     """Find the free parameters whose simulated observables match the measured targets, with their
     95 % region. One numeric target and one free parameter: a monotone search; otherwise a
     Gaussian-process surrogate with sequential design (docs/studies.md, "Calibration")."""
-    from .calibration import Execution, Search, calibrate as run_calibration, parse_assignments, parse_free
-    from .joint_calibration import JointSearch, Target, calibrate_joint, parse_target
+    from rollingdem.studies.calibration import Execution, Search, calibrate as run_calibration, parse_assignments, parse_free
+    from rollingdem.studies.joint_calibration import JointSearch, Target, calibrate_joint, parse_target
 
     _check_out(out)
     try:
@@ -295,7 +295,7 @@ def calibrate(target: list[str] = typer.Option(..., "--target", help="What was m
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return
-            from .cases.observables import get_case
+            from rollingdem.experiments.observables import get_case
 
             targets = [Target(case, observable or get_case(case).default_observable, value, uncertainty)]
         else:
@@ -321,7 +321,7 @@ def calibrate(target: list[str] = typer.Option(..., "--target", help="What was m
 @app.command()
 def check(case: Path = typer.Argument(..., help="Case file to validate.")):
     """Validate a case file without running it."""
-    from . import casefile
+    from rollingdem.io import casefile
 
     try:
         spec = casefile.load_case(case)

@@ -18,22 +18,23 @@ from pathlib import Path
 
 import pandas as pd
 
-from .cases.results import CaseResult, Check
-from .errors import ParameterError
+from rollingdem.experiments.results import CaseResult, Check
+from rollingdem.errors import ParameterError
 
 
 def available_cases() -> dict:
     """Case name -> function(models=None, quick=False, outdir=None, progress=None) -> CaseResult."""
-    from .cases import contact_laws, validation
+    from rollingdem.experiments import contact_laws
+    from rollingdem.experiments import validation
 
     cases = {"inclined-wall": validation.inclined_wall, "rolling-flat": validation.rolling_flat,
              "rolling-slope": validation.rolling_slope, "contact-laws": contact_laws.contact_laws}
     try:
-        from .cases import repose
-        from .repose_study import repose_sweep
-    except ImportError:  # the pile cases need rollingdem.analysis
+        from rollingdem.experiments import repose
+        from rollingdem.studies.repose_study import repose_sweep
+    except ImportError:  # the pile cases need rollingdem.analysis.repose
         return cases
-    from .cases import experiments
+    from rollingdem.experiments import equipment as experiments
 
     cases.update({"angle-of-repose": repose.angle_of_repose, "repose-sweep": repose_sweep,
                   "repose-rough-base": experiments.repose_rough_base, "rotating-drum": experiments.rotating_drum,
@@ -45,14 +46,14 @@ def case_models() -> dict[str, tuple[str, list[str]]]:
     """Case name -> (its keyword, the model names it takes) for the cases that take ``--model``:
     the single-sphere cases take a list (``models``) of the validation labels, angle-of-repose a
     list of its pile models, repose-sweep one rolling model (``model``)."""
-    from .cases.single_sphere import validation_models
-    from .contact import ROLLING_MODELS
+    from rollingdem.experiments.single_sphere import validation_models
+    from rollingdem.physics.contact import ROLLING_MODELS
 
     labels = list(validation_models())
     table = {name: ("models", labels) for name in ("inclined-wall", "rolling-flat", "rolling-slope")}
     try:
-        from .cases.repose import REPOSE_MODELS
-    except ImportError:  # the pile cases need rollingdem.analysis
+        from rollingdem.experiments.repose import REPOSE_MODELS
+    except ImportError:  # the pile cases need rollingdem.analysis.repose
         return table
     table["angle-of-repose"] = ("models", list(REPOSE_MODELS))
     one_model = sorted(ROLLING_MODELS) + [m for m in labels if m not in ROLLING_MODELS]
@@ -109,7 +110,7 @@ def run_validation(outdir, cases=None, quick=False, progress=True, models=None, 
     ``models`` limits every case to those of its models (see ``_model_arguments``; a case left
     out for it is announced through ``echo``). Bad arguments are refused before anything is written.
     """
-    from .parallel import check_workers, runner
+    from rollingdem.studies.parallel import check_workers, runner
 
     available = available_cases()
     names = list(available) if not cases else list(cases)

@@ -1,0 +1,180 @@
+"""Compile a new engine kernel on two cores instead of one.
+
+When the step loop a run takes is not yet in Numba's cache, a helper process compiles part of its
+passes into the cache while this process compiles the rest (``prepare``, from
+``kernels.engine_module``). The plan, its fallbacks and when the helper starts:
+docs/architecture.md, "Compiling a kernel"; the time it saves: docs/performance.md."""
+
+from __future__ import annotations
+
+import os
+import selectors
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rollingdem.errors import env_switch
+
+LOCK_STALE_S = 600.0
+HELPER_WAIT_S = 600.0  # the longest this process waits for the helper before compiling alone
+_PREPARED: set[tuple[str, bool]] = set()
+
+
+def plans(serial: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(the helper's functions, this process's functions), each list in the order compiled."""
+    sfx = "_serial" if serial else ""
+    helper = ("contact", "gather_rows", "rebuild_neighbor_list")
+    # the drift before the pair pass: it needs nothing of the helper's, which is still starting
+    main = ("block_contacts", "kick_drift" + sfx, "undo_drift", "pair_forces" + sfx, "gather" + sfx)
+    return helper, main
+
+
+# main's function -> the helper's that it calls, which this process waits for
+NEEDS = {"pair_forces": "contact", "pair_forces_serial": "contact", "gather": "gather_rows",
+         "gather_serial": "gather_rows"}
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def is_cached(module, function: str = "gather") -> bool:
+    """Whether Numba's cache holds ``module.function`` (its index file exists where Numba looks:
+    the function may live in another module, as the neighbor search does)."""
+    from numba.core.caching import FunctionCache
+
+    return Path(FunctionCache(getattr(module, function).py_func)._cache_file._index_path).exists()
+
+
+def signatures(module) -> dict:
+    """Argument types of every function the plans name, as the engine calls them (taken from an
+    engine state of one sphere on a plate: types do not depend on sizes or values)."""
+    import numba
+
+    from rollingdem.engine.state import EngineState
+    from rollingdem.engine.layout import N_INPUTS, WALL_GEOMETRY_SIZE, WALL_PLANE
+
+    st = EngineState(module.HISTORY_SIZE)
+    st.set_walls([WALL_PLANE], [np.zeros(WALL_GEOMETRY_SIZE)], [np.zeros(3)], [np.zeros(3)], [0], [-1])
+    st.append_particles(np.array([[0.0, 0.0, 0.01]]), np.zeros((1, 3)), np.zeros((1, 3)), np.array([0.01]),
+                        np.array([1e-3]), np.array([4e-8]), np.zeros(1, dtype=np.int32))
+    st.energy_for(module)
+    dt, kick, half_skin, skin = 1e-6, 1.0, 1e-3, 2e-3
+    pp = np.zeros((1, 1, module.N_PARAMS))
+    particles, walls, lists, scratch = st.records()
+    gather = (dt, kick, np.zeros(3), pp, particles, walls, lists, half_skin)
+    args = {
+        "contact": (lists.pool, 0, (0.0,) * N_INPUTS, pp[0, 0], dt),
+        "block_contacts": (scratch.blocks[0], pp[0, 0], dt),
+        "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.fixed, st.image, st.x_ref, lists),
+        "pair_forces": (dt, pp, particles, lists, scratch), "pair_forces_serial": (dt, pp, particles, lists, scratch),
+        "gather_rows": (0, 1, dt, kick, np.zeros(3), particles, walls, lists, pp, half_skin),
+        "gather": gather, "gather_serial": gather,
+        "kick_drift": (dt, particles, half_skin), "kick_drift_serial": (dt, particles, half_skin),
+        "undo_drift": (dt, particles),
+    }
+    return {name: tuple(numba.typeof(a) for a in values) for name, values in args.items()}
+
+
+def compile_into_cache(module, name: str, sigs: dict) -> None:
+    if not is_cached(module, name):
+        getattr(module, name).compile(sigs[name])
+
+
+def prepare(module, serial: bool) -> bool:
+    """Compile the passes of ``module``'s step loop for ``serial`` on two cores (see above), if it
+    would help, and return True; otherwise return False, and the first call compiles them on
+    this core."""
+    loop = "advance_serial" if serial else "advance"
+    if (module.__name__, serial) in _PREPARED:
+        return False
+    _PREPARED.add((module.__name__, serial))
+    if not env_switch("ROLLINGDEM_PRECOMPILE") or _cores() < 2 or is_cached(module, loop):
+        return False
+    lock = Path(module.__file__).with_suffix(".precompile.lock")
+    try:
+        if lock.exists() and time.time() - lock.stat().st_mtime > LOCK_STALE_S:
+            lock.unlink()
+        os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except OSError:  # another process is preparing it, or the folder is read-only
+        return False
+    # the helper imports what this process imports (a sub-model defined in the user's own module)
+    env = dict(os.environ, ROLLINGDEM_PRECOMPILE="0", PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    helper = subprocess.Popen([sys.executable, "-m", "rollingdem.engine.precompile", module.__file__, str(lock),
+                               str(int(serial))], env=env, stdin=subprocess.DEVNULL,
+                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, bufsize=0)
+    progress = _Progress(helper)
+    try:
+        sigs = signatures(module)
+        for name in plans(serial)[1]:
+            if name in NEEDS:
+                progress.wait(NEEDS[name])
+            compile_into_cache(module, name, sigs)
+        progress.wait(None)
+    except Exception:  # only a head start: the run's first call compiles what is missing, and raises there
+        pass
+    finally:
+        if helper.poll() is None:
+            helper.kill()  # killed, it cannot remove its lock: this process does
+        helper.wait()
+        helper.stdout.close()
+        lock.unlink(missing_ok=True)
+    return True
+
+
+class _Progress:
+    """The names the helper has reported done, read from its unbuffered pipe (a buffered reader
+    could hold a finished name back until the helper writes again)."""
+
+    def __init__(self, helper):
+        self.helper = helper
+        self.done: set[str] = set()
+        self._pending = b""
+
+    def wait(self, name: str | None) -> None:
+        """Until ``name`` is done (None: until the helper exits), at most ``HELPER_WAIT_S``."""
+        deadline = time.monotonic() + HELPER_WAIT_S
+        fd = self.helper.stdout.fileno()
+        with selectors.DefaultSelector() as sel:
+            sel.register(fd, selectors.EVENT_READ)
+            while name is None or name not in self.done:
+                left = deadline - time.monotonic()
+                if left <= 0 or not sel.select(left):
+                    return
+                chunk = os.read(fd, 4096)
+                if not chunk:  # the helper exited
+                    return
+                *lines, self._pending = (self._pending + chunk).split(b"\n")
+                self.done.update(line.decode().strip() for line in lines)
+
+
+def _helper(path: str, serial: bool) -> None:
+    """The helper's part of the plan for the generated engine module at ``path``, each name printed
+    when it is in the cache."""
+    import importlib.util
+
+    name = Path(path).stem
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    sigs = signatures(module)
+    for func in plans(serial)[0]:
+        compile_into_cache(module, func, sigs)
+        print(func, flush=True)
+
+
+if __name__ == "__main__":
+    try:
+        _helper(sys.argv[1], sys.argv[3] == "1")
+    finally:
+        try:
+            os.unlink(sys.argv[2])
+        except OSError:
+            pass

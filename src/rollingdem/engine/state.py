@@ -1,0 +1,738 @@
+"""Engine state: the arrays the compiled kernel advances, and their capacity management.
+
+``EngineState`` calls the kernel for K steps at a time and grows the arrays when it stops for
+room; it re-sorts the particles' storage slots in space in large scenes (``ids[slot]`` is the
+index the user knows). docs/architecture.md, "The engine state"."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rollingdem.engine import layout as kernel_layout
+from rollingdem.errors import SimulationError
+from rollingdem.engine.layout import BOND_LOAD_SIZE, BOND_PARAMETERS, BOND_STATE, CONTACT_BLOCK, ENERGY_CHANNELS, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_LOAD_SIZE, ListArrays, ParticleArrays, Scratch, WallArrays, block_columns
+from rollingdem.engine.neighbors import ContactList
+from rollingdem.engine.threads import ThreadGovernor
+# list capacity = entries needed x this (16 bytes per entry and a pool row of 8 (history + 6) bytes,
+# 136 with EPSD): growing costs a reallocation and one more counting pass of the neighbor search,
+# so a small margin is cheap
+LIST_MARGIN = 1.15
+MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start, tr_k and contact_row are int32
+# Measured (2 threads, epsd): 200,000 spheres stored in random order run at 6.6 M particle-steps/s,
+# re-sorted 10.4 M, lattice order 11.6 M; at 20,000 spheres the state fits in cache and sorting
+# does not pay (13.4 M unsorted, 11.9 M sorted: the two threads' halves of the slots carry
+# unequal work), hence the threshold.
+SORT_ABOVE = 50_000  # particles
+SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
+
+
+def periodic_box(periodic: dict) -> np.ndarray:
+    """The kernel's periodic box (``kernel_layout.PERIODIC_BOX``) of ``{"x": (lo, hi), ...}``: empty
+    without a periodic axis."""
+    box = np.zeros(PERIODIC_BOX_SIZE if periodic else 0)
+    for axis, (lo, hi) in periodic.items():
+        a = "xyz".index(axis)
+        box[a], box[3 + a], box[6 + a] = lo, hi - lo, 1.0 / (hi - lo)
+    return box
+
+
+class EngineState:
+    """Structure of arrays, float64, SI units."""
+
+    def __init__(self, history_size: int):
+        self.history_size = history_size
+        self.backend = "cpu"  # or "cuda": the step loop runs on the GPU (rollingdem.engine.cuda.step_loop)
+        self._cuda_loops = {}
+        self._blocks = self._lanes = None  # scratch of the pair pass, see contact_blocks
+        self._one_material = None  # (mat, whether all particles are of one material), see contact_blocks
+        n = 0
+        self.x = np.zeros((n, 3))
+        self.v = np.zeros((n, 3))
+        self.w = np.zeros((n, 3))
+        self.f = np.zeros((n, 3))
+        self.t = np.zeros((n, 3))
+        self.radius = np.zeros(n)
+        self.mass = np.zeros(n)
+        self.inertia = np.zeros(n)
+        self.mat = np.zeros(n, dtype=np.int32)
+        # the dissipated energies, (n, 4) once a kernel that sums them ran (``energy_for``), else
+        # (0, 4): a kernel without TRACK_ENERGY never touches it (32 B/p saved)
+        self.energy = np.zeros((0, len(ENERGY_CHANNELS)))
+        self.contacts = np.zeros(n, dtype=np.int32)  # contacts per sphere: int32 is plenty, 4 B/p less
+        self.fixed = np.zeros(0, dtype=np.uint8)  # (n,) once a particle is fixed (kernel_layout)
+        self.image = np.zeros((n, 3), dtype=np.int32)
+        self.x_ref = np.zeros((n, 3))
+        self.ids = np.zeros(n, dtype=np.int64)
+        # each particle's number for good (VTK ``id``), as ids are renumbered when particles go
+        self.tags = np.zeros(n, dtype=np.int64)
+        self.next_tag = 0
+        self._slots = None  # slot of each id, once the slots were re-sorted
+        self._governor = None  # made by governor() when first used
+        self.steps_since_sort = 0
+        self.wall_kind = np.zeros(0, dtype=np.int32)
+        self.wall_geom = np.zeros((0, GEOMETRY_SIZE))
+        self.wall_vel = np.zeros((0, 3))
+        self.wall_omega = np.zeros((0, 3))
+        self.wall_mat = np.zeros(0, dtype=np.int32)
+        self.whist = np.zeros((0, history_size))
+        self.wtouch = np.zeros(0, dtype=np.uint8)
+        self.wall_load = np.zeros((0, WALL_LOAD_SIZE))
+        self.meshes = MeshState(history_size)
+        self.info = np.zeros(INFO_SIZE, dtype=np.int64)
+        self.contact_list = ContactList(history_size)
+        self.bond_pairs = np.zeros((0, 2), dtype=np.int64)
+        self.bond_state = np.zeros((0, len(BOND_STATE)))
+        self.bond_parameters = np.zeros((0, len(BOND_PARAMETERS)))
+        self.bond_status = np.zeros(0, dtype=np.int64)
+        self.bond_load = np.zeros((0, BOND_LOAD_SIZE))
+        self.bond_start = np.zeros(0, dtype=np.int64)
+        self.bond_ends = np.zeros(0, dtype=np.int64)
+
+    @property
+    def n(self) -> int:
+        return self.x.shape[0]
+
+    @property
+    def is_fixed(self) -> np.ndarray:
+        """Whether each slot's particle is fixed, bool (n,)."""
+        return self.fixed != 0 if len(self.fixed) else np.zeros(self.n, dtype=bool)
+
+    @property
+    def n_walls(self) -> int:
+        return self.wall_kind.shape[0]
+
+    # --- the contact list ----------------------------------------------------------------------
+    def rebuild_list(self, skin: float) -> int:
+        """Rebuild the neighbor list at the present positions, carrying the contacts over (the
+        arrays grow as needed); returns its number of entries."""
+        return self.contact_list.rebuild(self.x, self.radius, skin, self.ids, self.fixed, self.image, self.x_ref,
+                                         self.grow)
+
+    def derive_wall_touch(self):
+        """``wtouch[i * n_walls + w]``: whether particle i touched wall w at the last step (it keeps a
+        contact normal). The kernel tests this byte, not the history row, for a sphere away from a
+        wall: 1 byte instead of a cache line per sphere and wall and step."""
+        self.wtouch = np.ascontiguousarray(np.any(self.whist[:, :3] != 0.0, axis=1), dtype=np.uint8)
+
+    def grow(self, needed: int):
+        """Room for ``needed`` list entries (and a margin); the entries and contacts are kept."""
+        if needed > MAX_ENTRIES:
+            raise SimulationError(f"the neighbor list needs {needed} entries ({needed / max(self.n, 1):.1f} per "
+                                  f"particle), more than the {MAX_ENTRIES} one process holds (int32 indices): run "
+                                  "fewer particles per process, or a smaller neighbor skin")
+        keep = self.contact_list.size
+        self.contact_list.allocate(min(int(needed * LIST_MARGIN) + 16, MAX_ENTRIES), keep=keep)
+        self.info[I_NEED_REBUILD] = 1
+        if keep:  # the list's entries were kept as they were; their indices are made anew
+            self.contact_list.index()
+
+    # --- particles and walls -----------------------------------------------------------------
+    def append_particles(self, x, v, w, radius, mass, inertia, mat, fixed=None):
+        """Append particles (``fixed``: one flag each, default free); existing indices, list entries
+        and history keep their meaning."""
+        n0 = self.n
+        m = x.shape[0]
+        self.x = np.concatenate([self.x, x])
+        self.v = np.concatenate([self.v, v])
+        self.w = np.concatenate([self.w, w])
+        self.f = np.concatenate([self.f, np.zeros((m, 3))])
+        self.t = np.concatenate([self.t, np.zeros((m, 3))])
+        self.radius = np.concatenate([self.radius, radius])
+        self.mass = np.concatenate([self.mass, mass])
+        self.inertia = np.concatenate([self.inertia, inertia])
+        self.mat = np.concatenate([self.mat, mat.astype(np.int32)])
+        if len(self.energy):
+            self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
+        self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int32)])
+        flags = np.zeros(m, dtype=np.uint8) if fixed is None else np.asarray(fixed, dtype=np.uint8)
+        if len(self.fixed) or flags.any():
+            self.fixed = np.concatenate([self.fixed if len(self.fixed) else np.zeros(n0, dtype=np.uint8), flags])
+        self.image = np.concatenate([self.image, np.zeros((m, 3), dtype=np.int32)])
+        self.x_ref = np.concatenate([self.x_ref, x])
+        self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
+        self.tags = np.concatenate([self.tags, np.arange(self.next_tag, self.next_tag + m, dtype=np.int64)])
+        self.next_tag += m
+        if self._slots is not None:
+            self._slots = np.concatenate([self._slots, np.arange(n0, n0 + m, dtype=np.int64)])
+        wall_hist = self.whist.reshape(n0, self.n_walls, self.history_size) if n0 else None
+        self.contact_list.add_rows(m)
+        whist = np.zeros((self.n, self.n_walls, self.history_size))
+        if wall_hist is not None:
+            whist[:n0] = wall_hist
+        self.whist = whist.reshape(self.n * self.n_walls, self.history_size)
+        load = np.zeros((self.n, self.n_walls, WALL_LOAD_SIZE))
+        if n0:
+            load[:n0] = self.wall_load.reshape(n0, self.n_walls, WALL_LOAD_SIZE)
+        self.wall_load = load.reshape(self.n * self.n_walls, WALL_LOAD_SIZE)
+        self.derive_wall_touch()
+        self.meshes.resize_particles(self.n)
+        if len(self.bond_pairs):
+            self.index_bonds()
+        self.info[I_NEED_REBUILD] = 1
+        self.info[I_FORCES_VALID] = 0
+        self.steps_since_sort = SORT_EVERY  # the new particles come in the user's order: sort at the next run
+        if self.contact_list.capacity < 3 * self.n:  # a settled bed's half list holds ~4 entries per particle
+            self.grow(3 * self.n)
+
+    def set_walls(self, kinds, geoms, vels, omegas, mats, carry):
+        """Replace the wall arrays. ``carry[w]``: the slot that new wall w had before (its contact
+        history goes with it), or -1 for a new wall."""
+        old_w = self.n_walls
+        new_w = len(kinds)
+        old = self.whist.reshape(self.n, old_w, self.history_size) if self.n and old_w else None
+        self.wall_kind = np.asarray(kinds, dtype=np.int32).reshape(new_w)
+        self.wall_geom = np.asarray(geoms, dtype=np.float64).reshape(new_w, GEOMETRY_SIZE)
+        self.wall_vel = np.asarray(vels, dtype=np.float64).reshape(new_w, 3)
+        self.wall_omega = np.asarray(omegas, dtype=np.float64).reshape(new_w, 3)
+        self.wall_mat = np.asarray(mats, dtype=np.int32).reshape(new_w)
+        old_load = self.wall_load.reshape(self.n, old_w, WALL_LOAD_SIZE) if old is not None else None
+        whist = np.zeros((self.n, new_w, self.history_size))
+        load = np.zeros((self.n, new_w, WALL_LOAD_SIZE))
+        if old is not None:
+            for new_slot, old_slot in enumerate(carry):
+                if old_slot >= 0:
+                    whist[:, new_slot] = old[:, old_slot]
+                    load[:, new_slot] = old_load[:, old_slot]
+        self.whist = whist.reshape(self.n * new_w, self.history_size)
+        self.wall_load = load.reshape(self.n * new_w, WALL_LOAD_SIZE)
+        self.derive_wall_touch()
+        self.info[I_FORCES_VALID] = 0
+
+    def set_meshes(self, meshes: list, carry: list, walls: list):
+        """Replace the triangle meshes (``MeshState.set_meshes``); ``walls`` their Wall objects."""
+        self.meshes.n = self.n
+        self.meshes.set_meshes(meshes, carry)
+        self.meshes.names = list(walls)
+        self.info[I_FORCES_VALID] = 0
+
+    # --- slots and ids -----------------------------------------------------------------------
+    def slots(self, ids) -> np.ndarray:
+        """Storage slots of the particles with these ids."""
+        ids = np.asarray(ids, dtype=np.int64)
+        return ids if self._slots is None else self._slots[ids]
+
+    def by_id(self, arr: np.ndarray) -> np.ndarray:
+        """A per-particle array in id order (the array itself while the slots are in id order)."""
+        return arr if self._slots is None else arr[self._slots]
+
+    # --- bonds --------------------------------------------------------------------------------
+    def add_bonds(self, pairs: np.ndarray, parameters: np.ndarray) -> None:
+        """Append intact, unloaded bonds between the slots ``pairs`` (m, 2), with their parameter rows."""
+        m = len(pairs)
+        self.bond_pairs = np.concatenate([self.bond_pairs, np.asarray(pairs, dtype=np.int64).reshape(m, 2)])
+        self.bond_state = np.concatenate([self.bond_state, np.zeros((m, len(BOND_STATE)))])
+        self.bond_parameters = np.concatenate([self.bond_parameters, np.asarray(parameters, dtype=float)])
+        self.bond_status = np.concatenate([self.bond_status, np.zeros(m, dtype=np.int64)])
+        self.bond_load = np.concatenate([self.bond_load, np.zeros((m, BOND_LOAD_SIZE))])
+        self.index_bonds()
+        self.info[I_FORCES_VALID] = 0
+
+    def index_bonds(self) -> None:
+        """Each particle's bond ends in ascending order (``bond_start``, ``bond_ends``), the order the
+        gather sums them in; empty arrays without bonds (the loops then skip them)."""
+        nb = len(self.bond_pairs)
+        if nb == 0:
+            self.bond_start = np.zeros(0, dtype=np.int64)
+            self.bond_ends = np.zeros(0, dtype=np.int64)
+            return
+        owner = np.concatenate([self.bond_pairs[:, 0], self.bond_pairs[:, 1]])
+        code = np.concatenate([2 * np.arange(nb), 2 * np.arange(nb) + 1])
+        order = np.lexsort((code, owner))
+        self.bond_ends = np.ascontiguousarray(code[order], dtype=np.int64)
+        self.bond_start = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=self.n))]).astype(np.int64)
+
+    BOND_ARRAYS = ("bond_pairs", "bond_state", "bond_parameters", "bond_status", "bond_load")
+
+    def sort(self, cell_size: float) -> None:
+        """Re-sort the slots in Morton order of the positions; the neighbor list, its history and
+        every per-particle array follow, so the next step computes exactly the same contacts."""
+        from rollingdem.engine.neighbors import spatial_order
+
+        n = self.n
+        perm = spatial_order(self.x, cell_size)  # new slot s holds the particle of old slot perm[s]
+        if np.array_equal(perm, np.arange(n)):
+            return
+        inv = np.empty(n, dtype=np.int64)
+        inv[perm] = np.arange(n)
+        for name in self.PER_PARTICLE:
+            if len(getattr(self, name)) == n:  # energy may be unallocated
+                setattr(self, name, np.ascontiguousarray(getattr(self, name)[perm]))
+        if self.n_walls:
+            h = self.history_size
+            self.whist = np.ascontiguousarray(self.whist.reshape(n, self.n_walls, h)[perm].reshape(-1, h))
+            self.wall_load = np.ascontiguousarray(
+                self.wall_load.reshape(n, self.n_walls, WALL_LOAD_SIZE)[perm].reshape(-1, WALL_LOAD_SIZE))
+            self.derive_wall_touch()
+        self.meshes.reorder(perm)
+        self.contact_list.reorder(perm, inv)  # rows move with their particle
+        if len(self.bond_pairs):
+            self.bond_pairs = inv[self.bond_pairs]
+            self.index_bonds()
+        self._slots = np.argsort(self.ids)
+        self.steps_since_sort = 0
+
+    PER_PARTICLE = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "tags", "energy", "contacts",
+                    "fixed", "image", "x_ref")
+
+    def remove(self, gone: np.ndarray) -> None:
+        """Take out the particles of the slots where ``gone`` is True. The others keep their state
+        and every contact among them its history; their ids are renumbered in the same order (so
+        each pair keeps its orientation in the half list), their tags stay. Forces are computed
+        anew at the next step, without the particles that went."""
+        gone = np.asarray(gone, dtype=bool)
+        if not gone.any():
+            return
+        keep = ~gone
+        n, h = self.n, self.history_size
+        arrays = self.to_arrays()
+        for name in self.PER_PARTICLE:
+            if len(arrays[name]) == n:
+                arrays[name] = arrays[name][keep]
+        arrays["ids"] = np.argsort(np.argsort(arrays["ids"], kind="stable"), kind="stable").astype(np.int64)
+        for name, width in (("whist", h), ("wall_load", WALL_LOAD_SIZE)):
+            arrays[name] = arrays[name].reshape(n, self.n_walls, width)[keep].reshape(-1, width)
+        if self.meshes.n_meshes:
+            arrays["mesh_slot_triangle"] = arrays["mesh_slot_triangle"][keep]
+            for name, width in (("mesh_history", h), ("mesh_load", WALL_LOAD_SIZE)):
+                arrays[name] = arrays[name].reshape(n, MESH_SLOTS, width)[keep].reshape(-1, width)
+            arrays["mesh_candidate_start"] = np.zeros(keep.sum() + 1, dtype=np.int64)  # built again
+            arrays["mesh_candidates"] = arrays["mesh_candidates"][:0]
+        start = arrays["nl_start"].astype(np.int64)
+        row = np.repeat(np.arange(n), np.diff(start))
+        j = arrays["nl_j"].astype(np.int64)
+        entry = keep[row] & keep[j]
+        slot = np.cumsum(keep) - 1
+        arrays["nl_j"] = slot[j[entry]].astype(np.int32)
+        arrays["hist"] = arrays["hist"][entry]
+        arrays["tr_k"] = arrays["tr_k"][entry]
+        arrays["nl_start"] = np.concatenate([[0], np.cumsum(np.bincount(slot[row[entry]], minlength=int(keep.sum())))])
+        arrays["tr_start"] = np.zeros_like(arrays["nl_start"])
+        if len(self.bond_pairs):  # a bond goes with either of its particles
+            held = keep[self.bond_pairs].all(axis=1)
+            for name in self.BOND_ARRAYS:
+                arrays[name] = arrays[name][held]
+            arrays["bond_pairs"] = slot[arrays["bond_pairs"]]
+        fresh = EngineState.from_arrays(arrays, h)
+        names = self.meshes.names
+        for key, value in fresh.__dict__.items():
+            if key not in ("_governor", "_blocks", "_lanes"):
+                setattr(self, key, value)
+        self.meshes.names = names
+        self.info[I_FORCES_VALID] = 0
+        self.info[I_NEED_REBUILD] = 1
+
+    # --- running -------------------------------------------------------------------------------
+    def contact_blocks(self):
+        """The per-thread block buffers of the pair pass (``engine_kernel.pair_rows``): (threads, columns
+        x CONTACT_BLOCK) floats and (threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK) lane indices (the
+        block's entries and a tile's candidate entries), about 38 KB per thread;
+        made again when the number of Numba threads changes. Scratch space, never part of the state.
+        Empty (0 columns) when the spheres are not all of one material: the pair pass then computes
+        one contact at a time."""
+        import numba
+
+        threads = numba.get_num_threads()
+        if self._one_material is None or self._one_material[0] is not self.mat:  # the array is replaced when it changes
+            self._one_material = (self.mat, self.n == 0 or bool((self.mat[:self.n] == self.mat[0]).all()))
+        one_material = self._one_material[1]
+        width = block_columns(self.history_size) * CONTACT_BLOCK if one_material else 0
+        if self._blocks is None or self._blocks.shape != (threads, width):
+            self._blocks = np.zeros((threads, width))
+            self._lanes = np.zeros((threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK), dtype=np.int64)
+        return self._blocks, self._lanes
+
+    def records(self) -> tuple[ParticleArrays, WallArrays, ListArrays, Scratch]:
+        """The kernel's four records (``rollingdem.engine.layout``), of the arrays as they are now
+        (the arrays are replaced when they grow: records are made for each call)."""
+        return (ParticleArrays(self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
+                               self.ids, self.x_ref, self.energy, self.contacts, self.image, self.fixed,
+                               self.bond_pairs, self.bond_state, self.bond_parameters, self.bond_status,
+                               self.bond_load, self.bond_start, self.bond_ends),
+                WallArrays(self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat, self.whist,
+                           self.wtouch, self.wall_load, *self.meshes.arrays()),
+                self.contact_list.arrays(),
+                Scratch(*self.contact_blocks()))
+
+    def kernel_args(self, dt, gravity, skin, pair_params):
+        """The arguments of the step loop after ``nsteps``."""
+        return (dt, gravity, skin, pair_params, *self.records(), self.info)
+
+    def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
+        """Advance up to ``nsteps`` steps (growing the list arrays as often as needed).
+
+        Returns (steps done, None) or, when a particle outruns the skin, (steps done, message)."""
+        if self.n == 0:
+            return nsteps, None
+        self.energy_for(kernel)
+        if self.info[I_FORCES_VALID] == 0:
+            self._evaluate_forces(kernel, dt, gravity, skin, pair_params)
+        if self.n >= SORT_ABOVE and self.steps_since_sort >= SORT_EVERY:
+            self.sort(2.0 * float(self.radius.max()) + skin)
+        import numba
+
+        remaining = nsteps
+        step_loop = self.step_loop(kernel)
+        governor = self.governor()
+        governor.begin(numba.get_num_threads(), parallel=step_loop is kernel.advance)
+        try:
+            while remaining > 0:
+                step_loop(governor.segment(remaining), *self.kernel_args(dt, gravity, skin, pair_params))
+                done = int(self.info[I_STEPS_DONE])
+                governor.done(done)
+                remaining -= done
+                self.steps_since_sort += done
+                if self.info[I_STATUS] == STATUS_CAPACITY:
+                    self.grow(int(self.info[I_NEEDED]))
+                elif self.info[I_STATUS] == STATUS_MESH_CAPACITY:
+                    self.meshes.grow(int(self.info[I_NEEDED]))
+                elif self.info[I_STATUS] == STATUS_MESH_GRID_CAPACITY:
+                    self.meshes.grow_grid(int(self.info[I_NEEDED]))
+                elif self.info[I_STATUS] == STATUS_TOO_FAST:
+                    if self.meshes.n_triangles and self.meshes.mesh_error.any():
+                        return nsteps - remaining, self.meshes.error_message(self.ids)
+                    return nsteps - remaining, self._too_fast_message(dt, skin)
+        finally:
+            governor.close()
+        return nsteps, None
+
+    def energy_for(self, kernel):
+        """Allocate the energy sums (zero) for a kernel that adds to them: without, it would write
+        out of bounds (Numba does not check)."""
+        if kernel.TRACK_ENERGY and self.energy.shape[0] != self.n:
+            self.energy = np.zeros((self.n, len(ENERGY_CHANNELS)))
+
+    def governor(self):
+        """The thread governor of this state's runs (``rollingdem.engine.threads``), made when first used."""
+        if self._governor is None:
+            self._governor = ThreadGovernor()
+        return self._governor
+
+    def serial(self) -> bool:
+        """Whether the kernel steps on the calling thread (a small scene, or one Numba thread)."""
+        import numba
+
+        return self.n < kernel_layout.SERIAL_BELOW or numba.get_num_threads() == 1
+
+    def step_loop(self, kernel):
+        """The kernel's step loop for this scene: ``advance_serial`` or ``advance`` (threads), or
+        on the GPU the ``CudaStepLoop`` of the kernel's functions."""
+        if self.backend == "cuda":
+            loop = self._cuda_loops.get(kernel.__name__)
+            if loop is None:
+                from rollingdem.engine.cuda.step_loop import CudaStepLoop
+
+                loop = self._cuda_loops[kernel.__name__] = CudaStepLoop(kernel)
+            return loop
+        return kernel.advance_serial if self.serial() else kernel.advance
+
+    def _too_fast_message(self, dt, skin):
+        bad = ~(np.isfinite(self.f).all(axis=1) & np.isfinite(self.t).all(axis=1))
+        if bad.any():  # the flag also counts a NaN force: say what it is
+            k = int(np.nonzero(bad)[0][0])
+            same = np.nonzero((self.x == self.x[k]).all(axis=1))[0]
+            why = (f"it shares its centre with particle {int(self.ids[same[same != k][0]])}: the contact normal is "
+                   "undefined; remove one of them" if len(same) > 1 else "the run is unstable or the input holds a NaN")
+            return f"the force on particle {int(self.ids[k])} is not finite at this step ({why})"
+        speed = np.sqrt((self.v ** 2).sum(axis=1))
+        k = int(np.nanargmax(speed)) if np.isfinite(speed).any() else 0
+        return (f"particle {int(self.ids[k])} moves {speed[k] * dt:.3g} m in one step (speed {speed[k]:.3g} m/s, dt = {dt:.3g} s), "
+                f"more than half the neighbor skin ({skin:.3g} m): contacts could be missed. Give a larger skin "
+                f"(> {2 * speed[k] * dt:.3g} m) or a smaller dt; a speed like this often means the run is unstable")
+
+    def _evaluate_forces(self, kernel, dt, gravity, skin, pair_params):
+        """Forces and torques of the present state, leaving the contact history untouched.
+
+        Rebuilding at unchanged positions is idempotent, so the contacts saved after one rebuild
+        are exactly those the evaluation started from.
+        """
+        total = self.rebuild_list(skin)
+        cl = self.contact_list
+        saved = (cl.pool[:total].copy(), cl.contact_row[:total].copy(), cl.groups.copy(), self.whist.copy(),
+                 self.energy.copy(), self.bond_state.copy(), self.bond_status.copy())
+        mesh_saved = self.meshes.save_contacts()
+        while True:
+            self.info[I_FORCES_VALID] = 0
+            self.step_loop(kernel)(0, *self.kernel_args(dt, gravity, skin, pair_params))
+            if self.info[I_STATUS] == STATUS_CAPACITY:
+                self.grow(int(self.info[I_NEEDED]))
+            elif self.info[I_STATUS] == STATUS_MESH_CAPACITY:
+                self.meshes.grow(int(self.info[I_NEEDED]))
+            elif self.info[I_STATUS] == STATUS_MESH_GRID_CAPACITY:
+                self.meshes.grow_grid(int(self.info[I_NEEDED]))
+            else:
+                break
+        cl = self.contact_list  # grown perhaps: the arrays are new
+        (cl.pool[:total], cl.contact_row[:total], cl.groups[:], self.whist[:], self.energy[:], self.bond_state[:],
+         self.bond_status[:]) = saved
+        self.meshes.restore_contacts(mesh_saved)
+        self.derive_wall_touch()
+
+    # --- checkpoint ----------------------------------------------------------------------------
+    ARRAYS = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts", "x_ref",
+              "wall_kind", "wall_geom", "wall_vel", "wall_omega", "wall_mat", "whist", "info")
+
+    def to_arrays(self) -> dict:
+        out = {name: getattr(self, name) for name in self.ARRAYS}
+        out["wall_load"] = self.wall_load
+        out["tags"] = self.tags
+        out["next_tag"] = np.array(self.next_tag)
+        out["fixed"] = self.fixed
+        out["image"] = self.image
+        out["periodic_box"] = self.contact_list.box
+        out.update({name: getattr(self, name) for name in self.BOND_ARRAYS})
+        out.update(self.meshes.to_arrays())
+        cl = self.contact_list
+        total = cl.size
+        out["nl_start"] = cl.start
+        out["tr_start"] = cl.tr_start
+        out["nl_j"] = cl.j[:total]
+        out["hist"] = cl.entry_history()
+        out["tr_k"] = cl.tr_k[:total]
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict, history_size: int) -> "EngineState":
+        st = cls(history_size)
+        if "ids" not in arrays:  # a checkpoint from before the re-sorting
+            arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
+        for name in cls.ARRAYS:
+            setattr(st, name, np.array(arrays[name]))
+        st.contacts = st.contacts.astype(np.int32)  # int64 in older checkpoints
+        st.fixed = np.array(arrays["fixed"], dtype=np.uint8) if "fixed" in arrays else np.zeros(0, dtype=np.uint8)
+        if not st.fixed.any():
+            st.fixed = np.zeros(0, dtype=np.uint8)
+        st.image = np.array(arrays["image"], dtype=np.int32) if "image" in arrays else np.zeros((st.n, 3), np.int32)
+        st.tags = np.array(arrays["tags"]) if "tags" in arrays else st.ids.copy()
+        st.next_tag = int(arrays["next_tag"]) if "next_tag" in arrays else st.n
+        st.wall_load = np.array(arrays["wall_load"]) if "wall_load" in arrays else \
+            np.zeros((st.n * st.n_walls, WALL_LOAD_SIZE))  # absent in older checkpoints
+        st.meshes.from_arrays(arrays, st.n)
+        if "bond_pairs" in arrays:  # absent in older checkpoints
+            for name in cls.BOND_ARRAYS:
+                setattr(st, name, np.array(arrays[name]))
+            st.index_bonds()
+        if not st.energy.any():  # nothing summed (older checkpoints kept the zeros)
+            st.energy = np.zeros((0, len(ENERGY_CHANNELS)))
+        if not np.array_equal(st.ids, np.arange(st.n)):
+            st._slots = np.argsort(st.ids)
+        cl = st.contact_list = ContactList(history_size, rows=st.n)
+        if "periodic_box" in arrays:
+            cl.box = np.array(arrays["periodic_box"], dtype=np.float64)
+        cl.start[:] = arrays["nl_start"]  # int64 in older checkpoints
+        cl.tr_start[:] = arrays["tr_start"]
+        total = int(arrays["nl_j"].shape[0])
+        cl.allocate(max(int(total * LIST_MARGIN) + 16, 3 * st.n))
+        cl.j[:total] = arrays["nl_j"]
+        st.derive_wall_touch()
+        cl.index()  # the checkpoint's tr_k too, made again (as it was written)
+        cl.set_entry_history(arrays["hist"])
+        return st
+
+
+class MeshState:
+    """The triangle meshes' arrays of the engine (``kernel_layout.WallArrays``, from ``reference``
+    on): every mesh's vertices and triangles in one array, their motion, and per sphere the
+    candidate triangles and the contact slots. The per-sphere arrays have no rows while there is
+    no mesh (a slot's history is 6 rows a sphere)."""
+
+    def __init__(self, history_size: int):
+        self.history_size = history_size
+        self.n = 0
+        self.names: list = []  # the Wall objects, in the engine's order
+        self.reference = np.zeros((0, 3))
+        self.vertices = np.zeros((0, 3))
+        self.built = np.zeros((0, 3))
+        self.vertex_start = np.zeros(1, dtype=np.int64)
+        self.triangle_start = np.zeros(1, dtype=np.int64)
+        self.triangles = np.zeros((0, 3), dtype=np.int64)
+        self.neighbors = np.zeros((0, 3), dtype=np.int64)
+        self.triangle_mesh = np.zeros(0, dtype=np.int32)
+        self.motion = np.zeros((0, MESH_MOTION_SIZE))
+        self.material = np.zeros(0, dtype=np.int32)
+        self._grid_arrays()
+        self._particle_arrays(0)
+        self.allocate(0)
+
+    @property
+    def n_triangles(self) -> int:
+        return self.triangles.shape[0]
+
+    @property
+    def n_meshes(self) -> int:
+        return self.motion.shape[0]
+
+    def _particle_arrays(self, rows: int):
+        self.candidate_start = np.zeros(rows + 1 if rows else 0, dtype=np.int64)
+        self.candidate_gap = np.zeros(rows)  # 0: unknown, never skips
+        self.slot_triangle = np.full((rows, MESH_SLOTS), -1, dtype=np.int64)
+        self.history = np.zeros((rows * MESH_SLOTS, self.history_size))
+        self.load = np.zeros((rows * MESH_SLOTS, WALL_LOAD_SIZE))
+        self.mesh_error = np.zeros(rows, dtype=np.int64)
+
+    def _grid_arrays(self, items: int = 0):
+        """The triangle grid, to be binned again: up to 64 cells a triangle (at least 32768), ``items``
+        entries (at first 64 a triangle)."""
+        ntri = self.triangles.shape[0]
+        self.grid = np.zeros(len(MESH_GRID))
+        self.grid_start = np.zeros(max(64 * ntri, 32768) + 1 if ntri else 0, dtype=np.int64)
+        self.grid_items = np.zeros(max(items, 64 * ntri), dtype=np.int64)
+
+    def allocate(self, capacity: int):
+        """Room for ``capacity`` candidate entries (the contacts found are kept in them too)."""
+        self.candidates = np.zeros(capacity, dtype=np.int64)
+        self.touch_triangle = np.zeros(capacity, dtype=np.int64)
+        self.touch_feature = np.zeros(capacity, dtype=np.int64)
+        self.touch_point = np.zeros((capacity, 3))
+        self.touch_slot = np.zeros(capacity, dtype=np.int64)
+
+    def grow(self, needed: int):
+        self.allocate(int(needed * LIST_MARGIN) + 16)
+
+    def grow_grid(self, needed: int):
+        self._grid_arrays(int(needed * LIST_MARGIN) + 16)
+
+    def resize_particles(self, n: int):
+        """Keep the slots of the first spheres, add empty ones up to n (none while there is no mesh)."""
+        self.n = n
+        if not self.n_meshes:
+            return
+        old = (self.slot_triangle, self.history, self.load)
+        n0 = old[0].shape[0]
+        self._particle_arrays(n)
+        keep = min(n0, n)
+        self.slot_triangle[:keep] = old[0][:keep]
+        self.history[:keep * MESH_SLOTS] = old[1][:keep * MESH_SLOTS]
+        self.load[:keep * MESH_SLOTS] = old[2][:keep * MESH_SLOTS]
+        if self.candidates.shape[0] < 4 * n:
+            self.allocate(4 * n)
+
+    def reorder(self, perm):
+        """The slots follow their spheres to new storage slots (``EngineState.sort``)."""
+        if not self.n_meshes:
+            return
+        s, h = MESH_SLOTS, self.history_size
+        self.slot_triangle = np.ascontiguousarray(self.slot_triangle[perm])
+        self.history = np.ascontiguousarray(self.history.reshape(-1, s, h)[perm].reshape(-1, h))
+        self.load = np.ascontiguousarray(self.load.reshape(-1, s, WALL_LOAD_SIZE)[perm].reshape(-1, WALL_LOAD_SIZE))
+        self.mesh_error = np.ascontiguousarray(self.mesh_error[perm])
+        self.candidate_gap = np.ascontiguousarray(self.candidate_gap[perm])
+        if len(self.candidate_start) == len(perm) + 1:  # each sphere's candidate row goes with it
+            start = self.candidate_start
+            lengths = np.diff(start)[perm]
+            new_start = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+            total = int(new_start[-1])
+            source = np.repeat(start[:-1][perm] - new_start[:-1], lengths) + np.arange(total)
+            self.candidates[:total] = self.candidates[source]
+            self.candidate_start = new_start
+
+    def set_meshes(self, meshes: list, carry: list):
+        """Replace the meshes. Each is a dict of ``vertices``, ``triangles``, ``neighbors``,
+        ``velocity``, ``angular_velocity``, ``point`` (the rotation axis's point) and ``material``;
+        its motion starts now from these vertices. ``carry[m]``: the index new mesh m had before
+        (the contacts with its triangles are kept), or -1."""
+        old_start, old_slots = self.triangle_start, self.slot_triangle
+        nv = [len(m["vertices"]) for m in meshes]
+        nt = [len(m["triangles"]) for m in meshes]
+        self.vertex_start = np.concatenate([[0], np.cumsum(nv)]).astype(np.int64)
+        self.triangle_start = np.concatenate([[0], np.cumsum(nt)]).astype(np.int64)
+        cat = (lambda parts, shape, dtype: np.ascontiguousarray(np.concatenate(parts), dtype=dtype) if parts
+               else np.zeros(shape, dtype=dtype))
+        self.reference = cat([np.asarray(m["vertices"], dtype=float) for m in meshes], (0, 3), np.float64)
+        self.vertices = self.reference.copy()
+        self.built = self.reference.copy()
+        self.triangles = cat([np.asarray(m["triangles"]) + v0 for m, v0 in zip(meshes, self.vertex_start)], (0, 3),
+                             np.int64)
+        self.neighbors = cat([np.where(np.asarray(m["neighbors"]) >= 0, np.asarray(m["neighbors"]) + t0, -1)
+                              for m, t0 in zip(meshes, self.triangle_start)], (0, 3), np.int64)
+        self.triangle_mesh = np.repeat(np.arange(len(meshes), dtype=np.int32), nt)
+        self.motion = np.zeros((len(meshes), MESH_MOTION_SIZE))
+        for k, m in enumerate(meshes):
+            self.motion[k, 0:3] = m["velocity"]
+            self.motion[k, 3:6] = m["angular_velocity"]
+            self.motion[k, 6:9] = m["point"]
+        self.material = np.array([m["material"] for m in meshes], dtype=np.int32)
+        self._grid_arrays()
+        if not meshes:
+            self._particle_arrays(0)
+            self.allocate(0)
+            return
+        if old_slots.shape[0] != self.n:  # the first mesh: the spheres get their slots
+            self._particle_arrays(self.n)
+            self.allocate(max(self.candidates.shape[0], 4 * self.n))
+            return
+        # a kept mesh's contacts keep their slots, renumbered; the others' end
+        remap = np.full(int(old_start[-1]) + 1, -1, dtype=np.int64)
+        for new, old in enumerate(carry):
+            if old >= 0:
+                remap[old_start[old]:old_start[old + 1]] = np.arange(self.triangle_start[new],
+                                                                     self.triangle_start[new + 1])
+        slots = np.where(old_slots >= 0, remap[np.maximum(old_slots, 0)], -1)
+        ended = (slots < 0).reshape(-1)
+        self.slot_triangle = slots
+        self.history[ended] = 0.0
+        self.load[ended] = 0.0
+
+    def arrays(self) -> tuple:
+        """The mesh fields of ``WallArrays``, in their order."""
+        return (self.reference, self.vertices, self.built, self.vertex_start, self.triangles, self.neighbors,
+                self.triangle_mesh, self.motion, self.material, self.candidate_start, self.candidates,
+                self.candidate_gap, self.touch_triangle, self.touch_feature, self.touch_point, self.touch_slot,
+                self.slot_triangle, self.history, self.load, self.mesh_error, self.grid, self.grid_start,
+                self.grid_items)
+
+    CHECKPOINT = ("reference", "vertices", "built", "vertex_start", "triangle_start", "triangles", "neighbors",
+                  "triangle_mesh", "motion", "material", "slot_triangle", "history", "load")
+
+    def to_arrays(self) -> dict:
+        """The meshes' arrays for a checkpoint (none without a mesh)."""
+        if not self.n_meshes:
+            return {}
+        out = {f"mesh_{name}": getattr(self, name) for name in self.CHECKPOINT}
+        out["mesh_candidate_start"] = self.candidate_start  # the lists as built: a restored run goes on the same
+        out["mesh_candidates"] = self.candidates[:int(self.candidate_start[-1])] if self.n else self.candidates[:0]
+        return out
+
+    def from_arrays(self, arrays: dict, n: int):
+        self.n = n
+        if "mesh_triangles" not in arrays:
+            return
+        self._particle_arrays(n)
+        for name in self.CHECKPOINT:
+            setattr(self, name, np.array(arrays[f"mesh_{name}"]))
+        self._grid_arrays()
+        candidates = arrays["mesh_candidates"]
+        self.allocate(max(4 * n, int(len(candidates) * LIST_MARGIN) + 16))
+        self.candidates[:len(candidates)] = candidates
+        self.candidate_start[:] = arrays["mesh_candidate_start"]
+
+    def save_contacts(self):
+        return self.slot_triangle.copy(), self.history.copy()
+
+    def restore_contacts(self, saved):
+        self.slot_triangle[...], self.history[...] = saved
+        self.mesh_error[:] = 0
+
+    def loads(self, ids=None) -> np.ndarray:
+        """(meshes, 6): each mesh's force (N) and moment about the origin (N m) at the last step."""
+        out = np.zeros((self.n_meshes, WALL_LOAD_SIZE))
+        if self.n_meshes and self.n:
+            used = self.slot_triangle.reshape(-1) >= 0
+            mesh = self.triangle_mesh[self.slot_triangle.reshape(-1)[used]]
+            np.add.at(out, mesh, self.load[used])
+        return out
+
+    def error_message(self, ids) -> str:
+        """The line that stops a run when a sphere's mesh contacts went wrong (``mesh_error``)."""
+        k = int(np.nonzero(self.mesh_error)[0][0])
+        code, mesh = int(self.mesh_error[k]) % 4, int(self.mesh_error[k]) // 4
+        self.mesh_error[:] = 0
+        where = repr(self.label(mesh))
+        if code == 1:
+            return (f"particle {int(ids[k])} touches mesh wall {where} at more than {MESH_SLOTS} surface features at "
+                    "once: the mesh folds on itself there (a sliver or a self-intersection); repair it")
+        return (f"particle {int(ids[k])} passed through mesh wall {where}: its centre crossed the surface in one "
+                "step, faster than the contact can stop it; reduce dt or the speed, or thicken the wall")
+
+    def label(self, m: int) -> str:
+        wall = self.names[m] if m < len(self.names) else None
+        return wall.name if wall is not None and wall.name else f"mesh {m}"

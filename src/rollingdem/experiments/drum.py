@@ -1,0 +1,233 @@
+"""The rotating drum: a slice of a long drum turning in the rolling regime, and what is measured on it.
+
+:func:`drum_run` fills a drum (an analytic cylinder, its axis along z, gravity along -y) to a
+fraction of its cross-section, lets the bed settle and turns the drum at the angular velocity of
+a Froude number Fr = omega^2 R / g. The drum is a periodic slice along its axis: no end caps, so
+the angle is that of the middle of a long drum, free of the end walls' friction, which raises the
+angle near the caps of a short drum (docs/studies.md, "The rotating drum"). After a spin-up
+angle it samples the bed's cross-section: the free surface's angle (:func:`surface_angle`, a
+line through the surface in the middle third of its chord), the angle of the bed's centre of mass,
+the driving torque, the flowing layer's depth (:func:`flowing_layer`) and the passive zone's speed
+against the drum's.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from rollingdem.physics.contact.model import ContactModel
+from rollingdem.errors import ParameterError
+from rollingdem.scene.insertion import CylinderRegion, Uniform
+from rollingdem.scene.simulation import Simulation
+from rollingdem.scene.walls import Cylinder
+from rollingdem.experiments.repose import PileMaterial
+from rollingdem.experiments.single_sphere import RADIUS
+
+BLOCKS = 4  # the samples' blocks whose means give the 95 % intervals
+
+
+@dataclass(frozen=True)
+class DrumSetup:
+    """The drum and how it turns. Lengths in mean particle diameters d: the drum's radius
+    (``drum_diameters``) and the periodic slice's length along the axis (``slice_diameters``);
+    ``fill``, the bed's share of the cross-section (at the bed's bulk solid fraction 0.6);
+    ``froude`` = omega^2 R / g and ``gravity`` g (m/s^2); ``wall_friction`` and
+    ``wall_rolling_friction``, the sliding and rolling friction of the spheres on the drum's wall
+    (high, so that the bed neither slides nor rolls on it, as on a drum lined with glued grains);
+    ``spin_up`` degrees of turning before the first sample and ``measure`` degrees over
+    which ``samples`` samples are taken."""
+
+    drum_diameters: float = 15.0
+    slice_diameters: float = 5.0
+    fill: float = 0.3
+    froude: float = 5e-3
+    gravity: float = 9.81
+    wall_friction: float = 1.0
+    wall_rolling_friction: float = 1.0
+    spin_up: float = 90.0
+    measure: float = 90.0
+    samples: int = 20
+
+
+@dataclass
+class DrumRun:
+    """A drum's samples (one value per sample) and the profile of the flowing layer."""
+
+    omega: float
+    drum_radius: float
+    slice_length: float
+    particles: int
+    angle: np.ndarray  # deg, surface line fit
+    com_angle: np.ndarray  # deg, centre of mass
+    torque: np.ndarray  # N m per m of drum length
+    weight_moment: np.ndarray  # N m per m: the moment of the bed's weight about the axis
+    flowing_depth: float  # m, from the profile of every sample
+    flowing_depth_blocks: np.ndarray  # m, one per block of samples
+    passive_speed_ratio: float
+    wall_layer_speed_ratio: float
+    positions: np.ndarray
+    radii: np.ndarray
+    wall_time: float = math.nan
+
+
+def surface_angle(positions, radii, diameter: float) -> tuple[float, float, float, float]:
+    """The angle (deg) of a drum bed's free surface, seen along the drum's axis (z; gravity -y).
+
+    The cross-section is cut into columns one mean ``diameter`` wide along x; a column's surface
+    height is the top (y + r) of its highest sphere that touches another (a sphere flying over
+    the bed is not the surface). The chord is the span of columns holding spheres; a least-squares
+    line through the column tops of its middle third gives the angle, atan(slope), positive when
+    the surface rises towards +x. Returns (angle, slope, x, y) with (x, y) the line's point at the
+    chord's middle."""
+    from rollingdem.analysis.repose import touching
+
+    x = np.asarray(positions, float)
+    r = np.broadcast_to(np.asarray(radii, float), (len(x),))
+    on = touching(x, r)
+    x, r = x[on], r[on]
+    col = np.floor(x[:, 0] / diameter).astype(np.int64)
+    cols, inverse = np.unique(col, return_inverse=True)
+    top = np.full(len(cols), -np.inf)
+    np.maximum.at(top, inverse, x[:, 1] + r)
+    centre = (cols + 0.5) * diameter
+    lo, hi = centre.min(), centre.max()
+    middle = (centre >= lo + (hi - lo) / 3.0) & (centre <= hi - (hi - lo) / 3.0)
+    if middle.sum() < 3:
+        raise ParameterError(f"the bed's surface spans {middle.sum()} columns of one diameter in its middle third: "
+                             "at least 3 are needed to fit a line; fill the drum more")
+    slope, intercept = np.polyfit(centre[middle], top[middle], 1)
+    xm = 0.5 * (lo + hi)
+    return math.degrees(math.atan(slope)), float(slope), float(xm), float(intercept + slope * xm)
+
+
+def com_angle(positions, masses) -> float:
+    """The angle (deg) by which the bed's centre of mass has turned from below the axis (the
+    origin), positive towards +x: for a flat surface it equals the surface's angle."""
+    c = np.average(np.asarray(positions, float)[:, :2], axis=0, weights=masses)
+    return math.degrees(math.atan2(c[0], -c[1]))
+
+
+def flowing_layer(positions, velocities, slope: float, point, diameter: float, strip: float = 2.0):
+    """Depth below the surface line (``slope`` through ``point``, from :func:`surface_angle`) and
+    downslope speed of the spheres within ``strip`` diameters of the normal through the chord's
+    middle: (depth, speed) arrays, for :func:`flowing_depth` to bin."""
+    u = np.array([1.0, slope]) / math.hypot(1.0, slope)  # along the surface, upwards
+    n = np.array([-slope, 1.0]) / math.hypot(1.0, slope)  # out of the bed
+    rel = np.asarray(positions, float)[:, :2] - np.asarray(point, float)
+    near = np.abs(rel @ u) < strip * diameter
+    return -(rel[near] @ n), -(np.asarray(velocities, float)[near, :2] @ u)
+
+
+def flowing_depth(depth, speed, diameter: float) -> float:
+    """The flowing layer's depth (m): where the mean downslope speed, in bins of half a diameter
+    of depth, first falls to zero going down from the surface (linear between bin centres); NaN
+    when it never does."""
+    depth, speed = np.asarray(depth, float), np.asarray(speed, float)
+    keep = depth >= 0.0
+    k = np.floor(depth[keep] / (0.5 * diameter)).astype(np.int64)
+    if not len(k):
+        return math.nan
+    count = np.bincount(k)
+    mean = np.bincount(k, speed[keep]) / np.maximum(count, 1)
+    centre = (np.arange(len(count)) + 0.5) * 0.5 * diameter
+    ok = count > 0
+    centre, mean = centre[ok], mean[ok]
+    below = np.nonzero(mean <= 0.0)[0]
+    if not len(below) or below[0] == 0:
+        return math.nan if not len(below) else float(centre[0])
+    j = below[0]
+    return float(centre[j - 1] + mean[j - 1] * (centre[j] - centre[j - 1]) / (mean[j - 1] - mean[j]))
+
+
+def rotation_ratios(samples, omega: float, drum_radius: float, layer: float, diameter: float,
+                    r_max: float) -> tuple[float, float]:
+    """How closely the bed below the flowing layer turns with the drum: sum(v . u) / sum(u . u) over
+    the spheres of every sample, u = omega (-y, x) the solid-body velocity about the drum's axis.
+    Two zones, both deeper than ``layer`` + 2 ``diameter`` below the surface line and within the
+    middle third of the arc along which such spheres touch the wall (seen from the axis): the
+    passive zone off the wall (radius from half the drum's to 1.5 d short of the wall) and the
+    wall layer (the spheres touching it, radius beyond the wall's less 1.05 ``r_max``). Towards
+    the arc's ends, where the flowing layer meets the wall, the bed creeps: it lags the drum by
+    several per cent (docs/studies.md, "The rotating drum"). ``samples``: (positions, velocities,
+    surface slope, a point on the surface line) per sample; 1 is solid-body rotation."""
+    sums = np.zeros((2, 2))
+    for x, v, slope, point in samples:
+        rho = np.hypot(x[:, 0], x[:, 1])
+        below = -((x[:, :2] - point) @ (np.array([-slope, 1.0]) / math.hypot(1.0, slope)))
+        deep = below > (layer if np.isfinite(layer) else 0.0) + 2 * diameter
+        wall = (rho > drum_radius - 1.05 * r_max) & deep
+        if not wall.any():
+            continue
+        phi = np.arctan2(x[:, 0], -x[:, 1])  # about the axis, 0 at the drum's bottom
+        lo, hi = phi[wall].min(), phi[wall].max()
+        middle = np.abs(phi - 0.5 * (lo + hi)) < (hi - lo) / 6.0
+        zones = ((rho > 0.5 * drum_radius) & (rho < drum_radius - 1.5 * diameter) & deep & middle, wall & middle)
+        for k, zone in enumerate(zones):
+            solid = omega * np.column_stack([-x[zone, 1], x[zone, 0]])
+            sums[k] += (np.sum(v[zone, :2] * solid), np.sum(solid * solid))
+    ratio = [a / b if b else math.nan for a, b in sums]
+    return ratio[0], ratio[1]
+
+
+def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: DrumSetup = DrumSetup(),
+             radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None) -> DrumRun:
+    """One drum: filled, settled, turned at the Froude number ``setup.froude``, sampled.
+
+    Spheres of radius uniform in ``radius`` (1 +- ``polydispersity``) and ``material`` (Table 1's
+    density and Poisson ratio) fill ``setup.fill`` of a drum of ``setup.drum_diameters`` d radius,
+    a periodic slice ``setup.slice_diameters`` d long. The drum turns about +z (its bottom moves
+    towards +x); after ``setup.spin_up`` degrees, ``setup.samples`` samples over ``setup.measure``
+    degrees."""
+    for what, value, kind in (("material", material, PileMaterial), ("setup", setup, DrumSetup)):
+        if not isinstance(value, kind):
+            raise ParameterError(f"{what} = {value!r} is not allowed: must be a rollingdem.experiments.drum.{kind.__name__}")
+    tic = time.perf_counter()
+    d = 2.0 * radius
+    big_r = setup.drum_diameters * d
+    length = setup.slice_diameters * d
+    g = setup.gravity
+    omega = math.sqrt(setup.froude * g / big_r)
+    r_max = radius * (1.0 + polydispersity)
+    dist = Uniform(radius * (1.0 - polydispersity), r_max) if polydispersity else radius
+    # solid volume of the bed: fill x cross-section x length at solid fraction 0.6;
+    # <r^3> = R^3 (1 + p^2) for radii uniform in R (1 +- p)
+    count = int(round(setup.fill * math.pi * big_r ** 2 * length * 0.6
+                      / (4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2))))
+    contact = ContactModel("hertz", rolling=rolling, twisting=twisting, cohesion=material.cohesion)
+    sim = Simulation(contact=contact, gravity=(0.0, -g, 0.0), dt=dt, periodic={"z": (0.0, length)})
+    sim.add_material(material.as_material("m"))
+    sim.add_material(material.wall_material("wall"))
+    sim.set_pair("m", "wall", friction=setup.wall_friction, rolling_friction=setup.wall_rolling_friction,
+                 surface_energy=0.0, cohesion_energy_density=0.0)
+    drum = sim.add_wall(Cylinder(big_r, point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), material="wall", name="drum"))
+    sim.insert(CylinderRegion(big_r - r_max, r_max, length - r_max), count, dist, "m", seed=seed)
+    sim.run(2.0 * math.sqrt(4.0 * big_r / g) + 0.2)  # fall across the drum, then as long again to settle
+    sim.set_wall_velocity(drum, angular_velocity=(0.0, 0.0, omega))
+    sim.run(math.radians(setup.spin_up) / omega)
+    gap = math.radians(setup.measure) / omega / setup.samples
+    angle, com, torque, moment, states = [], [], [], [], []
+    for _ in range(setup.samples):
+        sim.run(gap)
+        x, v = sim.positions, sim.velocities
+        a, slope, xm, ym = surface_angle(x, sim.radii, d)
+        angle.append(a)
+        com.append(com_angle(x, sim.masses))
+        torque.append(-sim.wall_loads()["drum"]["torque"][2] / length)
+        moment.append(g * float(np.dot(sim.masses, x[:, 0])) / length)
+        states.append((x, v, slope, (xm, ym)))
+    profiles = [flowing_layer(x, v, slope, point, d) for x, v, slope, point in states]
+
+    def depth_of(part):
+        return flowing_depth(np.concatenate([p[0] for p in part]), np.concatenate([p[1] for p in part]), d)
+
+    blocks = [depth_of([profiles[i] for i in idx])
+              for idx in np.array_split(np.arange(len(profiles)), min(BLOCKS, len(profiles)))]
+    layer = depth_of(profiles)
+    passive, wall_layer = rotation_ratios(states, omega, big_r, layer, d, float(sim.radii.max()))
+    return DrumRun(omega, big_r, length, sim.n_particles, np.array(angle), np.array(com), np.array(torque),
+                   np.array(moment), layer, np.array(blocks), passive, wall_layer, sim.positions.copy(),
+                   sim.radii.copy(), time.perf_counter() - tic)

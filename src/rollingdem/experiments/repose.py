@@ -1,0 +1,358 @@
+"""The seed report's case 3, the angle of repose: one pile built, collapsed and measured.
+
+:func:`pile_run` settles spheres in a tube on a plate, removes or lifts the tube and measures the
+pile's angle (:func:`rollingdem.analysis.repose.repose_angle`) once it is at rest; :func:`angle_of_repose`
+runs it for CDT, EPSD, EPSD2 and EPSD with Marshall twisting and checks the kinetic energies (the
+report's Figure 4), the spin about the vertical and EPSD2's angle against EPSD's. The PFC study that
+sweeps this pile over (mu, mu_r) is :mod:`rollingdem.studies.repose_study`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rollingdem.analysis.repose import ReposeAngle, default_max_speed, plot_pile, repose_angle, touching
+from rollingdem.physics.contact.model import ContactModel
+from rollingdem.errors import ParameterError, check_choice
+from rollingdem.scene.insertion import CylinderRegion, Uniform, rough_base
+from rollingdem.scene.materials import Material
+from rollingdem.scene.simulation import Simulation
+from rollingdem.scene.mesh import MeshWall
+from rollingdem.scene.walls import Cylinder, Plane
+from rollingdem.experiments.results import CaseResult, Check, pyplot
+from rollingdem.experiments.single_sphere import DT, G, RADIUS, TABLE1
+
+POLYDISPERSITY = 0.2  # radii uniform in R (1 +- 0.2)
+MOVING_FRACTION = 0.005  # of the spheres: a pile with fewer still moving counts as settled
+PACKING = 0.6  # nominal solid fraction of the settled column, used to size the tube
+INSERT_PACKING = 0.3  # solid fraction of the random insertion (it tops out near 0.35)
+ROUGH_BASE_EXTENT = 12.0  # tube radii: the side of the square rough base under a pile
+
+
+def column_size(count, radius=RADIUS, polydispersity=0.0, aspect=1.0) -> tuple[float, float]:
+    """(tube radius, nominal column height) in m for ``count`` spheres: the height the column has at
+    solid fraction ``PACKING`` is ``aspect`` tube diameters.
+
+    Solid volume N (4/3) pi <r^3>, with <r^3> = R^3 (1 + p^2) for radii uniform in R (1 +- p). A
+    narrow tube packs looser than that: 1000 spheres of R (1 +- 0.2) in the tube of 10.5 R settle at
+    a solid fraction of about 0.50, 1.19 times the nominal height.
+    """
+    solid = count * 4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2)
+    tube = (solid / (PACKING * math.pi * 2.0 * aspect)) ** (1.0 / 3.0)
+    return tube, 2.0 * aspect * tube
+
+
+@dataclass
+class PileRun:
+    """One collapse: kinetic energies (J) sampled after the tube is removed or lifted, and the final pile."""
+
+    label: str
+    t: np.ndarray
+    translational: np.ndarray
+    rotational: np.ndarray
+    spin_vertical: np.ndarray
+    positions: np.ndarray
+    radii: np.ndarray
+    velocities: np.ndarray
+    angle: ReposeAngle | None
+    angle_error: str = ""
+    settled_at: float = math.nan
+    wall_time: float = math.nan
+
+
+@dataclass(frozen=True)
+class PileMaterial:
+    """The pile's material where it may differ from Table 1 (whose Poisson ratio 0.49 and density
+    1056 kg/m^3 it keeps): sliding and rolling friction coefficients, Young's modulus (Pa),
+    coefficient of restitution and rolling viscous damping ratio; the cohesion law (``cohesion``:
+    "none", "sjkr", "jkr", docs/models.md §1.6) and its parameters, the work of adhesion
+    ``surface_energy`` (J/m^2) and the ``cohesion_energy_density`` (J/m^3). Checked by
+    :class:`rollingdem.Material` and :class:`rollingdem.ContactModel` when the pile is built."""
+
+    friction: float = TABLE1["friction"]
+    rolling_friction: float = TABLE1["rolling_friction"]
+    youngs_modulus: float = TABLE1["youngs_modulus"]
+    restitution: float = TABLE1["restitution"]
+    rolling_damping: float = TABLE1["rolling_damping"]
+    poisson_ratio: float = TABLE1["poisson_ratio"]
+    density: float = TABLE1["density"]
+    cohesion: str = "none"
+    surface_energy: float = 0.0
+    cohesion_energy_density: float = 0.0
+
+    def as_material(self, name: str) -> Material:
+        """Table 1 with these values, as a :class:`rollingdem.Material` called ``name``."""
+        return Material(name, youngs_modulus=self.youngs_modulus, poisson_ratio=self.poisson_ratio,
+                        density=self.density, friction=self.friction, rolling_friction=self.rolling_friction,
+                        restitution=self.restitution, rolling_damping=self.rolling_damping,
+                        surface_energy=self.surface_energy, cohesion_energy_density=self.cohesion_energy_density)
+
+    def wall_material(self, name: str) -> Material:
+        """The walls' material: the spheres', without cohesion (the spheres stick to each other, not
+        to the tube, the plate or the drum); ``Simulation.set_pair`` must zero the pair's too."""
+        return replace(self, surface_energy=0.0, cohesion_energy_density=0.0).as_material(name)
+
+
+@dataclass(frozen=True)
+class Collapse:
+    """How the tube leaves and how long the pile collapses: the tube is removed at once or, with
+    ``lift_speed`` (m/s), lifted; the collapse runs at least ``min_time`` s and then on, in steps
+    of ``sample`` s, until the pile is settled or ``max_time`` s have passed."""
+
+    min_time: float = 1.0
+    max_time: float = 3.0
+    sample: float = 0.01
+    lift_speed: float | None = None
+
+
+@dataclass(frozen=True)
+class PileSetup:
+    """Where the column stands: its height in tube diameters (``aspect``), the tube (with
+    ``tube_segments``, a triangle mesh of that many flat sides through the cylinder's radius, else
+    the cylinder) and the floor (``base``: "plate", the bare plate; "rough", a rough base of fixed
+    spheres of the mean radius on it, ``rollingdem.rough_base``, over a square ``ROUGH_BASE_EXTENT``
+    tube radii wide, as the PFC and LIGGGHTS repose studies glue one to the floor: on the bare
+    plate, spheres with little rolling resistance roll away and no pile forms). The sizes: the
+    spheres' mean ``radius`` (m); ``tube_radius`` (m; None: sized for ``aspect`` by
+    :func:`column_size`); the base spheres' ``base_radius`` (None: the mean radius), ``base_spacing``
+    and ``base_jitter`` (None: ``rollingdem.rough_base``'s defaults); ``clearance``, how far (m;
+    None: two mean radii) the tube's lower edge rises above the settled column's top before the
+    lifted tube is removed."""
+
+    aspect: float = 1.0
+    tube_segments: int | None = None
+    base: str = "plate"
+    radius: float = RADIUS
+    tube_radius: float | None = None
+    base_radius: float | None = None
+    base_spacing: float | None = None
+    base_jitter: float | None = None
+    clearance: float | None = None
+
+
+def tube_clearing_time(floor: float, height: float, radius: float, clearance: float, lift_speed: float) -> float:
+    """Time (s) for the lifted tube's lower edge, rising from the plate (z = 0) at ``lift_speed``,
+    to stand ``clearance`` above the settled column's top: the floor (the rough base's top, 0 on
+    the plate), the column's nominal ``height`` and 2 radii more (a narrow column stands higher,
+    :func:`column_size`)."""
+    return (floor + height + 2.0 * radius + clearance) / lift_speed
+
+
+def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
+             collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT, label=None,
+             setup: PileSetup = PileSetup()) -> PileRun:
+    """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
+
+    Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
+    tube on a plate and settle into a column ``setup.aspect`` diameters high (a monodisperse column
+    orders into layers on a flat plate and then spreads into a monolayer); ``material`` sets what
+    may differ from Table 1. Then the tube is removed at once (the report's case 3) or, with
+    ``collapse.lift_speed`` (m/s), lifted as in the PFC example. The collapse runs at least
+    ``collapse.min_time`` s and then on, in ``collapse.sample`` steps, until the pile is settled or
+    ``collapse.max_time`` s have passed. Settled: of the spheres that touch another
+    (:func:`rollingdem.analysis.repose.touching`), at most ``MOVING_FRACTION`` (0.5 %) move faster than
+    1e-3 sqrt(g d) (:func:`rollingdem.analysis.repose.default_max_speed`). A sphere rolling alone over the
+    plate (with little rolling resistance it may roll for seconds) and a few rattlers caged in
+    the pile do not change its surface. Then the angle is measured. ``setup``: the tube and the
+    floor (``PileSetup``).
+    """
+    for what, value, kind in (("material", material, PileMaterial), ("collapse", collapse, Collapse),
+                              ("setup", setup, PileSetup)):
+        if not isinstance(value, kind):
+            raise ParameterError(f"{what} = {value!r} is not allowed: must be a "
+                                 f"rollingdem.experiments.repose.{kind.__name__}")
+    lift_speed, sample, max_collapse = collapse.lift_speed, collapse.sample, collapse.max_time
+    tic = time.perf_counter()
+    radius = setup.radius
+    dist = Uniform(radius * (1 - polydispersity), radius * (1 + polydispersity)) if polydispersity else radius
+    tube_radius, height = column_size(count, radius, polydispersity, setup.aspect)
+    if setup.tube_radius is not None:  # the same column volume in the tube given
+        tube_radius, height = setup.tube_radius, height * (tube_radius / setup.tube_radius) ** 2
+    contact = ContactModel(normal, rolling=rolling, twisting=twisting, cohesion=material.cohesion)
+    sim = Simulation(contact=contact, dt=dt)
+    sim.add_material(material.as_material("m"))
+    walls = "m"
+    if material.cohesion != "none":  # cohesive spheres, not cohesive to the plate and the tube
+        walls = "wall"
+        sim.add_material(material.wall_material(walls))
+        sim.set_pair("m", walls, surface_energy=0.0, cohesion_energy_density=0.0)
+    sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material=walls, name="plate"))
+    check_choice("base", setup.base, ("plate", "rough"))
+    floor = 0.0
+    if setup.base == "rough":
+        half = 0.5 * ROUGH_BASE_EXTENT * tube_radius
+        base_radius = setup.base_radius or radius
+        sim.add_particles(rough_base(base_radius, ((-half, half), (-half, half)), spacing=setup.base_spacing,
+                                     jitter=setup.base_jitter, seed=seed), base_radius, "m", fixed=True)
+        floor = 2.0 * base_radius
+    if setup.tube_segments is None:
+        tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material=walls, name="tube"))
+    else:
+        tube = sim.add_wall(MeshWall.shape("drum", radius=tube_radius, length=2.0 * height + 0.1,
+                                           segments=setup.tube_segments, caps=False, material=walls, name="tube"))
+    fill = height * PACKING / INSERT_PACKING
+    sim.insert(CylinderRegion(tube_radius, floor, floor + fill), count, dist, "m", seed=seed)
+    free = ~sim.fixed
+    # free fall from the top of the fill, then as long again to come to rest
+    sim.run(2.0 * math.sqrt(2.0 * fill / G) + 0.1)
+    if lift_speed:
+        sim.set_wall_velocity(tube, velocity=(0.0, 0.0, lift_speed))
+        clearance = setup.clearance if setup.clearance is not None else 2.0 * radius
+        lift_time = tube_clearing_time(floor, height, radius, clearance, lift_speed)
+    else:
+        sim.remove_wall(tube)
+    inertia = 0.4 * sim.masses[free] * sim.radii[free] ** 2
+    limit = default_max_speed(sim.radii[free])
+    ke, t, settled_at = [], 0.0, math.nan
+    while t < max_collapse - 1e-9:
+        sim.run(sample)
+        t += sample
+        if lift_speed and t >= lift_time - 1e-9 and tube in sim.walls:
+            sim.remove_wall(tube)  # clear of the pile
+        trans, rot = sim.kinetic_energy()
+        ke.append((t, trans, rot, 0.5 * float(np.dot(inertia, sim.angular_velocities[free, 2] ** 2))))
+        if t >= collapse.min_time - 1e-9 and tube not in sim.walls:
+            pile = touching(sim.positions[free], sim.radii[free])
+            speed = np.linalg.norm(sim.velocities[free][pile], axis=1)
+            if np.count_nonzero(speed >= limit) <= MOVING_FRACTION * count:
+                settled_at = t
+                break
+    ke = np.array(ke)
+    angle, error = None, ""
+    if math.isnan(settled_at):
+        error = f"the pile did not settle within {max_collapse} s"
+    else:
+        try:
+            angle = repose_angle(sim.positions[free], sim.radii[free])
+        except ValueError as err:  # too flat or too small to fit a cone: say so
+            error = str(err)
+    return PileRun(label or str(rolling), ke[:, 0], ke[:, 1], ke[:, 2], ke[:, 3], sim.positions[free].copy(),
+                   sim.radii[free].copy(), sim.velocities[free].copy(), angle, error, settled_at,
+                   time.perf_counter() - tic)
+
+
+QUICK_PILE, FULL_PILE = 1000, 10000  # spheres in case 3
+REPOSE_MODELS = {"cdt": ("cdt", "none"), "epsd": ("epsd", "none"), "epsd2": ("epsd2", "none"),
+                 "epsd + marshall twisting": ("epsd", "marshall")}
+
+
+FINAL_WINDOW = 0.25  # s: case 3 compares mean kinetic energies over the end of the run
+#: deg: allowed |angle(EPSD2) - angle(EPSD)| of case 3: the 95 % band of the difference of two
+#: single-seed angles, t(0.975, 6) sqrt(2) s, s = 4.68 deg the pooled seed-to-seed standard deviation
+#: of the quick pile (1000 spheres; pile_run(m, count=1000, seed=k, collapse=Collapse(1.5, 1.5))):
+#: EPSD 11.13, 17.70, 10.98, 18.04, 20.26 deg (seeds 1-5, mean 15.62), EPSD2 21.07, 10.29, 16.06 deg
+#: (seeds 1-3, mean 15.81); 52-59 s a pile. The means agree to 0.2 deg, but one seed per model
+#: resolves no less: the pile is flat (cone fit R^2 0.09-0.52). A larger pile (more surface
+#: spheres) is expected to scatter less, so the band should be conservative for the full case, whose
+#: spread was not measured.
+REPOSE_ANGLE_TOLERANCE = 16.2
+
+
+def _without_spin(r: PileRun) -> np.ndarray:
+    return r.translational + r.rotational - r.spin_vertical
+
+
+def _final_mean(r: PileRun, energy=None) -> float:
+    """Mean over the last FINAL_WINDOW s of ``energy`` (default: all but the spin about z)."""
+    return float(np.mean((_without_spin(r) if energy is None else energy)[r.t > r.t[-1] - FINAL_WINDOW]))
+
+
+def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=None, runner=map) -> CaseResult:
+    """Case 3 for CDT, EPSD, EPSD2 and EPSD with twisting resistance; the tube is removed at once.
+
+    Checks (docs/models.md §11.6 and the report's Figure 4): EPSD's final translational kinetic energy
+    is below 1e-2 of CDT's (CDT chatters at rest, EPSD comes to rest to numerical accuracy); with a
+    twisting model the final spin energy about the vertical is below 1 % of that without. The
+    check is on translation because no rolling model resists every spin: a sphere held at two
+    contacts spins freely about the line through them, whatever its tilt, until a twisting model
+    stops it, and how much such spin a collapse leaves is chance (1e-10 to 2e-9 J in quick piles
+    of one seed, against 1e-9 J of CDT chatter). The seed report gives no angle for this case; the
+    angle check is that EPSD2's pile stands at EPSD's angle (the same rolling limit mu_r R F_n),
+    within ``REPOSE_ANGLE_TOLERANCE``, the 95 % band of the seed-to-seed difference. ``runner`` maps
+    the runs (``map`` here, :func:`rollingdem.studies.parallel.runner` side by side).
+    """
+    tic = time.perf_counter()
+    count = count or (QUICK_PILE if quick else FULL_PILE)
+    chosen = {k: v for k, v in REPOSE_MODELS.items() if models is None or k in models}
+    # the same duration for every model, so that the final energies compare at the same time
+    collapse = 1.5 if quick else 2.5
+
+    def one(item):
+        label, (rolling, twisting) = item
+        return pile_run(rolling, twisting, count=count, collapse=Collapse(collapse, collapse), label=label)
+
+    runs = {}
+    for r in runner(one, list(chosen.items())):
+        runs[r.label] = r
+        if progress:
+            progress()
+    rows = []
+    for label, r in runs.items():
+        rows.append({"model": label, "final KE translational (J)": r.translational[-1],
+                     "final KE rotational (J)": r.rotational[-1], "of which spin about z (J)": r.spin_vertical[-1],
+                     "final KE without spin about z (J)": _without_spin(r)[-1],
+                     f"its mean over the last {FINAL_WINDOW} s (J)": _final_mean(r),
+                     f"KE translational, mean over the last {FINAL_WINDOW} s (J)": _final_mean(r, r.translational),
+                     "settled at (s)": r.settled_at,
+                     "repose angle (deg)": r.angle.angle if r.angle else math.nan,
+                     "slice mean ± sd (deg)": (f"{r.angle.slice_mean:.2f} ± {r.angle.slice_std:.2f}"
+                                               if r.angle else r.angle_error[:80]),
+                     "cone fit R²": r.angle.r_squared if r.angle else math.nan,
+                     "wall time (s)": r.wall_time})
+    checks = []
+    if "cdt" in runs and "epsd" in runs:
+        # CDT's torque flips every step at rest: a floor of chatter that EPSD does not have. Two
+        # decades apart, on the mean over the last FINAL_WINDOW s (single samples scatter by 10x).
+        ratio = (_final_mean(runs["epsd"], runs["epsd"].translational)
+                 / max(_final_mean(runs["cdt"], runs["cdt"].translational), 1e-300))
+        checks.append(Check("angle-of-repose", "epsd", f"translational KE / CDT's, mean over the last "
+                            f"{FINAL_WINDOW} s", ratio, 1e-2, 0.0, bound="upper",
+                            source="report Figure 4: CDT keeps chattering, EPSD comes to rest"))
+    if "epsd" in runs and "epsd + marshall twisting" in runs:
+        ratio = runs["epsd + marshall twisting"].spin_vertical[-1] / max(runs["epsd"].spin_vertical[-1], 1e-300)
+        checks.append(Check("angle-of-repose", "epsd + marshall twisting", "final spin energy / without twisting",
+                            ratio, 1e-2, 0.0, bound="upper", source="twisting resistance stops the spin"))
+    if "epsd" in runs and "epsd2" in runs:
+        # The seed report gives no angle for case 3 (it compares kinetic energies only). What physics
+        # fixes is that EPSD and EPSD2 limit the rolling torque alike (mu_r R F_n): a pile at rest
+        # on that limit stands at the same angle, whatever the spring and dashpot below it.
+        angles = [runs[m].angle.angle if runs[m].angle else math.nan for m in ("epsd2", "epsd")]
+        checks.append(Check("angle-of-repose", "epsd2", "repose angle - EPSD's (deg)", angles[0] - angles[1], 0.0,
+                            REPOSE_ANGLE_TOLERANCE, relative=False,
+                            source="the same rolling limit mu_r R F_n holds the pile; tolerance: 95 % of the "
+                                   "seed-to-seed differences (quick pile, REPOSE_ANGLE_TOLERANCE)"))
+    tube, height = column_size(count, RADIUS, POLYDISPERSITY)
+    result = CaseResult("angle-of-repose", f"Case 3: angle of repose ({count} spheres)", pd.DataFrame(rows), checks,
+                        notes=[f"{count} spheres of R = 5 mm ± {POLYDISPERSITY:.0%} (uniform) settle in a tube of "
+                               f"radius {tube:.3f} m (sized for a column {height:.3f} m high at solid fraction {PACKING}; "
+                               "a column this narrow packs looser and stands higher); the tube is removed at "
+                               f"once and the column collapses for {collapse} s. Spin about z: Σ ½ I ω_z². "
+                               "Without a twisting model a sphere resting on the plate keeps any spin about the "
+                               "vertical (LIGGGHTS does the same), and a sphere held at two contacts any spin about "
+                               "the line through them: no rolling model resists these, so the EPSD/CDT comparison "
+                               "of the report's Figure 4 is made on the translational energy."])
+    if outdir is not None:
+        plt = pyplot()
+        fig, ax = plt.subplots(figsize=(8, 4.5))
+        for label, r in runs.items():
+            line, = ax.semilogy(r.t, r.translational + r.rotational, label=f"{label}: total")
+            ax.semilogy(r.t, np.maximum(_without_spin(r), 1e-20), ls="--", color=line.get_color(),
+                        label=f"{label}: without spin about z")
+        ax.set_xlabel("time after the tube is removed (s)")
+        ax.set_ylabel("total kinetic energy (J)")
+        ax.set_title("Case 3: kinetic energy of the collapsing column (report Figure 4)")
+        ax.legend(fontsize=7)
+        result.add_figure(fig, outdir, "angle_of_repose_ke.png")
+        for label, r in runs.items():
+            if r.angle is not None:
+                path = Path(outdir) / f"pile_{label.replace(' ', '_').replace('+', 'and')}.png"
+                fig = plot_pile(r.positions, r.radii, r.angle, path=path)
+                result.figures.append(path)
+    result.wall_time = time.perf_counter() - tic
+    return result

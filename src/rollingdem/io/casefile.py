@@ -1,0 +1,892 @@
+"""Case files (YAML or TOML): the same scene as the Python API, validated before anything runs.
+
+A case file has the keys ``name``, ``materials``, ``pairs``, ``contact``, ``periodic``, ``walls``,
+``particles``, ``outlets``, ``inflows``, ``stages`` and ``output`` (see ``rollingdem/experiments/default.yaml`` for a complete example). Every
+mapping is strict: an unknown or misspelled key is an error that names the key and lists the allowed
+ones; a missing key names what is missing.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Annotated, Any, Literal, Optional, Union, get_type_hints
+
+import re
+
+import numpy as np
+import yaml
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PrivateAttr, Strict, Tag,
+                      ValidationError, create_model)
+
+from rollingdem.errors import ParameterError
+from rollingdem.io.mapping_file import read_mapping
+
+
+def _whole(value):
+    """An integer key: a bool (YAML ``yes``/``true``) is no count or index."""
+    if isinstance(value, bool):
+        raise ValueError("must be a whole number")
+    return value
+
+
+#: A number in a case file: an int or a float, never a bool or a string ("1e4" is read as a number
+#: by the loader of :mod:`rollingdem.io.mapping_file`; ``true`` is not 1).
+Number = Annotated[float, Strict()]
+Whole = Annotated[int, BeforeValidator(_whole)]
+Vector = tuple[Number, Number, Number]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+def _material_spec():
+    """The schema of a material entry, taken from ``Material`` itself (one list of fields and defaults)."""
+    from dataclasses import MISSING, fields
+
+    from rollingdem.scene.materials import Material
+
+    hints = get_type_hints(Material)
+    strict = {float: Number, Optional[float]: Optional[Number]}
+    spec = {f.name: (strict.get(hints[f.name], hints[f.name]), ... if f.default is MISSING else f.default)
+            for f in fields(Material)}
+    return create_model("MaterialSpec", __base__=_Strict, **spec)
+
+
+MaterialSpec = _material_spec()
+
+
+class PairSpec(_Strict):
+    materials: tuple[str, str]
+    friction: Optional[Number] = None
+    rolling_friction: Optional[Number] = None
+    restitution: Optional[Number] = None
+    rolling_damping: Optional[Number] = None
+    surface_energy: Optional[Number] = None
+    cohesion_energy_density: Optional[Number] = None
+
+
+class ContactSpec(_Strict):
+    # a model name or {model: name, parameter: value, ...}; make_submodel checks both
+    normal: Any = "hertz"
+    tangential: Any = "history"
+    rolling: Any = "none"
+    twisting: Any = "none"
+    cohesion: Any = "none"
+
+
+class PlaneSpec(_Strict):
+    type: Literal["plane"]
+    name: Optional[str] = None
+    material: str
+    point: Vector = (0.0, 0.0, 0.0)
+    normal: Vector = (0.0, 0.0, 1.0)
+    velocity: Vector = (0.0, 0.0, 0.0)
+    angular_velocity: Vector = (0.0, 0.0, 0.0)
+
+
+class CylinderSpec(_Strict):
+    type: Literal["cylinder"]
+    name: Optional[str] = None
+    material: str
+    radius: Number
+    point: Vector = (0.0, 0.0, 0.0)
+    axis: Vector = (0.0, 0.0, 1.0)
+    extent: Optional[tuple[Number, Number]] = None
+    velocity: Vector = (0.0, 0.0, 0.0)
+    angular_velocity: Vector = (0.0, 0.0, 0.0)
+
+
+class RotateSpec(_Strict):
+    """A turn about the axis through ``point``: at ``angular_velocity`` (rad/s) in a motion, by
+    ``angle`` (degrees) in a placement."""
+    axis: Vector
+    point: Vector = (0.0, 0.0, 0.0)
+    angular_velocity: Optional[Number] = None
+    angle: Optional[Number] = None
+
+
+class MotionSpec(_Strict):
+    velocity: Vector = (0.0, 0.0, 0.0)
+    rotate: Optional[RotateSpec] = None
+
+
+class PlaceSpec(_Strict):
+    rotate: Optional[RotateSpec] = None
+    translate: Vector = (0.0, 0.0, 0.0)
+
+
+class MeshSpec(_Strict):
+    """A triangle-mesh wall: ``file`` (STL or OBJ, relative to the case file; ``scale`` 0.001 for mm)
+    or a ready-made ``shape`` with its ``size`` (its dimensions by name), placed by ``place``
+    (turned, then moved), moving by ``motion``."""
+    type: Literal["mesh"]
+    name: Optional[str] = None
+    material: str
+    file: Optional[str] = None
+    scale: Number = 1.0
+    shape: Optional[str] = None
+    size: dict[str, Any] = {}
+    place: Optional[PlaceSpec] = None
+    motion: Optional[MotionSpec] = None
+
+
+WallSpec = Annotated[Union[PlaneSpec, CylinderSpec, MeshSpec], Field(discriminator="type")]
+
+
+class BoxRegionSpec(_Strict):
+    type: Literal["box"]
+    lo: Vector
+    hi: Vector
+
+
+class CylinderRegionSpec(_Strict):
+    type: Literal["cylinder"]
+    radius: Number
+    z_min: Number
+    z_max: Number
+    center: tuple[Number, Number] = (0.0, 0.0)
+
+
+RegionSpec = Annotated[Union[BoxRegionSpec, CylinderRegionSpec], Field(discriminator="type")]
+
+
+class UniformSpec(_Strict):
+    distribution: Literal["uniform"]
+    low: Number
+    high: Number
+
+
+class NormalSpec(_Strict):
+    distribution: Literal["normal"]
+    mean: Number
+    std: Number
+    low: Optional[Number] = None
+    high: Optional[Number] = None
+
+
+class DiscreteSpec(_Strict):
+    distribution: Literal["discrete"]
+    values: list[Number]
+    weights: Optional[list[Number]] = None
+
+
+def _radius_kind(value):
+    """The tag of a radius: a number, or the distribution of a mapping (or of a parsed distribution)."""
+    if isinstance(value, dict):
+        return value.get("distribution")
+    return getattr(value, "distribution", "number")
+
+
+RadiusSpec = Annotated[Union[Annotated[Number, Tag("number")], Annotated[UniformSpec, Tag("uniform")],
+                             Annotated[NormalSpec, Tag("normal")], Annotated[DiscreteSpec, Tag("discrete")]],
+                       Discriminator(_radius_kind, custom_error_type="radius_kind",
+                                     custom_error_message="must be a number or a distribution {distribution: uniform "
+                                                          "| normal | discrete, ...}")]
+
+
+class InsertSpec(_Strict):
+    insert: RegionSpec
+    count: Whole
+    radius: RadiusSpec
+    material: str
+    seed: Whole = 0
+    velocity: Optional[Vector] = None
+
+
+class ListSpec(_Strict):
+    positions: list[Vector]
+    radius: Union[Number, list[Number]]
+    material: str
+    velocity: Optional[Union[Vector, list[Vector]]] = None
+    angular_velocity: Optional[Union[Vector, list[Vector]]] = None
+    allow_overlap: bool = False
+    fixed: bool = False
+
+
+class RoughBaseShape(_Strict):
+    radius: Number
+    extent: tuple[tuple[Number, Number], tuple[Number, Number]]
+    spacing: Optional[Number] = None
+    jitter: Optional[Number] = None
+    seed: Whole = 0
+    z: Number = 0.0
+
+
+class RoughBaseSpec(_Strict):
+    """Fixed spheres in a jittered hexagonal layer (``rd.rough_base``)."""
+    rough_base: RoughBaseShape
+    material: str
+
+
+def _particle_kind(value):
+    """A particle block with an ``insert`` key fills a region, one with ``rough_base`` lays a fixed
+    base; any other lists its spheres."""
+    if isinstance(value, dict):
+        return "insert" if "insert" in value else "rough_base" if "rough_base" in value else "list"
+    return {InsertSpec: "insert", RoughBaseSpec: "rough_base", ListSpec: "list"}.get(type(value))
+
+
+ParticleSpec = Annotated[Union[Annotated[InsertSpec, Tag("insert")], Annotated[RoughBaseSpec, Tag("rough_base")],
+                               Annotated[ListSpec, Tag("list")]], Discriminator(_particle_kind)]
+
+
+class OutletSpec(_Strict):
+    region: RegionSpec
+    name: Optional[str] = None
+    interval: Optional[Number] = None
+
+
+class InflowSpec(_Strict):
+    region: RegionSpec
+    radius: RadiusSpec
+    material: str
+    rate: Optional[Number] = None
+    mass_rate: Optional[Number] = None
+    velocity: Optional[Vector] = None
+    seed: Whole = 0
+    name: Optional[str] = None
+    interval: Optional[Number] = None
+    start: Optional[Number] = None
+
+
+class PeriodicSpec(_Strict):
+    x: Optional[tuple[Number, Number]] = None
+    y: Optional[tuple[Number, Number]] = None
+    z: Optional[tuple[Number, Number]] = None
+
+
+class SetVelocitySpec(_Strict):
+    particles: Union[Literal["all"], list[Whole]] = "all"
+    velocity: Optional[Vector] = None
+    angular_velocity: Optional[Vector] = None
+
+
+class WallMotionSpec(MotionSpec):
+    """A wall's motion from this stage on (``velocity``, ``rotate``: for a plane or cylinder the
+    rotation moves its surface, about its own point)."""
+    wall: str
+
+
+class _BondBase(_Strict):
+    """Bonds made when the stage starts (``Simulation.add_bonds``, docs/models.md §1.7): between the
+    ``pairs`` given or every pair at most ``gap`` (m) apart, with ``rollingdem.ParallelBond``'s
+    parameters (the other keys)."""
+    gap: Optional[Number] = None
+    pairs: Optional[list[tuple[Whole, Whole]]] = None
+
+    def parallel_bond(self):
+        from rollingdem.scene.bonds import ParallelBond
+
+        return ParallelBond(**self.model_dump(exclude={"gap", "pairs"}))
+
+
+def _bond_spec():
+    """The schema of a stage's bonds: gap or pairs, and ``ParallelBond``'s parameters as its
+    constructor declares them (one list of names and defaults)."""
+    import inspect
+
+    from rollingdem.scene.bonds import ParallelBond
+
+    kinds = {"float": Number, "str": str}
+    spec = {name: (kinds[p.annotation], ... if p.default is p.empty else p.default)
+            for name, p in inspect.signature(ParallelBond).parameters.items()}
+    return create_model("BondSpec", __base__=_BondBase, **spec)
+
+
+BondSpec = _bond_spec()
+
+
+class StageSpec(_Strict):
+    name: str = "run"
+    duration: Number
+    gravity: Optional[Vector] = None
+    remove_walls: list[str] = []
+    wall_motion: list[WallMotionSpec] = []
+    set_velocity: Optional[SetVelocitySpec] = None
+    bonds: Optional[BondSpec] = None
+
+
+class SeriesSpec(_Strict):
+    interval: Number = 1e-3
+    particles: list[Whole] = []
+
+
+class IntervalSpec(_Strict):
+    interval: Number
+
+
+class ReposeOutputSpec(_Strict):
+    """Measure the pile at the end (``rollingdem.analysis.repose.repose_angle``) on a floor at ``floor``
+    (m; default the top of the highest fixed sphere, else 0)."""
+    floor: Optional[Number] = None
+
+
+class OutputSpec(_Strict):
+    directory: Optional[str] = None
+    repose_angle: Optional[ReposeOutputSpec] = None
+    time_series: Optional[SeriesSpec] = SeriesSpec()
+    snapshots: Optional[IntervalSpec] = None
+    checkpoint: Optional[IntervalSpec] = None
+    plot: bool = True
+
+
+class CaseSpec(_Strict):
+    name: str = "case"
+    dt: Optional[Number] = None
+    skin: Optional[Number] = None
+    check_timestep: bool = True
+    backend: Optional[str] = None
+    gravity: Vector = (0.0, 0.0, -9.81)
+    materials: list[MaterialSpec] = Field(min_length=1)
+    pairs: list[PairSpec] = []
+    contact: ContactSpec = ContactSpec()
+    periodic: Optional[PeriodicSpec] = None
+    walls: list[WallSpec] = []
+    particles: list[ParticleSpec] = Field(min_length=1)
+    outlets: list[OutletSpec] = []
+    inflows: list[InflowSpec] = []
+    stages: list[StageSpec] = Field(min_length=1)
+    output: OutputSpec = OutputSpec()
+    _base: Path = PrivateAttr(default=Path("."))  # the case file's folder (load_case): mesh files are named from it
+
+    @property
+    def base_directory(self) -> Path:
+        return self._base
+
+
+_KIND_OF_INPUT = {
+    "float_type": "a number", "float_parsing": "a number", "finite_number": "a finite number",
+    "int_type": "a whole number", "int_parsing": "a whole number", "int_from_float": "a whole number",
+    "bool_type": "true or false", "bool_parsing": "true or false", "string_type": "a string",
+    "list_type": "a list", "tuple_type": "a list", "dict_type": "a mapping of keys",
+    "model_type": "a mapping of keys", "model_attributes_type": "a mapping of keys",
+}
+_NOT_A_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_TYPE_NAMES = {"float", "int", "str", "bool", "dict", "list", "tuple", "number"}
+
+
+def _key_path(loc) -> tuple:
+    """The case-file keys of a pydantic error location (union members and tags dropped)."""
+    keep = []
+    for p in loc:
+        if isinstance(p, int):
+            keep.append(p)
+        elif (_NOT_A_KEY.match(p) and p not in _TYPE_NAMES and not p.endswith("Spec")
+              and not (keep and p in ("insert", "list") and isinstance(keep[-1], int) and keep[:1] == ["particles"]
+                       and len(keep) == 2)):
+            keep.append(p)
+    return tuple(keep)
+
+
+def _spec_at(path) -> Optional[type]:
+    """The model class of the mapping at ``path`` (None where it cannot be told), to list its keys."""
+    from typing import get_args, get_origin
+
+    def model_of(tp, key_hint=None):
+        origin = get_origin(tp)
+        if isinstance(tp, type) and issubclass(tp, BaseModel):
+            return tp
+        if origin is Annotated:
+            return model_of(get_args(tp)[0], key_hint)
+        if origin in (Union, list, tuple, Optional) or (origin is not None and str(origin).endswith("UnionType")):
+            found = [m for m in (model_of(a, key_hint) for a in get_args(tp)) if m is not None]
+            if key_hint is not None:
+                found = [m for m in found if key_hint(m)] or found
+            return found[0] if len(found) == 1 else None
+        return None
+
+    spec, data_hint = CaseSpec, None
+    for part in path:
+        if isinstance(part, int):
+            continue
+        field = spec.model_fields.get(part) if spec is not None else None
+        if field is None:
+            return None
+        spec = model_of(field.annotation)
+    return spec
+
+
+def _describe_error(e: dict, data) -> tuple[tuple, str]:
+    """(key path, what is wrong) of one pydantic error, in the words of the house style."""
+    path = _key_path(e["loc"])
+    kind = e["type"]
+    ctx = e.get("ctx") or {}
+    if kind == "extra_forbidden":
+        parent = _spec_at(path[:-1])
+        allowed = f": allowed are {', '.join(parent.model_fields)}" if parent is not None else ""
+        return path, f"not a known key (misspelled?){allowed}"
+    if kind == "missing":
+        return path, "missing (required)"
+    if kind in _KIND_OF_INPUT:
+        return path, f"must be {_KIND_OF_INPUT[kind]}"
+    if kind == "literal_error":
+        return path, f"must be {ctx.get('expected')}"
+    if kind == "union_tag_invalid":
+        key = str(ctx.get("discriminator", "")).strip("'")
+        return path + ((key,) if key and key != "<function>" else ()), f"must be one of {ctx.get('expected_tags')}"
+    if kind == "union_tag_not_found":
+        key = str(ctx.get("discriminator", "")).strip("'")
+        return path + (key,), "missing (required)"
+    if kind in ("too_short", "too_long"):
+        if ctx.get("field_type") == "Tuple":
+            return path, f"must be {ctx.get('max_length', ctx.get('min_length'))} numbers"
+        return path, (f"must have at least {ctx.get('min_length')} entries" if kind == "too_short"
+                      else f"must have at most {ctx.get('max_length')} entries")
+    if kind == "radius_kind":
+        return path, e["msg"]
+    return path, e["msg"].removeprefix("Value error, ")
+
+
+def _value_at(data, path):
+    for part in path:
+        try:
+            data = data[part]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return data
+
+
+def _format_validation_error(err: ValidationError, source: str, data=None) -> str:
+    """One line per key at fault (branches of a union that all failed are one line); a single
+    fault is one line with the file's name."""
+    problems: dict[tuple, list[str]] = {}
+    kinds: dict[tuple, str] = {}
+    for e in err.errors():
+        path, what = _describe_error(e, data)
+        kind = e["type"]
+        if kind == "missing" and len(e["loc"]) > 1 and isinstance(e["loc"][-1], int):
+            path, what, kind = path[:-1], "must be three numbers", "too_short"  # a vector with too few numbers
+        kinds.setdefault(path, kind)
+        if what not in problems.setdefault(path, []):
+            problems[path].append(what)
+    lines = []
+    for path, whats in problems.items():
+        key = ".".join(str(p) for p in path) or "(top level)"
+        if kinds[path] in ("missing", "extra_forbidden", "union_tag_not_found"):
+            lines.append(f"key {key!r}: {whats[0]}")
+            continue
+        shown = json.dumps(_value_at(data, path), default=str)
+        if len(shown) > 80:
+            shown = shown[:77] + "..."
+        musts = [w.removeprefix("must be ") for w in whats if w.startswith("must be ")]
+        what = ("must be " + " or ".join(musts)) if len(musts) == len(whats) else "; ".join(whats)
+        lines.append(f"key {key!r} = {shown} is not allowed: {what}")
+    if len(lines) == 1:
+        return f"case file {source}: {lines[0]}"
+    return "\n".join([f"case file {source} is not valid ({len(lines)} problems):"] + [f"  {x}" for x in lines])
+
+
+def load_case(path_or_dict) -> CaseSpec:
+    """Read and validate a case file (YAML, or TOML by extension) or a mapping."""
+    data, source = read_mapping(path_or_dict)
+    try:
+        case = CaseSpec.model_validate(data)
+    except ValidationError as err:
+        raise ParameterError(_format_validation_error(err, source, data)) from None
+    if isinstance(path_or_dict, (str, Path)):
+        case._base = Path(path_or_dict).parent
+    return case
+
+
+def _radius(spec):
+    from rollingdem.scene.insertion import Discrete, Normal, Uniform
+
+    if isinstance(spec, (int, float)):
+        return float(spec)
+    if isinstance(spec, UniformSpec):
+        return Uniform(spec.low, spec.high)
+    if isinstance(spec, NormalSpec):
+        return Normal(spec.mean, spec.std, spec.low, spec.high)
+    return Discrete(spec.values, spec.weights)
+
+
+#: How a case-file user turns a check off (the refusals name these keys, not Python arguments).
+CASE_HINTS = {"check_timestep": "set check_timestep: false in the case file",
+              "allow_overlap": "set allow_overlap: true in the particle block"}
+
+
+def build_simulation(case: CaseSpec):
+    """The Simulation a case describes (materials, walls, particles), before any stage runs."""
+    from rollingdem import ContactModel, Cylinder, Material, Plane, Simulation
+    from rollingdem.scene.insertion import rough_base
+
+    def where(key):
+        return _InCase(key)
+
+    with where("contact"):
+        contact = ContactModel(**case.contact.model_dump())
+    periodic = {k: v for k, v in case.periodic.model_dump().items() if v is not None} if case.periodic else None
+    with where("periodic"):
+        sim = Simulation(contact=contact, gravity=case.gravity, dt=case.dt, skin=case.skin,
+                         check_timestep=case.check_timestep, periodic=periodic)
+    if case.backend is not None:
+        with where("backend"):
+            sim.backend = case.backend
+    sim.hints.update(CASE_HINTS)
+    for k, m in enumerate(case.materials):
+        with where(f"materials.{k}"):
+            sim.add_material(Material(**m.model_dump()))
+    for k, p in enumerate(case.pairs):
+        with where(f"pairs.{k}"):
+            coeffs = {c: v for c, v in p.model_dump(exclude={"materials"}).items() if v is not None}
+            sim.set_pair(p.materials[0], p.materials[1], **coeffs)
+    names = [w.name for w in case.walls if w.name]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ParameterError(f"walls: name = {twice[0]!r} is not allowed: it names two walls; wall names must differ")
+    for k, w in enumerate(case.walls):
+        with where(f"walls.{k}"):
+            if w.type == "mesh":
+                sim.add_wall(_mesh_wall(w, case.base_directory))
+                continue
+            d = w.model_dump(exclude={"type"})
+            sim.add_wall(Plane(**d) if w.type == "plane" else Cylinder(**d))
+    for k, p in enumerate(case.particles):
+        with where(f"particles.{k}"):
+            if isinstance(p, InsertSpec):
+                sim.insert(_region(p.insert), p.count, _radius(p.radius), p.material, seed=p.seed, velocity=p.velocity)
+            elif isinstance(p, RoughBaseSpec):
+                base = rough_base(**p.rough_base.model_dump())
+                sim.add_particles(base, p.rough_base.radius, p.material, fixed=True)
+            else:
+                sim.add_particles(p.positions, p.radius, p.material, velocity=p.velocity,
+                                  angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap, fixed=p.fixed)
+    for k, o in enumerate(case.outlets):
+        with where(f"outlets.{k}"):
+            sim.add_outlet(_region(o.region), name=o.name, interval=o.interval)
+    for k, i in enumerate(case.inflows):
+        with where(f"inflows.{k}"):
+            sim.add_inflow(_region(i.region), _radius(i.radius), i.material, rate=i.rate, mass_rate=i.mass_rate,
+                           velocity=i.velocity, seed=i.seed, name=i.name, interval=i.interval, start=i.start)
+    return sim
+
+
+def _region(r):
+    from rollingdem.scene.insertion import BoxRegion, CylinderRegion
+
+    return BoxRegion(r.lo, r.hi) if r.type == "box" else CylinderRegion(r.radius, r.z_min, r.z_max, center=r.center)
+
+
+def _motion(spec) -> dict:
+    """Keyword arguments of a wall's motion (velocity, angular_velocity, point) from a MotionSpec."""
+    from rollingdem.errors import check_finite, check_vector
+
+    if spec is None:
+        return {}
+    out = {"velocity": spec.velocity}
+    if spec.rotate is not None:
+        if spec.rotate.angular_velocity is None:
+            raise ParameterError("motion rotate: angular_velocity missing: give the turning rate (rad/s)")
+        axis = np.array(check_vector("motion rotate axis", spec.rotate.axis, unit=True))
+        out["angular_velocity"] = tuple(check_finite("motion rotate angular_velocity",
+                                                     spec.rotate.angular_velocity) * axis)
+        out["point"] = spec.rotate.point
+    return out
+
+
+def _mesh_wall(w: MeshSpec, base: Path):
+    """The MeshWall of a case's mesh block."""
+    from rollingdem.errors import check_finite, check_vector
+    from rollingdem.scene.mesh import MeshWall
+
+    if (w.file is None) == (w.shape is None):
+        raise ParameterError(f"file = {w.file!r}, shape = {w.shape!r} is not allowed: give exactly one of file "
+                             "(an STL or OBJ file) and shape (drum, silo, hopper, disk, box, chute)")
+    if w.file is not None:
+        path = Path(w.file) if Path(w.file).is_absolute() else base / w.file
+        wall = MeshWall.from_file(path, material=w.material, scale=w.scale, name=w.name)
+    else:
+        wall = MeshWall.shape(w.shape, material=w.material, name=w.name, **w.size)
+    if w.place is not None:
+        from scipy.spatial.transform import Rotation
+
+        matrix, about = np.eye(3), np.zeros(3)
+        if w.place.rotate is not None:
+            axis = np.array(check_vector("place rotate axis", w.place.rotate.axis, unit=True))
+            angle = check_finite("place rotate angle", w.place.rotate.angle if w.place.rotate.angle is not None
+                                 else float("nan"))
+            matrix = Rotation.from_rotvec(np.radians(angle) * axis).as_matrix()
+            about = np.array(check_vector("place rotate point", w.place.rotate.point))
+        shift = about - matrix @ about + np.array(check_vector("place translate", w.place.translate))
+        wall = MeshWall(wall.mesh.moved(matrix, shift), material=w.material, name=w.name)
+    motion = _motion(w.motion)
+    if motion:
+        wall = MeshWall(wall.mesh, material=w.material, name=w.name, **motion)
+    return wall
+
+
+class _InCase:
+    """Prefix a ParameterError raised while a case block is built with the block's key."""
+
+    def __init__(self, key: str):
+        self.key = key
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, err, tb):
+        if kind is not None and issubclass(kind, ParameterError):
+            raise ParameterError(f"{self.key}: {err}") from None
+        return False
+
+
+def check_case(case: CaseSpec, sim=None):
+    """Everything ``run_case`` would refuse before its first step, refused now, without running or
+    writing anything: the scene (``build_simulation``), each stage (duration, gravity, walls it
+    removes, velocities it sets), the outputs, and dt against the stable limit at the start of
+    the first stage. ``rollingdem check`` and ``rollingdem run`` both call it; returns the
+    simulation (``sim`` if given, else a new one)."""
+    from rollingdem.errors import check_non_negative, check_positive, check_vector
+
+    sim = build_simulation(case) if sim is None else sim
+    with _InCase("periodic"):
+        sim._check_periodic_length()
+    n = sim.n_particles
+    in_place = {w.name for w in sim.walls if w.name}
+    removed: set[str] = set()
+    first_velocities = None
+    for k, stage in enumerate(case.stages):
+        where = f"stage {stage.name!r}"
+        check_non_negative(f"{where}: duration", stage.duration, "s")
+        if stage.gravity is not None:
+            check_vector(f"{where}: gravity", stage.gravity)
+        for name in stage.remove_walls:
+            if name in removed:
+                raise ParameterError(f"{where}: remove_walls = {name!r} is not allowed: an earlier stage removed "
+                                     "that wall already")
+            if name not in in_place:
+                raise ParameterError(f"{where}: remove_walls = {name!r} is not allowed: no wall has that name; "
+                                     f"wall names are {', '.join(map(repr, sorted(in_place))) or 'none'}")
+            in_place.discard(name)
+            removed.add(name)
+        for m in stage.wall_motion:
+            if m.wall not in in_place:
+                raise ParameterError(f"{where}: wall_motion wall = {m.wall!r} is not allowed: no wall in place has "
+                                     f"that name; wall names are {', '.join(map(repr, sorted(in_place))) or 'none'}")
+            try:
+                _motion(m)
+            except ParameterError as err:
+                raise ParameterError(f"{where}: wall_motion {m.wall!r}: {err}") from None
+        sv = stage.set_velocity
+        if sv is not None:
+            if sv.velocity is None and sv.angular_velocity is None:
+                raise ParameterError(f"{where}: set_velocity = {sv.model_dump(exclude_none=True)} is not allowed: "
+                                     "give velocity and/or angular_velocity")
+            for key in ("velocity", "angular_velocity"):
+                if getattr(sv, key) is not None:
+                    check_vector(f"{where}: set_velocity {key}", getattr(sv, key))
+            if sv.particles != "all":
+                bad = [i for i in sv.particles if not 0 <= i < n]
+                if bad:
+                    raise ParameterError(f"{where}: set_velocity particles = {bad[0]} is not allowed: must be in "
+                                         f"[0, {n - 1}] (the case has {n} particles)")
+            if k == 0:
+                first_velocities = sv
+        if stage.bonds is not None:
+            b = stage.bonds
+            if (b.gap is None) == (b.pairs is None):
+                raise ParameterError(f"{where}: bonds is not allowed without exactly one of gap (m) and pairs")
+            try:
+                b.parallel_bond()
+            except ParameterError as err:
+                raise ParameterError(f"{where}: bonds: {err}") from None
+            for i, j in b.pairs or ():
+                if not (0 <= i < n and 0 <= j < n) or i == j:
+                    raise ParameterError(f"{where}: bonds pairs = [{i}, {j}] is not allowed: must be two different "
+                                         f"particles in [0, {n - 1}]")
+    out = case.output
+    for key in ("time_series", "snapshots", "checkpoint"):
+        block = getattr(out, key)
+        if block is not None:
+            check_positive(f"output.{key}.interval", block.interval, "s")
+    if out.time_series is not None:
+        bad = [i for i in out.time_series.particles if not 0 <= i < n]
+        if bad:
+            raise ParameterError(f"output.time_series.particles = {bad[0]} is not allowed: must be in [0, {n - 1}] "
+                                 f"(the case has {n} particles)")
+    _check_first_time_step(sim, first_velocities)
+    return sim
+
+
+def _check_first_time_step(sim, sv) -> None:
+    """dt against the stable limit as the first stage's run will see it (after its set_velocity);
+    the velocities are put back afterwards."""
+    from rollingdem.engine.state import I_FORCES_VALID
+
+    st = sim._state
+    saved = (st.v.copy(), st.w.copy(), int(st.info[I_FORCES_VALID]))
+    try:
+        if sv is not None:
+            idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles
+            sim.set_velocities(idx, sv.velocity, sv.angular_velocity)
+        sim.check_time_step()
+    finally:
+        st.v[...] = saved[0]
+        st.w[...] = saved[1]
+        st.info[I_FORCES_VALID] = saved[2]
+
+
+def _fresh_directory(base: Path) -> Path:
+    if not base.exists():
+        return base
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    candidate = base.with_name(f"{base.name}-{stamp}")
+    k = 1
+    while candidate.exists():
+        candidate = base.with_name(f"{base.name}-{stamp}-{k}")
+        k += 1
+    return candidate
+
+
+def _output_folder(case: CaseSpec, out) -> Path:
+    """The folder a run writes into: ``out`` as given, else a fresh one (the case's directory or
+    rollingdem-output/NAME, with a time stamp when that exists). Refused when it is a file."""
+    base = Path(out or case.output.directory or Path("rollingdem-output") / case.name)
+    outdir = _fresh_directory(base) if out is None else base
+    for folder in (outdir, *outdir.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                key = "output folder" if out is not None else "output.directory"
+                raise ParameterError(f"{key} = {str(outdir)!r} is not allowed: {folder} is a file; must be a folder")
+            break
+    return outdir
+
+
+def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = True, echo=print) -> dict:
+    """Run every stage of a case, writing its outputs; returns a summary (also in summary.json).
+
+    Everything ``check_case`` refuses is refused before the output folder is made: a refused case
+    leaves nothing behind. A run that fails later keeps what it wrote so far (summary.json says
+    why it stopped)."""
+    from rollingdem import Checkpoints, TimeSeries, VTKSnapshots
+
+    tic = time.perf_counter()
+    sim = check_case(case)
+    outdir = _output_folder(case, out)
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        (outdir / "case.yaml").write_text(yaml.safe_dump(json.loads(case.model_dump_json()), sort_keys=False))
+    except OSError as err:
+        raise ParameterError(f"output folder {outdir} cannot be written: {err.strerror or err}") from None
+    echo(f"rollingdem: case {case.name!r}, writing to {outdir}")
+    echo(f"  {sim.n_particles} particles, {len(sim.walls)} walls, dt = {sim.dt:.3g} s, contact {sim.contact!r}")
+    observers = []
+    if case.output.time_series is not None:
+        observers.append(TimeSeries(outdir / "series.csv", case.output.time_series.interval,
+                                    case.output.time_series.particles))
+    if case.output.snapshots is not None:
+        observers.append(VTKSnapshots(outdir / "snapshots", case.output.snapshots.interval))
+    if case.output.checkpoint is not None:
+        observers.append(Checkpoints(outdir / "checkpoints", case.output.checkpoint.interval))
+    walls_by_name = {w.name: w for w in sim.walls if w.name}
+    summary = {"case": case.name, "output": str(outdir), "particles": sim.n_particles, "stages": []}
+    failure = None
+    stage = None
+    try:
+        for stage in case.stages:
+            if stage.gravity is not None:
+                sim.gravity = stage.gravity
+            for name in stage.remove_walls:  # check_case made sure each names a wall in place
+                sim.remove_wall(walls_by_name.pop(name))
+            for m in stage.wall_motion:
+                motion = _motion(m)
+                sim.set_wall_velocity(m.wall, motion["velocity"], motion.get("angular_velocity", (0.0, 0.0, 0.0)),
+                                      point=motion.get("point"))
+            if stage.set_velocity is not None:
+                sv = stage.set_velocity
+                idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles
+                sim.set_velocities(idx, sv.velocity, sv.angular_velocity)
+            if stage.bonds is not None:
+                made = sim.add_bonds(stage.bonds.parallel_bond(), pairs=stage.bonds.pairs, gap=stage.bonds.gap)
+                echo(f"  stage {stage.name!r}: {made} bonds")
+            t0 = time.perf_counter()
+            steps0 = sim.step
+            sim.run(stage.duration, observers=observers, progress=progress, label=stage.name)
+            wall = time.perf_counter() - t0
+            steps = sim.step - steps0
+            summary["stages"].append({"name": stage.name, "steps": steps, "wall_seconds": wall,
+                                      "particle_steps_per_second": sim.n_particles * steps / wall if wall else None})
+        if case.output.repose_angle is not None:
+            summary["repose_angle"] = _measure_pile(sim, case.output.repose_angle, outdir, echo)
+    except ParameterError as err:  # refused later on (a stage's dt after the state changed): say where
+        failure = err
+        raise ParameterError(f"stage {stage.name!r} at t = {sim.time:.6g} s: {err} (the outputs so far are in "
+                             f"{outdir})") from None
+    except Exception as err:  # noqa: BLE001 - recorded, then raised again
+        failure = err
+        raise
+    finally:
+        summary.update({"time": sim.time, "steps": sim.step, "wall_seconds": time.perf_counter() - tic,
+                        "kinetic_energy": sum(sim.kinetic_energy()), "dissipated": sim.dissipated_energy() if sim.track_energy else None,
+                        "status": "ok" if failure is None else f"failed: {failure}"})
+        sim.checkpoint(outdir / "final.npz")
+        (outdir / "summary.json").write_text(json.dumps(summary, indent=2))
+        if case.output.plot and (outdir / "series.csv").exists():
+            try:
+                plot_kinetic_energy(outdir / "series.csv", outdir / "kinetic_energy.png", title=case.name)
+            except Exception as err:  # noqa: BLE001 - a failed plot must not hide the run's own result
+                echo(f"  (kinetic-energy plot failed: {err})")
+    echo(f"  done: {sim.step} steps in {summary['wall_seconds']:.1f} s; outputs in {outdir}")
+    return summary
+
+
+def _measure_pile(sim, spec: ReposeOutputSpec, outdir: Path, echo) -> dict:
+    """The repose angle of the free spheres at the end of the run, printed, in ``pile.png`` and
+    returned for summary.json; a pile the cone fit refuses (too flat, too small) is said, not raised."""
+    from rollingdem.analysis.repose import plot_pile, repose_angle
+
+    free = ~sim.fixed
+    if spec.floor is not None:
+        floor = float(spec.floor)
+    elif sim.fixed.any():
+        floor = float(np.max(sim.positions[sim.fixed, 2] + sim.radii[sim.fixed]))
+    else:
+        floor = 0.0
+    try:
+        a = repose_angle(sim.positions[free], sim.radii[free], floor=floor)
+    except ParameterError as err:
+        echo(f"  repose angle: not measured: {err}")
+        return {"angle": None, "note": str(err)}
+    plot_pile(sim.positions[free], sim.radii[free], a, path=outdir / "pile.png")
+    echo(f"  repose angle: {a.angle:.1f} deg (cone fit R² {a.r_squared:.2f}; {len(a.slice_angles)} azimuthal "
+         f"slices {a.slice_mean:.1f} ± {a.slice_std:.1f} deg); pile and cone in {outdir / 'pile.png'}")
+    return {"angle": a.angle, "r_squared": a.r_squared, "slice_mean": a.slice_mean, "slice_std": a.slice_std,
+            "floor": floor}
+
+
+def plot_kinetic_energy(series_csv, png, title=""):
+    """Total, translational and rotational kinetic energy over time, log scale (the report's Figure 4)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import pandas as pd
+
+    df = pd.read_csv(series_csv)
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    floor = 1e-300
+    for col, label in (("kinetic_total", "total"), ("kinetic_translational", "translational"),
+                       ("kinetic_rotational", "rotational")):
+        ax.plot(df["time"], np.maximum(df[col], floor), label=label, lw=1.2 if col == "kinetic_total" else 0.8)
+    ax.set_yscale("log")
+    positive = df["kinetic_total"][df["kinetic_total"] > 0]
+    if len(positive):
+        ax.set_ylim(max(positive.min() * 0.5, positive.max() * 1e-14), positive.max() * 3)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("kinetic energy (J)")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+
+
+def default_case_path() -> Path:
+    return Path(__file__).parents[1] / "experiments" / "default.yaml"
+
+
+__all__ = ["CaseSpec", "load_case", "build_simulation", "check_case", "run_case", "plot_kinetic_energy", "default_case_path"]

@@ -1,0 +1,299 @@
+"""Observers: what a run writes while it goes (time series, snapshots, checkpoints).
+
+Each observer has an ``interval`` in simulated seconds (rounded to whole steps) and is called by
+``Simulation.run`` between kernel calls, never inside the compiled loop. Files are flushed as they
+are written, so a run that fails leaves what it had written readable.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from rollingdem.errors import ParameterError, check_integer, check_positive
+
+
+class Observer:
+    """Base class: override ``observe`` (and ``start`` / ``finish`` if needed)."""
+
+    def __init__(self, interval: float):
+        self.interval = check_positive("observer interval", interval, "s")
+        self._every = None
+        self._next = None
+
+    def check(self, sim) -> None:
+        """Refuse what ``start`` would refuse for ``sim``, without writing anything (default: nothing)."""
+
+    def start(self, sim) -> None:
+        self._every = max(1, int(round(self.interval / sim.dt)))
+        self._next = sim.step
+
+    def next_step(self, sim) -> int:
+        return self._next
+
+    def maybe_observe(self, sim, force: bool = False) -> None:
+        """Observe now if due (or if ``force``), once per step even over consecutive runs."""
+        if (force or sim.step >= self._next) and getattr(self, "_last_step", None) != sim.step:
+            self.observe(sim)
+            self._last_step = sim.step
+        if sim.step >= self._next:
+            self._next = sim.step + self._every
+
+    def observe(self, sim) -> None:
+        raise NotImplementedError
+
+    def finish(self, sim, failure=None) -> None:
+        pass
+
+
+class TimeSeries(Observer):
+    """CSV time series: time, kinetic energies, contacts, dissipated energies, chosen particles.
+
+    Columns: ``time, step, kinetic_translational, kinetic_rotational, kinetic_total, contacts,
+    dissipated_normal_damping, dissipated_sliding, dissipated_rolling, dissipated_twisting``; for
+    each chosen particle p, ``p{p}_x .. p{p}_z, p{p}_vx .., p{p}_wx .., p{p}_tx ..`` (position m,
+    velocity m/s, angular velocity rad/s, torque N m); and for each wall in place when the series
+    starts (by name, or ``#k``), ``wall_{name}_fx .. fz, wall_{name}_tx .. tz``: the force on it (N)
+    and its torque (N m) about its point (a mesh's turning point, default its centroid), empty once
+    it is removed (``Simulation.wall_loads``); for each outlet and inflow (by name, or ``#k``),
+    ``outlet_{name}_count``, ``outlet_{name}_mass`` (taken out, cumulative, kg) and
+    ``inflow_{name}_count``, ``_mass``, ``_shortfall`` (inserted, cumulative; due but not placed at
+    its last action). With bonds when the series starts: ``bonds_intact``, ``bonds_broken_tension``,
+    ``bonds_broken_shear``. A chosen particle is the one with that ``particle_ids`` number; its columns
+    are empty once an outlet has taken it out.
+    """
+
+    def __init__(self, path, interval: float, particles=()):
+        super().__init__(interval)
+        self.path = Path(path)
+        if isinstance(particles, (str, bytes)) or not hasattr(particles, "__iter__"):
+            raise ParameterError(f"time series particles = {particles!r} is not allowed: must be a list of particle "
+                                 "indices")
+        self.particles = [check_integer("time series particle", p, low=0) for p in particles]
+        self._file = None
+        self._writer = None
+        self._walls = None  # the walls' keys, fixed when the series starts
+        self._boundaries = None  # the outlets' and inflows' columns, as well
+        self._bonds = None  # and the bond counts' (none without bonds)
+
+    def columns(self):
+        cols = ["time", "step", "kinetic_translational", "kinetic_rotational", "kinetic_total", "contacts",
+                "dissipated_normal_damping", "dissipated_sliding", "dissipated_rolling", "dissipated_twisting"]
+        for p in self.particles:
+            for q in ("x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "tx", "ty", "tz"):
+                cols.append(f"p{p}_{q}")
+        for name in self._walls or ():
+            cols += [f"wall_{name}_{q}" for q in ("fx", "fy", "fz", "tx", "ty", "tz")]
+        return cols + list(self._boundaries or ()) + list(self._bonds or ())
+
+    def check(self, sim):
+        for p in self.particles:
+            if not 0 <= p < sim.n_particles:
+                raise ParameterError(f"time series particle = {p} is not allowed: must be in [0, {sim.n_particles - 1}]")
+
+    def start(self, sim):
+        self.check(sim)
+        super().start(sim)
+        sim.track_energy = True  # the dissipated-energy columns
+        if self._walls is None:
+            self._walls = list(sim.wall_loads())
+            self._boundaries = list(sim.boundary_counts())
+            self._bonds = list(sim.bond_counts())
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        exists = self.path.exists() and self.path.stat().st_size > 0
+        self._file = open(self.path, "a", newline="")
+        self._writer = csv.writer(self._file)
+        if not exists:
+            self._writer.writerow(self.columns())
+
+    def observe(self, sim):
+        tr, rot = sim.kinetic_energy()
+        diss = sim.dissipated_energy()
+        row = [repr(sim.time), sim.step, repr(tr), repr(rot), repr(tr + rot), sim.number_of_contacts()]
+        row += [repr(v) for v in diss.values()]
+        if self.particles:
+            tags = sim.particle_ids
+            rows = np.searchsorted(tags, self.particles)
+            arrays = (sim.positions, sim.velocities, sim.angular_velocities, sim.torques)
+        for p, k in zip(self.particles, rows if self.particles else ()):
+            present = k < len(tags) and tags[k] == p
+            for arr in arrays:
+                row += [repr(float(c)) for c in arr[k]] if present else [""] * 3
+        if self._walls:
+            loads = sim.wall_loads()
+            for name in self._walls:
+                load = loads.get(name)
+                row += [repr(c) for c in (*load["force"], *load["torque"])] if load else [""] * 6
+        if self._boundaries:
+            counts = sim.boundary_counts()
+            row += [repr(counts[c]) if c in counts else "" for c in self._boundaries]
+        if self._bonds:
+            counts = sim.bond_counts()
+            row += [repr(counts.get(c, 0)) for c in self._bonds]
+        self._writer.writerow(row)
+        self._file.flush()
+
+    def finish(self, sim, failure=None):
+        if self._file:
+            self._file.close()
+            self._file = None
+
+
+class VTKSnapshots(Observer):
+    """Particle snapshots as VTU files plus a PVD collection that ParaView opens; each mesh wall as
+    its own series beside them (``wall_{name}_{step}.vtu``, ``wall_{name}.pvd``: its triangles where they
+    are at that time), so the geometry moves with the particles.
+
+    Point data: radius (m), velocity (m/s), angular_velocity (rad/s), material (index), fixed (1 for a
+    fixed particle), id (``Simulation.particle_ids``: a particle keeps it when others are taken out).
+    Field data: time (s), removed (particles the outlets took out so far), and with periodic
+    boundaries periodic_box, (x_min, x_max, y_min, y_max, z_min, z_max), NaN along an axis that is
+    not periodic. With bonds, ``bonds_{step}.vtu`` / ``bonds.pvd``: each bond a line between its
+    particles' centres, with cell data status (0 intact, 1 broken in tension, 2 in shear),
+    normal_force (N, tension positive), shear_force (N), twisting_moment and bending_moment (N m).
+    """
+
+    def __init__(self, directory, interval: float, prefix: str = "particles"):
+        super().__init__(interval)
+        self.directory = Path(directory)
+        self.prefix = prefix
+        self._entries: list[tuple[float, str]] = []
+        self._mesh_entries: dict[str, list[tuple[float, str]]] = {}
+
+    def start(self, sim):
+        super().start(sim)
+        self.directory.mkdir(parents=True, exist_ok=True)
+
+    def observe(self, sim):
+        name = f"{self.prefix}_{sim.step:09d}.vtu"
+        write_vtu(self.directory / name, sim.positions, {
+            "radius": sim.radii, "velocity": sim.velocities, "angular_velocity": sim.angular_velocities,
+            "material": sim.material_indices.astype(np.int32), "fixed": sim.fixed.astype(np.uint8),
+            "id": sim.particle_ids.astype(np.int64)}, field_data=_field_data(sim))
+        self._entries.append((sim.time, name))
+        self._write_pvd(self.prefix, self._entries)
+        bonds = sim.bonds()
+        if len(bonds):
+            import meshio
+
+            bond_name = f"bonds_{sim.step:09d}.vtu"
+            status = bonds["status"].map({"intact": 0, "tension": 1, "shear": 2}).to_numpy(np.int32)
+            data = {"status": [status]} | {q: [bonds[q].to_numpy(float)] for q in
+                                           ("normal_force", "shear_force", "twisting_moment", "bending_moment")}
+            meshio.write(self.directory / bond_name,
+                         meshio.Mesh(sim.positions, [("line", bonds[["i", "j"]].to_numpy(np.int64))], cell_data=data),
+                         binary=True)
+            entries = self._mesh_entries.setdefault("bonds", [])
+            entries.append((sim.time, bond_name))
+            self._write_pvd("bonds", entries)
+        for label, mesh in sim.mesh_walls().items():
+            import meshio
+
+            stem = f"wall_{label}"
+            mesh_name = f"{stem}_{sim.step:09d}.vtu"
+            meshio.write(self.directory / mesh_name, meshio.Mesh(mesh.vertices, [("triangle", mesh.triangles)]),
+                         binary=True)
+            entries = self._mesh_entries.setdefault(stem, [])
+            entries.append((sim.time, mesh_name))
+            self._write_pvd(stem, entries)
+
+    def _write_pvd(self, stem, entries):
+        lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+                 "  <Collection>"]
+        for t, name in entries:
+            lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(name)}/>')
+        lines += ["  </Collection>", "</VTKFile>", ""]
+        tmp = self.directory / f"{stem}.pvd.tmp"
+        tmp.write_text("\n".join(lines))
+        tmp.replace(self.directory / f"{stem}.pvd")
+
+
+def _field_data(sim) -> dict:
+    out = {"time": np.array([sim.time]), "removed": np.array([sum(o.count for o in sim.outlets)], dtype=np.int64)}
+    if sim.periodic:
+        box = np.full(6, np.nan)
+        for axis, (lo, hi) in sim.periodic.items():
+            box[2 * "xyz".index(axis):2 * "xyz".index(axis) + 2] = (lo, hi)
+        out["periodic_box"] = box
+    return out
+
+
+def write_vtu(path, points: np.ndarray, point_data: dict, field_data: dict | None = None) -> None:
+    """Write points and their point data (and whole-grid field data) as a VTU unstructured grid of
+    vertex cells (base64 binary)."""
+    import base64
+
+    n = points.shape[0]
+
+    def data_array(name, arr):
+        arr = np.ascontiguousarray(arr)
+        if arr.dtype == np.uint8:
+            vtype = "UInt8"
+        elif arr.dtype.kind == "f":
+            arr = arr.astype("<f8")
+            vtype = "Float64"
+        elif arr.dtype == np.int64:
+            arr = arr.astype("<i8")
+            vtype = "Int64"
+        else:
+            arr = arr.astype("<i4")
+            vtype = "Int32"
+        comps = 1 if arr.ndim == 1 else arr.shape[1]
+        raw = arr.tobytes()
+        header = np.array([len(raw)], dtype="<u8").tobytes()
+        payload = base64.b64encode(header + raw).decode()
+        nc = f' NumberOfComponents="{comps}"' if comps > 1 else ""
+        return f'        <DataArray type="{vtype}" Name="{name}"{nc} format="binary">{payload}</DataArray>'
+
+    out = ['<?xml version="1.0"?>',
+           '<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">',
+           "  <UnstructuredGrid>"]
+    if field_data:
+        out.append("    <FieldData>")
+        out += ["  " + data_array(name, arr).replace(" format=", f' NumberOfTuples="{len(arr)}" format=', 1)
+                for name, arr in field_data.items()]
+        out.append("    </FieldData>")
+    out += [f'    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">', "      <PointData>"]
+    for name, arr in point_data.items():
+        out.append(data_array(name, arr))
+    out += ["      </PointData>", "      <Points>", data_array("Points", points.astype(np.float64)),
+            "      </Points>", "      <Cells>",
+        data_array("connectivity", np.arange(n, dtype=np.int64)),
+        data_array("offsets", np.arange(1, n + 1, dtype=np.int64)),
+        data_array("types", np.ones(n, dtype=np.uint8)),
+        "      </Cells>", "    </Piece>", "  </UnstructuredGrid>", "</VTKFile>", ""]
+    Path(path).write_text("\n".join(out))
+
+
+class Checkpoints(Observer):
+    """Periodic checkpoints ``{prefix}_{step}.npz`` (and ``{prefix}_last.npz``)."""
+
+    def __init__(self, directory, interval: float, prefix: str = "checkpoint", keep_all: bool = False):
+        super().__init__(interval)
+        self.directory = Path(directory)
+        self.prefix = prefix
+        self.keep_all = keep_all
+
+    def observe(self, sim):
+        if self.keep_all:
+            sim.checkpoint(self.directory / f"{self.prefix}_{sim.step:09d}.npz")
+        sim.checkpoint(self.directory / f"{self.prefix}_last.npz")
+
+
+class Callback(Observer):
+    """Calls ``function(sim)`` at every interval (e.g. to record something of your own)."""
+
+    def __init__(self, function, interval: float):
+        super().__init__(interval)
+        if not callable(function):
+            raise ParameterError(f"callback function = {function!r} is not allowed: must be callable, function(sim)")
+        self.function = function
+
+    def observe(self, sim):
+        self.function(sim)
+
+
+__all__ = ["Observer", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback", "write_vtu"]

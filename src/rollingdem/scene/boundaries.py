@@ -1,0 +1,252 @@
+"""Outlets and inflows: boundaries that take particles out of a scene and put them in during a run.
+
+    sim.add_outlet(rd.BoxRegion((-0.1, -0.1, -0.5), (0.1, 0.1, -0.2)), name="orifice")
+    sim.add_inflow(rd.CylinderRegion(0.03, 0.25, 0.3), rate=2000, radius=0.002, material="glass")
+
+Both act at whole steps, every ``interval`` seconds of simulated time (rounded to steps, counted
+from step 0, so a run cut into pieces or restarted from a checkpoint acts at the same steps), between
+kernel calls: removal first, then insertion, then the observers. Their counts go into the time
+series (``TimeSeries``) and into checkpoints.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from rollingdem.errors import ParameterError, check_non_negative, check_positive, check_vector
+from rollingdem.scene.insertion import BoxRegion, Constant, CylinderRegion, Discrete, Normal, Region, Uniform, as_distribution
+
+DEFAULT_INTERVAL = 1e-3
+"""Seconds between two actions of an outlet or inflow, unless given: a sphere falling at 1 m/s goes
+1 mm further into an outlet before it is taken out, and an inflow of 10^4 particles/s inserts 10 at a
+time."""
+
+PLACEMENT_ATTEMPTS = 100
+"""Random candidate centres per sphere an inflow tries before it leaves the sphere for later."""
+
+
+def region_to_dict(region: Region) -> dict:
+    if isinstance(region, BoxRegion):
+        return {"type": "box", "lo": region.lo.tolist(), "hi": region.hi.tolist()}
+    return {"type": "cylinder", "radius": region.radius, "z_min": region.z_min, "z_max": region.z_max,
+            "center": list(region.center)}
+
+
+def region_from_dict(d: dict) -> Region:
+    if d["type"] == "box":
+        return BoxRegion(d["lo"], d["hi"])
+    return CylinderRegion(d["radius"], d["z_min"], d["z_max"], center=d["center"])
+
+
+def distribution_to_dict(dist) -> dict:
+    if isinstance(dist, Constant):
+        return {"distribution": "constant", "radius": dist.radius}
+    if isinstance(dist, Uniform):
+        return {"distribution": "uniform", "low": dist.low, "high": dist.high}
+    if isinstance(dist, Normal):
+        return {"distribution": "normal", "mean": dist.mean, "std": dist.std, "low": dist.low, "high": dist.high}
+    return {"distribution": "discrete", "values": dist.values.tolist(), "weights": dist.weights.tolist()}
+
+
+def distribution_from_dict(d: dict):
+    kind = d["distribution"]
+    args = {k: v for k, v in d.items() if k != "distribution"}
+    return {"constant": Constant, "uniform": Uniform, "normal": Normal, "discrete": Discrete}[kind](**args)
+
+
+def _check_region(what: str, region) -> Region:
+    if not isinstance(region, Region):
+        raise ParameterError(f"{what} region = {region!r} is not allowed: must be a rd.BoxRegion or rd.CylinderRegion")
+    return region
+
+
+def _check_name(what: str, name) -> str | None:
+    if name is not None and (not isinstance(name, str) or not name or not all(c.isalnum() or c in "-_" for c in name)):
+        raise ParameterError(f"{what} name = {name!r} is not allowed: must be letters, digits, '-' and '_' (it names "
+                             "time-series columns)")
+    return name
+
+
+class Boundary:
+    """What outlets and inflows share: a region, a name, and the steps they act at."""
+
+    kind = ""
+
+    def __init__(self, region, name, interval):
+        self.region = _check_region(self.kind, region)
+        self.name = _check_name(self.kind, name)
+        self.interval = DEFAULT_INTERVAL if interval is None else check_positive(f"{self.kind} interval", interval,
+                                                                                 "s")
+
+    def every(self, dt: float) -> int:
+        """Steps between two actions."""
+        return max(1, int(round(self.interval / dt)))
+
+    def next_step(self, step: int, dt: float) -> int:
+        """The first step after ``step`` this boundary acts at."""
+        every = self.every(dt)
+        return (step // every + 1) * every
+
+    def due(self, step: int, dt: float) -> bool:
+        return step > 0 and step % self.every(dt) == 0
+
+    def columns(self, key: str) -> list[str]:
+        return [f"{self.kind}_{key}_{q}" for q in self.COLUMNS]
+
+    def describe(self) -> dict:
+        return {"region": region_to_dict(self.region), "name": self.name, "interval": self.interval}
+
+
+class Outlet(Boundary):
+    """Takes out every free particle whose centre is inside ``region``; counts them and their mass,
+    cumulative (``count``, ``mass``): the discharge rate is the slope of ``mass`` over time."""
+
+    kind = "outlet"
+    COLUMNS = ("count", "mass")
+
+    def __init__(self, region, name=None, interval=None):
+        super().__init__(region, name, interval)
+        self.count = 0
+        self.mass = 0.0
+
+    def inside(self, x: np.ndarray) -> np.ndarray:
+        return self.region.contains(x, np.zeros(len(x)))
+
+    def values(self) -> list:
+        return [self.count, self.mass]
+
+    def describe(self) -> dict:
+        return {**super().describe(), "count": self.count, "mass": self.mass}
+
+    @classmethod
+    def from_description(cls, d: dict) -> "Outlet":
+        out = cls(region_from_dict(d["region"]), d["name"], d["interval"])
+        out.count, out.mass = int(d["count"]), float(d["mass"])
+        return out
+
+
+class Inflow(Boundary):
+    """Inserts particles into ``region`` at ``rate`` (particles/s) or ``mass_rate`` (kg/s) from
+    ``start`` (s, default when it is added): by time t it has asked for rate (t - start) of them
+    (or as many as make up that mass). Each action places what is due where it overlaps neither a
+    particle nor a wall; what finds no room is the ``shortfall``, carried to the next action (one
+    warning the first time). ``count`` and ``mass`` are what it inserted, cumulative."""
+
+    kind = "inflow"
+    COLUMNS = ("count", "mass", "shortfall")
+
+    def __init__(self, region, radius, material, rate=None, mass_rate=None, velocity=None, seed=0, name=None,
+                 interval=None, start=0.0):
+        super().__init__(region, name, interval)
+        if (rate is None) == (mass_rate is None):
+            raise ParameterError(f"inflow rate = {rate!r}, mass_rate = {mass_rate!r} is not allowed: give exactly one, "
+                                 "rate (particles/s) or mass_rate (kg/s)")
+        self.rate = None if rate is None else check_positive("inflow rate", rate, "particles/s")
+        self.mass_rate = None if mass_rate is None else check_positive("inflow mass_rate", mass_rate, "kg/s")
+        self.radius = as_distribution(radius)
+        rmax = self.radius.max_radius
+        if not self.region.fits(rmax):
+            raise ParameterError(f"inflow region {self.region!r} is not allowed: a sphere of radius {rmax:g} m does not "
+                                 "fit in it; must be larger than one particle")
+        self.material = material
+        self.velocity = (0.0, 0.0, 0.0) if velocity is None else check_vector("inflow velocity", velocity)
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ParameterError(f"inflow seed = {seed!r} is not allowed: must be a whole number >= 0")
+        self.seed = int(seed)
+        self.start = check_non_negative("inflow start", start, "s")
+        self.count = 0
+        self.mass = 0.0
+        self.shortfall = 0
+        self.actions = 0  # actions so far: each draws from its own random stream (seed, action)
+        self.warned = False
+
+    def values(self) -> list:
+        return [self.count, self.mass, self.shortfall]
+
+    def describe(self) -> dict:
+        return {**super().describe(), "radius": distribution_to_dict(self.radius), "material": self.material, "rate": self.rate,
+                "mass_rate": self.mass_rate, "velocity": list(self.velocity), "seed": self.seed, "start": self.start,
+                "count": self.count, "mass": self.mass, "shortfall": self.shortfall, "actions": self.actions,
+                "warned": self.warned}
+
+    def restore_counters(self, d: dict) -> None:
+        for key in ("count", "mass", "shortfall", "actions", "warned"):
+            setattr(self, key, type(getattr(self, key))(d[key]))
+
+    def radii_due(self, time: float, density: float) -> np.ndarray:
+        """The radii of the spheres due at ``time`` (drawn from this action's random stream)."""
+        rng = np.random.default_rng([self.seed, self.actions, 0])
+        elapsed = max(time - self.start, 0.0)
+        if self.rate is not None:
+            due = int(math.floor(self.rate * elapsed * (1.0 + 1e-12))) - self.count
+            return np.asarray(self.radius.sample(rng, due), dtype=float) if due > 0 else np.zeros(0)
+        deficit = self.mass_rate * elapsed - self.mass
+        mean_mass = density * 4.0 / 3.0 * math.pi * float(np.mean(self.radius.sample(rng, 64) ** 3))
+        if deficit < 0.5 * mean_mass:
+            return np.zeros(0)
+        radii = np.asarray(self.radius.sample(rng, int(deficit / mean_mass * 1.5) + 8), dtype=float)
+        mass = density * 4.0 / 3.0 * math.pi * np.cumsum(radii ** 3)
+        # the spheres whose running mass comes nearest the deficit (a whole sphere more or less)
+        take = int(np.searchsorted(mass, deficit))
+        if take < len(mass) and (take == 0 or mass[take] - deficit < deficit - mass[take - 1]):
+            take += 1
+        return radii[:take]
+
+    def place(self, radii: np.ndarray, existing_x, existing_r, walls) -> np.ndarray:
+        """Centres for as many of ``radii`` as find room (in order; the rest NaN)."""
+        from scipy.spatial import cKDTree
+
+        rng = np.random.default_rng([self.seed, self.actions, 1])
+        n = len(radii)
+        out = np.full((n, 3), np.nan)
+        if n == 0:
+            return out
+        lo, hi = self.region.bounds()
+        rmax = float(radii.max())
+        near = np.zeros(len(existing_x), dtype=bool)
+        if len(existing_x):
+            gap = np.maximum(lo - existing_x, 0.0) + np.maximum(existing_x - hi, 0.0)
+            near = np.linalg.norm(gap, axis=1) < existing_r + rmax
+        ex, er = existing_x[near], existing_r[near]
+        cand_r = np.repeat(radii, PLACEMENT_ATTEMPTS)
+        cand = self.region.sample(rng, cand_r)
+        ok = np.ones(len(cand), dtype=bool)
+        for wall in walls:
+            ok &= wall.overlap(cand, cand_r) <= 0.0
+        if len(ex):
+            reach = rmax + float(er.max())
+            sdm = cKDTree(cand).sparse_distance_matrix(cKDTree(ex), reach, output_type="ndarray")
+            hit = sdm["v"] < cand_r[sdm["i"]] + er[sdm["j"]]
+            ok[np.unique(sdm["i"][hit])] = False
+        placed_x = np.zeros((0, 3))
+        placed_r = np.zeros(0)
+        for k in range(n):
+            options = np.flatnonzero(ok[k * PLACEMENT_ATTEMPTS:(k + 1) * PLACEMENT_ATTEMPTS]) + k * PLACEMENT_ATTEMPTS
+            if len(placed_x) and len(options):
+                d = np.linalg.norm(cand[options, None, :] - placed_x[None, :, :], axis=-1)
+                options = options[(d >= radii[k] + placed_r[None, :]).all(axis=1)]
+            if len(options):
+                out[k] = cand[options[0]]
+                placed_x = np.vstack([placed_x, cand[options[0]]])
+                placed_r = np.append(placed_r, radii[k])
+        return out
+
+    def note_shortfall(self, missing: int, time: float) -> None:
+        self.shortfall = missing
+        if missing and not self.warned:
+            self.warned = True
+            label = f"inflow {self.name!r}" if self.name else "an inflow"
+            warnings.warn(f"{label} at t = {time:.6g} s: {missing} particle(s) found no room in "
+                          f"{self.region!r}; the region is too full for the rate. They are inserted as room frees up "
+                          "(the time series' inflow shortfall column counts them); use a larger region or a lower "
+                          "rate", RuntimeWarning, stacklevel=4)
+
+    @classmethod
+    def from_description(cls, d: dict) -> "Inflow":
+        inflow = cls(region_from_dict(d["region"]), distribution_from_dict(d["radius"]), d["material"], rate=d["rate"], mass_rate=d["mass_rate"],
+                     velocity=d["velocity"], seed=d["seed"], name=d["name"], interval=d["interval"], start=d["start"])
+        inflow.restore_counters(d)
+        return inflow

@@ -1,0 +1,163 @@
+"""Materials and the pair mixing rules of docs/models.md §1.1.
+
+:class:`Material`; :class:`MaterialTable`, the materials of a scene with the effective moduli E*
+and G* of each pair and its coefficients (friction, rolling friction, restitution, rolling
+damping, surface energy, cohesion energy density): the mean of the two materials' values unless set for the pair (``set_pair``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+
+from rollingdem.errors import ParameterError, check_non_negative, check_positive, check_range
+
+
+@dataclass(frozen=True)
+class Material:
+    """A particle or wall material.
+
+    Parameters
+    ----------
+    name: label used to refer to the material.
+    youngs_modulus: E (Pa), > 0.
+    poisson_ratio: nu, in (-1, 0.5).
+    density: rho (kg/m^3), > 0.
+    friction: sliding friction coefficient mu (-), >= 0.
+    rolling_friction: rolling friction coefficient mu_r (-), >= 0; mu_r = tan(beta), beta the
+        steepest slope on which a sphere rests (seed report eq. 1).
+    restitution: coefficient of restitution e, in (0, 1].
+    rolling_damping: rolling viscous damping ratio eta_r (-), >= 0 (seed report eq. 10).
+    surface_energy: w (J/m^2), >= 0: the work of adhesion per unit area that the ``jkr`` cohesion
+        law takes (pull-off force 3/2 pi w R*; LAMMPS's ``jkr`` gamma is w / 2).
+    cohesion_energy_density: k_c (J/m^3), >= 0: the ``sjkr`` cohesion law's F = k_c A (LIGGGHTS's
+        ``cohesionEnergyDensity``).
+    """
+
+    name: str
+    youngs_modulus: float
+    poisson_ratio: float
+    density: float
+    friction: float = 0.5
+    rolling_friction: float = 0.0
+    restitution: float = 0.5
+    rolling_damping: float = 0.0
+    surface_energy: float = 0.0
+    cohesion_energy_density: float = 0.0
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name:
+            raise ParameterError(f"material name = {self.name!r} is not allowed: must be a non-empty string")
+        p = f"material {self.name!r}: "
+        object.__setattr__(self, "youngs_modulus", check_positive(p + "youngs_modulus", self.youngs_modulus, "Pa"))
+        object.__setattr__(self, "poisson_ratio", check_range(p + "poisson_ratio", self.poisson_ratio, -1.0, 0.5,
+                                                              low_open=True, high_open=True))
+        object.__setattr__(self, "density", check_positive(p + "density", self.density, "kg/m^3"))
+        object.__setattr__(self, "friction", check_non_negative(p + "friction", self.friction))
+        object.__setattr__(self, "rolling_friction", check_non_negative(p + "rolling_friction", self.rolling_friction))
+        object.__setattr__(self, "restitution", check_range(p + "restitution", self.restitution, 0.0, 1.0,
+                                                            low_open=True))
+        object.__setattr__(self, "rolling_damping", check_non_negative(p + "rolling_damping", self.rolling_damping))
+        object.__setattr__(self, "surface_energy", check_non_negative(p + "surface_energy", self.surface_energy, "J/m^2"))
+        object.__setattr__(self, "cohesion_energy_density",
+                           check_non_negative(p + "cohesion_energy_density", self.cohesion_energy_density, "J/m^3"))
+
+    @property
+    def shear_modulus(self) -> float:
+        """G = E / (2 (1 + nu)) (Pa)."""
+        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+
+PAIR_COEFFICIENTS = ("friction", "rolling_friction", "restitution", "rolling_damping", "surface_energy",
+                     "cohesion_energy_density")
+
+
+@dataclass(frozen=True)
+class PairProperties:
+    """Mixed properties of one material pair, as the contact sub-models see them."""
+
+    effective_youngs_modulus: float  # E* (Pa)
+    effective_shear_modulus: float   # G* (Pa)
+    friction: float
+    rolling_friction: float
+    restitution: float
+    rolling_damping: float
+    surface_energy: float = 0.0
+    cohesion_energy_density: float = 0.0
+
+
+def effective_youngs_modulus(a: Material, b: Material) -> float:
+    return 1.0 / ((1.0 - a.poisson_ratio ** 2) / a.youngs_modulus + (1.0 - b.poisson_ratio ** 2) / b.youngs_modulus)
+
+
+def effective_shear_modulus(a: Material, b: Material) -> float:
+    inv = (2.0 * (2.0 - a.poisson_ratio) * (1.0 + a.poisson_ratio) / a.youngs_modulus
+           + 2.0 * (2.0 - b.poisson_ratio) * (1.0 + b.poisson_ratio) / b.youngs_modulus)
+    return 1.0 / inv
+
+
+@dataclass
+class MaterialTable:
+    """The materials of a scene and their per-pair overrides."""
+
+    materials: list[Material] = field(default_factory=list)
+    overrides: dict[tuple[int, int], dict[str, float]] = field(default_factory=dict)
+
+    def add(self, material: Material) -> int:
+        if not isinstance(material, Material):
+            raise ParameterError(f"material = {material!r} is not allowed: must be a rollingdem.Material")
+        for k, m in enumerate(self.materials):
+            if m.name == material.name:
+                if m == material:
+                    return k
+                raise ParameterError(f"material name = {material.name!r} is already used by a different material")
+        self.materials.append(material)
+        return len(self.materials) - 1
+
+    def index(self, material: Material | str | int) -> int:
+        if isinstance(material, Material):
+            return self.add(material)
+        if isinstance(material, (int,)) and not isinstance(material, bool):
+            if 0 <= material < len(self.materials):
+                return int(material)
+            raise ParameterError(f"material = {material} is not allowed: index must be in [0, {len(self.materials) - 1}]")
+        for k, m in enumerate(self.materials):
+            if m.name == material:
+                return k
+        known = ", ".join(repr(m.name) for m in self.materials) or "none yet"
+        raise ParameterError(f"material = {material!r} is not known: known materials are {known}")
+
+    def __len__(self) -> int:
+        return len(self.materials)
+
+    def __getitem__(self, key) -> Material:
+        return self.materials[self.index(key)]
+
+    def set_pair(self, a, b, **coefficients: float) -> None:
+        """Override mixed coefficients for the pair (a, b), e.g. ``set_pair("glass", "steel", friction=0.3)``."""
+        ia, ib = self.index(a), self.index(b)
+        checked = {}
+        for key, value in coefficients.items():
+            if key not in PAIR_COEFFICIENTS:
+                raise ParameterError(f"pair coefficient {key!r} is not known: allowed are {', '.join(PAIR_COEFFICIENTS)}")
+            probe = replace(self.materials[ia], **{key: value})  # reuses the Material checks
+            checked[key] = getattr(probe, key)
+        key = (min(ia, ib), max(ia, ib))
+        self.overrides.setdefault(key, {}).update(checked)
+
+    def pair(self, i: int, j: int) -> PairProperties:
+        a, b = self.materials[i], self.materials[j]
+        coeffs = {c: 0.5 * (getattr(a, c) + getattr(b, c)) for c in PAIR_COEFFICIENTS}
+        coeffs.update(self.overrides.get((min(i, j), max(i, j)), {}))
+        return PairProperties(effective_youngs_modulus(a, b), effective_shear_modulus(a, b), **coeffs)
+
+    def to_dict(self) -> dict:
+        return {
+            "materials": [{f.name: getattr(m, f.name) for f in fields(m)} for m in self.materials],
+            "overrides": [[i, j, dict(v)] for (i, j), v in self.overrides.items()],
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "MaterialTable":
+        table = cls([Material(**m) for m in data["materials"]])
+        for i, j, v in data["overrides"]:
+            table.overrides[(int(i), int(j))] = dict(v)
+        return table

@@ -1,0 +1,213 @@
+"""Walls: infinite plane and cylinder (particles inside).
+
+A wall is a contact partner of infinite radius and mass with a prescribed velocity
+(docs/models.md §0: R* = R_i, m* = m_i). It can move with a constant velocity, its surface can move
+with an angular velocity (a rotating drum: surface velocity v + omega x (c - point)), and it can be
+removed or given a new velocity between runs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from rollingdem.errors import ParameterError, check_positive, check_vector
+from rollingdem.engine.layout import WALL_CYLINDER as CYLINDER, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_INACTIVE as INACTIVE
+from rollingdem.engine.layout import WALL_PLANE as PLANE
+
+
+class Wall:
+    """Base class of walls; see ``Plane`` and ``Cylinder``."""
+
+    kind: int = INACTIVE
+
+    def __init__(self, material, velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), name=None):
+        self.material = material
+        self.velocity = check_vector("wall velocity", velocity)
+        self.angular_velocity = check_vector("wall angular_velocity", angular_velocity)
+        self.name = name
+
+    #: the direction a plane's or cylinder's angular velocity must lie along: its surface turns in
+    #: itself (a turntable, a drum), its geometry stays; a mesh turns as a whole instead
+    spin_axis_name = None
+
+    def set_angular_velocity(self, angular_velocity):
+        """Set the angular velocity (rad/s); a plane's must lie along its normal, a cylinder's along
+        its axis (else its surface would move out of itself while it stays: use a MeshWall)."""
+        omega = check_vector("wall angular_velocity", angular_velocity)
+        if self.spin_axis_name is not None:
+            axis = np.asarray(getattr(self, self.spin_axis_name))
+            w = np.asarray(omega)
+            off = np.linalg.norm(w - (w @ axis) * axis)
+            if off > 1e-12 * max(np.linalg.norm(w), 1e-300):
+                raise ParameterError(f"wall angular_velocity = {list(omega)} is not allowed for a {type(self).__name__.lower()}: "
+                                     f"it must lie along its {self.spin_axis_name} {list(axis)} (its surface turns in "
+                                     "itself); to turn the wall as a whole, use a MeshWall")
+        self.angular_velocity = omega
+
+    def geometry(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def torque_point(self) -> tuple:
+        """The point the wall's torque is reported about (``Simulation.wall_loads``): its ``point``."""
+        return tuple(self.point)
+
+    def overlap(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Overlap (m) of spheres (centres x, radii r) with this wall; > 0 where they overlap."""
+        return wall_overlap(self.geometry(), self.kind, x, r)
+
+    def describe(self) -> dict:
+        raise NotImplementedError
+
+    def __repr__(self):
+        try:
+            d = self.describe()
+        except NotImplementedError:
+            return f"{type(self).__name__}(name={self.name!r})"
+        d.pop("type", None)
+        args = {"name": d.pop("name", None), "material": self.material, **d}
+        return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in args.items())})"
+
+
+class Plane(Wall):
+    """Infinite plane through ``point`` with unit ``normal`` pointing to the particles' side.
+
+    A particle touches it when its centre is closer than its radius to the plane (or behind it):
+    overlap = R - (x - point) . normal.
+    """
+
+    kind = PLANE
+    spin_axis_name = "normal"
+
+    def __init__(self, point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), material=None, velocity=(0.0, 0.0, 0.0),
+                 angular_velocity=(0.0, 0.0, 0.0), name=None):
+        super().__init__(material, velocity, (0.0, 0.0, 0.0), name)
+        self.point = check_vector("plane point", point)
+        self.normal = check_vector("plane normal", normal, unit=True)
+        self.set_angular_velocity(angular_velocity)
+
+    def geometry(self) -> np.ndarray:
+        g = np.zeros(GEOMETRY_SIZE)
+        g[0:3] = self.point
+        g[3:6] = self.normal
+        return g
+
+    def update_from_geometry(self, g):
+        self.point = tuple(float(c) for c in g[0:3])
+
+    def describe(self) -> dict:
+        return {"type": "plane", "point": list(self.point), "normal": list(self.normal),
+                "velocity": list(self.velocity), "angular_velocity": list(self.angular_velocity), "name": self.name}
+
+
+class Cylinder(Wall):
+    """Cylinder of ``radius`` about the axis through ``point`` along ``axis``; particles inside.
+
+    ``extent`` = (s_min, s_max) limits it along the axis (axial coordinate s = (x - point) . axis,
+    m); None means infinite. There are no end caps: add planes for those.
+    """
+
+    kind = CYLINDER
+    spin_axis_name = "axis"
+
+    def __init__(self, radius, point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), extent=None, material=None,
+                 velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), name=None):
+        super().__init__(material, velocity, (0.0, 0.0, 0.0), name)
+        self.radius = check_positive("cylinder radius", radius, "m")
+        self.point = check_vector("cylinder point", point)
+        self.axis = check_vector("cylinder axis", axis, unit=True)
+        self.set_angular_velocity(angular_velocity)
+        if extent is None:
+            self.extent = (-math.inf, math.inf)
+        else:
+            try:
+                lo, hi = (float(extent[0]), float(extent[1]))
+            except (TypeError, ValueError, IndexError):
+                raise ParameterError(f"cylinder extent = {extent!r} is not allowed: must be (s_min, s_max)") from None
+            if not lo < hi:
+                raise ParameterError(f"cylinder extent = {extent!r} is not allowed: need s_min < s_max")
+            self.extent = (lo, hi)
+
+    def geometry(self) -> np.ndarray:
+        g = np.zeros(GEOMETRY_SIZE)
+        g[0:3] = self.point
+        g[3:6] = self.axis
+        g[6] = self.radius
+        g[7], g[8] = self.extent
+        return g
+
+    def update_from_geometry(self, g):
+        self.point = tuple(float(c) for c in g[0:3])
+
+    def describe(self) -> dict:
+        return {"type": "cylinder", "radius": self.radius, "point": list(self.point), "axis": list(self.axis),
+                "extent": [self.extent[0], self.extent[1]], "velocity": list(self.velocity),
+                "angular_velocity": list(self.angular_velocity), "name": self.name}
+
+
+def wall_overlap(geometry: np.ndarray, kind: int, x: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Overlap (m) of spheres (centres x, radii r) with a wall; > 0 means they overlap.
+
+    The same rule as the kernel: a plane is a half-space, a cylinder holds particles inside within
+    its axial extent.
+    """
+    if kind == PLANE:
+        return r - (x - geometry[0:3]) @ geometry[3:6]
+    if kind != CYLINDER:
+        return np.full(len(r), -1.0)
+    d = x - geometry[0:3]
+    s = d @ geometry[3:6]
+    q = d - s[:, None] * geometry[3:6]
+    ov = np.linalg.norm(q, axis=1) + r - geometry[6]
+    ov[(s < geometry[7]) | (s > geometry[8])] = -1.0
+    return ov
+
+
+def wall_from_dict(d: dict, material) -> Wall:
+    d = dict(d)
+    kind = d.pop("type")
+    if kind == "plane":
+        return Plane(material=material, **d)
+    if kind == "cylinder":
+        ext = d.pop("extent", None)
+        if ext is not None and ext[0] == -math.inf and ext[1] == math.inf:
+            ext = None
+        return Cylinder(material=material, extent=ext, **d)
+    raise ParameterError(f"wall type = {kind!r} is not known: allowed are 'plane', 'cylinder', 'mesh'")
+
+
+@njit(cache=True, inline="always")
+def wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom):
+    """(overlap, n) of sphere i (radius ri) and wall wl; overlap -1 where the wall cannot touch it
+    (past a cylinder's ends, or on its axis). Geometry rows: ``rollingdem.scene.walls``."""
+    kind = wall_kind[wl]
+    overlap = -1.0
+    nx = ny = nz = 0.0
+    if kind == PLANE:
+        dist = ((x[i, 0] - wall_geom[wl, 0]) * wall_geom[wl, 3] + (x[i, 1] - wall_geom[wl, 1]) * wall_geom[wl, 4]
+                + (x[i, 2] - wall_geom[wl, 2]) * wall_geom[wl, 5])
+        overlap = ri - dist
+        nx = wall_geom[wl, 3]
+        ny = wall_geom[wl, 4]
+        nz = wall_geom[wl, 5]
+    elif kind == CYLINDER:
+        ux = wall_geom[wl, 3]
+        uy = wall_geom[wl, 4]
+        uz = wall_geom[wl, 5]
+        ddx = x[i, 0] - wall_geom[wl, 0]
+        ddy = x[i, 1] - wall_geom[wl, 1]
+        ddz = x[i, 2] - wall_geom[wl, 2]
+        s = ddx * ux + ddy * uy + ddz * uz
+        if s >= wall_geom[wl, 7] and s <= wall_geom[wl, 8]:
+            qx = ddx - s * ux
+            qy = ddy - s * uy
+            qz = ddz - s * uz
+            r = math.sqrt(qx * qx + qy * qy + qz * qz)
+            if r > 0.0:
+                overlap = r + ri - wall_geom[wl, 6]
+                nx = -qx / r
+                ny = -qy / r
+                nz = -qz / r
+    return overlap, nx, ny, nz

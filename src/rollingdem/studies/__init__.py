@@ -1,0 +1,1 @@
+"""Studies over many runs: parameter sweeps on Dask, calibration, joint calibration, the repose-angle study."""

@@ -1,0 +1,309 @@
+"""Calibration: the value of one free parameter whose simulated observable matches a measured one.
+
+``calibrate(case, target, uncertainty, fix={"mu": 0.5}, free="mur")`` (and ``rollingdem
+calibrate``): a coarse sweep, a monotone surrogate, refinement rounds where it crosses the target,
+and a 95 % interval from a parametric bootstrap, every run through :func:`rollingdem.studies.sweep.run_sweep`
+(resumable). The method step by step: docs/studies.md, "Calibration"."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rollingdem.experiments.observables import get_case
+from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_output_path
+from rollingdem.studies.parallel import Execution
+
+__all__ = ["Calibration", "Execution", "Search", "calibrate", "monotone_inverse"]
+
+BOOTSTRAP = 4000
+
+
+@dataclass(frozen=True)
+class Search:
+    """How the free parameter's range is searched (docs/studies.md, "Calibration"): ``coarse`` points
+    first (>= 3), then ``rounds`` refinements (>= 0) of ``refine`` points each (>= 1), and
+    ``bootstrap`` replicates for the 95 % interval (>= 1)."""
+
+    coarse: int = 5
+    refine: int = 4
+    rounds: int = 2
+    bootstrap: int = BOOTSTRAP
+
+
+@dataclass
+class Calibration:
+    """The calibrated value of ``parameter`` with its 95 % interval, and the evidence."""
+
+    case: str
+    parameter: str
+    observable: str
+    target: float
+    uncertainty: float
+    value: float
+    low: float
+    high: float
+    fixed: dict
+    runs: int
+    points: int
+    seeds: list
+    direction: str
+    outside_fraction: float  # of bootstrap replicates whose target fell outside the swept range
+    wall_time: float
+    figures: list = field(default_factory=list)
+    table: pd.DataFrame | None = field(default=None, repr=False)
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d.pop("table")
+        d["figures"] = [str(f) for f in self.figures]
+        return d
+
+
+def parse_assignments(items, what: str) -> dict:
+    """``["mu=0.5", "model=epsd"]`` -> {"mu": 0.5, "model": "epsd"} (numbers read as numbers)."""
+    out = {}
+    for item in items or ():
+        if "=" not in item:
+            raise ParameterError(f"{what} = {item!r} is not allowed: write NAME=VALUE, e.g. mu=0.5")
+        key, value = (s.strip() for s in item.split("=", 1))
+        try:
+            out[key] = int(value) if value.lstrip("-").isdigit() else float(value)
+        except ValueError:
+            out[key] = value
+    return out
+
+
+def parse_free(item: str) -> tuple[str, tuple[float, float] | None]:
+    """``"mur"`` or ``"mur=0.05:0.6"`` -> (name, range or None)."""
+    if "=" not in item:
+        return item.strip(), None
+    name, rng = (s.strip() for s in item.split("=", 1))
+    try:
+        lo, hi = (float(s) for s in rng.split(":"))
+    except ValueError:
+        raise ParameterError(f"free = {item!r} is not allowed: write NAME or NAME=LOW:HIGH, e.g. mur=0.05:0.6") from None
+    return name, (lo, hi)
+
+
+def _point_stats(table: pd.DataFrame, parameter: str, observable: str) -> pd.DataFrame:
+    ok = table[table["status"] == "ok"]
+    y = pd.to_numeric(ok[observable], errors="coerce")
+    ok = ok.assign(_y=y)[np.isfinite(y)]
+    stats = ok.groupby(parameter)["_y"].agg(["mean", "std", "count"]).reset_index().sort_values(parameter)
+    return stats.rename(columns={parameter: "x"})
+
+
+def _monotone(means: np.ndarray, weights: np.ndarray, increasing: bool) -> np.ndarray:
+    from scipy.optimize import isotonic_regression
+
+    return isotonic_regression(means, weights=weights, increasing=increasing).x
+
+
+def monotone_inverse(x: np.ndarray, g: np.ndarray, target: float) -> float:
+    """x where the monotone piecewise-linear curve (x, g) meets ``target``; NaN outside its range.
+    On a flat stretch at the target, the middle of the stretch."""
+    x, g = np.asarray(x, float), np.asarray(g, float)
+    if g[-1] < g[0]:
+        g = -g
+        target = -target
+    if not g[0] <= target <= g[-1]:
+        return math.nan
+    at = np.nonzero(g == target)[0]
+    if len(at):
+        return float(0.5 * (x[at[0]] + x[at[-1]]))
+    k = int(np.searchsorted(g, target))  # g[k-1] < target < g[k]
+    return float(x[k - 1] + (target - g[k - 1]) * (x[k] - x[k - 1]) / (g[k] - g[k - 1]))
+
+
+def _direction(stats: pd.DataFrame) -> bool:
+    """True when the observable grows with the parameter (Spearman over the point means)."""
+    from scipy.stats import spearmanr
+
+    if len(stats) < 2:
+        raise ParameterError("calibration needs at least two points with a finite observable")
+    rho = spearmanr(stats["x"], stats["mean"]).statistic
+    if not np.isfinite(rho) or rho == 0:
+        raise ParameterError("the observable does not change with the free parameter over its range: "
+                             "nothing to calibrate")
+    return bool(rho > 0)
+
+
+def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | None = None, free="mur",
+              observable: str | None = None, seeds=None, search: Search = Search(), out=None,
+              execution: Execution = Execution(), progress: bool = True, echo=None) -> Calibration:
+    """Find the ``free`` parameter (a name, or (name, (low, high))) whose ``observable`` matches
+    ``target`` +- ``uncertainty`` (one sigma) with the parameters ``fix`` held, ``seeds`` runs per
+    point, searched as ``search`` says (the method: docs/studies.md, "Calibration"), the runs going
+    where ``execution`` says. Writes ``out/runs.csv``, ``calibration.json`` and ``calibration.png``;
+    ``echo`` (a print-like function) tells each round and the result."""
+    import tempfile
+    import time
+
+    from rollingdem.studies.sweep import load_sweep, run_sweep
+
+    tic = time.perf_counter()
+    sc = get_case(case)
+    if isinstance(free, str):
+        name, rng = free, None
+    elif isinstance(free, (list, tuple)) and len(free) == 2 and not isinstance(free[1], str):
+        name, rng = free
+    else:
+        raise ParameterError(f"free = {free!r} is not allowed: calibrate takes one free parameter (one target "
+                             "observable fixes one parameter; sweep the others with rollingdem sweep)")
+    par = sc.by_name.get(name)
+    if par is None:
+        raise ParameterError(f"free = {name!r} is not known for case {case!r}: allowed are "
+                             f"{', '.join(p.name for p in sc.parameters if p.calibration_range)}")
+    if par.calibration_range is None:
+        raise ParameterError(f"free = {name!r} is not allowed: it is not a real-valued parameter that calibration "
+                             f"can vary (those are {', '.join(p.name for p in sc.parameters if p.calibration_range)})")
+    lo, hi = rng or par.calibration_range
+    par.check(lo)
+    par.check(hi)
+    if not lo < hi:
+        raise ParameterError(f"free = {name}={lo}:{hi} is not allowed: the range must be LOW:HIGH with LOW < HIGH")
+    observable = observable or sc.default_observable
+    if observable not in sc.observables:
+        raise ParameterError(f"observable = {observable!r} is not known for case {case!r}: allowed are "
+                             f"{', '.join(sc.observables)}")
+    target = check_finite("target", target)
+    uncertainty = check_non_negative("uncertainty", uncertainty)
+    fix = dict(fix or {})
+    if name in fix:
+        raise ParameterError(f"parameter {name!r} is both fixed and free: give it in one place")
+    for what, value, kind in (("search", search, Search), ("execution", execution, Execution)):
+        if not isinstance(value, kind):
+            raise ParameterError(f"{what} = {value!r} is not allowed: must be a rollingdem.studies.calibration.{kind.__name__}")
+    for k, n_min in (("coarse", 3), ("refine", 1), ("rounds", 0), ("bootstrap", 1)):
+        v = getattr(search, k)
+        if isinstance(v, bool) or not isinstance(v, int) or v < n_min:
+            raise ParameterError(f"{k} = {v!r} is not allowed: must be an integer >= {n_min}")
+    coarse, refine, rounds = search.coarse, search.refine, search.rounds
+    seeds = seeds if seeds is not None else (3 if sc.stochastic else 1)
+    out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-calibrate-"))
+    first = load_sweep({"case": case, "fixed": fix, "points": [{name: lo}], "seeds": seeds})  # refuse bad input now
+    say = echo or (lambda *_: None)
+
+    def sweep(xs, m):
+        spec = load_sweep({"case": case, "fixed": fix, "points": [{name: float(x)} for x in xs], "seeds": seeds})
+        return run_sweep(spec, out, mapper=m, progress=progress, summary=False).table
+
+    with execution.runner() as m:
+        xs = list(np.linspace(lo, hi, coarse))
+        sweep(xs, m)
+        table = None
+        for r in range(rounds + 1):
+            table = _all_runs(out, sc, case, fix, name)
+            stats = _point_stats(table, name, observable)
+            increasing = _direction(stats)
+            g = _monotone(stats["mean"].to_numpy(), stats["count"].to_numpy(float), increasing)
+            if not min(g) <= target <= max(g):
+                raise ParameterError(
+                    f"target = {target:g} is outside what {name} in [{lo:g}, {hi:g}] gives: {observable} from "
+                    f"{g[0]:.4g} ({name} = {stats['x'].iloc[0]:g}) to {g[-1]:.4g} ({name} = "
+                    f"{stats['x'].iloc[-1]:g}); widen the range with --free {name}=LOW:HIGH (runs kept in {out})")
+            if r == rounds:
+                break
+            x = stats["x"].to_numpy()
+            s = np.sign(g - target) * (1 if increasing else -1)
+            k = max(int(np.argmax(s >= 0)), 1)  # first point at or past the target
+            a, b = x[max(k - 1, 0)], x[k]
+            # where the seed scatter alone leaves the answer (a deterministic case: nowhere but the
+            # bracket), so that a noisy case does not crowd its new points into a narrow bracket
+            s_lo, s_hi, _ = _bootstrap(x, stats["mean"].to_numpy(), stats["count"].to_numpy(float),
+                                       stats["std"].to_numpy(), increasing, target, 0.0, 500)
+            a, b = max(min(a, s_lo), lo), min(max(b, s_hi), hi)
+            new = np.linspace(a, b, refine + 2)[1:-1]
+            say(f"round {r + 1}: refining {name} in [{a:.5g}, {b:.5g}], where {observable} crosses {target:g}")
+            sweep(xs + list(new), m)
+            xs += list(new)
+    stats = _point_stats(table, name, observable)
+    x, means, counts = stats["x"].to_numpy(), stats["mean"].to_numpy(), stats["count"].to_numpy(float)
+    g = _monotone(means, counts, increasing)
+    value = monotone_inverse(x, g, target)
+    lo95, hi95, outside = _bootstrap(x, means, counts, stats["std"].to_numpy(), increasing, target, uncertainty,
+                                     search.bootstrap)
+    result = Calibration(case, name, observable, target, uncertainty, value, lo95, hi95, fix,
+                         runs=int(len(table)), points=len(x), seeds=first.seed_list,
+                         direction="increasing" if increasing else "decreasing", outside_fraction=outside,
+                         wall_time=time.perf_counter() - tic, table=table)
+    _figure(result, stats, g, out)
+    (out / "calibration.json").write_text(json.dumps(result.as_dict(), indent=2, default=float))
+    say(f"{name} = {value:.5g}, 95 % interval [{lo95:.5g}, {hi95:.5g}] for {observable} = {target:g} ± "
+        f"{uncertainty:g} ({result.runs} runs, {result.wall_time:.0f} s; {out})")
+    return result
+
+
+def _all_runs(out: Path, sc, case: str, fix: dict, name: str) -> pd.DataFrame:
+    """The runs of this calibration in the table (same case and fixed parameters)."""
+    from rollingdem.studies.sweep import TABLE, read_table
+
+    table = read_table(out / TABLE, sc)
+    resolved = sc.resolve({**fix, name: sc.by_name[name].default})
+    for k, v in resolved.items():
+        if k not in (name, "seed"):
+            table = table[table[k].astype(str) == str(v)] if isinstance(v, str) else table[
+                np.isclose(pd.to_numeric(table[k], errors="coerce"), v)]
+    return table.reset_index(drop=True)
+
+
+def _bootstrap(x, means, counts, std, increasing, target, uncertainty, n) -> tuple[float, float, float]:
+    """2.5 and 97.5 percentiles of the inverted surrogate over parametric bootstrap replicates,
+    and the fraction of replicates whose target fell outside the swept range (clipped to its ends)."""
+    rng = np.random.default_rng(12345)
+    multi = counts >= 2
+    dof = float(np.sum(counts[multi] - 1))
+    pooled = math.sqrt(np.sum((counts[multi] - 1) * std[multi] ** 2) / dof) if dof > 0 else 0.0
+    draws = rng.standard_t(dof, size=(n, len(x))) if dof > 0 else np.zeros((n, len(x)))
+    targets = target + uncertainty * rng.standard_normal(n)
+    values = np.empty(n)
+    outside = 0
+    for b in range(n):
+        g = _monotone(means + pooled / np.sqrt(counts) * draws[b], counts, increasing)
+        v = monotone_inverse(x, g, targets[b])
+        if math.isnan(v):
+            outside += 1
+            low_end = (targets[b] < g.min()) == increasing
+            v = x[0] if low_end else x[-1]
+        values[b] = v
+    return float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5)), outside / n
+
+
+def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) -> None:
+    from rollingdem.experiments.results import pyplot
+
+    plt = pyplot()
+    t = result.table
+    ok = t[t["status"] == "ok"]
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.plot(ok[result.parameter], pd.to_numeric(ok[result.observable], errors="coerce"), ".", color="0.6",
+            label="runs")
+    from rollingdem.analysis.intervals import confidence_interval
+
+    ci = [confidence_interval(pd.to_numeric(ok[ok[result.parameter] == v][result.observable], errors="coerce"))[1]
+          for v in stats["x"]]
+    ax.errorbar(stats["x"], stats["mean"], yerr=np.nan_to_num(ci), fmt="o", ms=4, capsize=3, color="tab:blue",
+                label="mean over seeds, 95 % CI")
+    ax.plot(stats["x"], g, "-", color="tab:green", label="monotone surrogate")
+    ax.axhspan(result.target - 1.96 * result.uncertainty, result.target + 1.96 * result.uncertainty, color="tab:orange",
+               alpha=0.15)
+    ax.axhline(result.target, color="tab:orange", lw=1, label=f"target {result.target:g} ± 1.96 × {result.uncertainty:g}")
+    ax.axvspan(result.low, result.high, color="tab:red", alpha=0.12)
+    ax.axvline(result.value, color="tab:red", lw=1.2, label=f"{result.parameter} = {result.value:.4g} "
+                                                       f"[{result.low:.4g}, {result.high:.4g}]")
+    ax.set_xlabel(result.parameter)
+    ax.set_ylabel(f"{result.observable} ({get_case(result.case).observables[result.observable].split(',')[0]})")
+    fixed = ", ".join(f"{k} = {v}" for k, v in result.fixed.items())
+    ax.set_title(f"Calibration, {result.case}{': ' + fixed if fixed else ''}", fontsize=10)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = out / "calibration.png"
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    result.figures.append(path)

@@ -39,7 +39,7 @@ class Mutation:
 
 
 M = Mutation
-C = "src/rollingdem/contact/"
+C = "src/rollingdem/physics/contact/"
 K = ("tests/test_submodel_kernels.py", "tests/test_rolling_kernel.py")  # the kernels called on their own
 HERTZ = K + ("tests/test_hertz_damping.py",)
 TWIST = K + ("tests/test_twisting.py",)
@@ -87,13 +87,13 @@ MUTATIONS = [
       COH),
     M("bond bending stiffness from k_s", "src/rollingdem/scene/bonds.py", "kn * area, ks * area, kn * bending",
       "kn * area, ks * area, ks * bending", BOND),
-    M("bond compression weakens in shear", "src/rollingdem/scene/bonds.py", "p[BOND_PARAMETERS.cohesion] - fn / area",
+    M("bond compression weakens in shear", "src/rollingdem/physics/bonds.py", "p[BOND_PARAMETERS.cohesion] - fn / area",
       "p[BOND_PARAMETERS.cohesion] + fn / area", BOND),
-    M("bond shear not carried with the frame", "src/rollingdem/scene/bonds.py",
+    M("bond shear not carried with the frame", "src/rollingdem/physics/bonds.py",
       "    carry_with_frame(state, b, BOND_STATE.shear_x, frame)\n", "", BOND),
-    M("bond normal dashpot with the wrong sign", "src/rollingdem/scene/bonds.py", "fn_total = fn + cn * vcn",
+    M("bond normal dashpot with the wrong sign", "src/rollingdem/physics/bonds.py", "fn_total = fn + cn * vcn",
       "fn_total = fn - cn * vcn", BOND),
-    M("bond moment factor left out of the tensile stress", "src/rollingdem/scene/bonds.py",
+    M("bond moment factor left out of the tensile stress", "src/rollingdem/physics/bonds.py",
       "sigma = fn / area + beta *", "sigma = fn / area + 0.0 *", BOND),
     M("rolling resistance on a parallel-bonded contact", "src/rollingdem/engine/step_template.py",
       "return contact_of(hist, k, g, p, dt, False)", "return contact_of(hist, k, g, p, dt, True)", BOND),
@@ -183,7 +183,7 @@ MUTATIONS = [
       "return (pairs + walls) / n, 2 * cl.size / n", ("tests/test_bench.py",)),
     M("bench rate over half the wall time", "src/rollingdem/bench.py", "particle_steps_per_s=n * steps / wall,",
       "particle_steps_per_s=n * steps / (0.5 * wall),", ("tests/test_bench.py",)),
-    M("cylinder wall overlap off by 20 nm", "src/rollingdem/scene/walls.py", "overlap = r + ri - wall_geom[wl, 6]",
+    M("cylinder wall overlap off by 20 nm", "src/rollingdem/physics/walls.py", "overlap = r + ri - wall_geom[wl, 6]",
       "overlap = r + ri - wall_geom[wl, 6] + 2e-8", ("tests/test_engine.py::test_cylinder_wall_holds_particles",)),
     # --- the GPU's neighbor-list rebuild, on the simulator (gpu_neighbors.py) ------------------------
     M("GPU rebuild drops the carried history", "src/rollingdem/engine/cuda/neighbors.py",

@@ -15,10 +15,46 @@ PACKAGE = "rollingdem"
 SOURCE = Path(__file__).parents[1] / "src" / PACKAGE
 
 
-#: Modules above the sweep machinery; no case (nor anything a case imports) may import them.
-ABOVE_CASES = {"rollingdem.studies.sweep", "rollingdem.studies.repose_study", "rollingdem.studies.calibration", "rollingdem.studies.joint_calibration",
-               "rollingdem.validate",
-               "rollingdem.cli"}
+#: The layers, each a folder of the package (or a front end at its top), and the layers each may
+#: import besides its own: engine below, then the scene a user builds, input and output, the
+#: experiments, the studies over many runs, and the front ends above them all (docs/architecture.md).
+#: ``analysis`` measures arrays of positions and radii and needs nothing else.
+LAYER_IMPORTS = {
+    "errors": set(),
+    "physics": {"errors"},
+    "engine": {"errors", "physics"},
+    "analysis": {"errors"},
+    "scene": {"errors", "physics", "engine"},
+    "io": {"errors", "physics", "engine", "scene", "analysis"},
+    "experiments": {"errors", "physics", "engine", "scene", "io", "analysis"},
+    "studies": {"errors", "physics", "engine", "scene", "io", "analysis", "experiments"},
+}
+#: the front ends: the package's own namespace, the command line, ``validate`` and ``bench``
+FRONT_ENDS = {"rollingdem", "cli", "validate", "bench"}
+
+
+def layer_of(module: str) -> str:
+    """The layer of a package module: its folder under the package, or its own name at the top."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def layer_violations(graph) -> list[str]:
+    """Every import that goes against ``LAYER_IMPORTS`` (front ends may import anything), and every
+    module in no known layer, as 'module (line n) -> module' lines."""
+    found = []
+    for module, edges in sorted(graph.items()):
+        layer = layer_of(module)
+        if layer in FRONT_ENDS:
+            continue
+        if layer not in LAYER_IMPORTS:
+            found.append(f"{module}: in no layer (add its folder to LAYER_IMPORTS or put it in one)")
+            continue
+        for target, line in sorted(edges.items()):
+            other = layer_of(target)
+            if other != layer and other not in LAYER_IMPORTS[layer]:
+                found.append(f"{module} (line {line}) -> {target}: {layer} may not import {other}")
+    return found
 
 
 def module_files() -> dict[str, Path]:
@@ -113,8 +149,9 @@ def a_cycle(graph, component) -> list[str]:
 
 
 def test_the_graph_sees_function_level_and_relative_imports():
-    """The reader resolves what this test relies on: a relative import inside a function
-    (observables imports cases.repose when the case runs) and ``from .. import module``."""
+    """The reader resolves what this test relies on: an import inside a function (observables
+    imports experiments.repose when the case runs) and ``from package import module`` (codegen
+    imports the step template so)."""
     graph = import_graph()
     assert "rollingdem.experiments.repose" in graph["rollingdem.experiments.observables"]
     assert "rollingdem.engine.step_template" in graph["rollingdem.engine.codegen"]
@@ -129,18 +166,25 @@ def test_the_import_graph_has_no_cycle():
     assert not cycles, f"import cycles in {PACKAGE}:\n{report}"
 
 
-def test_cases_never_reach_the_sweep_or_what_is_above_it():
-    """engine below; analysis and cases; then sweep; then the studies, calibration, validate and
-    the CLI: nothing a case imports, directly or not, is from the upper layers."""
-    graph = import_graph()
-    for case in (m for m in graph if m.startswith("rollingdem.experiments")):
-        reached, todo = set(), [case]
-        while todo:
-            for w in graph[todo.pop()]:
-                if w not in reached:
-                    reached.add(w)
-                    todo.append(w)
-        assert not reached & ABOVE_CASES, f"{case} imports, directly or not, {sorted(reached & ABOVE_CASES)}"
+def test_the_layer_check_finds_an_import_upwards_and_a_module_outside_the_layers():
+    """On a made-up graph: physics importing the engine, the engine the scene, and a module at the
+    top that is no front end are each reported; imports downwards and within a layer are not."""
+    graph = {"rollingdem.physics.a": {"rollingdem.engine.b": 3, "rollingdem.physics.c": 4, "rollingdem.errors": 5},
+             "rollingdem.engine.b": {"rollingdem.scene.d": 7, "rollingdem.physics.a": 8},
+             "rollingdem.scene.d": {"rollingdem.engine.b": 9},
+             "rollingdem.stray": {},
+             "rollingdem.cli": {"rollingdem.studies.e": 1}}
+    assert layer_violations(graph) == [
+        "rollingdem.engine.b (line 7) -> rollingdem.scene.d: engine may not import scene",
+        "rollingdem.physics.a (line 3) -> rollingdem.engine.b: physics may not import engine",
+        "rollingdem.stray: in no layer (add its folder to LAYER_IMPORTS or put it in one)"]
+
+
+def test_the_layers_import_one_way():
+    """The compiled core (physics, engine) imports nothing above it; the scene no input or output,
+    experiment or study; the experiments no study; every module sits in a layer."""
+    found = layer_violations(import_graph())
+    assert not found, "imports against the layers (docs/architecture.md, Layers):\n" + "\n".join(found)
 
 
 def test_every_module_has_a_docstring():
@@ -266,7 +310,7 @@ def test_the_contract_refuses_a_law_that_breaks_its_declaration():
 
     from rollingdem.physics.contact import ROLLING_MODELS, SubModel
     from rollingdem.physics.contact.rolling import no_rolling
-    from rollingdem.engine.layout import slots
+    from rollingdem.physics.records import slots
 
     with pytest.raises(TypeError, match="needs its compiled function"):
         type("NoFunction", (SubModel,), {"slot": "rolling", "name": "test_no_function"})
@@ -287,11 +331,10 @@ def test_the_kernel_name_hashes_every_module_it_compiles_in():
     name hashes the source of every package module whose compiled functions it takes in: each one
     the template imports (the triangle-mesh passes and their geometry among them) and each one
     those import. Without one of them, a change there would run the old compiled code."""
-    from rollingdem.engine import step_template as engine_kernel
-    from rollingdem.engine import codegen as kernels
+    from rollingdem.engine import codegen, step_template
 
-    covered = kernels._package_imports({"rollingdem.engine.step_template"})
-    tree = ast.parse(Path(engine_kernel.__file__).read_text())
+    covered = codegen._package_imports({"rollingdem.engine.step_template"})
+    tree = ast.parse(Path(step_template.__file__).read_text())
     imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
                 if node.module and node.module.startswith(PACKAGE)}
-    assert imported <= covered and {"rollingdem.engine.mesh_passes", "rollingdem.scene.mesh"} <= covered
+    assert imported <= covered and {"rollingdem.engine.mesh_passes", "rollingdem.physics.mesh"} <= covered

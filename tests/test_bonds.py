@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from rollingdem.scene.bonds import (BOND_BROKEN_SHEAR, BOND_BROKEN_TENSION, BOND_INPUTS, BOND_INTACT, BOND_PARAMETERS,
-                              BOND_STATE, ParallelBond, bond_energy, parallel_bond)
+from rollingdem.physics.bonds import BOND_BROKEN_SHEAR, BOND_BROKEN_TENSION, BOND_INPUTS, BOND_INTACT, bond_energy, parallel_bond
+from rollingdem.physics.records import BOND_PARAMETERS, BOND_STATE
+from rollingdem.scene.bonds import ParallelBond
 from rollingdem.errors import ParameterError
 
 # B1: equal spheres of R = 1 cm, lambda = 1, E = 1e8 Pa (k_n = E / 2R = 5e9 Pa/m), kappa = 2.5,

@@ -11,7 +11,7 @@ from scipy.integrate import quad
 import rollingdem as rd
 from rollingdem.physics.contact.cohesion import JKR_HISTORY, contact_area, jkr_cohesion, sjkr_cohesion
 from rollingdem.errors import ParameterError
-from rollingdem.engine.layout import contact_inputs
+from rollingdem.physics.records import contact_inputs
 
 # 100 um spheres of a soft solid with a strong adhesion, so that the sticking velocity is cm/s
 R, E, NU, RHO, W = 1e-4, 1e7, 0.3, 2500.0, 0.1

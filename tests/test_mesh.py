@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from rollingdem.errors import ParameterError
-from rollingdem.scene.mesh import (EDGE_AB, EDGE_BC, EDGE_CA, FACE, VERTEX_A, VERTEX_B, VERTEX_C, TriangleMesh,
-                             closest_points)
+from rollingdem.physics.mesh import EDGE_AB, EDGE_BC, EDGE_CA, FACE, VERTEX_A, VERTEX_B, VERTEX_C, closest_points
+from rollingdem.scene.mesh import TriangleMesh
 
 EDGES = {(0, 1): EDGE_AB, (1, 2): EDGE_BC, (2, 0): EDGE_CA}
 VERTICES = (VERTEX_A, VERTEX_B, VERTEX_C)
@@ -197,10 +197,10 @@ def test_bad_shape_arguments_are_refused(build, problem):
         build(mesh)
 
 
-# --- one contact per touched feature (docs: rollingdem.scene.mesh.touching_features) ---------------------
+# --- one contact per touched feature (docs: rollingdem.physics.mesh.touching_features) ---------------------
 def contacts(mesh, p, radius):
     """(triangles, features, points) of the sphere at p against every triangle of the mesh."""
-    from rollingdem.scene.mesh import touching_features
+    from rollingdem.physics.mesh import touching_features
 
     m = mesh.n_triangles
     tri, feat, pts = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64), np.zeros((m, 3))

@@ -8,7 +8,7 @@ import pytest
 import rollingdem as rd
 from rollingdem.physics.contact.frame import contact_frame
 from rollingdem.physics.contact.rolling import spring_rolling
-from rollingdem.engine.layout import contact_inputs
+from rollingdem.physics.records import contact_inputs
 from rollingdem.engine.codegen import engine_module
 
 R_EFF = 0.0025

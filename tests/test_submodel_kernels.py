@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
-from rollingdem.engine.layout import contact_inputs
+from rollingdem.physics.records import contact_inputs
 from rollingdem.physics.contact.frame import contact_frame
 from rollingdem.physics.contact.normal import hertz_normal, hooke_normal, linear_normal
 from rollingdem.physics.contact.tangential import history_spring

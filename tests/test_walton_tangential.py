@@ -12,7 +12,7 @@ from conftest import R
 from rollingdem.physics.contact.frame import contact_frame
 from rollingdem.physics.contact.tangential import WALTON_TANGENTIAL_HISTORY, walton_tangential
 from rollingdem.errors import ParameterError
-from rollingdem.engine.layout import contact_inputs
+from rollingdem.physics.records import contact_inputs
 
 N, MU, K0 = 10.0, 0.5, 1e5  # N, -, N/m
 S_STAR = 3 * MU * N / (2 * K0)  # 7.5e-5 m: full slip of Mindlin's curve

@@ -23,7 +23,8 @@ from rollingdem.errors import ParameterError, SimulationError  # noqa: E402
 from rollingdem.scene.insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform, rough_base  # noqa: E402
 from rollingdem.scene.materials import Material, MaterialTable  # noqa: E402
 from rollingdem.scene.mesh import MeshWall, TriangleMesh  # noqa: E402
-from rollingdem.io.observers import Callback, Checkpoints, Observer, TimeSeries, VTKSnapshots  # noqa: E402
+from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots  # noqa: E402
+from rollingdem.scene.schedule import Callback, Observer  # noqa: E402
 from rollingdem.scene.simulation import Simulation, __version__  # noqa: E402
 from rollingdem.physics.timestep import hertz_contact_time, rayleigh_time_step  # noqa: E402
 from rollingdem.scene.walls import Cylinder, Plane  # noqa: E402

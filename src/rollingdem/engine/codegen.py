@@ -1,4 +1,4 @@
-"""The compiled engine of a contact law: the template ``engine_kernel.py`` with the law's compiled
+"""The compiled engine of a contact law: the template ``step_template.py`` with the law's compiled
 functions and row layout filled in, written to the kernel cache and imported.
 
 One module per combination of sub-models, rolling ``kernel_modes`` and energy switch, named by a
@@ -44,9 +44,9 @@ def kernel_cache_dir() -> Path:
 
 def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = False) -> str:
     """The template with ``contact``'s functions, layout and switches filled in."""
-    from rollingdem.engine import step_template as engine_kernel
+    from rollingdem.engine import step_template
 
-    template = Path(engine_kernel.__file__).read_text()
+    template = Path(step_template.__file__).read_text()
     layout = contact.layout()
     out = []
     for line in template.splitlines():

@@ -1,16 +1,13 @@
-"""The layout the compiled kernel and the Python engine share: the status record, wall kinds,
-energy channels, the pair pass's block buffer, and ``slots`` (named indices), in one place."""
+"""The layout the compiled step loop and the Python engine share: the status record, the mesh
+motion and triangle-grid rows, the pair pass's block buffer, and the records of arrays the step
+loop takes. The rows the physics reads (a contact's inputs and results, a bond's rows, the wall
+kinds) are ``rollingdem.physics.records``."""
 
 from __future__ import annotations
 
 import collections
 
-
-def slots(*names: str) -> tuple:
-    """Named indices 0, 1, ... (a namedtuple instance): ``IN = slots("nx", "ny")``, then
-    ``row[IN.ny]``; in a compiled function the index is a constant, folded when compiled."""
-    return collections.namedtuple("Slots", names)(*range(len(names)))
-
+from rollingdem.physics.records import N_INPUTS, N_RESULTS, slots
 
 # the kernel's status record ``info`` (int64): what a call did and why it stopped
 INFO = slots("steps_done", "status", "needed", "rebuilds", "need_rebuild", "forces_valid", "too_fast", "drifted")
@@ -21,18 +18,6 @@ STATUS_TOO_FAST = 2  # a particle would move more than skin/2 in one step
 STATUS_MESH_CAPACITY = 3  # the mesh candidate list outgrew its arrays: grow them to info[I_NEEDED]
 STATUS_MESH_GRID_CAPACITY = 4  # the triangle grid's entries outgrew their array: grow it to info[I_NEEDED]
 
-# wall kinds (``walls.Wall.kind``) and the length of a wall's geometry row
-WALL_INACTIVE = -1
-WALL_PLANE = 0
-WALL_CYLINDER = 1
-WALL_MESH = 2  # a triangle mesh: its triangles are in the mesh arrays of ``WallArrays``, not a geometry row
-WALL_GEOMETRY_SIZE = 9
-#: a wall contact's load row (``WallArrays.load``, ``mesh_load``): the force on the wall (N) and its
-#: moment about the origin (N m), c x F + the contact's torque on the wall (rolling, twisting), at the
-#: last step; a wall's force and its torque about any point P (M - P x F) are summed from these
-#: between kernel calls
-WALL_LOAD = slots("fx", "fy", "fz", "mx", "my", "mz")
-WALL_LOAD_SIZE = len(WALL_LOAD)
 #: contacts one sphere can hold with triangle meshes at once (one per touched surface feature: 3 in
 #: the corner of a box); a sphere that would need more stops the run with an error
 MESH_SLOTS = 6
@@ -45,41 +30,21 @@ MESH_MOTION_SIZE = len(MESH_MOTION)
 #: mesh moves (1.0)
 MESH_GRID = slots("reach", "h", "x0", "y0", "z0", "nx", "ny", "nz", "valid", "moving")
 
-ENERGY_CHANNELS = ("normal_damping", "sliding", "rolling", "twisting")  # columns of the dissipated energy
-
-# The contact's stored normal of the last step, ``hist[k, 0:3]``, before the sub-models' history.
-HISTORY_FRAME = 3
 
 # Scenes of fewer particles, and runs on one Numba thread, step on the calling thread
 # (``advance_serial``): a parallel region's fork/join (~1 us with OpenMP, 3 per step) costs more
 # than it saves there.
 SERIAL_BELOW = 512
 
-# The pair pass's block buffer (``engine_kernel.pair_rows``): CONTACT_BLOCK lanes, one contact
+# The pair pass's block buffer (``pair_rows`` of the step loop): CONTACT_BLOCK lanes, one contact
 # each; its columns are the contact's history, its inputs, its results, and the results of a
 # contact computed by the scalar ``contact`` instead.
 CONTACT_BLOCK = 64
 BLOCK_SHIFT = 6  # log2(CONTACT_BLOCK)
-CONTACT_INPUTS = slots("nx", "ny", "nz", "overlap", "rvx", "rvy", "rvz", "wix", "wiy", "wiz", "wjx", "wjy", "wjz",
-                       "lever_i", "lever_j", "r_eff", "m_eff", "inertia_r")
-CONTACT_RESULTS = slots("fx", "fy", "fz", "tix", "tiy", "tiz", "tjx", "tjy", "tjz", "e_normal", "e_sliding", "e_rolling",
-                        "e_twisting")
-# what the normal law gives the other three sub-models (``normal``: force_total = elastic + damping)
-NORMAL_RESULT = slots("force_elastic", "force_total", "normal_stiffness", "tangential_stiffness", "tangential_damping")
-N_INPUTS = len(CONTACT_INPUTS)
-N_RESULTS = len(CONTACT_RESULTS)
 # rows of a thread's ``lanes`` (int64, CONTACT_BLOCK wide): 0-2 the block's pool rows, list rows and
 # series flags; from LANE_HITS on, the candidate entries of a tile of the list
 LANE_HITS = 3
 TILE_ROWS = 16  # a tile of 1024 entries
-
-
-def contact_inputs(normal=(0.0, 0.0, 1.0), overlap=0.0, relative_velocity=(0.0, 0.0, 0.0), omega_i=(0.0, 0.0, 0.0),
-                   omega_j=(0.0, 0.0, 0.0), lever_i=0.0, lever_j=0.0, r_eff=0.0, m_eff=0.0, inertia_r=0.0) -> tuple:
-    """A contact's ``CONTACT_INPUTS`` tuple, as the kernel hands it to the sub-models (to call a
-    sub-model's compiled function on its own, in tests)."""
-    values = (*normal, overlap, *relative_velocity, *omega_i, *omega_j, lever_i, lever_j, r_eff, m_eff, inertia_r)
-    return tuple(float(v) for v in values)
 
 
 def block_columns(history_size: int) -> int:
@@ -119,22 +84,6 @@ ParticleArrays = collections.namedtuple("ParticleArrays", (
     "bond_start",       # (n + 1,) int64 CSR rows: each particle's bond ends
     "bond_ends",        # (2 bonds,) int64 2 b for the bond's i, 2 b + 1 for its j, each row in ascending order
 ))
-#: a bond's row of load and frame: F_n (N, tension positive), F_s (N, on i), M_t (N m, about n,
-#: on i), M_b (N m, on i), the bond normal of the last step (j to i)
-BOND_STATE = slots("normal_force", "shear_x", "shear_y", "shear_z", "twisting_moment", "bending_x", "bending_y",
-                   "bending_z", "nx", "ny", "nz")
-#: a bond's parameter row: its stiffnesses K_n = k_n A, K_s = k_s A (N/m), K_b = k_n I, K_t = k_s J
-#: (N m/rad), section A (m^2), I, J (m^4) and radius R (m), strengths (Pa), tan(friction angle),
-#: moment-contribution factor, 1.0 if the pair's contact is off while the bond holds, and the
-#: dashpots' coefficients (N s/m, N m s/rad)
-BOND_PARAMETERS = slots("normal_stiffness", "shear_stiffness", "bending_stiffness", "twisting_stiffness", "area",
-                        "bending_inertia", "polar_inertia", "bond_radius", "tensile_strength", "cohesion",
-                        "friction_tangent", "moment_factor", "exclusive", "normal_damping", "shear_damping",
-                        "bending_damping", "twisting_damping")
-#: a bond's load row (``ParticleArrays.bond_load``): the force on i, the torques on i and on j (the
-#: force on j is minus that on i)
-BOND_LOAD = slots("fx", "fy", "fz", "tix", "tiy", "tiz", "tjx", "tjy", "tjz")
-BOND_LOAD_SIZE = len(BOND_LOAD)
 WallArrays = collections.namedtuple("WallArrays", (
     "kind",              # (walls,) int32 WALL_PLANE, WALL_CYLINDER
     "geometry",          # (walls, WALL_GEOMETRY_SIZE) see rollingdem.scene.walls
@@ -159,7 +108,7 @@ WallArrays = collections.namedtuple("WallArrays", (
     "candidates",        # (capacity,) int64 their triangles, built with the neighbor list
     "candidate_gap",     # (n,) the least distance to them minus R_i, at the build (m); 0: unknown
     "touch_triangle",    # (capacity,) int64 scratch of a sphere's contacts, in its own candidate rows:
-    "touch_feature",     # (capacity,) int64   triangle, feature (rollingdem.scene.mesh.FACE ...), contact point,
+    "touch_feature",     # (capacity,) int64   triangle, feature (rollingdem.physics.mesh.FACE ...), contact point,
     "touch_point",       # (capacity, 3)       and slot
     "touch_slot",        # (capacity,) int64
     "slot_triangle",     # (n, MESH_SLOTS) int64 the triangle of each mesh contact slot, -1 free

@@ -1,14 +1,15 @@
 """The compiled passes of triangle-mesh walls that do not depend on the contact law: the candidate
 triangles of each sphere (built with the neighbor list), the meshes' motion, and each sphere's
 mesh contacts matched to its contact slots, so that the contact history goes with the sphere from
-triangle to triangle (docs/architecture.md, "Mesh walls"). The arrays: ``kernel_layout.WallArrays``."""
+triangle to triangle (docs/architecture.md, "Mesh walls"). The arrays: ``layout.WallArrays``."""
 
 import math
 
 from numba import njit
 
-from rollingdem.engine.layout import MESH_GRID as GR, MESH_MOTION as MO, MESH_SLOTS, WALL_LOAD_SIZE
-from rollingdem.scene.mesh import closest_point_on_triangle, touching_features
+from rollingdem.physics.records import WALL_LOAD_SIZE
+from rollingdem.engine.layout import MESH_GRID as GR, MESH_MOTION as MO, MESH_SLOTS
+from rollingdem.physics.mesh import closest_point_on_triangle, touching_features
 
 #: a new mesh contact takes over the history of an ended contact of the same mesh whose normal was
 #: within this angle: the sphere went on from one triangle, edge or vertex to the next (the normal
@@ -90,7 +91,7 @@ def build_mesh_candidates(x, radius, skin, walls):
     when a mesh moves or R_max + skin changed; a sphere tests the triangles of its own cell by
     their exact distance, so the cost grows with the triangles near spheres, not with all of them.
     ``walls.candidate_gap[i]``: the least distance from sphere i's centre to its candidates, less
-    R_i (``engine_kernel.mesh_contacts`` skips a sphere that cannot have reached them since).
+    R_i (``step_template.mesh_contacts`` skips a sphere that cannot have reached them since).
     Returns (0, entries), or (1, entries needed) when ``walls.candidates`` is too short, or (2,
     entries needed) when ``walls.grid_items`` is (nothing else is changed then)."""
     n = x.shape[0]

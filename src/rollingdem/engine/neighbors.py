@@ -385,7 +385,7 @@ def list_rows(n, nl_start, nl_i):
 
 @njit(cache=True)
 def rebuild_neighbor_list(x, radius, skin, ids, fixed, image, x_ref, lists):
-    """Rebuild the half list (``lists``, a ``kernel_layout.ListArrays``) at the current positions,
+    """Rebuild the half list (``lists``, a ``layout.ListArrays``) at the current positions,
     carrying contact history over (pairs of two fixed particles are left out); the centres are first
     put back into the periodic box (``wrap_positions``); ``x_ref`` gets the positions it was built at.
 

@@ -58,7 +58,7 @@ def signatures(module) -> dict:
     import numba
 
     from rollingdem.engine.state import EngineState
-    from rollingdem.engine.layout import N_INPUTS, WALL_GEOMETRY_SIZE, WALL_PLANE
+    from rollingdem.physics.records import N_INPUTS, WALL_GEOMETRY_SIZE, WALL_PLANE
 
     st = EngineState(module.HISTORY_SIZE)
     st.set_walls([WALL_PLANE], [np.zeros(WALL_GEOMETRY_SIZE)], [np.zeros(3)], [np.zeros(3)], [0], [-1])

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rollingdem.engine import layout as kernel_layout
+from rollingdem.engine import layout  # SERIAL_BELOW read at the call: a test sets it
 from rollingdem.errors import SimulationError
-from rollingdem.engine.layout import BOND_LOAD_SIZE, BOND_PARAMETERS, BOND_STATE, CONTACT_BLOCK, ENERGY_CHANNELS, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_LOAD_SIZE, ListArrays, ParticleArrays, Scratch, WallArrays, block_columns
+from rollingdem.physics.records import BOND_LOAD_SIZE, BOND_PARAMETERS, BOND_STATE, ENERGY_CHANNELS, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_LOAD_SIZE
+from rollingdem.engine.layout import CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, ListArrays, ParticleArrays, Scratch, WallArrays, block_columns
 from rollingdem.engine.neighbors import ContactList
 from rollingdem.engine.threads import ThreadGovernor
 # list capacity = entries needed x this (16 bytes per entry and a pool row of 8 (history + 6) bytes,
@@ -27,7 +28,7 @@ SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
 
 
 def periodic_box(periodic: dict) -> np.ndarray:
-    """The kernel's periodic box (``kernel_layout.PERIODIC_BOX``) of ``{"x": (lo, hi), ...}``: empty
+    """The kernel's periodic box (``layout.PERIODIC_BOX``) of ``{"x": (lo, hi), ...}``: empty
     without a periodic axis."""
     box = np.zeros(PERIODIC_BOX_SIZE if periodic else 0)
     for axis, (lo, hi) in periodic.items():
@@ -59,7 +60,7 @@ class EngineState:
         # (0, 4): a kernel without TRACK_ENERGY never touches it (32 B/p saved)
         self.energy = np.zeros((0, len(ENERGY_CHANNELS)))
         self.contacts = np.zeros(n, dtype=np.int32)  # contacts per sphere: int32 is plenty, 4 B/p less
-        self.fixed = np.zeros(0, dtype=np.uint8)  # (n,) once a particle is fixed (kernel_layout)
+        self.fixed = np.zeros(0, dtype=np.uint8)  # (n,) once a particle is fixed (``engine.layout``)
         self.image = np.zeros((n, 3), dtype=np.int32)
         self.x_ref = np.zeros((n, 3))
         self.ids = np.zeros(n, dtype=np.int64)
@@ -323,7 +324,7 @@ class EngineState:
 
     # --- running -------------------------------------------------------------------------------
     def contact_blocks(self):
-        """The per-thread block buffers of the pair pass (``engine_kernel.pair_rows``): (threads, columns
+        """The per-thread block buffers of the pair pass (``step_template.pair_rows``): (threads, columns
         x CONTACT_BLOCK) floats and (threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK) lane indices (the
         block's entries and a tile's candidate entries), about 38 KB per thread;
         made again when the number of Numba threads changes. Scratch space, never part of the state.
@@ -411,7 +412,7 @@ class EngineState:
         """Whether the kernel steps on the calling thread (a small scene, or one Numba thread)."""
         import numba
 
-        return self.n < kernel_layout.SERIAL_BELOW or numba.get_num_threads() == 1
+        return self.n < layout.SERIAL_BELOW or numba.get_num_threads() == 1
 
     def step_loop(self, kernel):
         """The kernel's step loop for this scene: ``advance_serial`` or ``advance`` (threads), or
@@ -530,7 +531,7 @@ class EngineState:
 
 
 class MeshState:
-    """The triangle meshes' arrays of the engine (``kernel_layout.WallArrays``, from ``reference``
+    """The triangle meshes' arrays of the engine (``layout.WallArrays``, from ``reference``
     on): every mesh's vertices and triangles in one array, their motion, and per sphere the
     candidate triangles and the contact slots. The per-sphere arrays have no rows while there is
     no mesh (a slot's history is 6 rows a sphere)."""

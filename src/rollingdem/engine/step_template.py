@@ -2,7 +2,7 @@
 
 A template: ``rollingdem.engine.codegen`` writes a copy of it per contact law, the lines tagged ``# @@``
 filled in; as it stands it is a valid module (Hertz, history, no rolling, no twisting). It takes
-four records of arrays (``kernel_layout``), allocates nothing and calls no Python. The step and the
+four records of arrays (``rollingdem.engine.layout``), allocates nothing and calls no Python. The step and the
 contract: docs/architecture.md; what each choice is worth: docs/performance.md.
 """
 
@@ -12,17 +12,14 @@ import numpy as np
 from numba import njit, prange, uint32, uint64
 from numba.np.arrayobj import reshape_unchecked
 
-from rollingdem.engine.layout import (BLOCK_SHIFT, BOND_PARAMETERS, CONTACT_BLOCK, CONTACT_INPUTS as IN, I_DRIFTED, I_FORCES_VALID,
-                                      I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST,
-                                      LANE_HITS, MESH_GRID as GR, PERIODIC_BOX as PB, MESH_MOTION as MO, MESH_SLOTS, N_INPUTS, N_RESULTS, STATUS_CAPACITY,
-                                      STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST,
-                                      WALL_LOAD_SIZE)
+from rollingdem.physics.records import BOND_PARAMETERS, CONTACT_INPUTS as IN, N_INPUTS, N_RESULTS, WALL_LOAD_SIZE
+from rollingdem.engine.layout import BLOCK_SHIFT, CONTACT_BLOCK, I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST, LANE_HITS, MESH_GRID as GR, PERIODIC_BOX as PB, MESH_MOTION as MO, MESH_SLOTS, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST
 from rollingdem.engine.integrator import (kick_drift, kick_drift_one, kick_drift_range, kick_drift_serial, move_walls,
                                    next_drift_bound, undo_drift)
 from rollingdem.engine.neighbors import POOL_GROUP, free_row, list_rows, minimum_image, rebuild_neighbor_list, take_row
 from rollingdem.engine.mesh_passes import build_mesh_candidates, match_mesh_contacts, move_meshes, surface_velocity
-from rollingdem.scene.walls import wall_contact_geometry
-from rollingdem.scene.bonds import BOND_INTACT, parallel_bond
+from rollingdem.physics.walls import wall_contact_geometry
+from rollingdem.physics.bonds import BOND_INTACT, parallel_bond
 from rollingdem.physics.contact.frame import SERIES_ANGLE, contact_frame, contact_frame_series, spin_angle, stored_normal
 from rollingdem.physics.contact.normal import hertz_normal as normal_force  # @@NORMAL
 from rollingdem.physics.contact.tangential import history_spring as tangential_force  # @@TANGENTIAL
@@ -540,7 +537,7 @@ def wall_contacts(i, dt, particles, walls, pair_params):
 
 @njit(cache=True, inline="always")
 def wall_load(load, k, res, cx, cy, cz):
-    """Row k of a wall contact's load (``kernel_layout.WALL_LOAD``): the force on the wall, -F, and
+    """Row k of a wall contact's load (``records.WALL_LOAD``): the force on the wall, -F, and
     its moment about the origin, c x (-F) + the torque on the wall."""
     fx, fy, fz = -res[0], -res[1], -res[2]
     load[k, 0] = fx

@@ -28,7 +28,10 @@ RESTITUTIONS = (0.1, 0.3, 0.5, 0.7, 0.9)
 def _wb_pair(e: float, speed: float):
     """Two spheres of 2 kg each (m* = 1 kg) meeting head on at ``speed`` (relative), k1 = 1e5 N/m,
     no gravity, no friction, dt = T2 / 200 with T2 = 2 pi sqrt(m* / k2)."""
-    from rollingdem import ContactModel, Material, Simulation, WaltonBraun
+    from rollingdem.physics.contact.model import ContactModel
+    from rollingdem.physics.contact.normal import WaltonBraun
+    from rollingdem.scene.materials import Material
+    from rollingdem.scene.simulation import Simulation
 
     radius = 0.05
     density = 2.0 / (4.0 / 3.0 * math.pi * radius ** 3)
@@ -92,7 +95,11 @@ def wb_path() -> dict:
 def wb_drop() -> float:
     """WB-3: R = 5 mm, rho = 2500 kg/m^3, k1 = 1e4 N/m, e = 0.5, dropped from 0.1 m onto a plane: the
     rebound over the impact speed, both where the centre passes z = R (interpolated in the step)."""
-    from rollingdem import ContactModel, Material, Plane, Simulation, WaltonBraun
+    from rollingdem.physics.contact.model import ContactModel
+    from rollingdem.physics.contact.normal import WaltonBraun
+    from rollingdem.scene.materials import Material
+    from rollingdem.scene.simulation import Simulation
+    from rollingdem.scene.walls import Plane
 
     radius = 0.005
     sim = Simulation(contact=ContactModel(normal=WaltonBraun(loading_stiffness=1e4)), dt=1e-6)
@@ -121,7 +128,7 @@ def wb_tangential() -> dict:
     s*/2, and after a turn at full slip, T at s*/2 back (Masing: mu N - 2 mu N [1 - (3/4)^(3/2)])."""
     from rollingdem.physics.contact.frame import contact_frame
     from rollingdem.physics.contact.tangential import WALTON_TANGENTIAL_HISTORY, walton_tangential
-    from rollingdem.engine.layout import contact_inputs
+    from rollingdem.physics.records import contact_inputs
 
     n, mu, k0 = 10.0, 0.5, 1e5
     s_star = 3 * mu * n / (2 * k0)
@@ -151,7 +158,7 @@ def jkr_curve() -> dict:
     """The pull-off (least force along the curve, sampled every 1/4000 of [delta_c, 2 |delta_c|]), the
     force at the zero-load overlap, the separation the law keeps in its history."""
     from rollingdem.physics.contact.cohesion import JKR_HISTORY, jkr_cohesion
-    from rollingdem.engine.layout import contact_inputs
+    from rollingdem.physics.records import contact_inputs
 
     e_star, r_eff, _, w = _jkr_constants()
     p = np.array([e_star, 0, 0, 0, 0, 0, w])
@@ -173,7 +180,9 @@ def jkr_curve() -> dict:
 def jkr_sticks(speed: float) -> bool:
     """Two spheres meeting head on at ``speed`` (relative), no dashpot, dt = T / 400 (T the
     zero-load oscillation period): in contact after 40 periods."""
-    from rollingdem import ContactModel, Material, Simulation
+    from rollingdem.physics.contact.model import ContactModel
+    from rollingdem.scene.materials import Material
+    from rollingdem.scene.simulation import Simulation
 
     s = JKR_SET
     sim = Simulation(contact=ContactModel(cohesion="jkr"), gravity=(0, 0, 0))
@@ -227,7 +236,8 @@ def _b1(strength=1e6):
 
 def bonded_pair(velocity, angular_velocity, dt, strength=1e6):
     """Two B1 spheres 0.1 mm apart (their contact out of the way), bonded: the first at -x."""
-    from rollingdem import Material, Simulation
+    from rollingdem.scene.materials import Material
+    from rollingdem.scene.simulation import Simulation
 
     r = BOND_R
     sim = Simulation(gravity=(0, 0, 0), dt=dt)
@@ -241,7 +251,7 @@ def bonded_pair(velocity, angular_velocity, dt, strength=1e6):
 def bond_mode_period(mode: str) -> tuple[float, float]:
     """BP-1: (measured, expected) period of one of a B1 pair's modes, each started alone, over
     about ten cycles at dt = 1e-6 s (upward crossings of the mean, interpolated)."""
-    from rollingdem.engine.layout import BOND_PARAMETERS
+    from rollingdem.physics.records import BOND_PARAMETERS
 
     r = BOND_R
     mass = BOND_RHO * 4 / 3 * math.pi * r ** 3
@@ -284,8 +294,8 @@ def bond_energy_drift(dt: float) -> float:
 def bond_break_loads() -> dict:
     """BP-2: B1 driven in each pure mode through the bond law (1/2000 of the break per step): the
     load at the break."""
-    from rollingdem.scene.bonds import BOND_INPUTS, BOND_INTACT, parallel_bond
-    from rollingdem.engine.layout import BOND_STATE
+    from rollingdem.physics.bonds import BOND_INPUTS, BOND_INTACT, parallel_bond
+    from rollingdem.physics.records import BOND_STATE
 
     r = BOND_R
     p = np.array(_b1().parameter_row(r, r))
@@ -310,8 +320,9 @@ def bonded_chain(gravity, bonds: int = 10):
     bonds with dashpots zeta = 0.7) loaded by its own weight for 16 s: (the free end's mean
     displacement over the last 2 s, the bond's parameters by name, L_b the spacing)."""
     from rollingdem.scene.bonds import ParallelBond
-    from rollingdem.engine.layout import BOND_PARAMETERS
-    from rollingdem import Material, Simulation
+    from rollingdem.physics.records import BOND_PARAMETERS
+    from rollingdem.scene.materials import Material
+    from rollingdem.scene.simulation import Simulation
 
     r = BOND_R
     lb = 2 * r + BOND_GAP
@@ -336,8 +347,9 @@ def twisting_chain_period(bonds: int = 10) -> tuple[float, float]:
     torsion springs K_t and inertias I = 2/5 m R^2; sphere n starts spinning at sin(n q),
     q = pi/(2N + 1), the mode shape, and the mode's omega = 2 sqrt(K_t/I) sin(q/2) (the static
     twist under a tip torque T, N T/K_t, is the same springs in series)."""
-    from rollingdem.engine.layout import BOND_PARAMETERS
-    from rollingdem import Material, Simulation
+    from rollingdem.physics.records import BOND_PARAMETERS
+    from rollingdem.scene.materials import Material
+    from rollingdem.scene.simulation import Simulation
 
     r = BOND_R
     lb = 2 * r + BOND_GAP
@@ -386,7 +398,11 @@ def agglomerate_breakage(speed: float, cells: int = 4) -> dict:
     0.5, EPSD mu_r = 0.1) on a simple cubic lattice (spacing 2.002 R) cut to a ball of ``cells``
     spacings (257 spheres for 4), every touching pair bonded (E = 100 MPa, sigma_c = c = 0.2 MPa),
     launched at the plate at ``speed`` from 1 mm above it and run 20 ms: the share of bonds broken."""
-    from rollingdem import ContactModel, Material, ParallelBond, Plane, Simulation
+    from rollingdem.physics.contact.model import ContactModel
+    from rollingdem.scene.bonds import ParallelBond
+    from rollingdem.scene.materials import Material
+    from rollingdem.scene.simulation import Simulation
+    from rollingdem.scene.walls import Plane
 
     r = 0.002
     sim = Simulation(contact=ContactModel(rolling="epsd"))

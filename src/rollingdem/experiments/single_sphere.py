@@ -16,7 +16,7 @@ import numpy as np
 from rollingdem.physics.contact.model import ContactModel
 from rollingdem.physics.contact import ROLLING_MODELS
 from rollingdem.scene.materials import Material
-from rollingdem.io.observers import Callback
+from rollingdem.scene.schedule import Callback
 from rollingdem.scene.simulation import Simulation
 from rollingdem.scene.walls import Plane
 

@@ -510,7 +510,10 @@ CASE_HINTS = {"check_timestep": "set check_timestep: false in the case file",
 
 def build_simulation(case: CaseSpec):
     """The Simulation a case describes (materials, walls, particles), before any stage runs."""
-    from rollingdem import ContactModel, Cylinder, Material, Plane, Simulation
+    from rollingdem.physics.contact.model import ContactModel
+    from rollingdem.scene.materials import Material
+    from rollingdem.scene.simulation import Simulation
+    from rollingdem.scene.walls import Cylinder, Plane
     from rollingdem.scene.insertion import rough_base
 
     def where(key):
@@ -714,7 +717,7 @@ def check_case(case: CaseSpec, sim=None):
 def _check_first_time_step(sim, sv) -> None:
     """dt against the stable limit as the first stage's run will see it (after its set_velocity);
     the velocities are put back afterwards."""
-    from rollingdem.engine.state import I_FORCES_VALID
+    from rollingdem.engine.layout import I_FORCES_VALID
 
     st = sim._state
     saved = (st.v.copy(), st.w.copy(), int(st.info[I_FORCES_VALID]))
@@ -761,7 +764,7 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
     Everything ``check_case`` refuses is refused before the output folder is made: a refused case
     leaves nothing behind. A run that fails later keeps what it wrote so far (summary.json says
     why it stopped)."""
-    from rollingdem import Checkpoints, TimeSeries, VTKSnapshots
+    from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots
 
     tic = time.perf_counter()
     sim = check_case(case)

@@ -1,4 +1,5 @@
-"""Observers: what a run writes while it goes (time series, snapshots, checkpoints).
+"""What a run writes while it goes: time series, snapshots, checkpoints (observers,
+``rollingdem.scene.schedule.Observer``).
 
 Each observer has an ``interval`` in simulated seconds (rounded to whole steps) and is called by
 ``Simulation.run`` between kernel calls, never inside the compiled loop. Files are flushed as they
@@ -13,40 +14,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_integer, check_positive
-
-
-class Observer:
-    """Base class: override ``observe`` (and ``start`` / ``finish`` if needed)."""
-
-    def __init__(self, interval: float):
-        self.interval = check_positive("observer interval", interval, "s")
-        self._every = None
-        self._next = None
-
-    def check(self, sim) -> None:
-        """Refuse what ``start`` would refuse for ``sim``, without writing anything (default: nothing)."""
-
-    def start(self, sim) -> None:
-        self._every = max(1, int(round(self.interval / sim.dt)))
-        self._next = sim.step
-
-    def next_step(self, sim) -> int:
-        return self._next
-
-    def maybe_observe(self, sim, force: bool = False) -> None:
-        """Observe now if due (or if ``force``), once per step even over consecutive runs."""
-        if (force or sim.step >= self._next) and getattr(self, "_last_step", None) != sim.step:
-            self.observe(sim)
-            self._last_step = sim.step
-        if sim.step >= self._next:
-            self._next = sim.step + self._every
-
-    def observe(self, sim) -> None:
-        raise NotImplementedError
-
-    def finish(self, sim, failure=None) -> None:
-        pass
+from rollingdem.errors import ParameterError, check_integer
+from rollingdem.scene.schedule import Observer
 
 
 class TimeSeries(Observer):
@@ -283,17 +252,4 @@ class Checkpoints(Observer):
         sim.checkpoint(self.directory / f"{self.prefix}_last.npz")
 
 
-class Callback(Observer):
-    """Calls ``function(sim)`` at every interval (e.g. to record something of your own)."""
-
-    def __init__(self, function, interval: float):
-        super().__init__(interval)
-        if not callable(function):
-            raise ParameterError(f"callback function = {function!r} is not allowed: must be callable, function(sim)")
-        self.function = function
-
-    def observe(self, sim):
-        self.function(sim)
-
-
-__all__ = ["Observer", "TimeSeries", "VTKSnapshots", "Checkpoints", "Callback", "write_vtu"]
+__all__ = ["TimeSeries", "VTKSnapshots", "Checkpoints", "write_vtu"]

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_positive, check_vector
-from rollingdem.engine.layout import WALL_PLANE
+from rollingdem.physics.records import WALL_PLANE
 
 MAX_PACKING_FRACTION = 0.55
 """Requests above this packing fraction are refused before any attempt (random insertion tops out

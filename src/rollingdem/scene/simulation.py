@@ -19,7 +19,8 @@ import numpy as np
 
 from rollingdem.physics.contact.model import ContactModel
 from rollingdem.engine.state import EngineState, periodic_box
-from rollingdem.engine.layout import BOND_PARAMETERS, BOND_STATE, ENERGY_CHANNELS, I_FORCES_VALID, WALL_MESH
+from rollingdem.physics.records import BOND_PARAMETERS, BOND_STATE, ENERGY_CHANNELS, WALL_MESH
+from rollingdem.engine.layout import I_FORCES_VALID
 from rollingdem.engine.codegen import engine_module
 from rollingdem.errors import ParameterError, SimulationError, check_finite, check_integer, check_positive, check_vector
 from rollingdem.scene.materials import Material, MaterialTable
@@ -704,7 +705,7 @@ class Simulation:
 
     def bond_energy(self) -> float:
         """The strain energy (J) of the intact bonds (docs/models.md §1.7)."""
-        from rollingdem.scene.bonds import bond_energy
+        from rollingdem.physics.bonds import bond_energy
 
         st = self._state
         return float(sum(bond_energy(st.bond_state, b, st.bond_parameters[b]) for b in range(len(st.bond_pairs))
@@ -971,7 +972,7 @@ class Simulation:
     @staticmethod
     def _observers(observers) -> list:
         """The observers of a run: one observer or a sequence of them."""
-        from rollingdem.io.observers import Observer
+        from rollingdem.scene.schedule import Observer
 
         if isinstance(observers, Observer):
             return [observers]

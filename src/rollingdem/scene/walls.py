@@ -11,11 +11,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from rollingdem.errors import ParameterError, check_positive, check_vector
-from rollingdem.engine.layout import WALL_CYLINDER as CYLINDER, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_INACTIVE as INACTIVE
-from rollingdem.engine.layout import WALL_PLANE as PLANE
+from rollingdem.physics.records import WALL_CYLINDER as CYLINDER, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_INACTIVE as INACTIVE
+from rollingdem.physics.records import WALL_PLANE as PLANE
 
 
 class Wall:
@@ -178,36 +177,3 @@ def wall_from_dict(d: dict, material) -> Wall:
     raise ParameterError(f"wall type = {kind!r} is not known: allowed are 'plane', 'cylinder', 'mesh'")
 
 
-@njit(cache=True, inline="always")
-def wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom):
-    """(overlap, n) of sphere i (radius ri) and wall wl; overlap -1 where the wall cannot touch it
-    (past a cylinder's ends, or on its axis). Geometry rows: ``rollingdem.scene.walls``."""
-    kind = wall_kind[wl]
-    overlap = -1.0
-    nx = ny = nz = 0.0
-    if kind == PLANE:
-        dist = ((x[i, 0] - wall_geom[wl, 0]) * wall_geom[wl, 3] + (x[i, 1] - wall_geom[wl, 1]) * wall_geom[wl, 4]
-                + (x[i, 2] - wall_geom[wl, 2]) * wall_geom[wl, 5])
-        overlap = ri - dist
-        nx = wall_geom[wl, 3]
-        ny = wall_geom[wl, 4]
-        nz = wall_geom[wl, 5]
-    elif kind == CYLINDER:
-        ux = wall_geom[wl, 3]
-        uy = wall_geom[wl, 4]
-        uz = wall_geom[wl, 5]
-        ddx = x[i, 0] - wall_geom[wl, 0]
-        ddy = x[i, 1] - wall_geom[wl, 1]
-        ddz = x[i, 2] - wall_geom[wl, 2]
-        s = ddx * ux + ddy * uy + ddz * uz
-        if s >= wall_geom[wl, 7] and s <= wall_geom[wl, 8]:
-            qx = ddx - s * ux
-            qy = ddy - s * uy
-            qz = ddz - s * uz
-            r = math.sqrt(qx * qx + qy * qy + qz * qz)
-            if r > 0.0:
-                overlap = r + ri - wall_geom[wl, 6]
-                nx = -qx / r
-                ny = -qy / r
-                nz = -qz / r
-    return overlap, nx, ny, nz

@@ -170,7 +170,7 @@ class _Execute:
         self.case = case
 
     def __call__(self, params: dict) -> dict:
-        from rollingdem import __version__
+        from rollingdem.scene.simulation import __version__
 
         tic = time.perf_counter()
         try:

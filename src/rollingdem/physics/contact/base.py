@@ -13,7 +13,7 @@ import inspect
 from typing import ClassVar
 
 from rollingdem.errors import ParameterError, check_choice
-from rollingdem.engine.layout import slots
+from rollingdem.physics.records import slots
 
 # Common pair-parameter slots, shared by every sub-model.
 P_YOUNG = 0            # E* (Pa)

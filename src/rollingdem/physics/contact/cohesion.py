@@ -17,7 +17,7 @@ import math
 from numba import njit
 
 from rollingdem.errors import ParameterError
-from rollingdem.engine.layout import CONTACT_INPUTS as IN, NORMAL_RESULT as NR
+from rollingdem.physics.records import CONTACT_INPUTS as IN, NORMAL_RESULT as NR
 from rollingdem.physics.contact.base import P_YOUNG, SubModel, slots
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rollingdem.engine.layout import HISTORY_FRAME
+from rollingdem.physics.records import HISTORY_FRAME
 from rollingdem.physics.contact.base import N_COMMON, SubModel, make_submodel
 
 

@@ -13,7 +13,7 @@ import math
 from numba import njit
 
 from rollingdem.errors import ParameterError, check_non_negative, check_positive
-from rollingdem.engine.layout import CONTACT_INPUTS as IN
+from rollingdem.physics.records import CONTACT_INPUTS as IN
 from rollingdem.physics.contact.base import P_ROLLING_DAMPING, P_ROLLING_FRICTION, SubModel, slots
 from rollingdem.physics.contact.frame import carry_with_frame, project_onto_plane
 

@@ -13,7 +13,7 @@ import math
 from numba import njit
 
 from rollingdem.errors import check_positive
-from rollingdem.engine.layout import NORMAL_RESULT as NR
+from rollingdem.physics.records import NORMAL_RESULT as NR
 from rollingdem.physics.contact.base import P_FRICTION, SubModel, slots
 from rollingdem.physics.contact.frame import carry_with_frame
 

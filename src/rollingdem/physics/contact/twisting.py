@@ -4,7 +4,7 @@ Compiled function of the slot "twisting"::
 
     twisting_moment(hist, k, history_at, g, normal, dt, p, params_at) -> (m_twist, dissipation)
 
-``g`` is the contact's ``kernel_layout.CONTACT_INPUTS``, ``normal`` the normal law's
+``g`` is the contact's ``records.CONTACT_INPUTS``, ``normal`` the normal law's
 ``NORMAL_RESULT``. The twisting moment acts as -m_twist n on particle i and +m_twist n on particle j.
 """
 
@@ -15,7 +15,7 @@ import math
 from numba import njit
 
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_positive
-from rollingdem.engine.layout import CONTACT_INPUTS as IN, NORMAL_RESULT as NR
+from rollingdem.physics.records import CONTACT_INPUTS as IN, NORMAL_RESULT as NR
 from rollingdem.physics.contact.base import P_FRICTION, SubModel, slots
 
 

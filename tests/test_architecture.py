@@ -193,11 +193,31 @@ def test_every_module_has_a_docstring():
     assert not missing, f"modules without a docstring saying what they are for: {', '.join(missing)}"
 
 
-def worked_example() -> str:
-    """The first Python block of docs/architecture.md's worked example: the law's module."""
+def worked_example(title: str = "### Worked example: a rolling law") -> str:
+    """The first Python block of the docs/architecture.md section ``title``."""
     text = (SOURCE.parents[1] / "docs" / "architecture.md").read_text()
-    section = text[text.index("### Worked example"):]
+    section = text[text.index(title):]
     return section.split("```python\n", 1)[1].split("```", 1)[0]
+
+
+def test_worked_example_adds_a_per_particle_field(tmp_path):
+    """docs/architecture.md's temperature field: declared once, every particle has it at its fill,
+    the value set on one survives a checkpoint, and the step loop's record holds it."""
+    import numpy as np
+
+    import rollingdem as rd
+    from rollingdem.engine.schema import PER_PARTICLE, SCHEMA
+
+    scope = {}
+    try:
+        exec(compile(worked_example("### Worked example: a per-particle field"), "architecture.md", "exec"), scope)
+        sim = scope["sim"]
+        assert np.array_equal(sim.particle_field("temperature"), [293.15, 350.0])
+        assert np.array_equal(sim._state.records()[0].temperature, [293.15, 350.0])
+        back = rd.Simulation.restore(sim.checkpoint(tmp_path / "t.npz"))
+        assert np.array_equal(back.particle_field("temperature"), [293.15, 350.0])
+    finally:
+        SCHEMA.fields[PER_PARTICLE] = [f for f in SCHEMA.of(PER_PARTICLE) if f.name != "temperature"]
 
 
 def test_worked_example_adds_a_rolling_law_without_editing_the_package(tmp_path, monkeypatch):

@@ -198,7 +198,26 @@ SCENES = textwrap.dedent('''
                                       w=sim.angular_velocities.tolist(), contacts=sim.number_of_contacts(),
                                       rebuilds=int(sim._state.info[I_REBUILDS]),
                                       candidates=int(sim._state.meshes.candidate_start[-1:].sum()))
-    # the bench's column settles on the backend it is timed on (a few steps of it, cached apart)
+    # a per-particle field declared at run time goes to the device in the particles' record, and back
+    from unittest import mock
+    from rollingdem.engine.cuda import step_loop as gpu_engine
+    from rollingdem.engine.schema import SCHEMA, Field
+    on_device, upload = [], gpu_engine.CudaStepLoop._upload
+
+    def spy(self, host, history_size, copy=False):
+        dev, rebuild = upload(self, host, history_size, copy)
+        on_device.append(np.array(dev[0].temperature).tolist())
+        return dev, rebuild
+
+    with SCHEMA.declared(Field("temperature", fill=293.15, doc="K")), \
+            mock.patch.object(gpu_engine.CudaStepLoop, "_upload", spy):
+        sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), dt=2e-6, backend="cuda")
+        material(sim, 0.2)
+        sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
+        sim.add_particles([[0, 0, 0.0011], [0.003, 0, 0.0011], [0, 0.003, 0.0012]], radius=1e-3, material="glass")
+        sim._state.temperature[:] = 300.0 + sim._state.tags
+        sim.run(steps=20)
+        out["declared field"] = dict(on_device=on_device[0], after=sim._state.temperature.tolist())
     import pathlib, tempfile
     from unittest import mock
     from rollingdem import bench
@@ -349,6 +368,15 @@ def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene)
     for key in ("x", "v", "w"):
         assert np.array_equal(np.asarray(gpu[key]), np.asarray(cpu[key])), f"{scene}: {key}"
     assert gpu["contacts"] == cpu["contacts"]
+
+
+def test_a_declared_particle_field_goes_to_the_device_and_back(simulated):
+    """A per-particle field declared in the state's schema at run time (``temperature``, set to
+    300 K + the particle's tag) is in the particles' record the GPU backend uploads, with each
+    particle's value, and holds the same values after the run comes back."""
+    field = simulated["declared field"]
+    assert field["on_device"] == [300.0, 301.0, 302.0]
+    assert field["after"] == [300.0, 301.0, 302.0]
 
 
 def test_spheres_of_one_material_agree_to_round_off(simulated):

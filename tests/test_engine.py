@@ -77,7 +77,7 @@ def test_neighbor_list_equals_brute_force(seed, skin, shuffled):
     x[:50] *= 0.2  # a dense corner and a sparse rest
     radius = rng.uniform(0.001, 0.004, n)
     st = EngineState(history_size=6)
-    st.append_particles(x, np.zeros_like(x), np.zeros_like(x), radius, np.ones(n), np.ones(n), np.zeros(n, np.int32))
+    st.append_particles(x=x, radius=radius, mass=np.ones(n), inertia=np.ones(n))
     if shuffled:
         st.ids = rng.permutation(n).astype(np.int64)
     ids = st.ids
@@ -119,7 +119,7 @@ def test_rebuild_carries_each_contacts_history_in_place_and_drops_lost_pairs(see
     x = rng.uniform(0, 0.05, (n, 3))
     radius = rng.uniform(0.001, 0.003, n)
     st = EngineState(history_size=6)
-    st.append_particles(x, np.zeros_like(x), np.zeros_like(x), radius, np.ones(n), np.ones(n), np.zeros(n, np.int32))
+    st.append_particles(x=x, radius=radius, mass=np.ones(n), inertia=np.ones(n))
     st.ids = rng.permutation(n).astype(np.int64)
 
     def by_pair(total):

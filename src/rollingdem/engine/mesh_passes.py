@@ -1,7 +1,7 @@
 """The compiled passes of triangle-mesh walls that do not depend on the contact law: the candidate
 triangles of each sphere (built with the neighbor list), the meshes' motion, and each sphere's
 mesh contacts matched to its contact slots, so that the contact history goes with the sphere from
-triangle to triangle (docs/architecture.md, "Mesh walls"). The arrays: ``layout.WallArrays``."""
+triangle to triangle (docs/architecture.md, "Mesh walls"). The arrays: the walls' record (``engine.schema``)."""
 
 import math
 

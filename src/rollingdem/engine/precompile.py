@@ -61,9 +61,9 @@ def signatures(module) -> dict:
     from rollingdem.physics.records import N_INPUTS, WALL_GEOMETRY_SIZE, WALL_PLANE
 
     st = EngineState(module.HISTORY_SIZE)
-    st.set_walls([WALL_PLANE], [np.zeros(WALL_GEOMETRY_SIZE)], [np.zeros(3)], [np.zeros(3)], [0], [-1])
-    st.append_particles(np.array([[0.0, 0.0, 0.01]]), np.zeros((1, 3)), np.zeros((1, 3)), np.array([0.01]),
-                        np.array([1e-3]), np.array([4e-8]), np.zeros(1, dtype=np.int32))
+    st.set_walls([-1], wall_kind=[WALL_PLANE], wall_geom=[np.zeros(WALL_GEOMETRY_SIZE)])
+    st.append_particles(x=np.array([[0.0, 0.0, 0.01]]), radius=np.array([0.01]), mass=np.array([1e-3]),
+                        inertia=np.array([4e-8]))
     st.energy_for(module)
     dt, kick, half_skin, skin = 1e-6, 1.0, 1e-3, 2e-3
     pp = np.zeros((1, 1, module.N_PARAMS))

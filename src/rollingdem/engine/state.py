@@ -10,8 +10,9 @@ import numpy as np
 
 from rollingdem.engine import layout  # SERIAL_BELOW read at the call: a test sets it
 from rollingdem.errors import SimulationError
-from rollingdem.physics.records import BOND_LOAD_SIZE, BOND_PARAMETERS, BOND_STATE, ENERGY_CHANNELS, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_LOAD_SIZE
-from rollingdem.engine.layout import CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, ListArrays, ParticleArrays, Scratch, WallArrays, block_columns
+from rollingdem.physics.records import ENERGY_CHANNELS, WALL_LOAD_SIZE
+from rollingdem.engine.layout import CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, Scratch, block_columns
+from rollingdem.engine.schema import PER_BOND, PER_PARTICLE, PER_PARTICLE_WALL, PER_WALL, SCHEMA
 from rollingdem.engine.neighbors import ContactList
 from rollingdem.engine.threads import ThreadGovernor
 # list capacity = entries needed x this (16 bytes per entry and a pool row of 8 (history + 6) bytes,
@@ -46,48 +47,18 @@ class EngineState:
         self._cuda_loops = {}
         self._blocks = self._lanes = None  # scratch of the pair pass, see contact_blocks
         self._one_material = None  # (mat, whether all particles are of one material), see contact_blocks
-        n = 0
-        self.x = np.zeros((n, 3))
-        self.v = np.zeros((n, 3))
-        self.w = np.zeros((n, 3))
-        self.f = np.zeros((n, 3))
-        self.t = np.zeros((n, 3))
-        self.radius = np.zeros(n)
-        self.mass = np.zeros(n)
-        self.inertia = np.zeros(n)
-        self.mat = np.zeros(n, dtype=np.int32)
-        # the dissipated energies, (n, 4) once a kernel that sums them ran (``energy_for``), else
-        # (0, 4): a kernel without TRACK_ENERGY never touches it (32 B/p saved)
-        self.energy = np.zeros((0, len(ENERGY_CHANNELS)))
-        self.contacts = np.zeros(n, dtype=np.int32)  # contacts per sphere: int32 is plenty, 4 B/p less
-        self.fixed = np.zeros(0, dtype=np.uint8)  # (n,) once a particle is fixed (``engine.layout``)
-        self.image = np.zeros((n, 3), dtype=np.int32)
-        self.x_ref = np.zeros((n, 3))
-        self.ids = np.zeros(n, dtype=np.int64)
-        # each particle's number for good (VTK ``id``), as ids are renumbered when particles go
-        self.tags = np.zeros(n, dtype=np.int64)
+        for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL):  # the arrays, from the schema
+            for field in SCHEMA.of(per):
+                setattr(self, field.name, field.rows(0, history_size))
+        self.bond_start = np.zeros(0, dtype=np.int64)
+        self.bond_ends = np.zeros(0, dtype=np.int64)
         self.next_tag = 0
         self._slots = None  # slot of each id, once the slots were re-sorted
         self._governor = None  # made by governor() when first used
         self.steps_since_sort = 0
-        self.wall_kind = np.zeros(0, dtype=np.int32)
-        self.wall_geom = np.zeros((0, GEOMETRY_SIZE))
-        self.wall_vel = np.zeros((0, 3))
-        self.wall_omega = np.zeros((0, 3))
-        self.wall_mat = np.zeros(0, dtype=np.int32)
-        self.whist = np.zeros((0, history_size))
-        self.wtouch = np.zeros(0, dtype=np.uint8)
-        self.wall_load = np.zeros((0, WALL_LOAD_SIZE))
         self.meshes = MeshState(history_size)
         self.info = np.zeros(INFO_SIZE, dtype=np.int64)
         self.contact_list = ContactList(history_size)
-        self.bond_pairs = np.zeros((0, 2), dtype=np.int64)
-        self.bond_state = np.zeros((0, len(BOND_STATE)))
-        self.bond_parameters = np.zeros((0, len(BOND_PARAMETERS)))
-        self.bond_status = np.zeros(0, dtype=np.int64)
-        self.bond_load = np.zeros((0, BOND_LOAD_SIZE))
-        self.bond_start = np.zeros(0, dtype=np.int64)
-        self.bond_ends = np.zeros(0, dtype=np.int64)
 
     @property
     def n(self) -> int:
@@ -128,43 +99,35 @@ class EngineState:
             self.contact_list.index()
 
     # --- particles and walls -----------------------------------------------------------------
-    def append_particles(self, x, v, w, radius, mass, inertia, mat, fixed=None):
-        """Append particles (``fixed``: one flag each, default free); existing indices, list entries
-        and history keep their meaning."""
-        n0 = self.n
-        m = x.shape[0]
-        self.x = np.concatenate([self.x, x])
-        self.v = np.concatenate([self.v, v])
-        self.w = np.concatenate([self.w, w])
-        self.f = np.concatenate([self.f, np.zeros((m, 3))])
-        self.t = np.concatenate([self.t, np.zeros((m, 3))])
-        self.radius = np.concatenate([self.radius, radius])
-        self.mass = np.concatenate([self.mass, mass])
-        self.inertia = np.concatenate([self.inertia, inertia])
-        self.mat = np.concatenate([self.mat, mat.astype(np.int32)])
-        if len(self.energy):
-            self.energy = np.concatenate([self.energy, np.zeros((m, len(ENERGY_CHANNELS)))])
-        self.contacts = np.concatenate([self.contacts, np.zeros(m, dtype=np.int32)])
-        flags = np.zeros(m, dtype=np.uint8) if fixed is None else np.asarray(fixed, dtype=np.uint8)
-        if len(self.fixed) or flags.any():
-            self.fixed = np.concatenate([self.fixed if len(self.fixed) else np.zeros(n0, dtype=np.uint8), flags])
-        self.image = np.concatenate([self.image, np.zeros((m, 3), dtype=np.int32)])
-        self.x_ref = np.concatenate([self.x_ref, x])
-        self.ids = np.concatenate([self.ids, np.arange(n0, n0 + m, dtype=np.int64)])
-        self.tags = np.concatenate([self.tags, np.arange(self.next_tag, self.next_tag + m, dtype=np.int64)])
+    def append_particles(self, **values):
+        """Append particles: each given per-particle field's rows (``x``, ``v``, ``radius``, ...,
+        ``fixed``), the others' ``fill``; ``x_ref`` is ``x``, the ids and tags are the next ones.
+        Existing indices, list entries and history keep their meaning."""
+        n0, m, h = self.n, len(values["x"]), self.history_size
+        fields = {f.name: f for f in SCHEMA.of(PER_PARTICLE)}
+        unknown = set(values) - set(fields) - {"x_ref", "ids", "tags"}
+        if unknown:
+            raise TypeError(f"no per-particle field named {sorted(unknown)[0]!r} in the state's schema")
+        values = {"x_ref": values["x"], **values, "ids": np.arange(n0, n0 + m, dtype=np.int64),
+                  "tags": np.arange(self.next_tag, self.next_tag + m, dtype=np.int64)}
+        for field in fields.values():
+            old = getattr(self, field.name)
+            new = field.rows(m, h, values.get(field.name))
+            if field.lazy and (n0 == 0 or len(old) != n0):  # no rows yet: none until one differs from fill
+                if field.name in values and np.any(new != field.fill):
+                    setattr(self, field.name, np.concatenate([field.rows(n0, h), new]))
+            else:
+                setattr(self, field.name, np.concatenate([old, new]))
         self.next_tag += m
         if self._slots is not None:
             self._slots = np.concatenate([self._slots, np.arange(n0, n0 + m, dtype=np.int64)])
-        wall_hist = self.whist.reshape(n0, self.n_walls, self.history_size) if n0 else None
         self.contact_list.add_rows(m)
-        whist = np.zeros((self.n, self.n_walls, self.history_size))
-        if wall_hist is not None:
-            whist[:n0] = wall_hist
-        self.whist = whist.reshape(self.n * self.n_walls, self.history_size)
-        load = np.zeros((self.n, self.n_walls, WALL_LOAD_SIZE))
-        if n0:
-            load[:n0] = self.wall_load.reshape(n0, self.n_walls, WALL_LOAD_SIZE)
-        self.wall_load = load.reshape(self.n * self.n_walls, WALL_LOAD_SIZE)
+        walls = self.n_walls
+        for field in SCHEMA.of(PER_PARTICLE_WALL):  # each new particle gets a row per wall
+            shape = field.row_shape(h)
+            old = getattr(self, field.name).reshape((n0, walls) + shape)
+            setattr(self, field.name, np.concatenate([old, field.rows(m * walls, h).reshape((m, walls) + shape)])
+                    .reshape((self.n * walls,) + shape))
         self.derive_wall_touch()
         self.meshes.resize_particles(self.n)
         if len(self.bond_pairs):
@@ -175,27 +138,22 @@ class EngineState:
         if self.contact_list.capacity < 3 * self.n:  # a settled bed's half list holds ~4 entries per particle
             self.grow(3 * self.n)
 
-    def set_walls(self, kinds, geoms, vels, omegas, mats, carry):
-        """Replace the wall arrays. ``carry[w]``: the slot that new wall w had before (its contact
-        history goes with it), or -1 for a new wall."""
-        old_w = self.n_walls
-        new_w = len(kinds)
-        old = self.whist.reshape(self.n, old_w, self.history_size) if self.n and old_w else None
-        self.wall_kind = np.asarray(kinds, dtype=np.int32).reshape(new_w)
-        self.wall_geom = np.asarray(geoms, dtype=np.float64).reshape(new_w, GEOMETRY_SIZE)
-        self.wall_vel = np.asarray(vels, dtype=np.float64).reshape(new_w, 3)
-        self.wall_omega = np.asarray(omegas, dtype=np.float64).reshape(new_w, 3)
-        self.wall_mat = np.asarray(mats, dtype=np.int32).reshape(new_w)
-        old_load = self.wall_load.reshape(self.n, old_w, WALL_LOAD_SIZE) if old is not None else None
-        whist = np.zeros((self.n, new_w, self.history_size))
-        load = np.zeros((self.n, new_w, WALL_LOAD_SIZE))
-        if old is not None:
-            for new_slot, old_slot in enumerate(carry):
-                if old_slot >= 0:
-                    whist[:, new_slot] = old[:, old_slot]
-                    load[:, new_slot] = old_load[:, old_slot]
-        self.whist = whist.reshape(self.n * new_w, self.history_size)
-        self.wall_load = load.reshape(self.n * new_w, WALL_LOAD_SIZE)
+    def set_walls(self, carry, **values):
+        """Replace the walls: each per-wall field's rows (``wall_kind``, ``wall_geom``, ...).
+        ``carry[w]``: the slot that new wall w had before (its contact history and load go with
+        it), or -1 for a new wall."""
+        n, h, old_w, new_w = self.n, self.history_size, self.n_walls, len(carry)
+        for field in SCHEMA.of(PER_WALL):
+            setattr(self, field.name, field.rows(new_w, h, values.get(field.name)))
+        for field in SCHEMA.of(PER_PARTICLE_WALL):
+            shape = field.row_shape(h)
+            old = getattr(self, field.name).reshape((n, old_w) + shape)
+            new = field.rows(n * new_w, h).reshape((n, new_w) + shape)
+            if n and old_w:
+                for new_slot, old_slot in enumerate(carry):
+                    if old_slot >= 0:
+                        new[:, new_slot] = old[:, old_slot]
+            setattr(self, field.name, new.reshape((n * new_w,) + shape))
         self.derive_wall_touch()
         self.info[I_FORCES_VALID] = 0
 
@@ -219,12 +177,10 @@ class EngineState:
     # --- bonds --------------------------------------------------------------------------------
     def add_bonds(self, pairs: np.ndarray, parameters: np.ndarray) -> None:
         """Append intact, unloaded bonds between the slots ``pairs`` (m, 2), with their parameter rows."""
-        m = len(pairs)
-        self.bond_pairs = np.concatenate([self.bond_pairs, np.asarray(pairs, dtype=np.int64).reshape(m, 2)])
-        self.bond_state = np.concatenate([self.bond_state, np.zeros((m, len(BOND_STATE)))])
-        self.bond_parameters = np.concatenate([self.bond_parameters, np.asarray(parameters, dtype=float)])
-        self.bond_status = np.concatenate([self.bond_status, np.zeros(m, dtype=np.int64)])
-        self.bond_load = np.concatenate([self.bond_load, np.zeros((m, BOND_LOAD_SIZE))])
+        values = {"bond_pairs": pairs, "bond_parameters": parameters}
+        for field in SCHEMA.of(PER_BOND):
+            setattr(self, field.name, np.concatenate([getattr(self, field.name),
+                                                      field.rows(len(pairs), self.history_size, values.get(field.name))]))
         self.index_bonds()
         self.info[I_FORCES_VALID] = 0
 
@@ -242,8 +198,6 @@ class EngineState:
         self.bond_ends = np.ascontiguousarray(code[order], dtype=np.int64)
         self.bond_start = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=self.n))]).astype(np.int64)
 
-    BOND_ARRAYS = ("bond_pairs", "bond_state", "bond_parameters", "bond_status", "bond_load")
-
     def sort(self, cell_size: float) -> None:
         """Re-sort the slots in Morton order of the positions; the neighbor list, its history and
         every per-particle array follow, so the next step computes exactly the same contacts."""
@@ -255,15 +209,7 @@ class EngineState:
             return
         inv = np.empty(n, dtype=np.int64)
         inv[perm] = np.arange(n)
-        for name in self.PER_PARTICLE:
-            if len(getattr(self, name)) == n:  # energy may be unallocated
-                setattr(self, name, np.ascontiguousarray(getattr(self, name)[perm]))
-        if self.n_walls:
-            h = self.history_size
-            self.whist = np.ascontiguousarray(self.whist.reshape(n, self.n_walls, h)[perm].reshape(-1, h))
-            self.wall_load = np.ascontiguousarray(
-                self.wall_load.reshape(n, self.n_walls, WALL_LOAD_SIZE)[perm].reshape(-1, WALL_LOAD_SIZE))
-            self.derive_wall_touch()
+        self._take_particle_rows(perm)
         self.meshes.reorder(perm)
         self.contact_list.reorder(perm, inv)  # rows move with their particle
         if len(self.bond_pairs):
@@ -272,8 +218,18 @@ class EngineState:
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
 
-    PER_PARTICLE = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "tags", "energy", "contacts",
-                    "fixed", "image", "x_ref")
+    def _take_particle_rows(self, rows: np.ndarray) -> None:
+        """Every per-particle field (a lazy one if it has rows) and every row per particle and wall
+        taken at ``rows`` (a permutation, or the slots kept), in that order."""
+        n, walls = self.n, self.n_walls
+        for field in SCHEMA.of(PER_PARTICLE):
+            if len(getattr(self, field.name)) == n:
+                setattr(self, field.name, np.ascontiguousarray(getattr(self, field.name)[rows]))
+        if walls:
+            for field in SCHEMA.of(PER_PARTICLE_WALL):
+                shape = field.row_shape(self.history_size)
+                per_wall = getattr(self, field.name).reshape((n, walls) + shape)[rows]
+                setattr(self, field.name, np.ascontiguousarray(per_wall.reshape((-1,) + shape)))
 
     def remove(self, gone: np.ndarray) -> None:
         """Take out the particles of the slots where ``gone`` is True. The others keep their state
@@ -286,12 +242,14 @@ class EngineState:
         keep = ~gone
         n, h = self.n, self.history_size
         arrays = self.to_arrays()
-        for name in self.PER_PARTICLE:
-            if len(arrays[name]) == n:
-                arrays[name] = arrays[name][keep]
+        for field in SCHEMA.of(PER_PARTICLE):
+            if field.saved and len(arrays[field.name]) == n:
+                arrays[field.name] = arrays[field.name][keep]
         arrays["ids"] = np.argsort(np.argsort(arrays["ids"], kind="stable"), kind="stable").astype(np.int64)
-        for name, width in (("whist", h), ("wall_load", WALL_LOAD_SIZE)):
-            arrays[name] = arrays[name].reshape(n, self.n_walls, width)[keep].reshape(-1, width)
+        for field in SCHEMA.of(PER_PARTICLE_WALL):
+            if field.saved:
+                shape = field.row_shape(h)
+                arrays[field.name] = arrays[field.name].reshape((n, self.n_walls) + shape)[keep].reshape((-1,) + shape)
         if self.meshes.n_meshes:
             arrays["mesh_slot_triangle"] = arrays["mesh_slot_triangle"][keep]
             for name, width in (("mesh_history", h), ("mesh_load", WALL_LOAD_SIZE)):
@@ -310,8 +268,8 @@ class EngineState:
         arrays["tr_start"] = np.zeros_like(arrays["nl_start"])
         if len(self.bond_pairs):  # a bond goes with either of its particles
             held = keep[self.bond_pairs].all(axis=1)
-            for name in self.BOND_ARRAYS:
-                arrays[name] = arrays[name][held]
+            for field in SCHEMA.of(PER_BOND):
+                arrays[field.name] = arrays[field.name][held]
             arrays["bond_pairs"] = slot[arrays["bond_pairs"]]
         fresh = EngineState.from_arrays(arrays, h)
         names = self.meshes.names
@@ -342,15 +300,16 @@ class EngineState:
             self._lanes = np.zeros((threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK), dtype=np.int64)
         return self._blocks, self._lanes
 
-    def records(self) -> tuple[ParticleArrays, WallArrays, ListArrays, Scratch]:
-        """The kernel's four records (``rollingdem.engine.layout``), of the arrays as they are now
-        (the arrays are replaced when they grow: records are made for each call)."""
-        return (ParticleArrays(self.x, self.v, self.w, self.f, self.t, self.radius, self.mass, self.inertia, self.mat,
-                               self.ids, self.x_ref, self.energy, self.contacts, self.image, self.fixed,
-                               self.bond_pairs, self.bond_state, self.bond_parameters, self.bond_status,
-                               self.bond_load, self.bond_start, self.bond_ends),
-                WallArrays(self.wall_kind, self.wall_geom, self.wall_vel, self.wall_omega, self.wall_mat, self.whist,
-                           self.wtouch, self.wall_load, *self.meshes.arrays()),
+    def records(self) -> tuple:
+        """The step loop's four records of the arrays as they are now (the arrays are replaced when
+        they grow: records are made for each call): the particles' and the walls' (their fields
+        from the schema, ``rollingdem.engine.schema``), the list's and the scratch
+        (``rollingdem.engine.layout``)."""
+        particle_fields = [f for per in (PER_PARTICLE, PER_BOND) for f in SCHEMA.of(per) if f.record_name is not None]
+        wall_fields = [f for per in (PER_WALL, PER_PARTICLE_WALL) for f in SCHEMA.of(per) if f.record_name is not None]
+        return (SCHEMA.particle_record()._make([getattr(self, f.name) for f in particle_fields]
+                                               + [self.bond_start, self.bond_ends]),
+                SCHEMA.wall_record()._make([getattr(self, f.name) for f in wall_fields] + list(self.meshes.arrays())),
                 self.contact_list.arrays(),
                 Scratch(*self.contact_blocks()))
 
@@ -469,18 +428,14 @@ class EngineState:
         self.derive_wall_touch()
 
     # --- checkpoint ----------------------------------------------------------------------------
-    ARRAYS = ("x", "v", "w", "f", "t", "radius", "mass", "inertia", "mat", "ids", "energy", "contacts", "x_ref",
-              "wall_kind", "wall_geom", "wall_vel", "wall_omega", "wall_mat", "whist", "info")
-
     def to_arrays(self) -> dict:
-        out = {name: getattr(self, name) for name in self.ARRAYS}
-        out["wall_load"] = self.wall_load
-        out["tags"] = self.tags
+        """The state as named arrays, for a checkpoint: every saved field of the schema, the status
+        record, the meshes' and the neighbor list's arrays."""
+        out = {f.name: getattr(self, f.name) for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL)
+               for f in SCHEMA.of(per) if f.saved}
+        out["info"] = self.info
         out["next_tag"] = np.array(self.next_tag)
-        out["fixed"] = self.fixed
-        out["image"] = self.image
         out["periodic_box"] = self.contact_list.box
-        out.update({name: getattr(self, name) for name in self.BOND_ARRAYS})
         out.update(self.meshes.to_arrays())
         cl = self.contact_list
         total = cl.size
@@ -494,26 +449,28 @@ class EngineState:
     @classmethod
     def from_arrays(cls, arrays: dict, history_size: int) -> "EngineState":
         st = cls(history_size)
+        n = len(arrays["x"])
+        walls = len(arrays["wall_kind"])
+        count = {PER_PARTICLE: n, PER_BOND: 0, PER_WALL: walls, PER_PARTICLE_WALL: n * walls}
+        for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL):
+            for field in SCHEMA.of(per):
+                if not field.saved:
+                    continue
+                if field.name in arrays:  # an older checkpoint may lack a field: its rows are new ones
+                    value = np.array(arrays[field.name], dtype=field.dtype)
+                else:
+                    value = field.rows(0 if field.lazy else count[per], history_size)
+                if field.lazy and not np.any(value != field.fill):
+                    value = field.rows(0, history_size)
+                setattr(st, field.name, value)
+        st.info = np.array(arrays["info"])
         if "ids" not in arrays:  # a checkpoint from before the re-sorting
-            arrays = {**arrays, "ids": np.arange(len(arrays["x"]), dtype=np.int64)}
-        for name in cls.ARRAYS:
-            setattr(st, name, np.array(arrays[name]))
-        st.contacts = st.contacts.astype(np.int32)  # int64 in older checkpoints
-        st.fixed = np.array(arrays["fixed"], dtype=np.uint8) if "fixed" in arrays else np.zeros(0, dtype=np.uint8)
-        if not st.fixed.any():
-            st.fixed = np.zeros(0, dtype=np.uint8)
-        st.image = np.array(arrays["image"], dtype=np.int32) if "image" in arrays else np.zeros((st.n, 3), np.int32)
-        st.tags = np.array(arrays["tags"]) if "tags" in arrays else st.ids.copy()
+            st.ids = np.arange(n, dtype=np.int64)
+        if "tags" not in arrays:
+            st.tags = st.ids.copy()
         st.next_tag = int(arrays["next_tag"]) if "next_tag" in arrays else st.n
-        st.wall_load = np.array(arrays["wall_load"]) if "wall_load" in arrays else \
-            np.zeros((st.n * st.n_walls, WALL_LOAD_SIZE))  # absent in older checkpoints
         st.meshes.from_arrays(arrays, st.n)
-        if "bond_pairs" in arrays:  # absent in older checkpoints
-            for name in cls.BOND_ARRAYS:
-                setattr(st, name, np.array(arrays[name]))
-            st.index_bonds()
-        if not st.energy.any():  # nothing summed (older checkpoints kept the zeros)
-            st.energy = np.zeros((0, len(ENERGY_CHANNELS)))
+        st.index_bonds()
         if not np.array_equal(st.ids, np.arange(st.n)):
             st._slots = np.argsort(st.ids)
         cl = st.contact_list = ContactList(history_size, rows=st.n)
@@ -531,8 +488,8 @@ class EngineState:
 
 
 class MeshState:
-    """The triangle meshes' arrays of the engine (``layout.WallArrays``, from ``reference``
-    on): every mesh's vertices and triangles in one array, their motion, and per sphere the
+    """The triangle meshes' arrays of the engine (the walls' record from ``reference``
+    on, ``schema.MESH_RECORD``): every mesh's vertices and triangles in one array, their motion, and per sphere the
     candidate triangles and the contact slots. The per-sphere arrays have no rows while there is
     no mesh (a slot's history is 6 rows a sphere)."""
 

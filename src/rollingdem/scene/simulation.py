@@ -199,8 +199,8 @@ class Simulation:
         density = np.array([self.materials.materials[k].density for k in mats])
         mass = density * (4.0 / 3.0) * math.pi * r ** 3
         first = self.n_particles
-        self._state.append_particles(x, v, w, r, mass, SOLID_SPHERE * mass * r ** 2, mats,
-                                     np.full(m, bool(fixed), dtype=np.uint8))
+        self._state.append_particles(x=x, v=v, w=w, radius=r, mass=mass, inertia=SOLID_SPHERE * mass * r ** 2,
+                                     mat=mats, fixed=np.full(m, bool(fixed), dtype=np.uint8))
         self._pair_params = None
         return np.arange(first, first + m)
 
@@ -563,9 +563,9 @@ class Simulation:
         self.sync_walls_from_engine()  # a mesh's motion starts again from where it is now
         active = [wl for wl in self.walls if wl.kind != WALL_MESH]
         carry = [next((k for k, old in enumerate(self._engine_walls) if old is wl), -1) for wl in active]
-        self._state.set_walls([wl.kind for wl in active], [wl.geometry() for wl in active],
-                              [wl.velocity for wl in active], [wl.angular_velocity for wl in active],
-                              [self.materials.index(wl.material) for wl in active], carry)
+        self._state.set_walls(carry, wall_kind=[wl.kind for wl in active], wall_geom=[wl.geometry() for wl in active],
+                              wall_vel=[wl.velocity for wl in active], wall_omega=[wl.angular_velocity for wl in active],
+                              wall_mat=[self.materials.index(wl.material) for wl in active])
         self._engine_walls = active
         meshes = [wl for wl in self.walls if wl.kind == WALL_MESH]
         carry = [next((k for k, old in enumerate(self._state.meshes.names) if old is wl), -1) for wl in meshes]
@@ -618,6 +618,41 @@ class Simulation:
     def fixed(self) -> np.ndarray:
         """Whether each particle is fixed (``add_particles(..., fixed=True)``), bool."""
         return self._state.by_id(self._state.is_fixed)
+
+    def particle_field(self, name: str) -> np.ndarray:
+        """A per-particle field of the state's schema (``rollingdem.engine.schema``: ``radius``,
+        ``contacts``, or one declared with ``SCHEMA.declare``), in the order of ``positions``."""
+        return self._state.by_id(getattr(self._state, self._particle_field(name).name))
+
+    def set_particle_field(self, name: str, indices, values) -> None:
+        """Set a per-particle field of some particles (``values`` one for all, or one each)."""
+        field = self._particle_field(name)
+        if not field.settable:
+            raise ParameterError(f"field = {name!r} is not allowed: the engine keeps it; settable are "
+                                 + ", ".join(f.name for f in self._particle_fields() if f.settable))
+        idx = self._state.slots(self._indices(indices))
+        array = getattr(self._state, field.name)
+        if field.lazy and len(array) != self.n_particles:  # no rows yet: every particle at the fill
+            array = field.rows(self.n_particles, self._state.history_size)
+            setattr(self._state, field.name, array)
+        try:
+            array[idx] = np.asarray(values, dtype=field.dtype)
+        except (TypeError, ValueError):
+            raise ParameterError(f"values = {_short(values)} is not allowed for {name}: one value, or one for each "
+                                 f"of the {len(idx)} particles") from None
+        self._state.info[I_FORCES_VALID] = 0
+
+    @staticmethod
+    def _particle_fields() -> list:
+        from rollingdem.engine.schema import PER_PARTICLE, SCHEMA
+
+        return SCHEMA.of(PER_PARTICLE)
+
+    def _particle_field(self, name):
+        fields = {f.name: f for f in self._particle_fields()}
+        if name not in fields:
+            raise ParameterError(f"field = {name!r} is not allowed: the per-particle fields are {', '.join(fields)}")
+        return fields[name]
 
     # --- bonds -------------------------------------------------------------------------------------
     def add_bonds(self, bond, pairs=None, gap=None) -> int:
@@ -1073,8 +1108,9 @@ class Simulation:
         st = sim._state
         in_place = np.flatnonzero(st.wall_kind != INACTIVE)
         if len(in_place) < len(st.wall_kind):  # a checkpoint of before 2026-12-02 keeps removed walls
-            st.set_walls(st.wall_kind[in_place], st.wall_geom[in_place], st.wall_vel[in_place],
-                         st.wall_omega[in_place], st.wall_mat[in_place], in_place.tolist())
+            st.set_walls(in_place.tolist(), wall_kind=st.wall_kind[in_place], wall_geom=st.wall_geom[in_place],
+                         wall_vel=st.wall_vel[in_place], wall_omega=st.wall_omega[in_place],
+                         wall_mat=st.wall_mat[in_place])
         ms, m = st.meshes, 0
         for k, wd in enumerate(sim._walls):  # the meshes in the engine's order, their triangles from the arrays
             if isinstance(wd, dict):

@@ -12,6 +12,7 @@ from numba import njit, prange, uint32, uint64
 
 from rollingdem import ContactModel
 from rollingdem import bench
+from rollingdem.engine.phases import seconds_per_call
 
 numba.set_num_threads(2)
 STEPS = int(sys.argv[1]) if len(sys.argv) > 1 else 200
@@ -111,7 +112,7 @@ def slab(n):
 
 
 sims = {n: slab(n) for n in (20000, 1000000)}
-ph = {n: bench._Phases(s) for n, s in sims.items()}
+ph = {n: s.passes() for n, s in sims.items()}
 
 
 def variants(n):
@@ -132,7 +133,7 @@ res = {}
 for rnd in range(5):
     for n in sims:
         for name, fn in variants(n):
-            res.setdefault((name, n), []).append(bench._seconds_per_call(fn, max(1, 20000 * 20 // n), 3) / n * 1e9)
+            res.setdefault((name, n), []).append(seconds_per_call(fn, max(1, 20000 * 20 // n), 3) / n * 1e9)
         ph[n].restore()
 for name, _ in variants(20000):
     a, b = min(res[(name, 20000)]), min(res[(name, 1000000)])

@@ -95,9 +95,9 @@ MUTATIONS = [
       "fn_total = fn - cn * vcn", BOND),
     M("bond moment factor left out of the tensile stress", "src/rollingdem/physics/bonds.py",
       "sigma = fn / area + beta *", "sigma = fn / area + 0.0 *", BOND),
-    M("rolling resistance on a parallel-bonded contact", "src/rollingdem/engine/step_template.py",
+    M("rolling resistance on a parallel-bonded contact", "src/rollingdem/engine/template/contact.py",
       "return contact_of(hist, k, g, p, dt, False)", "return contact_of(hist, k, g, p, dt, True)", BOND),
-    M("a parallel bond taken for an exclusive one", "src/rollingdem/engine/step_template.py",
+    M("a parallel bond taken for an exclusive one", "src/rollingdem/engine/template/pairs.py",
       "apart = bonded(uint64(i), uint64(j), particles, True)", "apart = bonded(uint64(i), uint64(j), particles, False)",
       BOND),
     # --- tangential (contact/tangential.py) ------------------------------------------------------

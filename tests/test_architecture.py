@@ -154,7 +154,7 @@ def test_the_graph_sees_function_level_and_relative_imports():
     imports the step template so)."""
     graph = import_graph()
     assert "rollingdem.experiments.repose" in graph["rollingdem.experiments.observables"]
-    assert "rollingdem.engine.step_template" in graph["rollingdem.engine.codegen"]
+    assert "rollingdem.engine.template" in graph["rollingdem.engine.codegen"]
     assert "rollingdem.experiments.observables" in graph["rollingdem.studies.sweep"]
 
 
@@ -198,6 +198,37 @@ def worked_example(title: str = "### Worked example: a rolling law") -> str:
     text = (SOURCE.parents[1] / "docs" / "architecture.md").read_text()
     section = text[text.index(title):]
     return section.split("```python\n", 1)[1].split("```", 1)[0]
+
+
+def test_worked_example_adds_a_backend():
+    """docs/architecture.md's serial backend: registered by name, a Simulation steps on it, and a
+    bed of 600 spheres (threaded on the ``cpu`` backend above 512) ends bit for bit where the ``cpu``
+    backend's threads leave it."""
+    import numpy as np
+
+    import rollingdem as rd
+    from rollingdem.engine.backends import BACKENDS
+
+    scope = {}
+    try:
+        exec(compile(worked_example("### Worked example: a backend"), "architecture.md", "exec"), scope)
+        ends = {}
+        for name in ("cpu", "cpu-serial"):
+            sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), dt=1e-5, backend=name)
+            sim.add_material(rd.Material("m", 1e7, 0.3, 2500, friction=0.5, rolling_friction=0.1, restitution=0.5))
+            sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
+            sim.insert(rd.BoxRegion((-0.02, -0.02, 0.0), (0.02, 0.02, 0.05)), 600, 0.001, "m", seed=2)
+            assert sim.backend == name
+            sim.run(steps=300)
+            ends[name] = (sim.positions, sim.angular_velocities)
+        module = sim.engine_module()
+        assert scope["SerialCpu"]().step_loop(None, module) is module.advance_serial
+        assert BACKENDS["cpu"].step_loop(sim._state, module) is (module.advance_serial if sim._state.serial()
+                                                                else module.advance)
+        for a, b in zip(ends["cpu"], ends["cpu-serial"]):
+            np.testing.assert_array_equal(a, b)
+    finally:
+        BACKENDS.pop("cpu-serial", None)
 
 
 def test_worked_example_adds_a_per_particle_field(tmp_path):
@@ -351,10 +382,26 @@ def test_the_kernel_name_hashes_every_module_it_compiles_in():
     name hashes the source of every package module whose compiled functions it takes in: each one
     the template imports (the triangle-mesh passes and their geometry among them) and each one
     those import. Without one of them, a change there would run the old compiled code."""
-    from rollingdem.engine import codegen, step_template
+    from rollingdem.engine import codegen
 
-    covered = codegen._package_imports({"rollingdem.engine.step_template"})
-    tree = ast.parse(Path(step_template.__file__).read_text())
-    imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
-                if node.module and node.module.startswith(PACKAGE)}
+    covered = codegen._package_imports(codegen.template_modules())
+    imported = {node.module for path in codegen.template_files() for node in ast.walk(ast.parse(path.read_text()))
+                if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith(PACKAGE)}
     assert imported <= covered and {"rollingdem.engine.mesh_passes", "rollingdem.physics.mesh"} <= covered
+
+
+#: the most lines a part of the step loop's template may have: a pass a reader can hold at once
+TEMPLATE_PART_LINES = 600
+
+
+def test_the_step_loops_template_is_split_by_pass_and_each_part_is_small():
+    """Each part of ``engine/template`` is under ``TEMPLATE_PART_LINES`` lines, and the parts are
+    exactly the files of the folder (a new part must be named in ``PARTS``, or it would never be
+    compiled)."""
+    from rollingdem.engine import codegen, template
+
+    files = codegen.template_files()
+    folder = {p.name for p in files[0].parent.glob("*.py")} - {"__init__.py"}
+    assert folder == {f"{part}.py" for part in template.PARTS}
+    long = {p.name: n for p in files if (n := len(p.read_text().splitlines())) >= TEMPLATE_PART_LINES}
+    assert not long, f"template parts of {TEMPLATE_PART_LINES} lines or more: {long}"

@@ -119,9 +119,7 @@ SCENES = textwrap.dedent('''
                           angular_velocity=np.c_[20 * np.cos(k), 20 * np.sin(k), 0 * k])
         sim.run(steps=150)
         if timed and backend == "cuda":
-            from rollingdem.bench import _gpu_split
-
-            out["phases"] = _gpu_split(sim, 2, 1, 1)
+            out["phases"] = sim.phase_seconds(repeats=2, rebuilds_per_step=1.0)
         sim.run(steps=150)
         return sim
 
@@ -224,7 +222,7 @@ SCENES = textwrap.dedent('''
     with tempfile.TemporaryDirectory() as folder, mock.patch.object(bench, "_cache_dir", lambda: pathlib.Path(folder)), \
             mock.patch.object(bench, "SETTLE", 20 * bench.DT):
         column = bench.settled_column(200, echo=lambda *a: None, backend="cuda")
-        out["column settled on"] = dict(backend=column.backend, steps=column.step, loops=len(column._state._cuda_loops))
+        out["column settled on"] = dict(backend=column.backend, steps=column.step, loops=len(column._state.backend_data["cuda"]))
     # the rebuild's prefix sum and counting sort at the device's chunk, 64 values a thread (the
     # scenes above take the simulator's 4): 5,000 values take three levels of chunk totals
     from rollingdem.engine.cuda import target as cuda_target, neighbors as gpu_neighbors

@@ -493,7 +493,7 @@ def test_blocked_pair_pass_matches_one_contact_at_a_time(table1, monkeypatch, tm
     their largest value (round-off is 1e-16 per operation), and after 300 more steps of collisions
     to 1e-8 (the chaotic growth of that round-off; any change of the force law would be O(1))."""
     from rollingdem.engine.state import EngineState
-    from rollingdem.engine.step_template import SERIES_ANGLE
+    from rollingdem.physics.contact.frame import SERIES_ANGLE
 
     blocked = cluster(table1, n_side=7, rolling="epsd", fast_spin=3000.0)  # 6e-3 rad per step
     assert 3000.0 * blocked.dt * 0.5 > SERIES_ANGLE  # so some contacts do take the scalar lane

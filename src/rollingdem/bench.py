@@ -195,93 +195,6 @@ def _contacts_per_particle(sim) -> tuple[float, float]:
     return (2 * pairs + walls) / n, 2 * cl.size / n
 
 
-class _Phases:
-    """Each pass of the step as a call on the present state of ``sim`` (the timings overwrite the
-    contacts' rows, the forces and, for the neighbor search, the list: ``restore`` puts them back)."""
-
-    def __init__(self, sim):
-        from rollingdem.engine.mesh_passes import build_mesh_candidates
-        from rollingdem.engine.neighbors import rebuild_neighbor_list
-
-        st = sim._state
-        self.state = st
-        kernel = sim.engine_module()
-        st.energy_for(kernel)
-        gravity = np.asarray(sim.gravity)
-        dt, skin, pp = sim.dt, sim.skin, sim.pair_parameters()
-        particles, walls, lists, scratch = st.records()
-        self.saved = [(owner, name, getattr(owner, name).copy())
-                      for owner, names in ((st, ("whist", "wtouch", "wall_load", "energy", "f", "t", "contacts",
-                                                 "x_ref")),
-                                           (st.meshes, ("slot_triangle", "history", "load", "candidate_start",
-                                                        "candidates", "candidate_gap", "built")),
-                                           (st.contact_list, ("pool", "contact_row", "groups", "start", "j", "i",
-                                                              "tr_start", "tr_k")))
-                      for name in names]
-        serial = st.serial()  # the paths the engine takes
-        pair_forces = kernel.pair_forces_serial if serial else kernel.pair_forces
-        gather = kernel.gather_serial if serial else kernel.gather
-        kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
-        no_walls = walls._make(a[:0] for a in walls)
-
-        self.pair = lambda: pair_forces(dt, pp, particles, lists, scratch)
-        self.gather_walls = lambda: gather(dt, 0.0, gravity, pp, particles, walls, lists, 0.5 * skin)
-        self.gather_plain = lambda: gather(dt, 0.0, gravity, pp, particles, no_walls, lists, 0.5 * skin)
-        self.kick = lambda: kick_drift(0.0, particles, 0.5 * skin)
-        self.rebuild = lambda: rebuild_neighbor_list(st.x, st.radius, skin, st.ids, st.fixed, st.image, st.x_ref, lists)
-        self.mesh_candidates = lambda: build_mesh_candidates(st.x, st.radius, skin, walls)
-
-    def restore(self) -> None:
-        for owner, name, arr in self.saved:
-            getattr(owner, name)[...] = arr
-
-
-def _seconds_per_call(fn, repeats: int, blocks: int = 5) -> float:
-    """The fastest of ``blocks`` blocks of ``repeats`` calls, per call (on a shared machine the
-    fastest block is the one least disturbed by other work), after one call untimed."""
-    fn()
-    best = math.inf
-    for _ in range(blocks):
-        tic = time.perf_counter()
-        for _ in range(repeats):
-            fn()
-        best = min(best, (time.perf_counter() - tic) / repeats)
-    return best
-
-
-def _split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
-    """Seconds per step of each phase, each timed on its own on the present state."""
-    ph = _Phases(sim)
-    split = {"contact forces": _seconds_per_call(ph.pair, repeats)}
-    gather_walls = _seconds_per_call(ph.gather_walls, repeats)
-    gather_plain = _seconds_per_call(ph.gather_plain, repeats)
-    split["walls"] = max(gather_walls - gather_plain, 0.0)
-    if sim._state.meshes.n_triangles:  # the mesh candidates are built with each neighbor list
-        split["walls"] += _seconds_per_call(ph.mesh_candidates, repeats) * rebuilds / max(steps, 1)
-    split["integration and gathering"] = gather_plain + _seconds_per_call(ph.kick, repeats)
-    split["neighbor search"] = _seconds_per_call(ph.rebuild, repeats) * rebuilds / max(steps, 1)
-    ph.restore()  # the timing calls must leave the state as it was
-    return split
-
-
-def _gpu_split(sim, repeats: int, rebuilds: int, steps: int) -> dict:
-    """Seconds per step of each phase on the GPU (``CudaStepLoop.phase_seconds``), named as the
-    CPU's (``_split``), and the host's share: its time to launch a step's kernels, which the
-    device's work overlaps (a step is bound by the host where it is the larger), and the step's
-    synchronisation, the read of its flag counts."""
-    st = sim._state
-    kernel = sim.engine_module()
-    st.energy_for(kernel)
-    seconds = st.step_loop(kernel).phase_seconds(repeats, *st.kernel_args(sim.dt, sim.gravity, sim.skin,
-                                                                            sim.pair_parameters()))
-    return {"contact forces": seconds["pairs"],
-            "walls": max(seconds["gather"] - seconds["gather without walls"], 0.0),
-            "integration and gathering": seconds["gather without walls"],
-            "neighbor search": seconds["rebuild"] * rebuilds / max(steps, 1),
-            "host launches (overlapped)": seconds["launch"],
-            "flag read (synchronisation)": seconds["flag read"]}
-
-
 def _force_pass_costs(sims: dict, rounds: int) -> dict:
     """Seconds per step of the contact-force and wall passes of each simulation, per round.
 
@@ -289,7 +202,7 @@ def _force_pass_costs(sims: dict, rounds: int) -> dict:
     slow spells, which last from milliseconds to seconds, fall on all of them alike. In a round
     each pass of each simulation is timed ``FORCE_PASS_CALLS`` times and its fastest call counts;
     the wall pass is a gather with the walls less one without them."""
-    phases = {name: _Phases(sim) for name, sim in sims.items()}
+    phases = {name: sim.passes() for name, sim in sims.items()}
     for ph in phases.values():  # one untimed call of each
         ph.pair(), ph.gather_walls(), ph.gather_plain()
     costs = {name: [] for name in sims}
@@ -375,9 +288,8 @@ def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="
     state_bytes = sum(a.nbytes for owner in (st, st.contact_list, st.meshes) for a in vars(owner).values()
                       if isinstance(a, np.ndarray))
     steps_on = sim._state.governor().steps_on
-    if sim.backend != "cpu":
-        note = (note + "; " if note else "") + (f"on the GPU ({sim.backend}): each phase timed apart on a "
-                                                "copy of the state, the host's launches overlapping the device's work")
+    if sim.backend_info.note():
+        note = (note + "; " if note else "") + sim.backend_info.note()
     elif set(steps_on) - {threads}:  # the governor took threads away while other processes were busy
         shares = ", ".join(f"{k} thread{'s' if k > 1 else ''} for {s} steps"
                            for k, s in sorted(steps_on.items(), reverse=True))
@@ -385,19 +297,10 @@ def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="
     return BenchResult(scene=scene, model=model, particles=n, steps=steps, threads=threads, wall_s=wall,
                        particle_steps_per_s=n * steps / wall, compile_s=compile_s, contacts_per_particle=contacts,
                        neighbors_per_particle=neighbors, rebuilds=rebuilds,
-                       split_s_per_step=(_split if sim.backend == "cpu" else _gpu_split)(sim, split_repeats, rebuilds,
-                                                                                         steps),
+                       split_s_per_step=sim.phase_seconds(split_repeats, rebuilds / max(steps, 1)),
                        peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
                        state_bytes_per_particle=state_bytes / n, note=note,
-                       device_memory_bytes_per_particle=_device_bytes(sim) / n)
-
-
-def _device_bytes(sim) -> int:
-    """The bytes of the arrays the GPU's step loop held on the device at its last run: the records
-    and the rebuild's (0 on the CPU)."""
-    if sim.backend == "cpu":
-        return 0
-    return max(loop.device_bytes for loop in sim._state._cuda_loops.values())
+                       device_memory_bytes_per_particle=sim.device_memory_bytes / n)
 
 
 def _timed_on(sim, backend: str, steps: int, particles: int) -> tuple[float, float, int]:
@@ -405,10 +308,10 @@ def _timed_on(sim, backend: str, steps: int, particles: int) -> tuple[float, flo
     ``backend``: on the GPU the kernels compile at the untimed first step, which is timed apart."""
     from rollingdem import ContactModel
 
-    if backend == "cpu":
+    sim.backend = backend
+    if sim.backend_info.on_host:
         compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
         return (compile_s, *_time_run(sim, steps))
-    sim.backend = backend
     tic = time.perf_counter()
     _warm_up(sim)
     compile_s = time.perf_counter() - tic
@@ -672,13 +575,13 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
     unknown = [s for s in scenes if s not in SCENES]
     if unknown:
         raise ParameterError(f"scene = {', '.join(unknown)} is not known: allowed are {', '.join(SCENES)}")
-    from rollingdem.engine.cuda.target import check_backend
+    from rollingdem.engine.backends import BACKENDS, backend as find_backend
 
     other = [s for s in scenes if s not in GPU_SCENES]
-    if backend != "cpu" and other:
+    if backend in BACKENDS and not BACKENDS[backend].on_host and other:
         raise ParameterError(f"scene = {', '.join(other)} is not timed on backend {backend!r}: allowed there are "
                              f"{', '.join(GPU_SCENES)}")
-    check_backend(backend)
+    find_backend(backend)
     if particles is not None and (isinstance(particles, bool) or not isinstance(particles, int) or particles < 1):
         raise ParameterError(f"particles = {particles!r} is not allowed: must be an integer >= 1")
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):

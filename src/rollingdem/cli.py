@@ -74,7 +74,7 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
     try:
         spec = casefile.load_case(case if case is not None else casefile.default_case_path())
         if backend is not None:
-            from rollingdem.engine.cuda.target import check_backend
+            from rollingdem.engine.backends import check_backend
 
             spec.backend = check_backend(backend, "--backend")
         casefile.run_case(spec, out=out, progress=progress, echo=typer.echo)
@@ -92,7 +92,7 @@ def _set_backend(backend):
         return
     import os
 
-    from rollingdem.engine.cuda.target import check_backend
+    from rollingdem.engine.backends import check_backend
 
     try:
         os.environ["ROLLINGDEM_BACKEND"] = check_backend(backend, "--backend")

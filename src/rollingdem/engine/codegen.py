@@ -1,5 +1,6 @@
-"""The compiled engine of a contact law: the template ``step_template.py`` with the law's compiled
-functions and row layout filled in, written to the kernel cache and imported.
+"""The compiled engine of a contact law: the step loop's template (``rollingdem.engine.template``,
+its parts in order) with the law's compiled functions and row layout filled in, written to the
+kernel cache and imported.
 
 One module per combination of sub-models, rolling ``kernel_modes`` and energy switch, named by a
 hash of its sources, with a serial copy of the step loop (``advance_serial``): docs/architecture.md,
@@ -43,14 +44,14 @@ def kernel_cache_dir() -> Path:
 
 
 def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = False) -> str:
-    """The template with ``contact``'s functions, layout and switches filled in."""
-    from rollingdem.engine import step_template
-
-    template = Path(step_template.__file__).read_text()
+    """The template's parts, in order, with ``contact``'s functions, layout and switches filled in
+    and the imports between parts left out (the module defines their names itself)."""
     layout = contact.layout()
     out = []
-    for line in template.splitlines():
+    for line in "".join(part.read_text() for part in template_files()).splitlines():
         tag = line.rsplit("# @@", 1)[1].strip() if "# @@" in line else ""
+        if tag == "PART":
+            continue
         if tag and tag.isupper() and tag != "SERIAL_COPY":
             if tag in _ALIASES:
                 module, func = getattr(contact, tag.lower()).compiled_function()
@@ -65,6 +66,20 @@ def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = Fals
                 line = f"{tag} = {layout[tag]}"
         out.append(line)
     return "\n".join(out + _serial_copies(out)) + "\n"
+
+
+def template_files() -> list[Path]:
+    """The files of the step loop's template, in the order the engine module takes them."""
+    from rollingdem.engine import template
+
+    return [Path(template.__file__).with_name(f"{part}.py") for part in template.PARTS]
+
+
+def template_modules() -> set[str]:
+    """The template's parts as module names."""
+    from rollingdem.engine import template
+
+    return {f"rollingdem.engine.template.{part}" for part in template.PARTS}
 
 
 def engine_module(contact, track_energy: bool = False, serial: bool | None = None, bonded_pairs: bool = False):
@@ -95,7 +110,7 @@ def _dependency_hash(contact, source: str) -> str:
     import numba
 
     h = hashlib.sha256(source.encode())
-    names = {sub.compiled_function()[0] for sub in contact.submodels} | {"rollingdem.engine.step_template"}
+    names = {sub.compiled_function()[0] for sub in contact.submodels} | template_modules()
     for name in sorted(_package_imports(names)):
         module = sys.modules[name] if name in sys.modules else importlib.import_module(name)
         h.update(inspect.getsource(module).encode())

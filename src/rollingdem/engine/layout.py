@@ -18,6 +18,11 @@ STATUS_TOO_FAST = 2  # a particle would move more than skin/2 in one step
 STATUS_MESH_CAPACITY = 3  # the mesh candidate list outgrew its arrays: grow them to info[I_NEEDED]
 STATUS_MESH_GRID_CAPACITY = 4  # the triangle grid's entries outgrew their array: grow it to info[I_NEEDED]
 
+# what the gather does after a particle's forces (its ``kick``, a float the compiler folds): nothing
+# (forces evaluated alone), the step's closing half kick, or that and the next step's opening kick
+# and drift (one pass for the two, docs/architecture.md, "The step")
+KICK_NONE, KICK_CLOSE, KICK_CLOSE_AND_DRIFT = 0.0, 1.0, 2.0
+
 #: contacts one sphere can hold with triangle meshes at once (one per touched surface feature: 3 in
 #: the corner of a box); a sphere that would need more stops the run with an error
 MESH_SLOTS = 6

@@ -91,7 +91,7 @@ def build_mesh_candidates(x, radius, skin, walls):
     when a mesh moves or R_max + skin changed; a sphere tests the triangles of its own cell by
     their exact distance, so the cost grows with the triangles near spheres, not with all of them.
     ``walls.candidate_gap[i]``: the least distance from sphere i's centre to its candidates, less
-    R_i (``step_template.mesh_contacts`` skips a sphere that cannot have reached them since).
+    R_i (``mesh_contacts`` of the step loop skips a sphere that cannot have reached them since).
     Returns (0, entries), or (1, entries needed) when ``walls.candidates`` is too short, or (2,
     entries needed) when ``walls.grid_items`` is (nothing else is changed then)."""
     n = x.shape[0]

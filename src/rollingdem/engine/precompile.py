@@ -58,6 +58,7 @@ def signatures(module) -> dict:
     import numba
 
     from rollingdem.engine.state import EngineState
+    from rollingdem.engine.layout import KICK_CLOSE
     from rollingdem.physics.records import N_INPUTS, WALL_GEOMETRY_SIZE, WALL_PLANE
 
     st = EngineState(module.HISTORY_SIZE)
@@ -65,7 +66,7 @@ def signatures(module) -> dict:
     st.append_particles(x=np.array([[0.0, 0.0, 0.01]]), radius=np.array([0.01]), mass=np.array([1e-3]),
                         inertia=np.array([4e-8]))
     st.energy_for(module)
-    dt, kick, half_skin, skin = 1e-6, 1.0, 1e-3, 2e-3
+    dt, kick, half_skin, skin = 1e-6, KICK_CLOSE, 1e-3, 2e-3
     pp = np.zeros((1, 1, module.N_PARAMS))
     particles, walls, lists, scratch = st.records()
     gather = (dt, kick, np.zeros(3), pp, particles, walls, lists, half_skin)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from rollingdem.engine import layout  # SERIAL_BELOW read at the call: a test sets it
+from rollingdem.engine.backends import BACKENDS
 from rollingdem.errors import SimulationError
 from rollingdem.physics.records import ENERGY_CHANNELS, WALL_LOAD_SIZE
 from rollingdem.engine.layout import CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, Scratch, block_columns
@@ -43,8 +44,8 @@ class EngineState:
 
     def __init__(self, history_size: int):
         self.history_size = history_size
-        self.backend = "cpu"  # or "cuda": the step loop runs on the GPU (rollingdem.engine.cuda.step_loop)
-        self._cuda_loops = {}
+        self.backend = BACKENDS["cpu"]  # where the step loop runs (rollingdem.engine.backends)
+        self.backend_data = {}  # what a backend keeps with the state (the GPU's step loops), by its name
         self._blocks = self._lanes = None  # scratch of the pair pass, see contact_blocks
         self._one_material = None  # (mat, whether all particles are of one material), see contact_blocks
         for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL):  # the arrays, from the schema
@@ -274,7 +275,7 @@ class EngineState:
         fresh = EngineState.from_arrays(arrays, h)
         names = self.meshes.names
         for key, value in fresh.__dict__.items():
-            if key not in ("_governor", "_blocks", "_lanes"):
+            if key not in ("_governor", "_blocks", "_lanes", "backend", "backend_data"):
                 setattr(self, key, value)
         self.meshes.names = names
         self.info[I_FORCES_VALID] = 0
@@ -282,7 +283,7 @@ class EngineState:
 
     # --- running -------------------------------------------------------------------------------
     def contact_blocks(self):
-        """The per-thread block buffers of the pair pass (``step_template.pair_rows``): (threads, columns
+        """The per-thread block buffers of the pair pass (``pair_rows``, ``engine/template/pairs.py``): (threads, columns
         x CONTACT_BLOCK) floats and (threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK) lane indices (the
         block's entries and a tile's candidate entries), about 38 KB per thread;
         made again when the number of Numba threads changes. Scratch space, never part of the state.
@@ -341,19 +342,29 @@ class EngineState:
                 governor.done(done)
                 remaining -= done
                 self.steps_since_sort += done
-                if self.info[I_STATUS] == STATUS_CAPACITY:
-                    self.grow(int(self.info[I_NEEDED]))
-                elif self.info[I_STATUS] == STATUS_MESH_CAPACITY:
-                    self.meshes.grow(int(self.info[I_NEEDED]))
-                elif self.info[I_STATUS] == STATUS_MESH_GRID_CAPACITY:
-                    self.meshes.grow_grid(int(self.info[I_NEEDED]))
-                elif self.info[I_STATUS] == STATUS_TOO_FAST:
+                if self._make_room():
+                    continue
+                if self.info[I_STATUS] == STATUS_TOO_FAST:
                     if self.meshes.n_triangles and self.meshes.mesh_error.any():
                         return nsteps - remaining, self.meshes.error_message(self.ids)
                     return nsteps - remaining, self._too_fast_message(dt, skin)
         finally:
             governor.close()
         return nsteps, None
+
+    def _make_room(self) -> bool:
+        """Grow the arrays the last call of the step loop stopped for (the neighbor list, the mesh
+        candidates, the triangle grid) to ``info[I_NEEDED]``; False if it stopped for none of them."""
+        status, needed = self.info[I_STATUS], int(self.info[I_NEEDED])
+        if status == STATUS_CAPACITY:
+            self.grow(needed)
+        elif status == STATUS_MESH_CAPACITY:
+            self.meshes.grow(needed)
+        elif status == STATUS_MESH_GRID_CAPACITY:
+            self.meshes.grow_grid(needed)
+        else:
+            return False
+        return True
 
     def energy_for(self, kernel):
         """Allocate the energy sums (zero) for a kernel that adds to them: without, it would write
@@ -374,16 +385,8 @@ class EngineState:
         return self.n < layout.SERIAL_BELOW or numba.get_num_threads() == 1
 
     def step_loop(self, kernel):
-        """The kernel's step loop for this scene: ``advance_serial`` or ``advance`` (threads), or
-        on the GPU the ``CudaStepLoop`` of the kernel's functions."""
-        if self.backend == "cuda":
-            loop = self._cuda_loops.get(kernel.__name__)
-            if loop is None:
-                from rollingdem.engine.cuda.step_loop import CudaStepLoop
-
-                loop = self._cuda_loops[kernel.__name__] = CudaStepLoop(kernel)
-            return loop
-        return kernel.advance_serial if self.serial() else kernel.advance
+        """The kernel's step loop for this scene on its backend (``rollingdem.engine.backends``)."""
+        return self.backend.step_loop(self, kernel)
 
     def _too_fast_message(self, dt, skin):
         bad = ~(np.isfinite(self.f).all(axis=1) & np.isfinite(self.t).all(axis=1))
@@ -413,13 +416,7 @@ class EngineState:
         while True:
             self.info[I_FORCES_VALID] = 0
             self.step_loop(kernel)(0, *self.kernel_args(dt, gravity, skin, pair_params))
-            if self.info[I_STATUS] == STATUS_CAPACITY:
-                self.grow(int(self.info[I_NEEDED]))
-            elif self.info[I_STATUS] == STATUS_MESH_CAPACITY:
-                self.meshes.grow(int(self.info[I_NEEDED]))
-            elif self.info[I_STATUS] == STATUS_MESH_GRID_CAPACITY:
-                self.meshes.grow_grid(int(self.info[I_NEEDED]))
-            else:
+            if not self._make_room():
                 break
         cl = self.contact_list  # grown perhaps: the arrays are new
         (cl.pool[:total], cl.contact_row[:total], cl.groups[:], self.whist[:], self.energy[:], self.bond_state[:],

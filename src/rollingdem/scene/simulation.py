@@ -27,7 +27,7 @@ from rollingdem.scene.materials import Material, MaterialTable
 from rollingdem.physics.timestep import SPRING_FRACTION
 from rollingdem.scene.mesh import MeshWall, TriangleMesh
 from rollingdem.scene.walls import INACTIVE, Wall, wall_from_dict
-from rollingdem.engine.cuda.target import check_backend
+from rollingdem.engine.backends import backend as find_backend, check_backend
 
 def default_backend() -> str:
     """The backend of a Simulation not told one: ``ROLLINGDEM_BACKEND``, else ``"cpu"`` (how
@@ -100,11 +100,16 @@ class Simulation:
     # --- scene ---------------------------------------------------------------------------------
     @property
     def backend(self) -> str:
-        return self._state.backend
+        return self._state.backend.name
 
     @backend.setter
     def backend(self, value):
-        self._state.backend = check_backend(value)
+        self._state.backend = find_backend(value)
+
+    @property
+    def backend_info(self):
+        """The backend itself (``rollingdem.engine.backends.Backend``): what it is and can do."""
+        return self._state.backend
 
     @property
     def gravity(self) -> tuple[float, float, float]:
@@ -786,14 +791,34 @@ class Simulation:
         """The compiled engine module this simulation steps with (``rollingdem.engine.codegen``)."""
         st = self._state
         bonded_pairs = bool(len(st.bond_pairs))
-        # the GPU steps with the module's functions, not its CPU step loop: nothing to compile ahead
-        serial = None if st.backend == "cuda" else st.serial()
+        serial = st.backend.serial_step_loop(st)  # the CPU step loop to compile ahead, if the backend runs one
         key = (id(self.contact), self.track_energy, serial, bonded_pairs)
         held = self._modules.get(key)
         if held is None or held[0] is not self.contact:
             held = self._modules[key] = (self.contact, engine_module(self.contact, self.track_energy, serial=serial,
                                                                      bonded_pairs=bonded_pairs))
         return held[1]
+
+    def phase_seconds(self, repeats: int = 20, rebuilds_per_step: float = 0.0) -> dict[str, float]:
+        """Seconds per step of each phase of a step on the present state and backend (contact
+        forces, walls, integration and gathering, neighbor search; a backend may add its own), each
+        timed on its own, the fastest of 5 blocks of ``repeats`` calls; the neighbor search counts
+        ``rebuilds_per_step`` times. The state is left as it was."""
+        st = self._state
+        return st.backend.phase_seconds(st, self.engine_module(), (self.dt, self.gravity, self.skin,
+                                                                   self.pair_parameters()), repeats, rebuilds_per_step)
+
+    def passes(self):
+        """Each pass of the step as a call of its own on the present state (``engine.phases.Passes``,
+        on the CPU), to time them one against another."""
+        from rollingdem.engine.phases import Passes
+
+        return Passes(self._state, self.engine_module(), self.dt, self.gravity, self.skin, self.pair_parameters())
+
+    @property
+    def device_memory_bytes(self) -> int:
+        """The bytes the backend held on its device at the last run (0 on the CPU)."""
+        return self._state.backend.device_bytes(self._state)
 
     def dissipated_energy(self) -> dict[str, float]:
         """Energy (J) dissipated while ``track_energy`` was on, by normal damping, sliding, rolling

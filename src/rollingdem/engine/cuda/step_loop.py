@@ -1,6 +1,6 @@
 """The step loop on a CUDA GPU (``Simulation(backend="cuda")``, docs/gpu.md).
 
-The same step as the CPU engine's ``advance`` (``rollingdem.engine.step_template``), with its passes as
+The same step as the CPU engine's ``advance`` (``rollingdem.engine.template.loop``), with its passes as
 CUDA kernels around the very functions the CPU compiles from the same generated module: the contact
 laws, the pair row, the gather, the walls, the bonds, the integrator. One physics source; only the
 driving differs:
@@ -31,7 +31,7 @@ import numpy as np
 
 from rollingdem.engine.cuda import target as cuda_target
 from rollingdem.engine.cuda import neighbors as gpu_neighbors
-from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST, STATUS_TOO_FAST
+from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST, KICK_CLOSE, KICK_CLOSE_AND_DRIFT, KICK_NONE, STATUS_TOO_FAST
 from rollingdem.engine.neighbors import index_list, put_entry_history
 
 #: what a kernel needs besides the records; the flags count particles past skin/2 and too fast
@@ -140,7 +140,7 @@ class CudaStepLoop:
                 if not rebuild(skin, dev[0], dev[1], dev[2], info):
                     return
                 # as in ``advance``: a fresh bond adds no increment in this evaluation (dt 0)
-                _, fast = forces(0.0, 0.0, False)
+                _, fast = forces(0.0, KICK_NONE, False)
                 info[I_TOO_FAST] = fast
                 info[I_NEED_REBUILD] = 0
                 info[I_FORCES_VALID] = 1
@@ -161,7 +161,7 @@ class CudaStepLoop:
                 drift = step + 1 < nsteps
                 # with the next step's drift (in the gather) the walls move, unless a particle was
                 # too fast: then the host undoes the drift, as ``advance`` does
-                exceed, fast = forces(dt, 2.0 if drift else 1.0, drift)
+                exceed, fast = forces(dt, KICK_CLOSE_AND_DRIFT if drift else KICK_CLOSE, drift)
                 info[I_NEED_REBUILD] = exceed
                 info[I_TOO_FAST] = fast
                 info[I_STEPS_DONE] = step + 1

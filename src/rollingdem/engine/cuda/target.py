@@ -21,8 +21,6 @@ import numpy as np
 
 from rollingdem.errors import ParameterError
 
-#: where a Simulation's steps run (``Simulation(backend=...)``)
-BACKENDS = ("cpu", "cuda")
 #: compute capabilities the PTX check compiles for: A100 (8.0) and H100/H200 (9.0)
 PTX_TARGETS = ((8, 0), (9, 0))
 INSTALL_HINT = 'install the GPU extra: pip install "rollingdem[cuda]"'
@@ -65,16 +63,6 @@ def require():
         raise ParameterError(f"backend 'cuda' has no GPU to run on: {why}; it needs an NVIDIA GPU with its "
                              "driver, or NUMBA_ENABLE_CUDASIM=1 for the slow simulator")
     return cuda
-
-
-def check_backend(value, name: str = "backend") -> str:
-    """``value`` if it names a backend this machine can step on; else one line naming ``name``
-    (an unknown backend, or for ``cuda`` what is missing, ``require``)."""
-    if value not in BACKENDS:
-        raise ParameterError(f"{name} = {value!r} is not allowed: must be one of {', '.join(BACKENDS)}")
-    if value == "cuda":
-        require()
-    return value
 
 
 def _driver_found(cuda) -> bool:

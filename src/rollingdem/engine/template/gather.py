@@ -1,0 +1,203 @@
+"""The gather: per particle its pair terms where it is the second partner, its wall contacts, its
+bonds, gravity, then the kicks (and the next step's drift); and the bonds' own pass.
+
+A part of the step loop's template (``rollingdem.engine.template``).
+"""
+
+import math
+from numba import njit, prange, uint32, uint64
+
+from rollingdem.engine.layout import PERIODIC_BOX as PB
+from rollingdem.engine.integrator import kick_drift_one, next_drift_bound
+from rollingdem.engine.neighbors import minimum_image
+from rollingdem.physics.bonds import BOND_INTACT, parallel_bond
+from rollingdem.engine.template.contact import GATHER_RUN, P_FORCE, P_TORQUE_J, TRACK_ENERGY  # @@PART
+from rollingdem.engine.template.walls import mesh_contacts, wall_contacts  # @@PART
+
+
+@njit(cache=True, inline="always")
+def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
+    """Particle i, its pair terms gathered: walls, gravity; the closing half kick if ``kick`` >= 1.0,
+    and if it is 2.0 the next step's opening kick and drift. Returns (1 if i drifted skin/2 or
+    more from where the list was built, 1 if its next drift would: the skin is too small)."""
+    x, v, w, f, t, mass, inertia = particles.x, particles.v, particles.w, particles.f, particles.t, particles.mass, \
+        particles.inertia
+    if particles.fixed.shape[0] != 0 and particles.fixed[i]:  # it keeps the sum of its pair forces, and stays
+        return 0, 0
+    fx = f[i, 0]
+    fy = f[i, 1]
+    fz = f[i, 2]
+    tx = t[i, 0]
+    ty = t[i, 1]
+    tz = t[i, 2]
+    wres = wall_contacts(i, dt, particles, walls, pair_params)
+    mi = mass[i]
+    fx += wres[0] + mi * gravity[0]
+    fy += wres[1] + mi * gravity[1]
+    fz += wres[2] + mi * gravity[2]
+    tx += wres[3]
+    ty += wres[4]
+    tz += wres[5]
+    if TRACK_ENERGY:
+        particles.energy[i, 0] += wres[6]
+        particles.energy[i, 1] += wres[7]
+        particles.energy[i, 2] += wres[8]
+        particles.energy[i, 3] += wres[9]
+    particles.contacts[i] += wres[10]
+    stop = False
+    if walls.triangles.shape[0] > 0:
+        mres = mesh_contacts(i, dt, particles, walls, pair_params, half_skin)
+        fx += mres[0]
+        fy += mres[1]
+        fz += mres[2]
+        tx += mres[3]
+        ty += mres[4]
+        tz += mres[5]
+        if TRACK_ENERGY:
+            particles.energy[i, 0] += mres[6]
+            particles.energy[i, 1] += mres[7]
+            particles.energy[i, 2] += mres[8]
+            particles.energy[i, 3] += mres[9]
+        particles.contacts[i] += mres[10]
+        stop = walls.mesh_error[i] != 0  # the step stops as for a particle too fast, and says why
+    f[i, 0] = fx
+    f[i, 1] = fy
+    f[i, 2] = fz
+    t[i, 0] = tx
+    t[i, 1] = ty
+    t[i, 2] = tz
+    if kick >= 1.0:
+        a = 0.5 * dt / mi
+        b = 0.5 * dt / inertia[i]
+        v[i, 0] += a * fx
+        v[i, 1] += a * fy
+        v[i, 2] += a * fz
+        w[i, 0] += b * tx
+        w[i, 1] += b * ty
+        w[i, 2] += b * tz
+    step_move = next_drift_bound(dt, v[i, 0], v[i, 1], v[i, 2], fx, fy, fz, mi)
+    exceed = 0
+    fast = 0 if step_move < half_skin and not stop else 1  # NaN: 1
+    # the next step's opening half kick and drift, also when i is too fast (the chunk then stops
+    # and undo_drift takes them back), but not when i is not finite
+    if kick == 2.0 and step_move - step_move == 0.0:
+        exceed = kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, particles.x_ref, particles.fixed, half_skin)
+    return exceed, fast
+
+
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+def bond_forces(lo, hi, dt, particles, box):
+    """Bonds lo..hi-1, each intact one through ``bonds.parallel_bond`` (docs/models.md §1.7): its
+    load row, which the gather adds to its two particles. A bond that breaks gets the mode it broke
+    in (``bond_status``) and a zero load; a broken bond is skipped. Bond b writes row b alone."""
+    x, v, w, radius = particles.x, particles.v, particles.w, particles.radius
+    pairs, state, params, status, load = (particles.bond_pairs, particles.bond_state, particles.bond_parameters,
+                                          particles.bond_status, particles.bond_load)
+    for b in range(lo, hi):
+        if status[b] != BOND_INTACT:
+            continue
+        i = pairs[b, 0]
+        j = pairs[b, 1]
+        dx = x[i, 0] - x[j, 0]
+        dy = x[i, 1] - x[j, 1]
+        dz = x[i, 2] - x[j, 2]
+        if box.shape[0] != 0:
+            dx = minimum_image(dx, box[PB.lx], box[PB.inv_lx])
+            dy = minimum_image(dy, box[PB.ly], box[PB.inv_ly])
+            dz = minimum_image(dz, box[PB.lz], box[PB.inv_lz])
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+        overlap = radius[i] + radius[j] - dist
+        g = (dx / dist, dy / dist, dz / dist, v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+             w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2], radius[i] - 0.5 * overlap, radius[j] - 0.5 * overlap)
+        fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, mode = parallel_bond(state, b, params[b], g, dt)
+        load[b, 0] = fx
+        load[b, 1] = fy
+        load[b, 2] = fz
+        load[b, 3] = tix
+        load[b, 4] = tiy
+        load[b, 5] = tiz
+        load[b, 6] = tjx
+        load[b, 7] = tjy
+        load[b, 8] = tjz
+        status[b] = mode
+
+
+@njit(cache=True, inline="always")
+def gather_bonds(lo, hi, particles):
+    """Particles lo..hi-1: the load of each of their bonds (the force on i, minus it on j, the torque
+    on each), in the ascending order of ``bond_ends``."""
+    f, t, load, start, ends = particles.f, particles.t, particles.bond_load, particles.bond_start, particles.bond_ends
+    for q in range(lo, hi):
+        for e in range(start[q], start[q + 1]):
+            b = ends[e] >> 1
+            if ends[e] & 1 == 0:
+                f[q, 0] += load[b, 0]
+                f[q, 1] += load[b, 1]
+                f[q, 2] += load[b, 2]
+                t[q, 0] += load[b, 3]
+                t[q, 1] += load[b, 4]
+                t[q, 2] += load[b, 5]
+            else:
+                f[q, 0] -= load[b, 0]
+                f[q, 1] -= load[b, 1]
+                f[q, 2] -= load[b, 2]
+                t[q, 0] += load[b, 6]
+                t[q, 1] += load[b, 7]
+                t[q, 2] += load[b, 8]
+
+
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params, half_skin):
+    """Particles lo..hi-1: the pair terms where each is the second partner, subtracted from (F) and
+    added to (T) its row sums in ascending entry order (one flat loop over their transposed
+    entries), then ``gather_one``; returns the counts of its two flags. One function for both
+    drivers: compiled once."""
+    f, t, pool, contact_row, nl_j, tr_k = particles.f, particles.t, lists.pool, lists.contact_row, lists.j, lists.tr_k
+    for m in range(lists.tr_start[lo], lists.tr_start[hi]):
+        k = uint32(tr_k[uint64(m)])
+        row = contact_row[k]
+        if row < 0:
+            continue
+        r = uint64(row)
+        j = uint32(nl_j[k])
+        f[j, 0] -= pool[r, P_FORCE]
+        f[j, 1] -= pool[r, P_FORCE + 1]
+        f[j, 2] -= pool[r, P_FORCE + 2]
+        t[j, 0] += pool[r, P_TORQUE_J]
+        t[j, 1] += pool[r, P_TORQUE_J + 1]
+        t[j, 2] += pool[r, P_TORQUE_J + 2]
+    if particles.bond_start.shape[0] != 0:
+        gather_bonds(lo, hi, particles)
+    nexceed = 0
+    nfast = 0
+    for q in range(lo, hi):
+        exceed, fast = gather_one(uint64(q), dt, kick, gravity, particles, walls, pair_params, half_skin)
+        nexceed += exceed
+        nfast += fast
+    return nexceed, nfast
+
+
+@njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
+def gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin):
+    """``gather_rows`` on runs of ``GATHER_RUN`` particles, shared out among the threads."""
+    n = particles.x.shape[0]
+    nexceed = 0
+    nfast = 0
+    for b in prange((n + GATHER_RUN - 1) // GATHER_RUN):
+        exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, particles, walls,
+                                   lists, pair_params, half_skin)
+        nexceed += exceed
+        nfast += fast
+    return nexceed, nfast
+
+
+@njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
+def gather_serial(dt, kick, gravity, pair_params, particles, walls, lists, half_skin):
+    """``gather`` on the calling thread."""
+    nexceed = nfast = 0
+    for b in range(1):  # lo = b, not a literal 0: see pair_forces_serial
+        nexceed, nfast = gather_rows(b, particles.x.shape[0], dt, kick, gravity, particles, walls, lists, pair_params,
+                                     half_skin)
+    return nexceed, nfast
+
+

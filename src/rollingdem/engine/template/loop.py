@@ -1,0 +1,94 @@
+"""The step loop: velocity Verlet with forces at half-step velocities, the neighbor list rebuilt
+when a particle has moved skin/2, stopping early at a step boundary for room or a particle too
+fast (docs/architecture.md, "The step").
+
+A part of the step loop's template (``rollingdem.engine.template``).
+"""
+
+from numba import njit
+
+from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST
+from rollingdem.engine.integrator import kick_drift, move_walls, undo_drift
+# the engine module's own names for its callers: the serial copy of the step loop calls
+# kick_drift_serial, the GPU's drift kernel kick_drift_range
+from rollingdem.engine.integrator import kick_drift_range, kick_drift_serial  # noqa: F401
+from rollingdem.engine.neighbors import list_rows, rebuild_neighbor_list
+from rollingdem.engine.mesh_passes import build_mesh_candidates, move_meshes
+from rollingdem.engine.template.pairs import pair_forces  # @@PART
+from rollingdem.engine.template.gather import bond_forces, gather  # @@PART
+
+
+@njit(cache=True)
+def _rebuild(particles, walls, lists, skin, info):
+    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.fixed, particles.image,
+                                  particles.x_ref, lists)
+    if total < 0:
+        info[I_STATUS] = STATUS_CAPACITY
+        info[I_NEEDED] = -total
+        return False
+    short, needed = build_mesh_candidates(particles.x, particles.radius, skin, walls)
+    if short:
+        info[I_STATUS] = STATUS_MESH_CAPACITY if short == 1 else STATUS_MESH_GRID_CAPACITY
+        info[I_NEEDED] = needed
+        return False
+    list_rows(particles.x.shape[0], lists.start, lists.i)
+    info[I_REBUILDS] += 1
+    return True
+
+
+@njit(cache=True)  # @@SERIAL_COPY
+def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info):
+    """Advance ``nsteps`` steps (``advance_serial``: the same loop with the ``*_serial`` passes, on the
+    calling thread); stop early at a step boundary with info[I_STATUS] = STATUS_CAPACITY (grow the
+    list to info[I_NEEDED]) or STATUS_TOO_FAST (docs/architecture.md, the step)."""
+    half_skin = 0.5 * skin
+    info[I_STATUS] = 0
+    info[I_STEPS_DONE] = 0
+    if info[I_FORCES_VALID] == 0:
+        info[I_DRIFTED] = 0
+        if not _rebuild(particles, walls, lists, skin, info):
+            return
+        # the pair pass and the gather are called here and in the loop, not through one function
+        # of their own, which would compile the whole kernel once more (1 s of a cold compile)
+        pair_forces(dt, pair_params, particles, lists, scratch)
+        if particles.bond_pairs.shape[0] != 0:
+            # the bonds' load as it is: no motion in this evaluation to add (dt 0), so a fresh bond
+            # starts unloaded and a run resumed after a change of the scene adds nothing twice
+            bond_forces(0, particles.bond_pairs.shape[0], 0.0, particles, lists.box)
+        exceed, fast = gather(dt, 0.0, gravity, pair_params, particles, walls, lists, half_skin)
+        info[I_TOO_FAST] = fast
+        info[I_NEED_REBUILD] = 0
+        info[I_FORCES_VALID] = 1
+    for step in range(nsteps):
+        if info[I_DRIFTED] == 0:
+            if info[I_TOO_FAST] > 0:
+                # even a list built now would not hold for this step: refuse rather than miss contacts
+                info[I_STATUS] = STATUS_TOO_FAST
+                return
+            exceed = kick_drift(dt, particles, half_skin)
+            info[I_NEED_REBUILD] += exceed
+            move_walls(dt, walls)
+            info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
+            info[I_DRIFTED] = 1
+        if info[I_NEED_REBUILD] > 0:
+            if not _rebuild(particles, walls, lists, skin, info):
+                return  # drifted: the call after the arrays grow goes on from here
+            info[I_NEED_REBUILD] = 0
+        drift = step + 1 < nsteps
+        kick = 2.0 if drift else 1.0
+        pair_forces(dt, pair_params, particles, lists, scratch)
+        if particles.bond_pairs.shape[0] != 0:
+            bond_forces(0, particles.bond_pairs.shape[0], dt, particles, lists.box)
+        exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin)
+        info[I_NEED_REBUILD] = exceed
+        info[I_TOO_FAST] = fast
+        info[I_STEPS_DONE] = step + 1
+        info[I_DRIFTED] = 0
+        if drift:
+            if info[I_TOO_FAST] > 0:
+                undo_drift(dt, particles)
+                info[I_STATUS] = STATUS_TOO_FAST
+                return
+            move_walls(dt, walls)  # with the next step's drift, made in the gather
+            info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
+            info[I_DRIFTED] = 1

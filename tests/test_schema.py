@@ -99,3 +99,25 @@ def test_a_simulation_reads_and_writes_a_field_in_the_particles_order():
         sim.particle_field("temperature")
     with pytest.raises(ParameterError, match="field = 'ids' is not allowed: the engine keeps it; settable are x, v"):
         sim.set_particle_field("ids", [0], 5)
+
+
+def test_taking_particles_out_keeps_the_states_backend():
+    """``EngineState.remove`` (an outlet) makes the state anew from its arrays: the backend it
+    steps on and what the backend keeps with it stay (a GPU run must not go on on the CPU)."""
+    from rollingdem.engine.backends import BACKENDS, CpuBackend, register
+
+    class Marked(CpuBackend):
+        name = "cpu-marked"
+
+    register(Marked())
+    try:
+        sim = box_of_spheres(count=12)
+        sim.backend = "cpu-marked"
+        sim._state.backend_data["cpu-marked"] = "kept"
+        gone = np.zeros(12, dtype=bool)
+        gone[:4] = True
+        sim._state.remove(gone)
+        assert sim.backend == "cpu-marked" and sim._state.backend_data == {"cpu-marked": "kept"}
+        assert sim.n_particles == 8
+    finally:
+        BACKENDS.pop("cpu-marked", None)

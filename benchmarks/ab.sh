@@ -2,7 +2,8 @@
 # A/B speed of this checkout against another commit's, alternating in each round, on any scene of
 # `rollingdem bench` (same machine, same state: both read the bench's disk cache of settled scenes).
 # usage: BASE=DIR benchmarks/ab.sh WORKDIR ROUNDS [rollingdem bench options...]
-#   BASE: a checkout of the other commit (git worktree add DIR COMMIT), run with its own kernel cache
+#   BASE: a checkout of the other commit (git worktree add DIR COMMIT), run with its own kernel cache;
+#   both read the settled scenes from WORKDIR/bench (copy a settled column there to skip settling)
 # Prints each run's particle-steps/s and, at the end, each round's ratio (this / base) and their median.
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
@@ -11,7 +12,7 @@ work="$1"; rounds="$2"; shift 2
 mkdir -p "$work"
 rate() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['results'][0]['particle_steps_per_s'])" "$1"; }
 for r in $(seq "$rounds"); do
-  PYTHONPATH="$here/src" python3 -m rollingdem.cli bench "$@" --json "$work/this_r$r.json" > /dev/null
+  ROLLINGDEM_CACHE_DIR="$work/this-kernels" PYTHONPATH="$here/src" python3 -m rollingdem.cli bench "$@" --json "$work/this_r$r.json" > /dev/null
   ROLLINGDEM_CACHE_DIR="$work/base-kernels" PYTHONPATH="$BASE/src" python3 -m rollingdem.cli bench "$@" \
     --json "$work/base_r$r.json" > /dev/null
   echo "round $r this $(rate "$work/this_r$r.json") base $(rate "$work/base_r$r.json")"

@@ -121,3 +121,30 @@ def test_taking_particles_out_keeps_the_states_backend():
         assert sim.n_particles == 8
     finally:
         BACKENDS.pop("cpu-marked", None)
+
+
+def test_the_step_loops_record_types_pickle_by_reference():
+    """Numba's disk cache keys each compiled function by its argument types and pickles them; a
+    record class that plain pickle cannot find by its module and name is pickled by value and
+    never matches in the next process, so every process would compile the step loop anew (30 s
+    per contact law). The declared schema's particle and wall record types are their module's
+    attributes; a field declared at run time gives types pickled by value, which a process that
+    does not declare it can still read."""
+    import pickle
+
+    from numba import typeof
+    from numba.core import serialize
+
+    from rollingdem.engine import schema
+
+    particles, walls = EngineState(6).records()[:2]
+    for record in (particles, walls):
+        assert pickle.loads(pickle.dumps(type(record))) is type(record)
+        assert pickle.loads(pickle.dumps(typeof(record))) == typeof(record)
+    assert type(particles) is schema.ParticleArrays and type(walls) is schema.WallArrays
+    with SCHEMA.declared(TEMPERATURE):
+        declared = EngineState(6).records()[0]
+        assert type(declared) is not schema.ParticleArrays
+        with pytest.raises(pickle.PicklingError):
+            pickle.dumps(type(declared))  # not findable by name: numba's pickler takes it by value
+        assert pickle.loads(serialize.dumps(typeof(declared))) == typeof(declared)

@@ -210,3 +210,11 @@ class Schema:
 
 
 SCHEMA = Schema(PARTICLE, BOND, WALL)
+# The declared schema's record types, bound to this module's names: Numba's disk cache keys a
+# compiled function by its argument types and pickles a namedtuple's class by reference only when
+# the class is the module attribute of its name; a class it cannot find so is pickled by value and
+# never matches in the next process, which would compile the whole step loop again in each one. A
+# field declared at run time makes new types, pickled by value: they compile anew in each process
+# (and a cache written with them never breaks a process that does not declare the field).
+ParticleArrays = SCHEMA.particle_record()
+WallArrays = SCHEMA.wall_record()

@@ -175,6 +175,10 @@ class Schema:
     def of(self, per: str) -> list[Field]:
         return self.fields[per]
 
+    def all(self) -> list[Field]:
+        """Every declared field: the particles', the bonds', the walls', the particle-wall ones."""
+        return [f for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL) for f in self.fields[per]]
+
     def declare(self, field: Field) -> None:
         """Add a field (its name new): every state made afterwards has it."""
         if any(f.name == field.name for fields in self.fields.values() for f in fields):

@@ -48,9 +48,8 @@ class EngineState:
         self.backend_data = {}  # what a backend keeps with the state (the GPU's step loops), by its name
         self._blocks = self._lanes = None  # scratch of the pair pass, see contact_blocks
         self._one_material = None  # (mat, whether all particles are of one material), see contact_blocks
-        for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL):  # the arrays, from the schema
-            for field in SCHEMA.of(per):
-                setattr(self, field.name, field.rows(0, history_size))
+        for field in SCHEMA.all():  # the arrays, from the schema
+            setattr(self, field.name, field.rows(0, history_size))
         self.bond_start = np.zeros(0, dtype=np.int64)
         self.bond_ends = np.zeros(0, dtype=np.int64)
         self.next_tag = 0
@@ -428,8 +427,7 @@ class EngineState:
     def to_arrays(self) -> dict:
         """The state as named arrays, for a checkpoint: every saved field of the schema, the status
         record, the meshes' and the neighbor list's arrays."""
-        out = {f.name: getattr(self, f.name) for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL)
-               for f in SCHEMA.of(per) if f.saved}
+        out = {f.name: getattr(self, f.name) for f in SCHEMA.all() if f.saved}
         out["info"] = self.info
         out["next_tag"] = np.array(self.next_tag)
         out["periodic_box"] = self.contact_list.box
@@ -449,17 +447,16 @@ class EngineState:
         n = len(arrays["x"])
         walls = len(arrays["wall_kind"])
         count = {PER_PARTICLE: n, PER_BOND: 0, PER_WALL: walls, PER_PARTICLE_WALL: n * walls}
-        for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL):
-            for field in SCHEMA.of(per):
-                if not field.saved:
-                    continue
-                if field.name in arrays:  # an older checkpoint may lack a field: its rows are new ones
-                    value = np.array(arrays[field.name], dtype=field.dtype)
-                else:
-                    value = field.rows(0 if field.lazy else count[per], history_size)
-                if field.lazy and not np.any(value != field.fill):
-                    value = field.rows(0, history_size)
-                setattr(st, field.name, value)
+        for field in SCHEMA.all():
+            if not field.saved:
+                continue
+            if field.name in arrays:  # an older checkpoint may lack a field: its rows are new ones
+                value = np.array(arrays[field.name], dtype=field.dtype)
+            else:
+                value = field.rows(0 if field.lazy else count[field.per], history_size)
+            if field.lazy and not np.any(value != field.fill):
+                value = field.rows(0, history_size)
+            setattr(st, field.name, value)
         st.info = np.array(arrays["info"])
         if "ids" not in arrays:  # a checkpoint from before the re-sorting
             st.ids = np.arange(n, dtype=np.int64)

@@ -28,6 +28,7 @@ from rollingdem.physics.timestep import SPRING_FRACTION
 from rollingdem.scene.mesh import MeshWall, TriangleMesh
 from rollingdem.scene.walls import INACTIVE, Wall, wall_from_dict
 from rollingdem.engine.backends import backend as find_backend, check_backend
+from rollingdem.engine.schema import PER_PARTICLE, SCHEMA
 
 def default_backend() -> str:
     """The backend of a Simulation not told one: ``ROLLINGDEM_BACKEND``, else ``"cpu"`` (how
@@ -634,7 +635,7 @@ class Simulation:
         field = self._particle_field(name)
         if not field.settable:
             raise ParameterError(f"field = {name!r} is not allowed: the engine keeps it; settable are "
-                                 + ", ".join(f.name for f in self._particle_fields() if f.settable))
+                                 + ", ".join(f.name for f in SCHEMA.of(PER_PARTICLE) if f.settable))
         idx = self._state.slots(self._indices(indices))
         array = getattr(self._state, field.name)
         if field.lazy and len(array) != self.n_particles:  # no rows yet: every particle at the fill
@@ -647,14 +648,8 @@ class Simulation:
                                  f"of the {len(idx)} particles") from None
         self._state.info[I_FORCES_VALID] = 0
 
-    @staticmethod
-    def _particle_fields() -> list:
-        from rollingdem.engine.schema import PER_PARTICLE, SCHEMA
-
-        return SCHEMA.of(PER_PARTICLE)
-
     def _particle_field(self, name):
-        fields = {f.name: f for f in self._particle_fields()}
+        fields = {f.name: f for f in SCHEMA.of(PER_PARTICLE)}
         if name not in fields:
             raise ParameterError(f"field = {name!r} is not allowed: the per-particle fields are {', '.join(fields)}")
         return fields[name]

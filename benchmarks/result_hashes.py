@@ -16,6 +16,10 @@ and the energies it tracks):
   R (1 +- 0.2), EPSD with Marshall twisting and energy tracking, poured into a cylinder, 2,000 steps.
 - ``walls``: 1,500 spheres in a cylinder turning about its axis on a rising plate; then the
   cylinder is removed, the plate stopped and gravity tilted, 1,000 steps each.
+- ``hopper``: a turning mesh hopper fed by an inflow, drained by an outlet below it, 400
+  spheres at the start; 3,000 steps, a checkpoint restored, 1,000 more steps.
+- ``bonded``: an x-periodic slab of bonded spheres on a bed of fixed spheres, sheared by a moving
+  plane, 2,000 steps.
 - ``rolling-flat/<model>``: the validation case 1 run of every rolling model (one sphere, 0.3 s).
 
 Every scene runs on each thread count asked for; the hashes must agree across them (the engine is
@@ -106,6 +110,50 @@ def walls() -> dict:
     return {"middle": middle, "end": state_hash(sim)}
 
 
+def hopper() -> dict:
+    import tempfile
+
+    import rollingdem as rd
+
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5)
+    sim.add_material(rd.Material("m", 5e7, 0.3, 2500, friction=0.5, rolling_friction=0.1, restitution=0.6))
+    sim.add_wall(rd.MeshWall.shape("hopper", top_radius=0.06, outlet_radius=0.018, height=0.08, material="m",
+                                   name="hopper", angular_velocity=(0.0, 0.0, 2.0)))
+    sim.insert(rd.CylinderRegion(0.045, 0.08, 0.16), 400, rd.Uniform(0.0035, 0.0045), "m", seed=7,
+              velocity=(0.0, 0.0, -1.5))
+    sim.add_outlet(rd.BoxRegion((-0.1, -0.1, -0.2), (0.1, 0.1, 0.06)), name="out", interval=2e-4)
+    sim.add_inflow(rd.CylinderRegion(0.04, 0.17, 0.22), radius=0.004, material="m", rate=5000, seed=2,
+                   velocity=(0.0, 0.0, -0.5), interval=3e-4)
+    sim.run(steps=3000)
+    middle = state_hash(sim) + json.dumps(sim.boundary_counts(), sort_keys=True)
+    with tempfile.TemporaryDirectory() as folder:
+        sim = rd.Simulation.restore(sim.checkpoint(Path(folder) / "c.npz"))
+    sim.set_wall_velocity("hopper", angular_velocity=(0.0, 0.0, -1.0))
+    sim.run(steps=1000)
+    return {"middle": hashlib.sha256(middle.encode()).hexdigest()[:16],
+            "end": state_hash(sim) + "/" + json.dumps(sim.boundary_counts(), sort_keys=True)}
+
+
+def bonded() -> dict:
+    import rollingdem as rd
+
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="cdt", twisting="marshall"), dt=2e-6,
+                        periodic={"x": (0.0, 0.06)})
+    sim.add_material(rd.Material("m", 5e7, 0.3, 2500, friction=0.5, rolling_friction=0.1, restitution=0.6))
+    r = 0.0025
+    grid = np.array([[(i + 0.5) * 2 * r, (j + 0.5) * 2 * r, 0.0] for i in range(12) for j in range(6)])
+    sim.add_particles(grid, r, "m", fixed=True)
+    slab = np.concatenate([grid + (0.0, 0.0, 2 * r * k) for k in (1, 2, 3)])
+    sim.add_particles(slab, r, "m", allow_overlap=True)
+    sim.add_bonds(rd.ParallelBond(youngs_modulus=5e7, tensile_strength=2e4, cohesion=2e4), gap=1e-6)
+    sim.add_wall(rd.Plane(point=(0.0, 0.0, 7 * r + 1e-6), normal=(0, 0, -1), material="m", name="lid",
+                          velocity=(0.5, 0.0, -0.05)))
+    sim.add_wall(rd.Plane(point=(0.0, -r, 0.0), normal=(0, 1, 0), material="m"))
+    sim.add_wall(rd.Plane(point=(0.0, 12 * r + r, 0.0), normal=(0, -1, 0), material="m"))
+    sim.run(steps=2000)
+    return {"end": state_hash(sim) + "/" + json.dumps(sim.bond_counts(), sort_keys=True)}
+
+
 def rolling_flat(label, model) -> dict:
     """Validation case 1 (``rollingdem.experiments.single_sphere``): the sphere settled 0.2 s on the
     wall, launched at 1 m/s with no spin, 0.3 s of rolling."""
@@ -121,7 +169,7 @@ def rolling_flat(label, model) -> dict:
 def scenes() -> dict:
     from rollingdem.experiments.single_sphere import validation_models
 
-    out = {"collapse": collapse, "slab": slab, "mixture": mixture, "walls": walls}
+    out = {"collapse": collapse, "slab": slab, "mixture": mixture, "walls": walls, "hopper": hopper, "bonded": bonded}
     for label, model in validation_models().items():
         out[f"rolling-flat/{label}"] = (lambda lb=label, m=model: rolling_flat(lb, m))
     return out

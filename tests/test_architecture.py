@@ -405,3 +405,20 @@ def test_the_step_loops_template_is_split_by_pass_and_each_part_is_small():
     assert folder == {f"{part}.py" for part in template.PARTS}
     long = {p.name: n for p in files if (n := len(p.read_text().splitlines())) >= TEMPLATE_PART_LINES}
     assert not long, f"template parts of {TEMPLATE_PART_LINES} lines or more: {long}"
+
+
+#: the most lines ``scene/simulation.py`` may have: a façade that hands each call to a collection
+#: (particles, walls, bonds, boundaries), the schedule, the time-step policy or checkpoints
+SIMULATION_LINES = 400
+
+
+def test_the_simulation_is_a_facade():
+    """``Simulation`` stays a façade: its module is under ``SIMULATION_LINES`` lines and holds no
+    loop over particles, walls or bonds of its own (no ``for`` in a method but the engine's)."""
+    path = SOURCE / "scene" / "simulation.py"
+    lines = len(path.read_text().splitlines())
+    assert lines < SIMULATION_LINES, f"scene/simulation.py has {lines} lines"
+    tree = ast.parse(path.read_text())
+    loops = [getattr(node, "lineno", getattr(getattr(node, "target", None), "lineno", 0)) for node in ast.walk(tree)
+             if isinstance(node, (ast.For, ast.While, ast.comprehension))]
+    assert not loops, f"loops in scene/simulation.py at lines {loops}: they belong in a collection"

@@ -203,7 +203,7 @@ def test_progress_bar_says_compiling_and_leaves_the_compile_out_of_its_rate(tabl
     """The first chunk of a fresh kernel is its compilation: the bar says so, and its time counts
     in neither the steps/s nor the time left (a 30 s compile of 64 steps would show 2 steps/s and
     hours left). A kernel that has run before counts from the first chunk."""
-    from rollingdem.scene.simulation import _Progress
+    from rollingdem.scene.progress import Progress as _Progress
 
     sim = small_scene(table1)
     bar = _Progress(sim, 10_064, "settle")

@@ -30,6 +30,12 @@ def env_switch(name: str, default: bool = True) -> bool:
     return value == "1"
 
 
+def short_repr(value: Any, width: int = 60) -> str:
+    """repr of a user's value, cut to ``width`` characters (for refusals)."""
+    text = repr(value)
+    return text if len(text) <= width else text[:width - 3] + "..."
+
+
 def _fmt(value: Any) -> str:
     return repr(value) if not isinstance(value, float) else f"{value:g}"
 

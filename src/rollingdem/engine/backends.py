@@ -136,3 +136,11 @@ def backend(value, name: str = "backend") -> Backend:
 def check_backend(value, name: str = "backend") -> str:
     """``value``, checked as ``backend`` checks it."""
     return backend(value, name).name
+
+
+def default_backend() -> str:
+    """The backend of a Simulation not told one: ``ROLLINGDEM_BACKEND``, else ``"cpu"`` (how
+    ``rollingdem validate --backend`` reaches the simulations of every experiment and worker)."""
+    import os
+
+    return check_backend(os.environ.get("ROLLINGDEM_BACKEND", "") or "cpu", "ROLLINGDEM_BACKEND")

@@ -177,3 +177,21 @@ def _serial_copies(lines: list[str]) -> list[str]:
         if inside:
             copies.append(_SERIAL_NAME.sub(r"\1_serial(", line.replace("  # @@SERIAL_COPY", "")))
     return copies
+
+
+class EngineModules:
+    """The engine modules one simulation steps with, made once each: by (contact law, whether
+    energy is tracked, the CPU step loop its backend compiles ahead, whether it has bonds)."""
+
+    def __init__(self):
+        self.held = {}
+
+    def module(self, contact, track_energy: bool, state):
+        bonded_pairs = bool(len(state.bond_pairs))
+        serial = state.backend.serial_step_loop(state)  # the CPU step loop to compile ahead, if the backend runs one
+        key = (id(contact), track_energy, serial, bonded_pairs)
+        held = self.held.get(key)
+        if held is None or held[0] is not contact:
+            held = self.held[key] = (contact, engine_module(contact, track_energy, serial=serial,
+                                                            bonded_pairs=bonded_pairs))
+        return held[1]

@@ -643,10 +643,11 @@ def check_case(case: CaseSpec, sim=None):
     the first stage. ``rollingdem check`` and ``rollingdem run`` both call it; returns the
     simulation (``sim`` if given, else a new one)."""
     from rollingdem.errors import check_non_negative, check_positive, check_vector
+    from rollingdem.scene.periodic import check_scene
 
     sim = build_simulation(case) if sim is None else sim
     with _InCase("periodic"):
-        sim._check_periodic_length()
+        check_scene(sim)
     n = sim.n_particles
     in_place = {w.name for w in sim.walls if w.name}
     removed: set[str] = set()

@@ -1,14 +1,19 @@
 """Bonded particles, the user's side: ``ParallelBond`` holds the parameters of Potyondy & Cundall's
 (2004) parallel bond in PFC's ``linearpbond`` form (docs/models.md §1.7) and makes a bond's
-parameter row (``records.BOND_PARAMETERS``); ``Simulation.add_bonds`` makes bonds. The bond's law,
-its compiled update, is ``rollingdem.physics.bonds``.
+parameter row (``records.BOND_PARAMETERS``); ``BondSet`` makes a simulation's bonds
+(``Simulation.add_bonds``) and reads them. The bond's law, its compiled update, is
+``rollingdem.physics.bonds``.
 """
 
 from __future__ import annotations
 
 import math
 
-from rollingdem.errors import ParameterError, check_choice, check_non_negative, check_positive, check_range
+import numpy as np
+
+from rollingdem.errors import ParameterError, check_choice, check_finite, check_non_negative, check_positive, check_range
+from rollingdem.physics.records import BOND_PARAMETERS, BOND_STATE
+from rollingdem.physics.timestep import SPRING_FRACTION
 
 
 class ParallelBond:
@@ -80,3 +85,123 @@ class ParallelBond:
 
     def __repr__(self):
         return "ParallelBond(" + ", ".join(f"{k}={v!r}" for k, v in self.settings().items()) + ")"
+
+
+class BondSet:
+    """The bonds of ``sim``: pairs of engine slots with a parameter row and a state row each."""
+
+    def __init__(self, sim):
+        self.sim = sim
+
+    @property
+    def state(self):
+        return self.sim._state
+
+    def add(self, bond, pairs=None, gap=None) -> int:
+        """``Simulation.add_bonds``."""
+        st = self.state
+        if not isinstance(bond, ParallelBond):
+            raise ParameterError(f"bond = {bond!r} is not allowed: must be a rollingdem.ParallelBond")
+        if (pairs is None) == (gap is None):
+            raise ParameterError(f"pairs = {pairs!r}, gap = {gap!r} is not allowed: give exactly one of pairs "
+                                 "(particle index pairs) and gap (m)")
+        ids = self._pairs_within(check_finite("gap", gap)) if pairs is None else self._pairs_given(pairs)
+        slots = st.slots(ids.ravel()).reshape(-1, 2)
+        key = np.sort(np.concatenate([st.bond_pairs, slots]), axis=1)
+        if len(np.unique(key, axis=0)) < len(key):
+            raise ParameterError("pairs: a pair is bonded twice (in the pairs given, or already): each pair takes one "
+                                 "bond")
+        fixed = st.is_fixed  # a fixed sphere is a partner of infinite mass and inertia
+        mass = np.where(fixed, np.inf, st.mass)
+        inertia = np.where(fixed, np.inf, st.inertia)
+        rows = [bond.parameter_row(st.radius[i], st.radius[j], (mass[i], mass[j]), (inertia[i], inertia[j]))
+                for i, j in slots]
+        st.add_bonds(slots, np.array(rows).reshape(-1, len(BOND_PARAMETERS)))
+        return len(slots)
+
+    def _pairs_within(self, gap: float) -> np.ndarray:
+        """Every pair (as the user numbers particles) whose surface gap is at most ``gap``."""
+        from scipy.spatial import cKDTree
+
+        x, r = self.sim.positions, self.sim.radii
+        reach = 2.0 * float(r.max(initial=0.0)) + gap
+        found = np.array(sorted(cKDTree(x).query_pairs(reach)) if len(x) > 1 and reach > 0 else [],
+                         dtype=np.int64).reshape(-1, 2)
+        if len(found):
+            surface = np.linalg.norm(x[found[:, 0]] - x[found[:, 1]], axis=1) - r[found[:, 0]] - r[found[:, 1]]
+            found = found[surface <= gap]
+        return found
+
+    def _pairs_given(self, pairs) -> np.ndarray:
+        n = self.state.n
+        try:
+            ids = np.asarray(pairs)
+            ok = ids.ndim == 2 and ids.shape[1] == 2 and (ids.size == 0 or np.issubdtype(ids.dtype, np.integer))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ParameterError(f"pairs = {pairs!r} is not allowed: must be a list of [i, j] particle index pairs")
+        ids = ids.astype(np.int64)
+        bad = (ids < 0) | (ids >= n)
+        if bad.any():
+            raise ParameterError(f"pairs: particle {int(ids[bad][0])} is not allowed: the indices run from 0 to "
+                                 f"{n - 1}")
+        same = ids[:, 0] == ids[:, 1]
+        if same.any():
+            raise ParameterError(f"pairs: [{ids[same][0, 0]}, {ids[same][0, 1]}] is not allowed: a bond between "
+                                 "a particle and itself")
+        return ids
+
+    def table(self):
+        """``Simulation.bonds``."""
+        import pandas as pd
+
+        st = self.state
+        ids = st.ids  # slot -> id
+        s = st.bond_state
+        names = np.array(["intact", "tension", "shear"])
+        return pd.DataFrame({
+            "i": ids[st.bond_pairs[:, 0]], "j": ids[st.bond_pairs[:, 1]], "status": names[st.bond_status],
+            "normal_force": s[:, BOND_STATE.normal_force],
+            "shear_force": np.linalg.norm(s[:, [BOND_STATE.shear_x, BOND_STATE.shear_y, BOND_STATE.shear_z]], axis=1),
+            "twisting_moment": s[:, BOND_STATE.twisting_moment],
+            "bending_moment": np.linalg.norm(s[:, [BOND_STATE.bending_x, BOND_STATE.bending_y, BOND_STATE.bending_z]],
+                                             axis=1)})
+
+    def counts(self) -> dict[str, int]:
+        """``Simulation.bond_counts``."""
+        st = self.state
+        if not len(st.bond_pairs):
+            return {}
+        counts = np.bincount(st.bond_status, minlength=3)
+        return {"bonds_intact": int(counts[0]), "bonds_broken_tension": int(counts[1]),
+                "bonds_broken_shear": int(counts[2])}
+
+    def energy(self) -> float:
+        """``Simulation.bond_energy``."""
+        from rollingdem.physics.bonds import bond_energy
+
+        st = self.state
+        return float(sum(bond_energy(st.bond_state, b, st.bond_parameters[b]) for b in range(len(st.bond_pairs))
+                         if st.bond_status[b] == 0))
+
+    def time_step_limits(self) -> list[tuple[str, float]]:
+        """The intact bonds' stiffest mode (docs/models.md §1.7): with K_n, K_s, K_b, K_t its springs,
+        omega^2 = K_n (1/m_i + 1/m_j) (axial), K_s (1/m_i + 1/m_j + R_i^2/I_i + R_j^2/I_j) (shear with
+        rotation), K_b (1/I_i + 1/I_j) (bending), K_t (1/I_i + 1/I_j) (twisting); a tenth of its period."""
+        st = self.state
+        live = st.bond_status == 0
+        if not live.any():
+            return []
+        i, j = st.bond_pairs[live, 0], st.bond_pairs[live, 1]
+        p = st.bond_parameters[live]
+        free = (~st.is_fixed).astype(float)  # a fixed sphere: infinite mass and inertia
+        inv_m = free[i] / st.mass[i] + free[j] / st.mass[j]
+        inv_i = free[i] / st.inertia[i] + free[j] / st.inertia[j]
+        lever = free[i] * st.radius[i] ** 2 / st.inertia[i] + free[j] * st.radius[j] ** 2 / st.inertia[j]
+        omega2 = np.max([p[:, BOND_PARAMETERS.normal_stiffness] * inv_m,
+                         p[:, BOND_PARAMETERS.shear_stiffness] * (inv_m + lever),
+                         p[:, BOND_PARAMETERS.bending_stiffness] * inv_i,
+                         p[:, BOND_PARAMETERS.twisting_stiffness] * inv_i])
+        per = 2.0 * math.pi / math.sqrt(omega2)
+        return [(f"bond period {per:.4g} s / 10", SPRING_FRACTION * per)]

@@ -3,10 +3,11 @@
     sim.add_outlet(rd.BoxRegion((-0.1, -0.1, -0.5), (0.1, 0.1, -0.2)), name="orifice")
     sim.add_inflow(rd.CylinderRegion(0.03, 0.25, 0.3), rate=2000, radius=0.002, material="glass")
 
-Both act at whole steps, every ``interval`` seconds of simulated time (rounded to steps, counted
-from step 0, so a run cut into pieces or restarted from a checkpoint acts at the same steps), between
-kernel calls: removal first, then insertion, then the observers. Their counts go into the time
-series (``TimeSeries``) and into checkpoints.
+Both are operations of the simulation's schedule (``rollingdem.scene.schedule``): they act at
+whole steps, every ``interval`` seconds of simulated time (rounded to steps, counted from step 0, so
+a run cut into pieces or restarted from a checkpoint acts at the same steps), between calls of the
+step loop: removal first, then insertion, then the observers. Their counts go into the time series
+(``TimeSeries``) and into checkpoints. ``Boundaries`` adds them to a simulation and reads them.
 """
 
 from __future__ import annotations
@@ -17,6 +18,9 @@ import warnings
 import numpy as np
 
 from rollingdem.errors import ParameterError, check_non_negative, check_positive, check_vector
+from rollingdem.scene import periodic as periodic_box
+from rollingdem.scene.particles import sphere_mass
+from rollingdem.scene.schedule import INSERT, REMOVE, Operation
 from rollingdem.scene.insertion import BoxRegion, Constant, CylinderRegion, Discrete, Normal, Region, Uniform, as_distribution
 
 DEFAULT_INTERVAL = 1e-3
@@ -70,7 +74,7 @@ def _check_name(what: str, name) -> str | None:
     return name
 
 
-class Boundary:
+class Boundary(Operation):
     """What outlets and inflows share: a region, a name, and the steps they act at."""
 
     kind = ""
@@ -85,10 +89,10 @@ class Boundary:
         """Steps between two actions."""
         return max(1, int(round(self.interval / dt)))
 
-    def next_step(self, step: int, dt: float) -> int:
-        """The first step after ``step`` this boundary acts at."""
-        every = self.every(dt)
-        return (step // every + 1) * every
+    def next_step(self, sim) -> int:
+        """The first step after ``sim.step`` this boundary acts at."""
+        every = self.every(sim.dt)
+        return (sim.step // every + 1) * every
 
     def due(self, step: int, dt: float) -> bool:
         return step > 0 and step % self.every(dt) == 0
@@ -105,6 +109,7 @@ class Outlet(Boundary):
     cumulative (``count``, ``mass``): the discharge rate is the slope of ``mass`` over time."""
 
     kind = "outlet"
+    order = REMOVE
     COLUMNS = ("count", "mass")
 
     def __init__(self, region, name=None, interval=None):
@@ -114,6 +119,17 @@ class Outlet(Boundary):
 
     def inside(self, x: np.ndarray) -> np.ndarray:
         return self.region.contains(x, np.zeros(len(x)))
+
+    def update(self, sim) -> None:
+        """Take out the free particles inside, if due."""
+        st = sim._state
+        if not self.due(sim.step, sim.dt) or st.n == 0:
+            return
+        gone = self.inside(st.x) & ~st.is_fixed
+        if gone.any():
+            self.count += int(gone.sum())
+            self.mass += float(st.mass[gone].sum())
+            st.remove(gone)
 
     def values(self) -> list:
         return [self.count, self.mass]
@@ -136,6 +152,7 @@ class Inflow(Boundary):
     warning the first time). ``count`` and ``mass`` are what it inserted, cumulative."""
 
     kind = "inflow"
+    order = INSERT
     COLUMNS = ("count", "mass", "shortfall")
 
     def __init__(self, region, radius, material, rate=None, mass_rate=None, velocity=None, seed=0, name=None,
@@ -171,6 +188,27 @@ class Inflow(Boundary):
                 "mass_rate": self.mass_rate, "velocity": list(self.velocity), "seed": self.seed, "start": self.start,
                 "count": self.count, "mass": self.mass, "shortfall": self.shortfall, "actions": self.actions,
                 "warned": self.warned}
+
+    def update(self, sim) -> None:
+        """Insert what is due, if due, where it finds room."""
+        if not self.due(sim.step, sim.dt) or sim.time < self.start:
+            return
+        st = sim._state
+        density = sim.materials[self.material].density
+        radii = self.radii_due(sim.time, density)
+        walls = sim.walls
+        sim.wall_set.refresh()
+        reach = 2.0 * float(max(st.radius.max(initial=0.0), self.radius.max_radius))
+        near_x, near_r, _ = periodic_box.with_images(sim.periodic, st.x, st.radius, reach)
+        x = self.place(radii, near_x, near_r, walls)
+        placed = np.isfinite(x[:, 0])
+        if placed.any():
+            r = radii[placed]
+            sim.add_particles(x[placed], r, self.material, velocity=self.velocity, allow_overlap=True)
+            self.count += int(placed.sum())
+            self.mass += float(sphere_mass(density, r).sum())
+        self.actions += 1
+        self.note_shortfall(int((~placed).sum()), sim.time)
 
     def restore_counters(self, d: dict) -> None:
         for key in ("count", "mass", "shortfall", "actions", "warned"):
@@ -242,7 +280,7 @@ class Inflow(Boundary):
             warnings.warn(f"{label} at t = {time:.6g} s: {missing} particle(s) found no room in "
                           f"{self.region!r}; the region is too full for the rate. They are inserted as room frees up "
                           "(the time series' inflow shortfall column counts them); use a larger region or a lower "
-                          "rate", RuntimeWarning, stacklevel=4)
+                          "rate", RuntimeWarning, stacklevel=5)
 
     @classmethod
     def from_description(cls, d: dict) -> "Inflow":
@@ -250,3 +288,78 @@ class Inflow(Boundary):
                      velocity=d["velocity"], seed=d["seed"], name=d["name"], interval=d["interval"], start=d["start"])
         inflow.restore_counters(d)
         return inflow
+
+
+class Boundaries:
+    """The outlets and inflows of ``sim``, kept in its schedule."""
+
+    def __init__(self, sim):
+        self.sim = sim
+
+    @property
+    def outlets(self) -> list:
+        return self.sim.schedule.of(Outlet)
+
+    @property
+    def inflows(self) -> list:
+        return self.sim.schedule.of(Inflow)
+
+    def add_outlet(self, region, name=None, interval=None) -> Outlet:
+        """``Simulation.add_outlet``."""
+        st = self.sim._state
+        outlet = Outlet(region, name, interval)
+        self._check_name(outlet)
+        free = ~st.is_fixed
+        if free.sum() > 1 and outlet.inside(st.x[free]).all():
+            raise ParameterError(f"outlet region {region!r} is not allowed: it contains every free particle (all "
+                                 f"{int(free.sum())}), so it would empty the scene at once; must cover only the way out")
+        for inflow in self.inflows:
+            check_outlet_inflow(outlet, inflow)
+        return self.sim.schedule.add(outlet)
+
+    def add_inflow(self, region, radius, material, rate=None, mass_rate=None, velocity=None, seed=0, name=None,
+                   interval=None, start=None) -> Inflow:
+        """``Simulation.add_inflow``."""
+        sim = self.sim
+        sim.materials.index(material)
+        inflow = Inflow(region, radius, material, rate=rate, mass_rate=mass_rate, velocity=velocity, seed=seed,
+                        name=name, interval=interval, start=sim.time if start is None else start)
+        self._check_name(inflow)
+        periodic_box.check_region_inside(sim.periodic, "inflow", inflow.region)
+        for outlet in self.outlets:
+            check_outlet_inflow(outlet, inflow)
+        return sim.schedule.add(inflow)
+
+    def _check_name(self, new) -> None:
+        if new.name is not None and any(b.name == new.name for b in self.outlets + self.inflows if b.kind == new.kind):
+            raise ParameterError(f"{new.kind} name = {new.name!r} is not allowed: another {new.kind} has it; names "
+                                 "must differ")
+
+    def counts(self) -> dict:
+        """``Simulation.boundary_counts``."""
+        out = {}
+        for group in (self.outlets, self.inflows):
+            for k, b in enumerate(group):
+                out.update(zip(b.columns(b.name or f"#{k}"), b.values()))
+        return out
+
+    def describe(self) -> dict:
+        """What a checkpoint keeps of them."""
+        return {"outlets": [o.describe() for o in self.outlets], "inflows": [i.describe() for i in self.inflows]}
+
+    def restore(self, meta: dict) -> None:
+        """The outlets and inflows a checkpoint kept (``describe``)."""
+        for d in meta.get("outlets", []):
+            self.sim.schedule.add(Outlet.from_description(d))
+        for d in meta.get("inflows", []):
+            self.sim.schedule.add(Inflow.from_description(d))
+
+
+def check_outlet_inflow(outlet, inflow) -> None:
+    """Refuse an outlet that holds the whole inflow region: it would take out all it inserts."""
+    lo, hi = inflow.region.bounds()
+    corners = np.array([[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1]) for c in (lo[2], hi[2])])
+    if outlet.inside(corners).all():
+        raise ParameterError(f"outlet region {outlet.region!r} is not allowed with inflow region {inflow.region!r}: "
+                             "it contains the whole inflow region, so every inserted particle would be taken "
+                             "out at once")

@@ -1,17 +1,45 @@
-"""What runs between steps: ``Observer``, the base of everything a run calls at an interval of
-simulated time (the writers of ``rollingdem.io.observers``, a user's ``Callback``).
+"""What acts between calls of the compiled step loop: the schedule of a simulation.
 
-``Simulation.run`` calls each observer between calls of the compiled step loop, never inside it:
-at the run's start, at every interval (rounded to whole steps), and at its end.
+Everything that happens between steps is an ``Operation``: the scene's outlets and inflows (for
+good, saved in checkpoints) and a run's observers (the writers of ``rollingdem.io.observers``, a
+user's ``Callback``; for that run). ``Simulation.run`` steps to the next step any operation is due
+at, then lets each act, in the order of their ``order`` (taking out, then putting in, then
+observing) and, within one order, in the order they were added, as HOOMD-blue's ``Operations``
+runs updaters before writers. No operation ever runs inside the step loop.
 """
 
 from __future__ import annotations
 
-from rollingdem.errors import ParameterError, check_positive
+import math
+import time as _time
+
+import numpy as np
+
+from rollingdem.errors import ParameterError, SimulationError, check_positive
+
+REMOVE, INSERT, OBSERVE = 0, 1, 2
+"""The order operations act in at one step: what takes particles out, what puts them in, what
+looks at the result."""
 
 
-class Observer:
-    """Base class: override ``observe`` (and ``start`` / ``finish`` if needed)."""
+class Operation:
+    """Base class of what acts between steps: ``next_step`` says when it is due next, ``update``
+    acts if it is due now."""
+
+    order = OBSERVE
+
+    def next_step(self, sim) -> int:
+        """The first step, after ``sim.step``, at which this operation is due."""
+        raise NotImplementedError
+
+    def update(self, sim) -> None:
+        """Act if due at ``sim.step``."""
+        raise NotImplementedError
+
+
+class Observer(Operation):
+    """Base class of what a run calls at an interval of simulated time (rounded to whole steps),
+    at its start and at its end: override ``observe`` (and ``start`` / ``finish`` if needed)."""
 
     def __init__(self, interval: float):
         self.interval = check_positive("observer interval", interval, "s")
@@ -27,6 +55,9 @@ class Observer:
 
     def next_step(self, sim) -> int:
         return self._next
+
+    def update(self, sim) -> None:
+        self.maybe_observe(sim)
 
     def maybe_observe(self, sim, force: bool = False) -> None:
         """Observe now if due (or if ``force``), once per step even over consecutive runs."""
@@ -54,3 +85,111 @@ class Callback(Observer):
 
     def observe(self, sim):
         self.function(sim)
+
+
+def as_observers(observers) -> list:
+    """The observers of a run: one observer or a sequence of them; anything else refused."""
+    if isinstance(observers, Observer):
+        return [observers]
+    try:
+        observers = list(observers)
+    except TypeError:
+        observers = [observers]
+    for k, ob in enumerate(observers):
+        if not isinstance(ob, Observer):
+            raise ParameterError(f"observers[{k}] = {ob!r} is not allowed: must be a rollingdem observer "
+                                 "(TimeSeries, VTKSnapshots, Checkpoints, Callback)")
+    return observers
+
+
+class Schedule:
+    """The operations of a simulation, kept for good (outlets, inflows), and those of one run
+    (``during``: its observers); ``run`` alternates calls of the step loop with them."""
+
+    def __init__(self):
+        self.operations: list[Operation] = []
+
+    def add(self, operation: Operation) -> Operation:
+        self.operations.append(operation)
+        return operation
+
+    def of(self, kind) -> list:
+        """The operations kept that are instances of ``kind``, in the order they were added."""
+        return [op for op in self.operations if isinstance(op, kind)]
+
+    def during(self, observers=()) -> list[Operation]:
+        """Every operation of a run with ``observers``, in the order they act at a step."""
+        return sorted(self.operations + list(observers), key=lambda op: op.order)
+
+    @staticmethod
+    def next_step(sim, operations) -> int | None:
+        """The first step after ``sim.step`` at which one of ``operations`` is due (None: none)."""
+        steps = [op.next_step(sim) for op in operations]
+        return min(steps) if steps else None
+
+    @staticmethod
+    def update(sim, operations) -> None:
+        for op in operations:
+            op.update(sim)
+
+    def run(self, sim, steps: int, observers: list, progress: bool = False, label: str = "run") -> None:
+        """``Simulation.run`` after its checks: ``steps`` steps of ``sim``, each call of the step loop
+        ending at the next step an operation is due at (or after ~0.25 s of work, so the progress
+        bar and Ctrl-C stay responsive). A run that goes unstable stops with ``SimulationError``
+        after the observers have written what they had."""
+        from rollingdem.scene.progress import Progress
+
+        for ob in observers:
+            ob.check(sim)  # all refusals before any observer writes
+        bar, end, failure = None, sim.step + steps, None
+        for ob in observers:
+            ob.start(sim)
+        operations = self.during(observers)
+        try:
+            kernel = sim.engine_module()  # after the observers start: a TimeSeries turns on track_energy
+            if progress:
+                bar = Progress(sim, steps, label, warm=id(kernel) in sim._stepped)
+            for ob in observers:
+                ob.maybe_observe(sim, force=True)
+            chunk = 64
+            while sim.step < end:
+                due = self.next_step(sim, operations)
+                todo = max(min(end, sim.step + chunk, *(() if due is None else (due,))) - sim.step, 1)
+                tic = _time.perf_counter()
+                done, problem = sim._state.advance(kernel, todo, sim.dt, sim._gravity, sim.skin, sim.pair_parameters())
+                elapsed = _time.perf_counter() - tic
+                sim._stepped.add(id(kernel))
+                sim.step += done
+                sim.time = sim._time_origin[0] + (sim.step - sim._time_origin[1]) * sim.dt
+                self.check_finite_state(sim)
+                if problem:
+                    raise SimulationError(f"at t = {sim.time:.6g} s (step {sim.step}): {problem}")
+                if elapsed > 0:
+                    chunk = int(min(max(todo * 0.25 / elapsed, 1), 1_000_000))
+                self.update(sim, operations)
+                if bar:
+                    bar.update(sim, todo, elapsed)
+        except SimulationError as err:
+            failure = err
+            raise
+        finally:
+            sim.wall_set.refresh()
+            for ob in observers:
+                ob.finish(sim, failure)
+            if bar:
+                bar.close()
+
+    @staticmethod
+    def check_finite_state(sim) -> None:
+        """Stop with ``SimulationError`` naming the first particle whose state is not finite."""
+        st = sim._state
+        # the sum of the state is finite when every value is (a finite sum that overflows only leads
+        # to the exact test): one pass, no temporaries, after every call of the step loop
+        if math.isfinite(float(st.x.sum()) + float(st.v.sum()) + float(st.w.sum())):
+            return
+        bad = ~(np.isfinite(st.x).all(axis=1) & np.isfinite(st.v).all(axis=1) & np.isfinite(st.w).all(axis=1))
+        if bad.any():
+            k = int(st.ids[np.nonzero(bad)[0][0]])
+            raise SimulationError(f"the state became non-finite at t = {sim.time:.6g} s (step {sim.step}), "
+                                  f"particle {k}: the run is unstable; reduce dt (now {sim.dt:.4g} s, stable "
+                                  f"estimate {sim.stable_time_step():.4g} s) or check the input")

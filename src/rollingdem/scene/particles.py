@@ -1,0 +1,243 @@
+"""The spheres of a scene: adding them (one by one or filling a region), reading their values in
+the order they were added, and setting some of them. ``Simulation`` hands these calls here."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rollingdem.engine.layout import I_FORCES_VALID
+from rollingdem.engine.schema import PER_PARTICLE, SCHEMA
+from rollingdem.errors import ParameterError, short_repr
+from rollingdem.scene import periodic as periodic_box
+
+SOLID_SPHERE = 0.4
+"""A solid sphere's moment of inertia over m R^2: I = 2/5 m R^2."""
+
+
+def sphere_mass(density, radius):
+    """m = 4/3 pi rho R^3 (kg)."""
+    return density * (4.0 / 3.0) * math.pi * radius ** 3
+
+
+def radii_of(radius, m: int) -> np.ndarray:
+    """One radius per sphere from a number or a sequence of m numbers."""
+    try:
+        r = np.asarray(radius, dtype=np.float64)
+    except (TypeError, ValueError):
+        r = None
+    if r is None or isinstance(radius, (str, bool)) or r.ndim > 1:
+        raise ParameterError(f"radius = {short_repr(radius)} is not allowed: must be a number or one number per "
+                             "sphere (m)")
+    if r.ndim == 1 and r.shape[0] != m:
+        raise ParameterError(f"radius with {r.shape[0]} values is not allowed for {m} positions: must be one "
+                             f"radius or one per sphere ({m})")
+    return np.broadcast_to(r, (m,)).copy()
+
+
+def vectors_of(name: str, value, m: int) -> np.ndarray:
+    """(m, 3) vectors from one 3-vector or m of them (zeros for None)."""
+    if value is None:
+        return np.zeros((m, 3))
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or isinstance(value, str) or not (arr.shape == (3,) or arr.shape == (m, 3)):
+        raise ParameterError(f"{name} = {short_repr(value)} is not allowed: must be three numbers, or three "
+                             f"for each of the {m} spheres")
+    arr = np.broadcast_to(arr, (m, 3)).copy()
+    if not np.isfinite(arr).all():
+        raise ParameterError(f"{name} = {short_repr(value)} is not allowed: components must be finite")
+    return arr
+
+
+class Particles:
+    """The spheres of ``sim``: its engine state holds them, sorted in space; this collection
+    numbers them as the user added them (``by_id``) and checks what goes in."""
+
+    def __init__(self, sim):
+        self.sim = sim
+
+    @property
+    def state(self):
+        return self.sim._state
+
+    def by_id(self, name: str) -> np.ndarray:
+        """A per-particle array of the state in the order the particles were added."""
+        return self.state.by_id(getattr(self.state, name))
+
+    def add(self, positions, radius, material, velocity=None, angular_velocity=None, allow_overlap=False,
+            fixed=False) -> np.ndarray:
+        """``Simulation.add_particles``."""
+        sim = self.sim
+        try:
+            x = np.array(positions, dtype=np.float64, ndmin=2)
+        except (TypeError, ValueError):
+            raise ParameterError(f"positions = {short_repr(positions)} is not allowed: must be N points of three "
+                                 "numbers (m)") from None
+        if x.ndim != 2 or x.shape[1] != 3:
+            raise ParameterError(f"positions with shape {x.shape} are not allowed: must be N points of three "
+                                 "numbers, shape (N, 3)")
+        m = x.shape[0]
+        bad = ~np.isfinite(x).all(axis=1)
+        if bad.any():
+            k = int(np.nonzero(bad)[0][0])
+            raise ParameterError(f"position of particle {k} = {x[k].tolist()} is not allowed: must be finite")
+        r = radii_of(radius, m)
+        badr = ~(np.isfinite(r) & (r > 0))
+        if badr.any():
+            k = int(np.nonzero(badr)[0][0])
+            raise ParameterError(f"radius of particle {k} = {r[k]:g} is not allowed: must be > 0 (m)")
+        v = vectors_of("velocity", velocity, m)
+        w = vectors_of("angular_velocity", angular_velocity, m)
+        if not isinstance(fixed, (bool, np.bool_)):
+            raise ParameterError(f"fixed = {short_repr(fixed)} is not allowed: must be True or False")
+        if fixed and (v.any() or w.any()):
+            raise ParameterError("velocity / angular_velocity of fixed particles is not allowed: a fixed particle "
+                                 "never moves; leave them out (or add the particles with fixed=False)")
+        mats = self.material_indices(material, m)
+        periodic_box.check_in_box(sim.periodic, x, self.state.n)
+        if not allow_overlap:
+            self.check_no_overlap(x, r, walls=not fixed)  # walls never touch a fixed particle
+        density = np.array([sim.materials.materials[k].density for k in mats])
+        mass = sphere_mass(density, r)
+        first = self.state.n
+        self.state.append_particles(x=x, v=v, w=w, radius=r, mass=mass, inertia=SOLID_SPHERE * mass * r ** 2,
+                                    mat=mats, fixed=np.full(m, bool(fixed), dtype=np.uint8))
+        sim._scene_changed()
+        return np.arange(first, first + m)
+
+    def material_indices(self, material, m: int) -> np.ndarray:
+        """One material index per sphere from one material (name or index) or m of them."""
+        materials = self.sim.materials
+        if not isinstance(material, (list, tuple, np.ndarray)):
+            return np.full(m, materials.index(material), dtype=np.int32)
+        if len(material) != m:
+            raise ParameterError(f"material with {len(material)} entries is not allowed for {m} positions: "
+                                 "must be one material or one per sphere")
+        return np.array([materials.index(mm) for mm in material], dtype=np.int32)
+
+    def check_no_overlap(self, x, r, tolerance=1e-12, walls=True):
+        """Refuse new spheres (``x``, ``r``) that overlap a sphere before them (or its periodic
+        image) or, with ``walls``, a wall in place."""
+        from scipy.spatial import cKDTree
+
+        sim, st = self.sim, self.state
+        first = st.n
+        allx = np.concatenate([st.x, x])
+        allr = np.concatenate([st.radius, r])
+        imgx, imgr, source = periodic_box.with_images(sim.periodic, allx, allr, 2.0 * float(allr.max()))
+        tree = cKDTree(imgx)
+        # each new sphere against every sphere (or periodic image) before it within its radius plus
+        # the largest radius
+        for k, near in enumerate(tree.query_ball_point(x, r + allr.max())):
+            near = np.asarray(near, dtype=np.int64)
+            i = first + k
+            near = near[source[near] < i]
+            if near.size == 0:
+                continue
+            gap = np.linalg.norm(imgx[near] - allx[i], axis=1) - imgr[near] - allr[i]
+            bad = gap < -tolerance * (imgr[near] + allr[i])
+            if bad.any():
+                j = int(source[near[np.argmax(bad)]])
+                j = int(st.ids[j]) if j < first else j  # as the user numbers them
+                g = float(gap[np.argmax(bad)])
+                raise ParameterError(f"particles {min(i, j)} and {max(i, j)} overlap by {-g:.3g} m at insertion: "
+                                     f"positions must not overlap ({sim.hints['allow_overlap']} to accept it)")
+        for wl in sim.walls if walls else ():
+            ov = wl.overlap(x, r)
+            k = int(np.argmax(ov)) if len(ov) else 0
+            if len(ov) and ov[k] > tolerance * r[k]:
+                raise ParameterError(f"particle {first + k} overlaps wall {sim.wall_set.label(wl)} by {ov[k]:.3g} m "
+                                     f"at insertion ({sim.hints['allow_overlap']} to accept it)")
+
+    def insert(self, region, count, radius, material, seed=0, velocity=None, max_attempts=200) -> np.ndarray:
+        """``Simulation.insert``."""
+        from rollingdem.engine.neighbors import spatial_order
+        from rollingdem.scene.insertion import fill_region
+
+        sim = self.sim
+        for mat in (material if isinstance(material, (list, tuple, np.ndarray)) else [material]):
+            sim.materials.index(mat)  # an unknown material is refused before a long fill
+        if velocity is not None:
+            vectors_of("velocity", velocity, 1)
+        x, r = fill_region(region, count, radius, seed=seed, existing_positions=self.state.x,
+                           existing_radii=self.state.radius, walls=sim.walls, max_attempts=max_attempts)
+        order = spatial_order(x, 2.0 * float(r.max()))  # neighbors in space get nearby indices
+        return self.add(x[order], r[order], material, velocity=velocity)
+
+    def unwrapped_positions(self) -> np.ndarray:
+        """``Simulation.unwrapped_positions``."""
+        st = self.state
+        box = st.contact_list.box
+        return st.by_id(st.x + st.image * box[3:6]) if len(box) else st.by_id(st.x).copy()
+
+    def indices(self, indices, name="indices") -> np.ndarray:
+        """Particle indices as int64, each in [0, n_particles)."""
+        n = self.state.n
+        arr = np.atleast_1d(np.asarray(indices, dtype=object if isinstance(indices, str) else None))
+        if arr.size and (arr.dtype.kind not in "iu" or arr.ndim != 1):
+            raise ParameterError(f"{name} = {short_repr(indices)} is not allowed: must be particle indices (whole "
+                                 f"numbers in [0, {n - 1}])")
+        arr = arr.astype(np.int64)
+        bad = (arr < 0) | (arr >= n)
+        if bad.any():
+            k = int(arr[np.argmax(bad)])
+            allowed = f"must be in [0, {n - 1}]" if n else "there are no particles"
+            raise ParameterError(f"{name} = {short_repr(indices)} is not allowed: particle {k} does not exist; {allowed}")
+        return arr
+
+    def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
+        """``Simulation.set_velocities``."""
+        st = self.state
+        ids = self.indices(indices)
+        idx = st.slots(ids)
+        held = st.is_fixed[idx]
+        if held.any() and any(np.any(vec) for vec in (velocity, angular_velocity) if vec is not None):
+            raise ParameterError(f"indices = {short_repr(indices)} is not allowed with a nonzero velocity: particle "
+                                 f"{int(ids[np.argmax(held)])} is fixed and never moves; leave the fixed particles "
+                                 "out (sim.fixed says which they are)")
+        if velocity is not None:
+            st.v[idx] = vectors_of("velocity", velocity, len(idx))
+        if angular_velocity is not None:
+            st.w[idx] = vectors_of("angular_velocity", angular_velocity, len(idx))
+        st.info[I_FORCES_VALID] = 0
+
+    def field(self, name: str):
+        """The schema's per-particle field ``name``; else a refusal naming the fields."""
+        fields = {f.name: f for f in SCHEMA.of(PER_PARTICLE)}
+        if name not in fields:
+            raise ParameterError(f"field = {name!r} is not allowed: the per-particle fields are {', '.join(fields)}")
+        return fields[name]
+
+    def set_field(self, name: str, indices, values) -> None:
+        """``Simulation.set_particle_field``."""
+        st = self.state
+        field = self.field(name)
+        if not field.settable:
+            raise ParameterError(f"field = {name!r} is not allowed: the engine keeps it; settable are "
+                                 + ", ".join(f.name for f in SCHEMA.of(PER_PARTICLE) if f.settable))
+        idx = st.slots(self.indices(indices))
+        array = getattr(st, field.name)
+        if field.lazy and len(array) != st.n:  # no rows yet: every particle at the fill
+            array = field.rows(st.n, st.history_size)
+            setattr(st, field.name, array)
+        try:
+            array[idx] = np.asarray(values, dtype=field.dtype)
+        except (TypeError, ValueError):
+            raise ParameterError(f"values = {short_repr(values)} is not allowed for {name}: one value, or one for each "
+                                 f"of the {len(idx)} particles") from None
+        st.info[I_FORCES_VALID] = 0
+
+    def kinetic_energy(self) -> tuple[float, float]:
+        """(translational, rotational) kinetic energy (J): 1/2 sum m v^2, 1/2 sum I w^2."""
+        st = self.state
+        trans = 0.5 * float(np.dot(st.mass, np.einsum("ij,ij->i", st.v, st.v)))
+        rot = 0.5 * float(np.dot(st.inertia, np.einsum("ij,ij->i", st.w, st.w)))
+        return trans, rot
+
+    def largest_radius(self, inflows=()) -> float:
+        """The largest radius in place or to come from ``inflows`` (0 when none)."""
+        return max([float(self.state.radius.max(initial=0.0))] + [i.radius.max_radius for i in inflows])

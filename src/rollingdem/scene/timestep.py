@@ -1,0 +1,115 @@
+"""The time-step policy of a scene: the limits of docs/models.md §2 on the spheres in place and
+those an inflow will insert (``rollingdem.physics.timestep`` holds the criteria), the largest dt
+they allow, and the checks a run makes before its first step."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rollingdem.errors import ParameterError
+from rollingdem.physics.timestep import SPRING_FRACTION
+from rollingdem.scene.particles import SOLID_SPHERE, sphere_mass
+
+
+class TimeStepPolicy:
+    """The time step of ``sim``: its limits, the largest stable step, and the run's checks.
+    ``passed``: (scene key, fastest speeds) when dt last passed ``check``."""
+
+    def __init__(self, sim):
+        self.sim = sim
+        self.passed = None
+
+    def limits(self) -> list[tuple[str, float]]:
+        """``Simulation.time_step_limits``."""
+        sim = self.sim
+        st, contact, materials, inflows = sim._state, sim.contact, sim.materials, sim.inflows
+        if st.n == 0 and not inflows:
+            return []
+        limits = []
+        normal = contact.normal
+        for k, mat in enumerate(materials.materials):
+            sel = st.mat == k
+            # the spheres an inflow will insert count as if they were there
+            coming = [(i.radius.min_radius, float(np.linalg.norm(i.velocity))) for i in inflows
+                      if materials.index(i.material) == k]
+            if not sel.any() and not coming:
+                continue
+            rmin = min(([float(st.radius[sel].min())] if sel.any() else []) + [r for r, _ in coming])
+            mmin = min(([float(st.mass[sel].min())] if sel.any() else [])
+                       + [sphere_mass(mat.density, r) for r, _ in coming])
+            pair = materials.pair(k, k)
+            speed = np.sqrt((st.v[sel] ** 2).sum(axis=1))
+            fastest = max([float(speed[np.isfinite(speed)].max(initial=0.0))] + [v for _, v in coming])
+            impact = 2.0 * fastest  # a non-finite v is reported apart
+            limits += normal.time_step_limits(mat, pair, rmin, mmin, impact)
+            limits += contact.cohesion.time_step_limits(mat, pair, rmin, mmin)
+            r_eff = 0.5 * rmin
+            kn, kt, overlap = normal.reference_stiffness(pair, r_eff, 0.5 * mmin, rmin)
+            inertia = SOLID_SPHERE * mmin * rmin ** 2
+            for sub in (contact.rolling, contact.twisting):
+                k_rot = sub.rotational_stiffness(kn, kt, r_eff, overlap, kn * overlap, pair)
+                if k_rot > 0:
+                    # worst case, centres held: omega^2 = k_rot (1/I_i + 1/I_j)
+                    per = 2.0 * math.pi / math.sqrt(k_rot * 2.0 / inertia)
+                    limits.append((f"{sub.slot} spring ({sub.name}) period {per:.4g} s / 10", SPRING_FRACTION * per))
+        limits += sim.bond_set.time_step_limits()
+        return limits
+
+    def stable(self) -> float:
+        """The largest dt all criteria allow (s)."""
+        limits = self.limits()
+        if not limits:
+            raise ParameterError("dt cannot be chosen automatically before particles are added: give dt")
+        return min(v for _, v in limits)
+
+    def check(self) -> None:
+        """Refuse a dt above a stable limit, unless the simulation's ``check_timestep`` is off."""
+        sim = self.sim
+        if not sim.check_timestep:
+            return
+        # Between runs of an unchanged scene only the speeds change, and the one limit that depends
+        # on them (the Hertz time at the impact speed) falls as they rise: while no material's
+        # fastest sphere is faster than when dt last passed, it still passes, and a loop of short
+        # runs (a trajectory sampled every 10 steps) skips the full check.
+        speeds = self.fastest_per_material()
+        key = (sim.dt, sim.n_particles, len(sim.inflows), id(sim.contact), sim.pair_parameters())
+        seen = self.passed
+        if seen is not None and seen[0][:4] == key[:4] and seen[0][4] is key[4] and (speeds <= seen[1]).all():
+            return
+        for label, limit in self.limits():
+            if sim.dt > limit * (1 + 1e-12):
+                raise ParameterError(f"dt = {sim.dt:.4g} s exceeds the stable limit {limit:.4g} s "
+                                     f"({label}): choose dt <= {limit:.4g} s, or {sim.hints['check_timestep']} "
+                                     "to run anyway")
+        self.passed = (key, speeds)
+
+    def check_contact_reach(self) -> None:
+        """A cohesion law whose contacts last past touching (``jkr``) needs the neighbor list to
+        reach that far: refuse a skin shorter than the largest pair's separation limit."""
+        sim = self.sim
+        cohesion = sim.contact.cohesion
+        st = sim._state
+        if cohesion.detach_slot is None or st.n == 0:
+            return
+        r_eff = 0.5 * float(st.radius.max())
+        n = len(sim.materials.materials)
+        reach = max(cohesion.separation_limit(sim.materials.pair(a, b), r_eff) for a in range(n) for b in range(n))
+        if reach > sim.skin:
+            raise ParameterError(f"skin = {sim.skin:.4g} m is not allowed with cohesion {cohesion.name!r}: its "
+                                 f"contacts last until the spheres are {reach:.4g} m apart, and the neighbor list "
+                                 f"must reach that far; give skin >= {reach:.4g} m")
+
+    def fastest_per_material(self) -> np.ndarray:
+        """Each material's largest finite particle speed squared (0 without particles of it)."""
+        st = self.sim._state
+        out = np.zeros(len(self.sim.materials.materials))
+        if st.n and len(out):
+            speed2 = np.einsum("ij,ij->i", st.v, st.v)
+            fastest = speed2.max()
+            if len(out) == 1 and math.isfinite(fastest):
+                out[0] = fastest
+            else:
+                np.maximum.at(out, st.mat, np.where(np.isfinite(speed2), speed2, 0.0))
+        return out

@@ -149,13 +149,13 @@ def a_cycle(graph, component) -> list[str]:
 
 
 def test_the_graph_sees_function_level_and_relative_imports():
-    """The reader resolves what this test relies on: an import inside a function (observables
-    imports experiments.repose when the case runs) and ``from package import module`` (codegen
-    imports the step template so)."""
+    """The reader resolves what this test relies on: an import inside a function (the registry
+    imports experiments.single_sphere when a rolling model is named) and ``from package import
+    module`` (codegen imports the step template so)."""
     graph = import_graph()
-    assert "rollingdem.experiments.repose" in graph["rollingdem.experiments.observables"]
+    assert "rollingdem.experiments.single_sphere" in graph["rollingdem.experiments.registry"]
     assert "rollingdem.engine.template" in graph["rollingdem.engine.codegen"]
-    assert "rollingdem.experiments.observables" in graph["rollingdem.studies.sweep"]
+    assert "rollingdem.experiments" in graph["rollingdem.studies.sweep"]
 
 
 def test_the_import_graph_has_no_cycle():
@@ -229,6 +229,79 @@ def test_worked_example_adds_a_backend():
             np.testing.assert_array_equal(a, b)
     finally:
         BACKENDS.pop("cpu-serial", None)
+
+
+def test_worked_example_adds_a_wall_type():
+    """docs/architecture.md's square plate: the sphere dropped on it rests at the Hertz overlap of
+    its weight, delta = (3 m g / (4 E* sqrt(R)))^(2/3) with the wall of the sphere's material,
+    E* = E / (2 (1 - nu^2)) (docs/models.md §0); to 2 % of delta, which leaves the plate's residual
+    motion (a speed of 1e-10 m/s) and a factor wrong in E*, m or g (each 26 % or more off) apart;
+    and the plate's load is the weight, to 1e-6."""
+    import math
+
+    scope = {}
+    exec(compile(worked_example("### Worked example: a wall type"), "architecture.md", "exec"), scope)
+    sim = scope["sim"]
+    radius, weight = 0.002, float(sim.masses[0]) * 9.81
+    e_star = 1e7 / (2 * (1 - 0.45 ** 2))
+    delta = (3 * weight / (4 * e_star * math.sqrt(radius))) ** (2 / 3)
+    assert abs((radius - sim.positions[0, 2]) - delta) < 0.02 * delta
+    fx, fy, fz = sim.wall_loads()["plate"]["force"]
+    assert abs(fz + weight) < 1e-6 * weight and abs(fx) + abs(fy) < 1e-9 * weight
+
+
+def test_worked_example_adds_an_experiment(tmp_path):
+    """docs/architecture.md's free fall: registered by its definition, observed at a point against
+    t = sqrt(2 (h - R) / g) to the example's own tolerance, validated (its checks pass),
+    found by ``rollingdem validate`` and by a sweep file, and refused with its limits."""
+    import math
+
+    import pytest
+
+    import rollingdem as rd
+    from rollingdem import validate
+    from rollingdem.experiments import EXPERIMENTS, get_experiment
+    from rollingdem.studies.sweep import load_sweep, run_sweep
+
+    scope = {}
+    try:
+        exec(compile(worked_example("### Worked example: an experiment"), "architecture.md", "exec"), scope)
+        experiment = get_experiment("free-fall", observable=True)
+        found = experiment.observe({"height": 0.1})["touch_time"]
+        exact = math.sqrt(2 * (0.1 - 0.005) / 9.81)
+        assert exact <= found + 1e-12 and found - exact <= 11e-5  # a look after the touch, within 10 steps and one
+        assert experiment.validate(quick=True).passed
+        assert "free-fall" in validate.available_experiments()
+        results = validate.run_validation(tmp_path / "report", cases=["free-fall"], quick=True, progress=False,
+                                          workers=1)
+        assert [r.passed for r in results] == [True]
+        spec = load_sweep({"case": "free-fall", "grid": {"height": [0.02, 0.08]}})
+        table = run_sweep(spec, tmp_path / "sweep", progress=False, summary=False, mapper=map).table
+        assert sorted(table["touch_time"]) == pytest.approx([math.sqrt(2 * (h - 0.005) / 9.81) for h in (0.02, 0.08)],
+                                                            abs=11e-5)
+        with pytest.raises(rd.ParameterError, match=r"height = 0.001 is not allowed: must lie in \[0.01, inf\) m"):
+            experiment.observe({"height": 0.001})
+    finally:
+        EXPERIMENTS.pop("free-fall", None)
+
+
+def test_experiments_share_one_registry_and_no_public_name():
+    """Every experiment is in ``EXPERIMENTS`` once, ``rollingdem validate`` runs each, and sweeps
+    take exactly those with parameters; no public function or class name is defined in two
+    modules of ``experiments/``."""
+    from rollingdem import validate
+    from rollingdem.experiments import EXPERIMENTS
+
+    assert set(EXPERIMENTS) <= set(validate.available_experiments())
+    assert {n for n, e in EXPERIMENTS.items() if e.observable} == {
+        "inclined-wall", "rolling-flat", "angle-of-repose", "repose-rough-base", "rotating-drum", "silo-discharge"}
+    defined = {}
+    for path in sorted((SOURCE / "experiments").glob("*.py")):
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)) and not node.name.startswith("_"):
+                defined.setdefault(node.name, []).append(path.name)
+    twice = {name: where for name, where in defined.items() if len(where) > 1}
+    assert not twice, f"public names defined in two modules: {twice}"
 
 
 def test_worked_example_adds_a_per_particle_field(tmp_path):

@@ -136,13 +136,13 @@ def test_angle_of_repose_calibration_is_reproduced_by_fresh_seeds(tmp_path):
     calibrated mu_r must give a mean angle whose 95 % interval overlaps the target's band
     (+- 1.96 x 1 deg): the calibration and the check are both limited by the seed scatter of a
     small pile (about 1.5 deg per pile)."""
-    from rollingdem.experiments.observables import CASES
+    from rollingdem.experiments import EXPERIMENTS
     from rollingdem.analysis.intervals import confidence_interval
 
     fix = {"mu": 0.6, "count": 1000, "model": "epsd"}
     res = calibrate("angle-of-repose", 22.0, 1.0, fix=fix, free=("mur", (0.1, 0.8)), seeds=2,
                     search=Search(coarse=4, refine=2, rounds=1), out=tmp_path, progress=False)
     assert res.low < res.value < res.high and res.direction == "increasing"
-    angles = [CASES["angle-of-repose"].run(dict(fix, mur=res.value, seed=s))["angle"] for s in (11, 12, 13)]
+    angles = [EXPERIMENTS["angle-of-repose"].observe(dict(fix, mur=res.value, seed=s))["angle"] for s in (11, 12, 13)]
     mean, half = confidence_interval(angles)
     assert abs(mean - 22.0) <= half + 1.96 * 1.0, (res, angles)

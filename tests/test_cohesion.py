@@ -189,12 +189,12 @@ def test_a_cohesive_pile_stands_steeper():
     largest pair pull, (2/3) pi^3 k_c^3 R*^2 / E*^2, about 0.8 of a sphere's weight): the cohesive
     piles are steeper, seed by seed, by a mean larger than the 95 % Student-t half-width of the
     differences (seeds 1-3 measured: 4.5 +- 3.7 degrees, on 21.8)."""
-    from rollingdem.experiments.observables import CASES
+    from rollingdem.experiments import EXPERIMENTS
     from rollingdem.analysis.intervals import confidence_interval
 
     angles = {}
     for kc in (0.0, 7e4):
-        angles[kc] = [CASES["angle-of-repose"].run(dict(model="epsd", mu=0.5, mur=0.1, count=600, seed=seed,
+        angles[kc] = [EXPERIMENTS["angle-of-repose"].observe(dict(model="epsd", mu=0.5, mur=0.1, count=600, seed=seed,
                                                         lift_speed=0.2, rough_base=1,
                                                         cohesion="sjkr" if kc else "none",
                                                         cohesion_energy_density=kc))["angle"]
@@ -206,18 +206,19 @@ def test_a_cohesive_pile_stands_steeper():
 def test_the_experiments_take_a_cohesion_law():
     """The granular cases take the law and its parameters (so that calibrate can fit them), refuse
     an unknown law or a negative energy by name, and keep the walls free of cohesion."""
-    from rollingdem.experiments.observables import CASES, _pile_material
+    from rollingdem.experiments import EXPERIMENTS
+    from rollingdem.experiments.repose import PileMaterial
 
     for case in ("angle-of-repose", "repose-rough-base", "rotating-drum", "silo-discharge"):
-        p = CASES[case].resolve({"cohesion": "sjkr", "cohesion_energy_density": 2e4})
-        material = _pile_material(p)
+        p = EXPERIMENTS[case].resolve({"cohesion": "sjkr", "cohesion_energy_density": 2e4})
+        material = PileMaterial.from_parameters(p)
         assert (material.cohesion, material.as_material("m").cohesion_energy_density) == ("sjkr", 2e4)
         wall = material.wall_material("wall")
         assert (wall.cohesion_energy_density, wall.surface_energy, wall.friction) == (0.0, 0.0, material.friction)
         with pytest.raises(ParameterError, match="cohesion = 'dmt' is not known"):
-            CASES[case].resolve({"cohesion": "dmt"})
+            EXPERIMENTS[case].resolve({"cohesion": "dmt"})
         with pytest.raises(ParameterError, match="surface_energy"):
-            CASES[case].resolve({"surface_energy": -1.0})
+            EXPERIMENTS[case].resolve({"surface_energy": -1.0})
 
 
 def test_the_jkr_time_step_is_a_fiftieth_of_the_zero_load_period():

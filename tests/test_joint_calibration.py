@@ -120,7 +120,7 @@ def test_a_pile_and_a_drum_made_at_a_known_point_give_it_back(tmp_path):
     cannot pin both: the result says so, and the curve of equally good solutions passes by the true
     point (which lies in its 95 % band). About 20 minutes on 2 cores."""
     from rollingdem.studies.calibration import Execution
-    from rollingdem.experiments.observables import CASES
+    from rollingdem.experiments import EXPERIMENTS
     from rollingdem.analysis.intervals import confidence_interval
 
     pile = {"count": 1000, "lift_speed": 0.0, "max_collapse": 2.0}
@@ -128,7 +128,7 @@ def test_a_pile_and_a_drum_made_at_a_known_point_give_it_back(tmp_path):
     truth = {"mu": 0.5, "mur": 0.15}
     targets = []
     for case, fixed in (("repose-rough-base", pile), ("rotating-drum", drum)):
-        values = [CASES[case].run({**fixed, **truth, "seed": s})["angle"] for s in (101, 102, 103)]
+        values = [EXPERIMENTS[case].observe({**fixed, **truth, "seed": s})["angle"] for s in (101, 102, 103)]
         mean, half = confidence_interval(values)
         targets.append(Target(case, "angle", mean, half / 1.96))
     free = {"mu": (0.3, 0.8), "mur": (0.05, 0.35)}

@@ -8,7 +8,7 @@ the seed-to-seed scatter. The default suite covers the pieces: the angle measure
 synthetic piles (test_analysis.py), the statistics and the report (test_validate.py).
 
 Seed-to-seed spread of the quick sweep's piles (2000 spheres, 'rrlinear', tube lifted at 0.2 m/s,
-E = 5 MPa, dt = 2.5e-5 s; rollingdem.experiments.observables.angle_of_repose with the quick sweep's
+E = 5 MPa, dt = 2.5e-5 s; rollingdem.experiments.repose.AngleOfRepose.observe with the quick sweep's
 parameters, seeds 1-3, 71-190 s a pile on one core):
 
     mu = 0.4, mu_r = 0.2: 17.28, 15.91, 14.18 degrees (cone fit R^2 0.48-0.58)
@@ -107,9 +107,9 @@ def test_a_pile_forms_on_a_rough_base_without_rolling_resistance():
     lifted at 0.2 m/s): on the bare plate the spheres roll away and no cone can be fitted; on a
     rough base of fixed spheres a pile stands, steeper than 10 degrees (PFC and LIGGGHTS studies
     measure an angle at mu_r = 0 on such bases)."""
-    from rollingdem.experiments.observables import CASES
+    from rollingdem.experiments import EXPERIMENTS
 
     params = dict(model="rrlinear", mu=0.4, mur=0.0, count=2000, seed=1, lift_speed=0.2, youngs_modulus=5e6,
                   dt=2.5e-5, max_collapse=3.0)
-    rough = CASES["angle-of-repose"].run(dict(params, rough_base=1))
+    rough = EXPERIMENTS["angle-of-repose"].observe(dict(params, rough_base=1))
     assert rough["angle"] > 10.0, rough

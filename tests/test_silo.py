@@ -88,11 +88,12 @@ def test_a_silo_at_a_steady_head_flows_at_a_beverloo_rate():
     (each half's rate is the mean of ~500 spheres out: the 95 % interval of the whole, doubled,
     bounds it). The settled bed poured at random packs between random loose and random close
     (solid fraction 0.55 to 0.66)."""
-    from rollingdem.experiments.observables import CASES, _pile_material
+    from rollingdem.experiments import EXPERIMENTS
+    from rollingdem.experiments.repose import PileMaterial
     from rollingdem.experiments.silo import SiloSetup, silo_run
 
-    p = CASES["silo-discharge"].resolve({"mu": 0.5, "mur": 0.1})
-    material = _pile_material(p)
+    p = EXPERIMENTS["silo-discharge"].resolve({"mu": 0.5, "mur": 0.1})
+    material = PileMaterial.from_parameters(p)
     run = silo_run("epsd", "none", material, SiloSetup(6.0, 16.0, 10.0), seed=1, dt=p["dt"])
     assert not run.clogged
     w, half = discharge_rate(run.t, run.discharged, run.window, blocks=5)

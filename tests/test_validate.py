@@ -34,7 +34,7 @@ def fake_cases(tmp_ok=True):
 
 
 def test_report_records_every_check_and_a_crashed_case(tmp_path, monkeypatch):
-    monkeypatch.setattr(validate, "available_cases", fake_cases)
+    monkeypatch.setattr(validate, "available_experiments", fake_cases)
     results = validate.run_validation(tmp_path, progress=False, workers=1)
     assert [r.passed for r in results] == [True, False]
     data = json.loads((tmp_path / "results.json").read_text())
@@ -51,7 +51,7 @@ def test_report_records_every_check_and_a_crashed_case(tmp_path, monkeypatch):
 def test_cases_run_one_at_a_time_make_one_report(tmp_path, monkeypatch):
     """``--case`` runs into the same folder add up: the second keeps the first's checks, table and
     figures in results.json and report.md; running a case again replaces its earlier result."""
-    monkeypatch.setattr(validate, "available_cases", fake_cases)
+    monkeypatch.setattr(validate, "available_experiments", fake_cases)
     validate.run_validation(tmp_path, cases=["good"], progress=False, workers=1)
     validate.run_validation(tmp_path, cases=["bad"], progress=False, workers=1)
     data = json.loads((tmp_path / "results.json").read_text())
@@ -66,7 +66,7 @@ def test_cases_run_one_at_a_time_make_one_report(tmp_path, monkeypatch):
 
 
 def test_cli_exit_status(tmp_path, monkeypatch):
-    monkeypatch.setattr(validate, "available_cases", fake_cases)
+    monkeypatch.setattr(validate, "available_experiments", fake_cases)
     ok = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "a"), "--case", "good", "--no-progress", "-w", "1"])
     assert ok.exit_code == 0, ok.output
     failing = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "b"), "--no-progress", "-w", "1"])
@@ -165,7 +165,7 @@ def test_model_reaches_the_pile_cases_and_a_case_without_it_is_announced(tmp_pat
         return case
 
     names = ["rolling-flat", "angle-of-repose", "repose-sweep"]
-    monkeypatch.setattr(validate, "available_cases", lambda: {n: fake(n) for n in names})
+    monkeypatch.setattr(validate, "available_experiments", lambda: {n: fake(n) for n in names})
     notes = []
     validate.run_validation(tmp_path / "a", models=["epsd"], progress=False, workers=1, echo=notes.append)
     assert calls == {"rolling-flat": {"models": ["epsd"]}, "angle-of-repose": {"models": ["epsd"]},

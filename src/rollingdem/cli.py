@@ -295,9 +295,10 @@ def calibrate(target: list[str] = typer.Option(..., "--target", help="What was m
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return
-            from rollingdem.experiments.observables import get_case
+            from rollingdem.experiments import get_experiment
 
-            targets = [Target(case, observable or get_case(case).default_observable, value, uncertainty)]
+            default = get_experiment(case, observable=True, what="case").default_observable
+            targets = [Target(case, observable or default, value, uncertainty)]
         else:
             for what, given in (("--case", case), ("--observable", observable)):
                 if given is not None:

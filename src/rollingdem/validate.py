@@ -22,43 +22,31 @@ from rollingdem.experiments.results import CaseResult, Check
 from rollingdem.errors import ParameterError
 
 
-def available_cases() -> dict:
-    """Case name -> function(models=None, quick=False, outdir=None, progress=None) -> CaseResult."""
-    from rollingdem.experiments import contact_laws
-    from rollingdem.experiments import validation
+def available_experiments() -> dict:
+    """What ``rollingdem validate`` runs, by name: every experiment of the registry
+    (``rollingdem.experiments.EXPERIMENTS``, its ``validate``) and the PFC repose-angle study
+    (``repose-sweep``); each a function(quick=False, outdir=None, progress=None, runner=map,
+    [models= or model=]) -> CaseResult."""
+    from rollingdem.experiments import EXPERIMENTS
+    from rollingdem.studies.repose_study import repose_sweep
 
-    cases = {"inclined-wall": validation.inclined_wall, "rolling-flat": validation.rolling_flat,
-             "rolling-slope": validation.rolling_slope, "contact-laws": contact_laws.contact_laws}
-    try:
-        from rollingdem.experiments import repose
-        from rollingdem.studies.repose_study import repose_sweep
-    except ImportError:  # the pile cases need rollingdem.analysis.repose
-        return cases
-    from rollingdem.experiments import equipment as experiments
-
-    cases.update({"angle-of-repose": repose.angle_of_repose, "repose-sweep": repose_sweep,
-                  "repose-rough-base": experiments.repose_rough_base, "rotating-drum": experiments.rotating_drum,
-                  "silo-discharge": experiments.silo_discharge})
-    return cases
+    found = {}
+    for name, experiment in EXPERIMENTS.items():
+        found[name] = experiment.validate
+        if name == "angle-of-repose":  # before repose-rough-base, whose figure shows the sweep's angles
+            found["repose-sweep"] = repose_sweep
+    return found
 
 
-def case_models() -> dict[str, tuple[str, list[str]]]:
-    """Case name -> (its keyword, the model names it takes) for the cases that take ``--model``:
-    the single-sphere cases take a list (``models``) of the validation labels, angle-of-repose a
-    list of its pile models, repose-sweep one rolling model (``model``)."""
-    from rollingdem.experiments.single_sphere import validation_models
-    from rollingdem.physics.contact import ROLLING_MODELS
+def experiment_models() -> dict[str, tuple[str, list[str]]]:
+    """Name -> (its keyword, the model names it takes) for what takes ``--model``: each
+    experiment's ``model_keyword`` and ``models()`` ("models": a list, "model": one), and
+    repose-sweep, which sweeps one rolling model."""
+    from rollingdem.experiments import EXPERIMENTS
+    from rollingdem.experiments.registry import rolling_models
 
-    labels = list(validation_models())
-    table = {name: ("models", labels) for name in ("inclined-wall", "rolling-flat", "rolling-slope")}
-    try:
-        from rollingdem.experiments.repose import REPOSE_MODELS
-    except ImportError:  # the pile cases need rollingdem.analysis.repose
-        return table
-    table["angle-of-repose"] = ("models", list(REPOSE_MODELS))
-    one_model = sorted(ROLLING_MODELS) + [m for m in labels if m not in ROLLING_MODELS]
-    for name in ("repose-sweep", "repose-rough-base", "rotating-drum", "silo-discharge"):
-        table[name] = ("model", one_model)
+    table = {name: (e.model_keyword, e.models()) for name, e in EXPERIMENTS.items() if e.model_keyword}
+    table["repose-sweep"] = ("model", rolling_models())
     return table
 
 
@@ -72,7 +60,7 @@ def _model_arguments(names, models, explicit, echo) -> tuple[list[str], dict[str
         return names, {}
     if isinstance(models, str) or not all(isinstance(m, str) for m in models) or not models:
         raise ParameterError(f"models = {models!r} is not allowed: must be a list of model names")
-    table = case_models()
+    table = experiment_models()
     takes = {name: table[name] for name in names if name in table}
     known = [m for _, ms in takes.values() for m in ms]
     unknown = [m for m in models if m not in known]
@@ -112,7 +100,7 @@ def run_validation(outdir, cases=None, quick=False, progress=True, models=None, 
     """
     from rollingdem.studies.parallel import check_workers, runner
 
-    available = available_cases()
+    available = available_experiments()
     names = list(available) if not cases else list(cases)
     unknown = [c for c in names if c not in available]
     if unknown:

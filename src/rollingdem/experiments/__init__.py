@@ -1,13 +1,27 @@
-"""Built-in cases: the seed report's test cases, each one scene built, run and measured.
+"""The experiments: each a class (``rollingdem.experiments.registry.Experiment``) in the module of
+its scene, all in one registry, ``EXPERIMENTS``, that ``rollingdem validate``, ``sweep`` and
+``calibrate`` read.
 
-Each validation case is a function returning a :class:`CaseResult` (table, checks, figures):
-:func:`inclined_wall`, :func:`rolling_flat`, :func:`rolling_slope` (single sphere, every rolling
-model); the pile case lives in :mod:`rollingdem.experiments.repose`. The cases sit below the sweep
-machinery and never import it; the PFC repose-angle study, a sweep of the pile, is
-:mod:`rollingdem.studies.repose_study`. ``default.yaml`` is the case ``rollingdem run`` uses without a file.
+- ``validation``: the seed report's single-sphere cases 0-2 (inclined wall, rolling on a flat,
+  rolling up a slope), on the scenes of ``single_sphere``;
+- ``repose``: the seed report's angle-of-repose pile and the pile on a rough base;
+- ``drum``: the rotating drum; ``silo``: silo discharge;
+- ``contact_laws``: the contact laws against their closed forms.
+
+Importing this package defines, and so registers, every one. The PFC repose-angle study, a sweep
+of the pile, is a study (``rollingdem.studies.repose_study``); ``default.yaml`` is the case file
+``rollingdem run`` uses without one.
 """
 
+# each module registers its experiments; this order is the registry's, and the report's
+from rollingdem.experiments import validation  # noqa: F401, I001
+from rollingdem.experiments import contact_laws  # noqa: F401
+from rollingdem.experiments import repose  # noqa: F401
+from rollingdem.experiments import drum  # noqa: F401
+from rollingdem.experiments import silo  # noqa: F401
+from rollingdem.experiments.registry import EXPERIMENTS, Experiment, Parameter, get_experiment
 from rollingdem.experiments.results import CaseResult, Check
 from rollingdem.experiments.validation import inclined_wall, rolling_flat, rolling_slope
 
-__all__ = ["CaseResult", "Check", "inclined_wall", "rolling_flat", "rolling_slope"]
+__all__ = ["EXPERIMENTS", "CaseResult", "Check", "Experiment", "Parameter", "get_experiment", "inclined_wall",
+           "rolling_flat", "rolling_slope"]

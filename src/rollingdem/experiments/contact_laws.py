@@ -18,6 +18,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from rollingdem.experiments.registry import Experiment
 from rollingdem.experiments.results import CaseResult, Check
 
 CASE = "contact-laws"
@@ -525,3 +526,13 @@ def contact_laws(models=None, quick=False, outdir=None, progress=None, runner=ma
         result.add_figure(fig, outdir, "agglomerate_breakage.png")
     result.wall_time = time.perf_counter() - start
     return result
+
+
+class ContactLaws(Experiment):
+    """The contact laws checked one at a time against their closed forms (docs/models.md §1)."""
+
+    name = CASE
+    description = "the contact laws against their closed forms: restitution, paths, sticking, bonds"
+
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+        return contact_laws(models, quick=quick, outdir=outdir, progress=progress, runner=runner)

@@ -25,6 +25,9 @@ from rollingdem.scene.insertion import CylinderRegion, Uniform
 from rollingdem.scene.simulation import Simulation
 from rollingdem.scene.walls import Cylinder
 from rollingdem.experiments.repose import PileMaterial
+from rollingdem.experiments.results import CaseResult, Check, mean_ci, pyplot, rises, run_points
+from rollingdem.experiments.registry import (UNBOUNDED, Experiment, Parameter, granular_parameters, resolve_rolling,
+                                             rolling_models)
 from rollingdem.experiments.single_sphere import RADIUS
 
 BLOCKS = 4  # the samples' blocks whose means give the 95 % intervals
@@ -231,3 +234,120 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     return DrumRun(omega, big_r, length, sim.n_particles, np.array(angle), np.array(com), np.array(torque),
                    np.array(moment), layer, np.array(blocks), passive, wall_layer, sim.positions.copy(),
                    sim.radii.copy(), time.perf_counter() - tic)
+
+
+class RotatingDrum(Experiment):
+    """A periodic slice of a drum turning in the rolling regime (docs/studies.md, "The rotating drum")."""
+
+    name = "rotating-drum"
+    description = "a periodic slice of a drum turning in the rolling regime (docs/studies.md)"
+    parameters = (granular_parameters()
+                  + (Parameter("drum_diameters", 15.0, "drum radius in mean sphere diameters", low=4.0),
+                     Parameter("slice_diameters", 5.0, "length of the periodic slice along the axis, in mean "
+                                                       "diameters", low=2.0),
+                     Parameter("fill", 0.3, "the bed's share of the drum's cross-section (at solid fraction 0.6)",
+                               low=0.05, high=0.6),
+                     Parameter("froude", 5e-3, "Froude number omega^2 R / g (rolling regime: 1e-4 to 1e-2)", low=0.0,
+                               low_open=True, high=1.0),
+                     Parameter("gravity", 9.81, "gravitational acceleration g", "m/s^2", low=0.0, low_open=True),
+                     Parameter("wall_friction", 1.0, "sliding friction of the spheres on the drum wall", low=0.0),
+                     Parameter("wall_rolling_friction", 1.0, "rolling friction of the spheres on the drum wall",
+                               low=0.0),
+                     Parameter("spin_up", 90.0, "drum rotation before the first sample", "deg", low=0.0),
+                     Parameter("measure", 90.0, "drum rotation over which the samples are taken", "deg", low=0.0,
+                               low_open=True),
+                     Parameter("samples", 20, "samples of the bed", low=4, integer=True)))
+    observables = {
+        "angle": "deg, dynamic angle of repose: line fit of the free surface's middle third (mean over samples)",
+        "angle_ci": "deg, 95 % Student-t half-width over blocks of samples",
+        "angle_std": "deg, fluctuation of the angle from sample to sample",
+        "com_angle": "deg, angle of the bed's centre of mass from below the axis",
+        "torque": "N m/m, driving torque per metre of drum length",
+        "flowing_depth": "m, depth at the chord's middle where the downslope speed falls to zero",
+        "passive_speed_ratio": "speed of the passive zone over omega r (1: solid-body rotation)",
+        "wall_layer_speed_ratio": "speed of the spheres touching the wall, below the flowing layer, over omega r",
+        "omega": "rad/s, the drum's angular velocity", "particles": "spheres in the slice"}
+    default_observable = "angle"
+    stochastic = True
+    targets = {"angle": (0.0, 90.0), "com_angle": (0.0, 90.0), "torque": UNBOUNDED, "flowing_depth": UNBOUNDED}
+    #: what ``validate`` changes of the defaults: a quick run takes fewer samples over less rotation
+    sizes = {"quick": {"samples": 12, "spin_up": 60.0, "measure": 60.0}, "full": {}}
+    model_keyword = "model"
+
+    def models(self) -> list[str]:
+        return rolling_models()
+
+    def observe(self, params: dict) -> dict:
+        """A periodic slice of a drum turning in the rolling regime: its dynamic angle and the rest."""
+        from rollingdem.analysis.intervals import confidence_interval
+        from rollingdem.experiments.drum import BLOCKS, DrumSetup, drum_run
+
+        p = self.resolve(params)
+        material = PileMaterial.from_parameters(p)
+        setup = DrumSetup(drum_diameters=p["drum_diameters"], slice_diameters=p["slice_diameters"], fill=p["fill"],
+                          froude=p["froude"], gravity=p["gravity"], wall_friction=p["wall_friction"],
+                          wall_rolling_friction=p["wall_rolling_friction"],
+                          spin_up=p["spin_up"], measure=p["measure"], samples=p["samples"])
+        run = drum_run(resolve_rolling(p["model"]), p["twisting"], material, setup, radius=p["radius"],
+                       polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
+        # successive samples are correlated: the 95 % interval is over the means of BLOCKS blocks
+        blocks = [b.mean() for b in np.array_split(run.angle, min(BLOCKS, len(run.angle)))]
+        return {"angle": float(run.angle.mean()), "angle_ci": confidence_interval(blocks)[1],
+                "angle_std": float(run.angle.std(ddof=1)) if len(run.angle) > 1 else math.nan,
+                "com_angle": float(run.com_angle.mean()), "torque": float(run.torque.mean()),
+                "flowing_depth": run.flowing_depth, "passive_speed_ratio": run.passive_speed_ratio,
+                "wall_layer_speed_ratio": run.wall_layer_speed_ratio,
+                "omega": run.omega, "particles": run.particles}
+
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> CaseResult:
+        """The drum at mu_r = 0.05, 0.2, 0.4 (mu = 0.5) and mu = 0.3, 0.5, 0.8 (mu_r = 0.2), and at the
+        base point with g four times larger at the same Froude number; 1 seed quick (a shorter run), 3
+        full. Checks: the angle rises with mu_r and with mu; at one Froude number the angle does not
+        change with g (within the 95 % interval of the difference); below the flowing layer, in the
+        middle third of the arc along which the bed touches the wall, the spheres touching the wall
+        move at omega r within 2 %."""
+        tic = time.perf_counter()
+        base = {"model": model, "mu": 0.5, "mur": 0.2, "gravity": 9.81, **self.sizes["quick" if quick else "full"]}
+        points = [dict(base, mur=m) for m in (0.05, 0.2, 0.4)] + [dict(base, mu=m) for m in (0.3, 0.8)]
+        points.append(dict(base, gravity=4 * 9.81))
+        seeds = [1] if quick else [1, 2, 3]
+        runs = run_points(self, points, seeds, runner, progress)
+        keys = ["mu", "mur", "gravity"]
+        table = mean_ci(runs, keys, "angle", within="angle_ci")
+        for col in ("com_angle", "torque", "flowing_depth", "passive_speed_ratio", "wall_layer_speed_ratio", "omega"):
+            table[col] = runs.groupby(keys, sort=True)[col].mean().to_numpy()
+        g0 = table[np.isclose(table["gravity"], 9.81)]
+        checks = [rises("rotating-drum", model, g0, "mur", {"mu": 0.5}),
+                  rises("rotating-drum", model, g0, "mu", {"mur": 0.2})]
+        at = table[np.isclose(table["mu"], 0.5) & np.isclose(table["mur"], 0.2)].set_index("gravity")
+        low, high = at.loc[at.index.min()], at.loc[at.index.max()]
+        checks.append(Check("rotating-drum", model, "angle(4 g) - angle(g) at the same Froude number (deg)",
+                            high["angle mean"] - low["angle mean"], 0.0,
+                            math.hypot(high["angle 95% CI"], low["angle 95% CI"]), relative=False,
+                            source="Froude scaling: in the rolling regime the angle depends on g only through Fr; "
+                                   "tolerance: the 95 % interval of the difference"))
+        checks.append(Check("rotating-drum", model, "wall layer's speed / omega r below the flowing layer, middle third "
+                            "of the arc", low["wall_layer_speed_ratio"], 1.0, 0.02,
+                            source="the passive zone turns with the drum where it touches the wall (off the arc's ends "
+                                   "and the wall, the thin bed creeps: docs/studies.md)"))
+        result = CaseResult("rotating-drum", f"Rotating drum ({model}, {len(seeds)} seed{'s' * (len(seeds) > 1)}"
+                            f"{', quick' if quick else ''})", table, checks,
+                            notes=[f"A periodic slice of a drum 15 d in radius, 30 % full, at Fr = 5e-3 "
+                                   f"({int(runs['particles'].iloc[0])} spheres, R = 5 mm ± 20 %, E = 5 MPa); the angle "
+                                   "is the line fit of the free surface's middle third, its interval over seeds (one "
+                                   "seed: over blocks of samples). docs/studies.md, \"The rotating drum\"."])
+        if outdir is not None:
+            plt = pyplot()
+            fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+            for ax, key, fixed in ((axes[0], "mur", ("mu", 0.5)), (axes[1], "mu", ("mur", 0.2))):
+                ax.set_prop_cycle(color=plt.get_cmap("tab10").colors)
+                sel = g0[np.isclose(g0[fixed[0]], fixed[1])].sort_values(key)
+                ax.errorbar(sel[key], sel["angle mean"], yerr=sel["angle 95% CI"], fmt="o-", capsize=3, label="surface")
+                ax.plot(sel[key], sel["com_angle"], "s--", label="centre of mass")
+                ax.set_xlabel(key)
+                ax.set_ylabel("dynamic angle of repose (deg)")
+                ax.set_title(f"{fixed[0]} = {fixed[1]}")
+                ax.legend(fontsize=8)
+            result.add_figure(fig, outdir, "rotating_drum.png")
+        result.wall_time = time.perf_counter() - tic
+        return result

@@ -25,7 +25,9 @@ from rollingdem.scene.materials import Material
 from rollingdem.scene.simulation import Simulation
 from rollingdem.scene.mesh import MeshWall
 from rollingdem.scene.walls import Cylinder, Plane
-from rollingdem.experiments.results import CaseResult, Check, pyplot
+from rollingdem.experiments.results import CaseResult, Check, mean_ci, pyplot, rises, run_points
+from rollingdem.experiments.registry import (Experiment, Parameter, cohesion_parameters, common_parameters,
+                                             resolve_rolling, rolling_models, twisting_parameter)
 from rollingdem.experiments.single_sphere import DT, G, RADIUS, TABLE1
 
 POLYDISPERSITY = 0.2  # radii uniform in R (1 +- 0.2)
@@ -85,6 +87,16 @@ class PileMaterial:
     cohesion: str = "none"
     surface_energy: float = 0.0
     cohesion_energy_density: float = 0.0
+
+    @classmethod
+    def from_parameters(cls, p: dict) -> "PileMaterial":
+        """The material of an experiment's parameters (``mu``, ``mur``, ``youngs_modulus``, ``e``,
+        ``eta_r``, and where given ``poisson_ratio``, ``density`` and the cohesion parameters;
+        Table 1's otherwise)."""
+        extra = {k: p[k] for k in ("poisson_ratio", "density", "cohesion", "surface_energy", "cohesion_energy_density")
+                 if k in p}
+        return cls(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
+                   restitution=p["e"], rolling_damping=p["eta_r"], **extra)
 
     def as_material(self, name: str) -> Material:
         """Table 1 with these values, as a :class:`rollingdem.Material` called ``name``."""
@@ -356,3 +368,151 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
                 result.figures.append(path)
     result.wall_time = time.perf_counter() - tic
     return result
+
+
+class AngleOfRepose(Experiment):
+    """Case 3 of the seed report: a pile from a lifted tube (docs/studies.md); ``validate`` runs
+    ``angle_of_repose``."""
+
+    name = "angle-of-repose"
+    description = "pile from a lifted tube, repose angle by cone fit (report case 3 / PFC study)"
+    parameters = (common_parameters(mu=0.5, mur=0.2, mur_range=(0.05, 0.6))
+                  + (twisting_parameter(),
+                     Parameter("count", 2000, "spheres", low=50, integer=True),
+                     Parameter("lift_speed", 0.2, "tube lift speed (0: removed at once)", "m/s", low=0.0),
+                     Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
+                     Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
+                     Parameter("max_collapse", 3.0, "longest collapse before the pile counts as unsettled", "s",
+                               low=0.0, low_open=True),
+                     Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p), R = 5 mm", low=0.0, high=0.9),
+                     Parameter("rough_base", 0, "1: the pile stands on a base of fixed spheres (rollingdem.rough_base) "
+                                                "on the plate; 0: on the bare plate", low=0, high=1, integer=True))
+                  + cohesion_parameters())
+    observables = {"angle": "deg, cone fit (rollingdem.analysis.repose.repose_angle)",
+                   "slice_std": "deg, spread over azimuthal slices", "r_squared": "cone fit R²",
+                   "settled_at": "s after the tube is removed", "note": "why no angle"}
+    default_observable = "angle"
+    stochastic = True
+    targets = {"angle": (0.0, 90.0)}
+    sizes = {"quick": {"count": QUICK_PILE}, "full": {"count": FULL_PILE}}
+    model_keyword = "models"
+
+    def models(self) -> list[str]:
+        return list(REPOSE_MODELS)
+
+    def observe(self, params: dict) -> dict:
+        """A pile from a lifted tube and its measured angle (NaN with a note when it cannot be fitted)."""
+        p = self.resolve(params)
+        material = PileMaterial.from_parameters(p)
+        collapse = Collapse(max_time=p["max_collapse"], sample=0.02, lift_speed=p["lift_speed"] or None)
+        run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], seed=p["seed"], material=material,
+                       collapse=collapse, polydispersity=p["polydispersity"], dt=p["dt"],
+                       setup=PileSetup(base="rough" if p["rough_base"] else "plate"))
+        a = run.angle
+        return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
+                "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
+                "note": run.angle_error[:200]}
+
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+        return angle_of_repose(quick=quick, outdir=outdir, progress=progress, models=models, runner=runner)
+
+
+class ReposeRoughBase(Experiment):
+    """The lifted-cylinder pile on a rough base of fixed spheres (the PFC and LIGGGHTS protocol)."""
+
+    name = "repose-rough-base"
+    description = "the lifted-cylinder pile on a rough base of fixed spheres (PFC and LIGGGHTS protocol)"
+    parameters = (common_parameters(mu=0.6, mur=0.1, mur_range=(0.0, 0.6))
+                  + (twisting_parameter(),
+                     Parameter("count", 2000, "spheres in the column", low=50, integer=True),
+                     Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
+                     Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
+                     Parameter("tube_radius", 0.0, "cylinder radius (0: sized so that the column is one diameter high "
+                                                   "at solid fraction 0.6; 6 d for 2,000 spheres)", "m", low=0.0),
+                     Parameter("lift_speed", 0.1, "cylinder lift speed (0: removed at once)", "m/s", low=0.0),
+                     Parameter("clearance", 1.0, "how far the lifted cylinder's lower edge rises above the column's "
+                                                 "top before it is removed, in mean diameters", low=0.0),
+                     Parameter("base_radius", 0.0, "radius of the base's fixed spheres (0: R)", "m", low=0.0),
+                     Parameter("base_spacing", 2.2, "spacing of the base's spheres, in base radii", low=2.0),
+                     Parameter("base_jitter", 0.1, "random shift of each base sphere in the plane, at most, in base "
+                                                   "radii", low=0.0),
+                     Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
+                     Parameter("poisson_ratio", 0.49, "Poisson's ratio", low=0.0, high=0.5),
+                     Parameter("density", 1056.0, "particle density", "kg/m^3", low=0.0, low_open=True),
+                     Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
+                     Parameter("max_collapse", 3.0, "longest collapse before the pile counts as unsettled", "s",
+                               low=0.0, low_open=True))
+                  + cohesion_parameters())
+    observables = {"angle": "deg, cone fit (rollingdem.analysis.repose.repose_angle)",
+                   "slice_std": "deg, spread over azimuthal slices", "r_squared": "cone fit R²",
+                   "settled_at": "s after the cylinder starts to lift", "note": "why no angle"}
+    default_observable = "angle"
+    stochastic = True
+    targets = {"angle": (0.0, 90.0)}
+    sizes = {"quick": {"count": 1000}, "full": {"count": 4000}}
+    model_keyword = "model"
+
+    def models(self) -> list[str]:
+        return rolling_models()
+
+    def observe(self, params: dict) -> dict:
+        """The lifted-cylinder pile on a rough base of fixed spheres, every protocol choice a parameter."""
+        p = self.resolve(params)
+        material = PileMaterial.from_parameters(p)
+        base_radius = p["base_radius"] or p["radius"]
+        setup = PileSetup(base="rough", radius=p["radius"], tube_radius=p["tube_radius"] or None,
+                          base_radius=base_radius, base_spacing=p["base_spacing"] * base_radius,
+                          base_jitter=p["base_jitter"] * base_radius, clearance=2.0 * p["radius"] * p["clearance"])
+        collapse = Collapse(max_time=p["max_collapse"], sample=0.02, lift_speed=p["lift_speed"] or None)
+        run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], seed=p["seed"], material=material,
+                       collapse=collapse, polydispersity=p["polydispersity"], dt=p["dt"], setup=setup)
+        a = run.angle
+        return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
+                "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
+                "note": run.angle_error[:200]}
+
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> CaseResult:
+        """The lifted-cylinder pile on a rough base at mu = 0.2 and 0.6 and mu_r = 0, 0.1, 0.3, over 3
+        seeds (1,000 spheres quick, 4,000 full). Checks: a pile forms at mu_r = 0 (on the bare plate
+        the spheres roll away); the mean angle rises with mu_r at each mu and with mu at each mu_r.
+        With the smooth-plate sweep (``--case repose-sweep``) in the same folder, the figure puts its
+        angles beside these."""
+        tic = time.perf_counter()
+        count = self.sizes["quick" if quick else "full"]["count"]
+        points = [{"model": model, "mu": mu, "mur": mur, "count": count} for mu in (0.2, 0.6) for mur in (0.0, 0.1, 0.3)]
+        runs = run_points(self, points, [1, 2, 3], runner, progress)
+        table = mean_ci(runs, ["mu", "mur"], "angle")
+        table["r_squared mean"] = runs.groupby(["mu", "mur"], sort=True)["r_squared"].mean().to_numpy()
+        checks = []
+        for mu in (0.2, 0.6):
+            zero = runs[np.isclose(runs["mu"], mu) & (runs["mur"] == 0.0)]["angle"]
+            checks.append(Check("repose-rough-base", model, f"smallest angle at mu_r = 0, mu = {mu} over 3 seeds (deg)",
+                                float(zero.min()) if zero.notna().all() else math.nan, 5.0, 0.0, bound="lower",
+                                source="PFC and LIGGGHTS: a rough base holds a pile without rolling resistance"))
+            checks.append(rises("repose-rough-base", model, table, "mur", {"mu": mu}))
+        for mur in (0.0, 0.1, 0.3):
+            checks.append(rises("repose-rough-base", model, table, "mu", {"mur": mur}))
+        result = CaseResult("repose-rough-base", f"Angle of repose on a rough base ({model}, {count} spheres)", table,
+                            checks, notes=["The cylinder (about 6 d in radius for 2,000 spheres) is lifted at 0.1 m/s "
+                                           "from a base of fixed spheres (R, spacing 2.2 R, jitter 0.1 R); mean over 3 "
+                                           "seeds with the 95 % Student-t interval."])
+        if outdir is not None:
+            plt = pyplot()
+            fig, ax = plt.subplots(figsize=(6.5, 4.2))
+            ax.set_prop_cycle(color=plt.get_cmap("tab10").colors)  # distinct neighbours, unlike tab20's pairs
+            for mu in (0.2, 0.6):
+                sel = table[np.isclose(table["mu"], mu)]
+                ax.errorbar(sel["mur"], sel["angle mean"], yerr=sel["angle 95% CI"], fmt="o-", capsize=3,
+                            label=f"rough base, mu = {mu}")
+            smooth = Path(outdir) / "repose-sweep.csv"
+            if smooth.exists():
+                s = pd.read_csv(smooth)
+                for mu, grp in s.groupby("mu"):
+                    ax.errorbar(grp["mu_r"], grp["angle mean (deg)"], yerr=grp.get("95 % CI ± (deg)"), fmt="s--",
+                                capsize=3, alpha=0.7, label=f"smooth plate (repose-sweep), mu = {mu}")
+            ax.set_xlabel("mu_r")
+            ax.set_ylabel("angle of repose (deg)")
+            ax.legend(fontsize=7)
+            result.add_figure(fig, outdir, "repose_rough_base.png")
+        result.wall_time = time.perf_counter() - tic
+        return result

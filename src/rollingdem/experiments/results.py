@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 
@@ -81,3 +82,46 @@ def pyplot():
     import matplotlib.pyplot as plt
     plt.rcParams["axes.prop_cycle"] = plt.cycler(color=plt.get_cmap("tab20").colors)
     return plt
+
+
+# --- what several experiments' validations share ----------------------------------------------
+def run_points(experiment, points: list[dict], seeds, runner, progress) -> pd.DataFrame:
+    """Every point at every seed through ``runner``: one row per run (parameters and observables)."""
+    items = [dict(p, seed=s) for p in points for s in seeds]
+    run = experiment.observe
+    rows = []
+    for params, observables in zip(items, runner(run, items)):
+        rows.append({**params, **observables})
+        if progress:
+            progress()
+    return pd.DataFrame(rows)
+
+
+def mean_ci(runs: pd.DataFrame, keys: list[str], value: str, within: str | None = None) -> pd.DataFrame:
+    """Mean of ``value`` over seeds per point with its 95 % Student-t half-width; with one seed,
+    the run's own interval ``within`` (if given)."""
+    rows = []
+    from rollingdem.analysis.intervals import confidence_interval
+
+    for point, grp in runs.groupby(keys, sort=True):
+        point = point if isinstance(point, tuple) else (point,)
+        mean, half = confidence_interval(grp[value])
+        if len(grp) == 1 and within is not None:
+            half = float(grp[within].iloc[0])
+        rows.append({**dict(zip(keys, point)), f"{value} mean": mean, f"{value} 95% CI": half, "runs": len(grp)})
+    return pd.DataFrame(rows)
+
+
+def rises(case, label, table, key, fixed, value="angle") -> Check:
+    """Check that ``value`` grows along ``key`` with the other parameters at ``fixed``: the smallest
+    step between successive means must be positive."""
+    sel = table
+    for k, v in fixed.items():
+        sel = sel[np.isclose(sel[k], v)]
+    sel = sel.sort_values(key)
+    steps = np.diff(sel[f"{value} mean"].to_numpy())
+    where = ", ".join(f"{k} = {v:g}" for k, v in fixed.items())
+    return Check(case, label, f"smallest rise of the {value} between successive {key} "
+                 f"({', '.join(f'{x:g}' for x in sel[key])}) at {where} (deg)",
+                 float(steps.min()) if len(steps) else math.nan, 0.0, 0.0, bound="lower",
+                 source=f"physics: more {key}, more resistance to flow, a steeper surface")

@@ -23,6 +23,9 @@ from rollingdem.scene.insertion import BoxRegion, CylinderRegion, Uniform
 from rollingdem.scene.mesh import MeshWall
 from rollingdem.scene.simulation import Simulation
 from rollingdem.experiments.repose import PileMaterial
+from rollingdem.experiments.results import CaseResult, Check, pyplot, run_points
+from rollingdem.experiments.registry import (UNBOUNDED, Experiment, Parameter, granular_parameters, resolve_rolling,
+                                             rolling_models)
 from rollingdem.experiments.single_sphere import RADIUS
 
 BLOCKS = 5  # sub-windows whose rates give the 95 % interval of W
@@ -238,3 +241,145 @@ def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     return SiloRun(np.array(t), np.array(out), (start, out[-1] if done else math.nan), bed_mass, bulk,
                    float(np.mean(fractions)) * density if fractions else math.nan, count, clogged, d0, d,
                    time.perf_counter() - tic)
+
+
+class SiloDischarge(Experiment):
+    """A flat-bottomed silo discharging through a circular orifice at a steady head (docs/studies.md,
+    "Silo discharge")."""
+
+    name = "silo-discharge"
+    description = "a flat-bottomed silo discharging through a circular orifice at a steady head (docs/studies.md)"
+    parameters = (granular_parameters()
+                  + (Parameter("orifice_diameters", 6.0, "orifice diameter D0 in mean sphere diameters d", low=1.0),
+                     Parameter("silo_diameters", 0.0, "silo diameter in d (0: max(2.5 D0, D0 + 30 d))", low=0.0),
+                     Parameter("fill_diameters", 0.0, "settled fill height in d, held during the discharge (0: 20 d, "
+                                                      "at least 2 D0)", low=0.0),
+                     Parameter("gravity", 9.81, "gravitational acceleration g", "m/s^2", low=0.0, low_open=True),
+                     Parameter("transient", 200, "spheres out after the opening before W is measured", low=0,
+                               integer=True),
+                     Parameter("measured", 1000, "spheres out over which W is measured", low=10, integer=True),
+                     Parameter("max_time", 60.0, "longest discharge", "s", low=0.0, low_open=True),
+                     Parameter("clog_time", 1.0, "time without a particle out that counts as clogged", "s", low=0.0,
+                               low_open=True)))
+    observables = {
+        "flow_rate": "kg/s, steady mass flow rate W: slope of the discharged mass over the measured spheres",
+        "flow_rate_ci": "kg/s, 95 % Student-t half-width over 5 sub-windows",
+        "flow_rate_first": "kg/s, W over the first half of the measured spheres",
+        "flow_rate_second": "kg/s, W over the second half",
+        "bulk_density": "kg/m^3, of the settled bed before the orifice opens",
+        "orifice_density": "kg/m^3, in the cylinder D0 wide and D0/2 high above the orifice, while W is measured",
+        "clogged": "1 when the orifice clogged", "orifice": "m, the orifice diameter D0",
+        "particles": "spheres in the silo"}
+    default_observable = "flow_rate"
+    stochastic = True
+    targets = {"flow_rate": UNBOUNDED, "bulk_density": UNBOUNDED}
+    #: what ``validate`` runs: orifices D0 (d), from 5 d: below about 4.9 d a silo of spheres clogs
+    #: after avalanches of finite mean size (Zuriguel et al. 2005), so a run may stop before W is
+    #: measured; the silo's diameter max(2.5 D0, D0 + ``gap``) d; the fill height (d), held; the
+    #: spheres measured per run. The full sizes keep 30 d of wall gap; the quick silo keeps 2.5 D0
+    #: but only 10 d
+    sizes = {"quick": {"orifices": (5.0, 6.0, 7.0, 8.0), "gap": 10.0, "fill": 12.0, "measured": 1000},
+             "full": {"orifices": (5.0, 6.25, 7.5, 8.75, 10.0), "gap": 30.0, "fill": 20.0, "measured": 2000}}
+    #: the validation's material: a glass-bead-like friction (Beverloo's C and k ranges are for
+    #: glass beads and sand)
+    material = {"mu": 0.5, "mur": 0.1}
+    model_keyword = "model"
+
+    def models(self) -> list[str]:
+        return rolling_models()
+
+    def observe(self, params: dict) -> dict:
+        """A flat-bottomed silo discharging at a steady head: the mass flow rate and the rest."""
+        p = self.resolve(params)
+        material = PileMaterial.from_parameters(p)
+        setup = SiloSetup(orifice_diameters=p["orifice_diameters"], silo_diameters=p["silo_diameters"] or None,
+                          fill_diameters=p["fill_diameters"] or None, gravity=p["gravity"], transient=p["transient"],
+                          measured=p["measured"], max_time=p["max_time"], clog_time=p["clog_time"])
+        run = silo_run(resolve_rolling(p["model"]), p["twisting"], material, setup, radius=p["radius"],
+                       polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
+        lo, hi = run.window
+        w, half = discharge_rate(run.t, run.discharged, run.window, blocks=BLOCKS)
+        return {"flow_rate": w, "flow_rate_ci": half,
+                "flow_rate_first": discharge_rate(run.t, run.discharged, (lo, 0.5 * (lo + hi)))[0],
+                "flow_rate_second": discharge_rate(run.t, run.discharged, (0.5 * (lo + hi), hi))[0],
+                "bulk_density": run.bulk_density, "orifice_density": run.orifice_density, "clogged": int(run.clogged),
+                "orifice": run.orifice, "particles": run.particles}
+
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> CaseResult:
+        """The silo at 4 (quick) or 5 orifice sizes from 5 d to 8 or 10 d, one seed each, at a steady
+        head; the smallest orifice again at half the fill height. Checks: Beverloo's law with the
+        exponent 5/2 fits with k between 1 and 3 and C between 0.45 and 0.75 (the range of measured
+        and simulated glass beads and sand); 5/2 lies within the 95 % interval of the exponent fitted
+        freely; W at half the fill height equals W at the full within 5 % (or the 95 % interval of
+        their ratio, if wider): it does not depend on the fill height."""
+        from scipy import stats
+
+        tic = time.perf_counter()
+        sizes = self.sizes["quick" if quick else "full"]
+
+        def point(d0, fill):
+            return {"model": model, **self.material, "orifice_diameters": d0, "measured": sizes["measured"],
+                    "silo_diameters": max(2.5 * d0, d0 + sizes["gap"]), "fill_diameters": fill}
+
+        points = [point(d0, sizes["fill"]) for d0 in sizes["orifices"]]
+        points.append(point(sizes["orifices"][0], 0.5 * sizes["fill"]))
+        runs = run_points(self, points, [1], runner, progress)
+        table = runs[["orifice_diameters", "silo_diameters", "fill_diameters", "orifice", "particles", "flow_rate",
+                      "flow_rate_ci", "flow_rate_first", "flow_rate_second", "bulk_density", "orifice_density",
+                      "clogged"]].copy()
+        full = table[np.isclose(table["fill_diameters"], sizes["fill"])]
+        ok = full[np.isfinite(full["flow_rate"])]
+        d = 2 * self.by_name["radius"].default
+        rho_b = float(ok["bulk_density"].mean()) if len(ok) else math.nan
+        checks = []
+        # a rate's standard error: its 95 % half-width over the sub-windows / t(0.975, blocks - 1)
+        errors = ok["flow_rate_ci"] / stats.t.ppf(0.975, BLOCKS - 1)
+        if len(ok) >= 4 and np.all(errors > 0):
+            c, k, _ = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d, exponent=2.5, errors=errors)
+            _, _, n = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d, errors=errors)
+            n_lo, n_hi = beverloo_exponent_interval(ok["orifice"], ok["flow_rate"], errors, rho_b, d)
+        else:
+            c = k = n = n_lo = n_hi = math.nan
+        checks += [Check("silo-discharge", model, "Beverloo k (exponent 5/2)", k, 2.0, 1.0, relative=False,
+                         source="Beverloo et al. (1961), Nedderman (1992): k from 1 to 3"),
+                   Check("silo-discharge", model, "Beverloo C (exponent 5/2)", c, 0.6, 0.15, relative=False,
+                         source="Beverloo et al. (1961), Nedderman (1992): C from 0.45 to 0.75"),
+                   Check("silo-discharge", model, f"exponent of (D0 - k d), fitted freely, 95 % interval "
+                         f"[{n_lo:.2f}, {n_hi:.2f}]", n, 2.5, (n - n_lo) if n > 2.5 else (n_hi - n), relative=False,
+                         source="Beverloo: W ~ (D0 - k d)^(5/2), dimensional analysis; tolerance: 5/2 within "
+                                "the fitted exponent's 95 % interval")]
+        at = table[np.isclose(table["orifice_diameters"], sizes["orifices"][0])].set_index("fill_diameters")
+        high, low = at.loc[sizes["fill"]], at.loc[0.5 * sizes["fill"]]
+        ratio = low["flow_rate"] / high["flow_rate"]
+        spread = ratio * math.hypot(low["flow_rate_ci"] / low["flow_rate"], high["flow_rate_ci"] / high["flow_rate"])
+        checks.append(Check("silo-discharge", model, f"W(fill {0.5 * sizes['fill']:g} d) / W(fill {sizes['fill']:g} d) "
+                            f"at D0 = {sizes['orifices'][0]:g} d", ratio, 1.0,
+                            max(0.05, spread) if math.isfinite(spread) else 0.05,
+                            source="the flow rate does not depend on the fill height (Janssen); tolerance 5 % or "
+                                   "the 95 % interval of the ratio, if wider"))
+        result = CaseResult("silo-discharge", f"Silo discharge ({model}{', quick' if quick else ''})", table, checks,
+                            notes=[f"mu = {self.material['mu']}, mu_r = {self.material['mur']}; silos max(2.5 D0, D0 + "
+                                   f"{sizes['gap']:g} d) wide, filled {sizes['fill']:g} d high and held there (the "
+                                   f"spheres out are put back on top); W over {sizes['measured']} spheres out. Beverloo "
+                                   f"fit over {len(ok)} orifices with rho_b = {rho_b:.1f} kg/m^3 (the settled beds'): "
+                                   f"C = {c:.3f}, k = {k:.2f} (exponent 5/2), weighted by the rates' errors; exponent fitted "
+                                   f"freely {n:.2f}, 95 % interval [{n_lo:.2f}, {n_hi:.2f}]. "
+                                   "docs/studies.md, \"Silo discharge\"."])
+        if outdir is not None and len(ok):
+            plt = pyplot()
+            fig, ax = plt.subplots(figsize=(6, 4))
+            ax.set_prop_cycle(color=plt.get_cmap("tab10").colors)
+            ax.errorbar(ok["orifice_diameters"], ok["flow_rate"], yerr=ok["flow_rate_ci"], fmt="o", capsize=3,
+                        label="simulated W, 95 % interval")
+            x = np.linspace(ok["orifice"].min(), ok["orifice"].max(), 50)
+            if math.isfinite(c):
+                ax.plot(x / d, c * rho_b * math.sqrt(9.81) * np.maximum(x - k * d, 0) ** 2.5, "-",
+                        label=f"Beverloo, C = {c:.2f}, k = {k:.2f}")
+            ax.errorbar([low["orifice"] / d], [low["flow_rate"]], yerr=[low["flow_rate_ci"]], fmt="s", capsize=3,
+                        label=f"fill {0.5 * sizes['fill']:g} d")
+            ax.set_xlabel("orifice diameter D0 / d")
+            ax.set_ylabel("mass flow rate W (kg/s)")
+            ax.legend(fontsize=8)
+            result.add_figure(fig, outdir, "silo_discharge.png")
+        result.wall_time = time.perf_counter() - tic
+        return result

@@ -16,9 +16,11 @@ import pandas as pd
 
 from rollingdem.errors import ParameterError
 from rollingdem.experiments.results import CaseResult, Check, pyplot
-from rollingdem.experiments.single_sphere import CREEPING, DT, G, NO_THRESHOLD, SLOPE, VISCOUS_TAU, analytic_flat, analytic_flat_curve, analytic_slope, creep_speed, critical_rolling_friction, rolling_flat_run, rolling_slope_run, single_thread, stop_time, validation_models, viscous_decay_time
+from rollingdem.experiments.registry import UNBOUNDED, Experiment, Parameter, common_parameters, resolve_rolling
+from rollingdem.experiments.single_sphere import CREEPING, DT, G, NO_THRESHOLD, SLOPE, VISCOUS_TAU, analytic_flat, analytic_flat_curve, analytic_slope, creep_speed, critical_rolling_friction, rolling_flat_run, rolling_slope_run, rolling_threshold_speed, single_thread, speed_down_incline, stop_time, validation_models, viscous_decay_time
 
 ANGLES = (4, 8, 10, 15, 20, 25, 30, 35)
+QUICK_ANGLES = (4, 20, 35)  # the angles of a quick run
 # The report's Table 2 (LIGGGHTS, EPSD with eta_r = 0): critical mu_r per angle
 REPORT_TABLE2 = {
     "cdt": (0.0688, 0.14, 0.17548, 0.26704, 0.36304, 0.46547, 0.576, 0.7),
@@ -49,7 +51,7 @@ def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress
     tic = time.perf_counter()
     chosen = {k: v for k, v in _select(models).items() if k not in NO_THRESHOLD}
     if quick:
-        angles = tuple(a for a in angles if a in (4, 20, 35)) or angles[:1]
+        angles = tuple(a for a in angles if a in QUICK_ANGLES) or angles[:1]
     rel_tol = 2e-3 if quick else 1e-3
     rows, checks = [], []
     items = [(beta, label) for beta in angles for label in chosen]
@@ -204,3 +206,97 @@ def rolling_slope(models=None, quick=False, outdir=None, progress=None, runner=m
         result.add_figure(fig, outdir, "rolling_slope.png")
     result.wall_time = time.perf_counter() - tic
     return result
+
+
+def sphere_material(p: dict) -> dict:
+    """The single sphere's contact coefficients of an experiment's parameters."""
+    return {"friction": p["mu"], "rolling_friction": p["mur"], "rolling_damping": p["eta_r"], "restitution": p["e"]}
+
+
+class SingleSphere(Experiment):
+    """What the single-sphere experiments share: ``validate`` runs every validation label of the
+    rolling models, or those of ``models``."""
+
+    model_keyword = "models"
+
+    def models(self) -> list[str]:
+        return list(validation_models())
+
+
+class InclinedWall(SingleSphere):
+    """Case 0 of the seed report: the inclination at which a sphere starts to roll."""
+
+    name = "inclined-wall"
+    description = "critical inclination for a given mu_r (report case 0)"
+    parameters = (common_parameters(mur_range=(0.05, 0.7), mur_low_open=True)
+                  + (Parameter("beta_low", 0.5, "lower end of the bisection bracket", "deg", low=0.0, low_open=True,
+                               high=89.0),
+                     Parameter("beta_high", 45.0, "upper end of the bisection bracket", "deg", low=0.0, low_open=True,
+                               high=89.0),
+                     Parameter("rel_tol", 2e-3, "bisection width, relative in tan(beta)", low=1e-5, high=0.1)))
+    observables = {"critical_angle": "deg, theory atan(mu_r)"}
+    default_observable = "critical_angle"
+    targets = {"critical_angle": (0.0, 90.0)}
+    sizes = {"quick": {"angles": QUICK_ANGLES, "rel_tol": 2e-3}, "full": {"angles": ANGLES, "rel_tol": 1e-3}}
+
+    def observe(self, params: dict) -> dict:
+        """The inclination (deg) at which the sphere starts to roll, by bisection over beta in
+        [beta_low, beta_high] to a relative width ``rel_tol`` in tan(beta); NaN when it holds at
+        beta_high or rolls at beta_low."""
+        p = self.resolve(params)
+        if p["beta_low"] >= p["beta_high"]:
+            raise ParameterError(f"beta_low = {p['beta_low']} is not allowed: must be below beta_high = {p['beta_high']}")
+        model, material = resolve_rolling(p["model"]), sphere_material(p)
+
+        def rolls(beta):
+            # the threshold of a quarter of rel_tol above critical keeps the classification bias below the bracket
+            return (speed_down_incline(model, p["mur"], beta, material=material)
+                    > rolling_threshold_speed(beta, 0.25 * p["rel_tol"]))
+
+        lo, hi = p["beta_low"], p["beta_high"]
+        if rolls(lo) or not rolls(hi):
+            return {"critical_angle": math.nan}
+        while math.tan(math.radians(hi)) - math.tan(math.radians(lo)) > p["rel_tol"] * math.tan(math.radians(lo)):
+            mid = 0.5 * (lo + hi)
+            if rolls(mid):
+                hi = mid
+            else:
+                lo = mid
+        return {"critical_angle": 0.5 * (lo + hi)}
+
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+        return inclined_wall(models, quick=quick, outdir=outdir, progress=progress, runner=runner)
+
+
+class RollingFlat(SingleSphere):
+    """Case 1 of the seed report: a sphere launched on a flat wall rolls to rest."""
+
+    name = "rolling-flat"
+    description = "one Table-1 sphere launched at v0 on a flat (report case 1)"
+    parameters = (common_parameters(mur_range=(0.05, 0.6), mur_low_open=True)
+                  + (Parameter("v0", 1.0, "launch speed", "m/s", low=0.0, low_open=True, high=10.0),))
+    observables = {"distance": "m, from launch to rest", "stop_time": "s, first sample below 1 mm/s"}
+    default_observable = "distance"
+    targets = {"distance": UNBOUNDED, "stop_time": UNBOUNDED}
+
+    def observe(self, params: dict) -> dict:
+        """Case 1 as a function: stop distance (m) and time (s) of a sphere launched at v0."""
+        p = self.resolve(params)
+        # record until 1.3x the analytic stop (at least 0.3 s after it): the sphere must be seen to stop
+        t_stop = analytic_flat(p["v0"], p["mu"], p["mur"])[2]
+        traj = rolling_flat_run(resolve_rolling(p["model"]), duration=1.3 * t_stop + 0.3, v0=p["v0"],
+                                material=sphere_material(p))
+        return {"distance": float(traj.x[-1]), "stop_time": stop_time(traj)}
+
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+        return rolling_flat(models, quick=quick, outdir=outdir, progress=progress, runner=runner)
+
+
+class RollingSlope(SingleSphere):
+    """Case 2 of the seed report: a sphere launched up a slope stops, and holds or rolls back."""
+
+    name = "rolling-slope"
+    description = "one Table-1 sphere launched up a 10 deg slope (report case 2)"
+
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+        return rolling_slope(models, quick=quick, outdir=outdir, progress=progress, runner=runner)

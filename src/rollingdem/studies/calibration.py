@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rollingdem.experiments.observables import get_case
+from rollingdem.experiments import get_experiment
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_output_path
 from rollingdem.studies.parallel import Execution
 
@@ -148,7 +148,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
     from rollingdem.studies.sweep import load_sweep, run_sweep
 
     tic = time.perf_counter()
-    sc = get_case(case)
+    sc = get_experiment(case, observable=True, what="case")
     if isinstance(free, str):
         name, rng = free, None
     elif isinstance(free, (list, tuple)) and len(free) == 2 and not isinstance(free[1], str):
@@ -298,7 +298,8 @@ def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) 
     ax.axvline(result.value, color="tab:red", lw=1.2, label=f"{result.parameter} = {result.value:.4g} "
                                                        f"[{result.low:.4g}, {result.high:.4g}]")
     ax.set_xlabel(result.parameter)
-    ax.set_ylabel(f"{result.observable} ({get_case(result.case).observables[result.observable].split(',')[0]})")
+    unit = get_experiment(result.case, observable=True, what="case").observables[result.observable].split(",")[0]
+    ax.set_ylabel(f"{result.observable} ({unit})")
     fixed = ", ".join(f"{k} = {v}" for k, v in result.fixed.items())
     ax.set_title(f"Calibration, {result.case}{': ' + fixed if fixed else ''}", fontsize=10)
     ax.legend(fontsize=7)

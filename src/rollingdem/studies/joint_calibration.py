@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rollingdem.experiments.observables import get_case
+from rollingdem.experiments import get_experiment
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_output_path
 from rollingdem.studies.parallel import Execution
 
@@ -126,7 +126,7 @@ def _check(targets, free, fix):
                              "--target CASE.OBSERVABLE=VALUE±U)")
     cases = {}
     for t in targets:
-        sc = get_case(t.case)
+        sc = get_experiment(t.case, observable=True, what="case")
         cases[t.case] = sc
         if t.observable not in sc.observables:
             raise ParameterError(f"target observable = {t.observable!r} is not known for case {t.case!r}: allowed "
@@ -295,7 +295,8 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
         if isinstance(v, bool) or not isinstance(v, int) or v < n_min:
             raise ParameterError(f"{k} = {v!r} is not allowed: must be an integer >= {n_min}")
     cases = list(dict.fromkeys(t.case for t in targets))
-    seed_count = {c: seeds if seeds is not None else (3 if get_case(c).stochastic else 1) for c in cases}
+    seed_count = {c: seeds if seeds is not None else (3 if get_experiment(c, observable=True, what="case").stochastic else 1)
+                  for c in cases}
     out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-joint-"))
     for c in cases:  # refuse a bad seeds value before any run
         load_sweep({"case": c, "fixed": fixed[c], "points": [{n: box[n][0] for n in names}], "seeds": seed_count[c]})

@@ -1,6 +1,6 @@
 """Parameter sweeps: one case over many parameter sets and seeds, on Dask, resumable.
 
-A sweep file names a case of :mod:`rollingdem.experiments.observables`, fixed parameters and a grid, a
+A sweep file names an experiment of :mod:`rollingdem.experiments` (its ``case`` key), fixed parameters and a grid, a
 list of points or a Latin-hypercube sample, repeated over seeds. Runs are appended to
 ``OUT/runs.csv`` as they finish (a rerun skips those done); ``OUT/summary.csv`` and ``summary.png``
 give the means over seeds with 95 % intervals. docs/studies.md, "Sweeps"."""
@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from rollingdem.experiments.observables import SweepCase, get_case
+from rollingdem.experiments import Experiment, get_experiment
 from rollingdem.errors import ParameterError, check_output_path
 from rollingdem.analysis.intervals import confidence_interval
 
@@ -125,7 +125,7 @@ def swept_parameters(spec: SweepSpec) -> list[str]:
 
 def expand(spec: SweepSpec) -> list[dict]:
     """Every run of the sweep as a full, checked parameter set (case defaults filled in)."""
-    case = get_case(spec.case)
+    case = get_experiment(spec.case, observable=True, what="case")
     if spec.grid is not None:
         keys = list(spec.grid)
         design = [dict(zip(keys, combo)) for combo in itertools.product(*spec.grid.values())]
@@ -149,6 +149,11 @@ def expand(spec: SweepSpec) -> list[dict]:
     clash = [k for k in spec.fixed if any(k in d for d in design)]
     if clash:
         raise ParameterError(f"parameter {clash[0]!r} is both fixed and swept: give it in one place")
+    if "seed" not in case.by_name:  # a deterministic experiment: one run per point
+        if len(spec.seed_list) > 1:
+            raise ParameterError(f"seeds = {spec.seeds!r} is not allowed for case {case.name!r}: it takes no seed "
+                                 "(its result does not depend on one); leave seeds out")
+        return [case.resolve({**spec.fixed, **d}) for d in design]
     runs = []
     for d in design:
         for seed in spec.seed_list:
@@ -163,18 +168,19 @@ def run_id(case: str, params: dict) -> str:
 
 
 class _Execute:
-    """One run in a worker: the case's observables, wall time, version; an exception becomes a
-    failed row (picklable, so Dask can ship it)."""
+    """One run in a worker: the experiment's observables, wall time, version; an exception becomes
+    a failed row. Picklable, so Dask can ship it: the experiment goes by reference to its class,
+    which a worker imports (and so registers) from the class's module."""
 
-    def __init__(self, case: str):
-        self.case = case
+    def __init__(self, experiment: Experiment):
+        self.experiment = experiment
 
     def __call__(self, params: dict) -> dict:
         from rollingdem.scene.simulation import __version__
 
         tic = time.perf_counter()
         try:
-            observables, status, error = get_case(self.case).run(dict(params)), "ok", ""
+            observables, status, error = self.experiment.observe(dict(params)), "ok", ""
         except Exception as err:  # recorded, and the sweep goes on
             observables, status = {}, "failed"
             error = f"{type(err).__name__}: {err}\n{traceback.format_exc(limit=4)}"[-2000:]
@@ -199,11 +205,11 @@ class SweepResult:
         return self.failed == 0 and bool(len(self.table)) and bool((self.table["status"] == "ok").all())
 
 
-def _columns(case: SweepCase) -> list[str]:
+def _columns(case: Experiment) -> list[str]:
     return [*BOOKKEEPING, *(p.name for p in case.parameters), *case.observables, *TRAILER]
 
 
-def read_table(path: Path, case: SweepCase | None = None) -> pd.DataFrame:
+def read_table(path: Path, case: Experiment | None = None) -> pd.DataFrame:
     """The runs table; a line cut short by a crash is dropped, the last row of a run id wins."""
     if not path.exists() or path.stat().st_size == 0:
         return pd.DataFrame(columns=_columns(case) if case else list(BOOKKEEPING))
@@ -249,7 +255,7 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
 
     check_workers(workers, threads)
     spec = load_sweep(spec)
-    case = get_case(spec.case)
+    case = get_experiment(spec.case, observable=True, what="case")
     out = check_output_path("out", out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / TABLE
@@ -274,7 +280,7 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     if todo:
         def go(m):
             nonlocal failed
-            for k, outcome in completed(m, _Execute(spec.case), [p for _, p in todo]):
+            for k, outcome in completed(m, _Execute(case), [p for _, p in todo]):
                 rid, params = todo[k]
                 if isinstance(outcome, BaseException):  # the run never finished: its workers died
                     outcome = {"observables": {}, "status": "failed", "version": "", "wall_time_s": math.nan,
@@ -310,7 +316,7 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     return result
 
 
-def summarize(table: pd.DataFrame, case: SweepCase, swept: list[str], out: Path | None = None,
+def summarize(table: pd.DataFrame, case: Experiment, swept: list[str], out: Path | None = None,
               result: SweepResult | None = None) -> pd.DataFrame:
     """Mean and 95 % interval over seeds of every numeric observable per point; with ``out``,
     ``summary.csv`` and ``summary.png``: each observable against the first swept parameter, one

@@ -234,9 +234,9 @@ def test_worked_example_adds_a_backend():
 def test_worked_example_adds_a_wall_type():
     """docs/architecture.md's square plate: the sphere dropped on it rests at the Hertz overlap of
     its weight, delta = (3 m g / (4 E* sqrt(R)))^(2/3) with the wall of the sphere's material,
-    E* = E / (2 (1 - nu^2)) (docs/models.md §0); to 2 % of delta, which leaves the plate's residual
-    motion (a speed of 1e-10 m/s) and a factor wrong in E*, m or g (each 26 % or more off) apart;
-    and the plate's load is the weight, to 1e-6."""
+    E* = E / (2 (1 - nu^2)) (docs/models.md §0); to 2 % of delta, wider than the plate's residual
+    motion (a speed of 1e-10 m/s) and narrower than a factor 2 wrong in E*, m or g (delta 59 %
+    off) or the factor (1 - nu^2) left out (16 % off); and the plate's load is the weight, to 1e-6."""
     import math
 
     scope = {}
@@ -272,10 +272,10 @@ def test_worked_example_adds_an_experiment(tmp_path):
         assert exact <= found + 1e-12 and found - exact <= 11e-5  # a look after the touch, within 10 steps and one
         assert experiment.validate(quick=True).passed
         assert "free-fall" in validate.available_experiments()
-        results = validate.run_validation(tmp_path / "report", cases=["free-fall"], quick=True, progress=False,
+        results = validate.run_validation(tmp_path / "report", experiments=["free-fall"], quick=True, progress=False,
                                           workers=1)
         assert [r.passed for r in results] == [True]
-        spec = load_sweep({"case": "free-fall", "grid": {"height": [0.02, 0.08]}})
+        spec = load_sweep({"experiment": "free-fall", "grid": {"height": [0.02, 0.08]}})
         table = run_sweep(spec, tmp_path / "sweep", progress=False, summary=False, mapper=map).table
         assert sorted(table["touch_time"]) == pytest.approx([math.sqrt(2 * (h - 0.005) / 9.81) for h in (0.02, 0.08)],
                                                             abs=11e-5)

@@ -405,10 +405,12 @@ def test_commands_refuse_bad_files_and_options_in_one_line(tmp_path, afile):
     _refused(["sweep", tmp_path], "it is a folder; must be a file")
     (tmp_path / "sweep.yaml").write_text("case: rolling-flat\ngrid: {mur: [0.1]}\n")
     _refused(["sweep", tmp_path / "sweep.yaml", "--out", afile], "--out = ")
-    _refused(["calibrate", "--case", "nope", "--target", 1], "case = 'nope' is not known")
+    _refused(["calibrate", "--experiment", "nope", "--target", 1], "experiment = 'nope' is not known")
+    _refused(["calibrate", "--case", "nope", "--target", 1], "experiment = 'nope' is not known")  # the older name
     _refused(["calibrate", "--case", "rolling-flat", "--target", 1, "--out", afile], "it is a file; must be a folder")
     _refused(["validate", "--out", afile, "--no-progress"], "it is a file; must be a folder")
-    _refused(["validate", "--case", "nope", "--out", tmp_path / "v", "--no-progress"], "case = nope is not known")
+    _refused(["validate", "--experiment", "nope", "--out", tmp_path / "v", "--no-progress"],
+             "experiment = nope is not known")
     _refused(["validate", "--case", "rolling-flat", "-w", 0, "--out", tmp_path / "v", "--no-progress"],
              "workers = 0 is not allowed")
     assert not (tmp_path / "v").exists()
@@ -417,9 +419,9 @@ def test_commands_refuse_bad_files_and_options_in_one_line(tmp_path, afile):
 # --- item 7: validate --model ---------------------------------------------------------------
 def test_validate_refuses_an_unknown_model_up_front(tmp_path):
     _refused(["validate", "--model", "nonsense", "--out", tmp_path / "v", "--no-progress", "-w", 1],
-             "model = 'nonsense' is not known to the cases chosen: allowed are")
+             "model = 'nonsense' is not known to the experiments chosen: allowed are")
     _refused(["validate", "--case", "angle-of-repose", "--model", "sds", "--out", tmp_path / "v", "--no-progress"],
-             "model = 'sds' is not known to the cases chosen: allowed are angle-of-repose: 'cdt', 'epsd'")
+             "model = 'sds' is not known to the experiments chosen: allowed are angle-of-repose: 'cdt', 'epsd'")
     _refused(["validate", "--case", "repose-sweep", "--model", "cdt", "--model", "epsd", "--out", tmp_path / "v",
               "--no-progress"], "it sweeps one rolling model")
     assert not (tmp_path / "v").exists()

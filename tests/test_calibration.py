@@ -89,7 +89,7 @@ def test_a_target_out_of_reach_is_refused_with_the_range_found(tmp_path):
     ({"fix": {"model": "epsdx"}}, ["model = 'epsdx'", "allowed"]),
 ])
 def test_bad_calibration_input_is_refused(kwargs, words, tmp_path):
-    args = dict(case="rolling-flat", target=0.2, out=tmp_path, execution=Execution(workers=1), progress=False)
+    args = dict(experiment="rolling-flat", target=0.2, out=tmp_path, execution=Execution(workers=1), progress=False)
     args.update(kwargs)
     with pytest.raises(rd.ParameterError) as err:
         calibrate(**args)

@@ -30,10 +30,10 @@ def test_targets_are_read_with_their_uncertainty():
     (["--target", "rotating-drum.particles=1000"], "not something to calibrate against"),
     (["--target", "angle-of-repose.angle=30", "--free", "mur=0.4:0.1"], "the range is empty"),
     (["--target", "angle-of-repose.angle=30", "--free", "count"], "'count' is not allowed"),
-    (["--target", "angle-of-repose.angle=30", "--fix", "orifice_diameters=5"], "not a parameter of any case"),
+    (["--target", "angle-of-repose.angle=30", "--fix", "orifice_diameters=5"], "not a parameter of any experiment"),
     (["--target", "angle-of-repose.angle=30", "--free", "mu", "--fix", "mu=0.5"], "both fixed and free"),
-    (["--target", "nocase.angle=30"], "case = 'nocase' is not known"),
-    (["--target", "30", "--free", "mu", "--free", "mur"], "without --case"),
+    (["--target", "nocase.angle=30"], "experiment = 'nocase' is not known"),
+    (["--target", "30", "--free", "mu", "--free", "mur"], "without --experiment"),
 ])
 def test_bad_input_is_refused_before_any_run(tmp_path, args, says):
     """One line naming what is wrong, exit status 2, and no run made (no runs table written)."""

@@ -21,7 +21,7 @@ import rollingdem as rd
 from rollingdem.experiments.single_sphere import analytic_flat
 from rollingdem.studies.sweep import expand, load_sweep, read_table, run_id, run_sweep
 
-FLAT = {"case": "rolling-flat", "fixed": {"model": "epsd", "mu": 0.8},
+FLAT = {"experiment": "rolling-flat", "fixed": {"model": "epsd", "mu": 0.8},
         "grid": {"mur": [0.1, 0.2, 0.3, 0.4], "v0": [0.5, 1.0]}, "seeds": 1}
 
 
@@ -138,8 +138,9 @@ def test_killing_a_worker_mid_sweep_still_yields_every_row_exactly_once(tmp_path
     ({"case": "rolling-flat", "grid": {"mur": [0.1]}, "fixed": {"mur": 0.2}}, ["both fixed and swept"]),
     ({"case": "rolling-flat", "grid": {"seed": [1, 2]}}, ["seed", "seeds"]),
     ({"case": "rolling-flat", "grid": {"mur": [0.1]}, "repeats": 2}, ["repeats", "not a known key"]),
-    ({"case": "pile", "grid": {"mur": [0.1]}}, ["case = 'pile'", "angle-of-repose"]),
-    ({"grid": {"mur": [0.1]}}, ["case", "missing"]),
+    ({"experiment": "pile", "grid": {"mur": [0.1]}}, ["experiment = 'pile'", "angle-of-repose"]),
+    ({"grid": {"mur": [0.1]}}, ["experiment", "missing"]),
+    ({"experiment": "rolling-flat", "case": "rolling-flat", "grid": {"mur": [0.1]}}, ["'case'", "not a known key"]),
     ({"case": "rolling-flat", "sample": {"n": 4, "ranges": {"mur": [0.5, 0.1]}}}, ["low < high"]),
     ({"case": "rolling-flat", "sample": {"n": 4, "ranges": {"model": [0, 1]}}}, ["model", "real-valued"]),
 ])
@@ -219,3 +220,23 @@ def test_sweep_on_an_existing_cluster_by_its_scheduler_address(tmp_path):
     with pytest.raises(rd.ParameterError, match="no Dask scheduler answers"):
         run_sweep({"case": "rolling-flat", "grid": {"mur": [0.5]}}, tmp_path / "x", scheduler="tcp://127.0.0.1:9",
                   progress=False)
+
+
+def test_an_older_sweep_file_names_its_experiment_case(tmp_path):
+    """A sweep file of before experiments had their name says ``case:``: the same sweep, the same
+    run ids (so its runs table resumes); and a table with a ``case`` column reads as one with an
+    ``experiment`` column."""
+    old = load_sweep({**{k: v for k, v in FLAT.items() if k != "experiment"}, "case": "rolling-flat"})
+    new = load_sweep(FLAT)
+    assert old.experiment == new.experiment == "rolling-flat"
+    assert [run_id(old.experiment, r) for r in expand(old)] == [run_id(new.experiment, r) for r in expand(new)]
+    from rollingdem.experiments import get_experiment
+    from rollingdem.studies.sweep import _columns, read_table
+
+    experiment = get_experiment("rolling-flat")
+    columns = ["case" if c == "experiment" else c for c in _columns(experiment)]
+    row = {c: None for c in columns} | {"run_id": "abc", "case": "rolling-flat", "status": "ok", "distance": 0.5}
+    path = tmp_path / "runs.csv"
+    pd.DataFrame([row], columns=columns).to_csv(path, index=False)
+    table = read_table(path, experiment)
+    assert list(table["experiment"]) == ["rolling-flat"] and list(table["distance"]) == [0.5]

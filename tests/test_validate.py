@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 import rollingdem as rd
 from rollingdem import validate
-from rollingdem.experiments.results import CaseResult, Check
+from rollingdem.experiments.results import ValidationResult, Check
 from rollingdem.cli import app
 
 
@@ -24,7 +24,7 @@ def test_check_tolerances():
 
 def fake_cases(tmp_ok=True):
     def good(quick=False, outdir=None, progress=None, runner=map):
-        return CaseResult("good", "A good case", pd.DataFrame({"model": ["x"], "value": [1.0]}),
+        return ValidationResult("good", "A good case", pd.DataFrame({"model": ["x"], "value": [1.0]}),
                           [Check("good", "x", "value", 1.0, 1.0, 0.01, source="theory")])
 
     def bad(quick=False, outdir=None, progress=None, runner=map):
@@ -52,14 +52,14 @@ def test_cases_run_one_at_a_time_make_one_report(tmp_path, monkeypatch):
     """``--case`` runs into the same folder add up: the second keeps the first's checks, table and
     figures in results.json and report.md; running a case again replaces its earlier result."""
     monkeypatch.setattr(validate, "available_experiments", fake_cases)
-    validate.run_validation(tmp_path, cases=["good"], progress=False, workers=1)
-    validate.run_validation(tmp_path, cases=["bad"], progress=False, workers=1)
+    validate.run_validation(tmp_path, experiments=["good"], progress=False, workers=1)
+    validate.run_validation(tmp_path, experiments=["bad"], progress=False, workers=1)
     data = json.loads((tmp_path / "results.json").read_text())
     assert sorted(data["cases"]) == ["bad", "good"] and data["passed"] is False
     assert [c["case"] for c in data["checks"]].count("good") == 1
     report = (tmp_path / "report.md").read_text()
     assert "the kernel fell over" in report and "| x | value |" in report
-    validate.run_validation(tmp_path, cases=["good"], progress=False, workers=1, quick=True)
+    validate.run_validation(tmp_path, experiments=["good"], progress=False, workers=1, quick=True)
     data = json.loads((tmp_path / "results.json").read_text())
     assert [c["case"] for c in data["checks"]].count("good") == 1 and data["quick"] is False  # 'bad' was full
     assert "(full)" in (tmp_path / "report.md").read_text()
@@ -72,7 +72,7 @@ def test_cli_exit_status(tmp_path, monkeypatch):
     failing = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "b"), "--no-progress", "-w", "1"])
     assert failing.exit_code == 1 and "bad" in failing.output
     unknown = CliRunner().invoke(app, ["validate", "--out", str(tmp_path / "c"), "--case", "nope", "--no-progress", "-w", "1"])
-    assert unknown.exit_code == 2 and "case = nope is not known" in unknown.output
+    assert unknown.exit_code == 2 and "experiment = nope is not known" in unknown.output
 
 
 def test_unknown_model_is_refused():
@@ -161,7 +161,7 @@ def test_model_reaches_the_pile_cases_and_a_case_without_it_is_announced(tmp_pat
     def fake(name):
         def case(quick=False, outdir=None, progress=None, runner=map, **kw):
             calls[name] = kw
-            return CaseResult(name, name, pd.DataFrame(), [Check(name, "x", "value", 1.0, 1.0, 0.01)])
+            return ValidationResult(name, name, pd.DataFrame(), [Check(name, "x", "value", 1.0, 1.0, 0.01)])
         return case
 
     names = ["rolling-flat", "angle-of-repose", "repose-sweep"]
@@ -175,11 +175,11 @@ def test_model_reaches_the_pile_cases_and_a_case_without_it_is_announced(tmp_pat
                             echo=notes.append)
     assert calls == {"rolling-flat": {"models": ["sds", "epsd (liggghts)"]}}
     assert len(notes) == 2 and notes[0].startswith("angle-of-repose: left out") and "sweeps one rolling model" in notes[1]
-    with pytest.raises(rd.ParameterError, match="model = 'sds' is not known to the cases chosen"):
-        validate.run_validation(tmp_path / "c", cases=["angle-of-repose"], models=["sds"], progress=False, workers=1)
-    with pytest.raises(rd.ParameterError, match="model = 'sds' is not allowed with case angle-of-repose: it runs "
+    with pytest.raises(rd.ParameterError, match="model = 'sds' is not known to the experiments chosen"):
+        validate.run_validation(tmp_path / "c", experiments=["angle-of-repose"], models=["sds"], progress=False, workers=1)
+    with pytest.raises(rd.ParameterError, match="model = 'sds' is not allowed with experiment angle-of-repose: it runs "
                                                 "none of them"):
-        validate.run_validation(tmp_path / "c", cases=["rolling-flat", "angle-of-repose"], models=["sds"],
+        validate.run_validation(tmp_path / "c", experiments=["rolling-flat", "angle-of-repose"], models=["sds"],
                                 progress=False, workers=1)
     with pytest.raises(rd.ParameterError, match="model = 'nonsense' is not known"):
         validate.run_validation(tmp_path / "c", models=["nonsense"], progress=False, workers=1)

@@ -222,7 +222,7 @@ def _force_pass_costs(sims: dict, rounds: int) -> dict:
 
 
 def compile_time(contact, spheres: int = 2) -> float:
-    """Seconds to compile (cold cache) or load (warm cache) the kernel of ``contact`` in this
+    """Seconds to compile (cold cache) or load (warm cache) the engine module of ``contact`` in this
     process, for the step loop a scene of ``spheres`` spheres takes (``advance_serial`` below
     ``SERIAL_BELOW`` spheres or on one thread, ``advance`` on threads otherwise): one step of 2
     (or ``SERIAL_BELOW``) spheres on a plate, two of them stacked (a pair contact and a wall

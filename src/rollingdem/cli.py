@@ -114,14 +114,15 @@ def _set_threads(threads):
 
 @app.command()
 def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-o", help="Output folder."),
-             case: Optional[list[str]] = typer.Option(None, "--case", "-c", help="Run only this case (repeatable): "
-                                                      "inclined-wall, rolling-flat, rolling-slope, angle-of-repose, "
-                                                      "repose-sweep, repose-rough-base, rotating-drum, "
-                                                      "silo-discharge."),
+             experiment: Optional[list[str]] = typer.Option(None, "--experiment", "-e", "--case", "-c", help="Run "
+                                                            "only this experiment (repeatable): inclined-wall, "
+                                                            "rolling-flat, rolling-slope, angle-of-repose, repose-sweep, "
+                                                            "repose-rough-base, rotating-drum, silo-discharge, "
+                                                            "contact-laws."),
              model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Only this model (repeatable), "
-                                                       "e.g. epsd, 'cdt (liggghts)': each case runs those of its models "
-                                                       "named; repose-sweep sweeps one. A case that runs none of them "
-                                                       "is left out (refused if named with --case)."),
+                                                       "e.g. epsd, 'cdt (liggghts)': each experiment runs those of its "
+                                                       "models named; repose-sweep sweeps one. An experiment that runs "
+                                                       "none of them is left out (refused if named with --experiment)."),
              quick: bool = typer.Option(False, "--quick", help="Reduced sizes (about 25 minutes on 2 cores, "
                                                                  "10 of them the three experiments)."),
              workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Simulations side by side, one "
@@ -130,8 +131,9 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
                                                      "(tcp://host:port) to run on an existing cluster."),
              progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
              backend: Optional[str] = typer.Option(None, "--backend", help="cpu or cuda (an NVIDIA GPU, "
-                                                   "docs/gpu.md): where every case's simulations step.")):
-    """Run the seed report's test cases and the repose-angle study; write report.md/.html and results.json.
+                                                   "docs/gpu.md): where every experiment's simulations step.")):
+    """Run the experiments (the seed report's test cases, the calibration experiments, the contact-law
+    checks) and the repose-angle study; write report.md/.html and results.json.
 
     Exit status 1 when any check fails its tolerance."""
     from rollingdem.validate import run_validation
@@ -139,7 +141,7 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
     _check_out(out)
     _set_backend(backend)
     try:
-        results = run_validation(out, cases=case, quick=quick, progress=progress, models=model, workers=workers,
+        results = run_validation(out, experiments=experiment, quick=quick, progress=progress, models=model, workers=workers,
                                  scheduler=scheduler, echo=typer.echo)
     except ParameterError as err:
         _refuse(err)
@@ -199,7 +201,7 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
 
 
 @app.command()
-def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML): case, fixed, grid | points | "
+def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML): experiment, fixed, grid | points | "
                                                       "sample, seeds."),
           out: Path = typer.Option(Path("rollingdem-sweep"), "--out", "-o", help="Output folder: runs.csv (one row "
                                    "per run, appended as runs finish; rerunning skips the rows there), summary.csv/png."),
@@ -210,7 +212,7 @@ def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML)
                                                   "(tcp://host:port) of an existing cluster."),
           retry_failed: bool = typer.Option(False, "--retry-failed", help="Run again the runs recorded as failed."),
           progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
-    """Run a case over a grid, list or Latin-hypercube sample of parameters and seeds, on Dask.
+    """Run an experiment over a grid, list or Latin-hypercube sample of parameters and seeds, on Dask.
 
     Exit status 1 when any run failed (its error is in runs.csv; the others still ran)."""
     from rollingdem.studies.sweep import run_sweep
@@ -233,21 +235,22 @@ def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML)
 
 @app.command()
 def calibrate(target: list[str] = typer.Option(..., "--target", help="What was measured (repeatable): "
-                                               "CASE.OBSERVABLE=VALUE±U (e.g. angle-of-repose.angle=32.5±1.0), or with "
-                                               "--case a number (and --uncertainty)."),
+                                               "EXPERIMENT.OBSERVABLE=VALUE±U (e.g. angle-of-repose.angle=32.5±1.0), or with "
+                                               "--experiment a number (and --uncertainty)."),
               free: Optional[list[str]] = typer.Option(None, "--free", help="A parameter to find (repeatable): NAME or "
                                                        "NAME=LOW:HIGH (default: mur)."),
               fix: Optional[list[str]] = typer.Option(None, "--fix", help="NAME=VALUE held fixed (repeatable), e.g. "
-                                                      "mu=0.5, model=epsd; in every case that has it."),
-              case: Optional[str] = typer.Option(None, "--case", "-c", help="With a numeric --target: its case "
-                                                 "(rolling-flat, inclined-wall, angle-of-repose, repose-rough-base, "
-                                                 "rotating-drum, silo-discharge)."),
+                                                      "mu=0.5, model=epsd; in every experiment that has it."),
+              experiment: Optional[str] = typer.Option(None, "--experiment", "-e", "--case", "-c", help="With a "
+                                                       "numeric --target: its experiment (rolling-flat, inclined-wall, "
+                                                       "angle-of-repose, repose-rough-base, rotating-drum, "
+                                                       "silo-discharge)."),
               uncertainty: float = typer.Option(0.0, "--uncertainty", "-u", help="With a numeric --target: its "
                                                 "standard uncertainty (one sigma)."),
               observable: Optional[str] = typer.Option(None, "--observable", help="With a numeric --target: the "
-                                                       "observable (default: the case's: angle, distance, ...)."),
+                                                       "observable (default: the experiment's: angle, distance, ...)."),
               seeds: Optional[int] = typer.Option(None, "--seeds", help="Runs per point (default 3 for a random "
-                                                  "case, 1 for a deterministic one)."),
+                                                  "experiment, 1 for a deterministic one)."),
               coarse: int = typer.Option(5, "--coarse", help="One free parameter: points of the first sweep."),
               refine: int = typer.Option(4, "--refine", help="One free parameter: points added per round."),
               initial: Optional[int] = typer.Option(None, "--initial", help="Several free parameters or targets: "
@@ -273,22 +276,22 @@ def calibrate(target: list[str] = typer.Option(..., "--target", help="What was m
         fixed = parse_assignments(fix, "fix")
         numeric = [t for t in target if "=" not in t]
         if numeric and len(numeric) < len(target):
-            raise ParameterError(f"target = {numeric[0]!r} is not allowed beside CASE.OBSERVABLE=VALUE targets: give "
-                                 "every target as CASE.OBSERVABLE=VALUE±U")
+            raise ParameterError(f"target = {numeric[0]!r} is not allowed beside EXPERIMENT.OBSERVABLE=VALUE targets: give "
+                                 "every target as EXPERIMENT.OBSERVABLE=VALUE±U")
         if numeric:
-            if case is None:
-                raise ParameterError(f"target = {numeric[0]!r} is not allowed without --case: give --case, or write "
-                                     "the target as CASE.OBSERVABLE=VALUE±U")
+            if experiment is None:
+                raise ParameterError(f"target = {numeric[0]!r} is not allowed without --experiment: give --experiment, or write "
+                                     "the target as EXPERIMENT.OBSERVABLE=VALUE±U")
             if len(numeric) > 1:
-                raise ParameterError("target: several numbers are not allowed with --case: give each as "
-                                     "CASE.OBSERVABLE=VALUE±U")
+                raise ParameterError("target: several numbers are not allowed with --experiment: give each as "
+                                     "EXPERIMENT.OBSERVABLE=VALUE±U")
             try:
                 value = float(numeric[0])
             except ValueError:
                 raise ParameterError(f"target = {numeric[0]!r} is not allowed: must be a number, or "
-                                     "CASE.OBSERVABLE=VALUE±U") from None
+                                     "EXPERIMENT.OBSERVABLE=VALUE±U") from None
             if len(frees) == 1:
-                result = run_calibration(case, value, uncertainty, fix=fixed, free=frees[0], observable=observable,
+                result = run_calibration(experiment, value, uncertainty, fix=fixed, free=frees[0], observable=observable,
                                          seeds=seeds, search=Search(coarse=coarse, refine=refine,
                                                                     rounds=2 if rounds is None else rounds),
                                          out=out, execution=execution, progress=progress, echo=typer.echo)
@@ -297,15 +300,15 @@ def calibrate(target: list[str] = typer.Option(..., "--target", help="What was m
                 return
             from rollingdem.experiments import get_experiment
 
-            default = get_experiment(case, observable=True, what="case").default_observable
-            targets = [Target(case, observable or default, value, uncertainty)]
+            default = get_experiment(experiment, observable=True, what="experiment").default_observable
+            targets = [Target(experiment, observable or default, value, uncertainty)]
         else:
-            for what, given in (("--case", case), ("--observable", observable)):
+            for what, given in (("--experiment", experiment), ("--observable", observable)):
                 if given is not None:
-                    raise ParameterError(f"{what} = {given!r} is not allowed with CASE.OBSERVABLE=VALUE targets: "
-                                         "each target names its case and observable")
+                    raise ParameterError(f"{what} = {given!r} is not allowed with EXPERIMENT.OBSERVABLE=VALUE targets: "
+                                         "each target names its experiment and observable")
             if uncertainty:
-                raise ParameterError(f"--uncertainty = {uncertainty:g} is not allowed with CASE.OBSERVABLE=VALUE "
+                raise ParameterError(f"--uncertainty = {uncertainty:g} is not allowed with EXPERIMENT.OBSERVABLE=VALUE "
                                      "targets: write each target's as VALUE±U")
             targets = [parse_target(t) for t in target]
         result = calibrate_joint(targets, {name: rng for name, rng in frees}, fix=fixed, seeds=seeds,

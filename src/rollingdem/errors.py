@@ -1,7 +1,7 @@
 """Error types and parameter checks shared by the whole package.
 
 Every check names the parameter, the value it got and what is allowed, so a bad input is
-refused at the door rather than crashing deep in a compiled kernel.
+refused at the door rather than crashing deep in the compiled step loop.
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
-"""``rollingdem validate``: run the seed report's cases, compare with theory, write a report.
+"""``rollingdem validate``: run the experiments, compare with theory, write a report.
 
 Writes into ``outdir``: ``report.md`` and ``report.html`` (tables, checks, figures), the PNG
 figures, ``results.json`` (every check: case, model, quantity, measured, reference, tolerance,
-pass) and one CSV table per case. A case that crashes is recorded as failed with its error, and
-the others still run: nothing already measured is lost. Each case's outcome is also kept in
-``cases/NAME.json``, so cases run one at a time into the same folder (``--case``, maybe across
-days) make one report: a case run again replaces its earlier result, the others stay.
+pass) and one CSV table per experiment. An experiment that crashes is recorded as failed with its error, and
+the others still run: nothing already measured is lost. Each experiment's outcome is also kept in
+``cases/NAME.json``, so experiments run one at a time into the same folder (``--experiment``, maybe across
+days) make one report: an experiment run again replaces its earlier result, the others stay.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from rollingdem.experiments.results import CaseResult, Check
+from rollingdem.experiments.results import ValidationResult, Check
 from rollingdem.errors import ParameterError
 
 
@@ -26,7 +26,7 @@ def available_experiments() -> dict:
     """What ``rollingdem validate`` runs, by name: every experiment of the registry
     (``rollingdem.experiments.EXPERIMENTS``, its ``validate``) and the PFC repose-angle study
     (``repose-sweep``); each a function(quick=False, outdir=None, progress=None, runner=map,
-    [models= or model=]) -> CaseResult."""
+    [models= or model=]) -> ValidationResult."""
     from rollingdem.experiments import EXPERIMENTS
     from rollingdem.studies.repose_study import repose_sweep
 
@@ -51,9 +51,9 @@ def experiment_models() -> dict[str, tuple[str, list[str]]]:
 
 
 def _model_arguments(names, models, explicit, echo) -> tuple[list[str], dict[str, dict]]:
-    """(the cases to run, case -> its model keyword argument) for ``--model`` = ``models``.
+    """(the experiments to run, experiment -> its model keyword argument) for ``--model`` = ``models``.
 
-    A model no chosen case knows is refused; a case that runs none of the models asked for (or,
+    A model no chosen experiment knows is refused; an experiment that runs none of the models asked for (or,
     for repose-sweep, which sweeps one model, more than one) is refused when the user named it
     (``explicit``) and otherwise left out with a note through ``echo``."""
     if models is None:
@@ -66,7 +66,7 @@ def _model_arguments(names, models, explicit, echo) -> tuple[list[str], dict[str
     unknown = [m for m in models if m not in known]
     if unknown:
         allowed = "; ".join(f"{name}: {', '.join(map(repr, ms))}" for name, (_, ms) in takes.items()) or "none"
-        raise ParameterError(f"model = {unknown[0]!r} is not known to the cases chosen: allowed are {allowed}")
+        raise ParameterError(f"model = {unknown[0]!r} is not known to the experiments chosen: allowed are {allowed}")
     run, kwargs = [], {}
     for name in names:
         keyword, allowed = takes.get(name, (None, []))
@@ -81,31 +81,31 @@ def _model_arguments(names, models, explicit, echo) -> tuple[list[str], dict[str
             kwargs[name] = {keyword: chosen[0] if keyword == "model" else chosen}
             continue
         if explicit:
-            raise ParameterError(f"model = {', '.join(map(repr, models))} is not allowed with case {name}: {why}")
+            raise ParameterError(f"model = {', '.join(map(repr, models))} is not allowed with experiment {name}: {why}")
         if echo is not None:
             echo(f"{name}: left out, --model {' '.join(map(repr, models))} does not apply: {why}")
     if not run:
-        raise ParameterError(f"model = {', '.join(map(repr, models))} is not allowed: no case chosen runs it")
+        raise ParameterError(f"model = {', '.join(map(repr, models))} is not allowed: no experiment chosen runs it")
     return run, kwargs
 
 
-def run_validation(outdir, cases=None, quick=False, progress=True, models=None, workers=None,
-                   scheduler=None, echo=None) -> list[CaseResult]:
-    """Run the named cases (all by default) and write the report; returns the case results.
+def run_validation(outdir, experiments=None, quick=False, progress=True, models=None, workers=None,
+                   scheduler=None, echo=None) -> list[ValidationResult]:
+    """Run the named experiments (all by default) and write the report; returns their results.
 
-    The independent simulations of a case run side by side on ``workers`` processes (default: one
+    The independent simulations of an experiment run side by side on ``workers`` processes (default: one
     per core; 1 runs them here, one after the other) or on the Dask cluster at ``scheduler``.
-    ``models`` limits every case to those of its models (see ``_model_arguments``; a case left
+    ``models`` limits every experiment to those of its models (see ``_model_arguments``; one left
     out for it is announced through ``echo``). Bad arguments are refused before anything is written.
     """
     from rollingdem.studies.parallel import check_workers, runner
 
     available = available_experiments()
-    names = list(available) if not cases else list(cases)
+    names = list(available) if not experiments else list(experiments)
     unknown = [c for c in names if c not in available]
     if unknown:
-        raise ParameterError(f"case = {', '.join(unknown)} is not known: allowed are {', '.join(available)}")
-    names, model_kwargs = _model_arguments(names, models, bool(cases), echo)
+        raise ParameterError(f"experiment = {', '.join(unknown)} is not known: allowed are {', '.join(available)}")
+    names, model_kwargs = _model_arguments(names, models, bool(experiments), echo)
     check_workers(workers, 1)
     out = Path(outdir)
     if out.exists() and not out.is_dir():
@@ -118,7 +118,7 @@ def run_validation(outdir, cases=None, quick=False, progress=True, models=None, 
         return _run_cases(available, names, out, quick, progress, model_kwargs, mapper)
 
 
-def _run_cases(available, names, out, quick, progress, model_kwargs, mapper) -> list[CaseResult]:
+def _run_cases(available, names, out, quick, progress, model_kwargs, mapper) -> list[ValidationResult]:
     results = []
     bar = _bar(progress, len(names))
     for name in names:
@@ -129,16 +129,16 @@ def _run_cases(available, names, out, quick, progress, model_kwargs, mapper) -> 
             kwargs = {"quick": quick, "outdir": out, "progress": _run_counter(bar), "runner": mapper,
                       **model_kwargs.get(name, {})}
             result = available[name](**kwargs)
-        except Exception as err:  # a failed case is a result too: record it and go on
-            result = CaseResult(name, name, pd.DataFrame(), [Check(name, "-", "case ran", float("nan"), 0.0, 0.0,
+        except Exception as err:  # a failed experiment is a result too: record it and go on
+            result = ValidationResult(name, name, pd.DataFrame(), [Check(name, "-", "experiment ran", float("nan"), 0.0, 0.0,
                                                                    source=f"{type(err).__name__}: {err}")],
-                                notes=["The case failed:\n\n```\n" + traceback.format_exc() + "```"])
+                                notes=["The experiment failed:\n\n```\n" + traceback.format_exc() + "```"])
             result.wall_time = time.perf_counter() - tic
         results.append(result)
         result.table.to_csv(out / f"{name}.csv", index=False)
         _save_case(out, result, quick)
         merged = _with_earlier_cases(out, results, list(available), quick)
-        write_report(out, merged, quick and not any(r.title.endswith("(full)") for r in merged))  # after every case
+        write_report(out, merged, quick and not any(r.title.endswith("(full)") for r in merged))  # after every experiment
         if bar is not None:
             bar.update(1)
     if bar is not None:
@@ -147,7 +147,7 @@ def _run_cases(available, names, out, quick, progress, model_kwargs, mapper) -> 
 
 
 def _run_counter(bar):
-    """A callback the case calls after each simulation: shows the runs done in the bar."""
+    """A callback the experiment calls after each simulation: shows the runs done in the bar."""
     if bar is None:
         return None
     done = [0]
@@ -162,10 +162,10 @@ def _bar(progress, total):
     if not progress:
         return None
     from tqdm import tqdm
-    return tqdm(total=total, unit="case")
+    return tqdm(total=total, unit="experiment")
 
 
-def _save_case(out: Path, r: CaseResult, quick: bool) -> None:
+def _save_case(out: Path, r: ValidationResult, quick: bool) -> None:
     folder = out / "cases"
     folder.mkdir(exist_ok=True)
     data = {"name": r.name, "title": r.title, "quick": quick, "wall_time": r.wall_time, "notes": r.notes,
@@ -175,8 +175,8 @@ def _save_case(out: Path, r: CaseResult, quick: bool) -> None:
     tmp.replace(folder / f"{r.name}.json")
 
 
-def _load_case(out: Path, name: str, quick: bool) -> CaseResult | None:
-    """A case result an earlier run saved into this folder (None if there is none or it is
+def _load_case(out: Path, name: str, quick: bool) -> ValidationResult | None:
+    """An experiment's result an earlier run saved into this folder (None if there is none or it is
     unreadable); its title says "(quick)" or "(full)" when its size differs from this run's."""
     try:
         data = json.loads((out / "cases" / f"{name}.json").read_text())
@@ -184,25 +184,25 @@ def _load_case(out: Path, name: str, quick: bool) -> CaseResult | None:
         return None
     try:
         table = pd.read_csv(out / f"{name}.csv")
-    except (OSError, pd.errors.EmptyDataError):  # a case that failed has no table
+    except (OSError, pd.errors.EmptyDataError):  # an experiment that failed has no table
         table = pd.DataFrame()
     title = data["title"]
     if bool(data.get("quick")) != quick:
         title += " (quick)" if data.get("quick") else " (full)"
-    return CaseResult(data["name"], title, table, [Check(**c) for c in data["checks"]],
+    return ValidationResult(data["name"], title, table, [Check(**c) for c in data["checks"]],
                       [out / f for f in data["figures"]], list(data["notes"]), float(data["wall_time"]))
 
 
-def _with_earlier_cases(out: Path, results: list[CaseResult], order: list[str], quick: bool) -> list[CaseResult]:
-    """This run's case results and, for the cases it did not run, those an earlier run saved here,
+def _with_earlier_cases(out: Path, results: list[ValidationResult], order: list[str], quick: bool) -> list[ValidationResult]:
+    """This run's results and, for the experiments it did not run, those an earlier run saved here,
     in the order of ``order``."""
     done = {r.name: r for r in results}
     names = order + sorted(p.stem for p in (out / "cases").glob("*.json") if p.stem not in order)
     merged = (done.get(name) or _load_case(out, name, quick) for name in names)
-    return [r for r in merged if r is not None]  # this run's cases are saved under cases/: all in names
+    return [r for r in merged if r is not None]  # this run's experiments are saved under cases/: all in names
 
 
-def write_report(out: Path, results: list[CaseResult], quick: bool) -> None:
+def write_report(out: Path, results: list[ValidationResult], quick: bool) -> None:
     """``results.json``, ``report.md`` and ``report.html`` for the results so far."""
     checks = [c.as_dict() for r in results for c in r.checks]
     summary = {"quick": quick, "passed": all(r.passed for r in results),

@@ -1,7 +1,7 @@
 """Where the step loop runs: the backends, behind one protocol, in one registry.
 
 A backend gives the engine a step loop for a state and a contact law's engine module: a callable
-with the arguments of the module's ``advance`` (``EngineState.kernel_args``) that allocates what it
+with the arguments of the module's ``advance`` (``EngineState.step_loop_args``) that allocates what it
 needs at its first use, takes the records where it steps (uploads them), steps up to n steps with
 the same ``info`` bookkeeping, and leaves the records on the host again at its end (downloads
 them). It also times each phase of a step on the present state (``rollingdem bench``), says how
@@ -27,8 +27,8 @@ class Backend:
         """Nothing if this machine can step on the backend; else a ParameterError in one line that
         says what is missing."""
 
-    def step_loop(self, state, kernel):
-        """The step loop of ``kernel`` (an engine module) for ``state``."""
+    def step_loop(self, state, module):
+        """The step loop of ``module`` (an engine module) for ``state``."""
         raise NotImplementedError
 
     def serial_step_loop(self, state) -> bool | None:
@@ -36,7 +36,7 @@ class Backend:
         compile it ahead (``advance_serial`` if True, ``advance`` if False), or None for neither."""
         return None
 
-    def phase_seconds(self, state, kernel, step_inputs, repeats: int, rebuilds_per_step: float) -> dict:
+    def phase_seconds(self, state, module, step_inputs, repeats: int, rebuilds_per_step: float) -> dict:
         """Seconds per step of each of ``phases.PHASES`` on the present state, which is left as it
         was; a backend may add phases of its own. ``step_inputs``: (dt, gravity, skin, pair_params)."""
         raise NotImplementedError
@@ -54,16 +54,16 @@ class CpuBackend(Backend):
     name = "cpu"
     summary = "Numba threads on this machine's cores"
 
-    def step_loop(self, state, kernel):
-        return kernel.advance_serial if state.serial() else kernel.advance
+    def step_loop(self, state, module):
+        return module.advance_serial if state.serial() else module.advance
 
     def serial_step_loop(self, state) -> bool | None:
         return state.serial()
 
-    def phase_seconds(self, state, kernel, step_inputs, repeats, rebuilds_per_step):
+    def phase_seconds(self, state, module, step_inputs, repeats, rebuilds_per_step):
         from rollingdem.engine.phases import Passes, cpu_phase_seconds
 
-        return cpu_phase_seconds(Passes(state, kernel, *step_inputs), repeats, rebuilds_per_step)
+        return cpu_phase_seconds(Passes(state, module, *step_inputs), repeats, rebuilds_per_step)
 
 
 class CudaBackend(Backend):
@@ -76,25 +76,25 @@ class CudaBackend(Backend):
 
         require()
 
-    def step_loop(self, state, kernel):
+    def step_loop(self, state, module):
         """One ``CudaStepLoop`` per engine module and state, kept with the state: its kernels
         compile at their first launch."""
         loops = state.backend_data.setdefault(self.name, {})
-        loop = loops.get(kernel.__name__)
+        loop = loops.get(module.__name__)
         if loop is None:
             from rollingdem.engine.cuda.step_loop import CudaStepLoop
 
-            loop = loops[kernel.__name__] = CudaStepLoop(kernel)
+            loop = loops[module.__name__] = CudaStepLoop(module)
         return loop
 
-    def phase_seconds(self, state, kernel, step_inputs, repeats, rebuilds_per_step):
+    def phase_seconds(self, state, module, step_inputs, repeats, rebuilds_per_step):
         """The device's time of each pass on a copy of the state on the device
         (``CudaStepLoop.phase_seconds``), named as the CPU's phases, and the host's share: its time
         to launch a step's kernels, which the device's work overlaps (a step is bound by the host
         where it is the larger), and the step's synchronisation, the read of its flag counts."""
         dt, gravity, skin, pair_params = step_inputs
-        state.energy_for(kernel)
-        seconds = self.step_loop(state, kernel).phase_seconds(repeats, *state.kernel_args(dt, gravity, skin,
+        state.energy_for(module)
+        seconds = self.step_loop(state, module).phase_seconds(repeats, *state.step_loop_args(dt, gravity, skin,
                                                                                            pair_params))
         return {"contact forces": seconds["pairs"],
                 "walls": max(seconds["gather"] - seconds["gather without walls"], 0.0),

@@ -1,10 +1,10 @@
 """The compiled engine of a contact law: the step loop's template (``rollingdem.engine.template``,
 its parts in order) with the law's compiled functions and row layout filled in, written to the
-kernel cache and imported.
+engine-module cache and imported.
 
 One module per combination of sub-models, rolling ``kernel_modes`` and energy switch, named by a
 hash of its sources, with a serial copy of the step loop (``advance_serial``): docs/architecture.md,
-"The kernel and its contract" and "Compiling a kernel"."""
+"The step loop and its contract" and "Compiling an engine module"."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ _BY_CLASSES: dict[tuple, object] = {}
 
 
 def kernel_cache_dir() -> Path:
-    """Where generated kernels live: $ROLLINGDEM_CACHE_DIR, else ~/.cache/rollingdem/kernels."""
+    """Where generated engine modules live: $ROLLINGDEM_CACHE_DIR, else ~/.cache/rollingdem/kernels."""
     env = os.environ.get("ROLLINGDEM_CACHE_DIR")
     base = Path(env) if env else Path.home() / ".cache" / "rollingdem" / "kernels"
     try:

@@ -9,7 +9,7 @@ import collections
 
 from rollingdem.physics.records import N_INPUTS, N_RESULTS, slots
 
-# the kernel's status record ``info`` (int64): what a call did and why it stopped
+# the step loop's status record ``info`` (int64): what a call did and why it stopped
 INFO = slots("steps_done", "status", "needed", "rebuilds", "need_rebuild", "forces_valid", "too_fast", "drifted")
 I_STEPS_DONE, I_STATUS, I_NEEDED, I_REBUILDS, I_NEED_REBUILD, I_FORCES_VALID, I_TOO_FAST, I_DRIFTED = INFO
 INFO_SIZE = len(INFO)

@@ -463,7 +463,7 @@ def brute_force_pairs(x: np.ndarray, radius: np.ndarray, skin: float) -> set[tup
 
 class ContactList:
     """The half list, its contact pool and its transposed index: the arrays (``ListArrays``), their
-    capacity, and what Python does with them between kernel calls (the compiled half is above).
+    capacity, and what Python does with them between calls of the step loop (the compiled half is above).
 
     ``rows`` list rows (one per particle); ``capacity`` entries, grown on demand. The pool's rows
     hold ``history_size`` history columns, then the pair terms.
@@ -514,7 +514,7 @@ class ContactList:
         self.capacity = capacity
 
     def arrays(self) -> ListArrays:
-        """The kernel's record of the list (made anew: the arrays are replaced when they grow)."""
+        """The step loop's record of the list (made anew: the arrays are replaced when they grow)."""
         return ListArrays(self.start, self.j, self.i, self.pool, self.contact_row, self.groups, self.tr_start,
                           self.tr_k, self.cell_start, self.cell_items, self.cell_of, self.counts, self.box)
 

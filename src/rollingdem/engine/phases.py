@@ -19,12 +19,12 @@ class Passes:
     contacts' rows, the forces and, for the neighbor search, the list: ``restore`` puts them back).
     The paths are those the engine takes for this state (serial or threaded)."""
 
-    def __init__(self, state, kernel, dt, gravity, skin, pair_params):
+    def __init__(self, state, module, dt, gravity, skin, pair_params):
         from rollingdem.engine.mesh_passes import build_mesh_candidates
         from rollingdem.engine.neighbors import rebuild_neighbor_list
 
         st = self.state = state
-        st.energy_for(kernel)
+        st.energy_for(module)
         gravity = np.asarray(gravity, dtype=np.float64)
         pp = pair_params
         particles, walls, lists, scratch = st.records()
@@ -37,9 +37,9 @@ class Passes:
                                                               "tr_start", "tr_k")))
                       for name in names]
         serial = st.serial()
-        pair_forces = kernel.pair_forces_serial if serial else kernel.pair_forces
-        gather = kernel.gather_serial if serial else kernel.gather
-        kick_drift = kernel.kick_drift_serial if serial else kernel.kick_drift
+        pair_forces = module.pair_forces_serial if serial else module.pair_forces
+        gather = module.gather_serial if serial else module.gather
+        kick_drift = module.kick_drift_serial if serial else module.kick_drift
         no_walls = walls._make(a[:0] for a in walls)
 
         self.pair = lambda: pair_forces(dt, pp, particles, lists, scratch)

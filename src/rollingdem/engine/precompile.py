@@ -1,9 +1,9 @@
-"""Compile a new engine kernel on two cores instead of one.
+"""Compile a new engine module on two cores instead of one.
 
 When the step loop a run takes is not yet in Numba's cache, a helper process compiles part of its
 passes into the cache while this process compiles the rest (``prepare``, from
 ``kernels.engine_module``). The plan, its fallbacks and when the helper starts:
-docs/architecture.md, "Compiling a kernel"; the time it saves: docs/performance.md."""
+docs/architecture.md, "Compiling an engine module"; the time it saves: docs/performance.md."""
 
 from __future__ import annotations
 

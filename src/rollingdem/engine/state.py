@@ -1,6 +1,6 @@
-"""Engine state: the arrays the compiled kernel advances, and their capacity management.
+"""Engine state: the arrays the compiled step loop advances, and their capacity management.
 
-``EngineState`` calls the kernel for K steps at a time and grows the arrays when it stops for
+``EngineState`` calls the step loop for K steps at a time and grows the arrays when it stops for
 room; it re-sorts the particles' storage slots in space in large scenes (``ids[slot]`` is the
 index the user knows). docs/architecture.md, "The engine state"."""
 
@@ -30,7 +30,7 @@ SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
 
 
 def periodic_box(periodic: dict) -> np.ndarray:
-    """The kernel's periodic box (``layout.PERIODIC_BOX``) of ``{"x": (lo, hi), ...}``: empty
+    """The step loop's periodic box (``layout.PERIODIC_BOX``) of ``{"x": (lo, hi), ...}``: empty
     without a periodic axis."""
     box = np.zeros(PERIODIC_BOX_SIZE if periodic else 0)
     for axis, (lo, hi) in periodic.items():
@@ -82,7 +82,7 @@ class EngineState:
 
     def derive_wall_touch(self):
         """``wtouch[i * n_walls + w]``: whether particle i touched wall w at the last step (it keeps a
-        contact normal). The kernel tests this byte, not the history row, for a sphere away from a
+        contact normal). The step loop tests this byte, not the history row, for a sphere away from a
         wall: 1 byte instead of a cache line per sphere and wall and step."""
         self.wtouch = np.ascontiguousarray(np.any(self.whist[:, :3] != 0.0, axis=1), dtype=np.uint8)
 
@@ -313,30 +313,30 @@ class EngineState:
                 self.contact_list.arrays(),
                 Scratch(*self.contact_blocks()))
 
-    def kernel_args(self, dt, gravity, skin, pair_params):
+    def step_loop_args(self, dt, gravity, skin, pair_params):
         """The arguments of the step loop after ``nsteps``."""
         return (dt, gravity, skin, pair_params, *self.records(), self.info)
 
-    def advance(self, kernel, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
+    def advance(self, module, nsteps: int, dt: float, gravity: np.ndarray, skin: float, pair_params: np.ndarray):
         """Advance up to ``nsteps`` steps (growing the list arrays as often as needed).
 
         Returns (steps done, None) or, when a particle outruns the skin, (steps done, message)."""
         if self.n == 0:
             return nsteps, None
-        self.energy_for(kernel)
+        self.energy_for(module)
         if self.info[I_FORCES_VALID] == 0:
-            self._evaluate_forces(kernel, dt, gravity, skin, pair_params)
+            self._evaluate_forces(module, dt, gravity, skin, pair_params)
         if self.n >= SORT_ABOVE and self.steps_since_sort >= SORT_EVERY:
             self.sort(2.0 * float(self.radius.max()) + skin)
         import numba
 
         remaining = nsteps
-        step_loop = self.step_loop(kernel)
+        step_loop = self.step_loop(module)
         governor = self.governor()
-        governor.begin(numba.get_num_threads(), parallel=step_loop is kernel.advance)
+        governor.begin(numba.get_num_threads(), parallel=step_loop is module.advance)
         try:
             while remaining > 0:
-                step_loop(governor.segment(remaining), *self.kernel_args(dt, gravity, skin, pair_params))
+                step_loop(governor.segment(remaining), *self.step_loop_args(dt, gravity, skin, pair_params))
                 done = int(self.info[I_STEPS_DONE])
                 governor.done(done)
                 remaining -= done
@@ -365,10 +365,10 @@ class EngineState:
             return False
         return True
 
-    def energy_for(self, kernel):
-        """Allocate the energy sums (zero) for a kernel that adds to them: without, it would write
+    def energy_for(self, module):
+        """Allocate the energy sums (zero) for an engine module that adds to them: without, it would write
         out of bounds (Numba does not check)."""
-        if kernel.TRACK_ENERGY and self.energy.shape[0] != self.n:
+        if module.TRACK_ENERGY and self.energy.shape[0] != self.n:
             self.energy = np.zeros((self.n, len(ENERGY_CHANNELS)))
 
     def governor(self):
@@ -378,14 +378,14 @@ class EngineState:
         return self._governor
 
     def serial(self) -> bool:
-        """Whether the kernel steps on the calling thread (a small scene, or one Numba thread)."""
+        """Whether the step loop runs on the calling thread (a small scene, or one Numba thread)."""
         import numba
 
         return self.n < layout.SERIAL_BELOW or numba.get_num_threads() == 1
 
-    def step_loop(self, kernel):
-        """The kernel's step loop for this scene on its backend (``rollingdem.engine.backends``)."""
-        return self.backend.step_loop(self, kernel)
+    def step_loop(self, module):
+        """The engine module's step loop for this scene on its backend (``rollingdem.engine.backends``)."""
+        return self.backend.step_loop(self, module)
 
     def _too_fast_message(self, dt, skin):
         bad = ~(np.isfinite(self.f).all(axis=1) & np.isfinite(self.t).all(axis=1))
@@ -401,7 +401,7 @@ class EngineState:
                 f"more than half the neighbor skin ({skin:.3g} m): contacts could be missed. Give a larger skin "
                 f"(> {2 * speed[k] * dt:.3g} m) or a smaller dt; a speed like this often means the run is unstable")
 
-    def _evaluate_forces(self, kernel, dt, gravity, skin, pair_params):
+    def _evaluate_forces(self, module, dt, gravity, skin, pair_params):
         """Forces and torques of the present state, leaving the contact history untouched.
 
         Rebuilding at unchanged positions is idempotent, so the contacts saved after one rebuild
@@ -414,7 +414,7 @@ class EngineState:
         mesh_saved = self.meshes.save_contacts()
         while True:
             self.info[I_FORCES_VALID] = 0
-            self.step_loop(kernel)(0, *self.kernel_args(dt, gravity, skin, pair_params))
+            self.step_loop(module)(0, *self.step_loop_args(dt, gravity, skin, pair_params))
             if not self._make_room():
                 break
         cl = self.contact_list  # grown perhaps: the arrays are new

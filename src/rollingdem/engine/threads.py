@@ -12,7 +12,7 @@ import time
 
 from rollingdem.errors import env_switch
 
-SEGMENT_S = 0.5  # seconds per segment: a kernel call costs ~0.1 ms
+SEGMENT_S = 0.5  # seconds per segment: a call of the step loop costs ~0.1 ms
 DECIDE_S = 0.2  # shortest segment that decides: /proc/stat counts in ticks of 10 ms per core
 FIRST_SEGMENT = 20  # steps, to measure the rate
 _fixed = not env_switch("ROLLINGDEM_ADAPTIVE_THREADS")
@@ -82,7 +82,7 @@ class ThreadGovernor:
         self.active = parallel and given > 1 and not _fixed and self.readable
 
     def segment(self, remaining: int) -> int:
-        """Steps of the next kernel call (all that remain unless active); its thread count is set."""
+        """Steps of the next call of the step loop (all that remain unless active); its thread count is set."""
         if not self.active:
             return remaining
         import numba
@@ -96,7 +96,7 @@ class ThreadGovernor:
         return min(remaining, max(1, int(self.rate * SEGMENT_S)))
 
     def done(self, steps: int) -> None:
-        """After a kernel call of ``steps`` steps: once ``DECIDE_S`` seconds are measured, the
+        """After a call of the step loop of ``steps`` steps: once ``DECIDE_S`` seconds are measured, the
         thread count of the segments to come."""
         if not self.active or self._window is None:
             return

@@ -20,8 +20,8 @@ from rollingdem.experiments import repose  # noqa: F401
 from rollingdem.experiments import drum  # noqa: F401
 from rollingdem.experiments import silo  # noqa: F401
 from rollingdem.experiments.registry import EXPERIMENTS, Experiment, Parameter, get_experiment
-from rollingdem.experiments.results import CaseResult, Check
+from rollingdem.experiments.results import ValidationResult, Check
 from rollingdem.experiments.validation import inclined_wall, rolling_flat, rolling_slope
 
-__all__ = ["EXPERIMENTS", "CaseResult", "Check", "Experiment", "Parameter", "get_experiment", "inclined_wall",
+__all__ = ["EXPERIMENTS", "ValidationResult", "Check", "Experiment", "Parameter", "get_experiment", "inclined_wall",
            "rolling_flat", "rolling_slope"]

@@ -1,4 +1,4 @@
-"""``rollingdem validate --case contact-laws``: the Walton-Braun, Walton tangential and JKR checks.
+"""``rollingdem validate --experiment contact-laws``: the Walton-Braun, Walton tangential and JKR checks.
 
 Each check sets up the textbook situation of its law and compares the measured number with the
 closed-form one (docs/models.md §1.4-§1.6; the benchmarks are listed in docs/studies.md, "Contact
@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from rollingdem.experiments.registry import Experiment
-from rollingdem.experiments.results import CaseResult, Check
+from rollingdem.experiments.results import ValidationResult, Check
 
 CASE = "contact-laws"
 K1 = 1e5  # N/m, WB-1
@@ -425,7 +425,7 @@ def agglomerate_breakage(speed: float, cells: int = 4) -> dict:
             "broken_in_tension": counts["bonds_broken_tension"] / bonds}
 
 
-def contact_laws(models=None, quick=False, outdir=None, progress=None, runner=map) -> CaseResult:
+def contact_laws(models=None, quick=False, outdir=None, progress=None, runner=map) -> ValidationResult:
     """The contact-law checks (``models`` and ``runner`` are not used: each check is its own law)."""
     start = time.perf_counter()
     checks, rows = [], []
@@ -504,7 +504,7 @@ def contact_laws(models=None, quick=False, outdir=None, progress=None, runner=ma
     check("parallel_bond", "agglomerate: smallest rise of the share of bonds broken between successive impact "
           f"speeds ({', '.join(f'{v:g}' for v in AGGLOMERATE_SPEEDS)} m/s)", float(np.diff(shares).min()), 0.0, 0.0,
           relative=False, bound="lower", source="more impact energy breaks more bonds")
-    result = CaseResult(CASE, "Contact laws: Walton-Braun, Walton's tangential law, JKR, the parallel bond",
+    result = ValidationResult(CASE, "Contact laws: Walton-Braun, Walton's tangential law, JKR, the parallel bond",
                         pd.DataFrame(rows), checks)
     result.notes.append("Agglomerate (" + f"{breakage[1.0]['spheres']} spheres, {breakage[1.0]['bonds']} bonds): "
                         + ", ".join(f"{v:g} m/s {100 * b['broken']:.0f} % broken" for v, b in breakage.items()))
@@ -534,5 +534,5 @@ class ContactLaws(Experiment):
     name = CASE
     description = "the contact laws against their closed forms: restitution, paths, sticking, bonds"
 
-    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> ValidationResult:
         return contact_laws(models, quick=quick, outdir=outdir, progress=progress, runner=runner)

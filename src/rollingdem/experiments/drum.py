@@ -25,7 +25,7 @@ from rollingdem.scene.insertion import CylinderRegion, Uniform
 from rollingdem.scene.simulation import Simulation
 from rollingdem.scene.walls import Cylinder
 from rollingdem.experiments.repose import PileMaterial
-from rollingdem.experiments.results import CaseResult, Check, mean_ci, pyplot, rises, run_points
+from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
 from rollingdem.experiments.registry import (UNBOUNDED, Experiment, Parameter, granular_parameters, resolve_rolling,
                                              rolling_models)
 from rollingdem.experiments.single_sphere import RADIUS
@@ -299,7 +299,7 @@ class RotatingDrum(Experiment):
                 "wall_layer_speed_ratio": run.wall_layer_speed_ratio,
                 "omega": run.omega, "particles": run.particles}
 
-    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> CaseResult:
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
         """The drum at mu_r = 0.05, 0.2, 0.4 (mu = 0.5) and mu = 0.3, 0.5, 0.8 (mu_r = 0.2), and at the
         base point with g four times larger at the same Froude number; 1 seed quick (a shorter run), 3
         full. Checks: the angle rises with mu_r and with mu; at one Froude number the angle does not
@@ -330,7 +330,7 @@ class RotatingDrum(Experiment):
                             "of the arc", low["wall_layer_speed_ratio"], 1.0, 0.02,
                             source="the passive zone turns with the drum where it touches the wall (off the arc's ends "
                                    "and the wall, the thin bed creeps: docs/studies.md)"))
-        result = CaseResult("rotating-drum", f"Rotating drum ({model}, {len(seeds)} seed{'s' * (len(seeds) > 1)}"
+        result = ValidationResult("rotating-drum", f"Rotating drum ({model}, {len(seeds)} seed{'s' * (len(seeds) > 1)}"
                             f"{', quick' if quick else ''})", table, checks,
                             notes=[f"A periodic slice of a drum 15 d in radius, 30 % full, at Fr = 5e-3 "
                                    f"({int(runs['particles'].iloc[0])} spheres, R = 5 mm ± 20 %, E = 5 MPa); the angle "

@@ -3,7 +3,7 @@
 An experiment (``Experiment``) is a protocol run on a scene: its parameters, each with a default,
 limits and a unit (``Parameter``), what it observes (``observables``, with units and meaning),
 its quick and full sizes, ``observe(params) -> observables`` (one run at one point: what sweeps and
-calibration call) and ``validate(...) -> CaseResult`` (its runs over several points, checked
+calibration call) and ``validate(...) -> ValidationResult`` (its runs over several points, checked
 against theory: what ``rollingdem validate`` calls). Defining a subclass with a ``name`` registers
 it in ``EXPERIMENTS``; ``rollingdem.experiments`` imports every built-in one. The experiments, their
 observables and their theory: docs/studies.md.
@@ -125,7 +125,7 @@ class Experiment:
         raise NotImplementedError
 
     def validate(self, quick=False, outdir=None, progress=None, runner=map, **models):
-        """Its runs over several points, checked against theory: a ``CaseResult``."""
+        """Its runs over several points, checked against theory: a ``ValidationResult``."""
         raise NotImplementedError
 
     def models(self) -> list[str]:

@@ -25,7 +25,7 @@ from rollingdem.scene.materials import Material
 from rollingdem.scene.simulation import Simulation
 from rollingdem.scene.mesh import MeshWall
 from rollingdem.scene.walls import Cylinder, Plane
-from rollingdem.experiments.results import CaseResult, Check, mean_ci, pyplot, rises, run_points
+from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
 from rollingdem.experiments.registry import (Experiment, Parameter, cohesion_parameters, common_parameters,
                                              resolve_rolling, rolling_models, twisting_parameter)
 from rollingdem.experiments.single_sphere import DT, G, RADIUS, TABLE1
@@ -275,7 +275,7 @@ def _final_mean(r: PileRun, energy=None) -> float:
     return float(np.mean((_without_spin(r) if energy is None else energy)[r.t > r.t[-1] - FINAL_WINDOW]))
 
 
-def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=None, runner=map) -> CaseResult:
+def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=None, runner=map) -> ValidationResult:
     """Case 3 for CDT, EPSD, EPSD2 and EPSD with twisting resistance; the tube is removed at once.
 
     Checks (docs/models.md §11.6 and the report's Figure 4): EPSD's final translational kinetic energy
@@ -340,7 +340,7 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
                             source="the same rolling limit mu_r R F_n holds the pile; tolerance: 95 % of the "
                                    "seed-to-seed differences (quick pile, REPOSE_ANGLE_TOLERANCE)"))
     tube, height = column_size(count, RADIUS, POLYDISPERSITY)
-    result = CaseResult("angle-of-repose", f"Case 3: angle of repose ({count} spheres)", pd.DataFrame(rows), checks,
+    result = ValidationResult("angle-of-repose", f"Case 3: angle of repose ({count} spheres)", pd.DataFrame(rows), checks,
                         notes=[f"{count} spheres of R = 5 mm ± {POLYDISPERSITY:.0%} (uniform) settle in a tube of "
                                f"radius {tube:.3f} m (sized for a column {height:.3f} m high at solid fraction {PACKING}; "
                                "a column this narrow packs looser and stands higher); the tube is removed at "
@@ -413,7 +413,7 @@ class AngleOfRepose(Experiment):
                 "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
                 "note": run.angle_error[:200]}
 
-    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> ValidationResult:
         return angle_of_repose(quick=quick, outdir=outdir, progress=progress, models=models, runner=runner)
 
 
@@ -471,11 +471,11 @@ class ReposeRoughBase(Experiment):
                 "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
                 "note": run.angle_error[:200]}
 
-    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> CaseResult:
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
         """The lifted-cylinder pile on a rough base at mu = 0.2 and 0.6 and mu_r = 0, 0.1, 0.3, over 3
         seeds (1,000 spheres quick, 4,000 full). Checks: a pile forms at mu_r = 0 (on the bare plate
         the spheres roll away); the mean angle rises with mu_r at each mu and with mu at each mu_r.
-        With the smooth-plate sweep (``--case repose-sweep``) in the same folder, the figure puts its
+        With the smooth-plate sweep (``--experiment repose-sweep``) in the same folder, the figure puts its
         angles beside these."""
         tic = time.perf_counter()
         count = self.sizes["quick" if quick else "full"]["count"]
@@ -492,7 +492,7 @@ class ReposeRoughBase(Experiment):
             checks.append(rises("repose-rough-base", model, table, "mur", {"mu": mu}))
         for mur in (0.0, 0.1, 0.3):
             checks.append(rises("repose-rough-base", model, table, "mu", {"mur": mur}))
-        result = CaseResult("repose-rough-base", f"Angle of repose on a rough base ({model}, {count} spheres)", table,
+        result = ValidationResult("repose-rough-base", f"Angle of repose on a rough base ({model}, {count} spheres)", table,
                             checks, notes=["The cylinder (about 6 d in radius for 2,000 spheres) is lifted at 0.1 m/s "
                                            "from a base of fixed spheres (R, spacing 2.2 R, jitter 0.1 R); mean over 3 "
                                            "seeds with the 95 % Student-t interval."])

@@ -1,4 +1,4 @@
-"""What a validation case returns: its table, its checks against references, its figures."""
+"""What an experiment's validation returns: its table, its checks against references, its figures."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ class Check:
     (absolute, in the quantity's unit) or, for ``relative``, <= tolerance |reference|; a one-sided
     bound uses ``bound`` = "upper" (measured <= reference) or "lower" (measured >= reference)."""
 
-    case: str
+    case: str  # the experiment's name, under this key in results.json and cases/NAME.json
     model: str
     quantity: str
     measured: float
@@ -46,8 +46,8 @@ class Check:
 
 
 @dataclass
-class CaseResult:
-    """A validation case's outcome: ``table`` (one row per model or run), ``checks``, ``figures``
+class ValidationResult:
+    """A validation's outcome: ``table`` (one row per model or run), ``checks``, ``figures``
     (PNG paths) and free-form ``notes`` for the report."""
 
     name: str
@@ -112,7 +112,7 @@ def mean_ci(runs: pd.DataFrame, keys: list[str], value: str, within: str | None 
     return pd.DataFrame(rows)
 
 
-def rises(case, label, table, key, fixed, value="angle") -> Check:
+def rises(experiment, label, table, key, fixed, value="angle") -> Check:
     """Check that ``value`` grows along ``key`` with the other parameters at ``fixed``: the smallest
     step between successive means must be positive."""
     sel = table
@@ -121,7 +121,7 @@ def rises(case, label, table, key, fixed, value="angle") -> Check:
     sel = sel.sort_values(key)
     steps = np.diff(sel[f"{value} mean"].to_numpy())
     where = ", ".join(f"{k} = {v:g}" for k, v in fixed.items())
-    return Check(case, label, f"smallest rise of the {value} between successive {key} "
+    return Check(experiment, label, f"smallest rise of the {value} between successive {key} "
                  f"({', '.join(f'{x:g}' for x in sel[key])}) at {where} (deg)",
                  float(steps.min()) if len(steps) else math.nan, 0.0, 0.0, bound="lower",
                  source=f"physics: more {key}, more resistance to flow, a steeper surface")

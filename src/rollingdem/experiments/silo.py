@@ -23,7 +23,7 @@ from rollingdem.scene.insertion import BoxRegion, CylinderRegion, Uniform
 from rollingdem.scene.mesh import MeshWall
 from rollingdem.scene.simulation import Simulation
 from rollingdem.experiments.repose import PileMaterial
-from rollingdem.experiments.results import CaseResult, Check, pyplot, run_points
+from rollingdem.experiments.results import ValidationResult, Check, pyplot, run_points
 from rollingdem.experiments.registry import (UNBOUNDED, Experiment, Parameter, granular_parameters, resolve_rolling,
                                              rolling_models)
 from rollingdem.experiments.single_sphere import RADIUS
@@ -305,7 +305,7 @@ class SiloDischarge(Experiment):
                 "bulk_density": run.bulk_density, "orifice_density": run.orifice_density, "clogged": int(run.clogged),
                 "orifice": run.orifice, "particles": run.particles}
 
-    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> CaseResult:
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
         """The silo at 4 (quick) or 5 orifice sizes from 5 d to 8 or 10 d, one seed each, at a steady
         head; the smallest orifice again at half the fill height. Checks: Beverloo's law with the
         exponent 5/2 fits with k between 1 and 3 and C between 0.45 and 0.75 (the range of measured
@@ -357,7 +357,7 @@ class SiloDischarge(Experiment):
                             max(0.05, spread) if math.isfinite(spread) else 0.05,
                             source="the flow rate does not depend on the fill height (Janssen); tolerance 5 % or "
                                    "the 95 % interval of the ratio, if wider"))
-        result = CaseResult("silo-discharge", f"Silo discharge ({model}{', quick' if quick else ''})", table, checks,
+        result = ValidationResult("silo-discharge", f"Silo discharge ({model}{', quick' if quick else ''})", table, checks,
                             notes=[f"mu = {self.material['mu']}, mu_r = {self.material['mur']}; silos max(2.5 D0, D0 + "
                                    f"{sizes['gap']:g} d) wide, filled {sizes['fill']:g} d high and held there (the "
                                    f"spheres out are put back on top); W over {sizes['measured']} spheres out. Beverloo "

@@ -46,7 +46,7 @@ def single_thread(func):
     return wrapper
 
 
-#: the settings the single-sphere cases give a rolling model, over its own ``validation_presets``
+#: the settings the single-sphere experiments give a rolling model, over its own ``validation_presets``
 CASE_SETTINGS = {"sds": {"rolling_stiffness": 2e3}, "displacement_damping": {"damping": 0.3},
                  "viscous": {"coefficient": VISCOUS_COEFFICIENT}}
 
@@ -106,8 +106,8 @@ def launch(sim: Simulation, duration: float, v0=1.0, sample_steps=10) -> Traject
             out.append((s.time - t0, s.positions[0, 0] - x0, s.velocities[0, 0], s.torques[0, 1],
                         s.dissipated_energy()["rolling"]))
 
-    # one run, sampled by an observer: the kernel stops every sample_steps steps all the same, but a
-    # run's own checks are made once (a run per sample cost 40 % of the case)
+    # one run, sampled by an observer: the step loop stops every sample_steps steps all the same, but a
+    # run's own checks are made once (a run per sample cost 40 % of the experiment)
     sim.run(steps=n * sample_steps, observers=[Callback(sample, sample_steps * sim.dt)])
     out = np.array(out).reshape(-1, 5)
     return Trajectory(out[:, 0], out[:, 1], out[:, 2], out[:, 3], out[:, 4])

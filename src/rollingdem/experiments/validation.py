@@ -1,6 +1,6 @@
 """The seed report's single-sphere cases 0-2 for every rolling model, with tables, checks and figures.
 
-Each function returns a :class:`~rollingdem.experiments.results.CaseResult`; with ``outdir`` it also
+Each function returns a :class:`~rollingdem.experiments.results.ValidationResult`; with ``outdir`` it also
 writes its figures there. ``quick`` trims the grids (fewer angles, coarser bisection). ``runner``
 maps the independent runs: the built-in ``map`` one after the other here,
 :func:`rollingdem.studies.parallel.runner` side by side in worker processes.
@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from rollingdem.errors import ParameterError
-from rollingdem.experiments.results import CaseResult, Check, pyplot
+from rollingdem.experiments.results import ValidationResult, Check, pyplot
 from rollingdem.experiments.registry import UNBOUNDED, Experiment, Parameter, common_parameters, resolve_rolling
 from rollingdem.experiments.single_sphere import CREEPING, DT, G, NO_THRESHOLD, SLOPE, VISCOUS_TAU, analytic_flat, analytic_flat_curve, analytic_slope, creep_speed, critical_rolling_friction, rolling_flat_run, rolling_slope_run, rolling_threshold_speed, single_thread, speed_down_incline, stop_time, validation_models, viscous_decay_time
 
@@ -43,7 +43,7 @@ def _select(models):
 
 
 @single_thread
-def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress=None, runner=map) -> CaseResult:
+def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress=None, runner=map) -> ValidationResult:
     """Case 0: critical mu_r by bisection for every model and angle; Table 2 with the ratio to tan b.
 
     Check: mu_r,crit / tan(beta) within 0.5 % of 1 (the report's LIGGGHTS values are within 1.6 %).
@@ -78,7 +78,7 @@ def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress
                 row[f"report {label}"] = values[ANGLES.index(beta)]
         rows.append(row)
     table = pd.DataFrame(rows)
-    result = CaseResult("inclined-wall", "Case 0: inclined wall, critical rolling friction (Table 2)", table, checks,
+    result = ValidationResult("inclined-wall", "Case 0: inclined wall, critical rolling friction (Table 2)", table, checks,
                         notes=[f"Bisection in tan(beta) x [0.95, 1.05] to a relative width {rel_tol:g}; a sphere "
                                "'rolls' when its mean speed over the last 0.1 s of a 0.3 s hold exceeds half of "
                                "what a sphere rolling from the end of the tilt would reach at that margin. "
@@ -99,7 +99,7 @@ def inclined_wall(models=None, angles=ANGLES, quick=False, outdir=None, progress
 
 
 @single_thread
-def rolling_flat(models=None, quick=False, outdir=None, progress=None, runner=map) -> CaseResult:
+def rolling_flat(models=None, quick=False, outdir=None, progress=None, runner=map) -> ValidationResult:
     """Case 1: v0 = 1 m/s, omega0 = 0 on a flat. Checks: stop time and distance against the analytic
     0.50968 s / 0.18836 m within 0.5 % for CDT, the recommended EPSD and Force Proportional (the same
     torque on a still wall), 1 % for the other spring models; the LIGGGHTS-parity EPSD within 0.3 %
@@ -130,7 +130,7 @@ def rolling_flat(models=None, quick=False, outdir=None, progress=None, runner=ma
         if progress:
             progress()
     rows.append({"model": "analytic", "stop time (s)": t_ref, "distance (m)": s_ref})
-    result = CaseResult("rolling-flat", "Case 1: a sphere rolling on a flat (v0 = 1 m/s, ω0 = 0)",
+    result = ValidationResult("rolling-flat", "Case 1: a sphere rolling on a flat (v0 = 1 m/s, ω0 = 0)",
                         pd.DataFrame(rows), checks,
                         notes=[f"Analytic: slip ends at t1 = {t1:.5f} s with v1 = {v1:.5f} m/s, then rolling "
                                f"deceleration (5/7) μr g = {5 / 7 * 0.2 * G:.5f} m/s²; stop at {t_ref:.5f} s after "
@@ -154,7 +154,7 @@ def rolling_flat(models=None, quick=False, outdir=None, progress=None, runner=ma
 
 
 @single_thread
-def rolling_slope(models=None, quick=False, outdir=None, progress=None, runner=map) -> CaseResult:
+def rolling_slope(models=None, quick=False, outdir=None, progress=None, runner=map) -> ValidationResult:
     """Case 2: launched at 1 m/s up a 10 deg slope. Checks: x_max within 0.5 % of the analytic
     0.104204 m (not for the viscous model, which has no such bound); afterwards spring models hold
     (|creep| over the last second < 1e-7 m/s), CDT creeps back at LIGGGHTS's 4.0e-5 m/s (10 %), and
@@ -183,7 +183,7 @@ def rolling_slope(models=None, quick=False, outdir=None, progress=None, runner=m
         if progress:
             progress()
     rows.append({"model": "analytic", "x_max (m)": x_ref, "t at x_max (s)": t_ref})
-    result = CaseResult("rolling-slope", "Case 2: a sphere rolling up a 10° slope", pd.DataFrame(rows), checks,
+    result = ValidationResult("rolling-slope", "Case 2: a sphere rolling up a 10° slope", pd.DataFrame(rows), checks,
                         notes=["Back-roll = x_max - final x; creep = mean velocity over the last second (negative: "
                                "down the slope). The viscous model cannot hold a slope (docs/models.md §12)."])
     if outdir is not None:
@@ -264,7 +264,7 @@ class InclinedWall(SingleSphere):
                 lo = mid
         return {"critical_angle": 0.5 * (lo + hi)}
 
-    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> ValidationResult:
         return inclined_wall(models, quick=quick, outdir=outdir, progress=progress, runner=runner)
 
 
@@ -288,7 +288,7 @@ class RollingFlat(SingleSphere):
                                 material=sphere_material(p))
         return {"distance": float(traj.x[-1]), "stop_time": stop_time(traj)}
 
-    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> ValidationResult:
         return rolling_flat(models, quick=quick, outdir=outdir, progress=progress, runner=runner)
 
 
@@ -298,5 +298,5 @@ class RollingSlope(SingleSphere):
     name = "rolling-slope"
     description = "one Table-1 sphere launched up a 10 deg slope (report case 2)"
 
-    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> CaseResult:
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> ValidationResult:
         return rolling_slope(models, quick=quick, outdir=outdir, progress=progress, runner=runner)

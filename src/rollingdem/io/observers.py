@@ -2,7 +2,7 @@
 ``rollingdem.scene.schedule.Observer``).
 
 Each observer has an ``interval`` in simulated seconds (rounded to whole steps) and is called by
-``Simulation.run`` between kernel calls, never inside the compiled loop. Files are flushed as they
+``Simulation.run`` between calls of the step loop, never inside the compiled loop. Files are flushed as they
 are written, so a run that fails leaves what it had written readable.
 """
 

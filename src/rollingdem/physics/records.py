@@ -24,7 +24,7 @@ WALL_GEOMETRY_SIZE = 9
 #: a wall contact's load row (``WallArrays.load``, ``mesh_load``): the force on the wall (N) and its
 #: moment about the origin (N m), c x F + the contact's torque on the wall (rolling, twisting), at the
 #: last step; a wall's force and its torque about any point P (M - P x F) are summed from these
-#: between kernel calls
+#: between calls of the step loop
 WALL_LOAD = slots("fx", "fy", "fz", "mx", "my", "mz")
 WALL_LOAD_SIZE = len(WALL_LOAD)
 
@@ -45,7 +45,7 @@ N_RESULTS = len(CONTACT_RESULTS)
 
 def contact_inputs(normal=(0.0, 0.0, 1.0), overlap=0.0, relative_velocity=(0.0, 0.0, 0.0), omega_i=(0.0, 0.0, 0.0),
                    omega_j=(0.0, 0.0, 0.0), lever_i=0.0, lever_j=0.0, r_eff=0.0, m_eff=0.0, inertia_r=0.0) -> tuple:
-    """A contact's ``CONTACT_INPUTS`` tuple, as the kernel hands it to the sub-models (to call a
+    """A contact's ``CONTACT_INPUTS`` tuple, as the step loop hands it to the sub-models (to call a
     sub-model's compiled function on its own, in tests)."""
     values = (*normal, overlap, *relative_velocity, *omega_i, *omega_j, lever_i, lever_j, r_eff, m_eff, inertia_r)
     return tuple(float(v) for v in values)

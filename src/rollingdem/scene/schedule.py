@@ -146,9 +146,9 @@ class Schedule:
             ob.start(sim)
         operations = self.during(observers)
         try:
-            kernel = sim.engine_module()  # after the observers start: a TimeSeries turns on track_energy
+            module = sim.engine_module()  # after the observers start: a TimeSeries turns on track_energy
             if progress:
-                bar = Progress(sim, steps, label, warm=id(kernel) in sim._stepped)
+                bar = Progress(sim, steps, label, warm=id(module) in sim._stepped)
             for ob in observers:
                 ob.maybe_observe(sim, force=True)
             chunk = 64
@@ -156,9 +156,9 @@ class Schedule:
                 due = self.next_step(sim, operations)
                 todo = max(min(end, sim.step + chunk, *(() if due is None else (due,))) - sim.step, 1)
                 tic = _time.perf_counter()
-                done, problem = sim._state.advance(kernel, todo, sim.dt, sim._gravity, sim.skin, sim.pair_parameters())
+                done, problem = sim._state.advance(module, todo, sim.dt, sim._gravity, sim.skin, sim.pair_parameters())
                 elapsed = _time.perf_counter() - tic
-                sim._stepped.add(id(kernel))
+                sim._stepped.add(id(module))
                 sim.step += done
                 sim.time = sim._time_origin[0] + (sim.step - sim._time_origin[1]) * sim.dt
                 self.check_finite_state(sim)

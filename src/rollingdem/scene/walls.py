@@ -149,7 +149,7 @@ class Cylinder(Wall):
 def wall_overlap(geometry: np.ndarray, kind: int, x: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Overlap (m) of spheres (centres x, radii r) with a wall; > 0 means they overlap.
 
-    The same rule as the kernel: a plane is a half-space, a cylinder holds particles inside within
+    The same rule as the step loop's: a plane is a half-space, a cylinder holds particles inside within
     its axial extent.
     """
     if kind == PLANE:

@@ -1,6 +1,6 @@
 """Calibration: the value of one free parameter whose simulated observable matches a measured one.
 
-``calibrate(case, target, uncertainty, fix={"mu": 0.5}, free="mur")`` (and ``rollingdem
+``calibrate(experiment, target, uncertainty, fix={"mu": 0.5}, free="mur")`` (and ``rollingdem
 calibrate``): a coarse sweep, a monotone surrogate, refinement rounds where it crosses the target,
 and a 95 % interval from a parametric bootstrap, every run through :func:`rollingdem.studies.sweep.run_sweep`
 (resumable). The method step by step: docs/studies.md, "Calibration"."""
@@ -40,7 +40,7 @@ class Search:
 class Calibration:
     """The calibrated value of ``parameter`` with its 95 % interval, and the evidence."""
 
-    case: str
+    experiment: str
     parameter: str
     observable: str
     target: float
@@ -134,7 +134,7 @@ def _direction(stats: pd.DataFrame) -> bool:
     return bool(rho > 0)
 
 
-def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | None = None, free="mur",
+def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dict | None = None, free="mur",
               observable: str | None = None, seeds=None, search: Search = Search(), out=None,
               execution: Execution = Execution(), progress: bool = True, echo=None) -> Calibration:
     """Find the ``free`` parameter (a name, or (name, (low, high))) whose ``observable`` matches
@@ -148,7 +148,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
     from rollingdem.studies.sweep import load_sweep, run_sweep
 
     tic = time.perf_counter()
-    sc = get_experiment(case, observable=True, what="case")
+    sc = get_experiment(experiment, observable=True, what="experiment")
     if isinstance(free, str):
         name, rng = free, None
     elif isinstance(free, (list, tuple)) and len(free) == 2 and not isinstance(free[1], str):
@@ -158,7 +158,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
                              "observable fixes one parameter; sweep the others with rollingdem sweep)")
     par = sc.by_name.get(name)
     if par is None:
-        raise ParameterError(f"free = {name!r} is not known for case {case!r}: allowed are "
+        raise ParameterError(f"free = {name!r} is not known for experiment {experiment!r}: allowed are "
                              f"{', '.join(p.name for p in sc.parameters if p.calibration_range)}")
     if par.calibration_range is None:
         raise ParameterError(f"free = {name!r} is not allowed: it is not a real-valued parameter that calibration "
@@ -170,7 +170,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
         raise ParameterError(f"free = {name}={lo}:{hi} is not allowed: the range must be LOW:HIGH with LOW < HIGH")
     observable = observable or sc.default_observable
     if observable not in sc.observables:
-        raise ParameterError(f"observable = {observable!r} is not known for case {case!r}: allowed are "
+        raise ParameterError(f"observable = {observable!r} is not known for experiment {experiment!r}: allowed are "
                              f"{', '.join(sc.observables)}")
     target = check_finite("target", target)
     uncertainty = check_non_negative("uncertainty", uncertainty)
@@ -187,11 +187,11 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
     coarse, refine, rounds = search.coarse, search.refine, search.rounds
     seeds = seeds if seeds is not None else (3 if sc.stochastic else 1)
     out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-calibrate-"))
-    first = load_sweep({"case": case, "fixed": fix, "points": [{name: lo}], "seeds": seeds})  # refuse bad input now
+    first = load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: lo}], "seeds": seeds})  # refuse bad input now
     say = echo or (lambda *_: None)
 
     def sweep(xs, m):
-        spec = load_sweep({"case": case, "fixed": fix, "points": [{name: float(x)} for x in xs], "seeds": seeds})
+        spec = load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: float(x)} for x in xs], "seeds": seeds})
         return run_sweep(spec, out, mapper=m, progress=progress, summary=False).table
 
     with execution.runner() as m:
@@ -199,7 +199,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
         sweep(xs, m)
         table = None
         for r in range(rounds + 1):
-            table = _all_runs(out, sc, case, fix, name)
+            table = _all_runs(out, sc, experiment, fix, name)
             stats = _point_stats(table, name, observable)
             increasing = _direction(stats)
             g = _monotone(stats["mean"].to_numpy(), stats["count"].to_numpy(float), increasing)
@@ -214,8 +214,8 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
             s = np.sign(g - target) * (1 if increasing else -1)
             k = max(int(np.argmax(s >= 0)), 1)  # first point at or past the target
             a, b = x[max(k - 1, 0)], x[k]
-            # where the seed scatter alone leaves the answer (a deterministic case: nowhere but the
-            # bracket), so that a noisy case does not crowd its new points into a narrow bracket
+            # where the seed scatter alone leaves the answer (a deterministic experiment: nowhere but the
+            # bracket), so that a noisy experiment does not crowd its new points into a narrow bracket
             s_lo, s_hi, _ = _bootstrap(x, stats["mean"].to_numpy(), stats["count"].to_numpy(float),
                                        stats["std"].to_numpy(), increasing, target, 0.0, 500)
             a, b = max(min(a, s_lo), lo), min(max(b, s_hi), hi)
@@ -229,7 +229,7 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
     value = monotone_inverse(x, g, target)
     lo95, hi95, outside = _bootstrap(x, means, counts, stats["std"].to_numpy(), increasing, target, uncertainty,
                                      search.bootstrap)
-    result = Calibration(case, name, observable, target, uncertainty, value, lo95, hi95, fix,
+    result = Calibration(experiment, name, observable, target, uncertainty, value, lo95, hi95, fix,
                          runs=int(len(table)), points=len(x), seeds=first.seed_list,
                          direction="increasing" if increasing else "decreasing", outside_fraction=outside,
                          wall_time=time.perf_counter() - tic, table=table)
@@ -240,8 +240,8 @@ def calibrate(case: str, target: float, uncertainty: float = 0.0, fix: dict | No
     return result
 
 
-def _all_runs(out: Path, sc, case: str, fix: dict, name: str) -> pd.DataFrame:
-    """The runs of this calibration in the table (same case and fixed parameters)."""
+def _all_runs(out: Path, sc, experiment: str, fix: dict, name: str) -> pd.DataFrame:
+    """The runs of this calibration in the table (same experiment and fixed parameters)."""
     from rollingdem.studies.sweep import TABLE, read_table
 
     table = read_table(out / TABLE, sc)
@@ -298,10 +298,10 @@ def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) 
     ax.axvline(result.value, color="tab:red", lw=1.2, label=f"{result.parameter} = {result.value:.4g} "
                                                        f"[{result.low:.4g}, {result.high:.4g}]")
     ax.set_xlabel(result.parameter)
-    unit = get_experiment(result.case, observable=True, what="case").observables[result.observable].split(",")[0]
+    unit = get_experiment(result.experiment, observable=True, what="experiment").observables[result.observable].split(",")[0]
     ax.set_ylabel(f"{result.observable} ({unit})")
     fixed = ", ".join(f"{k} = {v}" for k, v in result.fixed.items())
-    ax.set_title(f"Calibration, {result.case}{': ' + fixed if fixed else ''}", fontsize=10)
+    ax.set_title(f"Calibration, {result.experiment}{': ' + fixed if fixed else ''}", fontsize=10)
     ax.legend(fontsize=7)
     fig.tight_layout()
     path = out / "calibration.png"

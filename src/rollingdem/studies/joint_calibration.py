@@ -1,8 +1,8 @@
-"""Joint calibration: several free parameters against several measured targets, from one or several cases.
+"""Joint calibration: several free parameters against several measured targets, from one or several experiments.
 
 ``calibrate_joint([Target("angle-of-repose", "angle", 32.5, 1.0), Target("rotating-drum", "angle",
 38.0, 1.5)], free={"mu": (0.2, 0.9), "mur": (0.0, 0.5)})`` (and ``rollingdem calibrate --target
-CASE.OBSERVABLE=VALUE±U ... --free NAME=LOW:HIGH ...``). Each target's observable, averaged over
+EXPERIMENT.OBSERVABLE=VALUE±U ... --free NAME=LOW:HIGH ...``). Each target's observable, averaged over
 seeds, is modelled over the free parameters by a Gaussian process (scikit-learn); the posterior
 of the free parameters (uniform prior on their box, Gaussian likelihood with the target's
 uncertainty and the surrogate's) is evaluated on a grid; new points are run where the posterior is
@@ -36,16 +36,16 @@ GRID = {1: 400, 2: 80, 3: 30}  # grid points per free parameter, by their number
 
 @dataclass(frozen=True)
 class Target:
-    """A measured value (one sigma ``uncertainty``) of ``observable`` of ``case``."""
+    """A measured value (one sigma ``uncertainty``) of ``observable`` of ``experiment``."""
 
-    case: str
+    experiment: str
     observable: str
     value: float
     uncertainty: float = 0.0
 
     @property
     def label(self) -> str:
-        return f"{self.case}.{self.observable}"
+        return f"{self.experiment}.{self.observable}"
 
 
 @dataclass(frozen=True)
@@ -106,33 +106,33 @@ def parse_target(text: str) -> Target:
     """``"angle-of-repose.angle=32.5±1.0"`` (or ``+-``, ``+/-``; without it the uncertainty is 0)."""
     m = _TARGET.match(text)
     if not m:
-        raise ParameterError(f"target = {text!r} is not allowed: write CASE.OBSERVABLE=VALUE±UNCERTAINTY, e.g. "
+        raise ParameterError(f"target = {text!r} is not allowed: write EXPERIMENT.OBSERVABLE=VALUE±UNCERTAINTY, e.g. "
                              "angle-of-repose.angle=32.5±1.0")
-    case, observable, value, unc = m.groups()
+    experiment, observable, value, unc = m.groups()
     try:
-        return Target(case, observable, float(value), float(unc) if unc else 0.0)
+        return Target(experiment, observable, float(value), float(unc) if unc else 0.0)
     except ValueError:
         raise ParameterError(f"target = {text!r} is not allowed: VALUE and UNCERTAINTY must be numbers") from None
 
 
 def _check(targets, free, fix):
-    """Everything refused before a run: unknown cases, observables and parameters, a target no
-    run can reach, an empty range. Returns (targets, free {name: (lo, hi)}, per-case fixed)."""
+    """Everything refused before a run: unknown experiments, observables and parameters, a target no
+    run can reach, an empty range. Returns (targets, free {name: (lo, hi)}, per-experiment fixed)."""
     if isinstance(targets, Target):
         targets = [targets]
     targets = list(targets or [])
     if not targets or not all(isinstance(t, Target) for t in targets):
         raise ParameterError(f"targets = {targets!r} is not allowed: give one or more rollingdem Target (or "
-                             "--target CASE.OBSERVABLE=VALUE±U)")
-    cases = {}
+                             "--target EXPERIMENT.OBSERVABLE=VALUE±U)")
+    experiments = {}
     for t in targets:
-        sc = get_experiment(t.case, observable=True, what="case")
-        cases[t.case] = sc
+        sc = get_experiment(t.experiment, observable=True, what="experiment")
+        experiments[t.experiment] = sc
         if t.observable not in sc.observables:
-            raise ParameterError(f"target observable = {t.observable!r} is not known for case {t.case!r}: allowed "
+            raise ParameterError(f"target observable = {t.observable!r} is not known for experiment {t.experiment!r}: allowed "
                                  f"are {', '.join(sc.targets)}")
         if t.observable not in sc.targets:
-            raise ParameterError(f"target observable = {t.observable!r} of case {t.case!r} is not something to "
+            raise ParameterError(f"target observable = {t.observable!r} of experiment {t.experiment!r} is not something to "
                                  f"calibrate against: allowed are {', '.join(sc.targets)}")
         value = check_finite(f"target {t.label}", t.value)
         check_non_negative(f"uncertainty of target {t.label}", t.uncertainty)
@@ -141,7 +141,7 @@ def _check(targets, free, fix):
             raise ParameterError(f"target {t.label} = {value:g} is not allowed: no run can give it; "
                                  f"{t.observable} lies in [{lo:g}, {hi:g}] ({sc.observables[t.observable]})")
     if len({t.label for t in targets}) != len(targets):
-        raise ParameterError("targets name the same CASE.OBSERVABLE twice: give each once")
+        raise ParameterError("targets name the same EXPERIMENT.OBSERVABLE twice: give each once")
     if isinstance(free, str):
         free = [free]
     free = dict(free) if isinstance(free, dict) else {n: None for n in (free or [])}
@@ -149,16 +149,16 @@ def _check(targets, free, fix):
         raise ParameterError("free = {} is not allowed: give at least one free parameter, e.g. mur=0.0:0.5")
     box = {}
     for name, rng in free.items():
-        for sc in cases.values():
+        for sc in experiments.values():
             par = sc.by_name.get(name)
             if par is None or par.calibration_range is None:
                 allowed = ", ".join(p.name for p in sc.parameters if p.calibration_range)
-                raise ParameterError(f"free = {name!r} is not allowed for case {sc.name!r}: it is not one of its "
+                raise ParameterError(f"free = {name!r} is not allowed for experiment {sc.name!r}: it is not one of its "
                                      f"real-valued parameters that calibration can vary ({allowed})")
             rng_here = rng or par.calibration_range
             for v in rng_here:
                 par.check(v)
-        lo, hi = (float(v) for v in (rng or next(iter(cases.values())).by_name[name].calibration_range))
+        lo, hi = (float(v) for v in (rng or next(iter(experiments.values())).by_name[name].calibration_range))
         if not lo < hi:
             raise ParameterError(f"free = {name}={lo:g}:{hi:g} is not allowed: the range is empty; write "
                                  "LOW:HIGH with LOW < HIGH")
@@ -167,14 +167,14 @@ def _check(targets, free, fix):
     both = [k for k in fix if k in box]
     if both:
         raise ParameterError(f"parameter {both[0]!r} is both fixed and free: give it in one place")
-    unused = [k for k in fix if not any(k in sc.by_name for sc in cases.values())]
+    unused = [k for k in fix if not any(k in sc.by_name for sc in experiments.values())]
     if unused:
-        raise ParameterError(f"fix = {unused[0]!r} is not a parameter of any case calibrated ({', '.join(cases)})")
-    per_case = {}
-    for name, sc in cases.items():
-        per_case[name] = {k: v for k, v in fix.items() if k in sc.by_name}
-        sc.resolve({**per_case[name], **{k: lo for k, (lo, _) in box.items()}})  # refuse bad fixed values now
-    return targets, box, per_case
+        raise ParameterError(f"fix = {unused[0]!r} is not a parameter of any experiment calibrated ({', '.join(experiments)})")
+    per_experiment = {}
+    for name, sc in experiments.items():
+        per_experiment[name] = {k: v for k, v in fix.items() if k in sc.by_name}
+        sc.resolve({**per_experiment[name], **{k: lo for k, (lo, _) in box.items()}})  # refuse bad fixed values now
+    return targets, box, per_experiment
 
 
 def fit_surrogate(x_unit: np.ndarray, mean: np.ndarray, var_of_mean: np.ndarray):
@@ -272,9 +272,9 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
                     execution: Execution = Execution(), progress: bool = True, echo=None) -> JointCalibration:
     """Find the ``free`` parameters ({name: (low, high)} or names, for their default ranges) whose
     simulated observables match every one of ``targets`` (a list of :class:`Target`), with the
-    parameters ``fix`` held (each in the cases that have it); ``seeds`` runs per point (default 3
-    for a random case, 1 for a deterministic one), searched as ``search`` says, the runs going
-    where ``execution`` says. Writes ``out/CASE/runs.csv`` per case, ``calibration.json``,
+    parameters ``fix`` held (each in the experiments that have it); ``seeds`` runs per point (default 3
+    for a random experiment, 1 for a deterministic one), searched as ``search`` says, the runs going
+    where ``execution`` says. Writes ``out/EXPERIMENT/runs.csv`` per experiment, ``calibration.json``,
     ``corner.png`` and ``observables.png``; ``echo`` tells each round and the result."""
     import tempfile
 
@@ -294,12 +294,12 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
     for k, v, n_min in (("initial", initial, d + 1), ("rounds", search.rounds, 0), ("per_round", search.per_round, 1)):
         if isinstance(v, bool) or not isinstance(v, int) or v < n_min:
             raise ParameterError(f"{k} = {v!r} is not allowed: must be an integer >= {n_min}")
-    cases = list(dict.fromkeys(t.case for t in targets))
-    seed_count = {c: seeds if seeds is not None else (3 if get_experiment(c, observable=True, what="case").stochastic else 1)
-                  for c in cases}
+    experiments = list(dict.fromkeys(t.experiment for t in targets))
+    seed_count = {c: seeds if seeds is not None else (3 if get_experiment(c, observable=True, what="experiment").stochastic else 1)
+                  for c in experiments}
     out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-joint-"))
-    for c in cases:  # refuse a bad seeds value before any run
-        load_sweep({"case": c, "fixed": fixed[c], "points": [{n: box[n][0] for n in names}], "seeds": seed_count[c]})
+    for c in experiments:  # refuse a bad seeds value before any run
+        load_sweep({"experiment": c, "fixed": fixed[c], "points": [{n: box[n][0] for n in names}], "seeds": seed_count[c]})
     say = echo or (lambda *_: None)
     lows = np.array([box[n][0] for n in names])
     highs = np.array([box[n][1] for n in names])
@@ -309,8 +309,8 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
     def run(m):
         points = [dict(zip(names, map(float, lows + u * (highs - lows)))) for u in design]
         tables = {}
-        for c in cases:
-            spec = load_sweep({"case": c, "fixed": fixed[c], "points": points, "seeds": seed_count[c]})
+        for c in experiments:
+            spec = load_sweep({"experiment": c, "fixed": fixed[c], "points": points, "seeds": seed_count[c]})
             tables[c] = run_sweep(spec, out / c, mapper=m, progress=progress, summary=False).table
         return tables
 
@@ -348,18 +348,18 @@ def _check_reach(targets, means, stds, box, out) -> None:
 
 
 def _surrogates(tables, targets, names, lows, highs):
-    """One surrogate per target from its case's runs: the mean over seeds per point, its variance
-    from the seed scatter pooled over the points (a deterministic case: a tiny nugget)."""
+    """One surrogate per target from its experiment's runs: the mean over seeds per point, its variance
+    from the seed scatter pooled over the points (a deterministic experiment: a tiny nugget)."""
     surrogates, stats = [], []
     for t in targets:
-        table = tables[t.case]
+        table = tables[t.experiment]
         ok = table[table["status"] == "ok"].copy()
         ok["_y"] = pd.to_numeric(ok[t.observable], errors="coerce")
         ok = ok[np.isfinite(ok["_y"])]
         grp = ok.groupby(names)["_y"].agg(["mean", "var", "count"]).reset_index()
         if len(grp) < 2:
             raise ParameterError(f"target {t.label}: fewer than two points gave a finite {t.observable}; "
-                                 f"see the runs in {t.case}/runs.csv")
+                                 f"see the runs in {t.experiment}/runs.csv")
         multi = grp["count"] >= 2
         dof = float((grp.loc[multi, "count"] - 1).sum())
         pooled = float(((grp.loc[multi, "count"] - 1) * grp.loc[multi, "var"]).sum() / dof) if dof > 0 else 0.0

@@ -1,10 +1,10 @@
 """The PFC repose-angle study: the angle-of-repose pile swept over (mu, mu_r) and seeds.
 
 :func:`repose_sweep` runs the pile of :mod:`rollingdem.experiments.repose` through the sweep machinery
-(:func:`rollingdem.studies.sweep.run_sweep`, case ``angle-of-repose``), reruns piles still creeping, and
+(:func:`rollingdem.studies.sweep.run_sweep`, experiment ``angle-of-repose``), reruns piles still creeping, and
 reports the angle against mu_r for each mu (mean over seeds with a 95 % Student-t interval) and its
 iso-value map; :func:`sweep_checks` holds its trend checks. It sits above :mod:`rollingdem.studies.sweep`:
-the cases below never import the sweep.
+the experiments below never import the sweep.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from rollingdem.experiments.repose import POLYDISPERSITY
-from rollingdem.experiments.results import CaseResult, Check, pyplot
+from rollingdem.experiments.results import ValidationResult, Check, pyplot
 from rollingdem.analysis.intervals import confidence_interval
 from rollingdem.studies.sweep import SweepSpec, run_sweep
 
@@ -65,11 +65,11 @@ def sweep_checks(table: pd.DataFrame, frictions, model: str) -> tuple[list[Check
 
 
 def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", frictions=None, rolling_frictions=None,
-                 seeds=None, count=None, lift_speed=SWEEP_LIFT_SPEED, runner=map) -> CaseResult:
+                 seeds=None, count=None, lift_speed=SWEEP_LIFT_SPEED, runner=map) -> ValidationResult:
     """The PFC repose-angle study: angle against mu_r for each mu, seeds per point, 95 % intervals.
 
     As in the PFC example the tube is lifted (``lift_speed``, m/s). The runs go through
-    :func:`rollingdem.studies.sweep.run_sweep` (case ``angle-of-repose``) into ``outdir/repose-sweep-runs``,
+    :func:`rollingdem.studies.sweep.run_sweep` (experiment ``angle-of-repose``) into ``outdir/repose-sweep-runs``,
     so a rerun with the same ``outdir`` skips the runs already finished; ``runner`` maps them (the
     built-in ``map`` here; :func:`rollingdem.studies.parallel.runner` side by side or on a Dask cluster). Trend checks: the angle grows with mu (at every mu_r) and
     with mu_r (between the smallest and largest mu_r), and for the smaller mu it reaches a plateau
@@ -81,11 +81,11 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
     seeds = seeds or ((1, 2) if quick else (1, 2, 3))
     count = count or (QUICK_SWEEP if quick else FULL_SWEEP)
     max_collapse = 2.6 if quick else 3.5
-    spec = SweepSpec(case="angle-of-repose", grid={"mu": list(frictions), "mur": list(rolling_frictions)},
+    spec = SweepSpec(experiment="angle-of-repose", grid={"mu": list(frictions), "mur": list(rolling_frictions)},
                      seeds=list(seeds), fixed={"model": model, "count": count, "lift_speed": lift_speed,
                                                "youngs_modulus": SWEEP_YOUNGS_MODULUS, "dt": SWEEP_DT,
                                                "max_collapse": max_collapse})
-    # the runs table of rollingdem.studies.sweep: rerunning the case with the same outdir skips finished runs
+    # the runs table of rollingdem.studies.sweep: rerunning the study with the same outdir skips finished runs
     where = Path(outdir) / "repose-sweep-runs" if outdir is not None else Path(tempfile.mkdtemp(prefix="repose-"))
     swept = run_sweep(spec, where, mapper=runner, progress=False, summary=False, on_run=progress)
     table, retried = swept.table, 0
@@ -95,7 +95,7 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
     # roll away over the plate and never settle: those are not run again.
     creeping = table[(table["status"] == "ok") & table["settled_at"].isna() & (table["mur"] > 0)]
     for (mu, mur), grp in creeping.groupby(["mu", "mur"]):
-        again = SweepSpec(case=spec.case, grid={"mu": [mu], "mur": [mur]}, seeds=sorted(int(x) for x in grp["seed"]),
+        again = SweepSpec(experiment=spec.experiment, grid={"mu": [mu], "mur": [mur]}, seeds=sorted(int(x) for x in grp["seed"]),
                           fixed=dict(spec.fixed, max_collapse=RETRY_COLLAPSE * max_collapse))
         redone = run_sweep(again, where, mapper=runner, progress=False, summary=False, on_run=progress).table
         table = pd.concat([table.drop(grp.index), redone], ignore_index=True)
@@ -123,7 +123,7 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
     compute = float(np.nansum(raw["wall time (s)"]))
     if compute > 0:
         notes.append(f"The {len(raw)} piles of the table took {compute / 3600:.2f} h of compute (the sum of their "
-                     "wall times); the case's wall time is that of this invocation, which skips the piles "
+                     "wall times); the study's wall time is that of this invocation, which skips the piles "
                      "already in the table.")
     if retried:
         notes.append(f"{retried} pile(s) with rolling resistance had not settled after {max_collapse:g} s of collapse "
@@ -132,7 +132,7 @@ def repose_sweep(quick=False, outdir=None, progress=None, model="rrlinear", fric
         notes.append(f"Quick: mu = 0.4 and 0.8 instead of the PFC's 0.2 and 0.6 and mu_r = 0.2 and 0.8, two seeds, "
                      f"so no plateau check. A pile of {count} spheres at mu = 0.2 or mu_r < 0.1 spreads to under four "
                      "diameters high, too flat to fit a cone; the full run uses 10,000 spheres and the PFC grid.")
-    result = CaseResult("repose-sweep", f"PFC study: repose angle against μr ({count} spheres, {len(seeds)} seeds)",
+    result = ValidationResult("repose-sweep", f"PFC study: repose angle against μr ({count} spheres, {len(seeds)} seeds)",
                         table, checks, notes=notes)
     if outdir is not None:
         raw.to_csv(Path(outdir) / "repose_sweep_runs.csv", index=False)

@@ -1,6 +1,6 @@
-"""Parameter sweeps: one case over many parameter sets and seeds, on Dask, resumable.
+"""Parameter sweeps: one experiment over many parameter sets and seeds, on Dask, resumable.
 
-A sweep file names an experiment of :mod:`rollingdem.experiments` (its ``case`` key), fixed parameters and a grid, a
+A sweep file names an experiment of :mod:`rollingdem.experiments`, fixed parameters and a grid, a
 list of points or a Latin-hypercube sample, repeated over seeds. Runs are appended to
 ``OUT/runs.csv`` as they finish (a rerun skips those done); ``OUT/summary.csv`` and ``summary.png``
 give the means over seeds with 95 % intervals. docs/studies.md, "Sweeps"."""
@@ -21,7 +21,7 @@ from typing import Any, Optional, Union
 
 import numpy as np
 import pandas as pd
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import AliasChoices, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from rollingdem.experiments import Experiment, get_experiment
 from rollingdem.errors import ParameterError, check_output_path
@@ -30,7 +30,7 @@ from rollingdem.analysis.intervals import confidence_interval
 __all__ = ["SweepSpec", "SweepResult", "load_sweep", "expand", "run_sweep", "summarize"]
 
 TABLE = "runs.csv"
-BOOKKEEPING = ("run_id", "case", "status")
+BOOKKEEPING = ("run_id", "experiment", "status")
 TRAILER = ("wall_time_s", "version", "error", "finished_at")
 
 
@@ -44,10 +44,11 @@ class SampleSpec(BaseModel):
 
 
 class SweepSpec(BaseModel):
-    """A sweep file: case, fixed parameters, exactly one of grid / points / sample, and seeds."""
+    """A sweep file: the experiment (key ``experiment``, or ``case`` as older files name it), fixed
+    parameters, exactly one of grid / points / sample, and seeds."""
 
-    model_config = ConfigDict(extra="forbid")
-    case: str
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+    experiment: str = Field(validation_alias=AliasChoices("experiment", "case"))
     fixed: dict[str, Any] = {}
     grid: Optional[dict[str, list[Any]]] = None
     points: Optional[list[dict[str, Any]]] = None
@@ -100,7 +101,7 @@ def load_sweep(source) -> SweepSpec:
         for e in err.errors():
             loc = ".".join(str(p) for p in e["loc"])
             if e["type"] == "extra_forbidden":
-                lines.append(f"  key {loc!r}: not a known key (allowed: case, fixed, grid, points, sample, seeds)")
+                lines.append(f"  key {loc!r}: not a known key (allowed: experiment, fixed, grid, points, sample, seeds)")
             elif e["type"] == "missing":
                 lines.append(f"  key {loc!r}: missing (required)")
             else:
@@ -124,8 +125,8 @@ def swept_parameters(spec: SweepSpec) -> list[str]:
 
 
 def expand(spec: SweepSpec) -> list[dict]:
-    """Every run of the sweep as a full, checked parameter set (case defaults filled in)."""
-    case = get_experiment(spec.case, observable=True, what="case")
+    """Every run of the sweep as a full, checked parameter set (the experiment's defaults filled in)."""
+    experiment = get_experiment(spec.experiment, observable=True, what="experiment")
     if spec.grid is not None:
         keys = list(spec.grid)
         design = [dict(zip(keys, combo)) for combo in itertools.product(*spec.grid.values())]
@@ -135,7 +136,7 @@ def expand(spec: SweepSpec) -> list[dict]:
         from scipy.stats import qmc
 
         for name in spec.sample.ranges:
-            par = case.by_name.get(name)
+            par = experiment.by_name.get(name)
             if par is not None and (par.choice or par.integer):
                 raise ParameterError(f"sample.ranges: {name!r} is not allowed: Latin-hypercube sampling needs a "
                                      "real-valued parameter")
@@ -149,21 +150,22 @@ def expand(spec: SweepSpec) -> list[dict]:
     clash = [k for k in spec.fixed if any(k in d for d in design)]
     if clash:
         raise ParameterError(f"parameter {clash[0]!r} is both fixed and swept: give it in one place")
-    if "seed" not in case.by_name:  # a deterministic experiment: one run per point
+    if "seed" not in experiment.by_name:  # a deterministic experiment: one run per point
         if len(spec.seed_list) > 1:
-            raise ParameterError(f"seeds = {spec.seeds!r} is not allowed for case {case.name!r}: it takes no seed "
+            raise ParameterError(f"seeds = {spec.seeds!r} is not allowed for experiment {experiment.name!r}: it takes no seed "
                                  "(its result does not depend on one); leave seeds out")
-        return [case.resolve({**spec.fixed, **d}) for d in design]
+        return [experiment.resolve({**spec.fixed, **d}) for d in design]
     runs = []
     for d in design:
         for seed in spec.seed_list:
-            runs.append(case.resolve({**spec.fixed, **d, "seed": seed}))
+            runs.append(experiment.resolve({**spec.fixed, **d, "seed": seed}))
     return runs
 
 
-def run_id(case: str, params: dict) -> str:
-    """Stable id of a run: its case and full parameter set."""
-    text = json.dumps({"case": case, **params}, sort_keys=True, default=str)
+def run_id(experiment: str, params: dict) -> str:
+    """Stable id of a run: its experiment and full parameter set."""
+    # the key keeps the ids of runs in tables written before experiments had their name
+    text = json.dumps({"case": experiment, **params}, sort_keys=True, default=str)
     return hashlib.sha1(text.encode()).hexdigest()[:16]
 
 
@@ -205,20 +207,21 @@ class SweepResult:
         return self.failed == 0 and bool(len(self.table)) and bool((self.table["status"] == "ok").all())
 
 
-def _columns(case: Experiment) -> list[str]:
-    return [*BOOKKEEPING, *(p.name for p in case.parameters), *case.observables, *TRAILER]
+def _columns(experiment: Experiment) -> list[str]:
+    return [*BOOKKEEPING, *(p.name for p in experiment.parameters), *experiment.observables, *TRAILER]
 
 
-def read_table(path: Path, case: Experiment | None = None) -> pd.DataFrame:
-    """The runs table; a line cut short by a crash is dropped, the last row of a run id wins."""
+def read_table(path: Path, experiment: Experiment | None = None) -> pd.DataFrame:
+    """The runs table; a line cut short by a crash is dropped, the last row of a run id wins. An
+    older table's ``case`` column is read as ``experiment``."""
     if not path.exists() or path.stat().st_size == 0:
-        return pd.DataFrame(columns=_columns(case) if case else list(BOOKKEEPING))
+        return pd.DataFrame(columns=_columns(experiment) if experiment else list(BOOKKEEPING))
     table = pd.read_csv(path, dtype={"run_id": str, "status": str, "error": str, "note": str},
-                        keep_default_na=True, on_bad_lines="skip", engine="python")
-    if case is not None and list(table.columns) != _columns(case):
-        other = table["case"].iloc[0] if "case" in table.columns and len(table) else "another case"
-        raise ParameterError(f"{path} holds runs of {other!r} with other columns than case {case.name!r}: "
-                             "give another --out folder")
+                        keep_default_na=True, on_bad_lines="skip", engine="python").rename(columns={"case": "experiment"})
+    if experiment is not None and list(table.columns) != _columns(experiment):
+        other = table["experiment"].iloc[0] if "experiment" in table.columns and len(table) else "another experiment"
+        raise ParameterError(f"{path} holds runs of {other!r} with other columns than experiment "
+                             f"{experiment.name!r}: give another --out folder")
     table = table[table["status"].isin(["ok", "failed"])]
     return table.drop_duplicates("run_id", keep="last").reset_index(drop=True)
 
@@ -255,18 +258,18 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
 
     check_workers(workers, threads)
     spec = load_sweep(spec)
-    case = get_experiment(spec.case, observable=True, what="case")
+    experiment = get_experiment(spec.experiment, observable=True, what="experiment")
     out = check_output_path("out", out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / TABLE
-    columns = _columns(case)
-    table = read_table(path, case)
+    columns = _columns(experiment)
+    table = read_table(path, experiment)
     if retry_failed and len(table) and (table["status"] == "failed").any():
         table = table[table["status"] == "ok"]
         table.to_csv(path, index=False, columns=columns)
     (out / "sweep.json").write_text(json.dumps(spec.model_dump(), indent=2))
     runs = expand(spec)
-    ids = [run_id(spec.case, p) for p in runs]
+    ids = [run_id(spec.experiment, p) for p in runs]
     done = set(table["run_id"])
     todo = [(i, p) for i, p in zip(ids, runs) if i not in done]
     todo = list({i: (i, p) for i, p in todo}.values())  # identical runs listed twice run once
@@ -275,18 +278,18 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(set(ids)), initial=len(set(ids)) - len(todo), unit="run", desc=spec.case)
+        bar = tqdm(total=len(set(ids)), initial=len(set(ids)) - len(todo), unit="run", desc=spec.experiment)
     failed = 0
     if todo:
         def go(m):
             nonlocal failed
-            for k, outcome in completed(m, _Execute(case), [p for _, p in todo]):
+            for k, outcome in completed(m, _Execute(experiment), [p for _, p in todo]):
                 rid, params = todo[k]
                 if isinstance(outcome, BaseException):  # the run never finished: its workers died
                     outcome = {"observables": {}, "status": "failed", "version": "", "wall_time_s": math.nan,
                                "error": f"{type(outcome).__name__}: {outcome}"}
                 failed += outcome["status"] != "ok"
-                row = {"run_id": rid, "case": spec.case, "status": outcome["status"], **params,
+                row = {"run_id": rid, "experiment": spec.experiment, "status": outcome["status"], **params,
                        **outcome["observables"], "wall_time_s": outcome["wall_time_s"],
                        "version": outcome["version"], "error": outcome["error"],
                        "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S")}
@@ -304,26 +307,26 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
                 go(m)
     if bar is not None:
         bar.close()
-    table = read_table(path, case)
+    table = read_table(path, experiment)
     table = table[table["run_id"].isin(set(ids))].reset_index(drop=True)
     result = SweepResult(table, out, ran=len(todo), skipped=len(set(ids)) - len(todo), failed=failed,
                          wall_time=time.perf_counter() - tic)
     if summary and len(table):
-        summarize(table, case, swept_parameters(spec), out, result)
+        summarize(table, experiment, swept_parameters(spec), out, result)
     if echo is not None:
-        echo(f"{spec.case}: {len(table)} runs in {path} ({result.ran} ran now in {result.wall_time:.1f} s, "
+        echo(f"{spec.experiment}: {len(table)} runs in {path} ({result.ran} ran now in {result.wall_time:.1f} s, "
              f"{result.skipped} already there, {int((table['status'] == 'failed').sum())} failed)")
     return result
 
 
-def summarize(table: pd.DataFrame, case: Experiment, swept: list[str], out: Path | None = None,
+def summarize(table: pd.DataFrame, experiment: Experiment, swept: list[str], out: Path | None = None,
               result: SweepResult | None = None) -> pd.DataFrame:
     """Mean and 95 % interval over seeds of every numeric observable per point; with ``out``,
     ``summary.csv`` and ``summary.png``: each observable against the first swept parameter, one
-    line per value of the others, or for a sample (no two points on a line) the case's main
+    line per value of the others, or for a sample (no two points on a line) the experiment's main
     observable against each swept parameter."""
     ok = table[table["status"] == "ok"]
-    numeric = [o for o in case.observables if o in ok and pd.api.types.is_numeric_dtype(ok[o])]
+    numeric = [o for o in experiment.observables if o in ok and pd.api.types.is_numeric_dtype(ok[o])]
     rows = []
     keys = [k for k in swept if k in ok]
     for point, grp in (ok.groupby(keys, sort=True, dropna=False) if keys else [((), ok)]):
@@ -346,14 +349,14 @@ def summarize(table: pd.DataFrame, case: Experiment, swept: list[str], out: Path
         x, others = keys[0], keys[1:]
         scattered = bool(others) and summary.groupby(others).size().max() == 1  # a sample: no two points share a line
         if scattered:
-            # one panel per swept parameter, the case's main observable against it
-            o = case.default_observable if case.default_observable in numeric else numeric[0]
+            # one panel per swept parameter, the experiment's main observable against it
+            o = experiment.default_observable if experiment.default_observable in numeric else numeric[0]
             fig, axes = plt.subplots(1, len(keys), figsize=(5.5 * len(keys), 4.2), squeeze=False)
             for ax, k in zip(axes[0], keys):
                 ax.errorbar(summary[k], summary[f"{o} mean"], yerr=summary[f"{o} 95% CI"].fillna(0.0), fmt="o", ms=4,
                             capsize=3)
                 ax.set_xlabel(k)
-                ax.set_ylabel(f"{o} ({case.observables[o].split(',')[0]})")
+                ax.set_ylabel(f"{o} ({experiment.observables[o].split(',')[0]})")
         else:
             fig, axes = plt.subplots(1, len(numeric), figsize=(5.5 * len(numeric), 4.2), squeeze=False)
             groups = summary.groupby(others, sort=True) if others else [((), summary)]
@@ -367,10 +370,10 @@ def summarize(table: pd.DataFrame, case: Experiment, swept: list[str], out: Path
                     ax.errorbar(grp[x], grp[f"{o} mean"], yerr=grp[f"{o} 95% CI"].fillna(0.0), marker="o", ms=4,
                                 capsize=3, label=name)
                 ax.set_xlabel(x)
-                ax.set_ylabel(f"{o} ({case.observables[o].split(',')[0]})")
+                ax.set_ylabel(f"{o} ({experiment.observables[o].split(',')[0]})")
                 if others and len(summary.groupby(others)) <= 12:
                     ax.legend(fontsize=7)
-        fig.suptitle(f"{case.name}: mean over seeds, 95 % Student-t interval")
+        fig.suptitle(f"{experiment.name}: mean over seeds, 95 % Student-t interval")
         fig.tight_layout()
         path = Path(out) / "summary.png"
         fig.savefig(path, dpi=110)

@@ -30,7 +30,7 @@ TWISTING_HISTORY = 6  # @@TWISTING_HISTORY
 COHESION_HISTORY = 6  # @@COHESION_HISTORY
 DETACH_AT = -1  # @@DETACH_AT
 TRACK_ENERGY = 1  # @@TRACK_ENERGY
-# whether the scene holds bonds: a kernel of its own, as the per-entry bond check (an exclusive bond
+# whether the scene holds bonds: an engine module of its own, as the per-entry bond check (an exclusive bond
 # keeps its pair's contact off, a parallel one its rolling and twisting moments) costs the pair pass
 # of every other scene a third
 BONDED_PAIRS = 0  # @@BONDED_PAIRS

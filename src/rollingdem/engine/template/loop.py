@@ -49,7 +49,7 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         if not _rebuild(particles, walls, lists, skin, info):
             return
         # the pair pass and the gather are called here and in the loop, not through one function
-        # of their own, which would compile the whole kernel once more (1 s of a cold compile)
+        # of their own, which would compile the whole engine module once more (1 s of a cold compile)
         pair_forces(dt, pair_params, particles, lists, scratch)
         if particles.bond_pairs.shape[0] != 0:
             # the bonds' load as it is: no motion in this evaluation to add (dt 0), so a fresh bond

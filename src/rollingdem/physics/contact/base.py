@@ -1,7 +1,7 @@
 """The sub-model contract: a contact law is one class and one compiled function.
 
 The class declares its per-pair parameters (``parameters``) and per-contact history
-(``history``) by name, once, with ``slots``; the contact model places them in the kernel's rows
+(``history``) by name, once, with ``slots``; the contact model places them in the step loop's rows
 and the offsets follow. ``function`` is the compiled law, with its slot's signature (module
 docstrings of ``normal``, ``tangential``, ``rolling``, ``twisting``). Subclasses register by
 ``slot`` and ``name``. How to add one: docs/architecture.md.
@@ -50,8 +50,8 @@ class SubModel:
     parameters: ClassVar[tuple] = NO_SLOTS
     history: ClassVar[tuple] = NO_SLOTS
     function: ClassVar = None
-    #: label -> constructor arguments of the variants the validation cases run (rolling models;
-    #: ``cases.single_sphere.validation_models``); by default the model with its defaults
+    #: label -> constructor arguments of the variants the validation experiments run (rolling
+    #: models; ``experiments.single_sphere.validation_models``); by default the model with its defaults
     validation_presets: ClassVar[dict | None] = None
     history_size: ClassVar[int] = 0
     n_parameters: ClassVar[int] = 0
@@ -91,8 +91,8 @@ class SubModel:
         return {}
 
     def kernel_modes(self) -> tuple[int, ...]:
-        """Integer switches fixed when the kernel is compiled (default: none), passed to the
-        rolling kernel as ``modes``; each distinct tuple is a kernel of its own."""
+        """Integer switches fixed when the engine module is compiled (default: none), passed to the
+        rolling function as ``modes``; each distinct tuple compiles an engine module of its own."""
         return ()
 
     def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force,

@@ -1,5 +1,5 @@
 """ContactModel: the contact law, a normal, a tangential, a rolling, a twisting and a cohesion sub-model, and
-the layout of their per-pair parameters and per-contact history in the kernel's rows. The engine
+the layout of their per-pair parameters and per-contact history in the step loop's rows. The engine
 built for it lives in ``rollingdem.engine.codegen``."""
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ Compiled function of the slot "normal" (arguments: docs/architecture.md; results
 
 ``hist[k, history_at:]`` is the contact's own declared history (none for the elastic laws, whose
 force follows from the overlap and its rate alone). ``dissipation`` is the energy (J) the law lost
-in the step besides its dashpot's (whose share the kernel counts, -force_damping v_n dt): the
+in the step besides its dashpot's (whose share the step loop counts, -force_damping v_n dt): the
 hysteresis of a plastic law, 0 for an elastic one.
 """
 

@@ -130,7 +130,7 @@ class CDT(SubModel):
         return {"limiter": self.limiter, "parity": self.parity}
 
 
-# --- spring-type models: one kernel, docs/models.md §12 -----------------------------------------------
+# --- spring-type models: one compiled function, docs/models.md §12 ---------------------------------
 SPRING_PARAMETERS = slots("stiffness_mode", "stiffness_coefficient", "damping_mode", "damping", "slip_damping")
 SPRING_HISTORY = slots("moment_x", "moment_y", "moment_z")  # the spring moment M_k (N m)
 # values of stiffness_mode and damping_mode:
@@ -267,7 +267,7 @@ def check_parity(model_name, parity, allowed):
 
 
 class _SpringRolling(SubModel):
-    """Shared parameter handling of the spring-type rolling models (one kernel, ``spring_rolling``)."""
+    """Shared parameter handling of the spring-type rolling models (one compiled function, ``spring_rolling``)."""
 
     slot = "rolling"
     parameters = SPRING_PARAMETERS
@@ -305,7 +305,7 @@ class _SpringRolling(SubModel):
                 self.damping_value(pair), self.slip_damping)
 
     def kernel_modes(self):
-        """(cap, force, history, wall rate): the parity preset's switches, one kernel per preset."""
+        """(cap, force, history, wall rate): the parity preset's switches, one engine module per preset."""
         return self._modes
 
 

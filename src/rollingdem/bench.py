@@ -11,6 +11,7 @@ import json
 import math
 import resource
 import time
+import weakref
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -184,15 +185,8 @@ def _column_from_state(rolling, positions, radii, velocities, angular_velocities
 
 def _contacts_per_particle(sim) -> tuple[float, float]:
     """(contacts per particle, each pair counted for both and walls once; neighbors per particle)."""
-    st = sim._state
-    n = st.n
-    cl = st.contact_list
-    rows = np.repeat(np.arange(n), np.diff(cl.start[: n + 1]))
-    j = cl.j[: cl.size]
-    d = np.linalg.norm(st.x[rows] - st.x[j], axis=1)
-    pairs = int(np.count_nonzero(d < st.radius[rows] + st.radius[j]))
-    walls = int(st.contacts.sum()) - pairs
-    return (2 * pairs + walls) / n, 2 * cl.size / n
+    stats, n = sim.engine_statistics(), sim.n_particles
+    return (2 * stats["pair_contacts"] + stats["wall_contacts"]) / n, 2 * stats["neighbor_pairs"] / n
 
 
 def _force_pass_costs(sims: dict, rounds: int) -> dict:
@@ -242,21 +236,23 @@ def compile_time(contact, spheres: int = 2) -> float:
     return time.perf_counter() - tic
 
 
+_THREADS_FROM = weakref.WeakKeyDictionary()  # simulation -> its steps on each thread count when warmed up
+
+
 def _warm_up(sim) -> None:
-    """One untimed step (the list built, a large scene sorted in space), the governor's count cleared."""
+    """One untimed step (the list built, a large scene sorted in space); the steps on each thread
+    count from here on are what ``_result`` reports."""
     sim.run(steps=1, progress=False)
-    sim._state.governor().steps_on.clear()
+    _THREADS_FROM[sim] = sim.engine_statistics()["steps_by_threads"]
 
 
 def _timed_steps(sim, steps: int) -> tuple[float, int]:
     """(seconds, neighbor rebuilds) of ``steps`` steps."""
-    from rollingdem.engine.layout import I_REBUILDS
-
-    before = int(sim._state.info[I_REBUILDS])
+    before = sim.engine_statistics()["neighbor_rebuilds"]
     tic = time.perf_counter()
     sim.run(steps=steps, progress=False)
     wall = time.perf_counter() - tic
-    return wall, int(sim._state.info[I_REBUILDS]) - before
+    return wall, sim.engine_statistics()["neighbor_rebuilds"] - before
 
 
 def _time_run(sim, steps: int) -> tuple[float, int]:
@@ -284,10 +280,10 @@ def _in_turn(sims, steps: int, chunks: int) -> tuple[np.ndarray, list[int]]:
 def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="", split_repeats=20) -> BenchResult:
     n = sim.n_particles
     contacts, neighbors = _contacts_per_particle(sim)
-    st = sim._state  # its arrays, the contact list's and the meshes'
-    state_bytes = sum(a.nbytes for owner in (st, st.contact_list, st.meshes) for a in vars(owner).values()
-                      if isinstance(a, np.ndarray))
-    steps_on = sim._state.governor().steps_on
+    stats = sim.engine_statistics()
+    state_bytes = stats["state_bytes"]
+    since = _THREADS_FROM.get(sim, {})
+    steps_on = {k: s - since.get(k, 0) for k, s in stats["steps_by_threads"].items() if s > since.get(k, 0)}
     if sim.backend_info.note():
         note = (note + "; " if note else "") + sim.backend_info.note()
     elif set(steps_on) - {threads}:  # the governor took threads away while other processes were busy

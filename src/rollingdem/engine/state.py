@@ -371,6 +371,26 @@ class EngineState:
         if module.TRACK_ENERGY and self.energy.shape[0] != self.n:
             self.energy = np.zeros((self.n, len(ENERGY_CHANNELS)))
 
+    def statistics(self) -> dict:
+        """What the engine counts, for ``Simulation.engine_statistics``: neighbor-list rebuilds so
+        far, steps made on each thread count (while the governor was active), the bytes of the
+        state's arrays (with the contact list's and the meshes'), the pair contacts (spheres whose
+        centres are nearer than the sum of their radii), the wall contacts and the pairs in the
+        neighbor list."""
+        from rollingdem.engine.layout import I_REBUILDS
+
+        n, cl = self.n, self.contact_list
+        rows = np.repeat(np.arange(n), np.diff(cl.start[: n + 1])) if n else np.zeros(0, dtype=np.int64)
+        j = cl.j[: cl.size] if n else np.zeros(0, dtype=np.int64)
+        d = np.linalg.norm(self.x[rows] - self.x[j], axis=1)
+        pairs = int(np.count_nonzero(d < self.radius[rows] + self.radius[j]))
+        return {"neighbor_rebuilds": int(self.info[I_REBUILDS]),
+                "steps_by_threads": dict(self.governor().steps_on),
+                "state_bytes": sum(a.nbytes for owner in (self, cl, self.meshes) for a in vars(owner).values()
+                                   if isinstance(a, np.ndarray)),
+                "pair_contacts": pairs, "wall_contacts": int(self.contacts.sum()) - pairs,
+                "neighbor_pairs": int(cl.size) if n else 0}
+
     def governor(self):
         """The thread governor of this state's runs (``rollingdem.engine.threads``), made when first used."""
         if self._governor is None:

@@ -98,8 +98,7 @@ class Simulation:
         self.hints = {"check_timestep": "pass check_timestep=False to the Simulation",
                       "allow_overlap": "pass allow_overlap=True"}
 
-    def _scene_changed(self) -> None:
-        """Particles, walls or coefficients changed: make the pair table (and check dt) anew."""
+    def _scene_changed(self) -> None:  # particles, walls or coefficients changed: a new pair table
         self._pair_params = None
 
     # --- settings --------------------------------------------------------------------------------
@@ -333,6 +332,11 @@ class Simulation:
 
     def number_of_contacts(self) -> int:
         return int(self._state.contacts.sum())
+
+    def engine_statistics(self) -> dict:
+        """What the engine counts (``EngineState.statistics``): neighbor-list rebuilds, steps on each
+        thread count, bytes of the state, pair and wall contacts, neighbor pairs."""
+        return self._state.statistics()
 
     # --- time step -------------------------------------------------------------------------------
     def time_step_limits(self) -> list[tuple[str, float]]:

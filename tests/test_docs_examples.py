@@ -50,3 +50,117 @@ def test_the_readme_python_example_runs_and_its_checkpoint_continues_bit_for_bit
     restored.run(steps=300)
     np.testing.assert_array_equal(restored.positions, sim.positions)
     np.testing.assert_array_equal(restored.angular_velocities, sim.angular_velocities)
+
+
+def test_the_readme_boundaries_example_delivers_what_it_says():
+    """README, "Fixed particles, outlets, inflows and periodic boundaries", run 0.02 s: the rough
+    base never moves (its positions stay bit for bit), the inflow has inserted rate x t spheres at
+    its last action t (it acts every 1 ms rounded to whole steps, 19 or 20 actions, so 95 or 100
+    spheres, and its region holds them: no shortfall), every x lies in the periodic box, and each
+    particle keeps its number."""
+    import math
+
+    import rollingdem as rd
+
+    scope = {"rd": rd}
+    exec(compile(python_block(ROOT / "README.md", "Fixed particles, outlets, inflows and periodic"),
+                 "README.md", "exec"), scope)
+    sim = scope["sim"]
+    base = sim.n_particles
+    fixed_at = sim.positions.copy()
+    assert sim.fixed.all() and base > 100
+    sim.run(0.02)
+    counts = sim.boundary_counts()
+    every = max(1, round(1e-3 / sim.dt))
+    last = (sim.step // every) * every * sim.dt
+    inserted = math.floor(5000 * last * (1 + 1e-12))
+    assert inserted in (95, 100)
+    assert counts["inflow_#0_count"] == inserted and counts["inflow_#0_shortfall"] == 0
+    assert counts["outlet_orifice_count"] == 0  # nothing reaches z < -0.05 in 0.02 s
+    assert sim.n_particles == base + inserted
+    np.testing.assert_array_equal(sim.positions[:base], fixed_at)
+    x = sim.positions[:, 0]
+    assert (x >= -0.05).all() and (x < 0.05).all()
+    np.testing.assert_array_equal(sim.particle_ids, np.arange(sim.n_particles))
+
+
+def test_the_readme_bonds_example_bonds_the_pairs_within_the_gap():
+    """README, "Bonded particles": on a row of three spheres, the first two touching and the third
+    2e-5 m from the second, ``gap=1e-5`` bonds the touching pair only, and the table names it,
+    intact and unloaded (the bond starts at the pair's present distance)."""
+    import rollingdem as rd
+
+    sim = rd.Simulation(gravity=(0, 0, 0), dt=1e-6)
+    sim.add_material(rd.Material("m", 1e8, 0.3, 2500))
+    r = 0.001
+    sim.add_particles([[0, 0, 0], [2 * r, 0, 0], [4 * r + 2e-5, 0, 0]], r, "m")
+    scope = {"rd": rd, "sim": sim}
+    code = python_block(ROOT / "README.md", "Bonded particles (Potyondy")
+    exec(compile(code.replace("sim.bonds()", "table = sim.bonds()"), "README.md", "exec"), scope)
+    table = scope["table"]
+    assert list(zip(table["i"], table["j"])) == [(0, 1)]
+    assert list(table["status"]) == ["intact"] and table["normal_force"].abs().max() == 0.0
+    assert sim.bond_counts() == {"bonds_intact": 1, "bonds_broken_tension": 0, "bonds_broken_shear": 0}
+
+
+def test_the_readme_convert_example_gives_mercurys_rolling_law():
+    """README, "Other codes' parameters": MercuryDPM's rolling spring k at the lever 2 R* is the
+    torque spring 4 k R*^2 of SDS (stiffness 4 k = 1000 N/m), and its force limit mu |F_n| at 2 R*
+    the moment limit 2 mu R* |F_n| (mu_r = 2 mu = 0.2), which the material gets."""
+    import rollingdem as rd
+
+    scope = {"rd": rd}
+    exec(compile(python_block(ROOT / "README.md", "## Other codes' parameters"), "README.md", "exec"), scope)
+    sim, p = scope["sim"], scope["p"]
+    assert sim.contact.rolling.name == "sds" and sim.contact.rolling.settings()["rolling_stiffness"] == 1000.0
+    assert sim.materials["m"].rolling_friction == 0.2
+
+
+def test_the_readme_sweep_and_calibration_example(tmp_path, monkeypatch):
+    """README, "In Python" of the sweeps: the sweep of rolling-flat at mu_r = 0.1, 0.2, 0.3 as
+    written (3 runs of about a second, on one worker here) gives the stop distances of the
+    analytic solution (docs/models.md §13 T2) within 1 %; the calibration line runs scaled down:
+    rolling-flat's stop distance (deterministic, 1 run a point) instead of the pile's angle
+    (piles of 2,000 spheres over seeds, hours), target the analytic distance at mu_r = 0.25 with
+    an uncertainty of 1 % of it: the mu_r found is 0.25 to within the 1 % of the distance (which
+    moves mu_r by about as much) and its 95 % interval holds 0.25."""
+    from rollingdem.experiments.single_sphere import analytic_flat
+
+    code = scaled(python_block(ROOT / "README.md", "In Python:"),
+                  {'"sweep-out").table': '"sweep-out", workers=1, progress=False).table',
+                   'calibrate("angle-of-repose", target=25.0, uncertainty=1.0, fix={"mu": 0.5}, free="mur", '
+                   'out="cal-out")': 'calibrate("rolling-flat", target=TARGET, uncertainty=0.01 * TARGET, '
+                                     'fix={"mu": 0.8}, free=("mur", (0.1, 0.5)), out="cal-out", progress=False)'})
+    monkeypatch.chdir(tmp_path)
+    target = analytic_flat(1.0, 0.8, 0.25)[3]
+    scope = {"TARGET": target}
+    exec(compile(code, "README.md", "exec"), scope)
+    table = scope["table"].sort_values("mur")
+    for mur, distance in zip(table["mur"], table["distance"]):
+        assert abs(distance - analytic_flat(1.0, 0.8, mur)[3]) < 0.01 * distance
+    res = scope["res"]
+    assert abs(res.value - 0.25) < 0.02 * 0.25 and res.low <= 0.25 <= res.high
+
+
+def test_the_insertion_snippet_of_the_studies_doc_fills_its_cylinder():
+    """docs/studies.md, "Inserting spheres into a region": 500 spheres with radii in [4, 5] mm,
+    each wholly inside the cylinder (r + R <= 0.05 m, R <= z <= 0.2 - R), none overlapping
+    another, the same positions from the same seed."""
+    from scipy.spatial import cKDTree
+
+    import rollingdem as rd
+
+    code = python_block(ROOT / "docs" / "studies.md", "## Inserting spheres into a region")
+    ends = []
+    for _ in range(2):
+        sim = rd.Simulation()
+        sim.add_material(rd.Material("glass", 63e9, 0.24, 2500))
+        exec(compile(code, "studies.md", "exec"), {"rd": rd, "sim": sim})
+        ends.append(sim.positions)
+    x, a = sim.positions, sim.radii
+    assert sim.n_particles == 500 and a.min() >= 0.004 and a.max() <= 0.005
+    assert (np.hypot(x[:, 0], x[:, 1]) + a <= 0.05 + 1e-12).all()
+    assert (x[:, 2] - a >= -1e-12).all() and (x[:, 2] + a <= 0.2 + 1e-12).all()
+    pairs = cKDTree(x).query_pairs(0.01, output_type="ndarray")
+    assert (np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1) >= a[pairs[:, 0]] + a[pairs[:, 1]] - 1e-12).all()
+    np.testing.assert_array_equal(ends[0], ends[1])

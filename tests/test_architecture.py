@@ -495,3 +495,58 @@ def test_the_simulation_is_a_facade():
     loops = [getattr(node, "lineno", getattr(getattr(node, "target", None), "lineno", 0)) for node in ast.walk(tree)
              if isinstance(node, (ast.For, ast.While, ast.comprehension))]
     assert not loops, f"loops in scene/simulation.py at lines {loops}: they belong in a collection"
+
+
+#: the layers in the order they stand, bottom first (docs/architecture.md, Layers)
+LAYER_ORDER = {"errors": 0, "physics": 1, "engine": 2, "analysis": 2, "scene": 3, "io": 4, "experiments": 5,
+               "studies": 6}
+
+
+def upward_calls(calls) -> list[str]:
+    """The (caller module, callee module) pairs of ``calls`` that go from a layer into one above
+    it, as 'caller -> callee' lines (modules outside the package, and the front ends, left out)."""
+    found = []
+    for caller, callee in calls:
+        a, b = (layer_of(m) if m.startswith(PACKAGE + ".") else None for m in (caller, callee))
+        if a in LAYER_ORDER and b in LAYER_ORDER and LAYER_ORDER[b] > LAYER_ORDER[a]:
+            found.append(f"{caller} -> {callee}")
+    return found
+
+
+def test_upward_calls_are_found_on_a_made_up_trace():
+    assert upward_calls([("rollingdem.physics.contact.model", "rollingdem.scene.materials"),
+                         ("rollingdem.scene.simulation", "rollingdem.physics.contact.model"),
+                         ("rollingdem.engine.state", "rollingdem.engine.backends"),
+                         ("rollingdem.cli", "rollingdem.io.casefile"), ("numpy", "rollingdem.scene.walls")]) == [
+        "rollingdem.physics.contact.model -> rollingdem.scene.materials"]
+
+
+def test_a_case_files_parameters_go_down_the_layers_only():
+    """Every Python call between the package's modules while a case file is read, its simulation
+    built and run for 10 steps (``sys.setprofile``): none goes from a layer into one above it, so
+    a material's rolling friction reaches the step loop down the layers once (docs/architecture.md,
+    "One parameter, end to end")."""
+    import sys
+
+    from rollingdem.io import casefile
+
+    case = {"name": "walk", "dt": 1e-5, "contact": {"normal": "hertz", "rolling": "epsd"},
+            "materials": [{"name": "m", "youngs_modulus": 4e7, "poisson_ratio": 0.49, "density": 1056,
+                           "friction": 0.8, "rolling_friction": 0.2}],
+            "walls": [{"type": "plane", "name": "floor", "material": "m"}],
+            "particles": [{"positions": [[0, 0, 0.005], [0.01, 0, 0.005]], "radius": 0.005, "material": "m"}],
+            "stages": [{"name": "settle", "duration": 1e-4}]}
+    casefile.build_simulation(casefile.load_case(case)).run(steps=10)  # compiled before the trace
+    calls = []
+
+    def profile(frame, event, arg):
+        if event == "call" and frame.f_back is not None:
+            calls.append((frame.f_back.f_globals.get("__name__", ""), frame.f_globals.get("__name__", "")))
+
+    sys.setprofile(profile)
+    try:
+        casefile.build_simulation(casefile.load_case(case)).run(steps=10)
+    finally:
+        sys.setprofile(None)
+    assert any(c[1] == "rollingdem.physics.contact.model" for c in calls)  # the trace saw the path
+    assert not upward_calls(calls)

@@ -24,7 +24,7 @@ def params(model, mu_r=MU_R, eta=0.3):
     cm = rd.ContactModel("hertz", rolling=model)
     table = rd.MaterialTable()
     table.add(mat)
-    return cm.pair_table(table)[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
+    return cm.pair_table(table.pairs())[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
 
 
 def step(model_params, hist, n, n_old, wi, wj, dt=1e-5, spin=0.0, f_total=None):
@@ -106,7 +106,7 @@ def corotate(model, preload=True):
     cm = rd.ContactModel("hertz", rolling=model)
     table = rd.MaterialTable()
     table.add(rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2, rolling_damping=0.3))
-    p, off, modes = cm.pair_table(table)[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
+    p, off, modes = cm.pair_table(table.pairs())[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
     kern = type(cm.rolling).function
     hist = np.zeros((1, 3))
     dt = 1e-4
@@ -201,7 +201,7 @@ def test_force_proportional_is_not_objective():
     cm = rd.ContactModel("hertz", rolling="force_proportional")
     table = rd.MaterialTable()
     table.add(rd.Material("m", 40e6, 0.49, 1056, rolling_friction=0.2))
-    p, off, modes = cm.pair_table(table)[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
+    p, off, modes = cm.pair_table(table.pairs())[0, 0], cm.layout()["ROLLING_PARAMS"], cm.rolling.kernel_modes()
     g = contact_inputs((0, 0, 1.0), omega_i=(3.0, 0, 0), omega_j=(3.0, 0, 0), lever_i=R_EFF, lever_j=R_EFF,
                        r_eff=R_EFF, inertia_r=I_R)
     res = engine_module(cm).rolling_moment(np.zeros((1, 3)), 0, 0, g, contact_frame(0, 0, 1.0, 0, 0, 1.0, 0.0),

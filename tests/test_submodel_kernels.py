@@ -63,7 +63,7 @@ def row(model_kw, slot):
     table = rd.MaterialTable()
     table.add(MAT_A)
     table.add(MAT_B)
-    return cm.pair_table(table)[0, 1], cm.layout()[slot.upper() + "_PARAMS"], cm
+    return cm.pair_table(table.pairs())[0, 1], cm.layout()[slot.upper() + "_PARAMS"], cm
 
 
 def rot(axis, angle):

@@ -7,12 +7,9 @@ import numba as _numba
 # TBB stalls on an oversubscribed 2-core machine, and its fork/join costs
 # ~190 us per parallel region on 2 cores against ~1 us for OpenMP; the workqueue costs ~80 us.
 _numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
-# OpenMP threads spin 30,000 times before they sleep (GNU default: 300,000 with OMP_WAIT_POLICY
-# unset). Measured on 2 cores, column-collapse 20,000 spheres, 2 threads: quiet 8.9-10.3 M
-# particle-steps/s (3,000: 7.5-8.7 M; 300,000: 9.5-9.8 M); with a busy process on one core
-# 2.8-2.9 M (3,000: 3.7-3.8 M), which is why a run that was not given --threads steps on the
-# cores other processes leave free (rollingdem.engine.threads). A user's own setting wins; set before
-# libgomp is loaded.
+# OpenMP threads spin 30,000 times before they sleep (GNU's default is 300,000): about as fast on
+# quiet cores, and a spinning thread gives its core back sooner to another process (the figures:
+# docs/performance.md). A user's own setting wins; set before libgomp is loaded.
 _os.environ.setdefault("GOMP_SPINCOUNT", "30000")
 
 from rollingdem.physics import contact as _contact  # noqa: E402

@@ -21,10 +21,8 @@ from rollingdem.engine.threads import ThreadGovernor
 # so a small margin is cheap
 LIST_MARGIN = 1.15
 MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start, tr_k and contact_row are int32
-# Measured (2 threads, epsd): 200,000 spheres stored in random order run at 6.6 M particle-steps/s,
-# re-sorted 10.4 M, lattice order 11.6 M; at 20,000 spheres the state fits in cache and sorting
-# does not pay (13.4 M unsorted, 11.9 M sorted: the two threads' halves of the slots carry
-# unequal work), hence the threshold.
+# Re-sorting the slots in space pays once the state no longer fits in the cache; below that it
+# costs (the threads' halves of the slots carry unequal work): the figures, docs/performance.md.
 SORT_ABOVE = 50_000  # particles
 SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
 

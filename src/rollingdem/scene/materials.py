@@ -149,6 +149,11 @@ class MaterialTable:
         coeffs.update(self.overrides.get((min(i, j), max(i, j)), {}))
         return PairProperties(effective_youngs_modulus(a, b), effective_shear_modulus(a, b), **coeffs)
 
+    def pairs(self) -> list[list[PairProperties]]:
+        """``pair(a, b)`` of every pair of materials, as rows: what ``ContactModel.pair_table`` takes."""
+        n = len(self.materials)
+        return [[self.pair(a, b) for b in range(n)] for a in range(n)]
+
     def to_dict(self) -> dict:
         return {
             "materials": [{f.name: getattr(m, f.name) for f in fields(m)} for m in self.materials],

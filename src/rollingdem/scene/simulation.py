@@ -153,7 +153,7 @@ class Simulation:
 
     def pair_parameters(self) -> np.ndarray:
         if self._pair_params is None:
-            self._pair_params = self.contact.pair_table(self.materials)
+            self._pair_params = self.contact.pair_table(self.materials.pairs())
         return self._pair_params
 
     # --- particles -------------------------------------------------------------------------------

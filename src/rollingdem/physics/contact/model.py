@@ -61,13 +61,15 @@ class ContactModel:
     def history_size(self) -> int:
         return self.layout()["HISTORY_SIZE"]
 
-    def pair_table(self, materials) -> np.ndarray:
-        """The (n_materials, n_materials, n_params) table of per-pair parameters."""
-        nmat = len(materials)
+    def pair_table(self, pairs) -> np.ndarray:
+        """The (n_materials, n_materials, n_params) table of per-pair parameters, of ``pairs[a][b]``,
+        the properties of each pair of materials (``MaterialTable.pairs()``: effective moduli and
+        coefficients); the scene hands them down, this layer calls nothing above it."""
+        nmat = len(pairs)
         table = np.zeros((nmat, nmat, self.layout()["N_PARAMS"]))
         for a in range(nmat):
             for b in range(nmat):
-                pair = materials.pair(a, b)
+                pair = pairs[a][b]
                 row = [pair.effective_youngs_modulus, pair.effective_shear_modulus, pair.friction,
                        pair.rolling_friction, pair.rolling_damping, pair.restitution]
                 for sub in self.submodels:

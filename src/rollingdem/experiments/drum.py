@@ -26,8 +26,7 @@ from rollingdem.scene.simulation import Simulation
 from rollingdem.scene.walls import Cylinder
 from rollingdem.experiments.repose import PileMaterial
 from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
-from rollingdem.experiments.registry import (UNBOUNDED, Experiment, Parameter, granular_parameters, resolve_rolling,
-                                             rolling_models)
+from rollingdem.experiments.registry import UNBOUNDED, BedExperiment, Parameter, granular_parameters, resolve_rolling
 from rollingdem.experiments.single_sphere import RADIUS
 
 BLOCKS = 4  # the samples' blocks whose means give the 95 % intervals
@@ -236,7 +235,7 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
                    sim.radii.copy(), time.perf_counter() - tic)
 
 
-class RotatingDrum(Experiment):
+class RotatingDrum(BedExperiment):
     """A periodic slice of a drum turning in the rolling regime (docs/studies.md, "The rotating drum")."""
 
     name = "rotating-drum"
@@ -268,19 +267,13 @@ class RotatingDrum(Experiment):
         "wall_layer_speed_ratio": "speed of the spheres touching the wall, below the flowing layer, over omega r",
         "omega": "rad/s, the drum's angular velocity", "particles": "spheres in the slice"}
     default_observable = "angle"
-    stochastic = True
     targets = {"angle": (0.0, 90.0), "com_angle": (0.0, 90.0), "torque": UNBOUNDED, "flowing_depth": UNBOUNDED}
     #: what ``validate`` changes of the defaults: a quick run takes fewer samples over less rotation
     sizes = {"quick": {"samples": 12, "spin_up": 60.0, "measure": 60.0}, "full": {}}
-    model_keyword = "model"
-
-    def models(self) -> list[str]:
-        return rolling_models()
 
     def observe(self, params: dict) -> dict:
         """A periodic slice of a drum turning in the rolling regime: its dynamic angle and the rest."""
         from rollingdem.analysis.intervals import confidence_interval
-        from rollingdem.experiments.drum import BLOCKS, DrumSetup, drum_run
 
         p = self.resolve(params)
         material = PileMaterial.from_parameters(p)

@@ -136,6 +136,17 @@ class Experiment:
         return f"<experiment {self.name!r}>"
 
 
+class BedExperiment(Experiment):
+    """An experiment on a random bed of spheres: the seed changes what it observes, and
+    ``validate`` runs one rolling model (``model``), any of ``rolling_models()``."""
+
+    stochastic = True
+    model_keyword = "model"
+
+    def models(self) -> list[str]:
+        return rolling_models()
+
+
 def get_experiment(name: str, observable: bool = False, what: str = "experiment") -> Experiment:
     """The experiment ``name`` (with ``observable``: one that ``observe`` runs at a point, as a
     sweep or calibration needs), or ParameterError naming it as ``what`` (the key or option the

@@ -26,8 +26,8 @@ from rollingdem.scene.simulation import Simulation
 from rollingdem.scene.mesh import MeshWall
 from rollingdem.scene.walls import Cylinder, Plane
 from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
-from rollingdem.experiments.registry import (Experiment, Parameter, cohesion_parameters, common_parameters,
-                                             resolve_rolling, rolling_models, twisting_parameter)
+from rollingdem.experiments.registry import (BedExperiment, Experiment, Parameter, cohesion_parameters,
+                                             common_parameters, resolve_rolling, twisting_parameter)
 from rollingdem.experiments.single_sphere import DT, G, RADIUS, TABLE1
 
 POLYDISPERSITY = 0.2  # radii uniform in R (1 +- 0.2)
@@ -370,6 +370,13 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
     return result
 
 
+def pile_observables(settled: str) -> dict[str, str]:
+    """What a pile's experiment observes; ``settled``: from when its settling time counts."""
+    return {"angle": "deg, cone fit (rollingdem.analysis.repose.repose_angle)",
+            "slice_std": "deg, spread over azimuthal slices", "r_squared": "cone fit R²",
+            "settled_at": f"s after {settled}", "note": "why no angle"}
+
+
 class AngleOfRepose(Experiment):
     """Case 3 of the seed report: a pile from a lifted tube (docs/studies.md); ``validate`` runs
     ``angle_of_repose``."""
@@ -388,9 +395,7 @@ class AngleOfRepose(Experiment):
                      Parameter("rough_base", 0, "1: the pile stands on a base of fixed spheres (rollingdem.rough_base) "
                                                 "on the plate; 0: on the bare plate", low=0, high=1, integer=True))
                   + cohesion_parameters())
-    observables = {"angle": "deg, cone fit (rollingdem.analysis.repose.repose_angle)",
-                   "slice_std": "deg, spread over azimuthal slices", "r_squared": "cone fit R²",
-                   "settled_at": "s after the tube is removed", "note": "why no angle"}
+    observables = pile_observables("the tube is removed")
     default_observable = "angle"
     stochastic = True
     targets = {"angle": (0.0, 90.0)}
@@ -417,7 +422,7 @@ class AngleOfRepose(Experiment):
         return angle_of_repose(quick=quick, outdir=outdir, progress=progress, models=models, runner=runner)
 
 
-class ReposeRoughBase(Experiment):
+class ReposeRoughBase(BedExperiment):
     """The lifted-cylinder pile on a rough base of fixed spheres (the PFC and LIGGGHTS protocol)."""
 
     name = "repose-rough-base"
@@ -443,17 +448,10 @@ class ReposeRoughBase(Experiment):
                      Parameter("max_collapse", 3.0, "longest collapse before the pile counts as unsettled", "s",
                                low=0.0, low_open=True))
                   + cohesion_parameters())
-    observables = {"angle": "deg, cone fit (rollingdem.analysis.repose.repose_angle)",
-                   "slice_std": "deg, spread over azimuthal slices", "r_squared": "cone fit R²",
-                   "settled_at": "s after the cylinder starts to lift", "note": "why no angle"}
+    observables = pile_observables("the cylinder starts to lift")
     default_observable = "angle"
-    stochastic = True
     targets = {"angle": (0.0, 90.0)}
     sizes = {"quick": {"count": 1000}, "full": {"count": 4000}}
-    model_keyword = "model"
-
-    def models(self) -> list[str]:
-        return rolling_models()
 
     def observe(self, params: dict) -> dict:
         """The lifted-cylinder pile on a rough base of fixed spheres, every protocol choice a parameter."""

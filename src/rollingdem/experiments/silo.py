@@ -24,8 +24,7 @@ from rollingdem.scene.mesh import MeshWall
 from rollingdem.scene.simulation import Simulation
 from rollingdem.experiments.repose import PileMaterial
 from rollingdem.experiments.results import ValidationResult, Check, pyplot, run_points
-from rollingdem.experiments.registry import (UNBOUNDED, Experiment, Parameter, granular_parameters, resolve_rolling,
-                                             rolling_models)
+from rollingdem.experiments.registry import UNBOUNDED, BedExperiment, Parameter, granular_parameters, resolve_rolling
 from rollingdem.experiments.single_sphere import RADIUS
 
 BLOCKS = 5  # sub-windows whose rates give the 95 % interval of W
@@ -243,7 +242,7 @@ def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
                    time.perf_counter() - tic)
 
 
-class SiloDischarge(Experiment):
+class SiloDischarge(BedExperiment):
     """A flat-bottomed silo discharging through a circular orifice at a steady head (docs/studies.md,
     "Silo discharge")."""
 
@@ -271,7 +270,6 @@ class SiloDischarge(Experiment):
         "clogged": "1 when the orifice clogged", "orifice": "m, the orifice diameter D0",
         "particles": "spheres in the silo"}
     default_observable = "flow_rate"
-    stochastic = True
     targets = {"flow_rate": UNBOUNDED, "bulk_density": UNBOUNDED}
     #: what ``validate`` runs: orifices D0 (d), from 5 d: below about 4.9 d a silo of spheres clogs
     #: after avalanches of finite mean size (Zuriguel et al. 2005), so a run may stop before W is
@@ -283,10 +281,6 @@ class SiloDischarge(Experiment):
     #: the validation's material: a glass-bead-like friction (Beverloo's C and k ranges are for
     #: glass beads and sand)
     material = {"mu": 0.5, "mur": 0.1}
-    model_keyword = "model"
-
-    def models(self) -> list[str]:
-        return rolling_models()
 
     def observe(self, params: dict) -> dict:
         """A flat-bottomed silo discharging at a steady head: the mass flow rate and the rest."""

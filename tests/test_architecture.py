@@ -279,6 +279,8 @@ def test_worked_example_adds_an_experiment(tmp_path):
         table = run_sweep(spec, tmp_path / "sweep", progress=False, summary=False, mapper=map).table
         assert sorted(table["touch_time"]) == pytest.approx([math.sqrt(2 * (h - 0.005) / 9.81) for h in (0.02, 0.08)],
                                                             abs=11e-5)
+        with pytest.raises(rd.ParameterError, match="it takes no seed"):  # a deterministic experiment
+            load_sweep({"experiment": "free-fall", "grid": {"height": [0.02]}, "seeds": 3})
         with pytest.raises(rd.ParameterError, match=r"height = 0.001 is not allowed: must lie in \[0.01, inf\) m"):
             experiment.observe({"height": 0.001})
     finally:
@@ -550,3 +552,21 @@ def test_a_case_files_parameters_go_down_the_layers_only():
         sys.setprofile(None)
     assert any(c[1] == "rollingdem.physics.contact.model" for c in calls)  # the trace saw the path
     assert not upward_calls(calls)
+
+
+def test_every_mutation_targets_a_line_that_is_there():
+    """Each mutation of ``tests/mutations.py`` names a line that occurs exactly once in its file: a
+    line moved or reworded by a refactor would leave the mutation testing nothing."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location("mutations", SOURCE.parents[1] / "tests" / "mutations.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["mutations"] = module
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.modules.pop("mutations", None)
+    stale = [f"{m.name}: {m.file} holds its line {(SOURCE.parents[1] / m.file).read_text().count(m.original)} times"
+             for m in module.MUTATIONS if (SOURCE.parents[1] / m.file).read_text().count(m.original) != 1]
+    assert not stale, "\n".join(stale)

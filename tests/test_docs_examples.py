@@ -111,7 +111,7 @@ def test_the_readme_convert_example_gives_mercurys_rolling_law():
 
     scope = {"rd": rd}
     exec(compile(python_block(ROOT / "README.md", "## Other codes' parameters"), "README.md", "exec"), scope)
-    sim, p = scope["sim"], scope["p"]
+    sim = scope["sim"]
     assert sim.contact.rolling.name == "sds" and sim.contact.rolling.settings()["rolling_stiffness"] == 1000.0
     assert sim.materials["m"].rolling_friction == 0.2
 

@@ -139,6 +139,7 @@ def test_killing_a_worker_mid_sweep_still_yields_every_row_exactly_once(tmp_path
     ({"case": "rolling-flat", "grid": {"seed": [1, 2]}}, ["seed", "seeds"]),
     ({"case": "rolling-flat", "grid": {"mur": [0.1]}, "repeats": 2}, ["repeats", "not a known key"]),
     ({"experiment": "pile", "grid": {"mur": [0.1]}}, ["experiment = 'pile'", "angle-of-repose"]),
+    ({"experiment": "contact-laws", "grid": {"mur": [0.1]}}, ["'contact-laws' has no parameters to vary"]),
     ({"grid": {"mur": [0.1]}}, ["experiment", "missing"]),
     ({"experiment": "rolling-flat", "case": "rolling-flat", "grid": {"mur": [0.1]}}, ["'case'", "not a known key"]),
     ({"case": "rolling-flat", "sample": {"n": 4, "ranges": {"mur": [0.5, 0.1]}}}, ["low < high"]),

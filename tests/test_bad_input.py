@@ -164,6 +164,36 @@ CATALOGUE = [
      edit("    material: m\n", "    material: m\n  - {rough_base: {radius: 0.005, extent: [[-0.1, 0.1], [0.05, 0.2]], "
                                 "jitter: 0.01}, material: m}\n"),
      "particles.1: jitter = 0.01 is not allowed with spacing = 0.011 m"),
+    ("until without a maximum duration", edit(STAGE, "  - {name: s, until: settled}"),
+     "stage 's': until is not allowed without max_duration (s)"),
+    ("until with duration", edit(STAGE, "  - {name: s, until: settled, duration: 1, max_duration: 2}"),
+     "stage 's': duration = 1 is not allowed with until: give max_duration"),
+    ("max_duration without until", edit(STAGE, "  - {name: s, max_duration: 2}"),
+     "stage 's': max_duration = 2 is not allowed without until"),
+    ("until an unknown measurement", edit(STAGE, "  - {name: s, until: {measurement: out.count, above: 5}, "
+                                                 "max_duration: 1}"),
+     "stage 's': until: measurement = 'out.count' is not allowed: no measurement is named 'out'; the measurements "
+     "give none"),
+    ("until a quantity the measurement lacks",
+     edit("stages:", "measurements:\n  - {name: load, type: wall, wall: floor}\nstages:",
+          edit(STAGE, "  - {name: s, until: {measurement: load.count, above: 5}, max_duration: 1}")),
+     "stage 's': until: until load.count is not allowed: 'load' measures fx, fy, fz, tx, ty, tz, power"),
+    ("until two conditions", edit(STAGE, "  - {name: s, until: {settled: {}, empty: true}, max_duration: 1}"),
+     "give exactly one of settled, empty and measurement"),
+    ("a measurement of an unknown wall", edit("stages:", "measurements:\n  - {name: load, type: wall, wall: lid}\n"
+                                                         "stages:"),
+     "measurements.0: measurement 'load': wall = 'lid' is not allowed: no wall in place has that name; walls are "
+     "'floor'"),
+    ("two measurements of one name",
+     edit("stages:", "measurements:\n  - {name: a, type: wall, wall: floor}\n  - {name: a, type: wall, wall: floor}"
+                     "\nstages:"),
+     "measurements.1: name = 'a' is not allowed: it names two measurements"),
+    ("a sensor far outside the scene (mm for m)",
+     edit("stages:", "measurements:\n  - {name: f, type: mass_flow, point: [0, 0, -50], normal: [0, 0, -1]}\n"
+                     "stages:"),
+     "measurements.0: mass flow 'f' point = (0, 0, -50) is not allowed: it is outside the scene"),
+    ("an unknown measurement type", edit("stages:", "measurements:\n  - {name: a, type: speedometer}\nstages:"),
+     "key 'measurements.0.type' = \"speedometer\" is not allowed: must be one of"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),
     ("empty file", "", "is empty: must hold a mapping of keys"),
     ("a list, not a mapping", "- a\n- b\n", "must hold a mapping of keys, got list"),

@@ -1,7 +1,7 @@
 """Case files (YAML or TOML): the same scene as the Python API, validated before anything runs.
 
 A case file has the keys ``name``, ``materials``, ``pairs``, ``contact``, ``periodic``, ``walls``,
-``particles``, ``outlets``, ``inflows``, ``stages`` and ``output`` (see ``rollingdem/experiments/default.yaml`` for a complete example). Every
+``particles``, ``outlets``, ``inflows``, ``measurements``, ``stages`` and ``output`` (see ``rollingdem/experiments/default.yaml`` for a complete example). Every
 mapping is strict: an unknown or misspelled key is an error that names the key and lists the allowed
 ones; a missing key names what is missing.
 """
@@ -9,6 +9,7 @@ ones; a missing key names what is missing.
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union, get_type_hints
@@ -252,6 +253,59 @@ class InflowSpec(_Strict):
     start: Optional[Number] = None
 
 
+class _MeasurementBase(_Strict):
+    name: str
+    interval: Number = 1e-3
+    window: Optional[tuple[Number, Number]] = None
+
+
+class MassFlowSpec(_MeasurementBase):
+    """``rollingdem.MassFlow``: through the plane at ``point`` along ``normal`` (a disk with ``radius``)."""
+    type: Literal["mass_flow"]
+    point: Vector
+    normal: Vector
+    radius: Optional[Number] = None
+
+
+class ProbeSpec(_MeasurementBase):
+    """``rollingdem.Probe``: the particles in ``region``."""
+    type: Literal["probe"]
+    region: RegionSpec
+
+
+class OutletMeasurementSpec(_MeasurementBase):
+    """``rollingdem.OutletTotals``: what the outlet named ``outlet`` took out."""
+    type: Literal["outlet"]
+    outlet: str
+
+
+class WallMeasurementSpec(_MeasurementBase):
+    """``rollingdem.WallLoad``: force, torque and power of the wall named ``wall``."""
+    type: Literal["wall"]
+    wall: str
+
+
+class ReposeMeasurementSpec(_MeasurementBase):
+    """``rollingdem.PileAngle``: the pile's angle of repose (docs/analysis.md)."""
+    type: Literal["repose_angle"]
+    floor: Optional[Number] = None
+    n_slices: Whole = 8
+    exclude_apex: Number = 0.15
+    exclude_toe: Number = 0.15
+
+
+class DrumMeasurementSpec(_MeasurementBase):
+    """``rollingdem.DrumAngle``: the bed's angle about the drum's axis, in the window ``extent``."""
+    type: Literal["drum_angle"]
+    center: Vector
+    axis: Vector
+    extent: Optional[tuple[Number, Number]] = None
+
+
+MeasurementSpec = Annotated[Union[MassFlowSpec, ProbeSpec, OutletMeasurementSpec, WallMeasurementSpec,
+                                  ReposeMeasurementSpec, DrumMeasurementSpec], Field(discriminator="type")]
+
+
 class PeriodicSpec(_Strict):
     x: Optional[tuple[Number, Number]] = None
     y: Optional[tuple[Number, Number]] = None
@@ -299,9 +353,47 @@ def _bond_spec():
 BondSpec = _bond_spec()
 
 
+class SettledSpec(_Strict):
+    """``rollingdem.Settled``: translational kinetic energy per free particle below ``kinetic_energy``
+    (J; default 1e-6 m g d) for ``hold`` seconds (``rotation``: count the rotational energy too)."""
+    kinetic_energy: Optional[Number] = None
+    hold: Number = 0.05
+    rotation: bool = False
+    every: Number = 1e-3
+
+
+class ReachesSpec(_Strict):
+    """``rollingdem.Reaches``: the measurement's quantity (``name.quantity``) at or above ``above``,
+    or at or below ``below``."""
+    measurement: str
+    above: Optional[Number] = None
+    below: Optional[Number] = None
+    every: Number = 1e-3
+
+
+class UntilSpec(_Strict):
+    settled: Optional[SettledSpec] = None
+    empty: Optional[bool] = None
+    measurement: Optional[str] = None
+    above: Optional[Number] = None
+    below: Optional[Number] = None
+    every: Number = 1e-3
+
+
+def _until(value):
+    """``until: settled`` / ``until: empty`` as the mappings they stand for."""
+    if value == "settled":
+        return {"settled": {}}
+    if value == "empty":
+        return {"empty": True}
+    return value
+
+
 class StageSpec(_Strict):
     name: str = "run"
-    duration: Number
+    duration: Optional[Number] = None
+    until: Optional[Annotated[UntilSpec, BeforeValidator(_until)]] = None
+    max_duration: Optional[Number] = None
     gravity: Optional[Vector] = None
     remove_walls: list[str] = []
     wall_motion: list[WallMotionSpec] = []
@@ -320,8 +412,11 @@ class IntervalSpec(_Strict):
 
 class ReposeOutputSpec(_Strict):
     """Measure the pile at the end (``rollingdem.analysis.repose.repose_angle``) on a floor at ``floor``
-    (m; default the top of the highest fixed sphere, else 0)."""
+    (m; default the top of the highest fixed sphere, else 0), with the estimator's options."""
     floor: Optional[Number] = None
+    n_slices: Whole = 8
+    exclude_apex: Number = 0.15
+    exclude_toe: Number = 0.15
 
 
 class OutputSpec(_Strict):
@@ -348,6 +443,7 @@ class CaseSpec(_Strict):
     particles: list[ParticleSpec] = Field(min_length=1)
     outlets: list[OutletSpec] = []
     inflows: list[InflowSpec] = []
+    measurements: list[MeasurementSpec] = []
     stages: list[StageSpec] = Field(min_length=1)
     output: OutputSpec = OutputSpec()
     _base: Path = PrivateAttr(default=Path("."))  # the case file's folder (load_case): mesh files are named from it
@@ -652,9 +748,12 @@ def check_case(case: CaseSpec, sim=None):
     in_place = {w.name for w in sim.walls if w.name}
     removed: set[str] = set()
     first_velocities = None
+    measurements = build_measurements(case, sim)
     for k, stage in enumerate(case.stages):
         where = f"stage {stage.name!r}"
-        check_non_negative(f"{where}: duration", stage.duration, "s")
+        stage_conditions(stage, measurements)
+        check_non_negative(f"{where}: " + ("duration" if stage.until is None else "max_duration"),
+                           stage_duration(stage), "s")
         if stage.gravity is not None:
             check_vector(f"{where}: gravity", stage.gravity)
         for name in stage.remove_walls:
@@ -713,6 +812,87 @@ def check_case(case: CaseSpec, sim=None):
                                  f"(the case has {n} particles)")
     _check_first_time_step(sim, first_velocities)
     return sim
+
+
+def build_measurements(case: CaseSpec, sim) -> dict:
+    """The case's measurements by name (``rollingdem.io.measurements``), each checked against the
+    scene (its wall or outlet named, its sensor inside the scene)."""
+    from rollingdem.io import measurements as ms
+
+    made = {}
+    for k, m in enumerate(case.measurements):
+        with _InCase(f"measurements.{k}"):
+            if m.name in made:
+                raise ParameterError(f"name = {m.name!r} is not allowed: it names two measurements; names must differ")
+            common = dict(name=m.name, interval=m.interval, window=m.window)
+            if m.type == "mass_flow":
+                made[m.name] = ms.MassFlow(point=m.point, normal=m.normal, radius=m.radius, **common)
+            elif m.type == "probe":
+                made[m.name] = ms.Probe(region=_region(m.region), **common)
+            elif m.type == "outlet":
+                made[m.name] = ms.OutletTotals(outlet=m.outlet, **common)
+            elif m.type == "wall":
+                made[m.name] = ms.WallLoad(wall=m.wall, **common)
+            elif m.type == "repose_angle":
+                made[m.name] = ms.PileAngle(floor=m.floor, n_slices=m.n_slices, exclude_apex=m.exclude_apex,
+                                            exclude_toe=m.exclude_toe, **common)
+            else:
+                made[m.name] = ms.DrumAngle(center=m.center, axis=m.axis, extent=m.extent, **common)
+            made[m.name].check(sim)
+    return made
+
+
+def stage_duration(stage: StageSpec) -> float:
+    """How long a stage runs at most: its ``duration``, or with ``until`` its ``max_duration``;
+    refused when the pair does not fit."""
+    where = f"stage {stage.name!r}"
+    if stage.until is None:
+        if stage.max_duration is not None:
+            raise ParameterError(f"{where}: max_duration = {stage.max_duration:g} is not allowed without until: "
+                                 "give duration (s), or until with max_duration")
+        if stage.duration is None:
+            raise ParameterError(f"{where}: key 'duration' is missing: a stage runs for duration (s), or until a "
+                                 "condition with max_duration (s)")
+        return stage.duration
+    if stage.duration is not None:
+        raise ParameterError(f"{where}: duration = {stage.duration:g} is not allowed with until: give max_duration "
+                             "(s), the longest the stage may run")
+    if stage.max_duration is None:
+        raise ParameterError(f"{where}: until is not allowed without max_duration (s): a stage that waits for a "
+                             "condition needs the longest it may run")
+    return stage.max_duration
+
+
+def stage_conditions(stage: StageSpec, measurements: dict) -> list:
+    """The conditions (``rollingdem.scene.conditions``) that end ``stage`` early."""
+    from rollingdem.scene.conditions import Empty, Reaches, Settled
+
+    u = stage.until
+    if u is None:
+        return []
+    where = f"stage {stage.name!r}: until"
+    given = [k for k in ("settled", "empty", "measurement") if getattr(u, k) is not None]
+    if len(given) != 1:
+        raise ParameterError(f"{where} = {u.model_dump(exclude_none=True)} is not allowed: give exactly one of "
+                             "settled, empty and measurement (with above or below)")
+    try:
+        if u.settled is not None:
+            return [Settled(**u.settled.model_dump())]
+        if u.empty is not None:
+            if not u.empty:
+                raise ParameterError("empty = false is not allowed: write until: empty, or leave until out")
+            return [Empty(every=u.every)]
+        name, _, quantity = u.measurement.partition(".")
+        if name not in measurements:
+            known = ", ".join(f"{n}.{q}" for n, m in measurements.items() for q in (m.QUANTITIES or ())) or "none"
+            raise ParameterError(f"measurement = {u.measurement!r} is not allowed: no measurement is named {name!r}; "
+                                 f"the measurements give {known}")
+        if not quantity:
+            raise ParameterError(f"measurement = {u.measurement!r} is not allowed: name a quantity, "
+                                 f"{name}.QUANTITY, one of {', '.join(measurements[name].QUANTITIES)}")
+        return [Reaches(measurements[name], quantity, above=u.above, below=u.below, every=u.every)]
+    except ParameterError as err:
+        raise ParameterError(f"{where}: {err}") from None
 
 
 def _check_first_time_step(sim, sv) -> None:
@@ -776,7 +956,10 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
     except OSError as err:
         raise ParameterError(f"output folder {outdir} cannot be written: {err.strerror or err}") from None
     echo(f"rollingdem: case {case.name!r}, writing to {outdir}")
-    echo(f"  {sim.n_particles} particles, {len(sim.walls)} walls, dt = {sim.dt:.3g} s, contact {sim.contact!r}")
+    fixed = int(sim.fixed.sum())
+    echo(f"  {sim.n_particles - fixed} free particles" + (f" and {fixed} fixed" if fixed else "")
+         + f", {len(sim.walls)} wall{'s' if len(sim.walls) != 1 else ''}, dt = {sim.dt:.3g} s")
+    echo(f"  contact: {sim.contact.describe()}")
     observers = []
     if case.output.time_series is not None:
         observers.append(TimeSeries(outdir / "series.csv", case.output.time_series.interval,
@@ -785,6 +968,9 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
         observers.append(VTKSnapshots(outdir / "snapshots", case.output.snapshots.interval))
     if case.output.checkpoint is not None:
         observers.append(Checkpoints(outdir / "checkpoints", case.output.checkpoint.interval))
+    measurements = build_measurements(case, sim)
+    for m in measurements.values():
+        observers.append(m.write_to(outdir / "measurements"))
     walls_by_name = {w.name: w for w in sim.walls if w.name}
     summary = {"case": case.name, "output": str(outdir), "particles": sim.n_particles, "stages": []}
     failure = None
@@ -808,11 +994,20 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
                 echo(f"  stage {stage.name!r}: {made} bonds")
             t0 = time.perf_counter()
             steps0 = sim.step
-            sim.run(stage.duration, observers=observers, progress=progress, label=stage.name)
+            ended = sim.run(stage_duration(stage), observers=observers, progress=progress, label=stage.name,
+                            until=stage_conditions(stage, measurements))
             wall = time.perf_counter() - t0
             steps = sim.step - steps0
-            summary["stages"].append({"name": stage.name, "steps": steps, "wall_seconds": wall,
+            if stage.until is not None:
+                ended = ended or f"max_duration {stage.max_duration:g} s reached before the condition was met"
+                echo(f"  stage {stage.name!r} ended at t = {sim.time:.4g} s: {ended}")
+            summary["stages"].append({"name": stage.name, "steps": steps, "wall_seconds": wall, "end_time": sim.time,
+                                      "ended": ended or "duration",
                                       "particle_steps_per_second": sim.n_particles * steps / wall if wall else None})
+        if measurements:
+            summary["measurements"] = {name: m.summary() for name, m in measurements.items()}
+            for m in measurements.values():
+                echo(f"  {m.summary_line()}")
         if case.output.repose_angle is not None:
             summary["repose_angle"] = _measure_pile(sim, case.output.repose_angle, outdir, echo)
     except ParameterError as err:  # refused later on (a stage's dt after the state changed): say where
@@ -837,28 +1032,44 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
     return summary
 
 
+#: The estimator's options a run's pile angle is also measured with, to show how much it depends on them.
+OPTION_GRID = {"exclude_apex": (0.05, 0.15, 0.25, 0.35), "exclude_toe": (0.05, 0.15, 0.25)}
+
+
 def _measure_pile(sim, spec: ReposeOutputSpec, outdir: Path, echo) -> dict:
     """The repose angle of the free spheres at the end of the run, printed, in ``pile.png`` and
-    returned for summary.json; a pile the cone fit refuses (too flat, too small) is said, not raised."""
-    from rollingdem.analysis.repose import plot_pile, repose_angle
+    returned for summary.json, with its spread over the estimator's options (``OPTION_GRID``); a
+    pile the cone fit refuses (too flat, too small) is said, not raised."""
+    from itertools import product
 
+    from rollingdem.analysis.repose import plot_pile
+    from rollingdem.io.measurements import PileAngle
+
+    pile = PileAngle(floor=spec.floor, n_slices=spec.n_slices, exclude_apex=spec.exclude_apex,
+                     exclude_toe=spec.exclude_toe)
+    pile.values(sim)
+    a, floor = pile.result, pile.floor_of(sim)
+    if a is None:
+        echo(f"  repose angle: not measured: {pile.note} (case file: output.repose_angle has the keys floor, "
+             "n_slices, exclude_apex, exclude_toe)")
+        return {"angle": None, "note": pile.note}
     free = ~sim.fixed
-    if spec.floor is not None:
-        floor = float(spec.floor)
-    elif sim.fixed.any():
-        floor = float(np.max(sim.positions[sim.fixed, 2] + sim.radii[sim.fixed]))
-    else:
-        floor = 0.0
-    try:
-        a = repose_angle(sim.positions[free], sim.radii[free], floor=floor)
-    except ParameterError as err:
-        echo(f"  repose angle: not measured: {err}")
-        return {"angle": None, "note": str(err)}
     plot_pile(sim.positions[free], sim.radii[free], a, path=outdir / "pile.png")
-    echo(f"  repose angle: {a.angle:.1f} deg (cone fit R² {a.r_squared:.2f}; {len(a.slice_angles)} azimuthal "
-         f"slices {a.slice_mean:.1f} ± {a.slice_std:.1f} deg); pile and cone in {outdir / 'pile.png'}")
+    options = {}
+    for apex, toe in product(*OPTION_GRID.values()):
+        other = PileAngle(floor=spec.floor, n_slices=spec.n_slices, exclude_apex=apex, exclude_toe=toe)
+        options[f"exclude_apex={apex:g},exclude_toe={toe:g}"] = other.values(sim)[0]
+    found = [v for v in options.values() if math.isfinite(v)]
+    spread = (f"; with exclude_apex {min(OPTION_GRID['exclude_apex']):g}-{max(OPTION_GRID['exclude_apex']):g} and "
+              f"exclude_toe {min(OPTION_GRID['exclude_toe']):g}-{max(OPTION_GRID['exclude_toe']):g} it reads "
+              f"{min(found):.1f}-{max(found):.1f} deg" if found else "")
+    echo(f"  repose angle: {a.angle:.1f} deg, the cone fit to the pile's surface (R² {a.r_squared:.2f}: the cone "
+         f"explains {100 * a.r_squared:.0f} % of the surface heights' variance){spread}; {len(a.slice_angles)} "
+         f"azimuthal slices {a.slice_mean:.1f} ± {a.slice_std:.1f} deg (the spread around the pile); pile and cone "
+         f"in {outdir / 'pile.png'}")
     return {"angle": a.angle, "r_squared": a.r_squared, "slice_mean": a.slice_mean, "slice_std": a.slice_std,
-            "floor": floor}
+            "floor": floor, "options": options,
+            "option_range": [min(found), max(found)] if found else None}
 
 
 def plot_kinetic_energy(series_csv, png, title=""):

@@ -15,7 +15,7 @@ import time as _time
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, SimulationError, check_positive
+from rollingdem.errors import ParameterError, SimulationError, check_finite, check_integer, check_positive
 
 REMOVE, INSERT, OBSERVE = 0, 1, 2
 """The order operations act in at one step: what takes particles out, what puts them in, what
@@ -87,6 +87,19 @@ class Callback(Observer):
         self.function(sim)
 
 
+def steps_of(duration, steps, dt) -> int:
+    """The steps of a run given exactly one of ``duration`` (s, rounded to whole steps) and ``steps``."""
+    if (duration is None) == (steps is None):
+        raise ParameterError(f"duration = {duration!r}, steps = {steps!r} is not allowed: give exactly one of "
+                             "duration (s) and steps")
+    if steps is not None:
+        return check_integer("steps", steps, low=0)
+    duration = check_finite("duration", duration)
+    if duration < 0:
+        raise ParameterError(f"duration = {duration:g} is not allowed: must be >= 0 (s)")
+    return int(round(duration / dt))
+
+
 def as_observers(observers) -> list:
     """The observers of a run: one observer or a sequence of them; anything else refused."""
     if isinstance(observers, Observer):
@@ -132,19 +145,23 @@ class Schedule:
         for op in operations:
             op.update(sim)
 
-    def run(self, sim, steps: int, observers: list, progress: bool = False, label: str = "run") -> None:
+    def run(self, sim, steps: int, observers: list, progress: bool = False, label: str = "run",
+            conditions=()) -> str | None:
         """``Simulation.run`` after its checks: ``steps`` steps of ``sim``, each call of the step loop
         ending at the next step an operation is due at (or after ~0.25 s of work, so the progress
-        bar and Ctrl-C stay responsive). A run that goes unstable stops with ``SimulationError``
-        after the observers have written what they had."""
+        bar and Ctrl-C stay responsive), or fewer where one of ``conditions`` is met first (then
+        its words are returned; None when the steps ran out). The observers see the last step. A
+        run that goes unstable stops with ``SimulationError`` after the observers have written
+        what they had."""
         from rollingdem.scene.progress import Progress
 
         for ob in observers:
             ob.check(sim)  # all refusals before any observer writes
         bar, end, failure = None, sim.step + steps, None
-        for ob in observers:
+        for ob in (*observers, *conditions):
             ob.start(sim)
-        operations = self.during(observers)
+        operations = self.during([*observers, *conditions])
+        ended = None
         try:
             module = sim.engine_module()  # after the observers start: a TimeSeries turns on track_energy
             if progress:
@@ -169,6 +186,11 @@ class Schedule:
                 self.update(sim, operations)
                 if bar:
                     bar.update(sim, todo, elapsed)
+                ended = next((c.describe() for c in conditions if c.due(sim) and c.met(sim)), None)
+                if ended:
+                    break
+            for ob in observers:
+                ob.maybe_observe(sim, force=True)  # the run's last step, once
         except SimulationError as err:
             failure = err
             raise
@@ -178,6 +200,7 @@ class Schedule:
                 ob.finish(sim, failure)
             if bar:
                 bar.close()
+        return ended
 
     @staticmethod
     def check_finite_state(sim) -> None:

@@ -21,7 +21,7 @@ from rollingdem.engine.backends import backend as find_backend, default_backend
 from rollingdem.engine.codegen import EngineModules
 from rollingdem.engine.layout import I_FORCES_VALID
 from rollingdem.engine.state import EngineState, periodic_box
-from rollingdem.errors import ParameterError, check_finite, check_integer, check_positive, check_vector
+from rollingdem.errors import ParameterError, check_positive, check_vector
 from rollingdem.physics.contact.model import ContactModel
 from rollingdem.physics.records import ENERGY_CHANNELS
 from rollingdem.scene import checkpoint, periodic as periodic_box_checks
@@ -30,7 +30,8 @@ from rollingdem.scene.boundaries import Boundaries
 from rollingdem.scene.checkpoint import VERSION as __version__  # noqa: F401
 from rollingdem.scene.materials import Material, MaterialTable
 from rollingdem.scene.particles import Particles
-from rollingdem.scene.schedule import Schedule, as_observers
+from rollingdem.scene.conditions import as_conditions
+from rollingdem.scene.schedule import Schedule, as_observers, steps_of
 from rollingdem.scene.timestep import TimeStepPolicy
 from rollingdem.scene.wall_set import WallSet
 from rollingdem.scene.walls import Wall
@@ -69,8 +70,8 @@ class Simulation:
     def __init__(self, contact: ContactModel | None = None, gravity=(0.0, 0.0, -9.81), dt: float | None = None,
                  skin: float | None = None, check_timestep: bool = True, track_energy: bool = False,
                  periodic: dict | None = None, backend: str | None = None):
-        self.contact = contact if contact is not None else ContactModel()
-        if not isinstance(self.contact, ContactModel):
+        self._contact = contact if contact is not None else ContactModel()
+        if not isinstance(self._contact, ContactModel):
             raise ParameterError(f"contact = {contact!r} is not allowed: must be a rollingdem.ContactModel")
         self.materials = MaterialTable()
         self.gravity = gravity
@@ -78,7 +79,7 @@ class Simulation:
         self._skin = None if skin is None else check_positive("skin", skin, "m")
         self.check_timestep = bool(check_timestep)
         self.track_energy = bool(track_energy)
-        self._state = EngineState(self.contact.history_size)
+        self._state = EngineState(self._contact.history_size)
         self.backend = default_backend() if backend is None else backend
         self.periodic = periodic_box_checks.check_periodic(periodic)
         self._state.contact_list.box = periodic_box(self.periodic)
@@ -88,8 +89,7 @@ class Simulation:
         self.time_step_policy = TimeStepPolicy(self)
         self.step = 0
         self.time = 0.0
-        # (time, step) where the present dt took over: time = t0 + (step - s0) dt, one product, so
-        # the clock does not depend on how the steps were cut into runs and step-loop calls
+        # (time, step) where dt took over: time = t0 + (step - s0) dt, however the steps were cut
         self._time_origin = (0.0, 0)
         self._pair_params = None
         self._modules = EngineModules()
@@ -102,6 +102,13 @@ class Simulation:
         self._pair_params = None
 
     # --- settings --------------------------------------------------------------------------------
+    def _refuse_contact(self, value):
+        raise ParameterError(f"contact = {value!r} is not allowed after the Simulation is made: pass it as "
+                             "Simulation(contact=...)")
+
+    contact = property(lambda self: self._contact, _refuse_contact,
+                       doc="The contact law, fixed when the simulation is made (its history is laid out for it).")
+
     @property
     def backend(self) -> str:
         return self._state.backend.name
@@ -363,28 +370,21 @@ class Simulation:
         periodic_box_checks.check_scene(self)
 
     def run(self, duration: float | None = None, steps: int | None = None, observers=(),
-            progress: bool = False, label: str = "run") -> None:
-        """Advance the scene by ``duration`` seconds (rounded to whole steps) or by ``steps`` steps.
+            progress: bool = False, label: str = "run", until=None) -> str | None:
+        """Advance the scene by ``duration`` seconds (rounded to whole steps) or by ``steps`` steps,
+        at most: with ``until`` (conditions, ``rollingdem.scene.conditions``) it ends at the first
+        check that finds one met and returns what ended it, in words (None: the time ran out).
 
-        Observers are called at their intervals; the progress bar shows simulated time, steps/s
-        and time left. A run that goes unstable stops with ``SimulationError`` after the
-        observers have written what they had.
+        Observers are called at their intervals and at the last step; the progress bar shows
+        simulated time, steps/s and time left. A run that goes unstable stops with
+        ``SimulationError`` after the observers have written what they had.
         """
-        if (duration is None) == (steps is None):
-            raise ParameterError(f"duration = {duration!r}, steps = {steps!r} is not allowed: give exactly one of "
-                                 "duration (s) and steps")
-        if steps is None:
-            duration = check_finite("duration", duration)
-            if duration < 0:
-                raise ParameterError(f"duration = {duration:g} is not allowed: must be >= 0 (s)")
-            steps = int(round(duration / self.dt))
-        else:
-            steps = check_integer("steps", steps, low=0)
-        observers = as_observers(observers)
+        steps = steps_of(duration, steps, self.dt)
+        observers, conditions = as_observers(observers), as_conditions(until)
         if not isinstance(label, str):
             raise ParameterError(f"label = {label!r} is not allowed: must be a string")
         self.check_before_run()
-        self.schedule.run(self, steps, observers, progress, label)
+        return self.schedule.run(self, steps, observers, progress, label, conditions)
 
     # --- checkpoint ------------------------------------------------------------------------------
     def checkpoint(self, path):

@@ -85,6 +85,17 @@ class ContactModel:
     def from_dict(cls, data: dict) -> "ContactModel":
         return cls(**data)
 
+    def describe(self) -> str:
+        """The law in words: each slot's model and the settings given, e.g. "normal hertz,
+        tangential history, rolling epsd, no twisting, no cohesion"."""
+        parts = []
+        for sub in self.submodels:
+            given = ", ".join(f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}"
+                              for k, v in sub.settings().items() if v is not None)
+            parts.append(f"no {sub.slot}" if sub.name == "none" else
+                         f"{sub.slot} {sub.name}" + (f" ({given})" if given else ""))
+        return ", ".join(parts)
+
     def __repr__(self):
         return (f"ContactModel(normal={self.normal!r}, tangential={self.tangential!r}, "
                 f"rolling={self.rolling!r}, twisting={self.twisting!r}, cohesion={self.cohesion!r})")

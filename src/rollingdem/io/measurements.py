@@ -1,0 +1,586 @@
+"""Measurements: named quantities sampled during a run, written with their units and summed up at
+its end, as EDEM's sensors or LIGGGHTS's ``fix massflow/mesh`` and ``compute`` + ``fix ave/time``.
+
+Each measurement is an observer (``rollingdem.scene.schedule.Observer``) with a ``name``, an
+``interval`` (s), and quantities with units. It keeps its rows (``series()``), writes them to
+``{name}.csv`` when given a folder (a ``# units:`` comment line first: ``pandas.read_csv(path,
+comment="#")``) and sums them up over a time ``window`` (``summary()``): the final value, and the
+mean with its standard error from batch means (the samples of a run are correlated, so the spread
+of ten batch means, not of the samples, gives the error). Which quantities each kind has, and how
+it measures them: docs/measurements.md.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector
+from rollingdem.scene.schedule import Observer
+
+#: Batches of the batch-means standard error.
+BATCHES = 10
+
+
+def batch_standard_error(values) -> float:
+    """Standard error of the mean of correlated samples: the standard deviation of the means of
+    ``BATCHES`` consecutive equal batches over sqrt(BATCHES) (NaN with fewer than two samples per
+    batch)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    per = len(v) // BATCHES
+    if per < 2:
+        return math.nan
+    means = v[:per * BATCHES].reshape(BATCHES, per).mean(axis=1)
+    return float(means.std(ddof=1) / math.sqrt(BATCHES))
+
+
+def slope_with_error(t, y) -> tuple[float, float]:
+    """Least-squares slope of ``y`` over ``t`` and its standard error from the slopes of
+    ``BATCHES`` consecutive batches (NaN with fewer than three samples per batch)."""
+    t, y = np.asarray(t, float), np.asarray(y, float)
+    if len(t) < 2 or np.ptp(t) == 0:
+        return math.nan, math.nan
+    slope = float(np.polyfit(t, y, 1)[0])
+    per = len(t) // BATCHES
+    if per < 3:
+        return slope, math.nan
+    parts = [np.polyfit(t[k * per:(k + 1) * per], y[k * per:(k + 1) * per], 1)[0] for k in range(BATCHES)]
+    return slope, float(np.std(parts, ddof=1) / math.sqrt(BATCHES))
+
+
+class Measurement(Observer):
+    """Base class: ``QUANTITIES`` maps each quantity to its unit; ``values(sim)`` measures them now.
+
+    ``window`` = (t0, t1) in s: the samples the summary's mean and error are over (default: the
+    second half of the samples' time span)."""
+
+    kind = "measurement"
+    QUANTITIES: dict[str, str] = {}
+    #: The quantities whose summary is a rate: the least-squares slope of a cumulative quantity.
+    RATES: dict[str, str] = {}
+    #: Cumulative quantities: the summary line shows their final value.
+    CUMULATIVE: tuple[str, ...] = ()
+
+    def __init__(self, name: str, interval: float = 1e-3, window=None):
+        super().__init__(interval)
+        if not isinstance(name, str) or not name or not all(c.isalnum() or c in "-_" for c in name):
+            raise ParameterError(f"measurement name = {name!r} is not allowed: must be letters, digits, - or _")
+        self.name = name
+        self.window = None if window is None else _window(window)
+        self.directory = None
+        self._rows: list[tuple[float, int, list]] = []
+        self._file = None
+
+    # --- what each kind defines --------------------------------------------------------------------
+    def values(self, sim) -> list[float]:
+        """The quantities now, in the order of ``QUANTITIES``."""
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        """What is measured, in words."""
+        return self.kind
+
+    # --- sampling ----------------------------------------------------------------------------------
+    def write_to(self, directory) -> "Measurement":
+        """Write the rows to ``directory/{name}.csv`` from the next sample on."""
+        self.directory = Path(directory)
+        return self
+
+    def start(self, sim) -> None:
+        super().start(sim)
+        if self.directory is not None and self._file is None:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            path = self.directory / f"{self.name}.csv"
+            new = not path.exists() or path.stat().st_size == 0
+            self._file = open(path, "a", newline="")
+            if new:
+                units = " ".join(f"{q}={u}" for q, u in {"time": "s", "step": "1", **self.QUANTITIES}.items())
+                self._file.write(f"# {self.name}: {self.describe()}; units: {units}\n")
+                csv.writer(self._file).writerow(["time", "step", *self.QUANTITIES])
+
+    def observe(self, sim) -> None:
+        row = [float(v) for v in self.values(sim)]
+        self._rows.append((sim.time, sim.step, row))
+        if self._file is not None:
+            csv.writer(self._file).writerow([repr(sim.time), sim.step, *map(repr, row)])
+            self._file.flush()
+
+    def finish(self, sim, failure=None) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def value(self, sim, quantity: str) -> float:
+        """One quantity now (what a stage condition reads)."""
+        return float(self.values(sim)[list(self.QUANTITIES).index(quantity)])
+
+    def series(self):
+        """The rows so far as a pandas DataFrame: time, step and each quantity."""
+        import pandas as pd
+
+        return pd.DataFrame([[t, s, *row] for t, s, row in self._rows], columns=["time", "step", *self.QUANTITIES])
+
+    # --- the end -----------------------------------------------------------------------------------
+    def summary(self) -> dict:
+        """{quantity: {unit, final, mean, standard_error}, window: [t0, t1]}; a rate quantity's mean
+        is the least-squares slope of its cumulative quantity over the window."""
+        if not self._rows:
+            return {"kind": self.kind, "what": self.describe(), "samples": 0}
+        t = np.array([r[0] for r in self._rows])
+        data = np.array([r[2] for r in self._rows], float).reshape(len(t), -1)
+        t0, t1 = self.window if self.window is not None else (t[0] + 0.5 * (t[-1] - t[0]), t[-1])
+        sel = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
+        out = {"kind": self.kind, "what": self.describe(), "samples": int(sel.sum()), "window": [float(t0), float(t1)]}
+        names = list(self.QUANTITIES)
+        for k, (q, unit) in enumerate(self.QUANTITIES.items()):
+            entry = {"unit": unit, "final": float(data[-1, k])}
+            if q in self.RATES:
+                mean, err = slope_with_error(t[sel], data[sel, names.index(self.RATES[q])])
+            else:
+                vals = data[sel, k]
+                mean = float(np.nanmean(vals)) if np.isfinite(vals).any() else math.nan
+                err = batch_standard_error(vals)
+            out[q] = entry | {"mean": mean, "standard_error": err}
+        return out
+
+    def summary_line(self) -> str:
+        """The summary in one line of words, for the run's end."""
+        s = self.summary()
+        if not s["samples"]:
+            return f"{self.name}: no samples in the window"
+        parts = []
+        for q in self.headline():
+            e = s[q]
+            if q in self.CUMULATIVE:
+                parts.append(f"{q} {e['final']:.4g}{_unit(e['unit'])} at the end")
+                continue
+            err = f" ± {e['standard_error']:.3g}" if math.isfinite(e["standard_error"]) else ""
+            parts.append(f"{q} {e['mean']:.4g}{err}{_unit(e['unit'])}")
+        t0, t1 = s["window"]
+        return f"{self.name} ({self.describe()}): {', '.join(parts)} (mean over {t0:.3g}-{t1:.3g} s)"
+
+    def headline(self) -> list[str]:
+        """The quantities the summary line shows."""
+        return list(self.QUANTITIES)[:3]
+
+
+def _unit(unit: str) -> str:
+    return "" if unit in ("1", "") else f" {unit}"
+
+
+def _window(window) -> tuple[float, float]:
+    try:
+        t0, t1 = (check_finite("measurement window start", window[0]),
+                  check_finite("measurement window end", window[1]))
+    except (TypeError, IndexError):
+        raise ParameterError(f"measurement window = {window!r} is not allowed: must be [t0, t1] (s)") from None
+    if not t1 > t0:
+        raise ParameterError(f"measurement window = {list(window)!r} is not allowed: need t0 < t1 (s)")
+    return t0, t1
+
+
+class MassFlow(Measurement):
+    """Mass through a plane (``point``, ``normal``), or a disk of ``radius`` about ``point`` in it:
+    ``count`` and ``mass`` (kg) crossed along ``normal`` minus those crossed back, cumulative, and
+    ``rate`` (kg/s; the summary's rate is the least-squares slope of ``mass`` over the window).
+
+    A particle has crossed when its centre lies on the other side of the plane than at the last
+    sample, along its displacement since then (periodic images followed: a jump across a periodic
+    boundary is no crossing); for a disk, where that displacement meets the plane lies within the
+    radius. Each crossing counts once; so, for a plane, the mass crossed equals the change of the
+    mass on its far side (particles put in or taken out aside). Only free particles count."""
+
+    kind = "mass_flow"
+    QUANTITIES = {"count": "1", "mass": "kg", "rate": "kg/s"}
+    RATES = {"rate": "mass"}
+    CUMULATIVE = ("count", "mass")
+
+    def __init__(self, name: str, point, normal, radius: float | None = None, interval: float = 1e-3, window=None):
+        super().__init__(name, interval, window)
+        self.point = np.array(check_vector("mass flow point", point))
+        self.normal = np.array(check_vector("mass flow normal", normal, unit=True))
+        self.radius = None if radius is None else check_positive("mass flow radius", radius, "m")
+        self.count, self.mass = 0, 0.0
+        self._tags = None  # the particles' numbers, heights above the plane and unwrapped positions at the last sample
+        self._height = None
+        self._unwrapped = None
+        self._last = (0.0, 0.0)  # (time, mass) of the last row, for its rate
+
+    def describe(self):
+        where = f"disk r = {self.radius:g} m" if self.radius is not None else "plane"
+        return f"mass flow through the {where} at {tuple(self.point.tolist())} along {tuple(self.normal.tolist())}"
+
+    def check(self, sim):
+        _check_inside_domain(sim, f"mass flow {self.name!r} point", self.point)
+
+    def track(self, sim) -> None:
+        """Count the crossings since the last call (every sample does; a condition may call it more often)."""
+        free = ~sim.fixed
+        tags = sim.particle_ids[free]
+        x = sim.positions[free]
+        u = sim.unwrapped_positions[free]
+        height = (x - self.point) @ self.normal
+        if self._tags is not None and len(self._tags) and len(tags):
+            k = np.minimum(np.searchsorted(self._tags, tags), len(self._tags) - 1)
+            known = self._tags[k] == tags  # particles put in since the last sample have no side yet
+            k, x_now, u_now = k[known], x[known], u[known]
+            old = self._height[k]
+            step = u_now - self._unwrapped[k]
+            new = old + step @ self.normal  # along the path: a periodic jump is no crossing
+            crossed = (old < 0.0) != (new < 0.0)
+            if self.radius is not None:
+                f = -old / np.where(crossed, new - old, 1.0)
+                at = x_now - step + f[:, None] * step  # where the path meets the plane
+                lateral = (at - self.point) - ((at - self.point) @ self.normal)[:, None] * self.normal
+                crossed &= np.einsum("ij,ij->i", lateral, lateral) <= self.radius ** 2
+            sign = np.where(new[crossed] >= 0.0, 1, -1)
+            self.count += int(sign.sum())
+            self.mass += float(sign @ sim.masses[free][known][crossed])
+        order = np.argsort(tags, kind="stable")
+        self._tags, self._height, self._unwrapped = tags[order], height[order], u[order]
+
+    def start(self, sim):
+        super().start(sim)
+        if self._tags is None:
+            self.track(sim)
+            self._last = (sim.time, self.mass)
+
+    def values(self, sim):
+        self.track(sim)
+        return [self.count, self.mass, self._rate(sim)]
+
+    def observe(self, sim):
+        super().observe(sim)
+        self._last = (sim.time, self.mass)
+
+    def _rate(self, sim) -> float:
+        dt = sim.time - self._last[0]
+        return (self.mass - self._last[1]) / dt if dt > 0 else 0.0
+
+    def value(self, sim, quantity):
+        self.track(sim)
+        return float({"count": self.count, "mass": self.mass, "rate": self._rate(sim)}[quantity])
+
+
+def scene_bounds(sim) -> tuple[np.ndarray, np.ndarray]:
+    """Where particles can be, roughly: the box around the particles, the mesh walls, the regions of
+    the outlets and inflows, and the periodic box, widened on each side by its largest size (a
+    sensor outside is misplaced, often by a length in mm where the scene is in m)."""
+    boxes = []
+    if sim.n_particles:
+        r = sim.radii[:, None]
+        boxes.append((np.min(sim.positions - r, axis=0), np.max(sim.positions + r, axis=0)))
+    boxes += [(m.vertices.min(axis=0), m.vertices.max(axis=0)) for m in sim.mesh_walls().values()]
+    boxes += [b.region.bounds() for b in (*sim.outlets, *sim.inflows)]
+    for axis, (lo, hi) in (sim.periodic or {}).items():
+        k = "xyz".index(axis)
+        for b in boxes:
+            b[0][k], b[1][k] = lo, hi
+    if not boxes:
+        return np.full(3, -np.inf), np.full(3, np.inf)
+    lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    margin = (hi - lo).max()
+    return lo - margin, hi + margin
+
+
+def _check_inside_domain(sim, what: str, point) -> None:
+    """Refuse a sensor point outside where particles can be (``scene_bounds``): often a length in
+    mm where the scene is in m."""
+    lo, hi = scene_bounds(sim)
+    if not ((point >= lo) & (point <= hi)).all():
+        fmt = lambda v: "(" + ", ".join(f"{c:.4g}" for c in v) + ")"  # noqa: E731
+        raise ParameterError(f"{what} = {fmt(point)} is not allowed: it is outside the scene, which spans "
+                             f"{fmt(lo)} to {fmt(hi)} m (particles, meshes, outlets and inflows)")
+
+
+class Probe(Measurement):
+    """The free particles whose centres are in ``region`` (a ``BoxRegion`` or ``CylinderRegion``):
+    ``count``, ``mass`` (kg), ``bulk_density`` (their mass over the region's volume, kg/m^3),
+    ``solid_fraction`` (their volume over the region's), the mean velocity ``vx, vy, vz`` (m/s,
+    mass-weighted), ``kinetic_energy`` (J, translational and rotational) and ``coordination`` (the
+    mean number of other particles a particle in it touches, ``coordination``). Counting by centres
+    makes the densities uncertain by about a diameter over the region's width: make it wide."""
+
+    kind = "probe"
+    QUANTITIES = {"count": "1", "mass": "kg", "bulk_density": "kg/m^3", "solid_fraction": "1", "vx": "m/s",
+                  "vy": "m/s", "vz": "m/s", "kinetic_energy": "J", "coordination": "1"}
+
+    def __init__(self, name: str, region, interval: float = 1e-3, window=None):
+        super().__init__(name, interval, window)
+        if not hasattr(region, "contains") or not hasattr(region, "volume"):
+            raise ParameterError(f"probe region = {region!r} is not allowed: must be a BoxRegion or CylinderRegion")
+        self.region = region
+
+    def describe(self):
+        lo, hi = self.region.bounds()
+        return (f"particles in the {type(self.region).__name__.removesuffix('Region').lower()} "
+                f"{tuple(np.round(lo, 6).tolist())}-{tuple(np.round(hi, 6).tolist())}")
+
+    def check(self, sim):
+        lo, hi = self.region.bounds()
+        _check_inside_domain(sim, f"probe {self.name!r} region centre", 0.5 * (np.asarray(lo) + np.asarray(hi)))
+
+    def values(self, sim):
+        x = sim.positions
+        inside = self.region.contains(x, np.zeros(len(x))) & ~sim.fixed
+        m, r = sim.masses[inside], sim.radii[inside]
+        v, w = sim.velocities[inside], sim.angular_velocities[inside]
+        volume = self.region.volume()
+        mass = float(m.sum())
+        mean_v = (m @ v) / mass if mass > 0 else np.zeros(3)
+        inertia = sim.particle_field("inertia")[inside]
+        energy = 0.5 * float(m @ np.einsum("ij,ij->i", v, v) + inertia @ np.einsum("ij,ij->i", w, w))
+        return [int(inside.sum()), mass, mass / volume, float((4.0 / 3.0 * math.pi * r ** 3).sum()) / volume,
+                *mean_v, energy, coordination(sim, inside)]
+
+    def headline(self):
+        return ["count", "bulk_density", "solid_fraction"]
+
+
+def coordination(sim, which) -> float:
+    """The mean number of particles (free or fixed) that each particle of ``which`` (a mask)
+    touches, centres nearer than the sum of the radii, across periodic boundaries too; NaN for none."""
+    from scipy.spatial import cKDTree
+
+    x, r = sim.positions, sim.radii
+    if not which.any():
+        return math.nan
+    lo = x.min(axis=0) - 1.0
+    box = np.full(3, 0.0)
+    for k in range(3):
+        box[k] = np.ptp(x[:, k]) + 3.0  # no wrap along an axis that is not periodic
+    for axis, (a, b) in (sim.periodic or {}).items():
+        k = "xyz".index(axis)
+        lo[k], box[k] = a, b - a
+    tree = cKDTree(np.mod(x - lo, box), boxsize=box)
+    pairs = tree.query_pairs(2.0 * float(r.max()), output_type="ndarray")
+    if not len(pairs):
+        return 0.0
+    d = x[pairs[:, 0]] - x[pairs[:, 1]]
+    for axis, (a, b) in (sim.periodic or {}).items():
+        k = "xyz".index(axis)
+        d[:, k] -= (b - a) * np.round(d[:, k] / (b - a))
+    touching = pairs[np.einsum("ij,ij->i", d, d) < (r[pairs[:, 0]] + r[pairs[:, 1]]) ** 2]
+    counts = np.bincount(touching.ravel(), minlength=len(x))
+    return float(counts[which].mean())
+
+
+class OutletTotals(Measurement):
+    """What an outlet took out: ``count``, ``mass`` (kg), cumulative, and ``rate`` (kg/s; the
+    summary's is the least-squares slope of ``mass`` over the window)."""
+
+    kind = "outlet"
+    QUANTITIES = {"count": "1", "mass": "kg", "rate": "kg/s"}
+    RATES = {"rate": "mass"}
+    CUMULATIVE = ("count", "mass")
+
+    def __init__(self, name: str, outlet: str, interval: float = 1e-3, window=None):
+        super().__init__(name, interval, window)
+        self.outlet = outlet
+        self._last = None
+
+    def describe(self):
+        return f"outlet {self.outlet!r}"
+
+    def _find(self, sim):
+        for k, o in enumerate(sim.outlets):
+            if (o.name or f"#{k}") == self.outlet:
+                return o
+        names = [o.name or f"#{k}" for k, o in enumerate(sim.outlets)]
+        raise ParameterError(f"measurement {self.name!r}: outlet = {self.outlet!r} is not allowed: no outlet has that "
+                             f"name; outlets are {', '.join(map(repr, names)) or 'none'}")
+
+    def check(self, sim):
+        self._find(sim)
+
+    def values(self, sim):
+        o = self._find(sim)
+        t0, m0 = self._last if self._last is not None else (sim.time, o.mass)
+        rate = (o.mass - m0) / (sim.time - t0) if sim.time > t0 else 0.0
+        return [o.count, o.mass, rate]
+
+    def observe(self, sim):
+        super().observe(sim)
+        self._last = (sim.time, self._find(sim).mass)
+
+
+class WallLoad(Measurement):
+    """The load on a wall: force ``fx, fy, fz`` (N) and torque ``tx, ty, tz`` (N m, about the wall's
+    own point, ``Simulation.wall_loads``) from the particles, and ``power`` (W): what the wall's
+    motion gives the particles, -(F . v + T . omega)."""
+
+    kind = "wall"
+    QUANTITIES = {"fx": "N", "fy": "N", "fz": "N", "tx": "N m", "ty": "N m", "tz": "N m", "power": "W"}
+
+    def __init__(self, name: str, wall: str, interval: float = 1e-3, window=None):
+        super().__init__(name, interval, window)
+        self.wall = wall
+
+    def describe(self):
+        return f"load on wall {self.wall!r}"
+
+    def _wall(self, sim):
+        for k, w in enumerate(sim.walls):
+            if sim.wall_set.key(w) == self.wall:
+                return w
+        return None
+
+    def check(self, sim):
+        if self._wall(sim) is None:
+            keys = [sim.wall_set.key(w) for w in sim.walls]
+            raise ParameterError(f"measurement {self.name!r}: wall = {self.wall!r} is not allowed: no wall in place has "
+                                 f"that name; walls are {', '.join(map(repr, keys)) or 'none'}")
+
+    def values(self, sim):
+        load = sim.wall_loads().get(self.wall)
+        wall = self._wall(sim)
+        if load is None or wall is None:  # removed by an earlier stage
+            return [math.nan] * len(self.QUANTITIES)
+        f, t = np.array(load["force"]), np.array(load["torque"])
+        power = -(f @ np.asarray(wall.velocity, float) + t @ np.asarray(wall.angular_velocity, float))
+        return [*f, *t, float(power)]
+
+    def headline(self):
+        return ["fz", "power"]
+
+
+class PileAngle(Measurement):
+    """The angle of repose of the free particles' pile (``rollingdem.analysis.repose.repose_angle``,
+    docs/analysis.md): ``angle`` (deg, the cone fit), ``r_squared`` (the fit's), ``slice_mean`` and
+    ``slice_std`` (deg, over ``n_slices`` azimuthal slices), on a floor at ``floor`` (m; default the
+    top of the highest fixed particle, else 0), leaving out ``exclude_apex`` and ``exclude_toe`` of
+    the pile radius. NaN where the estimator refuses the pile (``note`` says why)."""
+
+    kind = "repose_angle"
+    QUANTITIES = {"angle": "deg", "r_squared": "1", "slice_mean": "deg", "slice_std": "deg"}
+    CUMULATIVE = ("angle", "r_squared", "slice_mean", "slice_std")  # the end state's, not a mean
+
+    def __init__(self, name: str = "repose_angle", floor: float | None = None, n_slices: int = 8,
+                 exclude_apex: float = 0.15, exclude_toe: float = 0.15, interval: float = 1e-3, window=None):
+        super().__init__(name, interval, window)
+        from rollingdem.analysis.repose import _check_exclusion, _check_n_slices
+
+        self.floor = None if floor is None else check_finite("repose_angle floor", floor)
+        self.n_slices = _check_n_slices(n_slices)
+        self.exclude_apex = _check_exclusion("exclude_apex", exclude_apex)
+        self.exclude_toe = _check_exclusion("exclude_toe", exclude_toe)
+        self.note = None
+        self.result = None
+
+    def describe(self):
+        return (f"cone fit to the pile, exclude_apex {self.exclude_apex:g}, exclude_toe {self.exclude_toe:g}, "
+                f"{self.n_slices} slices")
+
+    def floor_of(self, sim) -> float:
+        if self.floor is not None:
+            return self.floor
+        fixed = sim.fixed
+        return float(np.max(sim.positions[fixed, 2] + sim.radii[fixed])) if fixed.any() else 0.0
+
+    def values(self, sim):
+        from rollingdem.analysis.repose import repose_angle
+
+        free = ~sim.fixed
+        try:
+            a = repose_angle(sim.positions[free], sim.radii[free], floor=self.floor_of(sim), n_slices=self.n_slices,
+                             exclude_apex=self.exclude_apex, exclude_toe=self.exclude_toe)
+        except ParameterError as err:
+            self.note, self.result = str(err), None
+            return [math.nan] * 4
+        self.note, self.result = None, a
+        return [a.angle, a.r_squared, a.slice_mean, a.slice_std]
+
+    def headline(self):
+        return ["angle", "r_squared"]
+
+
+class DrumAngle(Measurement):
+    """The dynamic angle of a drum's bed, seen along the drum's ``axis`` through ``center``, in the
+    viewing window ``extent`` = (s0, s1) (m along the axis from ``center``; default all of it):
+    ``angle`` (deg, a line through the free surface in the middle third of its chord,
+    ``rollingdem.analysis.drum.surface_angle``) and ``com_angle`` (deg, how far the bed's centre of
+    mass has turned from below the axis), both as magnitudes; gravity gives "down"."""
+
+    kind = "drum_angle"
+    QUANTITIES = {"angle": "deg", "com_angle": "deg"}
+
+    def __init__(self, name: str, center, axis, extent=None, interval: float = 1e-3, window=None):
+        super().__init__(name, interval, window)
+        self.center = np.array(check_vector("drum_angle center", center))
+        self.axis = np.array(check_vector("drum_angle axis", axis, unit=True))
+        self.extent = None if extent is None else _window(extent)
+        self.note = None
+
+    def describe(self):
+        where = "" if self.extent is None else f", window {self.extent[0]:g}-{self.extent[1]:g} m along it"
+        return f"drum bed's angle about the axis {tuple(self.axis.tolist())} through {tuple(self.center.tolist())}{where}"
+
+    def check(self, sim):
+        if abs(float(np.asarray(sim.gravity) @ self.axis)) > 0.999 * float(np.linalg.norm(sim.gravity)):
+            raise ParameterError(f"measurement {self.name!r}: axis = {tuple(self.axis.tolist())} is not allowed: it is "
+                                 "along gravity; a drum's axis must be across it")
+
+    def values(self, sim):
+        from rollingdem.analysis.drum import com_angle, surface_angle
+
+        g = np.asarray(sim.gravity, float)
+        up = -(g - (g @ self.axis) * self.axis)
+        up /= np.linalg.norm(up)
+        across = np.cross(up, self.axis)
+        rel = sim.positions - self.center
+        s = rel @ self.axis
+        keep = ~sim.fixed
+        if self.extent is not None:
+            keep &= (s >= self.extent[0]) & (s <= self.extent[1])
+        frame = np.column_stack([rel @ across, rel @ up, s])[keep]  # a turn: distances kept
+        r, m = sim.radii[keep], sim.masses[keep]
+        try:
+            angle = abs(surface_angle(frame, r, 2.0 * float(r.mean()))[0])
+        except (ParameterError, ValueError) as err:
+            self.note, angle = str(err), math.nan
+        return [angle, abs(com_angle(frame, m)) if len(m) else math.nan]
+
+
+class Function(Measurement):
+    """Any function of the state: ``function(sim)`` returns a number or a dict of numbers (the
+    quantities, named at the first sample; ``units`` maps them to units)."""
+
+    kind = "function"
+
+    def __init__(self, name: str, function, interval: float = 1e-3, window=None, units=None):
+        super().__init__(name, interval, window)
+        if not callable(function):
+            raise ParameterError(f"measurement {name!r}: function = {function!r} is not allowed: must be callable, "
+                                 "function(sim) -> number or dict")
+        self.function = function
+        self.units = dict(units or {})
+        self.QUANTITIES = None
+
+    def describe(self):
+        return f"function {getattr(self.function, '__name__', 'of the state')}"
+
+    def _measure(self, sim) -> dict:
+        out = self.function(sim)
+        out = out if isinstance(out, dict) else {"value": out}
+        try:
+            return {str(k): float(v) for k, v in out.items()}
+        except (TypeError, ValueError):
+            raise ParameterError(f"measurement {self.name!r}: function returned {out!r}: must be a number or a dict "
+                                 "of numbers") from None
+
+    def start(self, sim):
+        if self.QUANTITIES is None:
+            self.QUANTITIES = {q: self.units.get(q, "") for q in self._measure(sim)}
+        super().start(sim)
+
+    def values(self, sim):
+        got = self._measure(sim)
+        return [got.get(q, math.nan) for q in self.QUANTITIES]
+
+
+__all__ = ["scene_bounds", "BATCHES", "DrumAngle", "Function", "MassFlow", "PileAngle", "Measurement", "OutletTotals", "Probe", "WallLoad",
+           "batch_standard_error", "slope_with_error"]

@@ -1,0 +1,159 @@
+"""What ends a run before its maximum duration: ``Simulation.run(max_duration, until=...)``.
+
+A condition is checked every ``every`` seconds of simulated time (rounded to whole steps), after
+the outlets, inflows and observers have acted at that step; the run ends at the first check that
+finds it met, and ``Simulation.run`` returns what ended it, in words. Several conditions: the first
+met ends the run.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rollingdem.errors import ParameterError, check_finite, check_positive
+from rollingdem.scene.schedule import OBSERVE, Operation
+
+
+class Condition(Operation):
+    """Base class: ``met(sim)`` says whether the run should end now; ``describe()`` says why."""
+
+    order = OBSERVE + 1  # after every observer has seen the step
+
+    def __init__(self, every: float = 1e-3):
+        self.every = check_positive("until every", every, "s")
+        self._steps = None
+        self._next = None
+
+    def start(self, sim) -> None:
+        self._steps = max(1, int(round(self.every / sim.dt)))
+        self._next = sim.step + self._steps
+
+    def next_step(self, sim) -> int:
+        return self._next
+
+    def update(self, sim) -> None:
+        pass  # checked by the schedule, which stops the run
+
+    def due(self, sim) -> bool:
+        if sim.step < self._next:
+            return False
+        self._next = sim.step + self._steps
+        return True
+
+    def met(self, sim) -> bool:
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        raise NotImplementedError
+
+
+class Settled(Condition):
+    """Settled: the translational kinetic energy per free particle has stayed below
+    ``kinetic_energy`` (J) for ``hold`` seconds, at every check. Default threshold: 1e-6 m g d for
+    the free particles' mean mass m and mean diameter d (a particle of mean mass moving at
+    1.4e-3 sqrt(g d)). With ``rotation``, the rotational energy counts too; it is left out by
+    default because a sphere spinning about its contact normal, undamped without a twisting law,
+    keeps its energy in a bed that no longer moves."""
+
+    def __init__(self, kinetic_energy: float | None = None, hold: float = 0.05, every: float = 1e-3,
+                 rotation: bool = False):
+        super().__init__(every)
+        if not isinstance(rotation, bool):
+            raise ParameterError(f"settled rotation = {rotation!r} is not allowed: must be true or false")
+        self.rotation = rotation
+        self.kinetic_energy = None if kinetic_energy is None else check_positive("settled kinetic_energy",
+                                                                                 kinetic_energy, "J")
+        self.hold = check_finite("settled hold", hold)
+        if self.hold < 0:
+            raise ParameterError(f"settled hold = {hold:g} is not allowed: must be >= 0 (s)")
+        self._below_since = None
+        self._threshold = None
+
+    def threshold(self, sim) -> float:
+        if self.kinetic_energy is not None:
+            return self.kinetic_energy
+        free = ~sim.fixed
+        if not free.any():
+            return math.inf
+        g = float(np.linalg.norm(sim.gravity)) or 9.81
+        return 1e-6 * float(sim.masses[free].mean()) * g * 2.0 * float(sim.radii[free].mean())
+
+    def start(self, sim):
+        super().start(sim)
+        self._below_since = None
+        self._threshold = self.threshold(sim)
+
+    def per_particle(self, sim) -> float:
+        n = int((~sim.fixed).sum())
+        translational, rotational = sim.kinetic_energy()
+        return (translational + (rotational if self.rotation else 0.0)) / n if n else 0.0
+
+    def met(self, sim):
+        if self.per_particle(sim) >= self._threshold:
+            self._below_since = None
+            return False
+        if self._below_since is None:
+            self._below_since = sim.time
+        return sim.time - self._below_since >= self.hold - 0.5 * sim.dt
+
+    def describe(self):
+        what = "kinetic energy" if self.rotation else "translational kinetic energy"
+        return (f"settled: {what} per particle below {self._threshold:.3g} J for {self.hold:g} s")
+
+
+class Reaches(Condition):
+    """A measurement's quantity reaches a value: ``value(sim, quantity) >= above`` or ``<= below``
+    (any object with that method: ``rollingdem.io.measurements``)."""
+
+    def __init__(self, measurement, quantity: str, above: float | None = None, below: float | None = None,
+                 every: float = 1e-3):
+        super().__init__(every)
+        if (above is None) == (below is None):
+            raise ParameterError(f"until {getattr(measurement, 'name', measurement)}.{quantity}: above = {above!r}, "
+                                 f"below = {below!r} is not allowed: give exactly one of above and below")
+        if not hasattr(measurement, "value"):
+            raise ParameterError(f"until measurement = {measurement!r} is not allowed: must be a measurement "
+                                 "(rollingdem.io.measurements)")
+        quantities = getattr(measurement, "QUANTITIES", None)
+        if quantities is not None and quantity not in quantities:
+            raise ParameterError(f"until {measurement.name}.{quantity} is not allowed: {measurement.name!r} measures "
+                                 f"{', '.join(quantities)}")
+        self.measurement, self.quantity = measurement, quantity
+        self.above = None if above is None else check_finite("until above", above)
+        self.below = None if below is None else check_finite("until below", below)
+        self.last = math.nan
+
+    def met(self, sim):
+        self.last = v = self.measurement.value(sim, self.quantity)
+        return v >= self.above if self.above is not None else v <= self.below
+
+    def describe(self):
+        how = f">= {self.above:g}" if self.above is not None else f"<= {self.below:g}"
+        return f"{self.measurement.name}.{self.quantity} {how} (it is {self.last:.6g})"
+
+
+class Empty(Condition):
+    """No free particle is left (the outlets took them all)."""
+
+    def met(self, sim):
+        return not (~sim.fixed).any()
+
+    def describe(self):
+        return "empty: no free particle left"
+
+
+def as_conditions(until) -> list[Condition]:
+    """The conditions of a run: none, one, or a sequence of them; anything else refused."""
+    if until is None:
+        return []
+    items = [until] if isinstance(until, Condition) else list(until) if isinstance(until, (list, tuple)) else [until]
+    for k, c in enumerate(items):
+        if not isinstance(c, Condition):
+            raise ParameterError(f"until = {c!r} is not allowed: must be a condition (Settled, Reaches, Empty) or a "
+                                 "list of them")
+    return items
+
+
+__all__ = ["Condition", "Empty", "Reaches", "Settled", "as_conditions"]

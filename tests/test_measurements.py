@@ -1,0 +1,211 @@
+"""Measurements (rollingdem.io.measurements) and stage conditions (rollingdem.scene.conditions):
+each quantity against a value known without the code under test: a mass balance, a lattice's
+counts, an elevator's power, a tilted bed's angle, the first time a criterion holds in a series."""
+
+import math
+
+import numpy as np
+import pytest
+
+import rollingdem as rd
+from rollingdem.errors import ParameterError
+from rollingdem.io.measurements import batch_standard_error, slope_with_error
+
+from conftest import G
+
+RP = 0.0015  # m
+
+
+def _material(**kw):
+    params = dict(youngs_modulus=40e6, poisson_ratio=0.49, density=1056.0, friction=0.3, rolling_friction=0.1,
+                  restitution=0.5, rolling_damping=0.3)
+    params.update(kw)
+    return rd.Material("m", **params)
+
+
+def test_mass_through_a_plane_equals_the_mass_balance_of_its_two_sides():
+    """Spheres pour onto a floor in a box periodic in x and y, pushed along x so that they cross the
+    periodic boundary; the sensor plane goes through the centres of the spheres resting on the
+    floor, so they cross it back and forth. At every sample the net mass through the plane equals
+    the change of the mass below it to round-off (a sum of ~100 masses of 1.5e-5 kg: 1e-18 kg)."""
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), gravity=(3.0, 0, -G),
+                        periodic={"x": (0, 0.03), "y": (0, 0.03)})
+    sim.add_material(_material())
+    sim.add_wall(rd.Plane((0, 0, 0), (0, 0, 1), material="m"))
+    sim.insert(rd.BoxRegion((0, 0, 0), (0.03, 0.03, 0.04)), 300, RP, "m", seed=1)
+    flow = rd.MassFlow("down", point=(0.015, 0.015, RP), normal=(0, 0, -1), interval=2e-4)
+
+    def below(s):
+        return float(s.masses[s.positions[:, 2] < RP].sum())
+
+    start = below(sim)
+    rows = []
+    sim.run(0.2, observers=[flow, rd.Callback(lambda s: rows.append((flow.mass, below(s) - start, flow.count)),
+                                              interval=2e-4)])
+    rows = np.array(rows)
+    assert rows[-1, 0] > 20 * sim.masses.mean()  # a bed formed below the plane
+    assert np.abs(rows[:, 0] - rows[:, 1]).max() < 1e-18
+    assert (np.diff(rows[:, 2]) < 0).any()  # spheres on the plane crossed it back
+    assert np.ptp(sim.unwrapped_positions[:, 0]) > 0.03  # and spheres crossed the periodic boundary
+    series = flow.series()
+    assert list(series.columns) == ["time", "step", "count", "mass", "rate"]
+    assert series["mass"].iloc[-1] == flow.mass
+
+
+def test_a_disk_counts_only_what_passes_within_its_radius():
+    """Spheres fall freely through a disk of radius 5 mm at lateral distances 0 to 9 mm: the count
+    is the number of spheres within 5 mm (4 of 10), each counted once."""
+    sim = rd.Simulation(gravity=(0, 0, -G))
+    sim.add_material(_material())
+    x = np.column_stack([np.arange(10) * 0.001 + 1e-4, np.zeros(10), np.full(10, 0.02)])
+    x[:, 1] = np.arange(10) * 0.004  # 4 mm apart along y: no contacts
+    sim.add_particles(x, RP, "m")
+    flow = rd.MassFlow("disk", point=(0, 0, 0.0), normal=(0, 0, -1), radius=0.005, interval=1e-3)
+    sim.run(0.1, observers=[flow])
+    inside = np.hypot(x[:, 0], x[:, 1]) <= 0.005
+    assert (sim.positions[:, 2] < 0).all()
+    assert flow.count == int(inside.sum()) == 2  # (0.0001, 0) and (0.0011, 0.004)
+    assert math.isclose(flow.mass, float(sim.masses[inside].sum()), rel_tol=1e-14)
+
+
+def test_a_probe_reads_a_lattices_counts_density_velocity_energy_and_contacts():
+    """A 4 x 4 x 4 simple-cubic lattice of touching spheres (pitch 2r(1 - 1e-4)) moving and spinning
+    as one, probed by a box around its middle 2 x 2 x 2: count 8, mass 8 m, bulk density 8 m / V,
+    solid fraction 8 (4/3 pi r^3) / V, mean velocity the lattice's, kinetic energy 8 (m v^2 + I w^2)
+    / 2, and 6 contacts each (the inner spheres of a simple-cubic lattice)."""
+    sim = rd.Simulation(gravity=(0, 0, 0))
+    sim.add_material(_material())
+    pitch = 2 * RP * (1 - 1e-4)
+    grid = np.array([(i, j, k) for i in range(4) for j in range(4) for k in range(4)], float) * pitch
+    v, w = np.array([0.1, -0.2, 0.05]), np.array([0.0, 0.0, 3.0])
+    sim.add_particles(grid, RP, "m", velocity=v, angular_velocity=w, allow_overlap=True)
+    lo, hi = np.full(3, 0.5 * pitch), np.full(3, 2.5 * pitch)
+    probe = rd.Probe("middle", rd.BoxRegion(lo, hi))
+    sim.run(steps=1, observers=[probe])
+    got = dict(zip(probe.QUANTITIES, probe.series().iloc[-1, 2:]))
+    m = 1056.0 * 4 / 3 * math.pi * RP ** 3
+    volume = float(np.prod(hi - lo))
+    assert got["count"] == 8
+    assert got["mass"] == pytest.approx(8 * m, rel=1e-12)
+    assert got["bulk_density"] == pytest.approx(8 * m / volume, rel=1e-12)
+    assert got["solid_fraction"] == pytest.approx(8 * 4 / 3 * math.pi * RP ** 3 / volume, rel=1e-12)
+    # one step of overlap forces (1e-4 of the radius) changes the velocities by far less than 1e-6
+    assert [got["vx"], got["vy"], got["vz"]] == pytest.approx(v, abs=1e-6)
+    assert got["kinetic_energy"] == pytest.approx(8 * 0.5 * (m * v @ v + 0.4 * m * RP ** 2 * w @ w), rel=1e-4)
+    assert got["coordination"] == 6
+
+
+def test_an_elevator_floor_gives_a_resting_sphere_its_weight_times_its_speed():
+    """A plane rising at v = 0.02 m/s carries a sphere resting on it: the force on the plane is -m g
+    (z), and the power it gives the sphere m g v, averaged over the window (the sphere's bounce
+    decays in a few ms of the 0.2 s)."""
+    sim = rd.Simulation(gravity=(0, 0, -G))
+    sim.add_material(_material(restitution=0.1))
+    floor = sim.add_wall(rd.Plane((0, 0, 0), (0, 0, 1), material="m", velocity=(0, 0, 0.02), name="floor"))
+    sim.add_particles([[0, 0, RP * 0.999]], RP, "m", allow_overlap=True)
+    load = rd.WallLoad("floor", wall="floor", interval=1e-3, window=(0.1, 0.3))
+    sim.run(0.3, observers=[load])
+    m = float(sim.masses[0])
+    s = load.summary()
+    assert s["fz"]["mean"] == pytest.approx(-m * G, rel=2e-3)
+    assert s["power"]["mean"] == pytest.approx(m * G * 0.02, rel=2e-3)
+    assert floor.name == "floor"
+
+
+def test_a_tilted_bed_in_a_drum_turned_along_x_reads_its_tilt():
+    """A bed whose surface is the plane z = tan(25 deg) y, in a drum whose axis is x (gravity -z):
+    the surface angle is 25 deg within the columns' one-diameter roughness (0.5 deg for a chord of
+    some 60 diameters), in the viewing window that leaves out two end layers."""
+    sim = rd.Simulation(gravity=(0, 0, -G))
+    sim.add_material(_material())
+    d = 2 * RP * 1.001
+    ys, zs = np.meshgrid(np.arange(-0.09, 0.09, d), np.arange(-0.09, 0.09, d))
+    keep = (np.hypot(ys, zs) < 0.09) & (zs < math.tan(math.radians(25)) * ys)
+    cross = np.column_stack([ys[keep], zs[keep]])
+    x = np.vstack([np.column_stack([np.full(len(cross), k * d), cross]) for k in range(5)])
+    sim.add_particles(x, RP, "m")
+    drum = rd.DrumAngle("drum", center=(0, 0, 0), axis=(1, 0, 0), extent=(0.5 * d, 3.5 * d))
+    angle, com = drum.values(sim)
+    assert angle == pytest.approx(25.0, abs=0.5)
+    assert 10 < com < 40
+
+
+def test_batch_errors_and_slopes_on_made_up_series():
+    """White noise of sigma 1 in 1000 samples: the batch-means error is sigma / sqrt(1000) within
+    the error of a standard deviation from 10 batches (about a quarter); a line of slope 2 with
+    noise reads 2 within 3 of its errors."""
+    rng = np.random.default_rng(4)
+    assert batch_standard_error(rng.normal(size=1000)) == pytest.approx(1 / math.sqrt(1000), rel=0.5)
+    assert math.isnan(batch_standard_error(np.ones(15)))
+    t = np.linspace(0, 1, 500)
+    slope, err = slope_with_error(t, 2 * t + rng.normal(scale=0.01, size=500))
+    assert abs(slope - 2) < 3 * err and err < 0.05
+
+
+def test_settled_ends_the_run_where_the_criterion_first_holds_in_the_series():
+    """A bed settles in a periodic box; the translational kinetic energy per particle, recorded at
+    the condition's own checks, first stays below the threshold for the hold time at the step the
+    run ended."""
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), gravity=(0, 0, -G),
+                        periodic={"x": (0, 0.03), "y": (0, 0.03)})
+    sim.add_material(_material(friction=0.5, rolling_friction=0.2))
+    sim.add_wall(rd.Plane((0, 0, 0), (0, 0, 1), material="m"))
+    sim.insert(rd.BoxRegion((0, 0, 0), (0.03, 0.03, 0.03)), 200, RP, "m", seed=1)
+    kinetic = []
+    every = 1e-3
+    sim.run(0.0)
+    threshold = 1e-6 * float(sim.masses.mean()) * G * 2 * RP
+    record = rd.Callback(lambda s: kinetic.append((s.time, s.kinetic_energy()[0] / s.n_particles)), interval=every)
+    ended = sim.run(2.0, observers=[record], until=rd.Settled(hold=0.02, every=every))
+    assert ended.startswith("settled")
+    first, since = None, None  # the first sample that ends 0.02 s of samples all below the threshold
+    for ti, ki in kinetic:
+        since = None if ki >= threshold else (ti if since is None else since)
+        if since is not None and ti - since >= 0.02 - 0.5 * sim.dt:
+            first = ti
+            break
+    assert first == pytest.approx(sim.time, abs=0.5 * sim.dt)
+    assert sim.time < 1.0
+
+
+def test_reaches_ends_a_discharge_at_the_count_and_empty_at_the_last_particle(table1):
+    """An outlet takes out spheres falling through it: ``Reaches`` ends the run at the first check
+    with 50 out (and fewer at the check before); ``Empty`` ends the next run once none is left."""
+    sim = rd.Simulation(gravity=(0, 0, -G), dt=1e-5)  # the Hertz limit at the 5 m/s they reach
+    sim.add_material(table1(friction=0.3, rolling_friction=0.0))
+    x = np.column_stack([np.zeros(80), np.zeros(80), 0.011 * (1 + np.arange(80))])
+    sim.add_particles(x, 0.005, "m")
+    sim.add_outlet(rd.BoxRegion((-1, -1, -2), (1, 1, -0.05)), name="bin")
+    out = rd.OutletTotals("out", outlet="bin", interval=1e-3)
+    seen = []
+    until = rd.Reaches(out, "count", above=50, every=1e-3)
+    ended = sim.run(5.0, observers=[out, rd.Callback(lambda s: seen.append(sim.outlets[0].count), interval=1e-3)],
+                    until=until)
+    assert "out.count >= 50" in ended
+    assert sim.outlets[0].count >= 50 and seen[-2] < 50
+    assert sim.run(5.0, until=rd.Empty()).startswith("empty") and sim.n_particles == 0
+
+
+def test_conditions_and_measurements_refuse_bad_input():
+    out = rd.OutletTotals("out", outlet="bin")
+    with pytest.raises(ParameterError, match="give exactly one of above and below"):
+        rd.Reaches(out, "count")
+    with pytest.raises(ParameterError, match="'out' measures count, mass, rate"):
+        rd.Reaches(out, "speed", above=1)
+    with pytest.raises(ParameterError, match="settled hold = -1 is not allowed"):
+        rd.Settled(hold=-1)
+    with pytest.raises(ParameterError, match="until = 3 is not allowed"):
+        rd.Simulation(dt=1e-5).run(1.0, until=3)
+    with pytest.raises(ParameterError, match="measurement name = 'a b' is not allowed"):
+        rd.Probe("a b", rd.BoxRegion((0, 0, 0), (1, 1, 1)))
+    with pytest.raises(ParameterError, match=r"measurement window = \[2.0, 1.0\] is not allowed"):
+        rd.Probe("p", rd.BoxRegion((0, 0, 0), (1, 1, 1)), window=(2.0, 1.0))
+    sim = rd.Simulation(gravity=(0, 0, -G))
+    sim.add_material(_material())
+    sim.add_particles([[0, 0, 0.01]], RP, "m")
+    flow = rd.MassFlow("far", point=(0, 0, 10.0), normal=(0, 0, 1))  # 10 m: a length in mm written as m
+    with pytest.raises(ParameterError, match=r"mass flow 'far' point = \(0, 0, 10\) is not allowed: it is outside "
+                                             "the scene"):
+        sim.run(0.001, observers=[flow])
+    with pytest.raises(ParameterError, match="wall = 'lid' is not allowed: no wall in place has that name"):
+        sim.run(0.001, observers=[rd.WallLoad("lid", wall="lid")])

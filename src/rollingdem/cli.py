@@ -65,19 +65,31 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
         threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
         progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
         backend: Optional[str] = typer.Option(None, "--backend", help="cpu or cuda (an NVIDIA GPU, docs/gpu.md); "
-                                              "default: the case file's backend key, else cpu.")):
-    """Run a case file, or the built-in default case."""
-    from rollingdem.io import casefile
+                                              "default: the case file's backend key, else cpu."),
+        overwrite: bool = typer.Option(False, "--overwrite", help="Replace an earlier run in the --out folder "
+                                       "(refused without)."),
+        resume: Optional[Path] = typer.Option(None, "--resume", help="Continue the killed run in this folder from "
+                                              "its last checkpoint.")):
+    """Run a case file, or the built-in default case; or continue a killed run (--resume DIR)."""
+    from rollingdem.io import casefile, runner
 
     _set_threads(threads)
     _check_out(out)
     try:
+        if resume is not None:
+            if case is not None or out is not None or overwrite or backend is not None:
+                given = [n for n, v in (("CASE", case), ("--out", out), ("--overwrite", overwrite),
+                                        ("--backend", backend)) if v]
+                raise ParameterError(f"--resume = {str(resume)!r} is not allowed with {', '.join(given)}: a resumed "
+                                     "run continues its own case in its own folder")
+            runner.resume_case(resume, progress=progress, echo=typer.echo)
+            return
         spec = casefile.load_case(case if case is not None else casefile.default_case_path())
         if backend is not None:
             from rollingdem.engine.backends import check_backend
 
             spec.backend = check_backend(backend, "--backend")
-        casefile.run_case(spec, out=out, progress=progress, echo=typer.echo)
+        runner.run_case(spec, out=out, progress=progress, echo=typer.echo, overwrite=overwrite)
     except ParameterError as err:
         _refuse(err)
     except SimulationError as err:

@@ -9,15 +9,12 @@ ones; a missing key names what is missing.
 from __future__ import annotations
 
 import json
-import math
-import time
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union, get_type_hints
 
 import re
 
 import numpy as np
-import yaml
 from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PrivateAttr, Strict, Tag,
                       ValidationError, create_model)
 
@@ -494,7 +491,7 @@ def _spec_at(path) -> Optional[type]:
             return found[0] if len(found) == 1 else None
         return None
 
-    spec, data_hint = CaseSpec, None
+    spec = CaseSpec
     for part in path:
         if isinstance(part, int):
             continue
@@ -913,195 +910,9 @@ def _check_first_time_step(sim, sv) -> None:
         st.info[I_FORCES_VALID] = saved[2]
 
 
-def _fresh_directory(base: Path) -> Path:
-    if not base.exists():
-        return base
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    candidate = base.with_name(f"{base.name}-{stamp}")
-    k = 1
-    while candidate.exists():
-        candidate = base.with_name(f"{base.name}-{stamp}-{k}")
-        k += 1
-    return candidate
-
-
-def _output_folder(case: CaseSpec, out) -> Path:
-    """The folder a run writes into: ``out`` as given, else a fresh one (the case's directory or
-    rollingdem-output/NAME, with a time stamp when that exists). Refused when it is a file."""
-    base = Path(out or case.output.directory or Path("rollingdem-output") / case.name)
-    outdir = _fresh_directory(base) if out is None else base
-    for folder in (outdir, *outdir.parents):
-        if folder.exists():
-            if not folder.is_dir():
-                key = "output folder" if out is not None else "output.directory"
-                raise ParameterError(f"{key} = {str(outdir)!r} is not allowed: {folder} is a file; must be a folder")
-            break
-    return outdir
-
-
-def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = True, echo=print) -> dict:
-    """Run every stage of a case, writing its outputs; returns a summary (also in summary.json).
-
-    Everything ``check_case`` refuses is refused before the output folder is made: a refused case
-    leaves nothing behind. A run that fails later keeps what it wrote so far (summary.json says
-    why it stopped)."""
-    from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots
-
-    tic = time.perf_counter()
-    sim = check_case(case)
-    outdir = _output_folder(case, out)
-    try:
-        outdir.mkdir(parents=True, exist_ok=True)
-        (outdir / "case.yaml").write_text(yaml.safe_dump(json.loads(case.model_dump_json()), sort_keys=False))
-    except OSError as err:
-        raise ParameterError(f"output folder {outdir} cannot be written: {err.strerror or err}") from None
-    echo(f"rollingdem: case {case.name!r}, writing to {outdir}")
-    fixed = int(sim.fixed.sum())
-    echo(f"  {sim.n_particles - fixed} free particles" + (f" and {fixed} fixed" if fixed else "")
-         + f", {len(sim.walls)} wall{'s' if len(sim.walls) != 1 else ''}, dt = {sim.dt:.3g} s")
-    echo(f"  contact: {sim.contact.describe()}")
-    observers = []
-    if case.output.time_series is not None:
-        observers.append(TimeSeries(outdir / "series.csv", case.output.time_series.interval,
-                                    case.output.time_series.particles))
-    if case.output.snapshots is not None:
-        observers.append(VTKSnapshots(outdir / "snapshots", case.output.snapshots.interval))
-    if case.output.checkpoint is not None:
-        observers.append(Checkpoints(outdir / "checkpoints", case.output.checkpoint.interval))
-    measurements = build_measurements(case, sim)
-    for m in measurements.values():
-        observers.append(m.write_to(outdir / "measurements"))
-    walls_by_name = {w.name: w for w in sim.walls if w.name}
-    summary = {"case": case.name, "output": str(outdir), "particles": sim.n_particles, "stages": []}
-    failure = None
-    stage = None
-    try:
-        for stage in case.stages:
-            if stage.gravity is not None:
-                sim.gravity = stage.gravity
-            for name in stage.remove_walls:  # check_case made sure each names a wall in place
-                sim.remove_wall(walls_by_name.pop(name))
-            for m in stage.wall_motion:
-                motion = _motion(m)
-                sim.set_wall_velocity(m.wall, motion["velocity"], motion.get("angular_velocity", (0.0, 0.0, 0.0)),
-                                      point=motion.get("point"))
-            if stage.set_velocity is not None:
-                sv = stage.set_velocity
-                idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles
-                sim.set_velocities(idx, sv.velocity, sv.angular_velocity)
-            if stage.bonds is not None:
-                made = sim.add_bonds(stage.bonds.parallel_bond(), pairs=stage.bonds.pairs, gap=stage.bonds.gap)
-                echo(f"  stage {stage.name!r}: {made} bonds")
-            t0 = time.perf_counter()
-            steps0 = sim.step
-            ended = sim.run(stage_duration(stage), observers=observers, progress=progress, label=stage.name,
-                            until=stage_conditions(stage, measurements))
-            wall = time.perf_counter() - t0
-            steps = sim.step - steps0
-            if stage.until is not None:
-                ended = ended or f"max_duration {stage.max_duration:g} s reached before the condition was met"
-                echo(f"  stage {stage.name!r} ended at t = {sim.time:.4g} s: {ended}")
-            summary["stages"].append({"name": stage.name, "steps": steps, "wall_seconds": wall, "end_time": sim.time,
-                                      "ended": ended or "duration",
-                                      "particle_steps_per_second": sim.n_particles * steps / wall if wall else None})
-        if measurements:
-            summary["measurements"] = {name: m.summary() for name, m in measurements.items()}
-            for m in measurements.values():
-                echo(f"  {m.summary_line()}")
-        if case.output.repose_angle is not None:
-            summary["repose_angle"] = _measure_pile(sim, case.output.repose_angle, outdir, echo)
-    except ParameterError as err:  # refused later on (a stage's dt after the state changed): say where
-        failure = err
-        raise ParameterError(f"stage {stage.name!r} at t = {sim.time:.6g} s: {err} (the outputs so far are in "
-                             f"{outdir})") from None
-    except Exception as err:  # noqa: BLE001 - recorded, then raised again
-        failure = err
-        raise
-    finally:
-        summary.update({"time": sim.time, "steps": sim.step, "wall_seconds": time.perf_counter() - tic,
-                        "kinetic_energy": sum(sim.kinetic_energy()), "dissipated": sim.dissipated_energy() if sim.track_energy else None,
-                        "status": "ok" if failure is None else f"failed: {failure}"})
-        sim.checkpoint(outdir / "final.npz")
-        (outdir / "summary.json").write_text(json.dumps(summary, indent=2))
-        if case.output.plot and (outdir / "series.csv").exists():
-            try:
-                plot_kinetic_energy(outdir / "series.csv", outdir / "kinetic_energy.png", title=case.name)
-            except Exception as err:  # noqa: BLE001 - a failed plot must not hide the run's own result
-                echo(f"  (kinetic-energy plot failed: {err})")
-    echo(f"  done: {sim.step} steps in {summary['wall_seconds']:.1f} s; outputs in {outdir}")
-    return summary
-
-
-#: The estimator's options a run's pile angle is also measured with, to show how much it depends on them.
-OPTION_GRID = {"exclude_apex": (0.05, 0.15, 0.25, 0.35), "exclude_toe": (0.05, 0.15, 0.25)}
-
-
-def _measure_pile(sim, spec: ReposeOutputSpec, outdir: Path, echo) -> dict:
-    """The repose angle of the free spheres at the end of the run, printed, in ``pile.png`` and
-    returned for summary.json, with its spread over the estimator's options (``OPTION_GRID``); a
-    pile the cone fit refuses (too flat, too small) is said, not raised."""
-    from itertools import product
-
-    from rollingdem.analysis.repose import plot_pile
-    from rollingdem.io.measurements import PileAngle
-
-    pile = PileAngle(floor=spec.floor, n_slices=spec.n_slices, exclude_apex=spec.exclude_apex,
-                     exclude_toe=spec.exclude_toe)
-    pile.values(sim)
-    a, floor = pile.result, pile.floor_of(sim)
-    if a is None:
-        echo(f"  repose angle: not measured: {pile.note} (case file: output.repose_angle has the keys floor, "
-             "n_slices, exclude_apex, exclude_toe)")
-        return {"angle": None, "note": pile.note}
-    free = ~sim.fixed
-    plot_pile(sim.positions[free], sim.radii[free], a, path=outdir / "pile.png")
-    options = {}
-    for apex, toe in product(*OPTION_GRID.values()):
-        other = PileAngle(floor=spec.floor, n_slices=spec.n_slices, exclude_apex=apex, exclude_toe=toe)
-        options[f"exclude_apex={apex:g},exclude_toe={toe:g}"] = other.values(sim)[0]
-    found = [v for v in options.values() if math.isfinite(v)]
-    spread = (f"; with exclude_apex {min(OPTION_GRID['exclude_apex']):g}-{max(OPTION_GRID['exclude_apex']):g} and "
-              f"exclude_toe {min(OPTION_GRID['exclude_toe']):g}-{max(OPTION_GRID['exclude_toe']):g} it reads "
-              f"{min(found):.1f}-{max(found):.1f} deg" if found else "")
-    echo(f"  repose angle: {a.angle:.1f} deg, the cone fit to the pile's surface (R² {a.r_squared:.2f}: the cone "
-         f"explains {100 * a.r_squared:.0f} % of the surface heights' variance){spread}; {len(a.slice_angles)} "
-         f"azimuthal slices {a.slice_mean:.1f} ± {a.slice_std:.1f} deg (the spread around the pile); pile and cone "
-         f"in {outdir / 'pile.png'}")
-    return {"angle": a.angle, "r_squared": a.r_squared, "slice_mean": a.slice_mean, "slice_std": a.slice_std,
-            "floor": floor, "options": options,
-            "option_range": [min(found), max(found)] if found else None}
-
-
-def plot_kinetic_energy(series_csv, png, title=""):
-    """Total, translational and rotational kinetic energy over time, log scale (the report's Figure 4)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import pandas as pd
-
-    df = pd.read_csv(series_csv)
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    floor = 1e-300
-    for col, label in (("kinetic_total", "total"), ("kinetic_translational", "translational"),
-                       ("kinetic_rotational", "rotational")):
-        ax.plot(df["time"], np.maximum(df[col], floor), label=label, lw=1.2 if col == "kinetic_total" else 0.8)
-    ax.set_yscale("log")
-    positive = df["kinetic_total"][df["kinetic_total"] > 0]
-    if len(positive):
-        ax.set_ylim(max(positive.min() * 0.5, positive.max() * 1e-14), positive.max() * 3)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("kinetic energy (J)")
-    ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(png, dpi=120)
-    plt.close(fig)
-
-
 def default_case_path() -> Path:
     return Path(__file__).parents[1] / "experiments" / "default.yaml"
 
 
-__all__ = ["CaseSpec", "load_case", "build_simulation", "check_case", "run_case", "plot_kinetic_energy", "default_case_path"]
+__all__ = ["CaseSpec", "load_case", "build_simulation", "build_measurements", "check_case", "stage_conditions",
+           "stage_duration", "default_case_path"]

@@ -73,6 +73,10 @@ class Observer(Operation):
     def finish(self, sim, failure=None) -> None:
         pass
 
+    def __getstate__(self):
+        """Everything but open files: a run's checkpoint keeps its observers (``rollingdem.io.runner``)."""
+        return {k: (None if k in ("_file", "_writer") else v) for k, v in self.__dict__.items()}
+
 
 class Callback(Observer):
     """Calls ``function(sim)`` at every interval (e.g. to record something of your own)."""
@@ -146,30 +150,39 @@ class Schedule:
             op.update(sim)
 
     def run(self, sim, steps: int, observers: list, progress: bool = False, label: str = "run",
-            conditions=()) -> str | None:
+            conditions=(), continuing: bool = False) -> str | None:
         """``Simulation.run`` after its checks: ``steps`` steps of ``sim``, each call of the step loop
         ending at the next step an operation is due at (or after ~0.25 s of work, so the progress
         bar and Ctrl-C stay responsive), or fewer where one of ``conditions`` is met first (then
         its words are returned; None when the steps ran out). The observers see the last step. A
         run that goes unstable stops with ``SimulationError`` after the observers have written
-        what they had."""
+        what they had. ``continuing``: the observers and conditions go on from where a restored
+        run left them (``rollingdem.io.runner.resume_case``), as if it had never stopped."""
         from rollingdem.scene.progress import Progress
 
         for ob in observers:
             ob.check(sim)  # all refusals before any observer writes
         bar, end, failure = None, sim.step + steps, None
-        for ob in (*observers, *conditions):
+        for ob in observers:
+            kept = (ob._next, getattr(ob, "_last_step", None)) if continuing else None
             ob.start(sim)
+            if kept:
+                ob._next, ob._last_step = kept
+        for c in () if continuing else conditions:
+            c.start(sim)
         operations = self.during([*observers, *conditions])
         ended = None
         try:
             module = sim.engine_module()  # after the observers start: a TimeSeries turns on track_energy
             if progress:
                 bar = Progress(sim, steps, label, warm=id(module) in sim._stepped)
-            for ob in observers:
+            for ob in () if continuing else observers:
                 ob.maybe_observe(sim, force=True)
             chunk = 64
-            while sim.step < end:
+            while True:
+                ended = next((c.describe() for c in conditions if c.due(sim) and c.met(sim)), None)
+                if ended or sim.step >= end:
+                    break
                 due = self.next_step(sim, operations)
                 todo = max(min(end, sim.step + chunk, *(() if due is None else (due,))) - sim.step, 1)
                 tic = _time.perf_counter()
@@ -186,9 +199,6 @@ class Schedule:
                 self.update(sim, operations)
                 if bar:
                     bar.update(sim, todo, elapsed)
-                ended = next((c.describe() for c in conditions if c.due(sim) and c.met(sim)), None)
-                if ended:
-                    break
             for ob in observers:
                 ob.maybe_observe(sim, force=True)  # the run's last step, once
         except SimulationError as err:

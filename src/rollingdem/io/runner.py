@@ -1,0 +1,415 @@
+"""Running a case file: its stages, its outputs in one folder, checkpoints to resume it from.
+
+``run_case`` runs every stage of a case (``rollingdem.io.casefile``) and writes into one folder:
+``case.yaml``, ``series.csv``, ``measurements/NAME.csv``, snapshots, ``summary.json``,
+``final.npz`` and ``checkpoints/``. A folder that holds an earlier run is refused unless asked to
+overwrite it. While it runs, a checkpoint of the whole run (the simulation, the stage it is in,
+what each output and measurement has seen) is written every ``output.checkpoint.interval``;
+``resume_case`` continues a killed run from the last one and ends bit for bit where the run would
+have ended (the outputs written after that checkpoint are cut off first).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pickle
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from rollingdem.errors import ParameterError
+from rollingdem.io.casefile import (CASE_HINTS, CaseSpec, ReposeOutputSpec, _motion, build_measurements, check_case,
+                                    stage_conditions, stage_duration)
+from rollingdem.scene.schedule import Observer
+
+#: What a run writes into its folder (files and folders): what ``--overwrite`` removes.
+RUN_FILES = ("case.yaml", "summary.json", "final.npz", "series.csv", "kinetic_energy.png", "pile.png",
+             "report.html", "snapshots", "checkpoints", "measurements")
+#: Checkpoints a run writes when its case names no interval: this many over its longest duration.
+CHECKPOINTS_PER_RUN = 20
+RUN_STATE = "run_state.pkl"
+RUN_CHECKPOINT = "checkpoint_last.npz"
+
+
+def _fresh_directory(base: Path) -> Path:
+    if not base.exists():
+        return base
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    candidate = base.with_name(f"{base.name}-{stamp}")
+    k = 1
+    while candidate.exists():
+        candidate = base.with_name(f"{base.name}-{stamp}-{k}")
+        k += 1
+    return candidate
+
+
+def earlier_run(folder: Path) -> list[str]:
+    """The files and folders of an earlier run in ``folder`` (``RUN_FILES``)."""
+    return [name for name in RUN_FILES if (Path(folder) / name).exists()]
+
+
+def _output_folder(case: CaseSpec, out, overwrite: bool = False) -> Path:
+    """The folder a run writes into: ``out`` as given, else a fresh one (the case's directory or
+    rollingdem-output/NAME, with a time stamp when that exists). Refused when it is a file, or
+    when it holds an earlier run and ``overwrite`` is not given."""
+    base = Path(out or case.output.directory or Path("rollingdem-output") / case.name)
+    outdir = _fresh_directory(base) if out is None else base
+    for folder in (outdir, *outdir.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                key = "output folder" if out is not None else "output.directory"
+                raise ParameterError(f"{key} = {str(outdir)!r} is not allowed: {folder} is a file; must be a folder")
+            break
+    found = earlier_run(outdir) if outdir.is_dir() else []
+    if found and not overwrite:
+        raise ParameterError(f"output folder = {str(outdir)!r} is not allowed: it holds an earlier run "
+                             f"({', '.join(found[:4])}{', ...' if len(found) > 4 else ''}); pass --overwrite to "
+                             "replace it, --resume to continue it, or choose another folder")
+    return outdir
+
+
+def _clear(outdir: Path) -> None:
+    """Remove an earlier run's files (``RUN_FILES``) from ``outdir``, nothing else."""
+    for name in earlier_run(outdir):
+        path = outdir / name
+        shutil.rmtree(path) if path.is_dir() else path.unlink()
+
+
+@dataclass
+class RunState:
+    """What a run checkpoint holds beside the simulation: where in the case the run is, and every
+    output's and measurement's state, to continue them as if never stopped."""
+    case: CaseSpec
+    base: str  # the case file's folder: mesh files are named from it
+    stage: int = 0  # the stage in progress
+    stage_start: int = 0  # the step it began at
+    begun: bool = False  # its start actions (walls removed, velocities set, bonds) are done
+    step: int = 0  # the step of the checkpoint
+    observers: list = field(default_factory=list)
+    measurements: dict = field(default_factory=dict)
+    conditions: list = field(default_factory=list)  # the stage's, as they stand
+    summary: dict = field(default_factory=dict)
+    seconds: float = 0.0  # wall-clock seconds of the run before this checkpoint
+
+
+class RunCheckpoint(Observer):
+    """Writes the run's checkpoint (the simulation, then its ``RunState``) at its interval, last
+    of the observers at a step; never at a run's first or last step (the stage's end is written
+    by the run itself, with the next stage to start)."""
+
+    def __init__(self, directory: Path, interval: float, run: "_Run"):
+        super().__init__(interval)
+        self.directory = directory
+        self.run = run
+
+    def maybe_observe(self, sim, force: bool = False) -> None:
+        if not force:
+            super().maybe_observe(sim)
+
+    def observe(self, sim):
+        self.run.write_checkpoint(sim)
+
+    def __getstate__(self):
+        return {**super().__getstate__(), "run": None}  # the run holds the simulation: that is the .npz
+
+
+class _Run:
+    """One run of a case into ``outdir``: its stages, observers and measurements."""
+
+    def __init__(self, case: CaseSpec, sim, outdir: Path, progress: bool, echo):
+        from rollingdem.io.observers import TimeSeries, VTKSnapshots
+
+        self.case, self.sim, self.outdir, self.progress, self.echo = case, sim, outdir, progress, echo
+        self.tic = time.perf_counter()
+        out = case.output
+        self.measurements = build_measurements(case, sim)
+        observers = []
+        if out.time_series is not None:
+            observers.append(TimeSeries(outdir / "series.csv", out.time_series.interval, out.time_series.particles))
+        if out.snapshots is not None:
+            observers.append(VTKSnapshots(outdir / "snapshots", out.snapshots.interval))
+        observers += [m.write_to(outdir / "measurements") for m in self.measurements.values()]
+        longest = sum(stage_duration(s) for s in case.stages)
+        interval = out.checkpoint.interval if out.checkpoint is not None else (
+            max(longest / CHECKPOINTS_PER_RUN, sim.dt) if longest > 0 else 1.0)
+        observers.append(RunCheckpoint(outdir / "checkpoints", interval, self))
+        self.state = RunState(case=case, base=str(Path(case.base_directory).resolve()), observers=observers,
+                              measurements=self.measurements,
+                              summary={"case": case.name, "output": str(outdir), "particles": sim.n_particles,
+                                       "stages": []})
+
+    @classmethod
+    def resumed(cls, outdir: Path, progress: bool, echo) -> "_Run":
+        from rollingdem.scene.simulation import Simulation
+
+        folder = outdir / "checkpoints"
+        if not (folder / RUN_STATE).exists() or not (folder / RUN_CHECKPOINT).exists():
+            raise ParameterError(f"--resume = {str(outdir)!r} is not allowed: it holds no run checkpoint "
+                                 f"(checkpoints/{RUN_STATE} and {RUN_CHECKPOINT}); it is not the folder of a "
+                                 "rollingdem run, or the run was killed before its first checkpoint")
+        summary = outdir / "summary.json"
+        if summary.exists() and json.loads(summary.read_text()).get("status") == "ok":
+            raise ParameterError(f"--resume = {str(outdir)!r} is not allowed: that run finished (summary.json says "
+                                 "ok); nothing is left to run")
+        with open(folder / RUN_STATE, "rb") as fh:
+            state: RunState = pickle.load(fh)
+        state.case._base = Path(state.base)
+        sim = Simulation.restore(folder / RUN_CHECKPOINT, backend=state.case.backend)
+        if sim.step != state.step:
+            raise ParameterError(f"--resume = {str(outdir)!r} is not allowed: its checkpoint is at step {sim.step} "
+                                 f"and its run state at step {state.step}; they were not written together")
+        sim.hints.update(CASE_HINTS)
+        run = cls.__new__(cls)
+        run.case, run.sim, run.outdir, run.progress, run.echo = state.case, sim, outdir, progress, echo
+        run.tic = time.perf_counter() - state.seconds
+        run.state, run.measurements = state, state.measurements
+        for ob in state.observers:
+            if isinstance(ob, RunCheckpoint):
+                ob.run = run
+        _cut_outputs(outdir, state)
+        return run
+
+    # --- checkpoints -------------------------------------------------------------------------------
+    def write_checkpoint(self, sim) -> None:
+        """The simulation first, then the run state naming its step: a kill between the two leaves
+        a pair that ``resumed`` refuses rather than one that continues wrongly."""
+        folder = self.outdir / "checkpoints"
+        sim.checkpoint(folder / RUN_CHECKPOINT)
+        self.state.step = sim.step
+        self.state.seconds = time.perf_counter() - self.tic
+        tmp = folder / (RUN_STATE + ".tmp")
+        with open(tmp, "wb") as fh:
+            pickle.dump(self.state, fh)
+        tmp.replace(folder / RUN_STATE)
+
+    # --- the stages --------------------------------------------------------------------------------
+    def go(self, continuing: bool = False) -> dict:
+        sim, st, echo = self.sim, self.state, self.echo
+        summary = st.summary
+        failure, stage = None, None
+        try:
+            while st.stage < len(self.case.stages):
+                stage = self.case.stages[st.stage]
+                if not st.begun:
+                    self._begin(stage)
+                    st.begun, st.stage_start = True, sim.step
+                    st.conditions = stage_conditions(stage, self.measurements)
+                steps_left = int(round(stage_duration(stage) / sim.dt)) - (sim.step - st.stage_start)
+                t0, steps0 = time.perf_counter(), sim.step
+                sim.check_before_run()
+                ended = sim.schedule.run(sim, max(steps_left, 0), st.observers, self.progress, stage.name,
+                                         st.conditions, continuing=continuing)
+                continuing = False
+                wall = time.perf_counter() - t0
+                if stage.until is not None:
+                    ended = ended or f"max_duration {stage.max_duration:g} s reached before the condition was met"
+                    echo(f"  stage {stage.name!r} ended at t = {sim.time:.4g} s: {ended}")
+                steps = sim.step - steps0
+                summary["stages"].append({"name": stage.name, "steps": sim.step - st.stage_start, "wall_seconds": wall,
+                                          "end_time": sim.time, "ended": ended or "duration",
+                                          "particle_steps_per_second": sim.n_particles * steps / wall if wall else None})
+                st.stage, st.begun = st.stage + 1, False
+                self.write_checkpoint(sim)
+            if self.measurements:
+                summary["measurements"] = {name: m.summary() for name, m in self.measurements.items()}
+                for m in self.measurements.values():
+                    echo(f"  {m.summary_line()}")
+            if self.case.output.repose_angle is not None:
+                summary["repose_angle"] = _measure_pile(sim, self.case.output.repose_angle, self.outdir, echo)
+        except ParameterError as err:  # refused later on (a stage's dt after the state changed): say where
+            failure = err
+            raise ParameterError(f"stage {stage.name!r} at t = {sim.time:.6g} s: {err} (the outputs so far are in "
+                                 f"{self.outdir})") from None
+        except BaseException as err:  # noqa: BLE001 - recorded, then raised again (Ctrl-C included)
+            failure = err
+            raise
+        finally:
+            summary.update({"time": sim.time, "steps": sim.step, "wall_seconds": time.perf_counter() - self.tic,
+                            "kinetic_energy": sum(sim.kinetic_energy()),
+                            "dissipated": sim.dissipated_energy() if sim.track_energy else None,
+                            "status": "ok" if failure is None else f"failed: {failure or type(failure).__name__}"})
+            sim.checkpoint(self.outdir / "final.npz")
+            (self.outdir / "summary.json").write_text(json.dumps(summary, indent=2))
+            if self.case.output.plot and (self.outdir / "series.csv").exists():
+                try:
+                    plot_kinetic_energy(self.outdir / "series.csv", self.outdir / "kinetic_energy.png",
+                                        title=self.case.name)
+                except Exception as err:  # noqa: BLE001 - a failed plot must not hide the run's own result
+                    echo(f"  (kinetic-energy plot failed: {err})")
+        echo(f"  done: {sim.step} steps in {summary['wall_seconds']:.1f} s; outputs in {self.outdir}")
+        return summary
+
+    def _begin(self, stage) -> None:
+        """A stage's start actions: gravity, walls removed, wall motions, velocities set, bonds made."""
+        sim = self.sim
+        if stage.gravity is not None:
+            sim.gravity = stage.gravity
+        walls = {w.name: w for w in sim.walls if w.name}
+        for name in stage.remove_walls:  # check_case made sure each names a wall in place
+            sim.remove_wall(walls.pop(name))
+        for m in stage.wall_motion:
+            motion = _motion(m)
+            sim.set_wall_velocity(m.wall, motion["velocity"], motion.get("angular_velocity", (0.0, 0.0, 0.0)),
+                                  point=motion.get("point"))
+        if stage.set_velocity is not None:
+            sv = stage.set_velocity
+            idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles
+            sim.set_velocities(idx, sv.velocity, sv.angular_velocity)
+        if stage.bonds is not None:
+            made = sim.add_bonds(stage.bonds.parallel_bond(), pairs=stage.bonds.pairs, gap=stage.bonds.gap)
+            self.echo(f"  stage {stage.name!r}: {made} bonds")
+
+
+def _cut_outputs(outdir: Path, state: RunState) -> None:
+    """Cut what the killed run wrote after its checkpoint: CSV rows of later steps, later snapshot
+    files; the snapshots' collections are written again from what the checkpoint holds."""
+    from rollingdem.io.observers import VTKSnapshots
+
+    step = state.step
+    csvs = [outdir / "series.csv", *sorted((outdir / "measurements").glob("*.csv"))]
+    for path in csvs:
+        if not path.exists():
+            continue
+        lines = path.read_bytes().splitlines(keepends=True)  # bytes: the rows keep their line ends
+        kept, header = [], False
+        for line in lines:
+            if line.startswith(b"#") or not header:
+                kept.append(line)
+                header = header or not line.startswith(b"#")
+                continue
+            try:
+                if int(line.split(b",", 2)[1]) > step or not line.endswith(b"\n"):
+                    continue
+            except (IndexError, ValueError):
+                continue  # a row cut short by the kill
+            kept.append(line)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_bytes(b"".join(kept))
+        tmp.replace(path)
+    for ob in state.observers:
+        if isinstance(ob, VTKSnapshots) and ob.directory.exists():
+            for f in ob.directory.glob("*.vtu"):
+                stem = f.stem.rsplit("_", 1)
+                if len(stem) == 2 and stem[1].isdigit() and int(stem[1]) > step:
+                    f.unlink()
+            ob._write_pvd(ob.prefix, ob._entries)
+            for name, entries in ob._mesh_entries.items():
+                ob._write_pvd(name, entries)
+
+
+def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = True, echo=print,
+             overwrite: bool = False) -> dict:
+    """Run every stage of a case, writing its outputs; returns a summary (also in summary.json).
+
+    Everything ``check_case`` refuses is refused before the output folder is made: a refused case
+    leaves nothing behind, and a folder that holds an earlier run is refused unless ``overwrite``
+    (then the earlier run's files, ``RUN_FILES``, are removed first). A run that fails later keeps
+    what it wrote so far (summary.json says why it stopped); a killed one continues with
+    ``resume_case``."""
+    sim = check_case(case)
+    outdir = _output_folder(case, out, overwrite)
+    try:
+        if overwrite and outdir.is_dir():
+            _clear(outdir)
+        outdir.mkdir(parents=True, exist_ok=True)
+        (outdir / "case.yaml").write_text(yaml.safe_dump(json.loads(case.model_dump_json()), sort_keys=False))
+    except OSError as err:
+        raise ParameterError(f"output folder {outdir} cannot be written: {err.strerror or err}") from None
+    echo(f"rollingdem: case {case.name!r}, writing to {outdir}")
+    fixed = int(sim.fixed.sum())
+    echo(f"  {sim.n_particles - fixed} free particles" + (f" and {fixed} fixed" if fixed else "")
+         + f", {len(sim.walls)} wall{'s' if len(sim.walls) != 1 else ''}, dt = {sim.dt:.3g} s")
+    echo(f"  contact: {sim.contact.describe()}")
+    return _Run(case, sim, outdir, progress, echo).go()
+
+
+def resume_case(outdir, progress: bool = True, echo=print) -> dict:
+    """Continue the run in ``outdir`` (``run_case``'s folder) from its last checkpoint: the stage it
+    was in, the outputs cut back to the checkpoint's step and continued. It ends bit for bit where
+    the run would have ended had it not been stopped."""
+    outdir = Path(outdir)
+    if not outdir.is_dir():
+        raise ParameterError(f"--resume = {str(outdir)!r} is not allowed: it is not a folder; must be the output "
+                             "folder of a run")
+    run = _Run.resumed(outdir, progress, echo)
+    st = run.state
+    stage = run.case.stages[min(st.stage, len(run.case.stages) - 1)]
+    echo(f"rollingdem: resuming case {run.case.name!r} in {outdir} at t = {run.sim.time:.6g} s (step {run.sim.step}), "
+         f"stage {stage.name!r}")
+    return run.go(continuing=st.begun)
+
+
+#: The estimator's options a run's pile angle is also measured with, to show how much it depends on them.
+OPTION_GRID = {"exclude_apex": (0.05, 0.15, 0.25, 0.35), "exclude_toe": (0.05, 0.15, 0.25)}
+
+
+def _measure_pile(sim, spec: ReposeOutputSpec, outdir: Path, echo) -> dict:
+    """The repose angle of the free spheres at the end of the run, printed, in ``pile.png`` and
+    returned for summary.json, with its spread over the estimator's options (``OPTION_GRID``); a
+    pile the cone fit refuses (too flat, too small) is said, not raised."""
+    from itertools import product
+
+    from rollingdem.analysis.repose import plot_pile
+    from rollingdem.io.measurements import PileAngle
+
+    pile = PileAngle(floor=spec.floor, n_slices=spec.n_slices, exclude_apex=spec.exclude_apex,
+                     exclude_toe=spec.exclude_toe)
+    pile.values(sim)
+    a, floor = pile.result, pile.floor_of(sim)
+    if a is None:
+        echo(f"  repose angle: not measured: {pile.note} (case file: output.repose_angle has the keys floor, "
+             "n_slices, exclude_apex, exclude_toe)")
+        return {"angle": None, "note": pile.note}
+    free = ~sim.fixed
+    plot_pile(sim.positions[free], sim.radii[free], a, path=outdir / "pile.png")
+    options = {}
+    for apex, toe in product(*OPTION_GRID.values()):
+        other = PileAngle(floor=spec.floor, n_slices=spec.n_slices, exclude_apex=apex, exclude_toe=toe)
+        options[f"exclude_apex={apex:g},exclude_toe={toe:g}"] = other.values(sim)[0]
+    found = [v for v in options.values() if math.isfinite(v)]
+    spread = (f"; with exclude_apex {min(OPTION_GRID['exclude_apex']):g}-{max(OPTION_GRID['exclude_apex']):g} and "
+              f"exclude_toe {min(OPTION_GRID['exclude_toe']):g}-{max(OPTION_GRID['exclude_toe']):g} it reads "
+              f"{min(found):.1f}-{max(found):.1f} deg" if found else "")
+    echo(f"  repose angle: {a.angle:.1f} deg, the cone fit to the pile's surface (R² {a.r_squared:.2f}: the cone "
+         f"explains {100 * a.r_squared:.0f} % of the surface heights' variance){spread}; {len(a.slice_angles)} "
+         f"azimuthal slices {a.slice_mean:.1f} ± {a.slice_std:.1f} deg (the spread around the pile); pile and cone "
+         f"in {outdir / 'pile.png'}")
+    return {"angle": a.angle, "r_squared": a.r_squared, "slice_mean": a.slice_mean, "slice_std": a.slice_std,
+            "floor": floor, "options": options,
+            "option_range": [min(found), max(found)] if found else None}
+
+
+def plot_kinetic_energy(series_csv, png, title=""):
+    """Total, translational and rotational kinetic energy over time, log scale (the report's Figure 4)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import pandas as pd
+
+    df = pd.read_csv(series_csv)
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    floor = 1e-300
+    for col, label in (("kinetic_total", "total"), ("kinetic_translational", "translational"),
+                       ("kinetic_rotational", "rotational")):
+        ax.plot(df["time"], np.maximum(df[col], floor), label=label, lw=1.2 if col == "kinetic_total" else 0.8)
+    ax.set_yscale("log")
+    positive = df["kinetic_total"][df["kinetic_total"] > 0]
+    if len(positive):
+        ax.set_ylim(max(positive.min() * 0.5, positive.max() * 1e-14), positive.max() * 3)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("kinetic energy (J)")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+
+
+__all__ = ["OPTION_GRID", "RUN_FILES", "RunState", "earlier_run", "plot_kinetic_energy", "resume_case", "run_case"]

@@ -246,9 +246,14 @@ def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML)
 
 
 @app.command()
-def calibrate(target: list[str] = typer.Option(..., "--target", help="What was measured (repeatable): "
-                                               "EXPERIMENT.OBSERVABLE=VALUE±U (e.g. angle-of-repose.angle=32.5±1.0), or with "
-                                               "--experiment a number (and --uncertainty)."),
+def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case files to calibrate against (instead "
+                                                            "of built-in experiments): their measurements are the "
+                                                            "observables, the numbers in them the parameters."),
+              target: list[str] = typer.Option(..., "--target", help="What was measured (repeatable): "
+                                               "EXPERIMENT.OBSERVABLE=VALUE±U (e.g. angle-of-repose.angle=32.5±1.0); "
+                                               "with one case file MEASUREMENT.QUANTITY=VALUE±U, with several "
+                                               "FILE:MEASUREMENT.QUANTITY=VALUE±U; or with --experiment a number (and "
+                                               "--uncertainty)."),
               free: Optional[list[str]] = typer.Option(None, "--free", help="A parameter to find (repeatable): NAME or "
                                                        "NAME=LOW:HIGH (default: mur)."),
               fix: Optional[list[str]] = typer.Option(None, "--fix", help="NAME=VALUE held fixed (repeatable), e.g. "
@@ -286,6 +291,25 @@ def calibrate(target: list[str] = typer.Option(..., "--target", help="What was m
         frees = [parse_free(f) for f in (free or ["mur"])]
         execution = Execution(workers=workers, scheduler=scheduler)
         fixed = parse_assignments(fix, "fix")
+        if cases:
+            targets = _case_targets(cases, target, experiment, observable, uncertainty)
+            if len(targets) == 1 and len(frees) == 1:
+                t = targets[0]
+                result = run_calibration(t.experiment, t.value, t.uncertainty, fix=fixed, free=frees[0],
+                                         observable=t.observable, seeds=seeds,
+                                         search=Search(coarse=coarse, refine=refine, rounds=2 if rounds is None else rounds),
+                                         out=out, execution=execution, progress=progress, echo=typer.echo)
+                typer.echo(f"figure: {result.figures[0]}")
+                typer.echo(f"result: {Path(out) / 'calibration.json'}")
+                return
+            result = calibrate_joint(targets, {name: rng for name, rng in frees}, fix=fixed, seeds=seeds,
+                                     search=JointSearch(initial=initial, rounds=3 if rounds is None else rounds,
+                                                        per_round=per_round),
+                                     out=out, execution=execution, progress=progress, echo=typer.echo)
+            for f in result.figures:
+                typer.echo(f"figure: {f}")
+            typer.echo(f"result: {Path(out) / 'calibration.json'}")
+            return
         numeric = [t for t in target if "=" not in t]
         if numeric and len(numeric) < len(target):
             raise ParameterError(f"target = {numeric[0]!r} is not allowed beside EXPERIMENT.OBSERVABLE=VALUE targets: give "
@@ -332,6 +356,55 @@ def calibrate(target: list[str] = typer.Option(..., "--target", help="What was m
     for f in result.figures:
         typer.echo(f"figure: {f}")
     typer.echo(f"result: {Path(out) / 'calibration.json'}")
+
+
+def _case_targets(cases, targets, experiment, observable, uncertainty):
+    """The targets of a calibration against case files: MEASUREMENT.QUANTITY=VALUE±U (one file),
+    FILE:MEASUREMENT.QUANTITY=VALUE±U (several), or a number with --observable (one file)."""
+    import re
+
+    from rollingdem.experiments import get_experiment
+    from rollingdem.studies.joint_calibration import Target
+
+    if experiment is not None:
+        raise ParameterError(f"--experiment = {experiment!r} is not allowed with case files: the case files are the "
+                             "experiments")
+    for c in cases:
+        _check_in_file(c, "case file")
+        get_experiment(str(c), observable=True)  # refuse a bad file now
+    out = []
+    for text in targets:
+        if "=" not in text:
+            if len(cases) > 1 or len(targets) > 1 or observable is None:
+                raise ParameterError(f"target = {text!r} is not allowed: write MEASUREMENT.QUANTITY=VALUE±U"
+                                     + (" (FILE:MEASUREMENT.QUANTITY=... with several case files)" if len(cases) > 1
+                                        else ", or give --observable MEASUREMENT.QUANTITY"))
+            file, obs, value, unc = str(cases[0]), observable, text, str(uncertainty)
+        else:
+            left, right = text.split("=", 1)
+            if ":" in left:
+                file, obs = left.rsplit(":", 1)
+            elif len(cases) == 1:
+                file, obs = str(cases[0]), left
+            else:
+                raise ParameterError(f"target = {text!r} is not allowed with several case files: write "
+                                     "FILE:MEASUREMENT.QUANTITY=VALUE±U")
+            m = re.fullmatch(r"\s*([^±+]+?)\s*(?:(?:±|\+-|\+/-)\s*(.+?))?\s*", right)
+            if m is None:
+                raise ParameterError(f"target = {text!r} is not allowed: write MEASUREMENT.QUANTITY=VALUE±U")
+            value, unc = m.group(1), m.group(2) or "0"
+        if file not in map(str, cases):
+            raise ParameterError(f"target = {text!r} is not allowed: {file!r} is not one of the case files given "
+                                 f"({', '.join(map(str, cases))})")
+        exp = get_experiment(file, observable=True)
+        if obs.strip() not in exp.observables:
+            raise ParameterError(f"target = {text!r} is not allowed: {Path(file).name} measures "
+                                 f"{', '.join(exp.observables) or 'nothing (add measurements: to it)'}")
+        try:
+            out.append(Target(file, obs.strip(), float(value), float(unc)))
+        except ValueError:
+            raise ParameterError(f"target = {text!r} is not allowed: VALUE and U must be numbers") from None
+    return out
 
 
 @app.command()

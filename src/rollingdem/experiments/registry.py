@@ -148,10 +148,15 @@ class BedExperiment(Experiment):
 
 
 def get_experiment(name: str, observable: bool = False, what: str = "experiment") -> Experiment:
-    """The experiment ``name`` (with ``observable``: one that ``observe`` runs at a point, as a
-    sweep or calibration needs), or ParameterError naming it as ``what`` (the key or option the
+    """The experiment ``name`` (a built-in one, or a case file's path: ``case_file.CaseExperiment``;
+    with ``observable``: one that ``observe`` runs at a point, as a sweep or calibration needs), or
+    ParameterError naming it as ``what`` (the key or option the
     user gave it with) and listing the allowed ones."""
-    allowed = [n for n, e in EXPERIMENTS.items() if e.observable or not observable]
+    from rollingdem.experiments.case_file import case_experiment, is_case_file
+
+    if is_case_file(name):
+        return case_experiment(name)
+    allowed = [n for n, e in EXPERIMENTS.items() if (e.observable or not observable) and not is_case_file(n)]
     if name not in allowed:
         why = "has no parameters to vary" if name in EXPERIMENTS else "is not known"
         raise ParameterError(f"{what} = {name!r} {why}: allowed are {', '.join(allowed)}")

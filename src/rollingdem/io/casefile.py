@@ -98,11 +98,13 @@ class CylinderSpec(_Strict):
 
 
 class RotateSpec(_Strict):
-    """A turn about the axis through ``point``: at ``angular_velocity`` (rad/s) in a motion, by
-    ``angle`` (degrees) in a placement."""
+    """A turn about the axis through ``point``: at ``angular_velocity`` (rad/s) or ``rpm``
+    (revolutions per minute) in a motion, by ``angle`` (degrees) in a placement. ``point``: a mesh
+    wall's (default the origin); a plane or cylinder turns about its own point and takes none."""
     axis: Vector
-    point: Vector = (0.0, 0.0, 0.0)
+    point: Optional[Vector] = None
     angular_velocity: Optional[Number] = None
+    rpm: Optional[Number] = None
     angle: Optional[Number] = None
 
 
@@ -674,12 +676,16 @@ def _motion(spec) -> dict:
         return {}
     out = {"velocity": spec.velocity}
     if spec.rotate is not None:
-        if spec.rotate.angular_velocity is None:
-            raise ParameterError("motion rotate: angular_velocity missing: give the turning rate (rad/s)")
-        axis = np.array(check_vector("motion rotate axis", spec.rotate.axis, unit=True))
-        out["angular_velocity"] = tuple(check_finite("motion rotate angular_velocity",
-                                                     spec.rotate.angular_velocity) * axis)
-        out["point"] = spec.rotate.point
+        r = spec.rotate
+        if (r.angular_velocity is None) == (r.rpm is None):
+            raise ParameterError("motion rotate: give exactly one of angular_velocity (rad/s) and rpm (revolutions "
+                                 "per minute)" if r.rpm is not None else
+                                 "motion rotate: angular_velocity missing: give the turning rate (rad/s) or rpm")
+        rate = (check_finite("motion rotate angular_velocity", r.angular_velocity) if r.rpm is None
+                else check_finite("motion rotate rpm", r.rpm) * 2.0 * np.pi / 60.0)
+        axis = np.array(check_vector("motion rotate axis", r.axis, unit=True))
+        out["angular_velocity"] = tuple(rate * axis)
+        out["point"] = r.point
     return out
 
 
@@ -705,10 +711,12 @@ def _mesh_wall(w: MeshSpec, base: Path):
             angle = check_finite("place rotate angle", w.place.rotate.angle if w.place.rotate.angle is not None
                                  else float("nan"))
             matrix = Rotation.from_rotvec(np.radians(angle) * axis).as_matrix()
-            about = np.array(check_vector("place rotate point", w.place.rotate.point))
+            about = np.array(check_vector("place rotate point", w.place.rotate.point or (0.0, 0.0, 0.0)))
         shift = about - matrix @ about + np.array(check_vector("place translate", w.place.translate))
         wall = MeshWall(wall.mesh.moved(matrix, shift), material=w.material, name=w.name)
     motion = _motion(w.motion)
+    if motion.get("point", 0) is None:
+        motion["point"] = (0.0, 0.0, 0.0)
     if motion:
         wall = MeshWall(wall.mesh, material=w.material, name=w.name, **motion)
     return wall
@@ -770,6 +778,11 @@ def check_case(case: CaseSpec, sim=None):
                 _motion(m)
             except ParameterError as err:
                 raise ParameterError(f"{where}: wall_motion {m.wall!r}: {err}") from None
+            mesh = next(w.type == "mesh" for w in case.walls if w.name == m.wall)
+            if m.rotate is not None and m.rotate.point is not None and not mesh:
+                raise ParameterError(f"{where}: wall_motion {m.wall!r}: rotate point = {list(m.rotate.point)} is not "
+                                     "allowed: a plane or cylinder turns about its own point; only a mesh wall takes a "
+                                     "rotation point")
         sv = stage.set_velocity
         if sv is not None:
             if sv.velocity is None and sv.angular_velocity is None:

@@ -252,10 +252,14 @@ class _Run:
         walls = {w.name: w for w in sim.walls if w.name}
         for name in stage.remove_walls:  # check_case made sure each names a wall in place
             sim.remove_wall(walls.pop(name))
+        meshes = {w.name for w in self.case.walls if w.type == "mesh"}
         for m in stage.wall_motion:
             motion = _motion(m)
+            point = motion.get("point")
+            if point is None and m.wall in meshes and "angular_velocity" in motion:
+                point = (0.0, 0.0, 0.0)  # a mesh turns about the origin unless told
             sim.set_wall_velocity(m.wall, motion["velocity"], motion.get("angular_velocity", (0.0, 0.0, 0.0)),
-                                  point=motion.get("point"))
+                                  point=point)
         if stage.set_velocity is not None:
             sv = stage.set_velocity
             idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles

@@ -145,7 +145,7 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     import tempfile
     import time
 
-    from rollingdem.studies.sweep import load_sweep, run_sweep
+    from rollingdem.studies.sweep import TABLE, failure_report, load_sweep, run_sweep
 
     tic = time.perf_counter()
     sc = get_experiment(experiment, observable=True, what="experiment")
@@ -164,6 +164,9 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
         raise ParameterError(f"free = {name!r} is not allowed: it is not a real-valued parameter that calibration "
                              f"can vary (those are {', '.join(p.name for p in sc.parameters if p.calibration_range)})")
     lo, hi = rng or par.calibration_range
+    if not math.isfinite(hi):
+        raise ParameterError(f"free = {name!r} is not allowed without its range: give --free {name}=LOW:HIGH "
+                             "(free=(name, (low, high)) in Python)")
     par.check(lo)
     par.check(hi)
     if not lo < hi:
@@ -201,6 +204,12 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
         for r in range(rounds + 1):
             table = _all_runs(out, sc, experiment, fix, name)
             stats = _point_stats(table, name, observable)
+            report = failure_report(table, out / TABLE)
+            if len(stats) < 2:
+                raise ParameterError(f"calibration needs at least two points with a finite {observable}, and has "
+                                     f"{len(stats)}: " + (report or f"the runs gave no finite {observable}"))
+            if report:
+                say(report)
             increasing = _direction(stats)
             g = _monotone(stats["mean"].to_numpy(), stats["count"].to_numpy(float), increasing)
             if not min(g) <= target <= max(g):

@@ -26,6 +26,7 @@ import pandas as pd
 from rollingdem.experiments import get_experiment
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_output_path
 from rollingdem.studies.parallel import Execution
+from rollingdem.studies.sweep import TABLE, failure_report
 
 __all__ = ["Target", "JointSearch", "JointCalibration", "calibrate_joint", "parse_target", "posterior_grid",
            "fit_surrogate"]
@@ -156,6 +157,9 @@ def _check(targets, free, fix):
                 raise ParameterError(f"free = {name!r} is not allowed for experiment {sc.name!r}: it is not one of its "
                                      f"real-valued parameters that calibration can vary ({allowed})")
             rng_here = rng or par.calibration_range
+            if not math.isfinite(rng_here[1]):
+                raise ParameterError(f"free = {name!r} is not allowed without its range for experiment {sc.name!r}: "
+                                     f"give --free {name}=LOW:HIGH")
             for v in rng_here:
                 par.check(v)
         lo, hi = (float(v) for v in (rng or next(iter(experiments.values())).by_name[name].calibration_range))
@@ -311,7 +315,10 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
         tables = {}
         for c in experiments:
             spec = load_sweep({"experiment": c, "fixed": fixed[c], "points": points, "seeds": seed_count[c]})
-            tables[c] = run_sweep(spec, out / c, mapper=m, progress=progress, summary=False).table
+            tables[c] = run_sweep(spec, out / folder_of(c), mapper=m, progress=progress, summary=False).table
+            report = failure_report(tables[c], out / folder_of(c) / TABLE)
+            if report:
+                say(f"{c}: {report}")
         return tables
 
     with execution.runner() as m:
@@ -333,6 +340,13 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
              region=result.region)
     say(result.message + f" ({result.runs} runs, {result.wall_time:.0f} s; {out})")
     return result
+
+
+def folder_of(experiment: str) -> str:
+    """The folder of an experiment's runs in the calibration's folder: its name, a case file's stem."""
+    from rollingdem.experiments.case_file import is_case_file
+
+    return Path(experiment).stem if is_case_file(experiment) else experiment
 
 
 def _check_reach(targets, means, stds, box, out) -> None:
@@ -358,8 +372,9 @@ def _surrogates(tables, targets, names, lows, highs):
         ok = ok[np.isfinite(ok["_y"])]
         grp = ok.groupby(names)["_y"].agg(["mean", "var", "count"]).reset_index()
         if len(grp) < 2:
-            raise ParameterError(f"target {t.label}: fewer than two points gave a finite {t.observable}; "
-                                 f"see the runs in {t.experiment}/runs.csv")
+            report = failure_report(table, Path(folder_of(t.experiment)) / TABLE)
+            raise ParameterError(f"target {t.label}: fewer than two points gave a finite {t.observable}"
+                                 + (f"; {report}" if report else ""))
         multi = grp["count"] >= 2
         dof = float((grp.loc[multi, "count"] - 1).sum())
         pooled = float(((grp.loc[multi, "count"] - 1) * grp.loc[multi, "var"]).sum() / dof) if dof > 0 else 0.0

@@ -27,7 +27,7 @@ from rollingdem.experiments import Experiment, get_experiment
 from rollingdem.errors import ParameterError, check_output_path
 from rollingdem.analysis.intervals import confidence_interval
 
-__all__ = ["SweepSpec", "SweepResult", "load_sweep", "expand", "run_sweep", "summarize"]
+__all__ = ["SweepSpec", "SweepResult", "failure_report", "load_sweep", "expand", "run_sweep", "summarize"]
 
 TABLE = "runs.csv"
 BOOKKEEPING = ("run_id", "experiment", "status")
@@ -108,6 +108,10 @@ def load_sweep(source) -> SweepSpec:
                 lines.append(f"  {loc + ': ' if loc else ''}{e['msg'].removeprefix('Value error, ')}"
                              f"{'' if loc == '' else ' (got ' + json.dumps(e.get('input'), default=str)[:80] + ')'}")
         raise ParameterError("\n".join(lines)) from None
+    from rollingdem.experiments.case_file import is_case_file
+
+    if is_case_file(spec.experiment) and isinstance(source, (str, Path)) and not Path(spec.experiment).is_absolute():
+        spec.experiment = str(Path(source).parent / spec.experiment)  # a case file named from the sweep file
     expand(spec)  # refuse unknown parameters and bad values before anything runs
     return spec
 
@@ -243,6 +247,19 @@ def _append(path: Path, columns: list[str], row: dict) -> None:
         os.fsync(fh.fileno())
 
 
+def failure_report(table: pd.DataFrame, path: Path) -> str | None:
+    """How many runs of ``table`` failed, the first one's reason in one line and where the rest
+    are; None when none failed."""
+    failed = table[table["status"] == "failed"] if len(table) else table
+    if not len(failed):
+        return None
+    first = str(failed["error"].iloc[0]).strip().splitlines()[0] if len(failed) else ""
+    kind, _, reason = first.partition(": ")
+    reason = reason if kind.isidentifier() and reason else first
+    return (f"{len(failed)} of {len(table)} runs failed; the first: {reason}; every failure's reason and traceback "
+            f"are in {path} (column error)")
+
+
 def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = None, threads: int = 1,
               progress: bool = True, retry_failed: bool = False, mapper=None, summary: bool = True,
               echo=None, on_run=None) -> SweepResult:
@@ -316,6 +333,9 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     if echo is not None:
         echo(f"{spec.experiment}: {len(table)} runs in {path} ({result.ran} ran now in {result.wall_time:.1f} s, "
              f"{result.skipped} already there, {int((table['status'] == 'failed').sum())} failed)")
+        report = failure_report(table, path)
+        if report:
+            echo(report)
     return result
 
 

@@ -1,0 +1,228 @@
+"""A user's case file as an experiment: what ``rollingdem sweep`` and ``rollingdem calibrate`` vary
+and measure when given a case file instead of a built-in experiment.
+
+Its parameters are the numbers written in the file, each by its path: list entries by their
+``name`` where they have one, else by their index (``materials.glass.rolling_friction``,
+``stages.discharge.max_duration``, ``particles.0.count``); where the file has one material, also
+the short names of the built-in experiments (``mu``, ``mur``, ``e``, ``eta_r``, ``E``, ``nu``,
+``density``); and ``seed``, added to every seed in the file (its insertions and inflows). Its
+observables are its measurements' quantities (``NAME.QUANTITY``: the summary's mean over the
+window; a cumulative quantity's final value; a rate's least-squares slope) and, with
+``output.repose_angle``, the pile's (``repose_angle.angle``, ``repose_angle.r_squared``, ...).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from rollingdem.errors import ParameterError
+from rollingdem.experiments.registry import EXPERIMENTS, UNBOUNDED, Experiment, Parameter
+
+#: Short names of a one-material file's coefficients, as the built-in experiments name them.
+ALIASES = {"mu": "friction", "mur": "rolling_friction", "e": "restitution", "eta_r": "rolling_damping",
+           "E": "youngs_modulus", "nu": "poisson_ratio", "density": "density"}
+#: What a case file's path ends in.
+SUFFIXES = (".yaml", ".yml", ".toml")
+PILE = ("angle", "r_squared", "slice_mean", "slice_std")
+
+
+def is_case_file(name: str) -> bool:
+    return isinstance(name, str) and name.lower().endswith(SUFFIXES)
+
+
+def _key_of(entry, index: int) -> str:
+    return str(entry["name"]) if isinstance(entry, dict) and isinstance(entry.get("name"), str) else str(index)
+
+
+def numeric_leaves(data, prefix: str = "") -> dict[str, float]:
+    """Every number written in the file that stands alone (not in a vector), by its path."""
+    out = {}
+    items = (data.items() if isinstance(data, dict)
+             else ((_key_of(v, k), v) for k, v in enumerate(data)) if isinstance(data, list) else ())
+    for key, value in items:
+        path = f"{prefix}{key}"
+        if isinstance(value, bool):
+            continue
+        if isinstance(value, (int, float)) and not isinstance(data, list):
+            out[path] = value
+        elif isinstance(value, (dict, list)) and not (isinstance(value, list) and value
+                                                       and all(isinstance(v, (int, float)) for v in value)):
+            out.update(numeric_leaves(value, path + "."))
+    return out
+
+
+def set_path(data, path: str, value) -> None:
+    """Set the number at ``path`` (``numeric_leaves``'s names) in ``data``, in place."""
+    parts = path.split(".")
+    node = data
+    for depth, part in enumerate(parts):
+        last = depth == len(parts) - 1
+        if isinstance(node, list):
+            keys = [_key_of(v, k) for k, v in enumerate(node)]
+            if part not in keys:
+                raise KeyError(path)
+            k = keys.index(part)
+            if last:
+                node[k] = value
+            node = node[k]
+        elif isinstance(node, dict):
+            if part not in node:
+                raise KeyError(path)
+            if last:
+                node[part] = value
+            node = node[part]
+        else:
+            raise KeyError(path)
+
+
+class CaseExperiment(Experiment):
+    """The experiment a case file describes (see the module's docstring)."""
+
+    model_keyword = None
+
+    def __init__(self, path):
+        from rollingdem.io.casefile import load_case
+        from rollingdem.io.mapping_file import read_mapping
+
+        self.path = Path(path)
+        self.data, _ = read_mapping(self.path)
+        case = load_case(self.path)  # refuse a bad file now, with its own messages
+        self.name = str(path)
+        self.description = f"the case file {path}"
+        self.base = self.path.resolve().parent
+        leaves = numeric_leaves(self.data)
+        materials = self.data.get("materials") or []
+        self.aliases = {}
+        if len(materials) == 1:
+            m = _key_of(materials[0], 0)
+            self.aliases = {short: f"materials.{m}.{long}" for short, long in ALIASES.items()
+                            if f"materials.{m}.{long}" in leaves}
+        seeded = self._seed_paths()
+        self.stochastic = bool(seeded)
+        params = [Parameter(short, leaves[long], f"{long} (the file's one material)", calibration_range=UNBOUNDED)
+                  for short, long in self.aliases.items()]
+        params += [Parameter(p, v, f"{p} in {self.path.name}", integer=isinstance(v, int) and p not in seeded,
+                             calibration_range=UNBOUNDED) for p, v in leaves.items() if p not in seeded]
+        if seeded:
+            params.append(Parameter("seed", 0, "added to every seed in the file (insertions, inflows)", low=0,
+                                    integer=True))
+        self.parameters = tuple(params)
+        self.observables = self._observables(case)
+        self.default_observable = next(iter(self.observables), "")
+        self.targets = {o: (-math.inf, math.inf) for o in self.observables}
+
+    def _seed_paths(self) -> list[str]:
+        return [p for p in numeric_leaves(self.data) if p.split(".")[-1] == "seed"
+                and p.split(".")[0] in ("particles", "inflows")]
+
+    @staticmethod
+    def _observables(case) -> dict[str, str]:
+        from rollingdem.io.casefile import build_measurements, build_simulation
+
+        out = {}
+        for name, m in build_measurements(case, build_simulation(case)).items():
+            for q, unit in (m.QUANTITIES or {}).items():
+                out[f"{name}.{q}"] = f"{unit}, {m.describe()}"
+        if case.output.repose_angle is not None and not any(o.startswith("repose_angle.") for o in out):
+            out.update({f"repose_angle.{q}": "the pile at the end (output.repose_angle)" for q in PILE})
+        return out
+
+    def resolve(self, params: dict) -> dict:
+        """The values to run with: every parameter (defaults from the file), checked; a path or name
+        the file does not have is refused, naming the paths it has."""
+        by_name = self.by_name
+        unknown = [k for k in params if k not in by_name]
+        if unknown:
+            shown = ", ".join(list(by_name)[:12]) + (", ..." if len(by_name) > 12 else "")
+            raise ParameterError(f"parameter = {unknown[0]!r} is not allowed: {self.path.name} has no number at that "
+                                 f"path; its parameters are {shown}")
+        resolved = {p.name: p.check(params[p.name]) if p.name in params else p.default for p in self.parameters}
+        doubled = [s for s, long in self.aliases.items() if s in params and long in params]
+        if doubled:
+            raise ParameterError(f"parameter {doubled[0]!r} and {self.aliases[doubled[0]]!r} are one number: give one")
+        self.case_data(resolved)  # refuse now what the case file's own checks would refuse
+        return resolved
+
+    def case_data(self, params: dict) -> dict:
+        """The file's data with ``params`` written in, checked as a case file."""
+        from rollingdem.io.casefile import load_case
+
+        data = copy.deepcopy(self.data)
+        for name, value in params.items():
+            if name == "seed":
+                for p in self._seed_paths():
+                    set_path(data, p, int(_get(self.data, p)) + int(value))
+            elif name not in self.aliases:
+                set_path(data, name, value)
+        for short, long in self.aliases.items():  # a short name given overrides its path's default
+            if short in params and params[short] != _get(self.data, long):
+                set_path(data, long, params[short])
+        try:
+            load_case(data)
+        except ParameterError as err:
+            raise ParameterError(f"{self.path.name} with {_changed(self.data, params, self.aliases)}: "
+                                 f"{str(err).replace('case file <dict>: ', '')}") from None
+        return data
+
+    def observe(self, params: dict) -> dict:
+        """Run the case with ``params`` in a folder of its own, removed afterwards; its measurements'
+        summaries are the observables."""
+        from rollingdem.io.casefile import load_case
+        from rollingdem.io.runner import run_case
+
+        case = load_case(self.case_data(params))
+        case._base = self.base
+        case.output.snapshots = None  # a sweep keeps numbers, not pictures
+        with tempfile.TemporaryDirectory(prefix="rollingdem-case-") as folder:
+            summary = run_case(case, out=Path(folder) / "run", progress=False, echo=lambda *_: None)
+        out = {}
+        for name, s in (summary.get("measurements") or {}).items():
+            for q, entry in s.items():
+                if isinstance(entry, dict) and "final" in entry:
+                    out[f"{name}.{q}"] = entry["final"] if _cumulative(s["kind"], q) else entry["mean"]
+        pile = summary.get("repose_angle") or {}
+        for q in PILE:
+            out.setdefault(f"repose_angle.{q}", pile.get(q) if pile.get(q) is not None else math.nan)
+        return {o: out.get(o, math.nan) for o in self.observables}
+
+
+def _cumulative(kind: str, quantity: str) -> bool:
+    from rollingdem.io import measurements
+
+    for cls in vars(measurements).values():
+        if isinstance(cls, type) and getattr(cls, "kind", None) == kind:
+            return quantity in cls.CUMULATIVE
+    return False
+
+
+def _get(data, path: str) -> Any:
+    node = data
+    for part in path.split("."):
+        node = node[[_key_of(v, k) for k, v in enumerate(node)].index(part)] if isinstance(node, list) else node[part]
+    return node
+
+
+def _changed(data, params: dict, aliases: dict) -> str:
+    diff = [f"{k} = {v!r}" for k, v in params.items()
+            if k != "seed" and v != _get(data, aliases.get(k, k))]
+    return ", ".join(diff) or "its own values"
+
+
+def case_experiment(path) -> CaseExperiment:
+    """The experiment of the case file at ``path``, registered under its path (as given) so that
+    sweeps and calibrations find it by name; a file that does not exist is refused."""
+    key = str(path)
+    if key not in EXPERIMENTS:
+        if not Path(path).is_file():
+            raise ParameterError(f"experiment = {key!r} is not allowed: no such case file (a case file ends in "
+                                 f"{', '.join(SUFFIXES)}; the built-in experiments are "
+                                 f"{', '.join(n for n in EXPERIMENTS if not is_case_file(n))})")
+        EXPERIMENTS[key] = CaseExperiment(path)
+    return EXPERIMENTS[key]
+
+
+__all__ = ["ALIASES", "CaseExperiment", "case_experiment", "is_case_file", "numeric_leaves", "set_path"]

@@ -162,7 +162,14 @@ class CaseExperiment(Experiment):
             if short in params and params[short] != _get(self.data, long):
                 set_path(data, long, params[short])
         try:
-            load_case(data)
+            case = load_case(data)
+            from rollingdem.scene.materials import Material
+
+            for k, m in enumerate(case.materials):  # cheap, and where most bad values show
+                try:
+                    Material(**m.model_dump())
+                except ParameterError as err:
+                    raise ParameterError(f"materials.{k}: {err}") from None
         except ParameterError as err:
             raise ParameterError(f"{self.path.name} with {_changed(self.data, params, self.aliases)}: "
                                  f"{str(err).replace('case file <dict>: ', '')}") from None

@@ -1,0 +1,115 @@
+"""A user's case file swept and calibrated (issue 44, items 4 and 7): its numbers addressed by path
+and short name, its measurements as observables, a calibration that finds the density a measured
+mass asks for, and failed runs that say why."""
+
+import json
+import math
+
+import pytest
+from typer.testing import CliRunner
+
+from rollingdem.cli import app
+from rollingdem.errors import ParameterError
+from rollingdem.experiments import get_experiment
+from rollingdem.experiments.case_file import numeric_leaves, set_path
+
+R = 0.002  # m
+# 8 spheres listed (no seed: deterministic) resting on a floor, probed by a box around them
+CASE = f"""\
+name: beads
+dt: 1.0e-5
+materials:
+  - {{name: glass, youngs_modulus: 1.0e7, poisson_ratio: 0.3, density: 2500.0, friction: 0.5}}
+walls:
+  - {{type: plane, name: floor, material: glass}}
+particles:
+  - positions: [[0, 0, {R}], [0.01, 0, {R}], [0.02, 0, {R}], [0.03, 0, {R}], [0, 0.01, {R}], [0.01, 0.01, {R}],
+                [0.02, 0.01, {R}], [0.03, 0.01, {R}]]
+    radius: {R}
+    material: glass
+measurements:
+  - {{name: box, type: probe, region: {{type: box, lo: [-0.01, -0.01, 0], hi: [0.04, 0.02, 0.01]}}}}
+  - {{name: load, type: wall, wall: floor}}
+stages:
+  - {{name: rest, duration: 0.002}}
+output:
+  plot: false
+"""
+MASS = 8 * 4 / 3 * math.pi * R ** 3  # kg per kg/m^3 of density
+
+
+def test_paths_name_list_entries_by_name_and_leave_vectors_out():
+    data = {"materials": [{"name": "glass", "density": 2500.0}], "particles": [{"count": 3, "radius": 0.1}],
+            "walls": [{"name": "floor", "point": [0, 0, 1]}], "stages": [{"name": "fill", "duration": 1}]}
+    leaves = numeric_leaves(data)
+    assert leaves == {"materials.glass.density": 2500.0, "particles.0.count": 3, "particles.0.radius": 0.1,
+                      "stages.fill.duration": 1}
+    set_path(data, "materials.glass.density", 1000.0)
+    set_path(data, "particles.0.count", 5)
+    assert data["materials"][0]["density"] == 1000.0 and data["particles"][0]["count"] == 5
+    with pytest.raises(KeyError):
+        set_path(data, "materials.steel.density", 1.0)
+
+
+def test_a_case_files_parameters_and_observables(tmp_path):
+    case = tmp_path / "beads.yaml"
+    case.write_text(CASE)
+    exp = get_experiment(str(case), observable=True)
+    names = [p.name for p in exp.parameters]
+    assert {"mu", "density", "E", "nu", "materials.glass.density", "stages.rest.duration"} <= set(names)
+    assert "seed" not in names and not exp.stochastic  # spheres listed: nothing random
+    assert {"box.mass", "box.count", "load.fz", "load.power"} <= set(exp.observables)
+    with pytest.raises(ParameterError, match="'materials.steel.density' is not allowed: beads.yaml has no number"):
+        exp.resolve({"materials.steel.density": 1.0})
+    with pytest.raises(ParameterError, match="beads.yaml with mu = -1.0: .*friction"):
+        exp.resolve({"mu": -1.0})
+    with pytest.raises(ParameterError, match="'density' and 'materials.glass.density' are one number"):
+        exp.resolve({"density": 1.0, "materials.glass.density": 2.0})
+
+
+def test_a_sweep_of_a_case_file_measures_what_each_density_gives(tmp_path):
+    """The probe's mass is 8 (4/3) pi r^3 rho: the sweep over rho through the short name gives it
+    to round-off; the floor carries the spheres' weight (a 2 ms rest: within the 1 % their settling
+    bounce leaves)."""
+    (tmp_path / "beads.yaml").write_text(CASE)
+    (tmp_path / "sweep.yaml").write_text("experiment: beads.yaml\ngrid:\n  density: [1000.0, 3000.0]\n")
+    result = CliRunner().invoke(app, ["sweep", str(tmp_path / "sweep.yaml"), "--out", str(tmp_path / "o"),
+                                      "--workers", "1", "--no-progress"])
+    assert result.exit_code == 0, result.output
+    import pandas as pd
+
+    runs = pd.read_csv(tmp_path / "o" / "runs.csv").sort_values("density")
+    assert list(runs["box.mass"]) == pytest.approx([1000.0 * MASS, 3000.0 * MASS], rel=1e-12)
+    assert list(runs["box.count"]) == [8, 8]
+
+
+def test_calibrating_a_case_file_finds_the_density_a_measured_mass_asks_for(tmp_path):
+    """Target box.mass = 2000 kg/m^3 x 8 (4/3) pi r^3: the mass is linear in the density, so the
+    monotone interpolation between the swept points gives 2000 to round-off."""
+    case = tmp_path / "beads.yaml"
+    case.write_text(CASE)
+    target = 2000.0 * MASS
+    result = CliRunner().invoke(app, ["calibrate", str(case), "--target", f"box.mass={target!r}",
+                                      "--free", "density=500:3500", "--coarse", "4", "--rounds", "0",
+                                      "--out", str(tmp_path / "cal"), "--workers", "1", "--no-progress"])
+    assert result.exit_code == 0, result.output
+    found = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    assert found["value"] == pytest.approx(2000.0, rel=1e-9)
+
+
+def test_failed_runs_say_why_and_a_calibration_with_none_usable_exits_2(tmp_path):
+    """A stage of negative duration fails each run with the case file's own message: the sweep
+    prints the count and the first reason; a calibration whose runs all failed exits 2 with it."""
+    case = tmp_path / "beads.yaml"
+    case.write_text(CASE)
+    result = CliRunner().invoke(app, ["calibrate", str(case), "--target", "box.mass=0.001",
+                                      "--free", "stages.rest.duration=-0.002:-0.001", "--coarse", "3", "--rounds", "0",
+                                      "--out", str(tmp_path / "cal"), "--workers", "1", "--no-progress"])
+    assert result.exit_code == 2, result.output
+    line = [x for x in result.output.splitlines() if x.startswith("error:")]
+    assert len(line) == 1
+    assert "calibration needs at least two points with a finite box.mass, and has 0: 3 of 3 runs failed" in line[0]
+    assert "duration = -0.002 is not allowed" in line[0] and "runs.csv (column error)" in line[0]
+    bad = CliRunner().invoke(app, ["calibrate", str(case), "--target", "box.weight=1", "--free", "density=1:2",
+                                   "--out", str(tmp_path / "c2"), "--no-progress"])
+    assert bad.exit_code == 2 and "beads.yaml measures box.count" in bad.output

@@ -418,8 +418,15 @@ class ReposeOutputSpec(_Strict):
     exclude_toe: Number = 0.15
 
 
+class ReportSpec(_Strict):
+    """``report.html``: pictures of the scene at each stage's start and end and at ``pictures``
+    (times, s)."""
+    pictures: list[Number] = []
+
+
 class OutputSpec(_Strict):
     directory: Optional[str] = None
+    report: Optional[ReportSpec] = ReportSpec()
     repose_angle: Optional[ReposeOutputSpec] = None
     time_series: Optional[SeriesSpec] = SeriesSpec()
     snapshots: Optional[IntervalSpec] = None

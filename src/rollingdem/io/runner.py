@@ -134,6 +134,10 @@ class _Run:
         if out.snapshots is not None:
             observers.append(VTKSnapshots(outdir / "snapshots", out.snapshots.interval))
         observers += [m.write_to(outdir / "measurements") for m in self.measurements.values()]
+        if out.report is not None:
+            from rollingdem.io.report import ScenePictures
+
+            observers.append(ScenePictures(out.report.pictures))
         longest = sum(stage_duration(s) for s in case.stages)
         interval = out.checkpoint.interval if out.checkpoint is not None else (
             max(longest / CHECKPOINTS_PER_RUN, sim.dt) if longest > 0 else 1.0)
@@ -235,6 +239,15 @@ class _Run:
                             "status": "ok" if failure is None else f"failed: {failure or type(failure).__name__}"})
             sim.checkpoint(self.outdir / "final.npz")
             (self.outdir / "summary.json").write_text(json.dumps(summary, indent=2))
+            if self.case.output.report is not None:
+                try:
+                    from rollingdem.io.report import ScenePictures, write_report
+
+                    pictures = next((o for o in st.observers if isinstance(o, ScenePictures)), None)
+                    write_report(self.outdir, summary, header_lines(self.case, sim), self.measurements, pictures,
+                                 self.case.name)
+                except Exception as err:  # noqa: BLE001 - a failed report must not hide the run's own result
+                    echo(f"  (report failed: {type(err).__name__}: {err})")
             if self.case.output.plot and (self.outdir / "series.csv").exists():
                 try:
                     plot_kinetic_energy(self.outdir / "series.csv", self.outdir / "kinetic_energy.png",
@@ -325,11 +338,17 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
     except OSError as err:
         raise ParameterError(f"output folder {outdir} cannot be written: {err.strerror or err}") from None
     echo(f"rollingdem: case {case.name!r}, writing to {outdir}")
-    fixed = int(sim.fixed.sum())
-    echo(f"  {sim.n_particles - fixed} free particles" + (f" and {fixed} fixed" if fixed else "")
-         + f", {len(sim.walls)} wall{'s' if len(sim.walls) != 1 else ''}, dt = {sim.dt:.3g} s")
-    echo(f"  contact: {sim.contact.describe()}")
+    for line in header_lines(case, sim):
+        echo(f"  {line}")
     return _Run(case, sim, outdir, progress, echo).go()
+
+
+def header_lines(case: CaseSpec, sim) -> list[str]:
+    """What a run is, in words: particles by kind, walls, dt, the contact law."""
+    fixed = int(sim.fixed.sum())
+    walls = ", ".join(w.name or type(w).__name__.lower() for w in sim.walls) or "none"
+    return [f"{sim.n_particles - fixed} free particles" + (f" and {fixed} fixed" if fixed else "")
+            + f"; walls: {walls}; dt = {sim.dt:.3g} s", f"contact: {sim.contact.describe()}"]
 
 
 def resume_case(outdir, progress: bool = True, echo=print) -> dict:

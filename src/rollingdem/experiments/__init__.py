@@ -19,6 +19,7 @@ from rollingdem.experiments import contact_laws  # noqa: F401
 from rollingdem.experiments import repose  # noqa: F401
 from rollingdem.experiments import drum  # noqa: F401
 from rollingdem.experiments import silo  # noqa: F401
+from rollingdem.experiments import case_file  # noqa: F401  (get_experiment takes a case file's path)
 from rollingdem.experiments.registry import EXPERIMENTS, Experiment, Parameter, get_experiment
 from rollingdem.experiments.results import ValidationResult, Check
 from rollingdem.experiments.validation import inclined_wall, rolling_flat, rolling_slope

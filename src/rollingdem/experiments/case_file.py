@@ -20,13 +20,13 @@ from pathlib import Path
 from typing import Any
 
 from rollingdem.errors import ParameterError
-from rollingdem.experiments.registry import EXPERIMENTS, UNBOUNDED, Experiment, Parameter
+from rollingdem.experiments.registry import (CASE_FILE_SUFFIXES, EXPERIMENTS, FILE_EXPERIMENT, UNBOUNDED, Experiment,
+                                             Parameter)
 
 #: Short names of a one-material file's coefficients, as the built-in experiments name them.
 ALIASES = {"mu": "friction", "mur": "rolling_friction", "e": "restitution", "eta_r": "rolling_damping",
            "E": "youngs_modulus", "nu": "poisson_ratio", "density": "density"}
-#: What a case file's path ends in.
-SUFFIXES = (".yaml", ".yml", ".toml")
+SUFFIXES = CASE_FILE_SUFFIXES
 PILE = ("angle", "r_squared", "slice_mean", "slice_std")
 
 
@@ -231,5 +231,7 @@ def case_experiment(path) -> CaseExperiment:
         EXPERIMENTS[key] = CaseExperiment(path)
     return EXPERIMENTS[key]
 
+
+FILE_EXPERIMENT[:] = [case_experiment]
 
 __all__ = ["ALIASES", "CaseExperiment", "case_experiment", "is_case_file", "numeric_leaves", "set_path"]

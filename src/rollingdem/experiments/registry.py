@@ -20,6 +20,11 @@ from rollingdem.errors import ParameterError, check_choice, check_finite
 EXPERIMENTS: dict[str, "Experiment"] = {}
 """Every experiment by name, in the order they were defined."""
 
+CASE_FILE_SUFFIXES = (".yaml", ".yml", ".toml")
+FILE_EXPERIMENT: list = []
+"""The function that makes the experiment of a case file's path (``case_file.case_experiment``,
+which puts itself here when imported: this module does not import the one built on it)."""
+
 
 @dataclass(frozen=True)
 class Parameter:
@@ -152,11 +157,10 @@ def get_experiment(name: str, observable: bool = False, what: str = "experiment"
     with ``observable``: one that ``observe`` runs at a point, as a sweep or calibration needs), or
     ParameterError naming it as ``what`` (the key or option the
     user gave it with) and listing the allowed ones."""
-    from rollingdem.experiments.case_file import case_experiment, is_case_file
-
-    if is_case_file(name):
-        return case_experiment(name)
-    allowed = [n for n, e in EXPERIMENTS.items() if (e.observable or not observable) and not is_case_file(n)]
+    if isinstance(name, str) and name.lower().endswith(CASE_FILE_SUFFIXES) and FILE_EXPERIMENT:
+        return FILE_EXPERIMENT[0](name)
+    allowed = [n for n, e in EXPERIMENTS.items()
+               if (e.observable or not observable) and not n.lower().endswith(CASE_FILE_SUFFIXES)]
     if name not in allowed:
         why = "has no parameters to vary" if name in EXPERIMENTS else "is not known"
         raise ParameterError(f"{what} = {name!r} {why}: allowed are {', '.join(allowed)}")

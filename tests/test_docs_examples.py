@@ -164,3 +164,47 @@ def test_the_insertion_snippet_of_the_studies_doc_fills_its_cylinder():
     pairs = cKDTree(x).query_pairs(0.01, output_type="ndarray")
     assert (np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1) >= a[pairs[:, 0]] + a[pairs[:, 1]] - 1e-12).all()
     np.testing.assert_array_equal(ends[0], ends[1])
+
+
+def test_the_measurements_doc_python_example_settles_and_balances_its_mass(monkeypatch, capsys):
+    """docs/measurements.md, "Measurements": the bed settles before its 1 s (the run says so), and
+    the mass through the plane at 1 cm equals the mass below it now less the mass below it at the
+    start to round-off (sums of 300 masses of 4.5e-3 kg in all: 300 x 2.2e-16 x 4.5e-3 = 3e-16 kg), the
+    probe's last mass being the mass below the plane."""
+    code = python_block(ROOT / "docs" / "measurements.md", "In Python a measurement is an observer")
+    scope = {}
+    exec(compile(code, "measurements.md", "exec"), scope)
+    sim, down, bed = scope["sim"], scope["down"], scope["bed"]
+    assert scope["ended"].startswith("settled") and sim.time < 1.0
+    below = float(sim.masses[sim.positions[:, 2] < 0.01].sum())
+    import rollingdem as rd
+
+    fresh = rd.Simulation(gravity=(0, 0, -9.81), periodic={"x": (0, 0.03), "y": (0, 0.03)})
+    fresh.add_material(rd.Material("m", youngs_modulus=40e6, poisson_ratio=0.49, density=1056, friction=0.3,
+                                   rolling_friction=0.1, restitution=0.5))
+    fresh.insert(rd.BoxRegion((0, 0, 0), (0.03, 0.03, 0.04)), 300, 0.0015, "m", seed=1)
+    below0 = float(fresh.masses[fresh.positions[:, 2] < 0.01].sum())
+    assert abs(down.mass - (below - below0)) < 1e-15
+    assert bed.series()["mass"].iloc[-1] == below
+    assert "down (mass flow" in capsys.readouterr().out
+
+
+def test_the_measurements_doc_case_file_snippet_is_a_valid_case(tmp_path):
+    """docs/measurements.md, "Stage conditions": the YAML snippet, completed with a material, a
+    silo, a gate and an outlet, passes ``rollingdem check``."""
+    import yaml
+
+    from rollingdem.io.casefile import check_case, load_case
+
+    text = (ROOT / "docs" / "measurements.md").read_text()
+    snippet = text[text.index("is in them."):].split("```yaml\n", 1)[1].split("```", 1)[0]
+    data = yaml.safe_load(snippet)
+    data.update({"materials": [{"name": "m", "youngs_modulus": 5e6, "poisson_ratio": 0.3, "density": 2500.0}],
+                 "walls": [{"type": "mesh", "name": "silo", "material": "m", "shape": "silo",
+                            "size": {"radius": 0.02, "height": 0.08, "orifice_radius": 0.008}},
+                           {"type": "plane", "name": "gate", "material": "m", "point": [0, 0, -0.004]}],
+                 "particles": [{"insert": {"type": "cylinder", "radius": 0.0175, "z_min": 0.0, "z_max": 0.075},
+                                "count": 100, "radius": 0.0015, "material": "m"}],
+                 "outlets": [{"name": "bin", "region": {"type": "box", "lo": [-1, -1, -1], "hi": [1, 1, -0.05]}}]})
+    sim = check_case(load_case(data))
+    assert sim.n_particles == 100

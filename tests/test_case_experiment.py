@@ -113,3 +113,22 @@ def test_failed_runs_say_why_and_a_calibration_with_none_usable_exits_2(tmp_path
     bad = CliRunner().invoke(app, ["calibrate", str(case), "--target", "box.weight=1", "--free", "density=1:2",
                                    "--out", str(tmp_path / "c2"), "--no-progress"])
     assert bad.exit_code == 2 and "beads.yaml measures box.count" in bad.output
+
+
+def test_the_shipped_case_files_are_listed_shown_and_valid(tmp_path):
+    """``rollingdem experiments list`` names each shipped case file and built-in experiment; ``show``
+    prints a file that, saved, ``rollingdem check`` accepts; an unknown name is refused."""
+    from rollingdem.experiments.case_file import shipped_cases
+
+    listed = CliRunner().invoke(app, ["experiments", "list"])
+    assert listed.exit_code == 0
+    for name in (*shipped_cases(), "rotating-drum", "silo-discharge"):
+        assert f"  {name} " in listed.output
+    for name, path in shipped_cases().items():
+        shown = CliRunner().invoke(app, ["experiments", "show", name])
+        assert shown.exit_code == 0 and shown.output == path.read_text()
+        (tmp_path / f"{name}.yaml").write_text(shown.output)
+        checked = CliRunner().invoke(app, ["check", str(tmp_path / f"{name}.yaml")])
+        assert checked.exit_code == 0, checked.output
+    bad = CliRunner().invoke(app, ["experiments", "show", "angle-of-repose"])
+    assert bad.exit_code == 2 and "the case files shipped are pile, drum, hopper" in bad.output

@@ -1,4 +1,4 @@
-"""Command line: ``rollingdem run | validate | bench | sweep | calibrate | check``."""
+"""Command line: ``rollingdem run | validate | bench | sweep | calibrate | check | experiments``."""
 
 from __future__ import annotations
 
@@ -419,6 +419,39 @@ def check(case: Path = typer.Argument(..., help="Case file to validate.")):
         _refuse(err)
     typer.echo(f"{case}: valid; {sim.n_particles} particles, {len(sim.walls)} walls, {len(spec.stages)} stages, "
                f"dt = {sim.dt:.3g} s")
+
+
+experiments_app = typer.Typer(help="The experiments: case files shipped with rollingdem to start from, and the "
+                                   "built-in experiments of validate, sweep and calibrate.")
+app.add_typer(experiments_app, name="experiments")
+
+
+@experiments_app.command("list")
+def experiments_list():
+    """List the shipped case files and the built-in experiments."""
+    from rollingdem.experiments import EXPERIMENTS
+    from rollingdem.experiments.case_file import is_case_file, shipped_cases
+
+    typer.echo("case files (rollingdem experiments show NAME > my.yaml, then rollingdem run my.yaml):")
+    for name, path in shipped_cases().items():
+        first = next((line.lstrip("# ").strip() for line in path.read_text().splitlines() if line.startswith("#")), "")
+        typer.echo(f"  {name:<18} {first}")
+    typer.echo("built-in experiments (rollingdem validate / sweep / calibrate --experiment NAME):")
+    for name, e in EXPERIMENTS.items():
+        if not is_case_file(name):
+            typer.echo(f"  {name:<18} {e.description.splitlines()[0] if e.description else ''}")
+
+
+@experiments_app.command("show")
+def experiments_show(name: str = typer.Argument(..., help="A shipped case file's name (rollingdem experiments list).")):
+    """Print a shipped case file, to save and edit: rollingdem experiments show drum > my_drum.yaml."""
+    from rollingdem.experiments.case_file import shipped_cases
+
+    cases = shipped_cases()
+    if name not in cases:
+        _refuse(f"experiment = {name!r} is not allowed: the case files shipped are {', '.join(cases)} (a built-in "
+                "experiment is code, not a file: rollingdem experiments list)")
+    typer.echo(cases[name].read_text(), nl=False)
 
 
 def main():

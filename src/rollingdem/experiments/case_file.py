@@ -232,6 +232,12 @@ def case_experiment(path) -> CaseExperiment:
     return EXPERIMENTS[key]
 
 
+def shipped_cases() -> dict[str, Path]:
+    """The case files shipped with the package, by name: the default pile and those in ``cases/``."""
+    here = Path(__file__).parent
+    return {"pile": here / "default.yaml", **{p.stem: p for p in sorted((here / "cases").glob("*.yaml"))}}
+
+
 FILE_EXPERIMENT[:] = [case_experiment]
 
-__all__ = ["ALIASES", "CaseExperiment", "case_experiment", "is_case_file", "numeric_leaves", "set_path"]
+__all__ = ["ALIASES", "CaseExperiment", "case_experiment", "is_case_file", "shipped_cases", "numeric_leaves", "set_path"]

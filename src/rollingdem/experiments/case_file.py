@@ -113,6 +113,8 @@ class CaseExperiment(Experiment):
         self.parameters = tuple(params)
         self.observables = self._observables(case)
         self.default_observable = next(iter(self.observables), "")
+        if len(case.stages) > 1:
+            self.observables["prepared.seconds_saved"] = "s, wall-clock time a prepared bed saved (sweeps)"
         self.targets = {o: (-math.inf, math.inf) for o in self.observables}
 
     def _seed_paths(self) -> list[str]:
@@ -175,17 +177,47 @@ class CaseExperiment(Experiment):
                                  f"{str(err).replace('case file <dict>: ', '')}") from None
         return data
 
+    prepared = None  # the folder of the stage ends that runs share (prepare_in)
+
+    def prepare_in(self, folder) -> None:
+        """Share the runs' preparation through ``folder``: a run whose scene and first stages equal
+        an earlier run's starts from that run's state at their end (``rollingdem.io.runner.run_prepared``)."""
+        self.prepared = Path(folder)
+
+    def stage_keys(self, data: dict) -> list[str]:
+        """What decides the state at the end of each stage but the last: the file's data without
+        the later stages (and without what only reports), hashed."""
+        import hashlib
+        import json
+
+        from rollingdem.scene.simulation import __version__
+
+        keys = []
+        for k in range(1, len(data.get("stages") or [])):
+            head = {key: v for key, v in data.items() if key not in ("stages", "name")}
+            head["stages"] = data["stages"][:k]
+            text = json.dumps({"version": __version__, "case": head}, sort_keys=True, default=str)
+            keys.append(hashlib.sha1(text.encode()).hexdigest()[:16])
+        return keys
+
     def observe(self, params: dict) -> dict:
         """Run the case with ``params`` in a folder of its own, removed afterwards; its measurements'
-        summaries are the observables."""
+        summaries are the observables. With ``prepare_in``, from the latest stage end it shares
+        with an earlier run (``prepared.seconds_saved``: the wall-clock seconds that saved)."""
         from rollingdem.io.casefile import load_case
-        from rollingdem.io.runner import run_case
+        from rollingdem.io.runner import run_case, run_prepared
 
-        case = load_case(self.case_data(params))
+        data = self.case_data(params)
+        data.setdefault("output", {})["snapshots"] = None  # a sweep keeps numbers, not pictures
+        data["output"]["report"] = None
+        case = load_case(data)
         case._base = self.base
-        case.output.snapshots = None  # a sweep keeps numbers, not pictures
         with tempfile.TemporaryDirectory(prefix="rollingdem-case-") as folder:
-            summary = run_case(case, out=Path(folder) / "run", progress=False, echo=lambda *_: None)
+            if self.prepared is not None and len(case.stages) > 1:
+                summary = run_prepared(case, Path(folder) / "run", self.prepared, self.stage_keys(data),
+                                       echo=lambda *_: None)
+            else:
+                summary = run_case(case, out=Path(folder) / "run", progress=False, echo=lambda *_: None)
         out = {}
         for name, s in (summary.get("measurements") or {}).items():
             for q, entry in s.items():
@@ -194,6 +226,7 @@ class CaseExperiment(Experiment):
         pile = summary.get("repose_angle") or {}
         for q in PILE:
             out.setdefault(f"repose_angle.{q}", pile.get(q) if pile.get(q) is not None else math.nan)
+        out["prepared.seconds_saved"] = (summary.get("prepared") or {}).get("seconds_saved", 0.0)
         return {o: out.get(o, math.nan) for o in self.observables}
 
 

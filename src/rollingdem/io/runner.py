@@ -148,7 +148,9 @@ class _Run:
                                        "stages": []})
 
     @classmethod
-    def resumed(cls, outdir: Path, progress: bool, echo) -> "_Run":
+    def resumed(cls, outdir: Path, progress: bool, echo, case: CaseSpec | None = None) -> "_Run":
+        """The run in ``outdir`` from its last checkpoint; with ``case``, a run of that case that
+        takes over a prepared run's folder at a stage's end (``run_prepared``)."""
         from rollingdem.scene.simulation import Simulation
 
         folder = outdir / "checkpoints"
@@ -162,6 +164,9 @@ class _Run:
                                  "ok); nothing is left to run")
         with open(folder / RUN_STATE, "rb") as fh:
             state: RunState = pickle.load(fh)
+        if case is not None:
+            state.case, state.base = case, str(Path(case.base_directory).resolve())
+            _relocate(state, outdir)
         state.case._base = Path(state.base)
         sim = Simulation.restore(folder / RUN_CHECKPOINT, backend=state.case.backend)
         if sim.step != state.step:
@@ -179,6 +184,8 @@ class _Run:
         return run
 
     # --- checkpoints -------------------------------------------------------------------------------
+    on_stage_end = None  # called as on_stage_end(run) after each stage's checkpoint (run_prepared's cache)
+
     def write_checkpoint(self, sim) -> None:
         """The simulation first, then the run state naming its step: a kill between the two leaves
         a pair that ``resumed`` refuses rather than one that continues wrongly."""
@@ -219,6 +226,8 @@ class _Run:
                                           "particle_steps_per_second": sim.n_particles * steps / wall if wall else None})
                 st.stage, st.begun = st.stage + 1, False
                 self.write_checkpoint(sim)
+                if self.on_stage_end is not None and st.stage < len(self.case.stages):
+                    self.on_stage_end(self)
             if self.measurements:
                 summary["measurements"] = {name: m.summary() for name, m in self.measurements.items()}
                 for m in self.measurements.values():
@@ -282,6 +291,20 @@ class _Run:
             self.echo(f"  stage {stage.name!r}: {made} bonds")
 
 
+def _relocate(state: RunState, outdir: Path) -> None:
+    """Point the outputs of a run state copied from another folder at ``outdir``."""
+    old = Path(state.summary.get("output", outdir))
+    for ob in state.observers:
+        for attr in ("path", "directory"):
+            value = getattr(ob, attr, None)
+            if isinstance(value, Path):
+                try:
+                    setattr(ob, attr, outdir / value.relative_to(old))
+                except ValueError:
+                    pass
+    state.summary["output"] = str(outdir)
+
+
 def _cut_outputs(outdir: Path, state: RunState) -> None:
     """Cut what the killed run wrote after its checkpoint: CSV rows of later steps, later snapshot
     files; the snapshots' collections are written again from what the checkpoint holds."""
@@ -341,6 +364,47 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
     for line in header_lines(case, sim):
         echo(f"  {line}")
     return _Run(case, sim, outdir, progress, echo).go()
+
+
+def run_prepared(case: CaseSpec, out: Path, cache: Path, keys: list[str], echo=print) -> dict:
+    """``run_case`` into ``out``, its preparation shared through ``cache``: ``keys[k]`` names the
+    run's state at the end of its stage k (what decides it: the scene and the stages up to k). The
+    latest stage end already in ``cache`` is copied into ``out`` and the run goes on from there
+    (bit for bit as from scratch: ``resume_case``); each stage end not yet there is copied into it.
+    ``summary["prepared"]`` names the stage it started after (None: from scratch) and the
+    wall-clock seconds that saved."""
+    out, cache = Path(out), Path(cache)
+    start = next((k for k in range(len(keys) - 1, -1, -1) if (cache / keys[k] / "checkpoints" / RUN_STATE).exists()),
+                 None)
+
+    def keep(run: "_Run") -> None:
+        k = run.state.stage - 1
+        if k >= len(keys) or (cache / keys[k]).exists():
+            return
+        cache.mkdir(parents=True, exist_ok=True)
+        tmp = cache / f".{keys[k]}.{time.time_ns()}"
+        shutil.copytree(run.outdir, tmp, ignore=shutil.ignore_patterns("final.npz", "summary.json", "report*"))
+        try:
+            tmp.rename(cache / keys[k])
+        except OSError:  # another worker kept it first
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    if start is None:
+        sim = check_case(case)
+        out.mkdir(parents=True, exist_ok=False)
+        run = _Run(case, sim, out, False, echo)
+        run.on_stage_end = keep
+        summary = run.go()
+        summary["prepared"] = None
+        return summary
+    shutil.copytree(cache / keys[start], out)
+    with open(out / "checkpoints" / RUN_STATE, "rb") as fh:
+        saved = pickle.load(fh).seconds
+    run = _Run.resumed(out, False, echo, case=case)
+    run.on_stage_end = keep
+    summary = run.go()
+    summary["prepared"] = {"after_stage": case.stages[start].name, "seconds_saved": saved}
+    return summary
 
 
 def header_lines(case: CaseSpec, sim) -> list[str]:

@@ -286,6 +286,8 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
         table.to_csv(path, index=False, columns=columns)
     (out / "sweep.json").write_text(json.dumps(spec.model_dump(), indent=2))
     runs = expand(spec)
+    if hasattr(experiment, "prepare_in"):  # a case file: runs that share their first stages share them
+        experiment.prepare_in(out / "prepared")
     ids = [run_id(spec.experiment, p) for p in runs]
     done = set(table["run_id"])
     todo = [(i, p) for i, p in zip(ids, runs) if i not in done]
@@ -336,6 +338,11 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
         report = failure_report(table, path)
         if report:
             echo(report)
+        saved = pd.to_numeric(table.get("prepared.seconds_saved", pd.Series(dtype=float)), errors="coerce")
+        if (saved > 0).any():
+            total = pd.to_numeric(table["wall_time_s"], errors="coerce").sum()
+            echo(f"{int((saved > 0).sum())} of {len(table)} runs started from a bed an earlier run prepared "
+                 f"({out / 'prepared'}): {saved.sum():.0f} s saved, the runs took {total:.0f} s")
     return result
 
 

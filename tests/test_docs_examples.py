@@ -208,3 +208,23 @@ def test_the_measurements_doc_case_file_snippet_is_a_valid_case(tmp_path):
                  "outlets": [{"name": "bin", "region": {"type": "box", "lo": [-1, -1, -1], "hi": [1, 1, -0.05]}}]})
     sim = check_case(load_case(data))
     assert sim.n_particles == 100
+
+
+def test_the_readme_measurements_snippet_completes_the_shipped_hopper(tmp_path):
+    """README, "Case files": the measurements-and-stages snippet, put into the shipped hopper in
+    place of its own, passes ``rollingdem check`` (its sensors lie in the scene, its stages' limits
+    are given)."""
+    import yaml
+
+    from rollingdem.experiments.case_file import shipped_cases
+    from rollingdem.io.casefile import check_case, load_case
+
+    text = (ROOT / "README.md").read_text()
+    snippet = yaml.safe_load(text[text.index("Measurements and stage conditions"):].split("```yaml\n", 1)[1]
+                             .split("```", 1)[0])
+    from rollingdem.io.mapping_file import read_mapping
+
+    data = read_mapping(shipped_cases()["hopper"])[0]
+    data.update(snippet)
+    sim = check_case(load_case(data))
+    assert sim.n_particles == 4000

@@ -242,6 +242,8 @@ class _Run:
             failure = err
             raise
         finally:
+            if self.measurements and "measurements" not in summary:  # a failed run's, up to the failure
+                summary["measurements"] = {name: m.summary() for name, m in self.measurements.items()}
             summary.update({"time": sim.time, "steps": sim.step, "wall_seconds": time.perf_counter() - self.tic,
                             "kinetic_energy": sum(sim.kinetic_energy()),
                             "dissipated": sim.dissipated_energy() if sim.track_energy else None,

@@ -244,7 +244,8 @@ class _Run:
         finally:
             if self.measurements and "measurements" not in summary:  # a failed run's, up to the failure
                 summary["measurements"] = {name: m.summary() for name, m in self.measurements.items()}
-            summary.update({"time": sim.time, "steps": sim.step, "wall_seconds": time.perf_counter() - self.tic,
+            summary.update({"time": sim.time, "steps": sim.step, "particles_left": sim.n_particles,
+                            "wall_seconds": time.perf_counter() - self.tic,
                             "kinetic_energy": sum(sim.kinetic_energy()),
                             "dissipated": sim.dissipated_energy() if sim.track_energy else None,
                             "status": "ok" if failure is None else f"failed: {failure or type(failure).__name__}"})

@@ -235,8 +235,8 @@ def test_the_hopper_example_reads_its_stl_in_mm_and_drains_into_its_bin(tmp_path
     in mm is read at scale 0.001 (its rim at 30 mm), the hopper drains until the flow stops and
     what is left on its flat floor settles, every sphere that crossed the disk under the orifice is
     in the bin (none is in flight when the bed has settled; this bed, two diameters deep, keeps most
-    of its spheres on the floor), and the probe saw the packed bed at a
-    solid fraction of a random packing (0.5 to 0.66 over the orifice)."""
+    of its spheres on the floor), and the probe over the orifice saw the bed before the gate opened
+    and none of it once the flow stopped (what is left lies on the floor around the orifice)."""
     import json
     import shutil
 
@@ -257,8 +257,8 @@ def test_the_hopper_example_reads_its_stl_in_mm_and_drains_into_its_bin(tmp_path
     m = summary["measurements"]
     out = m["bin"]["count"]["final"]
     assert m["discharge"]["count"]["final"] == out and out + summary["particles_left"] == 400 and out > 50
-    assert 0.5 < m["bed"]["solid_fraction"]["mean"] < 0.66
+    assert m["bed"]["count"]["mean"] > 10 and m["bed"]["count"]["final"] < m["bed"]["count"]["mean"]
     from rollingdem.scene.mesh import TriangleMesh
 
     rim = TriangleMesh.from_file(tmp_path / "hopper_mm.stl", scale=0.001).vertices
-    assert abs(np.hypot(rim[:, 0], rim[:, 1]).max() - 0.03) < 1e-12
+    assert abs(np.hypot(rim[:, 0], rim[:, 1]).max() - 0.03) < 0.03 * 6e-8  # a binary STL holds float32

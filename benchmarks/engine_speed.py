@@ -15,7 +15,7 @@ sim.run(steps=2000)   # contacts form under gravity
 t0=time.perf_counter(); sim.run(steps=3000); t=time.perf_counter()-t0
 print(f"bed20k threads={threads} N={sim.n_particles} contacts/particle={sim.number_of_contacts()/sim.n_particles:.2f} "
       f"{sim.n_particles*3000/t/1e6:.2f} M particle-steps/s  (first call incl. compile/load {t_first:.1f}s)")
-# default case collapse stage
+# the default case, its tube removed at once after 0.6 s of settling
 from rollingdem.io.casefile import load_case, build_simulation, default_case_path
 spec = load_case(default_case_path()); sim = build_simulation(spec)
 sim.run(0.6)

@@ -1,6 +1,6 @@
 """Issue 27's acceptance figures: the tube the analytic cylinder and an open mesh tube of 96 flat
 sides, for several seeds, each seed's pair run in turn: the built-in default case's settled column
-height (1,000 spheres settle 0.6 s in the tube on a plate; mean top of the highest 50 spheres), and
+height (its spheres settle 0.6 s in the tube on a plate; mean top of the highest 50 spheres), and
 the 1,000-sphere pile of the seed report's case 3 (``cases.repose.pile_run``: the column 1 diameter
 high, the tube removed, the angle by rollingdem.analysis.repose.repose_angle).
 
@@ -21,7 +21,8 @@ def run(seed: int, segments):
     data["particles"][0]["seed"] = seed
     if segments is not None:
         data["walls"][1] = {"type": "mesh", "name": "tube", "material": "table1", "shape": "drum",
-                            "size": {"radius": 0.04, "length": 1.3, "segments": segments, "caps": False}}
+                            "size": {"radius": data["walls"][1]["radius"], "length": 1.3, "segments": segments,
+                                     "caps": False}}
     sim = build_simulation(load_case(data))
     sim.run(0.6)
     height = float(np.sort(sim.positions[:, 2] + sim.radii)[-50:].mean())

@@ -411,8 +411,8 @@ def test_a_case_file_refuses_a_broken_mesh_file_naming_it(tmp_path, problem, ver
 
 # --- acceptance runs (slow: their figures are in issue 27's closing note) ------------------------
 def default_case_with_a_mesh_tube(segments):
-    """The built-in default case (2,000 spheres settle in a tube on a rough base, the tube goes,
-    the column collapses), its tube the analytic cylinder (``segments`` None) or an open mesh tube of
+    """The built-in default case (4,000 spheres settle in a tube on a rough base, the tube is lifted
+    off the pile), its tube the analytic cylinder (``segments`` None) or an open mesh tube of
     ``segments`` flat sides through the cylinder's radius."""
     from rollingdem.io.casefile import default_case_path, load_case
     from rollingdem.io.mapping_file import read_mapping

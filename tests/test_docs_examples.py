@@ -271,3 +271,31 @@ def test_the_hopper_example_reads_its_stl_in_mm_and_drains_into_its_bin(tmp_path
 
     rim = TriangleMesh.from_file(tmp_path / "hopper_mm.stl", scale=0.001).vertices
     assert abs(np.hypot(rim[:, 0], rim[:, 1]).max() - 0.03) < 0.03 * 6e-8  # a binary STL holds float32
+
+
+def test_the_readme_case_file_settles_its_pile_and_prints_its_angle(tmp_path):
+    """README, "Case files": the pile of 1,500 spheres at a third of them (500, the tube and the
+    base scaled as in the Python example's test, 4 slices): each waiting stage ends settled, and the
+    run prints the pile's angle and writes pile.png (a pile a few layers high: 10 to 45 degrees)."""
+    import json
+
+    import yaml
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+
+    text = (ROOT / "README.md").read_text()
+    block = text[text.index("## Case files"):].split("```yaml\n", 1)[1].split("```", 1)[0]
+    block = scaled(block, {"count: 1500": "count: 500", "radius: 0.06, extent": "radius: 0.045, extent",
+                           "{type: cylinder, radius: 0.06, z_min": "{type: cylinder, radius: 0.045, z_min",
+                           "[[-0.2, 0.2], [-0.2, 0.2]]": "[[-0.15, 0.15], [-0.15, 0.15]]",
+                           "duration: 2.0}": "duration: 1.5}", "n_slices: 8": "n_slices: 4"})
+    assert yaml.safe_load(block)["name"] == "my-pile"
+    (tmp_path / "my-pile.yaml").write_text(block)
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "my-pile.yaml"), "--out", str(tmp_path / "o"),
+                                      "--no-progress"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert [s["ended"][:7] for s in summary["stages"]] == ["settled", "duratio", "settled"]
+    assert 10.0 < summary["repose_angle"]["angle"] < 45.0 and "repose angle:" in result.output
+    assert (tmp_path / "o" / "pile.png").exists()

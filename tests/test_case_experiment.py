@@ -167,3 +167,39 @@ def test_runs_that_share_their_first_stage_share_it_and_end_as_from_scratch(tmp_
         for name, value in fresh.items():
             if name != "prepared.seconds_saved":
                 assert value == row[name] or (math.isnan(value) and math.isnan(row[name])), name
+
+
+def test_a_wall_driven_in_rpm_turns_at_two_pi_rpm_over_60_radians_a_second(tmp_path):
+    """A drum's motion given as rpm: 30 rpm is pi rad/s about its axis, for the mesh drum and for a
+    plane cap turning with it (a plane turns about its own point: it takes no rotation point)."""
+    import rollingdem as rd
+
+    (tmp_path / "drum.yaml").write_text(f"""\
+name: rpm
+dt: 1.0e-5
+gravity: [0, -9.81, 0]
+materials:
+  - {{name: glass, youngs_modulus: 1.0e7, poisson_ratio: 0.3, density: 2500.0, friction: 0.5}}
+walls:
+  - {{type: mesh, name: drum, material: glass, shape: drum, size: {{radius: 0.05, length: 0.02, caps: false}}}}
+  - {{type: plane, name: cap, material: glass, point: [0, 0, 0], normal: [0, 0, 1]}}
+particles:
+  - {{positions: [[0, -0.04, 0.01]], radius: {R}, material: glass}}
+stages:
+  - name: turn
+    duration: 0.0001
+    wall_motion:
+      - {{wall: drum, rotate: {{axis: [0, 0, 1], point: [0, 0, 0], rpm: 30}}}}
+      - {{wall: cap, rotate: {{axis: [0, 0, 1], rpm: 30}}}}
+output: {{plot: false, report: null}}
+""")
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "drum.yaml"), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    walls = {w.name: w for w in rd.Simulation.restore(tmp_path / "o" / "final.npz").walls}
+    for name in ("drum", "cap"):
+        assert walls[name].angular_velocity == pytest.approx((0.0, 0.0, math.pi), abs=1e-12), name
+    bad = (tmp_path / "drum.yaml").read_text().replace("{axis: [0, 0, 1], rpm: 30}", "{axis: [0, 0, 1], rpm: 30, "
+                                                                                     "point: [0, 0, 0]}")
+    (tmp_path / "bad.yaml").write_text(bad)
+    refused = CliRunner().invoke(app, ["check", str(tmp_path / "bad.yaml")])
+    assert refused.exit_code == 2 and "a plane or cylinder turns about its own point" in refused.output

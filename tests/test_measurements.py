@@ -209,3 +209,22 @@ def test_conditions_and_measurements_refuse_bad_input():
         sim.run(0.001, observers=[flow])
     with pytest.raises(ParameterError, match="wall = 'lid' is not allowed: no wall in place has that name"):
         sim.run(0.001, observers=[rd.WallLoad("lid", wall="lid")])
+
+
+def test_a_steady_stream_through_a_plane_reads_its_mass_rate():
+    """50 spheres in a column 1 cm apart move down at 1 m/s through a plane, without gravity or
+    contacts: the mass rate is m v / spacing = 100 m per second. The summary's rate (the slope of
+    the cumulative mass over 0.1-0.4 s, 30 crossings) reads it within the staircase's one
+    crossing over the window (1/30), and every row's rate is a whole number of spheres per 10 ms."""
+    sim = rd.Simulation(gravity=(0, 0, 0), dt=5e-6)
+    sim.add_material(_material())
+    sim.add_particles(np.column_stack([np.zeros(50), np.zeros(50), 0.005 + 0.01 * np.arange(50)]), RP, "m",
+                      velocity=(0, 0, -1.0))
+    flow = rd.MassFlow("stream", point=(0, 0, 0), normal=(0, 0, -1), interval=0.01, window=(0.1, 0.4))
+    sim.run(0.5, observers=[flow])
+    m = float(sim.masses[0])
+    s = flow.summary()
+    assert s["rate"]["mean"] == pytest.approx(100 * m, rel=1 / 30)
+    assert s["count"]["final"] == 50 and s["mass"]["final"] == pytest.approx(50 * m, rel=1e-12)
+    rows = flow.series()["rate"].to_numpy()[1:]
+    assert np.allclose(rows * 0.01 / m, np.round(rows * 0.01 / m), atol=1e-9)

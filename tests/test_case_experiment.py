@@ -203,3 +203,19 @@ output: {{plot: false, report: null}}
     (tmp_path / "bad.yaml").write_text(bad)
     refused = CliRunner().invoke(app, ["check", str(tmp_path / "bad.yaml")])
     assert refused.exit_code == 2 and "a plane or cylinder turns about its own point" in refused.output
+
+
+def test_a_target_the_first_runs_cannot_reach_is_refused_in_one_line(tmp_path):
+    """The probe's mass over densities 500-3500 kg/m^3 spans 500-3500 x 8 (4/3) pi r^3; a target of
+    ten times the top is outside what the first runs give: one line naming the target, the range
+    and what to do, exit 2, the runs kept."""
+    case = tmp_path / "beads.yaml"
+    case.write_text(CASE)
+    result = CliRunner().invoke(app, ["calibrate", str(case), "--target", f"box.mass={35000 * MASS!r}",
+                                      "--free", "density=500:3500", "--coarse", "3", "--rounds", "0",
+                                      "--out", str(tmp_path / "cal"), "--workers", "1", "--no-progress"])
+    assert result.exit_code == 2, result.output
+    line = [x for x in result.output.splitlines() if x.startswith("error:")]
+    assert len(line) == 1 and "is outside what density in [500, 3500] gives" in line[0]
+    assert "widen the range with --free density=LOW:HIGH" in line[0]
+    assert (tmp_path / "cal" / "runs.csv").exists()

@@ -228,3 +228,20 @@ def test_a_steady_stream_through_a_plane_reads_its_mass_rate():
     assert s["count"]["final"] == 50 and s["mass"]["final"] == pytest.approx(50 * m, rel=1e-12)
     rows = flow.series()["rate"].to_numpy()[1:]
     assert np.allclose(rows * 0.01 / m, np.round(rows * 0.01 / m), atol=1e-9)
+
+
+def test_a_function_of_the_state_is_measured_with_its_units():
+    """``rd.Function``: a free-falling sphere's height from a dict, sampled every 1 ms: each row
+    is z0 - g t^2 / 2 to the integrator's exactness for constant gravity (velocity Verlet: 1e-12 m),
+    the unit named is kept, and a function that returns a string is refused in one line."""
+    sim = rd.Simulation(gravity=(0, 0, -G), dt=5e-6)
+    sim.add_material(_material())
+    sim.add_particles([[0, 0, 1.0]], RP, "m")
+    height = rd.Function("fall", lambda s: {"z": float(s.positions[0, 2])}, interval=1e-3, units={"z": "m"})
+    sim.run(0.05, observers=[height])
+    rows = height.series()
+    assert list(rows.columns) == ["time", "step", "z"] and height.QUANTITIES == {"z": "m"}
+    assert np.allclose(rows["z"], 1.0 - 0.5 * G * rows["time"] ** 2, atol=1e-12, rtol=0)
+    bad = rd.Function("bad", lambda s: "high")
+    with pytest.raises(ParameterError, match="measurement 'bad': function returned 'high': must be a number"):
+        sim.run(0.001, observers=[bad])

@@ -254,7 +254,7 @@ class InflowSpec(_Strict):
 
 class _MeasurementBase(_Strict):
     name: str
-    interval: Number = 1e-3
+    interval: Optional[Number] = None  # the kind's own (INTERVAL)
     window: Optional[tuple[Number, Number]] = None
 
 

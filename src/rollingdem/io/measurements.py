@@ -59,14 +59,17 @@ class Measurement(Observer):
     second half of the samples' time span)."""
 
     kind = "measurement"
+    #: The interval (s) when none is given: a few samples per millisecond of flow; the angles, which
+    #: fit a surface each time, less often.
+    INTERVAL = 1e-3
     QUANTITIES: dict[str, str] = {}
     #: The quantities whose summary is a rate: the least-squares slope of a cumulative quantity.
     RATES: dict[str, str] = {}
     #: Cumulative quantities: the summary line shows their final value.
     CUMULATIVE: tuple[str, ...] = ()
 
-    def __init__(self, name: str, interval: float = 1e-3, window=None):
-        super().__init__(interval)
+    def __init__(self, name: str, interval: float | None = None, window=None):
+        super().__init__(self.INTERVAL if interval is None else interval)
         if not isinstance(name, str) or not name or not all(c.isalnum() or c in "-_" for c in name):
             raise ParameterError(f"measurement name = {name!r} is not allowed: must be letters, digits, - or _")
         self.name = name
@@ -199,7 +202,7 @@ class MassFlow(Measurement):
     RATES = {"rate": "mass"}
     CUMULATIVE = ("count", "mass")
 
-    def __init__(self, name: str, point, normal, radius: float | None = None, interval: float = 1e-3, window=None):
+    def __init__(self, name: str, point, normal, radius: float | None = None, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
         self.point = np.array(check_vector("mass flow point", point))
         self.normal = np.array(check_vector("mass flow normal", normal, unit=True))
@@ -309,7 +312,7 @@ class Probe(Measurement):
     QUANTITIES = {"count": "1", "mass": "kg", "bulk_density": "kg/m^3", "solid_fraction": "1", "vx": "m/s",
                   "vy": "m/s", "vz": "m/s", "kinetic_energy": "J", "coordination": "1"}
 
-    def __init__(self, name: str, region, interval: float = 1e-3, window=None):
+    def __init__(self, name: str, region, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
         if not hasattr(region, "contains") or not hasattr(region, "volume"):
             raise ParameterError(f"probe region = {region!r} is not allowed: must be a BoxRegion or CylinderRegion")
@@ -378,7 +381,7 @@ class OutletTotals(Measurement):
     RATES = {"rate": "mass"}
     CUMULATIVE = ("count", "mass")
 
-    def __init__(self, name: str, outlet: str, interval: float = 1e-3, window=None):
+    def __init__(self, name: str, outlet: str, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
         self.outlet = outlet
         self._last = None
@@ -416,7 +419,7 @@ class WallLoad(Measurement):
     kind = "wall"
     QUANTITIES = {"fx": "N", "fy": "N", "fz": "N", "tx": "N m", "ty": "N m", "tz": "N m", "power": "W"}
 
-    def __init__(self, name: str, wall: str, interval: float = 1e-3, window=None):
+    def __init__(self, name: str, wall: str, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
         self.wall = wall
 
@@ -456,11 +459,12 @@ class PileAngle(Measurement):
     the pile radius. NaN where the estimator refuses the pile (``note`` says why)."""
 
     kind = "repose_angle"
+    INTERVAL = 0.1
     QUANTITIES = {"angle": "deg", "r_squared": "1", "slice_mean": "deg", "slice_std": "deg"}
     CUMULATIVE = ("angle", "r_squared", "slice_mean", "slice_std")  # the end state's, not a mean
 
     def __init__(self, name: str = "repose_angle", floor: float | None = None, n_slices: int = 8,
-                 exclude_apex: float = 0.15, exclude_toe: float = 0.15, interval: float = 1e-3, window=None):
+                 exclude_apex: float = 0.15, exclude_toe: float = 0.15, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
         from rollingdem.analysis.repose import _check_exclusion, _check_n_slices
 
@@ -506,9 +510,10 @@ class DrumAngle(Measurement):
     mass has turned from below the axis), both as magnitudes; gravity gives "down"."""
 
     kind = "drum_angle"
+    INTERVAL = 0.01
     QUANTITIES = {"angle": "deg", "com_angle": "deg"}
 
-    def __init__(self, name: str, center, axis, extent=None, interval: float = 1e-3, window=None):
+    def __init__(self, name: str, center, axis, extent=None, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
         self.center = np.array(check_vector("drum_angle center", center))
         self.axis = np.array(check_vector("drum_angle axis", axis, unit=True))
@@ -551,7 +556,7 @@ class Function(Measurement):
 
     kind = "function"
 
-    def __init__(self, name: str, function, interval: float = 1e-3, window=None, units=None):
+    def __init__(self, name: str, function, interval: float | None = None, window=None, units=None):
         super().__init__(name, interval, window)
         if not callable(function):
             raise ParameterError(f"measurement {name!r}: function = {function!r} is not allowed: must be callable, "
@@ -564,12 +569,12 @@ class Function(Measurement):
         return f"function {getattr(self.function, '__name__', 'of the state')}"
 
     def _measure(self, sim) -> dict:
-        out = self.function(sim)
-        out = out if isinstance(out, dict) else {"value": out}
+        raw = self.function(sim)
+        out = raw if isinstance(raw, dict) else {"value": raw}
         try:
             return {str(k): float(v) for k, v in out.items()}
         except (TypeError, ValueError):
-            raise ParameterError(f"measurement {self.name!r}: function returned {out!r}: must be a number or a dict "
+            raise ParameterError(f"measurement {self.name!r}: function returned {raw!r}: must be a number or a dict "
                                  "of numbers") from None
 
     def start(self, sim):

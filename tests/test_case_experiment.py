@@ -219,3 +219,50 @@ def test_a_target_the_first_runs_cannot_reach_is_refused_in_one_line(tmp_path):
     assert len(line) == 1 and "is outside what density in [500, 3500] gives" in line[0]
     assert "widen the range with --free density=LOW:HIGH" in line[0]
     assert (tmp_path / "cal" / "runs.csv").exists()
+
+
+FLAT = """\
+name: layer
+materials:
+  - {{name: glass, youngs_modulus: 1.0e7, poisson_ratio: 0.3, density: 2500.0, friction: 0.5, restitution: 0.3}}
+walls:
+  - {{type: plane, name: floor, material: glass}}
+particles:
+  - positions: {positions}
+    radius: 0.0025
+    material: glass
+measurements:
+  - {{name: surface, type: profile, file: measured.csv, shape: heap, center: [0, 0]}}
+stages:
+  - {{name: land, duration: 0.04}}
+output: {{plot: false, report: null}}
+"""
+
+
+def test_a_measured_profile_calibrates_the_size_that_matches_it(tmp_path):
+    """A layer of spheres on a floor, its surface measured as flat at 4 mm (a CSV of r, h): the
+    profile's misfit is |2 R - 4 mm| over the layer, lowest at R = 2 mm, which the minimum search
+    over R in [1.5, 3] mm finds within a tenth of a millimetre (its last round's spacing is 0.075
+    mm and the parabola through five points of a V stays within one spacing of its tip)."""
+    import numpy as np
+
+    from rollingdem.io.measurements import SurfaceProfile, read_profile
+
+    g = np.arange(-0.026, 0.0261, 0.0065)
+    xy = np.array([(a, b) for a in g for b in g])
+    positions = [[float(a), float(b), 0.0031] for a, b in xy]
+    (tmp_path / "layer.yaml").write_text(FLAT.format(positions=positions))
+    (tmp_path / "measured.csv").write_text("r,h\n" + "".join(f"{r:.4f},0.004\n" for r in np.linspace(0, 0.015, 7)))
+    assert read_profile(tmp_path / "measured.csv").shape == (7, 2)
+    result = CliRunner().invoke(app, ["calibrate", str(tmp_path / "layer.yaml"), "--target", "surface.rmse=min",
+                                      "--free", "particles.0.radius=0.0015:0.003", "--coarse", "5", "--refine", "3",
+                                      "--rounds", "2", "--out", str(tmp_path / "cal"), "--workers", "1",
+                                      "--no-progress"])
+    assert result.exit_code == 0, result.output
+    found = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    assert abs(found["value"] - 0.002) < 1e-4 and found["direction"] == "minimum"
+    with pytest.raises(ParameterError, match="profile shape = 'cone' is not allowed"):
+        SurfaceProfile("p", [[0, 0], [1, 1]], shape="cone")
+    (tmp_path / "bad.csv").write_text("r\n1\n2\n")
+    with pytest.raises(ParameterError, match="must hold two columns of numbers"):
+        read_profile(tmp_path / "bad.csv")

@@ -291,6 +291,9 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
         frees = [parse_free(f) for f in (free or ["mur"])]
         execution = Execution(workers=workers, scheduler=scheduler)
         fixed = parse_assignments(fix, "fix")
+        if cases and any(t.replace(" ", "").endswith("=min") for t in target):
+            _minimum(cases, target, frees, fixed, seeds, coarse, refine, rounds, out, execution, progress)
+            return
         if cases:
             targets = _case_targets(cases, target, experiment, observable, uncertainty)
             if len(targets) == 1 and len(frees) == 1:
@@ -355,6 +358,25 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
         _refuse(err)
     for f in result.figures:
         typer.echo(f"figure: {f}")
+    typer.echo(f"result: {Path(out) / 'calibration.json'}")
+
+
+def _minimum(cases, targets, frees, fixed, seeds, coarse, refine, rounds, out, execution, progress):
+    """``--target MEASUREMENT.QUANTITY=min``: the free parameter where a misfit is lowest."""
+    from rollingdem.studies.calibration import Search, calibrate_minimum
+
+    if len(targets) > 1 or len(frees) > 1 or len(cases) > 1:
+        raise ParameterError(f"target = {targets[0]!r} is not allowed with other targets, free parameters or case "
+                             "files: a minimum is searched over one free parameter of one case file")
+    name, rng = frees[0]
+    if rng is None:
+        raise ParameterError(f"free = {name!r} is not allowed without its range: give --free {name}=LOW:HIGH")
+    left = targets[0].replace(" ", "").removesuffix("=min")
+    file, obs = (left.rsplit(":", 1) if ":" in left else (str(cases[0]), left))
+    result = calibrate_minimum(file, obs, (name, rng), fix=fixed, seeds=seeds,
+                               search=Search(coarse=coarse, refine=refine, rounds=2 if rounds is None else rounds),
+                               out=out, execution=execution, progress=progress, echo=typer.echo)
+    typer.echo(f"figure: {result.figures[0]}")
     typer.echo(f"result: {Path(out) / 'calibration.json'}")
 
 

@@ -301,8 +301,19 @@ class DrumMeasurementSpec(_MeasurementBase):
     extent: Optional[tuple[Number, Number]] = None
 
 
+class ProfileSpec(_MeasurementBase):
+    """``rollingdem.SurfaceProfile``: the free surface against the measured profile in ``file`` (a CSV
+    of two columns, m, named from the case file): a heap's (r, h) or a drum's (x, y)."""
+    type: Literal["profile"]
+    file: str
+    shape: Literal["heap", "drum"] = "heap"
+    center: Optional[list[Number]] = None
+    axis: Vector = (0.0, 0.0, 1.0)
+    floor: Optional[Number] = None
+
+
 MeasurementSpec = Annotated[Union[MassFlowSpec, ProbeSpec, OutletMeasurementSpec, WallMeasurementSpec,
-                                  ReposeMeasurementSpec, DrumMeasurementSpec], Field(discriminator="type")]
+                                  ReposeMeasurementSpec, DrumMeasurementSpec, ProfileSpec], Field(discriminator="type")]
 
 
 class PeriodicSpec(_Strict):
@@ -853,8 +864,12 @@ def build_measurements(case: CaseSpec, sim) -> dict:
             elif m.type == "repose_angle":
                 made[m.name] = ms.PileAngle(floor=m.floor, n_slices=m.n_slices, exclude_apex=m.exclude_apex,
                                             exclude_toe=m.exclude_toe, **common)
-            else:
+            elif m.type == "drum_angle":
                 made[m.name] = ms.DrumAngle(center=m.center, axis=m.axis, extent=m.extent, **common)
+            else:
+                path = Path(m.file) if Path(m.file).is_absolute() else case.base_directory / m.file
+                made[m.name] = ms.SurfaceProfile(points=ms.read_profile(path), shape=m.shape, center=m.center,
+                                                 axis=m.axis, floor=m.floor, **common)
             made[m.name].check(sim)
     return made
 

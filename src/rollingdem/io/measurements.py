@@ -550,6 +550,101 @@ class DrumAngle(Measurement):
         return [angle, abs(com_angle(frame, m)) if len(m) else math.nan]
 
 
+def read_profile(path) -> np.ndarray:
+    """A measured surface profile: a CSV of two columns of numbers (m), a header line allowed, as
+    (n, 2), sorted by the first; refused in one line when it is not that."""
+    path = Path(path)
+    try:
+        rows = np.genfromtxt(path, delimiter=",", comments="#", skip_header=0)
+    except OSError:
+        raise ParameterError(f"profile file = {str(path)!r} is not allowed: it cannot be read") from None
+    rows = np.atleast_2d(rows)
+    rows = rows[np.isfinite(rows).all(axis=1)] if rows.ndim == 2 and rows.shape[1] == 2 else None
+    if rows is None or len(rows) < 2:
+        raise ParameterError(f"profile file = {str(path)!r} is not allowed: must hold two columns of numbers "
+                             "(m) and at least two rows")
+    return rows[np.argsort(rows[:, 0])]
+
+
+class SurfaceProfile(Measurement):
+    """How far the free surface is from a measured profile (``points``: (n, 2), m): ``rmse`` (m,
+    the root mean square of simulated minus measured heights at the measured points) and ``bias``
+    (m, their mean).
+
+    ``shape`` "heap": the points are (r, h), the distance from the pile's axis through ``center``
+    (x, y; default the free particles' centre of mass) and the height above ``floor`` (default the
+    top of the highest fixed particle, else 0); the simulated height at r is the median, over those
+    of 8 sectors around the axis that hold a particle there, of the highest particle top within a
+    mean diameter of r (the floor where none is).
+    ``shape`` "drum": the points are (x, y) across and up in the drum's cross-section about its
+    ``axis`` through ``center`` (gravity gives up); the simulated height at x is the top of the
+    highest particle touching another within half a mean diameter of x (``DrumAngle``'s columns).
+    Where no particle is, the height is the floor's (heap) or NaN (drum, left out)."""
+
+    kind = "profile"
+    INTERVAL = 0.1
+    QUANTITIES = {"rmse": "m", "bias": "m"}
+
+    def __init__(self, name: str, points, shape: str = "heap", center=None, axis=(0.0, 0.0, 1.0), floor=None,
+                 interval: float | None = None, window=None):
+        super().__init__(name, interval, window)
+        if shape not in ("heap", "drum"):
+            raise ParameterError(f"profile shape = {shape!r} is not allowed: must be 'heap' or 'drum'")
+        self.shape = shape
+        self.points = np.asarray(points, float)
+        if self.points.ndim != 2 or self.points.shape[1] != 2 or len(self.points) < 2:
+            raise ParameterError(f"profile points of shape {self.points.shape} are not allowed: must be (n, 2), n >= 2")
+        self.center = None if center is None else np.array(center, float)
+        self.axis = np.array(check_vector("profile axis", axis, unit=True))
+        # a heap is measured at rest: its summary is the end state's; a drum's, the mean over the window
+        self.CUMULATIVE = ("rmse", "bias") if shape == "heap" else ()
+        self.floor = None if floor is None else check_finite("profile floor", floor)
+
+    def describe(self):
+        return f"{self.shape} surface against {len(self.points)} measured points"
+
+    def heights(self, sim) -> np.ndarray:
+        """The simulated surface height at each measured point's first coordinate."""
+        free = ~sim.fixed
+        x, r = sim.positions[free], sim.radii[free]
+        if not len(x):
+            return np.full(len(self.points), np.nan)
+        half = float(r.mean())  # half a mean diameter
+        if self.shape == "heap":
+            ring = 2.0 * half  # a mean diameter each side: a ring holds a particle in most sectors
+            floor = self.floor if self.floor is not None else (
+                float(np.max(sim.positions[sim.fixed, 2] + sim.radii[sim.fixed])) if sim.fixed.any() else 0.0)
+            c = self.center[:2] if self.center is not None else np.average(x[:, :2], axis=0, weights=sim.masses[free])
+            rho = np.hypot(x[:, 0] - c[0], x[:, 1] - c[1])
+            sector = (np.floor((np.arctan2(x[:, 1] - c[1], x[:, 0] - c[0]) + math.pi) / (math.pi / 4)).astype(int)) % 8
+            top = x[:, 2] + r - floor
+            out = np.empty(len(self.points))
+            for k, q in enumerate(self.points[:, 0]):
+                near = np.abs(rho - q) <= ring
+                tops = [top[near & (sector == s)].max() for s in range(8) if (near & (sector == s)).any()]
+                out[k] = float(np.median(tops)) if tops else 0.0
+            return out
+        from rollingdem.analysis.repose import touching
+
+        g = np.asarray(sim.gravity, float)
+        up = -(g - (g @ self.axis) * self.axis)
+        up /= np.linalg.norm(up)
+        across = np.cross(up, self.axis)
+        rel = x - (self.center if self.center is not None else np.zeros(3))
+        on = touching(x, r)
+        u, h = (rel @ across)[on], (rel @ up)[on] + r[on]
+        return np.array([h[np.abs(u - q) <= half].max() if (np.abs(u - q) <= half).any() else np.nan
+                         for q in self.points[:, 0]])
+
+    def values(self, sim):
+        d = self.heights(sim) - self.points[:, 1]
+        d = d[np.isfinite(d)]
+        return [float(np.sqrt(np.mean(d ** 2))), float(np.mean(d))] if len(d) else [math.nan, math.nan]
+
+    def headline(self):
+        return ["rmse", "bias"]
+
+
 class Function(Measurement):
     """Any function of the state: ``function(sim)`` returns a number or a dict of numbers (the
     quantities, named at the first sample; ``units`` maps them to units)."""
@@ -587,5 +682,5 @@ class Function(Measurement):
         return [got.get(q, math.nan) for q in self.QUANTITIES]
 
 
-__all__ = ["scene_bounds", "BATCHES", "DrumAngle", "Function", "MassFlow", "PileAngle", "Measurement", "OutletTotals", "Probe", "WallLoad",
+__all__ = ["read_profile", "SurfaceProfile", "scene_bounds", "BATCHES", "DrumAngle", "Function", "MassFlow", "PileAngle", "Measurement", "OutletTotals", "Probe", "WallLoad",
            "batch_standard_error", "slope_with_error"]

@@ -245,3 +245,24 @@ def test_a_function_of_the_state_is_measured_with_its_units():
     bad = rd.Function("bad", lambda s: "high")
     with pytest.raises(ParameterError, match="measurement 'bad': function returned 'high': must be a number"):
         sim.run(0.001, observers=[bad])
+
+
+def test_a_drum_profile_reads_the_misfit_of_a_flat_bed_to_its_height():
+    """A flat bed in a drum turned along x (gravity -z), its surface the top of its highest row:
+    measured at that height the misfit is 0; measured 1 mm higher, rmse 1 mm and bias -1 mm (the
+    simulated surface lies below the measured one)."""
+    sim = rd.Simulation(gravity=(0, 0, -G))
+    sim.add_material(_material())
+    d = 2 * RP * 1.001
+    ys, zs = np.meshgrid(np.arange(-0.09, 0.09, d), np.arange(-0.09, 0.09, d))
+    keep = (np.hypot(ys, zs) < 0.09) & (zs < 0)
+    cross = np.column_stack([ys[keep], zs[keep]])
+    sim.add_particles(np.vstack([np.column_stack([np.full(len(cross), k * d), cross]) for k in range(3)]), RP, "m")
+    top = float(zs[keep].max()) + RP
+    xs = np.linspace(-0.05, 0.05, 11)
+    for shift, (rmse, bias) in ((0.0, (0.0, 0.0)), (0.001, (0.001, -0.001))):
+        # across = up x axis = z x x = y: the points' first coordinate is y
+        profile = rd.SurfaceProfile("p", np.column_stack([xs, np.full(11, top + shift)]), shape="drum",
+                                    center=(0, 0, 0), axis=(1, 0, 0))
+        got = profile.values(sim)
+        assert got == pytest.approx([rmse, bias], abs=1e-12)

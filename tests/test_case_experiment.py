@@ -266,3 +266,16 @@ def test_a_measured_profile_calibrates_the_size_that_matches_it(tmp_path):
     (tmp_path / "bad.csv").write_text("r\n1\n2\n")
     with pytest.raises(ParameterError, match="must hold two columns of numbers"):
         read_profile(tmp_path / "bad.csv")
+
+
+def test_the_parabola_minimum_on_made_up_curves():
+    """A parabola's vertex exactly (y = (x - 0.3)^2 + 1 at five points: 0.3 to round-off); a curve
+    that opens downwards, or whose vertex lies outside the points, gives its lowest point."""
+    import numpy as np
+
+    from rollingdem.studies.calibration import parabola_minimum
+
+    x = np.array([0.0, 0.15, 0.25, 0.4, 0.6])
+    assert parabola_minimum(x, (x - 0.3) ** 2 + 1) == pytest.approx(0.3, abs=1e-12)
+    assert parabola_minimum(x, -(x - 0.3) ** 2) == 0.6  # opens downwards: the lowest point
+    assert parabola_minimum(x, (x - 2.0) ** 2) == 0.6  # vertex beyond the points

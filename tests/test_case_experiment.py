@@ -277,5 +277,5 @@ def test_the_parabola_minimum_on_made_up_curves():
 
     x = np.array([0.0, 0.15, 0.25, 0.4, 0.6])
     assert parabola_minimum(x, (x - 0.3) ** 2 + 1) == pytest.approx(0.3, abs=1e-12)
-    assert parabola_minimum(x, -(x - 0.3) ** 2) == 0.6  # opens downwards: the lowest point
+    assert parabola_minimum(x, -(x - 0.2) ** 2) == 0.6  # opens downwards: the lowest point
     assert parabola_minimum(x, (x - 2.0) ** 2) == 0.6  # vertex beyond the points

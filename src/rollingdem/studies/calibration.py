@@ -145,7 +145,7 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     import tempfile
     import time
 
-    from rollingdem.studies.sweep import TABLE, failure_report, load_sweep, run_sweep
+    from rollingdem.studies.sweep import load_sweep, run_sweep
 
     tic = time.perf_counter()
     sc = get_experiment(experiment, observable=True, what="experiment")
@@ -202,14 +202,7 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
         sweep(xs, m)
         table = None
         for r in range(rounds + 1):
-            table = _all_runs(out, sc, experiment, fix, name)
-            stats = _point_stats(table, name, observable)
-            report = failure_report(table, out / TABLE)
-            if len(stats) < 2:
-                raise ParameterError(f"calibration needs at least two points with a finite {observable}, and has "
-                                     f"{len(stats)}: " + (report or f"the runs gave no finite {observable}"))
-            if report:
-                say(report)
+            table, stats = _usable(out, sc, experiment, fix, name, observable, 2, "calibration", say)
             increasing = _direction(stats)
             g = _monotone(stats["mean"].to_numpy(), stats["count"].to_numpy(float), increasing)
             if not min(g) <= target <= max(g):
@@ -247,6 +240,22 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     say(f"{name} = {value:.5g}, 95 % interval [{lo95:.5g}, {hi95:.5g}] for {observable} = {target:g} ± "
         f"{uncertainty:g} ({result.runs} runs, {result.wall_time:.0f} s; {out})")
     return result
+
+
+def _usable(out: Path, sc, experiment: str, fix: dict, name: str, observable: str, need: int, what: str, say):
+    """(this calibration's runs, their means per point); the failures said, and refused in one line
+    when fewer than ``need`` points are left."""
+    from rollingdem.studies.sweep import TABLE, failure_report
+
+    table = _all_runs(out, sc, experiment, fix, name)
+    stats = _point_stats(table, name, observable)
+    report = failure_report(table, out / TABLE)
+    if len(stats) < need:
+        raise ParameterError(f"{what} needs at least {['', 'one', 'two', 'three'][need]} points with a finite "
+                             f"{observable}, and has {len(stats)}: " + (report or f"the runs gave no finite {observable}"))
+    if report:
+        say(report)
+    return table, stats
 
 
 def _all_runs(out: Path, sc, experiment: str, fix: dict, name: str) -> pd.DataFrame:
@@ -350,7 +359,7 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
     parametric bootstrap of the seed means (the spread of the seeds about each mean)."""
     import time
 
-    from rollingdem.studies.sweep import TABLE, failure_report, load_sweep, run_sweep
+    from rollingdem.studies.sweep import load_sweep, run_sweep
 
     tic = time.perf_counter()
     sc = get_experiment(experiment, observable=True, what="experiment")
@@ -380,12 +389,7 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
         xs = list(np.linspace(lo, hi, search.coarse))
         sweep(xs, m)
         for r in range(search.rounds + 1):
-            table = _all_runs(out, sc, experiment, fix, name)
-            stats = _point_stats(table, name, observable)
-            report = failure_report(table, out / TABLE)
-            if len(stats) < 3:
-                raise ParameterError(f"a minimum needs at least three points with a finite {observable}, and has "
-                                     f"{len(stats)}: " + (report or f"the runs gave no finite {observable}"))
+            table, stats = _usable(out, sc, experiment, fix, name, observable, 3, "a minimum", say)
             if r == search.rounds:
                 break
             x = stats["x"].to_numpy()

@@ -301,6 +301,17 @@ class DrumMeasurementSpec(_MeasurementBase):
     extent: Optional[tuple[Number, Number]] = None
 
 
+class MeshFlowSpec(_MeasurementBase):
+    """``rollingdem.MeshFlow``: through a triangle mesh surface, given as a mesh wall is (``file``
+    with ``scale``, or ``shape`` with ``size``; ``place``), counted along its triangles' normals."""
+    type: Literal["mesh_flow"]
+    file: Optional[str] = None
+    scale: Number = 1.0
+    shape: Optional[str] = None
+    size: dict[str, Any] = {}
+    place: Optional[PlaceSpec] = None
+
+
 class ProfileSpec(_MeasurementBase):
     """``rollingdem.SurfaceProfile``: the free surface against the measured profile in ``file`` (a CSV
     of two columns, m, named from the case file): a heap's (r, h) or a drum's (x, y)."""
@@ -313,7 +324,8 @@ class ProfileSpec(_MeasurementBase):
 
 
 MeasurementSpec = Annotated[Union[MassFlowSpec, ProbeSpec, OutletMeasurementSpec, WallMeasurementSpec,
-                                  ReposeMeasurementSpec, DrumMeasurementSpec, ProfileSpec], Field(discriminator="type")]
+                                  ReposeMeasurementSpec, DrumMeasurementSpec, ProfileSpec, MeshFlowSpec],
+                            Field(discriminator="type")]
 
 
 class PeriodicSpec(_Strict):
@@ -864,6 +876,10 @@ def build_measurements(case: CaseSpec, sim) -> dict:
             elif m.type == "repose_angle":
                 made[m.name] = ms.PileAngle(floor=m.floor, n_slices=m.n_slices, exclude_apex=m.exclude_apex,
                                             exclude_toe=m.exclude_toe, **common)
+            elif m.type == "mesh_flow":
+                surface = MeshSpec(type="mesh", material="(sensor)", file=m.file, scale=m.scale, shape=m.shape,
+                                   size=m.size, place=m.place)
+                made[m.name] = ms.MeshFlow(mesh=_mesh_wall(surface, case.base_directory).mesh, **common)
             elif m.type == "drum_angle":
                 made[m.name] = ms.DrumAngle(center=m.center, axis=m.axis, extent=m.extent, **common)
             else:

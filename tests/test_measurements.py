@@ -328,3 +328,18 @@ output: {plot: false, report: null}
     m = json.loads((tmp_path / "o" / "summary.json").read_text())["measurements"]
     assert m["mesh"]["count"]["final"] == m["disk"]["count"]["final"] < -50
     assert m["mesh"]["mass"]["final"] == m["disk"]["mass"]["final"]
+
+
+def test_coordination_counts_the_contacts_across_a_periodic_boundary_once():
+    """A ring of 10 spheres along a periodic x, each overlapping its two neighbours by 1e-4 of a
+    radius (the first and the last across the boundary): 2 contacts each; the same row without
+    the periodic box has 1 at its ends, 18 / 10 = 1.8 on average."""
+    from rollingdem.io.measurements import coordination
+
+    pitch = 2 * RP * (1 - 1e-4)
+    for periodic, expected in (({"x": (0.0, 10 * pitch)}, 2.0), (None, 1.8)):
+        sim = rd.Simulation(gravity=(0, 0, 0), periodic=periodic)
+        sim.add_material(_material())
+        sim.add_particles(np.column_stack([(np.arange(10) + 0.5) * pitch, np.zeros(10), np.zeros(10)]), RP, "m",
+                          allow_overlap=True)
+        assert coordination(sim, np.ones(10, bool)) == expected

@@ -383,10 +383,8 @@ def _minimum(cases, targets, frees, fixed, seeds, coarse, refine, rounds, out, e
 def _case_targets(cases, targets, experiment, observable, uncertainty):
     """The targets of a calibration against case files: MEASUREMENT.QUANTITY=VALUE±U (one file),
     FILE:MEASUREMENT.QUANTITY=VALUE±U (several), or a number with --observable (one file)."""
-    import re
-
     from rollingdem.experiments import get_experiment
-    from rollingdem.studies.joint_calibration import Target
+    from rollingdem.studies.joint_calibration import Target, parse_value
 
     if experiment is not None:
         raise ParameterError(f"--experiment = {experiment!r} is not allowed with case files: the case files are the "
@@ -401,7 +399,7 @@ def _case_targets(cases, targets, experiment, observable, uncertainty):
                 raise ParameterError(f"target = {text!r} is not allowed: write MEASUREMENT.QUANTITY=VALUE±U"
                                      + (" (FILE:MEASUREMENT.QUANTITY=... with several case files)" if len(cases) > 1
                                         else ", or give --observable MEASUREMENT.QUANTITY"))
-            file, obs, value, unc = str(cases[0]), observable, text, str(uncertainty)
+            file, obs, value, unc = str(cases[0]), observable, parse_value(text, text)[0], uncertainty
         else:
             left, right = text.split("=", 1)
             if ":" in left:
@@ -411,10 +409,7 @@ def _case_targets(cases, targets, experiment, observable, uncertainty):
             else:
                 raise ParameterError(f"target = {text!r} is not allowed with several case files: write "
                                      "FILE:MEASUREMENT.QUANTITY=VALUE±U")
-            m = re.fullmatch(r"\s*([^±+]+?)\s*(?:(?:±|\+-|\+/-)\s*(.+?))?\s*", right)
-            if m is None:
-                raise ParameterError(f"target = {text!r} is not allowed: write MEASUREMENT.QUANTITY=VALUE±U")
-            value, unc = m.group(1), m.group(2) or "0"
+            value, unc = parse_value(right, text)
         if file not in map(str, cases):
             raise ParameterError(f"target = {text!r} is not allowed: {file!r} is not one of the case files given "
                                  f"({', '.join(map(str, cases))})")
@@ -422,10 +417,7 @@ def _case_targets(cases, targets, experiment, observable, uncertainty):
         if obs.strip() not in exp.observables:
             raise ParameterError(f"target = {text!r} is not allowed: {Path(file).name} measures "
                                  f"{', '.join(exp.observables) or 'nothing (add measurements: to it)'}")
-        try:
-            out.append(Target(file, obs.strip(), float(value), float(unc)))
-        except ValueError:
-            raise ParameterError(f"target = {text!r} is not allowed: VALUE and U must be numbers") from None
+        out.append(Target(file, obs.strip(), value, unc))
     return out
 
 

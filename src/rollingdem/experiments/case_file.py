@@ -55,28 +55,28 @@ def numeric_leaves(data, prefix: str = "") -> dict[str, float]:
     return out
 
 
-def set_path(data, path: str, value) -> None:
-    """Set the number at ``path`` (``numeric_leaves``'s names) in ``data``, in place."""
-    parts = path.split(".")
-    node = data
-    for depth, part in enumerate(parts):
-        last = depth == len(parts) - 1
+def _locate(data, path: str):
+    """(the list or mapping that holds the number at ``path``, its index or key); KeyError when the
+    file has no such path."""
+    node = holder = key = data
+    for part in path.split("."):
         if isinstance(node, list):
             keys = [_key_of(v, k) for k, v in enumerate(node)]
             if part not in keys:
                 raise KeyError(path)
-            k = keys.index(part)
-            if last:
-                node[k] = value
-            node = node[k]
-        elif isinstance(node, dict):
-            if part not in node:
-                raise KeyError(path)
-            if last:
-                node[part] = value
-            node = node[part]
+            holder, key = node, keys.index(part)
+        elif isinstance(node, dict) and part in node:
+            holder, key = node, part
         else:
             raise KeyError(path)
+        node = holder[key]
+    return holder, key
+
+
+def set_path(data, path: str, value) -> None:
+    """Set the number at ``path`` (``numeric_leaves``'s names) in ``data``, in place."""
+    holder, key = _locate(data, path)
+    holder[key] = value
 
 
 class CaseExperiment(Experiment):
@@ -185,8 +185,8 @@ class CaseExperiment(Experiment):
         self.prepared = Path(folder)
 
     def stage_keys(self, data: dict) -> list[str]:
-        """What decides the state at the end of each stage but the last: the file's data without
-        the later stages (and without what only reports), hashed."""
+        """What decides the state at the end of each stage but the last: the file's data without its
+        name and the later stages, hashed."""
         import hashlib
         import json
 
@@ -240,10 +240,8 @@ def _cumulative(kind: str, quantity: str) -> bool:
 
 
 def _get(data, path: str) -> Any:
-    node = data
-    for part in path.split("."):
-        node = node[[_key_of(v, k) for k, v in enumerate(node)].index(part)] if isinstance(node, list) else node[part]
-    return node
+    holder, key = _locate(data, path)
+    return holder[key]
 
 
 def _changed(data, params: dict, aliases: dict) -> str:

@@ -698,8 +698,9 @@ def _region(r):
     return BoxRegion(r.lo, r.hi) if r.type == "box" else CylinderRegion(r.radius, r.z_min, r.z_max, center=r.center)
 
 
-def _motion(spec) -> dict:
-    """Keyword arguments of a wall's motion (velocity, angular_velocity, point) from a MotionSpec."""
+def _motion(spec, mesh: bool = False) -> dict:
+    """Keyword arguments of a wall's motion (velocity, angular_velocity, point) from a MotionSpec; a
+    ``mesh`` turns about the origin unless its point is given, a plane or cylinder about its own."""
     from rollingdem.errors import check_finite, check_vector
 
     if spec is None:
@@ -715,7 +716,7 @@ def _motion(spec) -> dict:
                 else check_finite("motion rotate rpm", r.rpm) * 2.0 * np.pi / 60.0)
         axis = np.array(check_vector("motion rotate axis", r.axis, unit=True))
         out["angular_velocity"] = tuple(rate * axis)
-        out["point"] = r.point
+        out["point"] = r.point if r.point is not None or not mesh else (0.0, 0.0, 0.0)
     return out
 
 
@@ -744,9 +745,7 @@ def _mesh_wall(w: MeshSpec, base: Path):
             about = np.array(check_vector("place rotate point", w.place.rotate.point or (0.0, 0.0, 0.0)))
         shift = about - matrix @ about + np.array(check_vector("place translate", w.place.translate))
         wall = MeshWall(wall.mesh.moved(matrix, shift), material=w.material, name=w.name)
-    motion = _motion(w.motion)
-    if motion.get("point", 0) is None:
-        motion["point"] = (0.0, 0.0, 0.0)
+    motion = _motion(w.motion, mesh=True)
     if motion:
         wall = MeshWall(wall.mesh, material=w.material, name=w.name, **motion)
     return wall

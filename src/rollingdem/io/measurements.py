@@ -171,6 +171,20 @@ class Measurement(Observer):
         return list(self.QUANTITIES)[:3]
 
 
+def fixed_top(sim) -> float:
+    """The top of the highest fixed particle (a rough base's), else 0: the floor a pile stands on."""
+    fixed = sim.fixed
+    return float(np.max(sim.positions[fixed, 2] + sim.radii[fixed])) if fixed.any() else 0.0
+
+
+def drum_frame(sim, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(across, up) of a drum's cross-section: ``up`` against gravity, square to ``axis``."""
+    g = np.asarray(sim.gravity, float)
+    up = -(g - (g @ axis) * axis)
+    up /= np.linalg.norm(up)
+    return np.cross(up, axis), up
+
+
 def _unit(unit: str) -> str:
     return "" if unit in ("1", "") else f" {unit}"
 
@@ -263,10 +277,6 @@ class MassFlow(Measurement):
     def _rate(self, sim) -> float:
         dt = sim.time - self._last[0]
         return (self.mass - self._last[1]) / dt if dt > 0 else 0.0
-
-    def value(self, sim, quantity):
-        self.track(sim)
-        return float({"count": self.count, "mass": self.mass, "rate": self._rate(sim)}[quantity])
 
 
 def scene_bounds(sim) -> tuple[np.ndarray, np.ndarray]:
@@ -417,26 +427,18 @@ def coordination(sim, which) -> float:
     touches, centres nearer than the sum of the radii, across periodic boundaries too; NaN for none."""
     from scipy.spatial import cKDTree
 
-    x, r = sim.positions, sim.radii
+    from rollingdem.scene.periodic import with_images
+
     if not which.any():
         return math.nan
-    lo = x.min(axis=0) - 1.0
-    box = np.full(3, 0.0)
-    for k in range(3):
-        box[k] = np.ptp(x[:, k]) + 3.0  # no wrap along an axis that is not periodic
-    for axis, (a, b) in (sim.periodic or {}).items():
-        k = "xyz".index(axis)
-        lo[k], box[k] = a, b - a
-    tree = cKDTree(np.mod(x - lo, box), boxsize=box)
-    pairs = tree.query_pairs(2.0 * float(r.max()), output_type="ndarray")
-    if not len(pairs):
-        return 0.0
+    reach = 2.0 * float(sim.radii.max())
+    x, r, source = with_images(sim.periodic or {}, sim.positions, sim.radii, reach)
+    pairs = cKDTree(x).query_pairs(reach, output_type="ndarray")
     d = x[pairs[:, 0]] - x[pairs[:, 1]]
-    for axis, (a, b) in (sim.periodic or {}).items():
-        k = "xyz".index(axis)
-        d[:, k] -= (b - a) * np.round(d[:, k] / (b - a))
-    touching = pairs[np.einsum("ij,ij->i", d, d) < (r[pairs[:, 0]] + r[pairs[:, 1]]) ** 2]
-    counts = np.bincount(touching.ravel(), minlength=len(x))
+    touching = source[pairs[np.einsum("ij,ij->i", d, d) < (r[pairs[:, 0]] + r[pairs[:, 1]]) ** 2]]
+    touching = np.unique(np.sort(touching, axis=1), axis=0)  # a pair seen again through its images: once
+    touching = touching[touching[:, 0] != touching[:, 1]]
+    counts = np.bincount(touching.ravel(), minlength=sim.n_particles)
     return float(counts[which].mean())
 
 
@@ -495,10 +497,7 @@ class WallLoad(Measurement):
         return f"load on wall {self.wall!r}"
 
     def _wall(self, sim):
-        for k, w in enumerate(sim.walls):
-            if sim.wall_set.key(w) == self.wall:
-                return w
-        return None
+        return next((w for w in sim.walls if sim.wall_set.key(w) == self.wall), None)
 
     def check(self, sim):
         if self._wall(sim) is None:
@@ -548,10 +547,7 @@ class PileAngle(Measurement):
                 f"{self.n_slices} slices")
 
     def floor_of(self, sim) -> float:
-        if self.floor is not None:
-            return self.floor
-        fixed = sim.fixed
-        return float(np.max(sim.positions[fixed, 2] + sim.radii[fixed])) if fixed.any() else 0.0
+        return self.floor if self.floor is not None else fixed_top(sim)
 
     def values(self, sim):
         from rollingdem.analysis.repose import repose_angle
@@ -600,10 +596,7 @@ class DrumAngle(Measurement):
     def values(self, sim):
         from rollingdem.analysis.drum import com_angle, surface_angle
 
-        g = np.asarray(sim.gravity, float)
-        up = -(g - (g @ self.axis) * self.axis)
-        up /= np.linalg.norm(up)
-        across = np.cross(up, self.axis)
+        across, up = drum_frame(sim, self.axis)
         rel = sim.positions - self.center
         s = rel @ self.axis
         keep = ~sim.fixed
@@ -680,8 +673,7 @@ class SurfaceProfile(Measurement):
         half = float(r.mean())  # half a mean diameter
         if self.shape == "heap":
             ring = 2.0 * half  # a mean diameter each side: a ring holds a particle in most sectors
-            floor = self.floor if self.floor is not None else (
-                float(np.max(sim.positions[sim.fixed, 2] + sim.radii[sim.fixed])) if sim.fixed.any() else 0.0)
+            floor = self.floor if self.floor is not None else fixed_top(sim)
             c = self.center[:2] if self.center is not None else np.average(x[:, :2], axis=0, weights=sim.masses[free])
             rho = np.hypot(x[:, 0] - c[0], x[:, 1] - c[1])
             sector = (np.floor((np.arctan2(x[:, 1] - c[1], x[:, 0] - c[0]) + math.pi) / (math.pi / 4)).astype(int)) % 8
@@ -694,10 +686,7 @@ class SurfaceProfile(Measurement):
             return out
         from rollingdem.analysis.repose import touching
 
-        g = np.asarray(sim.gravity, float)
-        up = -(g - (g @ self.axis) * self.axis)
-        up /= np.linalg.norm(up)
-        across = np.cross(up, self.axis)
+        across, up = drum_frame(sim, self.axis)
         rel = x - (self.center if self.center is not None else np.zeros(3))
         on = touching(x, r)
         u, h = (rel @ across)[on], (rel @ up)[on] + r[on]
@@ -750,5 +739,6 @@ class Function(Measurement):
         return [got.get(q, math.nan) for q in self.QUANTITIES]
 
 
-__all__ = ["MeshFlow", "read_profile", "SurfaceProfile", "scene_bounds", "BATCHES", "DrumAngle", "Function", "MassFlow", "PileAngle", "Measurement", "OutletTotals", "Probe", "WallLoad",
-           "batch_standard_error", "slope_with_error"]
+__all__ = ["BATCHES", "DrumAngle", "Function", "MassFlow", "Measurement", "MeshFlow", "OutletTotals", "PileAngle", "Probe",
+           "SurfaceProfile", "WallLoad", "batch_standard_error", "coordination", "drum_frame", "fixed_top",
+           "read_profile", "scene_bounds", "slope_with_error"]

@@ -102,9 +102,8 @@ class RunCheckpoint(Observer):
     of the observers at a step; never at a run's first or last step (the stage's end is written
     by the run itself, with the next stage to start)."""
 
-    def __init__(self, directory: Path, interval: float, run: "_Run"):
+    def __init__(self, interval: float, run: "_Run"):
         super().__init__(interval)
-        self.directory = directory
         self.run = run
 
     def maybe_observe(self, sim, force: bool = False) -> None:
@@ -141,7 +140,7 @@ class _Run:
         longest = sum(stage_duration(s) for s in case.stages)
         interval = out.checkpoint.interval if out.checkpoint is not None else (
             max(longest / CHECKPOINTS_PER_RUN, sim.dt) if longest > 0 else 1.0)
-        observers.append(RunCheckpoint(outdir / "checkpoints", interval, self))
+        observers.append(RunCheckpoint(interval, self))
         self.state = RunState(case=case, base=str(Path(case.base_directory).resolve()), observers=observers,
                               measurements=self.measurements,
                               summary={"case": case.name, "output": str(outdir), "particles": sim.n_particles,
@@ -228,10 +227,8 @@ class _Run:
                 self.write_checkpoint(sim)
                 if self.on_stage_end is not None and st.stage < len(self.case.stages):
                     self.on_stage_end(self)
-            if self.measurements:
-                summary["measurements"] = {name: m.summary() for name, m in self.measurements.items()}
-                for m in self.measurements.values():
-                    echo(f"  {m.summary_line()}")
+            for m in self.measurements.values():
+                echo(f"  {m.summary_line()}")
             if self.case.output.repose_angle is not None:
                 summary["repose_angle"] = _measure_pile(sim, self.case.output.repose_angle, self.outdir, echo)
         except ParameterError as err:  # refused later on (a stage's dt after the state changed): say where
@@ -242,7 +239,7 @@ class _Run:
             failure = err
             raise
         finally:
-            if self.measurements and "measurements" not in summary:  # a failed run's, up to the failure
+            if self.measurements:  # a failed run's too, up to the failure
                 summary["measurements"] = {name: m.summary() for name, m in self.measurements.items()}
             summary.update({"time": sim.time, "steps": sim.step, "particles_left": sim.n_particles,
                             "wall_seconds": time.perf_counter() - self.tic,
@@ -279,12 +276,9 @@ class _Run:
             sim.remove_wall(walls.pop(name))
         meshes = {w.name for w in self.case.walls if w.type == "mesh"}
         for m in stage.wall_motion:
-            motion = _motion(m)
-            point = motion.get("point")
-            if point is None and m.wall in meshes and "angular_velocity" in motion:
-                point = (0.0, 0.0, 0.0)  # a mesh turns about the origin unless told
+            motion = _motion(m, mesh=m.wall in meshes)
             sim.set_wall_velocity(m.wall, motion["velocity"], motion.get("angular_velocity", (0.0, 0.0, 0.0)),
-                                  point=point)
+                                  point=motion.get("point"))
         if stage.set_velocity is not None:
             sv = stage.set_velocity
             idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles

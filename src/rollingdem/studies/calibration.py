@@ -271,13 +271,19 @@ def _all_runs(out: Path, sc, experiment: str, fix: dict, name: str) -> pd.DataFr
     return table.reset_index(drop=True)
 
 
+def _pooled_sd(counts: np.ndarray, std: np.ndarray) -> tuple[float, float]:
+    """(the seeds' standard deviation pooled over the points with two or more seeds, its degrees of
+    freedom); (0, 0) without such a point (a deterministic experiment)."""
+    multi = counts >= 2
+    dof = float(np.sum(counts[multi] - 1))
+    return (math.sqrt(np.sum((counts[multi] - 1) * std[multi] ** 2) / dof) if dof > 0 else 0.0), dof
+
+
 def _bootstrap(x, means, counts, std, increasing, target, uncertainty, n) -> tuple[float, float, float]:
     """2.5 and 97.5 percentiles of the inverted surrogate over parametric bootstrap replicates,
     and the fraction of replicates whose target fell outside the swept range (clipped to its ends)."""
     rng = np.random.default_rng(12345)
-    multi = counts >= 2
-    dof = float(np.sum(counts[multi] - 1))
-    pooled = math.sqrt(np.sum((counts[multi] - 1) * std[multi] ** 2) / dof) if dof > 0 else 0.0
+    pooled, dof = _pooled_sd(counts, std)
     draws = rng.standard_t(dof, size=(n, len(x))) if dof > 0 else np.zeros((n, len(x)))
     targets = target + uncertainty * rng.standard_normal(n)
     values = np.empty(n)
@@ -404,9 +410,7 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
                              near["std"].fillna(0.0).to_numpy())
     value = parabola_minimum(x, means)
     rng = np.random.default_rng(12345)
-    multi = counts >= 2
-    dof = float(np.sum(counts[multi] - 1))
-    pooled = math.sqrt(np.sum((counts[multi] - 1) * std[multi] ** 2) / dof) if dof > 0 else 0.0
+    pooled, _ = _pooled_sd(counts, std)
     draws = [parabola_minimum(x, means + pooled / np.sqrt(counts) * rng.standard_normal(len(x)))
              for _ in range(search.bootstrap)]
     low, high = float(np.percentile(draws, 2.5)), float(np.percentile(draws, 97.5))

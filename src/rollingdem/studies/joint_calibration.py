@@ -101,6 +101,17 @@ class JointCalibration:
 
 
 _TARGET = re.compile(r"^\s*([A-Za-z0-9_-]+)\.([A-Za-z0-9_]+)\s*=\s*([^±+]+?)\s*(?:(?:±|\+-|\+/-)\s*(.+))?\s*$")
+_VALUE = re.compile(r"^\s*([^±+]+?)\s*(?:(?:±|\+-|\+/-)\s*(.+?))?\s*$")
+
+
+def parse_value(text: str, target: str) -> tuple[float, float]:
+    """``"32.5±1.0"`` (or ``+-``, ``+/-``; without it the uncertainty is 0) as (value, uncertainty);
+    refused naming the whole ``target``."""
+    m = _VALUE.match(text)
+    try:
+        return float(m.group(1)), float(m.group(2)) if m.group(2) else 0.0
+    except (AttributeError, ValueError):
+        raise ParameterError(f"target = {target!r} is not allowed: VALUE and UNCERTAINTY must be numbers") from None
 
 
 def parse_target(text: str) -> Target:
@@ -109,11 +120,8 @@ def parse_target(text: str) -> Target:
     if not m:
         raise ParameterError(f"target = {text!r} is not allowed: write EXPERIMENT.OBSERVABLE=VALUE±UNCERTAINTY, e.g. "
                              "angle-of-repose.angle=32.5±1.0")
-    experiment, observable, value, unc = m.groups()
-    try:
-        return Target(experiment, observable, float(value), float(unc) if unc else 0.0)
-    except ValueError:
-        raise ParameterError(f"target = {text!r} is not allowed: VALUE and UNCERTAINTY must be numbers") from None
+    experiment, observable = m.group(1), m.group(2)
+    return Target(experiment, observable, *parse_value(text.split("=", 1)[1], text))
 
 
 def _check(targets, free, fix):

@@ -279,3 +279,29 @@ def test_the_parabola_minimum_on_made_up_curves():
     assert parabola_minimum(x, (x - 0.3) ** 2 + 1) == pytest.approx(0.3, abs=1e-12)
     assert parabola_minimum(x, -(x - 0.2) ** 2) == 0.6  # opens downwards: the lowest point
     assert parabola_minimum(x, (x - 2.0) ** 2) == 0.6  # vertex beyond the points
+
+
+def test_a_heap_profile_is_read_at_its_end_state_and_a_drum_profile_over_its_window(tmp_path):
+    """The layer falls 0.6 mm onto the floor in its first 11 ms: a heap's misfit, sampled every 2 ms
+    over a window from t = 0, is the end state's (the sample at 40 ms), not the window's mean, which
+    the fall raises; the same measurement as a drum's is its mean."""
+    import numpy as np
+
+    from rollingdem.experiments.case_file import CaseExperiment
+    from rollingdem.io.measurements import SurfaceProfile
+
+    g = np.arange(-0.026, 0.0261, 0.0065)
+    positions = [[float(a), float(b), 0.0031] for a in g for b in g]
+    text = FLAT.format(positions=positions).replace("shape: heap, center: [0, 0]}",
+                                                    "shape: heap, center: [0, 0], interval: 0.002, window: [0, 0.04]}")
+    (tmp_path / "layer.yaml").write_text(text)
+    (tmp_path / "measured.csv").write_text("r,h\n" + "".join(f"{r:.4f},0.004\n" for r in np.linspace(0, 0.015, 7)))
+    exp = CaseExperiment(tmp_path / "layer.yaml")
+    got = exp.observe(exp.resolve({"particles.0.radius": 0.002}))["surface.rmse"]
+    heap = SurfaceProfile("p", [[0, 0], [1, 1]])
+    drum = SurfaceProfile("p", [[0, 0], [1, 1]], shape="drum")
+    for m in (heap, drum):
+        m._rows = [(0.0, 0, [3.0, 1.0]), (1.0, 1, [1.0, 1.0])]
+        m.window = (0.0, 1.0)
+    assert heap.summary()["rmse"]["value"] == 1.0 and drum.summary()["rmse"]["value"] == 2.0
+    assert got < 1e-4  # the end state: 2 R = 4 mm, on the floor

@@ -221,22 +221,13 @@ class CaseExperiment(Experiment):
         out = {}
         for name, s in (summary.get("measurements") or {}).items():
             for q, entry in s.items():
-                if isinstance(entry, dict) and "final" in entry:
-                    out[f"{name}.{q}"] = entry["final"] if _cumulative(s["kind"], q) else entry["mean"]
+                if isinstance(entry, dict) and "value" in entry:
+                    out[f"{name}.{q}"] = entry["value"]
         pile = summary.get("repose_angle") or {}
         for q in PILE:
             out.setdefault(f"repose_angle.{q}", pile.get(q) if pile.get(q) is not None else math.nan)
         out["prepared.seconds_saved"] = (summary.get("prepared") or {}).get("seconds_saved", 0.0)
         return {o: out.get(o, math.nan) for o in self.observables}
-
-
-def _cumulative(kind: str, quantity: str) -> bool:
-    from rollingdem.io import measurements
-
-    for cls in vars(measurements).values():
-        if isinstance(cls, type) and getattr(cls, "kind", None) == kind:
-            return quantity in cls.CUMULATIVE
-    return False
 
 
 def _get(data, path: str) -> Any:

@@ -129,8 +129,10 @@ class Measurement(Observer):
 
     # --- the end -----------------------------------------------------------------------------------
     def summary(self) -> dict:
-        """{quantity: {unit, final, mean, standard_error}, window: [t0, t1]}; a rate quantity's mean
-        is the least-squares slope of its cumulative quantity over the window."""
+        """{quantity: {unit, final, mean, standard_error, value}, window: [t0, t1]}; a rate quantity's
+        mean is the least-squares slope of its cumulative quantity over the window; ``value`` is what
+        the measurement stands for (a cumulative quantity's final value, else the mean): what a
+        calibration reads."""
         if not self._rows:
             return {"kind": self.kind, "what": self.describe(), "samples": 0}
         t = np.array([r[0] for r in self._rows])
@@ -147,7 +149,8 @@ class Measurement(Observer):
                 vals = data[sel, k]
                 mean = float(np.nanmean(vals)) if np.isfinite(vals).any() else math.nan
                 err = batch_standard_error(vals)
-            out[q] = entry | {"mean": mean, "standard_error": err}
+            out[q] = entry | {"mean": mean, "standard_error": err,
+                              "value": entry["final"] if q in self.CUMULATIVE else mean}
         return out
 
     def summary_line(self) -> str:

@@ -305,3 +305,18 @@ def test_a_heap_profile_is_read_at_its_end_state_and_a_drum_profile_over_its_win
         m.window = (0.0, 1.0)
     assert heap.summary()["rmse"]["value"] == 1.0 and drum.summary()["rmse"]["value"] == 2.0
     assert got < 1e-4  # the end state: 2 R = 4 mm, on the floor
+
+
+def test_a_minimum_target_refuses_what_it_cannot_search_in_one_line(tmp_path):
+    (tmp_path / "beads.yaml").write_text(CASE)
+    cases = [
+        (["--target", "box.mass=min", "--free", "density"], "free = 'density' is not allowed without its range"),
+        (["--target", "box.mass=min", "--target", "load.fz=1", "--free", "density=1:2"],
+         "a minimum is searched over one free parameter of one case file"),
+        (["--target", "box.weight=min", "--free", "density=1:2"], "observable = 'box.weight' is not known"),
+    ]
+    for args, message in cases:
+        result = CliRunner().invoke(app, ["calibrate", str(tmp_path / "beads.yaml"), *args, "--out",
+                                          str(tmp_path / "cal"), "--no-progress"])
+        assert result.exit_code == 2 and "Traceback" not in result.output, result.output
+        assert result.output.startswith("error:") and message in result.output and result.output.count("\n") == 1

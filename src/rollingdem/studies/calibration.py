@@ -363,6 +363,7 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
     ``search.refine`` points between the neighbours of the lowest mean, and the vertex of the
     least-squares parabola through the five points around it; its 95 % interval from a
     parametric bootstrap of the seed means (the spread of the seeds about each mean)."""
+    import tempfile
     import time
 
     from rollingdem.studies.sweep import load_sweep, run_sweep
@@ -382,7 +383,7 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
                              f"{', '.join(sc.observables)}")
     fix = dict(fix or {})
     seeds = seeds if seeds is not None else (3 if sc.stochastic else 1)
-    out = check_output_path("out", out) if out is not None else Path(__import__("tempfile").mkdtemp(prefix="rollingdem-min-"))
+    out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-min-"))
     first = load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: lo}], "seeds": seeds})
     say = echo or (lambda *_: None)
 

@@ -19,7 +19,7 @@ from rollingdem.physics.contact import ContactModel  # noqa: E402
 from rollingdem.errors import ParameterError, SimulationError  # noqa: E402
 from rollingdem.scene.insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform, rough_base  # noqa: E402
 from rollingdem.scene.materials import Material, MaterialTable  # noqa: E402
-from rollingdem.scene.mesh import MeshWall, TriangleMesh  # noqa: E402
+from rollingdem.scene.mesh import MeshRegion, MeshWall, TriangleMesh  # noqa: E402
 from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots  # noqa: E402
 from rollingdem.io.measurements import (DrumAngle, Function, MassFlow, MeshFlow, OutletTotals, PileAngle, Probe,  # noqa: E402
                                          SurfaceProfile, WallLoad)
@@ -32,7 +32,7 @@ from rollingdem.scene.walls import Cylinder, Plane  # noqa: E402
 globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (rd.EPSD, rd.Hertz, ...)
 
 __all__ = [
-    "convert", "Simulation", "ContactModel", "ParallelBond", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "TriangleMesh", "TimeSeries",
+    "convert", "Simulation", "ContactModel", "ParallelBond", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "MeshRegion", "TriangleMesh", "TimeSeries",
     "VTKSnapshots", "Checkpoints", "Callback", "Observer", "MassFlow", "MeshFlow", "Probe", "OutletTotals", "WallLoad",
     "PileAngle", "DrumAngle", "SurfaceProfile", "Function", "Settled", "Reaches", "Empty", "BoxRegion", "CylinderRegion", "Uniform", "Normal",
     "Discrete", "rough_base", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",

@@ -266,10 +266,21 @@ class MassFlowSpec(_MeasurementBase):
     radius: Optional[Number] = None
 
 
+class MeshRegionSpec(_Strict):
+    """``rollingdem.MeshRegion``: the volume a closed mesh encloses, given as a mesh wall is
+    (``file`` with ``scale``, or ``shape`` with ``size``; ``place``)."""
+    type: Literal["mesh"]
+    file: Optional[str] = None
+    scale: Number = 1.0
+    shape: Optional[str] = None
+    size: dict[str, Any] = {}
+    place: Optional[PlaceSpec] = None
+
+
 class ProbeSpec(_MeasurementBase):
-    """``rollingdem.Probe``: the particles in ``region``."""
+    """``rollingdem.Probe``: the particles in ``region`` (a box, a cylinder or a closed mesh)."""
     type: Literal["probe"]
-    region: RegionSpec
+    region: Annotated[Union[BoxRegionSpec, CylinderRegionSpec, MeshRegionSpec], Field(discriminator="type")]
 
 
 class OutletMeasurementSpec(_MeasurementBase):
@@ -692,10 +703,21 @@ def build_simulation(case: CaseSpec):
     return sim
 
 
-def _region(r):
+def _region(r, base: Path | None = None):
     from rollingdem.scene.insertion import BoxRegion, CylinderRegion
 
+    if r.type == "mesh":
+        from rollingdem.scene.mesh import MeshRegion
+
+        return MeshRegion(_sensor_mesh(r, base))
     return BoxRegion(r.lo, r.hi) if r.type == "box" else CylinderRegion(r.radius, r.z_min, r.z_max, center=r.center)
+
+
+def _sensor_mesh(spec, base: Path):
+    """The TriangleMesh of a sensor's mesh block (a mesh-flow surface, a probe's mesh region)."""
+    surface = MeshSpec(type="mesh", material="(sensor)", file=spec.file, scale=spec.scale, shape=spec.shape,
+                       size=spec.size, place=spec.place)
+    return _mesh_wall(surface, base).mesh
 
 
 def _motion(spec, mesh: bool = False) -> dict:
@@ -867,7 +889,7 @@ def build_measurements(case: CaseSpec, sim) -> dict:
             if m.type == "mass_flow":
                 made[m.name] = ms.MassFlow(point=m.point, normal=m.normal, radius=m.radius, **common)
             elif m.type == "probe":
-                made[m.name] = ms.Probe(region=_region(m.region), **common)
+                made[m.name] = ms.Probe(region=_region(m.region, case.base_directory), **common)
             elif m.type == "outlet":
                 made[m.name] = ms.OutletTotals(outlet=m.outlet, **common)
             elif m.type == "wall":
@@ -876,9 +898,7 @@ def build_measurements(case: CaseSpec, sim) -> dict:
                 made[m.name] = ms.PileAngle(floor=m.floor, n_slices=m.n_slices, exclude_apex=m.exclude_apex,
                                             exclude_toe=m.exclude_toe, **common)
             elif m.type == "mesh_flow":
-                surface = MeshSpec(type="mesh", material="(sensor)", file=m.file, scale=m.scale, shape=m.shape,
-                                   size=m.size, place=m.place)
-                made[m.name] = ms.MeshFlow(mesh=_mesh_wall(surface, case.base_directory).mesh, **common)
+                made[m.name] = ms.MeshFlow(mesh=_sensor_mesh(m, case.base_directory), **common)
             elif m.type == "drum_angle":
                 made[m.name] = ms.DrumAngle(center=m.center, axis=m.axis, extent=m.extent, **common)
             else:

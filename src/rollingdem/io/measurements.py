@@ -382,7 +382,8 @@ def _check_inside_domain(sim, what: str, point) -> None:
 
 
 class Probe(Measurement):
-    """The free particles whose centres are in ``region`` (a ``BoxRegion`` or ``CylinderRegion``):
+    """The free particles whose centres are in ``region`` (a ``BoxRegion``, ``CylinderRegion`` or
+    ``MeshRegion``, the volume a closed mesh encloses):
     ``count``, ``mass`` (kg), ``bulk_density`` (their mass over the region's volume, kg/m^3),
     ``solid_fraction`` (their volume over the region's), the mean velocity ``vx, vy, vz`` (m/s,
     mass-weighted), ``kinetic_energy`` (J, translational and rotational) and ``coordination`` (the
@@ -396,7 +397,7 @@ class Probe(Measurement):
     def __init__(self, name: str, region, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
         if not hasattr(region, "contains") or not hasattr(region, "volume"):
-            raise ParameterError(f"probe region = {region!r} is not allowed: must be a BoxRegion or CylinderRegion")
+            raise ParameterError(f"probe region = {region!r} is not allowed: must be a BoxRegion, CylinderRegion or MeshRegion")
         self.region = region
 
     def describe(self):

@@ -12,6 +12,7 @@ import numpy as np
 from rollingdem.errors import ParameterError, check_integer, check_positive, check_vector
 from rollingdem.physics.mesh import closest_points
 from rollingdem.physics.records import WALL_MESH
+from rollingdem.scene.insertion import Region
 from rollingdem.scene.walls import Wall
 
 #: relative area below which a triangle is degenerate: |(b - a) x (c - a)| / 2 < this x (longest edge)^2
@@ -211,27 +212,7 @@ class MeshWall(Wall):
     def overlap(self, x, r) -> np.ndarray:
         """Overlap (m) of spheres (centres x, radii r) with the mesh: R minus the distance to its
         nearest point."""
-        from scipy.spatial import cKDTree
-
-        x = np.asarray(x, dtype=float).reshape(-1, 3)
-        r = np.asarray(r, dtype=float).reshape(-1)
-        out = np.full(len(r), -np.inf)
-        if not len(r):
-            return out
-        v, t = self.mesh.vertices, self.mesh.triangles
-        centre = v[t].mean(axis=1)
-        reach = np.linalg.norm(v[t] - centre[:, None, :], axis=2).max(axis=1)  # each triangle within this of its centre
-        tree = cKDTree(centre)
-        pairs_p, pairs_t = [], []
-        for k, near in enumerate(tree.query_ball_point(x, r + reach.max())):
-            pairs_p += [k] * len(near)
-            pairs_t += near
-        if pairs_p:
-            pp, tt = np.asarray(pairs_p), np.asarray(pairs_t, dtype=np.int64)
-            q, feature = np.zeros((len(pp), 3)), np.zeros(len(pp), dtype=np.int64)
-            closest_points(np.ascontiguousarray(x[pp]), v, np.ascontiguousarray(t[tt]), q, feature)
-            np.maximum.at(out, pp, r[pp] - np.linalg.norm(x[pp] - q, axis=1))
-        return out
+        return sphere_overlap(self.mesh, x, r)
 
     def update_from_engine(self, vertices, point):
         """Take the engine's vertices and rotation point after a run (the mesh has moved)."""
@@ -263,6 +244,100 @@ def _with_vertices(mesh: TriangleMesh, vertices) -> TriangleMesh:
     n = np.cross(b - a, c - a)
     out.normals = n / np.linalg.norm(n, axis=1)[:, None]
     return out
+
+
+def sphere_overlap(mesh: TriangleMesh, x, r) -> np.ndarray:
+    """Overlap (m) of spheres (centres ``x``, radii ``r``) with ``mesh``: the radius minus the
+    distance to the mesh's nearest point (-inf beyond a triangle's reach)."""
+    from scipy.spatial import cKDTree
+
+    x = np.asarray(x, dtype=float).reshape(-1, 3)
+    r = np.asarray(r, dtype=float).reshape(-1)
+    out = np.full(len(r), -np.inf)
+    if not len(r):
+        return out
+    v, t = mesh.vertices, mesh.triangles
+    centre = v[t].mean(axis=1)
+    reach = np.linalg.norm(v[t] - centre[:, None, :], axis=2).max(axis=1)  # each triangle within this of its centre
+    tree = cKDTree(centre)
+    pairs_p, pairs_t = [], []
+    for k, near in enumerate(tree.query_ball_point(x, r + reach.max())):
+        pairs_p += [k] * len(near)
+        pairs_t += near
+    if pairs_p:
+        pp, tt = np.asarray(pairs_p), np.asarray(pairs_t, dtype=np.int64)
+        q, feature = np.zeros((len(pp), 3)), np.zeros(len(pp), dtype=np.int64)
+        closest_points(np.ascontiguousarray(x[pp]), v, np.ascontiguousarray(t[tt]), q, feature)
+        np.maximum.at(out, pp, r[pp] - np.linalg.norm(x[pp] - q, axis=1))
+    return out
+
+
+def winding_number(mesh: TriangleMesh, x, block: int = 1 << 20) -> np.ndarray:
+    """The winding number of a closed ``mesh`` about each point of ``x`` (n, 3): the sum of its
+    triangles' solid angles over 4 pi, +-1 inside (the sign is the normals' orientation), 0 outside.
+    Each triangle's solid angle is Van Oosterom & Strackee's (IEEE Trans. Biomed. Eng. 30, 1983):
+    tan(Omega / 2) = a.(b x c) / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|), with a, b, c its
+    corners relative to the point."""
+    x = np.asarray(x, dtype=float).reshape(-1, 3)
+    corners = mesh.vertices[mesh.triangles]  # (m, 3, 3)
+    out = np.zeros(len(x))
+    step = max(1, block // max(1, len(corners)))
+    for s in range(0, len(x), step):
+        rel = corners[None, :, :, :] - x[s:s + step, None, None, :]  # (p, m, 3, 3)
+        a, b, c = rel[:, :, 0], rel[:, :, 1], rel[:, :, 2]
+        la, lb, lc = (np.linalg.norm(q, axis=2) for q in (a, b, c))
+        det = np.einsum("pmi,pmi->pm", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("pmi,pmi->pm", a, b) * lc + np.einsum("pmi,pmi->pm", a, c) * lb
+               + np.einsum("pmi,pmi->pm", b, c) * la)
+        out[s:s + step] = 2.0 * np.arctan2(det, den).sum(axis=1) / (4.0 * math.pi)
+    return out
+
+
+class MeshRegion(Region):
+    """The volume a closed triangle ``mesh`` (a ``TriangleMesh``, or a ``MeshWall``'s) encloses: a
+    probe's region. A point is inside where the mesh's winding number about it is above one half in
+    magnitude; a sphere, where its centre is inside and no point of the mesh is nearer than its radius.
+    Refused in one line when the mesh is not closed (an edge of one triangle only)."""
+
+    def __init__(self, mesh):
+        mesh = getattr(mesh, "mesh", mesh)
+        if not isinstance(mesh, TriangleMesh):
+            raise ParameterError(f"MeshRegion mesh = {mesh!r} is not allowed: must be a TriangleMesh or MeshWall")
+        free = np.argwhere(mesh.edge_neighbors < 0)
+        if len(free):
+            k, e = (int(i) for i in free[0])
+            t = mesh.triangles[k]
+            raise ParameterError(f"{mesh.label}: a region's mesh must be closed, but edge {[int(t[e]), int(t[(e + 1) % 3])]} "
+                                 f"of triangle {k} belongs to no other triangle ({len(free)} such edges)")
+        self.mesh = mesh
+        self._volume = abs(mesh.enclosed_volume())
+
+    def volume(self) -> float:
+        return self._volume
+
+    def contains(self, x, r):
+        x = np.asarray(x, dtype=float).reshape(-1, 3)
+        r = np.broadcast_to(np.asarray(r, dtype=float), (len(x),))
+        lo, hi = self.bounds()
+        inside = ((x - r[:, None] >= lo) & (x + r[:, None] <= hi)).all(axis=1)  # the box first: most points are out
+        k = np.nonzero(inside)[0]
+        inside[k] = np.abs(winding_number(self.mesh, x[k])) > 0.5
+        k = k[inside[k] & (r[k] > 0)]
+        if len(k):
+            inside[k] = sphere_overlap(self.mesh, x[k], r[k]) <= 0.0
+        return inside
+
+    def fits(self, r: float) -> bool:
+        raise ParameterError("MeshRegion: insertion into a mesh volume is not available; a mesh region is a probe's")
+
+    def sample(self, rng, r):
+        self.fits(float(np.max(r)))
+
+    def bounds(self):
+        return self.mesh.vertices.min(axis=0), self.mesh.vertices.max(axis=0)
+
+    def __repr__(self) -> str:
+        return f"MeshRegion({self.mesh.label}, {self.mesh.n_triangles} triangles, volume {self._volume:.6g} m^3)"
 
 
 # --- ready-made shapes -------------------------------------------------------------------------
@@ -365,4 +440,4 @@ def chute(length: float, width: float, wall_height: float) -> TriangleMesh:
 
 SHAPES = {"drum": drum, "silo": silo, "hopper": hopper, "disk": disk, "box": box, "chute": chute}
 
-__all__ = ["MeshWall", "SHAPES", "TriangleMesh", "drum", "silo", "hopper", "disk", "box", "chute"]
+__all__ = ["MeshRegion", "MeshWall", "SHAPES", "TriangleMesh", "drum", "silo", "hopper", "disk", "box", "chute"]

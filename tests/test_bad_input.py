@@ -192,6 +192,9 @@ CATALOGUE = [
      edit("stages:", "measurements:\n  - {name: f, type: mass_flow, point: [0, 0, -50], normal: [0, 0, -1]}\n"
                      "stages:"),
      "measurements.0: mass flow 'f' point = (0, 0, -50) is not allowed: it is outside the scene"),
+    ("a probe in an open mesh", edit("stages:", "measurements:\n  - {name: p, type: probe, region: {type: mesh, shape: "
+                                     "drum, size: {radius: 0.02, length: 0.05, caps: false}}}\nstages:"),
+     "measurements.0: tube: a region's mesh must be closed, but edge"),
     ("an unknown measurement type", edit("stages:", "measurements:\n  - {name: a, type: speedometer}\nstages:"),
      "key 'measurements.0.type' = \"speedometer\" is not allowed: must be one of"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),

@@ -247,18 +247,24 @@ def test_a_function_of_the_state_is_measured_with_its_units():
         sim.run(0.001, observers=[bad])
 
 
-def test_a_drum_profile_reads_the_misfit_of_a_flat_bed_to_its_height():
-    """A flat bed in a drum turned along x (gravity -z), its surface the top of its highest row:
-    measured at that height the misfit is 0; measured 1 mm higher, rmse 1 mm and bias -1 mm (the
-    simulated surface lies below the measured one)."""
+def _flat_drum_bed(lift=0.0):
+    """Three rows along x of a drum's lower half (radius 9 cm), in a square lattice, raised by
+    ``lift``; and the height of its surface (the top of its highest row)."""
     sim = rd.Simulation(gravity=(0, 0, -G))
     sim.add_material(_material())
     d = 2 * RP * 1.001
     ys, zs = np.meshgrid(np.arange(-0.09, 0.09, d), np.arange(-0.09, 0.09, d))
     keep = (np.hypot(ys, zs) < 0.09) & (zs < 0)
-    cross = np.column_stack([ys[keep], zs[keep]])
+    cross = np.column_stack([ys[keep], zs[keep] + lift])
     sim.add_particles(np.vstack([np.column_stack([np.full(len(cross), k * d), cross]) for k in range(3)]), RP, "m")
-    top = float(zs[keep].max()) + RP
+    return sim, float(zs[keep].max()) + lift + RP
+
+
+def test_a_drum_profile_reads_the_misfit_of_a_flat_bed_to_its_height():
+    """A flat bed in a drum turned along x (gravity -z), its surface the top of its highest row:
+    measured at that height the misfit is 0; measured 1 mm higher, rmse 1 mm and bias -1 mm (the
+    simulated surface lies below the measured one)."""
+    sim, top = _flat_drum_bed()
     xs = np.linspace(-0.05, 0.05, 11)
     for shift, (rmse, bias) in ((0.0, (0.0, 0.0)), (0.001, (0.001, -0.001))):
         # across = up x axis = z x x = y: the points' first coordinate is y
@@ -266,6 +272,23 @@ def test_a_drum_profile_reads_the_misfit_of_a_flat_bed_to_its_height():
                                     center=(0, 0, 0), axis=(1, 0, 0))
         got = profile.values(sim)
         assert got == pytest.approx([rmse, bias], abs=1e-12)
+
+
+def test_a_drum_profile_compares_the_surface_averaged_over_its_window():
+    """A drum's surface 1 mm above and 1 mm below the measured line, sample after sample: each
+    sample's rmse is 1 mm (the series' mean), the surface averaged over the window lies on the line
+    (the summary's value and the printed line: 0, to round-off), as a GranuDrum averages its images."""
+    (low, top), (high, _) = _flat_drum_bed(-0.001), _flat_drum_bed(0.001)
+    xs = np.linspace(-0.05, 0.05, 11)
+    profile = rd.SurfaceProfile("p", np.column_stack([xs, np.full(11, top + 0.001)]), shape="drum",
+                                center=(0, 0, 0), axis=(1, 0, 0), window=(0.0, 1.0))
+    for sim in (low, high, low, high):
+        profile.observe(sim)
+    s = profile.summary()
+    assert s["samples"] == 4 and s["rmse"]["mean"] == pytest.approx(0.001, rel=1e-9)
+    assert abs(s["rmse"]["value"]) < 1e-12 and abs(s["bias"]["value"]) < 1e-12
+    line = profile.summary_line()
+    assert "rmse 0 m, bias 0 m (the surface averaged over 0-1 s; each sample's rmse 0.001 m on average)" in line
 
 
 def test_a_mesh_surface_counts_what_passes_through_its_triangles_by_their_normal():

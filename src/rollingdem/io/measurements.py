@@ -644,7 +644,12 @@ class SurfaceProfile(Measurement):
     ``shape`` "drum": the points are (x, y) across and up in the drum's cross-section about its
     ``axis`` through ``center`` (gravity gives up); the simulated height at x is the top of the
     highest particle touching another within half a mean diameter of x (``DrumAngle``'s columns).
-    Where no particle is, the height is the floor's (heap) or NaN (drum, left out)."""
+    Where no particle is, the height is the floor's (heap) or NaN (drum, left out).
+
+    Each sample's rmse and bias are in the series. The summary's ``value`` is what a measured
+    profile is compared with: a heap's end state; for a drum, the surface averaged over the window
+    (each point's mean height over the samples that have one there, as a GranuDrum averages its
+    images), whose misfit is free of the surface's moment-to-moment scatter."""
 
     kind = "profile"
     INTERVAL = 0.1
@@ -664,9 +669,47 @@ class SurfaceProfile(Measurement):
         # a heap is measured at rest: its summary is the end state's; a drum's, the mean over the window
         self.CUMULATIVE = ("rmse", "bias") if shape == "heap" else ()
         self.floor = None if floor is None else check_finite("profile floor", floor)
+        self._heights: list[np.ndarray] = []  # each sample's, for a drum's mean surface
 
     def describe(self):
         return f"{self.shape} surface against {len(self.points)} measured points"
+
+    def observe(self, sim) -> None:
+        if self.shape == "drum":
+            self._heights.append(self.heights(sim))
+        super().observe(sim)
+
+    def mean_misfit(self) -> tuple[float, float]:
+        """A drum's (rmse, bias) of its surface averaged over the summary's window; NaN for none."""
+        s = super().summary()
+        if not s["samples"]:
+            return math.nan, math.nan
+        t0, t1 = s["window"]
+        t = np.array([r[0] for r in self._rows])
+        sel = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
+        h = np.array(self._heights)[sel]
+        seen = np.isfinite(h).any(axis=0)
+        if not seen.any():
+            return math.nan, math.nan
+        d = np.nanmean(h[:, seen], axis=0) - self.points[seen, 1]
+        return float(np.sqrt(np.mean(d ** 2))), float(np.mean(d))
+
+    def summary(self) -> dict:
+        out = super().summary()
+        if self.shape == "drum" and out["samples"]:
+            for q, v in zip(("rmse", "bias"), self.mean_misfit()):
+                out[q]["value"] = out[q]["of_mean_surface"] = v
+        return out
+
+    def summary_line(self) -> str:
+        if self.shape != "drum":
+            return super().summary_line()
+        s = self.summary()
+        if not s["samples"]:
+            return f"{self.name}: no samples in the window"
+        t0, t1 = s["window"]
+        return (f"{self.name} ({self.describe()}): rmse {s['rmse']['value']:.4g} m, bias {s['bias']['value']:.4g} m "
+                f"(the surface averaged over {t0:.3g}-{t1:.3g} s; each sample's rmse {s['rmse']['mean']:.4g} m on average)")
 
     def heights(self, sim) -> np.ndarray:
         """The simulated surface height at each measured point's first coordinate."""

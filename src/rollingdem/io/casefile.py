@@ -266,15 +266,18 @@ class MassFlowSpec(_MeasurementBase):
     radius: Optional[Number] = None
 
 
-class MeshRegionSpec(_Strict):
-    """``rollingdem.MeshRegion``: the volume a closed mesh encloses, given as a mesh wall is
-    (``file`` with ``scale``, or ``shape`` with ``size``; ``place``)."""
-    type: Literal["mesh"]
+class _SensorMeshSpec(_Strict):
+    """A sensor's mesh, given as a mesh wall is: ``file`` with ``scale``, or ``shape`` with ``size``; ``place``."""
     file: Optional[str] = None
     scale: Number = 1.0
     shape: Optional[str] = None
     size: dict[str, Any] = {}
     place: Optional[PlaceSpec] = None
+
+
+class MeshRegionSpec(_SensorMeshSpec):
+    """``rollingdem.MeshRegion``: the volume a closed mesh encloses."""
+    type: Literal["mesh"]
 
 
 class ProbeSpec(_MeasurementBase):
@@ -312,15 +315,9 @@ class DrumMeasurementSpec(_MeasurementBase):
     extent: Optional[tuple[Number, Number]] = None
 
 
-class MeshFlowSpec(_MeasurementBase):
-    """``rollingdem.MeshFlow``: through a triangle mesh surface, given as a mesh wall is (``file``
-    with ``scale``, or ``shape`` with ``size``; ``place``), counted along its triangles' normals."""
+class MeshFlowSpec(_MeasurementBase, _SensorMeshSpec):
+    """``rollingdem.MeshFlow``: through a triangle mesh surface, counted along its triangles' normals."""
     type: Literal["mesh_flow"]
-    file: Optional[str] = None
-    scale: Number = 1.0
-    shape: Optional[str] = None
-    size: dict[str, Any] = {}
-    place: Optional[PlaceSpec] = None
 
 
 class ProfileSpec(_MeasurementBase):

@@ -310,6 +310,27 @@ def test_a_heap_profile_is_read_at_its_end_state_and_a_drum_profile_over_its_win
     assert got < 1e-4  # the end state: 2 R = 4 mm, on the floor
 
 
+def test_the_minimum_interval_spans_a_flat_bottom_and_is_narrow_at_a_sharp_one():
+    """Made-up misfits with a standard error of 0.1 at each point, points packed near the lowest
+    as refinement packs them. A flat bottom (0 on [0.4, 0.6], rising 10 per unit outside) is
+    indistinguishable over its whole width, so the 95 % interval must reach most of it, beyond the
+    five points nearest the lowest (0.44-0.52); a sharp one, 5 (x - 0.5)^2 * 100, gives an
+    interval a few hundredths wide about 0.5."""
+    import numpy as np
+
+    from rollingdem.studies.calibration import local_minimum, minimum_interval
+
+    x = np.array([0.0, 0.2, 0.4, 0.44, 0.46, 0.48, 0.5, 0.52, 0.6, 0.8, 1.0])
+    flat = 10.0 * np.maximum(np.maximum(0.4 - x, x - 0.6), 0.0)
+    errors = np.full(len(x), 0.1)
+    low, high = minimum_interval(x, flat, errors, 2000, np.random.default_rng(1))
+    assert low <= 0.42 and high >= 0.58
+    sharp = 500.0 * (x - 0.5) ** 2
+    assert local_minimum(x, sharp) == pytest.approx(0.5, abs=1e-9)
+    low, high = minimum_interval(x, sharp, errors, 2000, np.random.default_rng(1))
+    assert low < 0.5 < high and high - low < 0.05
+
+
 def test_a_minimum_target_refuses_what_it_cannot_search_in_one_line(tmp_path):
     (tmp_path / "beads.yaml").write_text(CASE)
     cases = [

@@ -348,11 +348,28 @@ def parabola_minimum(x, y) -> float:
     return float(vertex) if x.min() <= vertex <= x.max() else best
 
 
-def _around_minimum(stats: pd.DataFrame, k: int = 5) -> pd.DataFrame:
-    """The ``k`` points nearest the lowest mean (by rank along x)."""
-    i = int(np.argmin(stats["mean"].to_numpy()))
-    lo = max(0, min(i - k // 2, len(stats) - k))
-    return stats.iloc[lo:lo + k]
+def _around_lowest(means, k: int = 5) -> slice:
+    """The ``k`` points nearest the lowest of ``means`` (by rank along the sorted x)."""
+    lo = max(0, min(int(np.argmin(means)) - k // 2, len(means) - k))
+    return slice(lo, lo + k)
+
+
+def local_minimum(x, means) -> float:
+    """Where the least-squares parabola through the five points nearest the lowest of ``means``
+    (``x`` sorted) is lowest (:func:`parabola_minimum`)."""
+    x, means = np.asarray(x, float), np.asarray(means, float)
+    near = _around_lowest(means)
+    return parabola_minimum(x[near], means[near])
+
+
+def minimum_interval(x, means, errors, replicates: int, rng) -> tuple[float, float]:
+    """The 95 % interval of :func:`local_minimum` from a parametric bootstrap: ``means`` drawn
+    about themselves with their standard ``errors``, each draw's minimum found around its own
+    lowest point, so that where the curve is flat over more points than a parabola takes, the
+    interval spans them."""
+    x, means, errors = (np.asarray(a, float) for a in (x, means, errors))
+    draws = [local_minimum(x, means + errors * rng.standard_normal(len(x))) for _ in range(replicates)]
+    return float(np.percentile(draws, 2.5)), float(np.percentile(draws, 97.5))
 
 
 def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None = None, seeds=None,
@@ -362,7 +379,8 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
     misfit such as a surface profile's RMSE. A coarse sweep, then ``search.rounds`` rounds of
     ``search.refine`` points between the neighbours of the lowest mean, and the vertex of the
     least-squares parabola through the five points around it; its 95 % interval from a
-    parametric bootstrap of the seed means (the spread of the seeds about each mean)."""
+    parametric bootstrap of the seed means (the spread of the seeds about each mean), each draw's
+    minimum found around its own lowest point (:func:`minimum_interval`)."""
     import tempfile
     import time
 
@@ -406,15 +424,13 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
             say(f"round {r + 1}: refining {name} in [{a:.5g}, {b:.5g}], around the lowest {observable}")
             sweep(xs + new, m)
             xs += new
-    near = _around_minimum(stats)
-    x, means, counts, std = (near["x"].to_numpy(), near["mean"].to_numpy(), near["count"].to_numpy(float),
-                             near["std"].fillna(0.0).to_numpy())
-    value = parabola_minimum(x, means)
-    rng = np.random.default_rng(12345)
-    pooled, _ = _pooled_sd(counts, std)
-    draws = [parabola_minimum(x, means + pooled / np.sqrt(counts) * rng.standard_normal(len(x)))
-             for _ in range(search.bootstrap)]
-    low, high = float(np.percentile(draws, 2.5)), float(np.percentile(draws, 97.5))
+    every_x, every_mean, counts = (stats["x"].to_numpy(), stats["mean"].to_numpy(), stats["count"].to_numpy(float))
+    value = local_minimum(every_x, every_mean)
+    pooled, _ = _pooled_sd(counts, stats["std"].fillna(0.0).to_numpy())
+    low, high = minimum_interval(every_x, every_mean, pooled / np.sqrt(counts), search.bootstrap,
+                                 np.random.default_rng(12345))
+    near = _around_lowest(every_mean)
+    x, means = every_x[near], every_mean[near]
     result = Calibration(experiment, name, observable, math.nan, 0.0, value, low, high, fix, runs=int(len(table)),
                          points=len(stats), seeds=first.seed_list, direction="minimum", outside_fraction=0.0,
                          wall_time=time.perf_counter() - tic, table=table)

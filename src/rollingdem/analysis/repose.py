@@ -26,11 +26,6 @@ MIN_SURFACE = 10
 MIN_SLICE = 3
 #: Surface tops must lie this many mean diameters above the floor (fitted cone) to be fitted.
 TOE_CLEARANCE = 3.0
-#: The pile's top is the median of this many highest surface tops (a sphere left on the top moves it little).
-CAP_TOPS = 5
-#: The fit starts this many mean diameters beyond where the fitted cone rises above the pile's top
-#: (a flat or rounded cap and its shoulder are not part of the cone).
-CAP_CLEARANCE = 1.0
 #: Sectors used for the median pile radius.
 _RADIUS_SECTORS = 16
 #: Bottom height above the floor, in mean diameters, of the particles that define the pile radius.
@@ -299,10 +294,6 @@ def _select_and_fit(x, a, top, floor, c, fixed_center, exclude_apex, exclude_toe
         # toe limit: where the fitted surface of tops is TOE_CLEARANCE diameters above the floor
         r_hi = min(r_hi, (p_prev[0] - floor - TOE_CLEARANCE * d_mean) / p_prev[1])
     cand = _envelope(rho, theta, top, d_mean)
-    if p_prev is not None and p_prev[1] > 0:
-        # cap limit: where the fitted cone rises above the pile's top, a flat or rounded cap
-        highest = np.sort(top[cand])[-CAP_TOPS:]
-        r_lo = max(r_lo, (p_prev[0] - float(np.median(highest))) / p_prev[1] + CAP_CLEARANCE * d_mean)
     keep = (rho[cand] >= r_lo) & (rho[cand] <= r_hi) & (x[cand, 2] - floor >= 2.0 * a[cand])
     cand = cand[keep]
     if r_hi <= r_lo or cand.size < MIN_SURFACE:
@@ -408,7 +399,7 @@ def repose_angle(positions: Any, radii: Any, *, floor: float = 0.0, center: Any 
                                              d_mean, p)
         shift = math.hypot(p[2] - c[0], p[3] - c[1])
         c = (float(p[2]), float(p[3]))
-        moved = max(abs(new_range[1] - fit_range[1]), abs(new_range[0] - fit_range[0])) if it else np.inf
+        moved = abs(new_range[1] - fit_range[1]) if it else np.inf
         fit_range = new_range
         # converged when the centre and the toe limit (both set by the previous fit) stay put
         if shift < 0.05 * d_mean and moved < 0.25 * d_mean:

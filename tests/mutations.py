@@ -224,6 +224,16 @@ MUTATIONS = [
       ("tests/test_measurements.py",)),
     M("profile minimum at the parabola's top", "src/rollingdem/studies/calibration.py",
       "    if a <= 0:\n        return best", "    if a >= 0:\n        return best", ("tests/test_case_experiment.py",)),
+    M("minimum interval held to the first five points", "src/rollingdem/studies/calibration.py",
+      "draws = [local_minimum(x, means + errors * rng.standard_normal(len(x))) for _ in range(replicates)]",
+      "near = _around_lowest(means)\n    draws = [parabola_minimum(x[near], means[near] + errors[near] * rng.standard_normal(5))"
+      " for _ in range(replicates)]", ("tests/test_case_experiment.py",)),
+    M("drum profile summary: each sample's misfit, not the averaged surface's", "src/rollingdem/io/measurements.py",
+      "out[q][\"value\"] = out[q][\"of_mean_surface\"] = v", "out[q][\"of_mean_surface\"] = v",
+      ("tests/test_measurements.py", "tests/test_case_experiment.py")),
+    M("mesh region: winding number halved", "src/rollingdem/scene/mesh.py",
+      "out[s:s + step] = 2.0 * np.arctan2(det, den).sum(axis=1) / (4.0 * math.pi)",
+      "out[s:s + step] = np.arctan2(det, den).sum(axis=1) / (4.0 * math.pi)", ("tests/test_measurements.py",)),
     M("mesh flow counts a shared edge twice", "src/rollingdem/io/measurements.py",
       "for p in np.flatnonzero(hit.sum(axis=1) > 1):", "for p in []:", ("tests/test_measurements.py",)),
 ]

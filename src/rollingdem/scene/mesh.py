@@ -272,7 +272,7 @@ def sphere_overlap(mesh: TriangleMesh, x, r) -> np.ndarray:
     return out
 
 
-def winding_number(mesh: TriangleMesh, x, block: int = 1 << 20) -> np.ndarray:
+def winding_number(mesh: TriangleMesh, x, block: int = 1 << 18) -> np.ndarray:
     """The winding number of a closed ``mesh`` about each point of ``x`` (n, 3): the sum of its
     triangles' solid angles over 4 pi, +-1 inside (the sign is the normals' orientation), 0 outside.
     Each triangle's solid angle is Van Oosterom & Strackee's (IEEE Trans. Biomed. Eng. 30, 1983):

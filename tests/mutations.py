@@ -220,7 +220,7 @@ MUTATIONS = [
     M("rpm read as rad/s", "src/rollingdem/io/casefile.py", "check_finite(\"motion rotate rpm\", r.rpm) * 2.0 * np.pi / 60.0",
       "check_finite(\"motion rotate rpm\", r.rpm)", ("tests/test_case_experiment.py",)),
     M("profile bias with the wrong sign", "src/rollingdem/io/measurements.py",
-      "d = self.heights(sim) - self.points[:, 1]", "d = self.points[:, 1] - self.heights(sim)",
+      "d = heights - self.points[:, 1]", "d = self.points[:, 1] - heights",
       ("tests/test_measurements.py",)),
     M("profile minimum at the parabola's top", "src/rollingdem/studies/calibration.py",
       "    if a <= 0:\n        return best", "    if a >= 0:\n        return best", ("tests/test_case_experiment.py",)),

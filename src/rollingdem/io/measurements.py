@@ -106,7 +106,11 @@ class Measurement(Observer):
                 csv.writer(self._file).writerow(["time", "step", *self.QUANTITIES])
 
     def observe(self, sim) -> None:
-        row = [float(v) for v in self.values(sim)]
+        self._record(sim, self.values(sim))
+
+    def _record(self, sim, values) -> None:
+        """Keep a sample's quantities, and write them to the CSV."""
+        row = [float(v) for v in values]
         self._rows.append((sim.time, sim.step, row))
         if self._file is not None:
             csv.writer(self._file).writerow([repr(sim.time), sim.step, *map(repr, row)])
@@ -135,10 +139,8 @@ class Measurement(Observer):
         calibration reads."""
         if not self._rows:
             return {"kind": self.kind, "what": self.describe(), "samples": 0}
-        t = np.array([r[0] for r in self._rows])
+        t, (t0, t1), sel = self._in_window()
         data = np.array([r[2] for r in self._rows], float).reshape(len(t), -1)
-        t0, t1 = self.window if self.window is not None else (t[0] + 0.5 * (t[-1] - t[0]), t[-1])
-        sel = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
         out = {"kind": self.kind, "what": self.describe(), "samples": int(sel.sum()), "window": [float(t0), float(t1)]}
         names = list(self.QUANTITIES)
         for k, (q, unit) in enumerate(self.QUANTITIES.items()):
@@ -152,6 +154,12 @@ class Measurement(Observer):
             out[q] = entry | {"mean": mean, "standard_error": err,
                               "value": entry["final"] if q in self.CUMULATIVE else mean}
         return out
+
+    def _in_window(self):
+        """(the samples' times, the summary's window (t0, t1), which samples lie in it); samples exist."""
+        t = np.array([r[0] for r in self._rows])
+        t0, t1 = self.window if self.window is not None else (t[0] + 0.5 * (t[-1] - t[0]), t[-1])
+        return t, (t0, t1), (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
 
     def summary_line(self) -> str:
         """The summary in one line of words, for the run's end."""
@@ -675,24 +683,21 @@ class SurfaceProfile(Measurement):
         return f"{self.shape} surface against {len(self.points)} measured points"
 
     def observe(self, sim) -> None:
+        h = self.heights(sim)
         if self.shape == "drum":
-            self._heights.append(self.heights(sim))
-        super().observe(sim)
+            self._heights.append(h)
+        self._record(sim, self._misfit(h))
 
     def mean_misfit(self) -> tuple[float, float]:
         """A drum's (rmse, bias) of its surface averaged over the summary's window; NaN for none."""
-        s = super().summary()
-        if not s["samples"]:
+        if not self._rows:
             return math.nan, math.nan
-        t0, t1 = s["window"]
-        t = np.array([r[0] for r in self._rows])
-        sel = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
-        h = np.array(self._heights)[sel]
-        seen = np.isfinite(h).any(axis=0)
-        if not seen.any():
-            return math.nan, math.nan
-        d = np.nanmean(h[:, seen], axis=0) - self.points[seen, 1]
-        return float(np.sqrt(np.mean(d ** 2))), float(np.mean(d))
+        h = np.array(self._heights)[self._in_window()[2]]
+        seen = np.isfinite(h).any(axis=0)  # a point the surface never reached stays out
+        mean = np.full(len(self.points), np.nan)
+        mean[seen] = np.nanmean(h[:, seen], axis=0)
+        rmse, bias = self._misfit(mean)
+        return rmse, bias
 
     def summary(self) -> dict:
         out = super().summary()
@@ -741,7 +746,11 @@ class SurfaceProfile(Measurement):
                          for q in self.points[:, 0]])
 
     def values(self, sim):
-        d = self.heights(sim) - self.points[:, 1]
+        return self._misfit(self.heights(sim))
+
+    def _misfit(self, heights) -> list[float]:
+        """[rmse, bias] of simulated ``heights`` minus the measured ones, where a height exists."""
+        d = heights - self.points[:, 1]
         d = d[np.isfinite(d)]
         return [float(np.sqrt(np.mean(d ** 2))), float(np.mean(d))] if len(d) else [math.nan, math.nan]
 

@@ -318,14 +318,20 @@ def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) 
     ax.axhspan(result.target - 1.96 * result.uncertainty, result.target + 1.96 * result.uncertainty, color="tab:orange",
                alpha=0.15)
     ax.axhline(result.target, color="tab:orange", lw=1, label=f"target {result.target:g} ± 1.96 × {result.uncertainty:g}")
-    ax.axvspan(result.low, result.high, color="tab:red", alpha=0.12)
-    ax.axvline(result.value, color="tab:red", lw=1.2, label=f"{result.parameter} = {result.value:.4g} "
-                                                       f"[{result.low:.4g}, {result.high:.4g}]")
-    ax.set_xlabel(result.parameter)
     unit = get_experiment(result.experiment, observable=True, what="experiment").observables[result.observable].split(",")[0]
     ax.set_ylabel(f"{result.observable} ({unit})")
     fixed = ", ".join(f"{k} = {v}" for k, v in result.fixed.items())
     ax.set_title(f"Calibration, {result.experiment}{': ' + fixed if fixed else ''}", fontsize=10)
+    _save_figure(plt, fig, ax, result, out)
+
+
+def _save_figure(plt, fig, ax, result: Calibration, out: Path) -> None:
+    """The calibrated value and its 95 % interval drawn on ``ax``; the figure saved as
+    ``out/calibration.png`` and listed in ``result.figures``."""
+    ax.axvspan(result.low, result.high, color="tab:red", alpha=0.12)
+    ax.axvline(result.value, color="tab:red", lw=1.2, label=f"{result.parameter} = {result.value:.4g} "
+                                                       f"[{result.low:.4g}, {result.high:.4g}]")
+    ax.set_xlabel(result.parameter)
     ax.legend(fontsize=7)
     fig.tight_layout()
     path = out / "calibration.png"
@@ -429,30 +435,29 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
     pooled, _ = _pooled_sd(counts, stats["std"].fillna(0.0).to_numpy())
     low, high = minimum_interval(every_x, every_mean, pooled / np.sqrt(counts), search.bootstrap,
                                  np.random.default_rng(12345))
-    near = _around_lowest(every_mean)
-    x, means = every_x[near], every_mean[near]
     result = Calibration(experiment, name, observable, math.nan, 0.0, value, low, high, fix, runs=int(len(table)),
                          points=len(stats), seeds=first.seed_list, direction="minimum", outside_fraction=0.0,
                          wall_time=time.perf_counter() - tic, table=table)
     (out / "calibration.json").write_text(json.dumps(result.as_dict(), indent=2, default=float))
+    _minimum_figure(result, stats, out)
+    say(f"{name} = {value:.5g}, 95 % interval [{low:.5g}, {high:.5g}] where {observable} is lowest "
+        f"({result.runs} runs, {result.wall_time:.0f} s; {out})")
+    return result
+
+
+def _minimum_figure(result: Calibration, stats: pd.DataFrame, out: Path) -> None:
+    """The misfit's mean over seeds at each point, the parabola through the five around the lowest,
+    and the minimum with its 95 % interval."""
     from rollingdem.experiments.results import pyplot
 
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.errorbar(stats["x"], stats["mean"], yerr=stats["std"].fillna(0.0), fmt="o", ms=4, capsize=3,
                 label="mean over seeds ± sd")
+    near = _around_lowest(stats["mean"].to_numpy())
+    x, means = stats["x"].to_numpy()[near], stats["mean"].to_numpy()[near]
     if len(x) >= 3:
         grid = np.linspace(x.min(), x.max(), 100)
         ax.plot(grid, np.polyval(np.polyfit(x, means, 2), grid), "-", color="tab:green", label="parabola near the minimum")
-    ax.axvspan(low, high, color="tab:red", alpha=0.12)
-    ax.axvline(value, color="tab:red", lw=1.2, label=f"{name} = {value:.4g} [{low:.4g}, {high:.4g}]")
-    ax.set_xlabel(name)
-    ax.set_ylabel(observable)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "calibration.png", dpi=110)
-    plt.close(fig)
-    result.figures.append(out / "calibration.png")
-    say(f"{name} = {value:.5g}, 95 % interval [{low:.5g}, {high:.5g}] where {observable} is lowest "
-        f"({result.runs} runs, {result.wall_time:.0f} s; {out})")
-    return result
+    ax.set_ylabel(result.observable)
+    _save_figure(plt, fig, ax, result, out)

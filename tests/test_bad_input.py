@@ -178,8 +178,8 @@ CATALOGUE = [
      edit("stages:", "measurements:\n  - {name: load, type: wall, wall: floor}\nstages:",
           edit(STAGE, "  - {name: s, until: {measurement: load.count, above: 5}, max_duration: 1}")),
      "stage 's': until: until load.count is not allowed: 'load' measures fx, fy, fz, tx, ty, tz, power"),
-    ("until two conditions", edit(STAGE, "  - {name: s, until: {settled: {}, empty: true}, max_duration: 1}"),
-     "give exactly one of settled, empty and measurement"),
+    ("until no condition", edit(STAGE, "  - {name: s, until: {every: 0.01}, max_duration: 1}"),
+     "give settled, empty or measurement"),
     ("a measurement of an unknown wall", edit("stages:", "measurements:\n  - {name: load, type: wall, wall: lid}\n"
                                                          "stages:"),
      "measurements.0: measurement 'load': wall = 'lid' is not allowed: no wall in place has that name; walls are "

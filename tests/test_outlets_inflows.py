@@ -205,3 +205,90 @@ def test_a_case_file_with_a_rough_base_an_inflow_an_outlet_and_a_periodic_axis_r
     assert snap.point_data["fixed"].sum() == n_base and np.array_equal(snap.point_data["id"], final.particle_ids)
     assert snap.field_data["periodic_box"][:2].tolist() == [-0.02, 0.02]
     assert snap.field_data["removed"][0] == int(last["outlet_side_count"]) and float(last["time"]) == final.time
+
+
+def _refilled_silo(table1):
+    """The silo of two materials of different density, radii uniform in RP (1 +- 0.2), draining
+    through its orifice into an outlet whose refill region lies above the bed."""
+    sim = rd.Simulation(gravity=(0, 0, -G), dt=4e-6)  # the Hertz limit at the 1.9 m/s of a sphere falling from the top
+    sim.add_material(table1(friction=0.3, rolling_friction=0.0))
+    sim.add_material(table1("heavy", friction=0.3, rolling_friction=0.0, density=3000.0))
+    sim.add_wall(rd.MeshWall.shape("silo", radius=0.02, height=0.1, orifice_radius=0.0075, material="m",
+                                   name="silo"))
+    sim.insert(rd.CylinderRegion(0.0175, 0.002, 0.035), 120, rd.Uniform(0.8 * RP, 1.2 * RP), "m", seed=2)
+    sim.insert(rd.CylinderRegion(0.0175, 0.035, 0.07), 120, rd.Uniform(0.8 * RP, 1.2 * RP), "heavy", seed=3)
+    refill = rd.CylinderRegion(0.0175, 0.075, 0.095)
+    outlet = sim.add_outlet(rd.BoxRegion((-0.05, -0.05, -0.2), (0.05, 0.05, -0.01)), name="orifice", refill=refill,
+                            seed=5)
+    return sim, outlet, refill
+
+
+def test_a_refilled_outlet_puts_back_each_sphere_it_takes_out_with_its_radius_and_material(table1):
+    """With a refill region the bed keeps every sphere: the same count of each material, the same
+    radii (as a sorted list, to the bit) and the same mass (to round-off of the sums, 1e-13),
+    while the outlet counts what went through the orifice. Each sphere put back appears at rest,
+    inside the refill region, overlapping nothing (0 overlap, where 1 % of a radius is allowed)."""
+    sim, outlet, refill = _refilled_silo(table1)
+    n0, m0 = sim.n_particles, float(sim.masses.sum())
+    radii0 = np.sort(sim.radii)
+    heavy0 = int((sim.material_indices == 1).sum())
+    seen = set(sim.particle_ids.tolist())
+    checked = []
+
+    def new_spheres(s):
+        ids = s.particle_ids
+        new = np.array([i not in seen for i in ids.tolist()])
+        seen.update(ids.tolist())
+        if new.any():
+            x, r = s.positions, s.radii
+            assert (np.abs(s.velocities[new]) == 0).all() and (np.abs(s.angular_velocities[new]) == 0).all()
+            assert refill.contains(x[new], np.zeros(new.sum())).all()
+            d = np.linalg.norm(x[new][:, None, :] - x[None, :, :], axis=-1) + np.eye(len(x))[new] * 1.0
+            assert (d >= (r[new][:, None] + r[None, :]) * (1 - 1e-12)).all()
+            checked.append(int(new.sum()))
+
+    sim.run(0.4, observers=[rd.Callback(new_spheres, interval=outlet.interval)])
+    assert outlet.count > 50 and sum(checked) == outlet.count  # every sphere out came back, once
+    assert sim.n_particles == n0 and int((sim.material_indices == 1).sum()) == heavy0
+    assert np.array_equal(np.sort(sim.radii), radii0)
+    assert math.isclose(float(sim.masses.sum()), m0, rel_tol=1e-13)
+    assert outlet.mass > 0.0 and not outlet.waiting_radius.size
+
+
+def test_a_refilled_outlet_that_finds_no_room_says_so_once_and_puts_the_rest_back_later(table1):
+    """A refill region with room for a few spheres at a time: one warning, the spheres that did
+    not fit wait (none is lost: count + waiting = the spheres at the start)."""
+    sim, outlet, _ = _refilled_silo(table1)
+    n0 = sim.n_particles
+    outlet.refill = rd.CylinderRegion(0.004, 0.09, 0.097)
+    with pytest.warns(RuntimeWarning, match="found no room in its refill region"):
+        sim.run(0.25)
+    assert outlet.count > 20
+    assert sim.n_particles + len(outlet.waiting_radius) == n0
+
+
+def test_a_restart_of_a_refilled_outlet_continues_bit_for_bit(table1, tmp_path):
+    """The checkpoint keeps the refill region, its random stream's position and the spheres still
+    waiting: the restored run puts back the same spheres at the same places."""
+    whole, _, _ = _refilled_silo(table1)
+    whole.run(0.15)
+    whole.run(0.15)
+    first, _, _ = _refilled_silo(table1)
+    first.run(0.15)
+    first.checkpoint(tmp_path / "mid.npz")
+    again = rd.Simulation.restore(tmp_path / "mid.npz")
+    again.run(0.15)
+    assert first.outlets[0].count > 0 and whole.outlets[0].count > first.outlets[0].count
+    for name in ("positions", "velocities", "radii", "particle_ids", "material_indices"):
+        assert np.array_equal(getattr(whole, name), getattr(again, name)), name
+    assert whole.outlets[0].count == again.outlets[0].count
+
+
+def test_a_refill_region_over_its_outlet_is_refused(table1):
+    sim = rd.Simulation()
+    sim.add_material(table1())
+    sim.add_particles([[0, 0, 0.01], [0, 0, 0.02]], RP, "m")
+    with pytest.raises(ParameterError, match="outlet refill region .* overlaps the outlet region"):
+        sim.add_outlet(rd.BoxRegion((0, 0, -1), (1, 1, 0)), refill=rd.BoxRegion((0.5, 0.5, -0.5), (0.9, 0.9, 0.5)))
+    with pytest.raises(ParameterError, match="outlet seed = -1 is not allowed"):
+        sim.add_outlet(rd.BoxRegion((0, 0, -1), (1, 1, 0)), refill=rd.BoxRegion((0, 0, 0.5), (1, 1, 1)), seed=-1)

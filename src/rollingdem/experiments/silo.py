@@ -1,27 +1,24 @@
 """Silo discharge: a flat-bottomed silo discharging through a circular orifice, and its flow rate.
 
-:func:`silo_run` fills a cylindrical silo (a triangle mesh: wall and a floor around a central
-orifice, ``rollingdem.MeshWall.shape("silo")``) with the orifice plugged, lets the bed settle,
-opens the orifice and counts the mass an outlet below it takes out; each sphere taken out is put
-back on top of the bed, so the fill height stays and the flow is steady for as long as it is
-measured. The steady mass flow rate W is the slope of the discharged mass over time
-(:func:`discharge_rate`); Beverloo's law, W = C rho_b sqrt(g) (D0 - k d)^(5/2), relates it to
-the orifice's diameter D0 (:func:`beverloo_fit`). docs/studies.md, "Silo discharge".
-"""
+:func:`silo_case` sizes the shipped case file ``cases/silo.yaml`` (``rollingdem experiments show
+silo``): a cylindrical silo (a triangle mesh: wall and a floor around a central orifice,
+``rollingdem.MeshWall.shape("silo")``) filled behind a gate, which is removed once the bed has
+settled; an outlet below the floor takes out the spheres and puts each back on top of the bed, so
+the fill height stays and the flow is steady for as long as it is measured. :func:`silo_run` runs
+it as ``rollingdem run`` does. The steady mass flow rate W is the slope of the discharged mass
+over time (:func:`discharge_rate`); Beverloo's law, W = C rho_b sqrt(g) (D0 - k d)^(5/2), relates
+it to the orifice's diameter D0 (:func:`beverloo_fit`). docs/studies.md, "Silo discharge"."""
 
 from __future__ import annotations
 
 import math
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from rollingdem.physics.contact.model import ContactModel
 from rollingdem.errors import ParameterError, check_integer
-from rollingdem.scene.insertion import BoxRegion, CylinderRegion, Uniform
-from rollingdem.scene.mesh import MeshWall
-from rollingdem.scene.simulation import Simulation
 from rollingdem.experiments.repose import PileMaterial
 from rollingdem.experiments.results import ValidationResult, Check, pyplot, run_points
 from rollingdem.experiments.registry import UNBOUNDED, BedExperiment, Parameter, granular_parameters, resolve_rolling
@@ -167,78 +164,115 @@ def beverloo_exponent_interval(orifices, rates, errors, bulk_density, diameter, 
     return float(inside.min()), float(inside.max())
 
 
-def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: SiloSetup = SiloSetup(),
-             radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None,
-             sample: float = 0.02) -> SiloRun:
-    """One silo: filled with the orifice plugged, settled, opened, discharged at a steady head.
+SHIPPED = Path(__file__).parent / "cases" / "silo.yaml"
+"""The silo's case file (``rollingdem experiments show silo``): what :func:`silo_case` sizes."""
+
+
+def silo_case(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: SiloSetup = SiloSetup(),
+              radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None) -> dict:
+    """The shipped silo case file, sized and filled as ``setup`` says.
 
     Spheres of radius uniform in ``radius`` (1 +- ``polydispersity``) of ``material`` fill the
-    silo of ``setup`` to about ``setup.fill_diameters`` d (at a bulk solid fraction of 0.6). Every
-    ``sample`` s the spheres the outlet took out are inserted again (new radii from the same
-    distribution) in a layer 2 d thick just above the settled bed, so the fill height stays. The
-    discharge runs until ``setup.transient + setup.measured`` spheres are out, the orifice clogs
-    (``setup.clog_time`` s without a sphere out) or ``setup.max_time`` s pass."""
+    silo (``SEGMENTS`` sides) to about ``setup.fill_diameters`` d at a bulk solid fraction of 0.6,
+    poured from a loose column (the random insertion packs at about 0.3) and settled behind the
+    gate for twice the fall time from its top, plus 0.2 s. The outlet below the floor puts each
+    sphere it takes out back into a layer 2 d thick whose spheres' centres are 1.5 d or more
+    above the bed's expected top (``refill``), so the
+    fill height stays. The discharge ends once ``setup.transient + setup.measured`` spheres are out,
+    or when the bed has settled for ``setup.clog_time`` s (a clogged orifice), or after
+    ``setup.max_time`` s."""
+    from rollingdem.io.mapping_file import read_mapping
+
     for what, value, kind in (("material", material, PileMaterial), ("setup", setup, SiloSetup)):
         if not isinstance(value, kind):
             raise ParameterError(f"{what} = {value!r} is not allowed: must be a rollingdem.experiments.silo.{kind.__name__}")
     check_integer("transient", setup.transient, low=0)
     check_integer("measured", setup.measured, low=10)  # the 5 sub-windows of W need a few spheres each
-    tic = time.perf_counter()
     d = 2.0 * radius
     d0, ds, fill = (v * d for v in setup.sizes())
     if not d0 < ds:
         raise ParameterError(f"silo_diameters = {ds / d:g} is not allowed: must exceed orifice_diameters = {d0 / d:g}")
     g = setup.gravity
     r_max = radius * (1.0 + polydispersity)
-    dist = Uniform(radius * (1.0 - polydispersity), r_max) if polydispersity else radius
+    # <r^3> = R^3 (1 + p^2) for radii uniform in R (1 +- p)
     count = int(round(0.6 * math.pi / 4.0 * ds ** 2 * fill
                       / (4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2))))
     poured = 2.2 * fill + 2.0 * d  # the random insertion packs at about 0.3
-    top = poured + 4.0 * d  # room for the layer put back
-    contact = ContactModel("hertz", rolling=rolling, twisting=twisting, cohesion=material.cohesion)
-    sim = Simulation(contact=contact, gravity=(0.0, 0.0, -g), dt=dt)
-    sim.add_material(material.as_material("m"))
-    walls = "m"
+    top = poured + 4.0 * d
+    inner = 0.5 * ds - r_max
+    data, _ = read_mapping(SHIPPED)
+    data["dt"] = dt
+    data["gravity"] = [0.0, 0.0, -g]
+    beads = {k: v for k, v in vars(material.as_material("beads")).items() if k != "name"}
+    data["materials"] = [{"name": "beads", **beads}]
+    data["contact"] = {"normal": "hertz", "rolling": rolling, "twisting": twisting, "cohesion": material.cohesion}
+    walls = "beads"
     if material.cohesion != "none":  # cohesive spheres, not cohesive to the silo
         walls = "wall"
-        sim.add_material(material.wall_material(walls))
-        sim.set_pair("m", walls, surface_energy=0.0, cohesion_energy_density=0.0)
-    rings = max(1, int(round(top / (math.pi * ds / SEGMENTS))))  # near-square wall triangles
-    sim.add_wall(MeshWall.shape("silo", radius=0.5 * ds, height=top, orifice_radius=0.5 * d0, segments=SEGMENTS,
-                                rings=rings, material=walls, name="silo"))
-    plug = sim.add_wall(MeshWall.shape("disk", radius=0.5 * d0, segments=SEGMENTS, material=walls, name="plug"))
-    sim.insert(CylinderRegion(0.5 * ds - r_max, r_max, poured - r_max), count, dist, "m", seed=seed)
-    sim.run(2.0 * math.sqrt(2.0 * poured / g) + 0.2)  # the fall from the top, then as long again to settle
-    bed_mass = float(sim.masses.sum())
-    height = float(np.percentile(sim.positions[:, 2] + sim.radii, 95))
+        wall = {k: v for k, v in vars(material.wall_material("wall")).items() if k != "name"}
+        data["materials"].append({"name": "wall", **wall})
+        data["pairs"] = [{"materials": ["beads", "wall"], "surface_energy": 0.0, "cohesion_energy_density": 0.0}]
+    silo, gate = data["walls"]
+    silo.update(material=walls, size={"radius": 0.5 * ds, "height": top, "orifice_radius": 0.5 * d0,
+                                      "segments": SEGMENTS, "rings": max(1, int(round(top / (math.pi * ds / SEGMENTS))))})
+    gate["material"] = walls
+    insert = data["particles"][0]
+    insert.update(insert={"type": "cylinder", "radius": inner, "z_min": r_max, "z_max": poured - r_max}, count=count,
+                  radius={"distribution": "uniform", "low": radius * (1.0 - polydispersity), "high": r_max}
+                  if polydispersity else radius, seed=seed)
+    outlet = data["outlets"][0]
+    outlet.update(region={"type": "box", "lo": [-ds, -ds, -ds], "hi": [ds, ds, -2.0 * r_max]}, seed=seed,
+                  refill={"type": "cylinder", "radius": inner, "z_min": fill + 1.5 * d, "z_max": fill + 3.5 * d})
+    settle = 2.0 * math.sqrt(2.0 * poured / g) + 0.2  # the fall from the top, then as long again to settle
+    bed, discharge, zone = data["measurements"]
     # 3 d off the wall, the floor and the top (a quarter of the height in a shallow bed)
-    inner = cylinder_points(0.5 * ds - 3 * d, min(3 * d, 0.25 * height), max(height - 3 * d, 0.75 * height), seed=seed)
-    bulk = solid_fraction(sim.positions, sim.radii, inner) * material.as_material("m").density
-    sim.remove_wall(plug)
-    outlet = sim.add_outlet(BoxRegion((-ds, -ds, -ds), (ds, ds, -2.0 * r_max)), name="orifice", interval=sample / 4)
-    refill = CylinderRegion(0.5 * ds - r_max, height + r_max, height + r_max + 2.0 * d)
-    near = cylinder_points(0.5 * d0, 0.0, 0.5 * d0, seed=seed + 1)
-    t, out, fractions = [0.0], [0.0], []
-    last_flow, clogged, start = 0.0, False, math.nan
-    while outlet.count < setup.transient + setup.measured and t[-1] < setup.max_time - 1e-9:
-        before = outlet.count
-        sim.run(sample)
-        t.append(t[-1] + sample)
-        out.append(outlet.mass)
-        if outlet.count > before:
-            last_flow = t[-1]
-            sim.insert(refill, outlet.count - before, dist, "m", seed=seed * 100_003 + len(t))
-        elif t[-1] - last_flow >= setup.clog_time:
-            clogged = True
-            break
-        if outlet.count >= setup.transient:
-            if math.isnan(start):
-                start = out[-1]
-            fractions.append(solid_fraction(sim.positions, sim.radii, near))
-    density = material.as_material("m").density
-    done = outlet.count >= setup.transient + setup.measured
-    return SiloRun(np.array(t), np.array(out), (start, out[-1] if done else math.nan), bed_mass, bulk,
-                   float(np.mean(fractions)) * density if fractions else math.nan, count, clogged, d0, d,
+    bed.update(region={"type": "cylinder", "radius": 0.5 * ds - 3 * d, "z_min": min(3 * d, 0.25 * fill),
+                       "z_max": max(fill - 3 * d, 0.75 * fill)}, window=[settle - 0.05, settle])
+    discharge["window"] = zone["window"] = None  # silo_run finds the window from the count
+    zone["region"] = {"type": "cylinder", "radius": 0.5 * d0, "z_min": 0.0, "z_max": 0.5 * d0}
+    fill_stage, run = data["stages"]
+    fill_stage["duration"] = settle
+    run.update(until={"measurement": "discharge.count", "above": setup.transient + setup.measured,
+                      "settled": {"hold": setup.clog_time}}, max_duration=setup.max_time)
+    data["output"] = {"time_series": {"interval": 0.05}, "snapshots": None, "plot": False, "report": None}
+    return data
+
+
+def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: SiloSetup = SiloSetup(),
+             radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None) -> SiloRun:
+    """The case of :func:`silo_case`, run as ``rollingdem run`` runs it (in a folder removed
+    afterwards), and read: the discharged mass from the opening on, the window of the
+    ``setup.measured`` spheres after the first ``setup.transient``, the settled bed's bulk density
+    (the probe's, over the last 0.05 s before the opening) and the orifice zone's over the window."""
+    import tempfile
+
+    import pandas as pd
+
+    from rollingdem.io.casefile import load_case
+    from rollingdem.io.runner import run_case
+
+    tic = time.perf_counter()
+    data = silo_case(rolling, twisting, material, setup, radius, polydispersity, seed, dt)
+    case = load_case(data)
+    with tempfile.TemporaryDirectory(prefix="rollingdem-silo-") as folder:
+        summary = run_case(case, out=Path(folder) / "run", progress=False, echo=lambda *_: None)
+        if summary.get("status") != "ok":
+            raise RuntimeError(f"the silo's run failed: {summary.get('error', summary.get('status'))}")
+        out = pd.read_csv(Path(folder) / "run" / "measurements" / "discharge.csv", comment="#")
+        zone = pd.read_csv(Path(folder) / "run" / "measurements" / "orifice_zone.csv", comment="#")
+    opened = data["stages"][0]["duration"]
+    flow = out[out["time"] >= opened - 1e-9]
+    t, mass, count = (flow[c].to_numpy(float) for c in ("time", "mass", "count"))
+    wanted = setup.transient + setup.measured
+    done = len(count) and count[-1] >= wanted
+    after = count >= setup.transient
+    start = float(mass[after][0]) if after.any() else math.nan
+    in_window = zone["time"].to_numpy() >= (t[after][0] if after.any() else math.inf)
+    bed = summary["measurements"]["bed"]
+    return SiloRun(t - opened, mass, (start, float(mass[-1]) if done else math.nan), math.nan,
+                   float(bed["bulk_density"]["value"]),
+                   float(zone["bulk_density"][in_window].mean()) if in_window.any() else math.nan,
+                   int(data["particles"][0]["count"]), not done, setup.orifice_diameters * 2.0 * radius, 2.0 * radius,
                    time.perf_counter() - tic)
 
 

@@ -234,9 +234,12 @@ ParticleSpec = Annotated[Union[Annotated[InsertSpec, Tag("insert")], Annotated[R
 
 
 class OutletSpec(_Strict):
+    """``Simulation.add_outlet``; with ``refill`` each sphere taken out is put back there."""
     region: RegionSpec
     name: Optional[str] = None
     interval: Optional[Number] = None
+    refill: Optional[RegionSpec] = None
+    seed: Whole = 0
 
 
 class InflowSpec(_Strict):
@@ -692,7 +695,8 @@ def build_simulation(case: CaseSpec):
                                   angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap, fixed=p.fixed)
     for k, o in enumerate(case.outlets):
         with where(f"outlets.{k}"):
-            sim.add_outlet(_region(o.region), name=o.name, interval=o.interval)
+            sim.add_outlet(_region(o.region), name=o.name, interval=o.interval,
+                           refill=None if o.refill is None else _region(o.refill), seed=o.seed)
     for k, i in enumerate(case.inflows):
         with where(f"inflows.{k}"):
             sim.add_inflow(_region(i.region), _radius(i.radius), i.material, rate=i.rate, mass_rate=i.mass_rate,
@@ -929,34 +933,43 @@ def stage_duration(stage: StageSpec) -> float:
 
 def stage_conditions(stage: StageSpec, measurements: dict) -> list:
     """The conditions (``rollingdem.scene.conditions``) that end ``stage`` early."""
-    from rollingdem.scene.conditions import Empty, Reaches, Settled
+    from rollingdem.scene.conditions import Empty, Settled
 
     u = stage.until
     if u is None:
         return []
     where = f"stage {stage.name!r}: until"
     given = [k for k in ("settled", "empty", "measurement") if getattr(u, k) is not None]
-    if len(given) != 1:
-        raise ParameterError(f"{where} = {u.model_dump(exclude_none=True)} is not allowed: give exactly one of "
-                             "settled, empty and measurement (with above or below)")
+    if not given:
+        raise ParameterError(f"{where} = {u.model_dump(exclude_none=True)} is not allowed: give settled, empty or "
+                             "measurement (with above or below); with several the first met ends the stage")
+    conditions = []
     try:
         if u.settled is not None:
-            return [Settled(**u.settled.model_dump())]
+            conditions.append(Settled(**u.settled.model_dump()))
         if u.empty is not None:
             if not u.empty:
                 raise ParameterError("empty = false is not allowed: write until: empty, or leave until out")
-            return [Empty(every=u.every)]
-        name, _, quantity = u.measurement.partition(".")
-        if name not in measurements:
-            known = ", ".join(f"{n}.{q}" for n, m in measurements.items() for q in (m.QUANTITIES or ())) or "none"
-            raise ParameterError(f"measurement = {u.measurement!r} is not allowed: no measurement is named {name!r}; "
-                                 f"the measurements give {known}")
-        if not quantity:
-            raise ParameterError(f"measurement = {u.measurement!r} is not allowed: name a quantity, "
-                                 f"{name}.QUANTITY, one of {', '.join(measurements[name].QUANTITIES)}")
-        return [Reaches(measurements[name], quantity, above=u.above, below=u.below, every=u.every)]
+            conditions.append(Empty(every=u.every))
+        if u.measurement is not None:
+            conditions.append(_reaches(u, measurements))
     except ParameterError as err:
         raise ParameterError(f"{where}: {err}") from None
+    return conditions
+
+
+def _reaches(u: UntilSpec, measurements: dict):
+    from rollingdem.scene.conditions import Reaches
+
+    name, _, quantity = u.measurement.partition(".")
+    if name not in measurements:
+        known = ", ".join(f"{n}.{q}" for n, m in measurements.items() for q in (m.QUANTITIES or ())) or "none"
+        raise ParameterError(f"measurement = {u.measurement!r} is not allowed: no measurement is named {name!r}; "
+                             f"the measurements give {known}")
+    if not quantity:
+        raise ParameterError(f"measurement = {u.measurement!r} is not allowed: name a quantity, "
+                             f"{name}.QUANTITY, one of {', '.join(measurements[name].QUANTITIES)}")
+    return Reaches(measurements[name], quantity, above=u.above, below=u.below, every=u.every)
 
 
 def _check_first_time_step(sim, sv) -> None:

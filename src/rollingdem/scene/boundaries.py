@@ -106,22 +106,35 @@ class Boundary(Operation):
 
 class Outlet(Boundary):
     """Takes out every free particle whose centre is inside ``region``; counts them and their mass,
-    cumulative (``count``, ``mass``): the discharge rate is the slope of ``mass`` over time."""
+    cumulative (``count``, ``mass``): the discharge rate is the slope of ``mass`` over time.
+
+    With a ``refill`` region each sphere taken out is put back at once, at rest, with its radius
+    and material, at a random place in ``refill`` where it overlaps neither a particle nor a wall
+    (reproducibly from ``seed``): the bed keeps its mass and its size distribution, and a silo its
+    head. What finds no room waits for the next action (``waiting``; one warning the first time)."""
 
     kind = "outlet"
     order = REMOVE
     COLUMNS = ("count", "mass")
 
-    def __init__(self, region, name=None, interval=None):
+    def __init__(self, region, name=None, interval=None, refill=None, seed=0):
         super().__init__(region, name, interval)
+        self.refill = None if refill is None else _check_region("outlet refill", refill)
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ParameterError(f"outlet seed = {seed!r} is not allowed: must be a whole number >= 0")
+        self.seed = int(seed)
         self.count = 0
         self.mass = 0.0
+        self.waiting_radius = np.zeros(0)  # the spheres to put back: radius (m) and material index
+        self.waiting_material = np.zeros(0, dtype=np.int64)
+        self.actions = 0  # put-back actions so far: each draws from its own random stream (seed, action)
+        self.warned = False
 
     def inside(self, x: np.ndarray) -> np.ndarray:
         return self.region.contains(x, np.zeros(len(x)))
 
     def update(self, sim) -> None:
-        """Take out the free particles inside, if due."""
+        """Take out the free particles inside, if due, and put back what a refill holds."""
         st = sim._state
         if not self.due(sim.step, sim.dt) or st.n == 0:
             return
@@ -129,18 +142,51 @@ class Outlet(Boundary):
         if gone.any():
             self.count += int(gone.sum())
             self.mass += float(st.mass[gone].sum())
+            if self.refill is not None:
+                self.waiting_radius = np.concatenate([self.waiting_radius, st.radius[gone]])
+                self.waiting_material = np.concatenate([self.waiting_material, st.mat[gone].astype(np.int64)])
             st.remove(gone)
+        if self.refill is not None and len(self.waiting_radius):
+            self.put_back(sim)
+
+    def put_back(self, sim) -> None:
+        st = sim._state
+        sim.wall_set.refresh()
+        reach = 2.0 * float(max(st.radius.max(initial=0.0), self.waiting_radius.max()))
+        near_x, near_r, _ = periodic_box.with_images(sim.periodic, st.x, st.radius, reach)
+        x = place_spheres(self.refill, self.waiting_radius, near_x, near_r, sim.walls,
+                          np.random.default_rng([self.seed, self.actions, 2]))
+        self.actions += 1
+        placed = np.isfinite(x[:, 0])
+        for m in np.unique(self.waiting_material[placed]):
+            take = placed & (self.waiting_material == m)
+            sim.add_particles(x[take], self.waiting_radius[take], int(m), allow_overlap=True)
+        self.waiting_radius, self.waiting_material = self.waiting_radius[~placed], self.waiting_material[~placed]
+        if len(self.waiting_radius) and not self.warned:
+            self.warned = True
+            warnings.warn(f"outlet {self.name or ''!r} at t = {sim.time:.6g} s: {len(self.waiting_radius)} sphere(s) "
+                          f"found no room in its refill region {self.refill!r}; they are put back as room frees up; "
+                          "use a larger refill region", RuntimeWarning, stacklevel=5)
 
     def values(self) -> list:
         return [self.count, self.mass]
 
     def describe(self) -> dict:
-        return {**super().describe(), "count": self.count, "mass": self.mass}
+        d = {**super().describe(), "count": self.count, "mass": self.mass}
+        if self.refill is not None:
+            d.update(refill=region_to_dict(self.refill), seed=self.seed, actions=self.actions, warned=self.warned,
+                     waiting_radius=self.waiting_radius.tolist(), waiting_material=self.waiting_material.tolist())
+        return d
 
     @classmethod
     def from_description(cls, d: dict) -> "Outlet":
-        out = cls(region_from_dict(d["region"]), d["name"], d["interval"])
+        refill = region_from_dict(d["refill"]) if d.get("refill") else None
+        out = cls(region_from_dict(d["region"]), d["name"], d["interval"], refill=refill, seed=d.get("seed", 0))
         out.count, out.mass = int(d["count"]), float(d["mass"])
+        if refill is not None:
+            out.actions, out.warned = int(d["actions"]), bool(d["warned"])
+            out.waiting_radius = np.asarray(d["waiting_radius"], dtype=float)
+            out.waiting_material = np.asarray(d["waiting_material"], dtype=np.int64)
         return out
 
 
@@ -235,42 +281,8 @@ class Inflow(Boundary):
 
     def place(self, radii: np.ndarray, existing_x, existing_r, walls) -> np.ndarray:
         """Centres for as many of ``radii`` as find room (in order; the rest NaN)."""
-        from scipy.spatial import cKDTree
-
-        rng = np.random.default_rng([self.seed, self.actions, 1])
-        n = len(radii)
-        out = np.full((n, 3), np.nan)
-        if n == 0:
-            return out
-        lo, hi = self.region.bounds()
-        rmax = float(radii.max())
-        near = np.zeros(len(existing_x), dtype=bool)
-        if len(existing_x):
-            gap = np.maximum(lo - existing_x, 0.0) + np.maximum(existing_x - hi, 0.0)
-            near = np.linalg.norm(gap, axis=1) < existing_r + rmax
-        ex, er = existing_x[near], existing_r[near]
-        cand_r = np.repeat(radii, PLACEMENT_ATTEMPTS)
-        cand = self.region.sample(rng, cand_r)
-        ok = np.ones(len(cand), dtype=bool)
-        for wall in walls:
-            ok &= wall.overlap(cand, cand_r) <= 0.0
-        if len(ex):
-            reach = rmax + float(er.max())
-            sdm = cKDTree(cand).sparse_distance_matrix(cKDTree(ex), reach, output_type="ndarray")
-            hit = sdm["v"] < cand_r[sdm["i"]] + er[sdm["j"]]
-            ok[np.unique(sdm["i"][hit])] = False
-        placed_x = np.zeros((0, 3))
-        placed_r = np.zeros(0)
-        for k in range(n):
-            options = np.flatnonzero(ok[k * PLACEMENT_ATTEMPTS:(k + 1) * PLACEMENT_ATTEMPTS]) + k * PLACEMENT_ATTEMPTS
-            if len(placed_x) and len(options):
-                d = np.linalg.norm(cand[options, None, :] - placed_x[None, :, :], axis=-1)
-                options = options[(d >= radii[k] + placed_r[None, :]).all(axis=1)]
-            if len(options):
-                out[k] = cand[options[0]]
-                placed_x = np.vstack([placed_x, cand[options[0]]])
-                placed_r = np.append(placed_r, radii[k])
-        return out
+        return place_spheres(self.region, radii, existing_x, existing_r, walls,
+                             np.random.default_rng([self.seed, self.actions, 1]))
 
     def note_shortfall(self, missing: int, time: float) -> None:
         self.shortfall = missing
@@ -290,6 +302,47 @@ class Inflow(Boundary):
         return inflow
 
 
+def place_spheres(region, radii: np.ndarray, existing_x, existing_r, walls, rng) -> np.ndarray:
+    """Centres in ``region`` for as many of ``radii`` as find room (in order; the rest NaN): each
+    sphere takes the first of ``PLACEMENT_ATTEMPTS`` random candidates that overlaps no wall, no
+    particle of ``existing_x`` and no sphere placed before it."""
+    from scipy.spatial import cKDTree
+
+    n = len(radii)
+    out = np.full((n, 3), np.nan)
+    if n == 0:
+        return out
+    lo, hi = region.bounds()
+    rmax = float(radii.max())
+    near = np.zeros(len(existing_x), dtype=bool)
+    if len(existing_x):
+        gap = np.maximum(lo - existing_x, 0.0) + np.maximum(existing_x - hi, 0.0)
+        near = np.linalg.norm(gap, axis=1) < existing_r + rmax
+    ex, er = existing_x[near], existing_r[near]
+    cand_r = np.repeat(radii, PLACEMENT_ATTEMPTS)
+    cand = region.sample(rng, cand_r)
+    ok = np.ones(len(cand), dtype=bool)
+    for wall in walls:
+        ok &= wall.overlap(cand, cand_r) <= 0.0
+    if len(ex):
+        reach = rmax + float(er.max())
+        sdm = cKDTree(cand).sparse_distance_matrix(cKDTree(ex), reach, output_type="ndarray")
+        hit = sdm["v"] < cand_r[sdm["i"]] + er[sdm["j"]]
+        ok[np.unique(sdm["i"][hit])] = False
+    placed_x = np.zeros((0, 3))
+    placed_r = np.zeros(0)
+    for k in range(n):
+        options = np.flatnonzero(ok[k * PLACEMENT_ATTEMPTS:(k + 1) * PLACEMENT_ATTEMPTS]) + k * PLACEMENT_ATTEMPTS
+        if len(placed_x) and len(options):
+            d = np.linalg.norm(cand[options, None, :] - placed_x[None, :, :], axis=-1)
+            options = options[(d >= radii[k] + placed_r[None, :]).all(axis=1)]
+        if len(options):
+            out[k] = cand[options[0]]
+            placed_x = np.vstack([placed_x, cand[options[0]]])
+            placed_r = np.append(placed_r, radii[k])
+    return out
+
+
 class Boundaries:
     """The outlets and inflows of ``sim``, kept in its schedule."""
 
@@ -304,10 +357,10 @@ class Boundaries:
     def inflows(self) -> list:
         return self.sim.schedule.of(Inflow)
 
-    def add_outlet(self, region, name=None, interval=None) -> Outlet:
+    def add_outlet(self, region, name=None, interval=None, refill=None, seed=0) -> Outlet:
         """``Simulation.add_outlet``."""
         st = self.sim._state
-        outlet = Outlet(region, name, interval)
+        outlet = Outlet(region, name, interval, refill, seed)
         self._check_name(outlet)
         free = ~st.is_fixed
         if free.sum() > 1 and outlet.inside(st.x[free]).all():
@@ -315,6 +368,9 @@ class Boundaries:
                                  f"{int(free.sum())}), so it would empty the scene at once; must cover only the way out")
         for inflow in self.inflows:
             check_outlet_inflow(outlet, inflow)
+        if outlet.refill is not None:
+            periodic_box.check_region_inside(self.sim.periodic, "outlet refill", outlet.refill)
+            check_outlet_refill(outlet)
         return self.sim.schedule.add(outlet)
 
     def add_inflow(self, region, radius, material, rate=None, mass_rate=None, velocity=None, seed=0, name=None,
@@ -353,6 +409,15 @@ class Boundaries:
             self.sim.schedule.add(Outlet.from_description(d))
         for d in meta.get("inflows", []):
             self.sim.schedule.add(Inflow.from_description(d))
+
+
+def check_outlet_refill(outlet) -> None:
+    """Refuse a refill region that overlaps the outlet's: a sphere put back could be taken out again."""
+    lo, hi = outlet.refill.bounds()
+    olo, ohi = outlet.region.bounds()
+    if np.all(lo < ohi) and np.all(olo < hi):
+        raise ParameterError(f"outlet refill region {outlet.refill!r} is not allowed: it overlaps the outlet region "
+                             f"{outlet.region!r}; must lie apart from it (above the bed)")
 
 
 def check_outlet_inflow(outlet, inflow) -> None:

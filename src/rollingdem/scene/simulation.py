@@ -224,13 +224,13 @@ class Simulation:
         return self.particle_set.kinetic_energy()
 
     # --- outlets and inflows ---------------------------------------------------------------------
-    def add_outlet(self, region, name: str | None = None, interval: float | None = None):
+    def add_outlet(self, region, name: str | None = None, interval: float | None = None, refill=None, seed: int = 0):
         """Take out every free particle whose centre enters ``region`` (``BoxRegion``,
         ``CylinderRegion``), every ``interval`` s (default 1e-3); the time series counts them and
         their mass, cumulative, per outlet (``outlet_{name}_count``, ``outlet_{name}_mass``). The
-        other particles keep their contacts and history; their indices close up (``particle_ids``
-        keeps each particle's number for good). Returns the ``Outlet``."""
-        return self.boundary_set.add_outlet(region, name, interval)
+        others keep their contacts and history (``particle_ids`` keeps each one's number for good).
+        With a ``refill`` region each one is put back there at once (``boundaries.Outlet``)."""
+        return self.boundary_set.add_outlet(region, name, interval, refill, seed)
 
     def add_inflow(self, region, radius, material, rate: float | None = None, mass_rate: float | None = None,
                    velocity=None, seed: int = 0, name: str | None = None, interval: float | None = None,

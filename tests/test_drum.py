@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from rollingdem.experiments.drum import com_angle, flowing_depth, flowing_layer, rotation_ratios, surface_angle
+from rollingdem.analysis.drum import com_angle, flowing_depth, flowing_layer, rotation_ratios, surface_angle
 
 D = 0.01  # m, sphere diameter
 
@@ -133,3 +133,80 @@ def test_a_turning_drum_holds_its_angle_and_the_torque_balances_the_weight():
     assert abs(diff.mean()) < 3 * diff.std(ddof=1) / 2
     assert abs(r.angle.mean() - r.com_angle.mean()) < 3.0
     assert 1 * D < r.flowing_depth < 6 * D
+
+
+def _flowing_bed(angle=30.0, h=3 * D, speed=0.2, omega=0.5, drum_radius=15 * D, level=-3 * D):
+    """The stacked bed (tops on the line y = level + tan(angle) x) and a ring of spheres touching
+    the wall below it; spheres less than ``h`` below the line (centre to line, along its normal)
+    flow downslope at speed (1 - depth / h), the rest turn with the drum at ``omega`` about +z."""
+    r = 0.5 * D
+    tan = math.tan(math.radians(angle))
+    phi = np.radians(np.arange(-60.0, 61.0, 4.0))  # from below the axis
+    ring = np.column_stack([(drum_radius - r) * np.sin(phi), -(drum_radius - r) * np.cos(phi), np.zeros_like(phi)])
+    ring = ring[ring[:, 1] < level + tan * ring[:, 0] - h - 4 * D]  # well below the flowing layer
+    x = np.vstack([stacked_bed(angle, drum_radius, level), ring])
+    depth = (level + tan * x[:, 0] - x[:, 1]) * math.cos(math.radians(angle))
+    up_slope = np.array([1.0, tan, 0.0]) / math.hypot(1.0, tan)
+    v = omega * np.column_stack([-x[:, 1], x[:, 0], np.zeros(len(x))])
+    flowing = depth < h
+    v[flowing] = -np.outer(speed * (1.0 - depth[flowing] / h), up_slope)
+    return x, v
+
+
+def test_drum_measurements_read_the_bed_in_the_drums_own_frame(table1):
+    """A drum turned to lie along x (gravity along -z) and moved off the origin, holding the
+    flowing bed of ``_flowing_bed``: ``DrumFlow`` reads what the analysis functions read on the
+    bed in its canonical frame (axis z, gravity -y), to round-off; the passive zone and the wall
+    layer turn with the drum exactly (ratio 1 to 1e-12: their velocities are omega x r); the
+    flowing layer ends between the deepest flowing spheres' depth bin (centre 2.25 d) and the first
+    turning one's (3.25 d), as the stack's centres lie (0.5 + k) d cos 30 deg below the tops' line.
+    ``DrumAngle``'s weight moment is |g sum m x| in the canonical frame (rel. 1e-12)."""
+    import rollingdem as rd
+
+    omega, c = 0.5, np.array([0.3, -0.2, 0.1])
+    x, v = _flowing_bed(omega=omega)
+    to_world = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # across -> y, up -> z, axis -> x
+    sim = rd.Simulation(gravity=(0.0, 0.0, -9.81))
+    sim.add_material(table1())
+    drum = sim.add_wall(rd.Cylinder(15 * D, point=c, axis=(1.0, 0.0, 0.0), material="m", name="drum"))
+    sim.set_wall_velocity(drum, angular_velocity=(omega, 0.0, 0.0))
+    sim.add_particles(x @ to_world.T + c, 0.5 * D, "m", velocity=None, allow_overlap=True)
+    sim.set_velocities(np.arange(len(x)), v @ to_world.T)
+    flow = rd.DrumFlow("flow", center=c, axis=(1.0, 0.0, 0.0), radius=15 * D, wall="drum")
+    bed = rd.DrumAngle("bed", center=c, axis=(1.0, 0.0, 0.0))
+    flow.check(sim)
+    flow.observe(sim)
+    flow.observe(sim)
+    depth, passive, wall = flow.pooled()
+    _, slope, xm, ym = surface_angle(x, 0.5 * D, D)
+    assert depth == pytest.approx(flowing_depth(*flowing_layer(x, v, slope, (xm, ym), D), D), rel=1e-9)
+    assert 2.25 * D < depth < 3.25 * D
+    assert passive == pytest.approx(1.0, abs=1e-12) and wall == pytest.approx(1.0, abs=1e-12)
+    assert flow.summary()["flowing_depth"]["value"] == depth
+    moment = bed.values(sim)[2]
+    assert moment == pytest.approx(9.81 * abs(float(sim.masses @ x[:, 0])), rel=1e-12)
+
+
+def test_the_shipped_drum_slice_is_what_the_validation_runs_at_its_base_point():
+    """``rollingdem experiments show drum-slice`` is the case ``rotating-drum`` runs at its base
+    point (mu 0.5, mu_r 0.2, the full size): every entry of ``drum_case``'s data, as the case file
+    reader completes it, equals the shipped file's, numbers to the 4 to 5 figures the file writes
+    them with (rel. 1e-4: omega 0.571839 rad/s is written 0.5718). The output aside."""
+    from rollingdem.experiments import EXPERIMENTS
+    from rollingdem.experiments.case_file import shipped_cases
+    from rollingdem.experiments.drum import DrumSetup, drum_case
+    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.io.casefile import load_case
+    from test_silo import _flat
+
+    p = EXPERIMENTS["rotating-drum"].resolve({"mu": 0.5, "mur": 0.2})
+    ours = _flat(load_case(drum_case("epsd", "none", PileMaterial.from_parameters(p), DrumSetup(),
+                                     dt=p["dt"])).model_dump())
+    shipped = _flat(load_case(shipped_cases()["drum-slice"]).model_dump())
+    keep = [k for k in ours if not k.startswith("output.")]
+    assert sorted(keep) == sorted(k for k in shipped if not k.startswith("output."))
+    for k in keep:
+        if isinstance(ours[k], float):
+            assert ours[k] == pytest.approx(shipped[k], rel=1e-4, abs=1e-12), k
+        else:
+            assert ours[k] == shipped[k], k

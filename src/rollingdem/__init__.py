@@ -21,7 +21,7 @@ from rollingdem.scene.insertion import BoxRegion, CylinderRegion, Discrete, Norm
 from rollingdem.scene.materials import Material, MaterialTable  # noqa: E402
 from rollingdem.scene.mesh import MeshRegion, MeshWall, TriangleMesh  # noqa: E402
 from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots  # noqa: E402
-from rollingdem.io.measurements import (DrumAngle, Function, MassFlow, MeshFlow, OutletTotals, PileAngle, Probe,  # noqa: E402
+from rollingdem.io.measurements import (DrumAngle, DrumFlow, Function, MassFlow, MeshFlow, OutletTotals, PileAngle, Probe,  # noqa: E402
                                          SurfaceProfile, WallLoad)
 from rollingdem.scene.conditions import Empty, Reaches, Settled  # noqa: E402
 from rollingdem.scene.schedule import Callback, Observer  # noqa: E402
@@ -34,7 +34,7 @@ globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (r
 __all__ = [
     "convert", "Simulation", "ContactModel", "ParallelBond", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "MeshRegion", "TriangleMesh", "TimeSeries",
     "VTKSnapshots", "Checkpoints", "Callback", "Observer", "MassFlow", "MeshFlow", "Probe", "OutletTotals", "WallLoad",
-    "PileAngle", "DrumAngle", "SurfaceProfile", "Function", "Settled", "Reaches", "Empty", "BoxRegion", "CylinderRegion", "Uniform", "Normal",
+    "PileAngle", "DrumAngle", "DrumFlow", "SurfaceProfile", "Function", "Settled", "Reaches", "Empty", "BoxRegion", "CylinderRegion", "Uniform", "Normal",
     "Discrete", "rough_base", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
     *_contact.SUBMODELS,
 ]

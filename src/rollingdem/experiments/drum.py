@@ -1,14 +1,16 @@
 """The rotating drum: a slice of a long drum turning in the rolling regime, and what is measured on it.
 
-:func:`drum_run` fills a drum (an analytic cylinder, its axis along z, gravity along -y) to a
-fraction of its cross-section, lets the bed settle and turns the drum at the angular velocity of
-a Froude number Fr = omega^2 R / g. The drum is a periodic slice along its axis: no end caps, so
+:func:`drum_case` sizes the shipped case file ``cases/drum-slice.yaml`` (``rollingdem experiments
+show drum-slice``): a drum (an analytic cylinder, its axis along z, gravity along -y) filled to a
+fraction of its cross-section; the bed settles and the drum turns at the angular velocity of a
+Froude number Fr = omega^2 R / g. The drum is a periodic slice along its axis: no end caps, so
 the angle is that of the middle of a long drum, free of the end walls' friction, which raises the
-angle near the caps of a short drum (docs/studies.md, "The rotating drum"). After a spin-up
-angle it samples the bed's cross-section: the free surface's angle (:func:`surface_angle`, a
-line through the surface in the middle third of its chord), the angle of the bed's centre of mass,
-the driving torque, the flowing layer's depth (:func:`flowing_layer`) and the passive zone's speed
-against the drum's.
+angle near the caps of a short drum (docs/studies.md, "The rotating drum"). After a spin-up angle
+its measurements sample the bed's cross-section: the free surface's angle (a line through the
+surface in the middle third of its chord) and the angle of the bed's centre of mass
+(``rollingdem.DrumAngle``), the driving torque (``rollingdem.WallLoad``), the flowing layer's
+depth and the passive zone's speed against the drum's (``rollingdem.DrumFlow``). :func:`drum_run`
+runs it as ``rollingdem run`` does.
 """
 
 from __future__ import annotations
@@ -16,15 +18,11 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from rollingdem.analysis.drum import com_angle, surface_angle
-from rollingdem.physics.contact.model import ContactModel
 from rollingdem.errors import ParameterError
-from rollingdem.scene.insertion import CylinderRegion, Uniform
-from rollingdem.scene.simulation import Simulation
-from rollingdem.scene.walls import Cylinder
 from rollingdem.experiments.repose import PileMaterial
 from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
 from rollingdem.experiments.registry import UNBOUNDED, BedExperiment, Parameter, granular_parameters, resolve_rolling
@@ -58,7 +56,7 @@ class DrumSetup:
 
 @dataclass
 class DrumRun:
-    """A drum's samples (one value per sample) and the profile of the flowing layer."""
+    """A drum's samples (one value per sample) and the flow pooled over them."""
 
     omega: float
     drum_radius: float
@@ -69,134 +67,102 @@ class DrumRun:
     torque: np.ndarray  # N m per m of drum length
     weight_moment: np.ndarray  # N m per m: the moment of the bed's weight about the axis
     flowing_depth: float  # m, from the profile of every sample
-    flowing_depth_blocks: np.ndarray  # m, one per block of samples
     passive_speed_ratio: float
     wall_layer_speed_ratio: float
-    positions: np.ndarray
-    radii: np.ndarray
     wall_time: float = math.nan
 
 
-def flowing_layer(positions, velocities, slope: float, point, diameter: float, strip: float = 2.0):
-    """Depth below the surface line (``slope`` through ``point``, from :func:`surface_angle`) and
-    downslope speed of the spheres within ``strip`` diameters of the normal through the chord's
-    middle: (depth, speed) arrays, for :func:`flowing_depth` to bin."""
-    u = np.array([1.0, slope]) / math.hypot(1.0, slope)  # along the surface, upwards
-    n = np.array([-slope, 1.0]) / math.hypot(1.0, slope)  # out of the bed
-    rel = np.asarray(positions, float)[:, :2] - np.asarray(point, float)
-    near = np.abs(rel @ u) < strip * diameter
-    return -(rel[near] @ n), -(np.asarray(velocities, float)[near, :2] @ u)
+SHIPPED = Path(__file__).parent / "cases" / "drum-slice.yaml"
+"""The drum's case file (``rollingdem experiments show drum-slice``): what :func:`drum_case` sizes."""
 
 
-def flowing_depth(depth, speed, diameter: float) -> float:
-    """The flowing layer's depth (m): where the mean downslope speed, in bins of half a diameter
-    of depth, first falls to zero going down from the surface (linear between bin centres); NaN
-    when it never does."""
-    depth, speed = np.asarray(depth, float), np.asarray(speed, float)
-    keep = depth >= 0.0
-    k = np.floor(depth[keep] / (0.5 * diameter)).astype(np.int64)
-    if not len(k):
-        return math.nan
-    count = np.bincount(k)
-    mean = np.bincount(k, speed[keep]) / np.maximum(count, 1)
-    centre = (np.arange(len(count)) + 0.5) * 0.5 * diameter
-    ok = count > 0
-    centre, mean = centre[ok], mean[ok]
-    below = np.nonzero(mean <= 0.0)[0]
-    if not len(below) or below[0] == 0:
-        return math.nan if not len(below) else float(centre[0])
-    j = below[0]
-    return float(centre[j - 1] + mean[j - 1] * (centre[j] - centre[j - 1]) / (mean[j - 1] - mean[j]))
+def drum_case(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: DrumSetup = DrumSetup(),
+              radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None) -> dict:
+    """The shipped drum-slice case file, sized and turned as ``setup`` says.
 
-
-def rotation_ratios(samples, omega: float, drum_radius: float, layer: float, diameter: float,
-                    r_max: float) -> tuple[float, float]:
-    """How closely the bed below the flowing layer turns with the drum: sum(v . u) / sum(u . u) over
-    the spheres of every sample, u = omega (-y, x) the solid-body velocity about the drum's axis.
-    Two zones, both deeper than ``layer`` + 2 ``diameter`` below the surface line and within the
-    middle third of the arc along which such spheres touch the wall (seen from the axis): the
-    passive zone off the wall (radius from half the drum's to 1.5 d short of the wall) and the
-    wall layer (the spheres touching it, radius beyond the wall's less 1.05 ``r_max``). Towards
-    the arc's ends, where the flowing layer meets the wall, the bed creeps: it lags the drum by
-    several per cent (docs/studies.md, "The rotating drum"). ``samples``: (positions, velocities,
-    surface slope, a point on the surface line) per sample; 1 is solid-body rotation."""
-    sums = np.zeros((2, 2))
-    for x, v, slope, point in samples:
-        rho = np.hypot(x[:, 0], x[:, 1])
-        below = -((x[:, :2] - point) @ (np.array([-slope, 1.0]) / math.hypot(1.0, slope)))
-        deep = below > (layer if np.isfinite(layer) else 0.0) + 2 * diameter
-        wall = (rho > drum_radius - 1.05 * r_max) & deep
-        if not wall.any():
-            continue
-        phi = np.arctan2(x[:, 0], -x[:, 1])  # about the axis, 0 at the drum's bottom
-        lo, hi = phi[wall].min(), phi[wall].max()
-        middle = np.abs(phi - 0.5 * (lo + hi)) < (hi - lo) / 6.0
-        zones = ((rho > 0.5 * drum_radius) & (rho < drum_radius - 1.5 * diameter) & deep & middle, wall & middle)
-        for k, zone in enumerate(zones):
-            solid = omega * np.column_stack([-x[zone, 1], x[zone, 0]])
-            sums[k] += (np.sum(v[zone, :2] * solid), np.sum(solid * solid))
-    ratio = [a / b if b else math.nan for a, b in sums]
-    return ratio[0], ratio[1]
-
-
-def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: DrumSetup = DrumSetup(),
-             radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None) -> DrumRun:
-    """One drum: filled, settled, turned at the Froude number ``setup.froude``, sampled.
-
-    Spheres of radius uniform in ``radius`` (1 +- ``polydispersity``) and ``material`` (Table 1's
-    density and Poisson ratio) fill ``setup.fill`` of a drum of ``setup.drum_diameters`` d radius,
-    a periodic slice ``setup.slice_diameters`` d long. The drum turns about +z (its bottom moves
-    towards +x); after ``setup.spin_up`` degrees, ``setup.samples`` samples over ``setup.measure``
+    Spheres of radius uniform in ``radius`` (1 +- ``polydispersity``) of ``material`` fill
+    ``setup.fill`` of a drum of ``setup.drum_diameters`` d radius (at a bulk solid fraction of 0.6),
+    a periodic slice ``setup.slice_diameters`` d long; they fall across the drum and settle for as
+    long again, plus 0.2 s. The drum turns about +z (its bottom moves towards +x); after
+    ``setup.spin_up`` degrees its measurements take ``setup.samples`` samples over ``setup.measure``
     degrees."""
+    from rollingdem.io.mapping_file import read_mapping
+
     for what, value, kind in (("material", material, PileMaterial), ("setup", setup, DrumSetup)):
         if not isinstance(value, kind):
             raise ParameterError(f"{what} = {value!r} is not allowed: must be a rollingdem.experiments.drum.{kind.__name__}")
-    tic = time.perf_counter()
     d = 2.0 * radius
     big_r = setup.drum_diameters * d
     length = setup.slice_diameters * d
     g = setup.gravity
     omega = math.sqrt(setup.froude * g / big_r)
     r_max = radius * (1.0 + polydispersity)
-    dist = Uniform(radius * (1.0 - polydispersity), r_max) if polydispersity else radius
     # solid volume of the bed: fill x cross-section x length at solid fraction 0.6;
     # <r^3> = R^3 (1 + p^2) for radii uniform in R (1 +- p)
     count = int(round(setup.fill * math.pi * big_r ** 2 * length * 0.6
                       / (4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2))))
-    contact = ContactModel("hertz", rolling=rolling, twisting=twisting, cohesion=material.cohesion)
-    sim = Simulation(contact=contact, gravity=(0.0, -g, 0.0), dt=dt, periodic={"z": (0.0, length)})
-    sim.add_material(material.as_material("m"))
-    sim.add_material(material.wall_material("wall"))
-    sim.set_pair("m", "wall", friction=setup.wall_friction, rolling_friction=setup.wall_rolling_friction,
-                 surface_energy=0.0, cohesion_energy_density=0.0)
-    drum = sim.add_wall(Cylinder(big_r, point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), material="wall", name="drum"))
-    sim.insert(CylinderRegion(big_r - r_max, r_max, length - r_max), count, dist, "m", seed=seed)
-    sim.run(2.0 * math.sqrt(4.0 * big_r / g) + 0.2)  # fall across the drum, then as long again to settle
-    sim.set_wall_velocity(drum, angular_velocity=(0.0, 0.0, omega))
-    sim.run(math.radians(setup.spin_up) / omega)
-    gap = math.radians(setup.measure) / omega / setup.samples
-    angle, com, torque, moment, states = [], [], [], [], []
-    for _ in range(setup.samples):
-        sim.run(gap)
-        x, v = sim.positions, sim.velocities
-        a, slope, xm, ym = surface_angle(x, sim.radii, d)
-        angle.append(a)
-        com.append(com_angle(x, sim.masses))
-        torque.append(-sim.wall_loads()["drum"]["torque"][2] / length)
-        moment.append(g * float(np.dot(sim.masses, x[:, 0])) / length)
-        states.append((x, v, slope, (xm, ym)))
-    profiles = [flowing_layer(x, v, slope, point, d) for x, v, slope, point in states]
+    data, _ = read_mapping(SHIPPED)
+    data["dt"] = dt
+    data["gravity"] = [0.0, -g, 0.0]
+    beads = {k: v for k, v in vars(material.as_material("beads")).items() if k != "name"}
+    lining = {k: v for k, v in vars(material.wall_material("lining")).items() if k != "name"}
+    data["materials"] = [{"name": "beads", **beads}, {"name": "lining", **lining}]
+    data["pairs"] = [{"materials": ["beads", "lining"], "friction": setup.wall_friction,
+                      "rolling_friction": setup.wall_rolling_friction}]
+    if material.cohesion != "none":  # cohesive spheres, not cohesive to the drum
+        data["pairs"][0].update(surface_energy=0.0, cohesion_energy_density=0.0)
+    data["contact"] = {"normal": "hertz", "rolling": rolling, "twisting": twisting, "cohesion": material.cohesion}
+    data["periodic"] = {"z": [0.0, length]}
+    data["walls"][0]["radius"] = big_r
+    insert = data["particles"][0]
+    insert.update(insert={"type": "cylinder", "radius": big_r - r_max, "z_min": r_max, "z_max": length - r_max},
+                  count=count, seed=seed,
+                  radius={"distribution": "uniform", "low": radius * (1.0 - polydispersity), "high": r_max}
+                  if polydispersity else radius)
+    settle = 2.0 * math.sqrt(4.0 * big_r / g) + 0.2  # fall across the drum, then as long again to settle
+    spin_up, measure = math.radians(setup.spin_up) / omega, math.radians(setup.measure) / omega
+    window = [settle + spin_up, settle + spin_up + measure]
+    for m in data["measurements"]:
+        m.update(interval=measure / setup.samples, window=window)
+    flow = next(m for m in data["measurements"] if m["type"] == "drum_flow")
+    flow["radius"] = big_r
+    settling, turning, measuring = data["stages"]
+    settling["duration"], turning["duration"], measuring["duration"] = settle, spin_up, measure
+    turning["wall_motion"][0]["rotate"]["angular_velocity"] = omega
+    return data
 
-    def depth_of(part):
-        return flowing_depth(np.concatenate([p[0] for p in part]), np.concatenate([p[1] for p in part]), d)
 
-    blocks = [depth_of([profiles[i] for i in idx])
-              for idx in np.array_split(np.arange(len(profiles)), min(BLOCKS, len(profiles)))]
-    layer = depth_of(profiles)
-    passive, wall_layer = rotation_ratios(states, omega, big_r, layer, d, float(sim.radii.max()))
-    return DrumRun(omega, big_r, length, sim.n_particles, np.array(angle), np.array(com), np.array(torque),
-                   np.array(moment), layer, np.array(blocks), passive, wall_layer, sim.positions.copy(),
-                   sim.radii.copy(), time.perf_counter() - tic)
+def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: DrumSetup = DrumSetup(),
+             radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None) -> DrumRun:
+    """The case of :func:`drum_case`, run as ``rollingdem run`` runs it (in a folder removed
+    afterwards), and read: each sample's angles, driving torque and weight moment per metre of
+    drum, and the flow pooled over the samples."""
+    import tempfile
+
+    import pandas as pd
+
+    from rollingdem.io.casefile import load_case
+    from rollingdem.io.runner import run_case
+
+    tic = time.perf_counter()
+    data = drum_case(rolling, twisting, material, setup, radius, polydispersity, seed, dt)
+    case = load_case(data)
+    with tempfile.TemporaryDirectory(prefix="rollingdem-drum-") as folder:
+        summary = run_case(case, out=Path(folder) / "run", progress=False, echo=lambda *_: None)
+        if summary.get("status") != "ok":
+            raise RuntimeError(f"the drum's run failed: {summary.get('error', summary.get('status'))}")
+        read = {name: pd.read_csv(Path(folder) / "run" / "measurements" / f"{name}.csv", comment="#")
+                for name in ("bed", "drive")}
+    t0, t1 = data["measurements"][0]["window"]
+    rows = {k: v[(v["time"] >= t0 - 1e-9) & (v["time"] <= t1 + 1e-9)] for k, v in read.items()}
+    length = data["periodic"]["z"][1]
+    flow = summary["measurements"]["flow"]
+    return DrumRun(data["stages"][1]["wall_motion"][0]["rotate"]["angular_velocity"], data["walls"][0]["radius"],
+                   length, int(data["particles"][0]["count"]), rows["bed"]["angle"].to_numpy(),
+                   rows["bed"]["com_angle"].to_numpy(), -rows["drive"]["tz"].to_numpy() / length,
+                   rows["bed"]["weight_moment"].to_numpy() / length, flow["flowing_depth"]["value"],
+                   flow["passive_speed_ratio"]["value"], flow["wall_layer_speed_ratio"]["value"],
+                   time.perf_counter() - tic)
 
 
 class RotatingDrum(BedExperiment):

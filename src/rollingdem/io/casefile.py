@@ -318,6 +318,17 @@ class DrumMeasurementSpec(_MeasurementBase):
     extent: Optional[tuple[Number, Number]] = None
 
 
+class DrumFlowSpec(_MeasurementBase):
+    """``rollingdem.DrumFlow``: the flowing layer's depth and the bed's turn with the drum, whose
+    ``radius`` (m) and turning ``wall`` are given."""
+    type: Literal["drum_flow"]
+    center: Vector
+    axis: Vector
+    radius: Number
+    wall: str
+    extent: Optional[tuple[Number, Number]] = None
+
+
 class MeshFlowSpec(_MeasurementBase, _SensorMeshSpec):
     """``rollingdem.MeshFlow``: through a triangle mesh surface, counted along its triangles' normals."""
     type: Literal["mesh_flow"]
@@ -335,7 +346,8 @@ class ProfileSpec(_MeasurementBase):
 
 
 MeasurementSpec = Annotated[Union[MassFlowSpec, ProbeSpec, OutletMeasurementSpec, WallMeasurementSpec,
-                                  ReposeMeasurementSpec, DrumMeasurementSpec, ProfileSpec, MeshFlowSpec],
+                                  ReposeMeasurementSpec, DrumMeasurementSpec, DrumFlowSpec, ProfileSpec,
+                                  MeshFlowSpec],
                             Field(discriminator="type")]
 
 
@@ -902,6 +914,9 @@ def build_measurements(case: CaseSpec, sim) -> dict:
                 made[m.name] = ms.MeshFlow(mesh=_sensor_mesh(m, case.base_directory), **common)
             elif m.type == "drum_angle":
                 made[m.name] = ms.DrumAngle(center=m.center, axis=m.axis, extent=m.extent, **common)
+            elif m.type == "drum_flow":
+                made[m.name] = ms.DrumFlow(center=m.center, axis=m.axis, radius=m.radius, wall=m.wall, extent=m.extent,
+                                           **common)
             else:
                 path = Path(m.file) if Path(m.file).is_absolute() else case.base_directory / m.file
                 made[m.name] = ms.SurfaceProfile(points=ms.read_profile(path), shape=m.shape, center=m.center,

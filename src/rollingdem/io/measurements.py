@@ -583,11 +583,13 @@ class DrumAngle(Measurement):
     viewing window ``extent`` = (s0, s1) (m along the axis from ``center``; default all of it):
     ``angle`` (deg, a line through the free surface in the middle third of its chord,
     ``rollingdem.analysis.drum.surface_angle``) and ``com_angle`` (deg, how far the bed's centre of
-    mass has turned from below the axis), both as magnitudes; gravity gives "down"."""
+    mass has turned from below the axis), both as magnitudes, and ``weight_moment`` (N m, the
+    magnitude of the moment of the bed's weight about the axis, |g sum m x| with x across the
+    drum: the torque a drum turning steadily supplies); gravity gives "down"."""
 
     kind = "drum_angle"
     INTERVAL = 0.01
-    QUANTITIES = {"angle": "deg", "com_angle": "deg"}
+    QUANTITIES = {"angle": "deg", "com_angle": "deg", "weight_moment": "N m"}
 
     def __init__(self, name: str, center, axis, extent=None, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
@@ -620,7 +622,113 @@ class DrumAngle(Measurement):
             angle = abs(surface_angle(frame, r, 2.0 * float(r.mean()))[0])
         except (ParameterError, ValueError) as err:
             self.note, angle = str(err), math.nan
-        return [angle, abs(com_angle(frame, m)) if len(m) else math.nan]
+        g = float(np.linalg.norm(sim.gravity))
+        return [angle, abs(com_angle(frame, m)) if len(m) else math.nan, abs(g * float(m @ frame[:, 0]))]
+
+
+class DrumFlow(Measurement):
+    """How a drum's bed flows, seen along the drum's ``axis`` through ``center`` (gravity gives
+    "down"), in a drum of ``radius`` (m) turned by the wall named ``wall`` (its angular velocity
+    about the axis is the drum's, omega): ``flowing_depth`` (m, where the mean downslope speed at
+    the middle of the free surface's chord falls to zero, ``rollingdem.analysis.drum.flowing_depth``)
+    and, below the flowing layer and in the middle third of the arc along which the bed touches the
+    wall, the speed of the passive zone off the wall and of the spheres touching the wall, each over
+    omega r (``passive_speed_ratio``, ``wall_layer_speed_ratio``: 1 is solid-body rotation,
+    ``rollingdem.analysis.drum.rotation_ratios``).
+
+    Each sample's values are in the series. The summary's ``value`` pools the window's samples:
+    the depth from all their spheres at once, the ratios from all their spheres below that depth.
+    To do so it keeps each sample's positions and velocities across the drum: give a ``window``
+    for a long run."""
+
+    kind = "drum_flow"
+    INTERVAL = 0.05
+    QUANTITIES = {"flowing_depth": "m", "passive_speed_ratio": "1", "wall_layer_speed_ratio": "1"}
+
+    def __init__(self, name: str, center, axis, radius: float, wall: str, extent=None, interval: float | None = None,
+                 window=None):
+        super().__init__(name, interval, window)
+        self.center = np.array(check_vector("drum_flow center", center))
+        self.axis = np.array(check_vector("drum_flow axis", axis, unit=True))
+        self.radius = check_positive("drum_flow radius", radius, "m")
+        self.wall = wall
+        self.extent = None if extent is None else _window(extent)
+        self._samples: list[tuple] = []  # (time, positions, velocities, slope, point, omega) across the drum
+
+    def describe(self):
+        return (f"drum bed's flow about the axis {tuple(self.axis.tolist())} through {tuple(self.center.tolist())}, "
+                f"drum radius {self.radius:g} m turned by wall {self.wall!r}")
+
+    _wall = WallLoad._wall
+
+    def check(self, sim):
+        DrumAngle.check(self, sim)
+        WallLoad.check(self, sim)
+
+    def _frame(self, sim):
+        """The free spheres across the drum: positions (across, up) from the axis, velocities, radii,
+        the mean diameter and omega about the axis."""
+        across, up = drum_frame(sim, self.axis)
+        rel = sim.positions - self.center
+        keep = ~sim.fixed
+        if self.extent is not None:
+            s = rel @ self.axis
+            keep &= (s >= self.extent[0]) & (s <= self.extent[1])
+        basis = np.column_stack([across, up, self.axis])  # a turn: distances kept
+        wall = self._wall(sim)
+        omega = float(np.asarray(wall.angular_velocity, float) @ self.axis) if wall is not None else math.nan
+        r = sim.radii[keep]
+        return rel[keep] @ basis, sim.velocities[keep] @ basis, r, 2.0 * float(r.mean()), omega
+
+    def observe(self, sim) -> None:
+        from rollingdem.analysis.drum import flowing_depth, flowing_layer, rotation_ratios, surface_angle
+
+        x, v, r, d, omega = self._frame(sim)
+        try:
+            _, slope, xm, ym = surface_angle(x, r, d)
+        except (ParameterError, ValueError):
+            self._record(sim, [math.nan] * 3)
+            return
+        sample = (sim.time, x, v, slope, (xm, ym), omega, d, float(r.max()))
+        depth = flowing_depth(*flowing_layer(x, v, slope, (xm, ym), d), d)
+        ratios = rotation_ratios([(x, v, slope, np.array((xm, ym)))], omega, self.radius, depth, d, float(r.max()))
+        if self.window is None or self.window[0] - 1e-12 <= sim.time <= self.window[1] + 1e-12:
+            self._samples.append(sample)
+        self._record(sim, [depth, *ratios])
+
+    def pooled(self) -> tuple[float, float, float]:
+        """(flowing depth, passive and wall layer speed ratios) over the summary's window's samples."""
+        from rollingdem.analysis.drum import flowing_depth, flowing_layer, rotation_ratios
+
+        if not self._rows:
+            return math.nan, math.nan, math.nan
+        _, (t0, t1), _ = self._in_window()
+        chosen = [s for s in self._samples if t0 - 1e-12 <= s[0] <= t1 + 1e-12]
+        if not chosen:
+            return math.nan, math.nan, math.nan
+        d = float(np.mean([s[6] for s in chosen]))
+        profiles = [flowing_layer(x, v, slope, point, d) for _, x, v, slope, point, *_ in chosen]
+        depth = flowing_depth(np.concatenate([p[0] for p in profiles]), np.concatenate([p[1] for p in profiles]), d)
+        omega = float(np.mean([s[5] for s in chosen]))
+        ratios = rotation_ratios([(x, v, slope, np.array(point)) for _, x, v, slope, point, *_ in chosen], omega,
+                                 self.radius, depth, d, max(s[7] for s in chosen))
+        return depth, *ratios
+
+    def summary(self) -> dict:
+        out = super().summary()
+        if out["samples"]:
+            for q, v in zip(self.QUANTITIES, self.pooled()):
+                out[q]["value"] = out[q]["pooled"] = v
+        return out
+
+    def summary_line(self) -> str:
+        s = self.summary()
+        if not s["samples"]:
+            return f"{self.name}: no samples in the window"
+        t0, t1 = s["window"]
+        return (f"{self.name} ({self.describe()}): flowing layer {s['flowing_depth']['value']:.4g} m deep, passive "
+                f"zone at {s['passive_speed_ratio']['value']:.4g} and wall layer at "
+                f"{s['wall_layer_speed_ratio']['value']:.4g} of omega r (the samples of {t0:.3g}-{t1:.3g} s pooled)")
 
 
 def read_profile(path) -> np.ndarray:

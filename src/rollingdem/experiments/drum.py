@@ -169,7 +169,7 @@ class RotatingDrum(BedExperiment):
     """A periodic slice of a drum turning in the rolling regime (docs/studies.md, "The rotating drum")."""
 
     name = "rotating-drum"
-    description = "a periodic slice of a drum turning in the rolling regime (docs/studies.md)"
+    description = "a periodic slice of a drum turning in the rolling regime: the case file drum-slice, sized (docs/studies.md)"
     parameters = (granular_parameters()
                   + (Parameter("drum_diameters", 15.0, "drum radius in mean sphere diameters", low=4.0),
                      Parameter("slice_diameters", 5.0, "length of the periodic slice along the axis, in mean "

@@ -281,7 +281,7 @@ class SiloDischarge(BedExperiment):
     "Silo discharge")."""
 
     name = "silo-discharge"
-    description = "a flat-bottomed silo discharging through a circular orifice at a steady head (docs/studies.md)"
+    description = "a flat-bottomed silo discharging at a steady head: the case file silo, sized (docs/studies.md)"
     parameters = (granular_parameters()
                   + (Parameter("orifice_diameters", 6.0, "orifice diameter D0 in mean sphere diameters d", low=1.0),
                      Parameter("silo_diameters", 0.0, "silo diameter in d (0: max(2.5 D0, D0 + 30 d))", low=0.0),

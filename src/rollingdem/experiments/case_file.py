@@ -230,6 +230,23 @@ class CaseExperiment(Experiment):
         return {o: out.get(o, math.nan) for o in self.observables}
 
 
+def run_case_data(data: dict, series: tuple[str, ...] = (), what: str = "case") -> tuple[dict, dict]:
+    """Run the case file's ``data`` as ``rollingdem run`` does, in a folder removed afterwards:
+    (its summary, the series of the measurements named in ``series`` as pandas DataFrames). A run
+    that fails raises a RuntimeError naming ``what`` and its reason."""
+    import pandas as pd
+
+    from rollingdem.io.casefile import load_case
+    from rollingdem.io.runner import run_case
+
+    with tempfile.TemporaryDirectory(prefix="rollingdem-case-") as folder:
+        summary = run_case(load_case(data), out=Path(folder) / "run", progress=False, echo=lambda *_: None)
+        if summary.get("status") != "ok":
+            raise RuntimeError(f"the {what}'s run failed: {summary.get('error', summary.get('status'))}")
+        return summary, {name: pd.read_csv(Path(folder) / "run" / "measurements" / f"{name}.csv", comment="#")
+                         for name in series}
+
+
 def _get(data, path: str) -> Any:
     holder, key = _locate(data, path)
     return holder[key]
@@ -262,4 +279,5 @@ def shipped_cases() -> dict[str, Path]:
 
 FILE_EXPERIMENT[:] = [case_experiment]
 
-__all__ = ["ALIASES", "CaseExperiment", "case_experiment", "is_case_file", "shipped_cases", "numeric_leaves", "set_path"]
+__all__ = ["ALIASES", "CaseExperiment", "case_experiment", "is_case_file", "run_case_data", "shipped_cases", "numeric_leaves",
+           "set_path"]

@@ -137,22 +137,11 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     """The case of :func:`drum_case`, run as ``rollingdem run`` runs it (in a folder removed
     afterwards), and read: each sample's angles, driving torque and weight moment per metre of
     drum, and the flow pooled over the samples."""
-    import tempfile
-
-    import pandas as pd
-
-    from rollingdem.io.casefile import load_case
-    from rollingdem.io.runner import run_case
+    from rollingdem.experiments.case_file import run_case_data
 
     tic = time.perf_counter()
     data = drum_case(rolling, twisting, material, setup, radius, polydispersity, seed, dt)
-    case = load_case(data)
-    with tempfile.TemporaryDirectory(prefix="rollingdem-drum-") as folder:
-        summary = run_case(case, out=Path(folder) / "run", progress=False, echo=lambda *_: None)
-        if summary.get("status") != "ok":
-            raise RuntimeError(f"the drum's run failed: {summary.get('error', summary.get('status'))}")
-        read = {name: pd.read_csv(Path(folder) / "run" / "measurements" / f"{name}.csv", comment="#")
-                for name in ("bed", "drive")}
+    summary, read = run_case_data(data, ("bed", "drive"), "drum")
     t0, t1 = data["measurements"][0]["window"]
     rows = {k: v[(v["time"] >= t0 - 1e-9) & (v["time"] <= t1 + 1e-9)] for k, v in read.items()}
     length = data["periodic"]["z"][1]

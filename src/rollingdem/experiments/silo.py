@@ -244,22 +244,12 @@ def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     afterwards), and read: the discharged mass from the opening on, the window of the
     ``setup.measured`` spheres after the first ``setup.transient``, the settled bed's bulk density
     (the probe's, over the last 0.05 s before the opening) and the orifice zone's over the window."""
-    import tempfile
-
-    import pandas as pd
-
-    from rollingdem.io.casefile import load_case
-    from rollingdem.io.runner import run_case
+    from rollingdem.experiments.case_file import run_case_data
 
     tic = time.perf_counter()
     data = silo_case(rolling, twisting, material, setup, radius, polydispersity, seed, dt)
-    case = load_case(data)
-    with tempfile.TemporaryDirectory(prefix="rollingdem-silo-") as folder:
-        summary = run_case(case, out=Path(folder) / "run", progress=False, echo=lambda *_: None)
-        if summary.get("status") != "ok":
-            raise RuntimeError(f"the silo's run failed: {summary.get('error', summary.get('status'))}")
-        out = pd.read_csv(Path(folder) / "run" / "measurements" / "discharge.csv", comment="#")
-        zone = pd.read_csv(Path(folder) / "run" / "measurements" / "orifice_zone.csv", comment="#")
+    summary, read = run_case_data(data, ("discharge", "orifice_zone"), "silo")
+    out, zone = read["discharge"], read["orifice_zone"]
     opened = data["stages"][0]["duration"]
     flow = out[out["time"] >= opened - 1e-9]
     t, mass, count = (flow[c].to_numpy(float) for c in ("time", "mass", "count"))

@@ -131,7 +131,7 @@ def test_the_shipped_case_files_are_listed_shown_and_valid(tmp_path):
         checked = CliRunner().invoke(app, ["check", str(tmp_path / f"{name}.yaml")])
         assert checked.exit_code == 0, checked.output
     bad = CliRunner().invoke(app, ["experiments", "show", "angle-of-repose"])
-    assert bad.exit_code == 2 and "the case files shipped are pile, drum-slice, drum, hopper, silo" in bad.output
+    assert bad.exit_code == 2 and "the case files shipped are pile, drum-slice, drum, hopper, repose-rough-base, silo" in bad.output
 
 
 def test_runs_that_share_their_first_stage_share_it_and_end_as_from_scratch(tmp_path):

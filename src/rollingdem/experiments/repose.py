@@ -18,13 +18,8 @@ import numpy as np
 import pandas as pd
 
 from rollingdem.analysis.repose import ReposeAngle, default_max_speed, plot_pile, repose_angle, touching
-from rollingdem.physics.contact.model import ContactModel
 from rollingdem.errors import ParameterError, check_choice
-from rollingdem.scene.insertion import CylinderRegion, Uniform, rough_base
 from rollingdem.scene.materials import Material
-from rollingdem.scene.simulation import Simulation
-from rollingdem.scene.mesh import MeshWall
-from rollingdem.scene.walls import Cylinder, Plane
 from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
 from rollingdem.experiments.registry import (BedExperiment, Experiment, Parameter, cohesion_parameters,
                                              common_parameters, resolve_rolling, twisting_parameter)
@@ -156,6 +151,81 @@ def tube_clearing_time(floor: float, height: float, radius: float, clearance: fl
     return (floor + height + 2.0 * radius + clearance) / lift_speed
 
 
+SHIPPED = Path(__file__).parent / "cases" / "repose-rough-base.yaml"
+"""The rough-base pile's case file (``rollingdem experiments show repose-rough-base``)."""
+
+
+def pile_case(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
+              collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT,
+              setup: PileSetup = PileSetup()) -> dict:
+    """The pile of :func:`pile_run` as a case file's data (the shipped ``repose-rough-base`` file,
+    sized): the scene, and as stages the settling, the lift (or the tube's removal) and the
+    collapse until settled, which ``rollingdem run`` runs with its kinetic-energy criterion."""
+    from rollingdem.io.mapping_file import read_mapping
+
+    for what, value, kind in (("material", material, PileMaterial), ("collapse", collapse, Collapse),
+                              ("setup", setup, PileSetup)):
+        if not isinstance(value, kind):
+            raise ParameterError(f"{what} = {value!r} is not allowed: must be a "
+                                 f"rollingdem.experiments.repose.{kind.__name__}")
+    check_choice("base", setup.base, ("plate", "rough"))
+    radius = setup.radius
+    tube_radius, height = column_size(count, radius, polydispersity, setup.aspect)
+    if setup.tube_radius is not None:  # the same column volume in the tube given
+        tube_radius, height = setup.tube_radius, height * (tube_radius / setup.tube_radius) ** 2
+    data, _ = read_mapping(SHIPPED)
+    data["dt"] = dt
+    data["materials"] = [{"name": "beads", **{k: v for k, v in vars(material.as_material("beads")).items()
+                                              if k != "name"}}]
+    walls = "beads"
+    data["pairs"] = []
+    if material.cohesion != "none":  # cohesive spheres, not cohesive to the plate and the tube
+        walls = "wall"
+        data["materials"].append({"name": "wall", **{k: v for k, v in vars(material.wall_material("wall")).items()
+                                                     if k != "name"}})
+        data["pairs"] = [{"materials": ["beads", "wall"], "surface_energy": 0.0, "cohesion_energy_density": 0.0}]
+    data["contact"] = {"normal": normal, "rolling": rolling, "twisting": twisting, "cohesion": material.cohesion}
+    plate = {"type": "plane", "name": "plate", "material": walls, "point": [0, 0, 0], "normal": [0, 0, 1]}
+    if setup.tube_segments is None:
+        tube = {"type": "cylinder", "name": "tube", "material": walls, "radius": tube_radius,
+                "extent": [0.0, 2.0 * height + 0.1]}
+    else:
+        tube = {"type": "mesh", "name": "tube", "material": walls, "shape": "drum",
+                "size": {"radius": tube_radius, "length": 2.0 * height + 0.1, "segments": setup.tube_segments,
+                         "caps": False}}
+    data["walls"] = [plate, tube]
+    floor, particles = 0.0, []
+    if setup.base == "rough":
+        half = 0.5 * ROUGH_BASE_EXTENT * tube_radius
+        base_radius = setup.base_radius or radius
+        particles.append({"rough_base": {"radius": base_radius, "extent": [[-half, half], [-half, half]],
+                                         "spacing": setup.base_spacing, "jitter": setup.base_jitter, "seed": seed},
+                          "material": "beads"})
+        floor = 2.0 * base_radius
+    fill = height * PACKING / INSERT_PACKING
+    particles.append({"insert": {"type": "cylinder", "radius": tube_radius, "z_min": floor, "z_max": floor + fill},
+                      "count": count, "material": "beads", "seed": seed,
+                      "radius": {"distribution": "uniform", "low": radius * (1 - polydispersity),
+                                 "high": radius * (1 + polydispersity)} if polydispersity else radius})
+    data["particles"] = particles
+    # free fall from the top of the fill, then as long again to come to rest
+    stages = [{"name": "settle", "duration": 2.0 * math.sqrt(2.0 * fill / G) + 0.1}]
+    sample = collapse.sample
+    if collapse.lift_speed:
+        clearance = setup.clearance if setup.clearance is not None else 2.0 * radius
+        lift = tube_clearing_time(floor, height, radius, clearance, collapse.lift_speed)
+        lift = math.ceil(lift / sample - 1e-9) * sample  # the tube goes at the first sample after it clears
+        stages.append({"name": "lift", "duration": lift,
+                       "wall_motion": [{"wall": "tube", "velocity": [0.0, 0.0, collapse.lift_speed]}]})
+        stages.append({"name": "rest", "remove_walls": ["tube"], "until": "settled",
+                       "max_duration": max(collapse.max_time - lift, sample)})
+    else:
+        stages.append({"name": "collapse", "remove_walls": ["tube"], "until": "settled",
+                       "max_duration": collapse.max_time})
+    data["stages"] = stages
+    return data
+
+
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
              collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT, label=None,
              setup: PileSetup = PileSetup()) -> PileRun:
@@ -172,51 +242,21 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     1e-3 sqrt(g d) (:func:`rollingdem.analysis.repose.default_max_speed`). A sphere rolling alone over the
     plate (with little rolling resistance it may roll for seconds) and a few rattlers caged in
     the pile do not change its surface. Then the angle is measured. ``setup``: the tube and the
-    floor (``PileSetup``).
+    floor (``PileSetup``). The scene and the stages' times are :func:`pile_case`'s.
     """
-    for what, value, kind in (("material", material, PileMaterial), ("collapse", collapse, Collapse),
-                              ("setup", setup, PileSetup)):
-        if not isinstance(value, kind):
-            raise ParameterError(f"{what} = {value!r} is not allowed: must be a "
-                                 f"rollingdem.experiments.repose.{kind.__name__}")
+    from rollingdem.io.casefile import build_simulation, load_case
+
+    data = pile_case(rolling, twisting, count, seed, material, collapse, normal, polydispersity, dt, setup)
     lift_speed, sample, max_collapse = collapse.lift_speed, collapse.sample, collapse.max_time
     tic = time.perf_counter()
-    radius = setup.radius
-    dist = Uniform(radius * (1 - polydispersity), radius * (1 + polydispersity)) if polydispersity else radius
-    tube_radius, height = column_size(count, radius, polydispersity, setup.aspect)
-    if setup.tube_radius is not None:  # the same column volume in the tube given
-        tube_radius, height = setup.tube_radius, height * (tube_radius / setup.tube_radius) ** 2
-    contact = ContactModel(normal, rolling=rolling, twisting=twisting, cohesion=material.cohesion)
-    sim = Simulation(contact=contact, dt=dt)
-    sim.add_material(material.as_material("m"))
-    walls = "m"
-    if material.cohesion != "none":  # cohesive spheres, not cohesive to the plate and the tube
-        walls = "wall"
-        sim.add_material(material.wall_material(walls))
-        sim.set_pair("m", walls, surface_energy=0.0, cohesion_energy_density=0.0)
-    sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material=walls, name="plate"))
-    check_choice("base", setup.base, ("plate", "rough"))
-    floor = 0.0
-    if setup.base == "rough":
-        half = 0.5 * ROUGH_BASE_EXTENT * tube_radius
-        base_radius = setup.base_radius or radius
-        sim.add_particles(rough_base(base_radius, ((-half, half), (-half, half)), spacing=setup.base_spacing,
-                                     jitter=setup.base_jitter, seed=seed), base_radius, "m", fixed=True)
-        floor = 2.0 * base_radius
-    if setup.tube_segments is None:
-        tube = sim.add_wall(Cylinder(tube_radius, extent=(0.0, 2.0 * height + 0.1), material=walls, name="tube"))
-    else:
-        tube = sim.add_wall(MeshWall.shape("drum", radius=tube_radius, length=2.0 * height + 0.1,
-                                           segments=setup.tube_segments, caps=False, material=walls, name="tube"))
-    fill = height * PACKING / INSERT_PACKING
-    sim.insert(CylinderRegion(tube_radius, floor, floor + fill), count, dist, "m", seed=seed)
+    sim = build_simulation(load_case(data))
+    tube = next(w for w in sim.walls if w.name == "tube")
+    settle, *rest = data["stages"]
+    lift_time = rest[0]["duration"] if lift_speed else 0.0
     free = ~sim.fixed
-    # free fall from the top of the fill, then as long again to come to rest
-    sim.run(2.0 * math.sqrt(2.0 * fill / G) + 0.1)
+    sim.run(settle["duration"])
     if lift_speed:
         sim.set_wall_velocity(tube, velocity=(0.0, 0.0, lift_speed))
-        clearance = setup.clearance if setup.clearance is not None else 2.0 * radius
-        lift_time = tube_clearing_time(floor, height, radius, clearance, lift_speed)
     else:
         sim.remove_wall(tube)
     inertia = 0.4 * sim.masses[free] * sim.radii[free] ** 2
@@ -426,7 +466,7 @@ class ReposeRoughBase(BedExperiment):
     """The lifted-cylinder pile on a rough base of fixed spheres (the PFC and LIGGGHTS protocol)."""
 
     name = "repose-rough-base"
-    description = "the lifted-cylinder pile on a rough base of fixed spheres (PFC and LIGGGHTS protocol)"
+    description = "the lifted-cylinder pile on a rough base of fixed spheres (PFC and LIGGGHTS protocol): the case file repose-rough-base, sized"
     parameters = (common_parameters(mu=0.6, mur=0.1, mur_range=(0.0, 0.6))
                   + (twisting_parameter(),
                      Parameter("count", 2000, "spheres in the column", low=50, integer=True),
@@ -453,17 +493,22 @@ class ReposeRoughBase(BedExperiment):
     targets = {"angle": (0.0, 90.0)}
     sizes = {"quick": {"count": 1000}, "full": {"count": 4000}}
 
-    def observe(self, params: dict) -> dict:
-        """The lifted-cylinder pile on a rough base of fixed spheres, every protocol choice a parameter."""
+    def pile_arguments(self, params: dict) -> dict:
+        """The arguments of :func:`pile_case` and :func:`pile_run` for ``params``."""
         p = self.resolve(params)
-        material = PileMaterial.from_parameters(p)
         base_radius = p["base_radius"] or p["radius"]
         setup = PileSetup(base="rough", radius=p["radius"], tube_radius=p["tube_radius"] or None,
                           base_radius=base_radius, base_spacing=p["base_spacing"] * base_radius,
                           base_jitter=p["base_jitter"] * base_radius, clearance=2.0 * p["radius"] * p["clearance"])
         collapse = Collapse(max_time=p["max_collapse"], sample=0.02, lift_speed=p["lift_speed"] or None)
-        run = pile_run(resolve_rolling(p["model"]), p["twisting"], count=p["count"], seed=p["seed"], material=material,
-                       collapse=collapse, polydispersity=p["polydispersity"], dt=p["dt"], setup=setup)
+        return dict(rolling=resolve_rolling(p["model"]), twisting=p["twisting"], count=p["count"], seed=p["seed"],
+                    material=PileMaterial.from_parameters(p), collapse=collapse, polydispersity=p["polydispersity"],
+                    dt=p["dt"], setup=setup)
+
+    def observe(self, params: dict) -> dict:
+        """The lifted-cylinder pile on a rough base of fixed spheres, every protocol choice a parameter:
+        the shipped case file repose-rough-base, sized (:func:`pile_case`)."""
+        run = pile_run(**self.pile_arguments(params))
         a = run.angle
         return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
                 "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,

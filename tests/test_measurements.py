@@ -407,3 +407,47 @@ def test_a_closed_mesh_region_holds_what_its_polygon_prism_holds():
     assert region.contains([centre, centre], [0.999 * inradius, 1.001 * inradius]).tolist() == [True, False]
     with pytest.raises(ParameterError, match="must be closed.*belongs to no other triangle"):
         MeshRegion(drum(R, L, segments=n, caps=False))
+
+
+SILO_TWO_CONDITIONS = """\
+name: two-conditions
+materials:
+  - {name: glass, youngs_modulus: 5.0e6, poisson_ratio: 0.3, density: 2500.0, friction: 0.5, rolling_friction: 0.1}
+contact: {normal: hertz, rolling: epsd}
+walls:
+  - {type: mesh, name: silo, material: glass, shape: silo, size: {radius: 0.02, height: 0.08, orifice_radius: ORIFICE}}
+particles:
+  - insert: {type: cylinder, radius: 0.0175, z_min: 0.002, z_max: 0.07}
+    count: 200
+    radius: 0.0015
+    material: glass
+    seed: 2
+outlets:
+  - {name: bin, region: {type: box, lo: [-1, -1, -2], hi: [1, 1, -0.05]}}
+measurements:
+  - {name: out, type: outlet, outlet: bin, interval: 0.002}
+stages:
+  - {name: drain, until: {measurement: out.count, above: 10, settled: {}}, max_duration: 1.5}
+output: {plot: false, report: null, time_series: null}
+"""
+
+
+@pytest.mark.parametrize("orifice, ends", [(0.008, "out.count"), (0.001, "settled")])
+def test_a_stage_with_two_conditions_ends_at_the_first_met(tmp_path, orifice, ends):
+    """The poured silo's stage waits for 10 spheres out or for the bed to settle: through an
+    orifice 5 sphere diameters wide they flow out before the bed has settled; through one narrower
+    than a sphere none can, and the bed settles, well within the 1.5 s allowed."""
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+
+    import json
+
+    (tmp_path / "case.yaml").write_text(SILO_TWO_CONDITIONS.replace("ORIFICE", str(orifice)))
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "case.yaml"), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    stage = summary["stages"][0]
+    assert stage["ended"].startswith(ends) and stage["end_time"] < 1.5
+    count = summary["measurements"]["out"]["count"]["final"]
+    assert count >= 10 if ends == "out.count" else count == 0

@@ -300,7 +300,7 @@ class SiloDischarge(BedExperiment):
     #: measured; the silo's diameter max(2.5 D0, D0 + ``gap``) d; the fill height (d), held; the
     #: spheres measured per run. The full sizes keep 30 d of wall gap; the quick silo keeps 2.5 D0
     #: but only 10 d
-    sizes = {"quick": {"orifices": (5.0, 6.0, 7.0, 8.0), "gap": 10.0, "fill": 12.0, "measured": 1000},
+    sizes = {"quick": {"orifices": (5.0, 6.0, 7.0, 8.0), "gap": 10.0, "fill": 12.0, "measured": 2000},
              "full": {"orifices": (5.0, 6.25, 7.5, 8.75, 10.0), "gap": 30.0, "fill": 20.0, "measured": 2000}}
     #: the validation's material: a glass-bead-like friction (Beverloo's C and k ranges are for
     #: glass beads and sand)

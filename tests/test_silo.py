@@ -128,7 +128,7 @@ def _flat(data, prefix=""):
 
 def test_the_shipped_silo_case_is_what_the_validation_runs_at_its_quick_size():
     """``rollingdem experiments show silo`` is the case ``silo-discharge`` runs at its quick size
-    (D0 = 6 d, a silo 16 d wide, filled 12 d high, 2,000 spheres measured) with the validation's material: every entry of
+    (D0 = 6 d, a silo 16 d wide, filled 12 d high, 1,000 spheres measured) with the validation's material: every entry of
     ``silo_case``'s data, as the case file reader completes it, equals the shipped file's, numbers
     to the 3 figures the file writes them with (rel. 5e-3: the settling time 0.6812 s is written
     0.68). Left aside: the output, and the measurement windows, which ``silo_run`` sets from the run."""

@@ -300,7 +300,7 @@ class SiloDischarge(BedExperiment):
     #: measured; the silo's diameter max(2.5 D0, D0 + ``gap``) d; the fill height (d), held; the
     #: spheres measured per run. The full sizes keep 30 d of wall gap; the quick silo keeps 2.5 D0
     #: but only 10 d
-    sizes = {"quick": {"orifices": (5.0, 6.0, 7.0, 8.0), "gap": 10.0, "fill": 12.0, "measured": 2000},
+    sizes = {"quick": {"orifices": (5.0, 6.0, 7.0, 8.0), "gap": 10.0, "fill": 12.0, "measured": 1000},
              "full": {"orifices": (5.0, 6.25, 7.5, 8.75, 10.0), "gap": 30.0, "fill": 20.0, "measured": 2000}}
     #: the validation's material: a glass-bead-like friction (Beverloo's C and k ranges are for
     #: glass beads and sand)
@@ -327,9 +327,11 @@ class SiloDischarge(BedExperiment):
         """The silo at 4 (quick) or 5 orifice sizes from 5 d to 8 or 10 d, one seed each, at a steady
         head; the smallest orifice again at half the fill height. Checks: Beverloo's law with the
         exponent 5/2 fits with k between 1 and 3 and C between 0.45 and 0.75 (the range of measured
-        and simulated glass beads and sand); 5/2 lies within the 95 % interval of the exponent fitted
-        freely; W at half the fill height equals W at the full within 5 % (or the 95 % interval of
-        their ratio, if wider): it does not depend on the fill height."""
+        and simulated glass beads and sand); at the full size, 5/2 lies within the 95 % interval of
+        the exponent fitted freely (over the quick size's 5 to 8 d that interval runs to the
+        search's bound of 6, so the exponent is reported, not checked); W at half the fill height
+        equals W at the full within 5 % (or the 95 % interval of their ratio, if wider): it does not
+        depend on the fill height."""
         from scipy import stats
 
         tic = time.perf_counter()
@@ -361,11 +363,13 @@ class SiloDischarge(BedExperiment):
         checks += [Check("silo-discharge", model, "Beverloo k (exponent 5/2)", k, 2.0, 1.0, relative=False,
                          source="Beverloo et al. (1961), Nedderman (1992): k from 1 to 3"),
                    Check("silo-discharge", model, "Beverloo C (exponent 5/2)", c, 0.6, 0.15, relative=False,
-                         source="Beverloo et al. (1961), Nedderman (1992): C from 0.45 to 0.75"),
-                   Check("silo-discharge", model, f"exponent of (D0 - k d), fitted freely, 95 % interval "
-                         f"[{n_lo:.2f}, {n_hi:.2f}]", n, 2.5, (n - n_lo) if n > 2.5 else (n_hi - n), relative=False,
-                         source="Beverloo: W ~ (D0 - k d)^(5/2), dimensional analysis; tolerance: 5/2 within "
-                                "the fitted exponent's 95 % interval")]
+                         source="Beverloo et al. (1961), Nedderman (1992): C from 0.45 to 0.75")]
+        if not quick:  # over the quick size's 5-8 d the interval runs to the search's bound: reported, not checked
+            checks.append(Check("silo-discharge", model, f"exponent of (D0 - k d), fitted freely, 95 % interval "
+                                f"[{n_lo:.2f}, {n_hi:.2f}]", n, 2.5, (n - n_lo) if n > 2.5 else (n_hi - n),
+                                relative=False,
+                                source="Beverloo: W ~ (D0 - k d)^(5/2), dimensional analysis; tolerance: 5/2 within "
+                                       "the fitted exponent's 95 % interval"))
         at = table[np.isclose(table["orifice_diameters"], sizes["orifices"][0])].set_index("fill_diameters")
         high, low = at.loc[sizes["fill"]], at.loc[0.5 * sizes["fill"]]
         ratio = low["flow_rate"] / high["flow_rate"]

@@ -125,6 +125,10 @@ CATALOGUE = [
     ("mesh with a file and a shape",
      edit("walls:", "walls:\n  - {type: mesh, material: m, file: a.stl, shape: disk, size: {radius: 1.0}}"),
      "walls.0: file = 'a.stl', shape = 'disk' is not allowed: give exactly one of file"),
+    ("mesh 40,000 diameters across (a file in mm read as m)",
+     edit("walls:", "walls:\n  - {type: mesh, name: big, material: m, shape: disk, size: {radius: 200.0}}"),
+     "walls.0: disk: the mesh is 400 m across, 4e+04 mean particle diameters (0.01 m), more than 10000: a "
+     "unit mistake? give its scale (0.001 for a file in mm), or check_size: false to accept it"),
     ("mesh shape that does not exist", edit("walls:", "walls:\n  - {type: mesh, material: m, shape: cone}"),
      "walls.0: mesh shape = 'cone' is not known: allowed are 'drum'"),
     ("mesh shape without a dimension", edit("walls:", "walls:\n  - {type: mesh, material: m, shape: disk}"),

@@ -269,3 +269,91 @@ def test_a_convex_vertex_gives_one_contact_from_the_vertex():
         tri, feat, pts = contacts(mesh, p, 0.06)
         assert len(tri) == 1 and feat[0] >= VERTEX_A
         np.testing.assert_allclose(pts[0], [0, 0, 1], atol=1e-15)
+
+
+def _write_ascii_stl(path, mesh, fmt="%.6e"):
+    """Each triangle with its own corners, as CAD exporters write them (``fmt`` rounds them)."""
+    lines = ["solid cad"]
+    for tri in mesh.triangles:
+        lines += ["facet normal 0 0 0", "outer loop"]
+        lines += ["vertex " + " ".join(fmt % v for v in mesh.vertices[i]) for i in tri]
+        lines += ["endloop", "endfacet"]
+    path.write_text("\n".join(lines + ["endsolid cad"]) + "\n")
+    return path
+
+
+def test_a_cad_style_stl_is_welded_at_its_seam_and_its_free_edges_are_the_rims(tmp_path):
+    """A 96-sided hopper written as a CAD exporter writes it (each corner rounded to 7 figures,
+    %.6e, so the seam's cos 2 pi and sin 2 pi differ from cos 0 and sin 0 by 1e-16 and more):
+    read with the default weld it has the 2 x 96 = 192 vertices and only the two rims' 192 free
+    edges, all at z = 0 or at the top; read without welding, the seam splits (more vertices, more
+    free edges). A closed box with one corner pulled 1 mm away (far beyond the weld, 1e-6 of the
+    diagonal) has free edges only at that crack, and the report names a point on it."""
+    from rollingdem.scene.mesh import box
+
+    n = 96
+    phi = 2 * np.pi * np.arange(n + 1) / n  # the seam's corners at 2 pi, as a CAD exporter computes them
+    rings = [np.column_stack([r * np.cos(phi), r * np.sin(phi), np.full(n + 1, z)]) for r, z in ((0.02, 0.0), (0.1, 0.1))]
+    k = np.arange(n)
+    triangles = np.vstack([np.column_stack([k, k + 1, n + 1 + k]), np.column_stack([k + 1, n + 2 + k, n + 1 + k])])
+    path = _write_ascii_stl(tmp_path / "hopper.stl", TriangleMesh(np.vstack(rings), triangles))
+    welded = TriangleMesh.from_file(path)
+    assert len(welded.vertices) == 192 and welded.dropped == 0
+    report = welded.report()
+    assert report["free_edges"] == 192 and not report["closed"]
+    free = np.argwhere(welded.edge_neighbors < 0)
+    ends = welded.vertices[welded.triangles[free[:, 0], free[:, 1]]][:, 2]
+    assert np.all(np.isclose(ends, 0.0, atol=1e-9) | np.isclose(ends, 0.1, atol=1e-9))
+    raw = TriangleMesh.from_file(path, weld=0.0)
+    assert len(raw.vertices) > 192 and raw.report()["free_edges"] > 192
+    closed = box((0.1, 0.1, 0.1))
+    vertices = closed.vertices.copy()
+    corner = int(np.argmax(vertices.sum(axis=1)))  # (0.1, 0.1, 0.1)
+    crack = TriangleMesh(vertices, closed.triangles)
+    assert TriangleMesh.from_file(_write_ascii_stl(tmp_path / "box.stl", crack)).report()["closed"]
+    split = np.vstack([vertices, vertices[corner] + [0.001, 0.0, 0.0]])
+    triangles = closed.triangles.copy()
+    first = np.nonzero((triangles == corner).any(axis=1))[0][0]  # one triangle at that corner moves off it
+    triangles[first][triangles[first] == corner] = len(vertices)
+    path = _write_ascii_stl(tmp_path / "cracked.stl", TriangleMesh(split, triangles))
+    report = TriangleMesh.from_file(path).report()
+    assert not report["closed"] and report["free_edges"] == 4
+    assert np.linalg.norm(np.array(report["first_free_edge"]) - vertices[corner]) < 0.1
+
+
+def test_a_mesh_file_with_a_collapsed_triangle_drops_and_counts_it(tmp_path):
+    """Two corners of one triangle of a square within the weld tolerance: that triangle collapses
+    and is dropped (counted), the rest is read."""
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 1e-9, 0]], float)
+    triangles = np.array([[0, 1, 2], [0, 2, 3], [1, 4, 2]])
+    lines = ["solid s"]
+    for tri in triangles:
+        lines += ["facet normal 0 0 1", "outer loop"] + ["vertex " + " ".join("%r" % float(v) for v in vertices[i]) for i in tri] + \
+            ["endloop", "endfacet"]
+    (tmp_path / "s.stl").write_text("\n".join(lines + ["endsolid s"]) + "\n")
+    mesh = TriangleMesh.from_file(tmp_path / "s.stl", weld=1e-6)
+    assert mesh.n_triangles == 2 and mesh.dropped == 1 and mesh.welded == 1
+
+
+def test_check_prints_each_mesh_and_accepts_a_large_one_when_told(tmp_path):
+    """``rollingdem check`` prints each mesh wall's size, triangles and free edges; a disk 400 m
+    across under spheres of 10 mm (4e4 diameters) is refused (tests/test_bad_input.py) unless its
+    block says ``check_size: false``; then it is valid, and its line gives 400 x 400 x 0 m, the 48
+    triangles and the 48 free edges of its rim."""
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+
+    (tmp_path / "case.yaml").write_text("""\
+materials:
+  - {name: m, youngs_modulus: 1.0e7, poisson_ratio: 0.3, density: 1000.0, friction: 0.5, restitution: 0.5}
+walls:
+  - {type: mesh, name: big, material: m, shape: disk, size: {radius: 200.0}, check_size: false}
+particles:
+  - {positions: [[0, 0, 0.006], [0.02, 0, 0.006]], radius: 0.005, material: m}
+stages:
+  - {name: s, duration: 0.0002}
+""")
+    result = CliRunner().invoke(app, ["check", str(tmp_path / "case.yaml")])
+    assert result.exit_code == 0, result.output
+    assert "wall 'big', disk: 400 x 400 x 0 m, 48 triangles, 48 free edges, the first at (" in result.output

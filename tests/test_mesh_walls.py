@@ -392,11 +392,10 @@ def test_a_case_file_runs_a_turning_mesh_from_an_stl_in_mm_and_writes_its_series
 @pytest.mark.parametrize("problem,vertices,triangles,expected", [
     ("non-manifold", [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]], [[0, 1, 2], [0, 1, 3], [0, 1, 4]],
      "is shared by more than two triangles"),
-    ("degenerate", [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]], [[0, 1, 2], [0, 1, 3]], "is degenerate"),
 ])
 def test_a_case_file_refuses_a_broken_mesh_file_naming_it(tmp_path, problem, vertices, triangles, expected):
-    """A mesh file with an edge of three triangles, or a triangle of no area: exit status 2, one line
-    naming the file and the problem."""
+    """A mesh file with an edge of three triangles: exit status 2, one line naming the file and the
+    problem. (A triangle of no area is dropped and counted: the next test.)"""
     import meshio
     from typer.testing import CliRunner
 
@@ -407,6 +406,22 @@ def test_a_case_file_refuses_a_broken_mesh_file_naming_it(tmp_path, problem, ver
     result = CliRunner().invoke(app, ["check", str(tmp_path / "case.yaml")])
     assert result.exit_code == 2
     assert result.output.count("\n") == 1 and "dish.stl" in result.output and expected in result.output, result.output
+
+
+def test_check_drops_and_counts_a_triangle_of_no_area_in_a_mesh_file(tmp_path):
+    """A mesh file whose second triangle has its three corners on a line: ``check`` says valid and
+    that one degenerate triangle was dropped, leaving one."""
+    import meshio
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]], dtype=float) * 50.0  # mm
+    meshio.write(tmp_path / "dish.stl", meshio.Mesh(vertices, [("triangle", np.array([[0, 1, 2], [0, 1, 3]]))]))
+    (tmp_path / "case.yaml").write_text(CASE)
+    result = CliRunner().invoke(app, ["check", str(tmp_path / "case.yaml")])
+    assert result.exit_code == 0, result.output
+    assert ", 1 triangles, 3 free edges" in result.output and "degenerate triangles dropped: 1" in result.output
 
 
 # --- acceptance runs (slow: their figures are in issue 27's closing note) ------------------------

@@ -433,6 +433,8 @@ def check(case: Path = typer.Argument(..., help="Case file to validate.")):
         _refuse(err)
     typer.echo(f"{case}: valid; {sim.n_particles} particles, {len(sim.walls)} walls, {len(spec.stages)} stages, "
                f"dt = {sim.dt:.3g} s")
+    for line in casefile.mesh_lines(sim):
+        typer.echo(f"  {line}")
 
 
 experiments_app = typer.Typer(help="The experiments: case files shipped with rollingdem to start from, and the "

@@ -119,14 +119,17 @@ class PlaceSpec(_Strict):
 
 
 class MeshSpec(_Strict):
-    """A triangle-mesh wall: ``file`` (STL or OBJ, relative to the case file; ``scale`` 0.001 for mm)
-    or a ready-made ``shape`` with its ``size`` (its dimensions by name), placed by ``place``
-    (turned, then moved), moving by ``motion``."""
+    """A triangle-mesh wall: ``file`` (STL or OBJ, relative to the case file; ``scale`` 0.001 for mm;
+    vertices within ``weld`` m merged) or a ready-made ``shape`` with its ``size`` (its dimensions by
+    name), placed by ``place`` (turned, then moved), moving by ``motion``; ``check_size: false``
+    accepts a mesh implausibly large against the particles."""
     type: Literal["mesh"]
     name: Optional[str] = None
     material: str
     file: Optional[str] = None
     scale: Number = 1.0
+    weld: Optional[Number] = None
+    check_size: bool = True
     shape: Optional[str] = None
     size: dict[str, Any] = {}
     place: Optional[PlaceSpec] = None
@@ -705,6 +708,13 @@ def build_simulation(case: CaseSpec):
             else:
                 sim.add_particles(p.positions, p.radius, p.material, velocity=p.velocity,
                                   angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap, fixed=p.fixed)
+    from rollingdem.physics.records import WALL_MESH
+    from rollingdem.scene.wall_set import check_mesh_size
+
+    for k, wall in enumerate(sim.walls):  # against the particles now in place: a unit mistake
+        if wall.kind == WALL_MESH:
+            with where(f"walls.{k}"):
+                check_mesh_size(wall, sim.radii)
     for k, o in enumerate(case.outlets):
         with where(f"outlets.{k}"):
             sim.add_outlet(_region(o.region), name=o.name, interval=o.interval,
@@ -765,7 +775,7 @@ def _mesh_wall(w: MeshSpec, base: Path):
                              "(an STL or OBJ file) and shape (drum, silo, hopper, disk, box, chute)")
     if w.file is not None:
         path = Path(w.file) if Path(w.file).is_absolute() else base / w.file
-        wall = MeshWall.from_file(path, material=w.material, scale=w.scale, name=w.name)
+        wall = MeshWall.from_file(path, material=w.material, scale=w.scale, name=w.name, weld=w.weld)
     else:
         wall = MeshWall.shape(w.shape, material=w.material, name=w.name, **w.size)
     if w.place is not None:
@@ -783,6 +793,7 @@ def _mesh_wall(w: MeshSpec, base: Path):
     motion = _motion(w.motion, mesh=True)
     if motion:
         wall = MeshWall(wall.mesh, material=w.material, name=w.name, **motion)
+    wall.check_size = w.check_size
     return wall
 
 
@@ -1003,6 +1014,14 @@ def _check_first_time_step(sim, sv) -> None:
         st.v[...] = saved[0]
         st.w[...] = saved[1]
         st.info[I_FORCES_VALID] = saved[2]
+
+
+def mesh_lines(sim) -> list[str]:
+    """Each mesh wall in one line (``TriangleMesh.report_line``): its size, triangles, free edges,
+    what reading its file merged and dropped."""
+    from rollingdem.physics.records import WALL_MESH
+
+    return [f"wall {w.name or '(unnamed)'!r}, {w.mesh.report_line()}" for w in sim.walls if w.kind == WALL_MESH]
 
 
 def default_case_path() -> Path:

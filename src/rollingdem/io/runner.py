@@ -408,8 +408,10 @@ def header_lines(case: CaseSpec, sim) -> list[str]:
     """What a run is, in words: particles by kind, walls, dt, the contact law."""
     fixed = int(sim.fixed.sum())
     walls = ", ".join(w.name or type(w).__name__.lower() for w in sim.walls) or "none"
+    from rollingdem.io.casefile import mesh_lines
+
     return [f"{sim.n_particles - fixed} free particles" + (f" and {fixed} fixed" if fixed else "")
-            + f"; walls: {walls}; dt = {sim.dt:.3g} s", f"contact: {sim.contact.describe()}"]
+            + f"; walls: {walls}; dt = {sim.dt:.3g} s", *mesh_lines(sim), f"contact: {sim.contact.describe()}"]
 
 
 def resume_case(outdir, progress: bool = True, echo=print) -> dict:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_integer, check_positive, check_vector
+from rollingdem.errors import ParameterError, check_integer, check_non_negative, check_positive, check_vector
 from rollingdem.physics.mesh import closest_points
 from rollingdem.physics.records import WALL_MESH
 from rollingdem.scene.insertion import Region
@@ -17,6 +17,45 @@ from rollingdem.scene.walls import Wall
 
 #: relative area below which a triangle is degenerate: |(b - a) x (c - a)| / 2 < this x (longest edge)^2
 DEGENERATE_AREA = 1e-10
+#: a mesh file's vertices nearer than this fraction of its bounding-box diagonal are one vertex:
+#: far above the rounding of a CAD export (1e-7 relative for 6 significant figures), far below a
+#: feature a sphere could meet
+WELD_FRACTION = 1e-6
+
+
+def weld_vertices(points, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """(the merged vertices, the index of each point's): points within ``tolerance`` (m) of each
+    other, directly or through a chain of such neighbours, become one vertex at their mean."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, dtype=np.float64)
+    unique, inverse = np.unique(points, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    if tolerance <= 0.0 or len(unique) < 2:
+        return unique, inverse
+    pairs = cKDTree(unique).query_pairs(tolerance, output_type="ndarray")
+    if not len(pairs):
+        return unique, inverse
+    n = len(unique)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    merged = np.zeros((count, 3))
+    np.add.at(merged, label, unique)
+    merged /= np.bincount(label, minlength=count)[:, None]
+    return merged, label[inverse]
+
+
+def _not_degenerate(vertices, triangles) -> np.ndarray:
+    """Which triangles have three distinct corners and an area above ``DEGENERATE_AREA``."""
+    a, b, c = (vertices[triangles[:, i]] for i in range(3))
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    longest = np.max([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
+                      np.linalg.norm(a - c, axis=1)], axis=0)
+    distinct = (triangles[:, 0] != triangles[:, 1]) & (triangles[:, 1] != triangles[:, 2]) & \
+        (triangles[:, 2] != triangles[:, 0])
+    return distinct & (area > DEGENERATE_AREA * longest ** 2)
 
 
 class TriangleMesh:
@@ -27,6 +66,9 @@ class TriangleMesh:
     below ``DEGENERATE_AREA`` times its longest edge squared: a needle or repeated vertex), an
     edge shared by more than two triangles (not a manifold surface).
     """
+
+    welded = dropped = 0  # what reading a file merged and dropped (from_file)
+    weld = None  # the tolerance it merged within (m); None: not read from a file
 
     def __init__(self, vertices, triangles, label: str = "mesh"):
         self.label = label
@@ -108,29 +150,77 @@ class TriangleMesh:
             shown = rotation.tolist() if isinstance(rotation, np.ndarray) else rotation  # one line
             raise ParameterError(f"rotation = {shown!r} is not allowed: must be a 3x3 matrix of finite numbers")
         vertices = self.vertices @ matrix.T + np.array(check_vector("translation", translation))
-        return TriangleMesh(vertices, self.triangles, label=self.label)
+        out = TriangleMesh(vertices, self.triangles, label=self.label)
+        out.welded, out.dropped, out.weld = self.welded, self.dropped, self.weld
+        return out
 
     @classmethod
-    def from_file(cls, path, scale: float = 1.0) -> "TriangleMesh":
+    def from_file(cls, path, scale: float = 1.0, weld: float | None = None) -> "TriangleMesh":
         """Read an STL (ASCII or binary) or OBJ file with meshio; coordinates times ``scale`` (e.g.
-        0.001 for a file in mm). Repeated vertices (STL stores each triangle's own) are merged."""
+        0.001 for a file in mm). Vertices nearer than ``weld`` (m, after scaling; default
+        ``WELD_FRACTION`` of the mesh's bounding-box diagonal) are merged into one, so that a seam
+        written with rounded coordinates (STL stores each triangle's own corners) is one edge; the
+        triangles this collapses, and those already degenerate, are dropped. ``welded`` and
+        ``dropped`` count them."""
         import meshio
 
         path = Path(path)
+        label = f"mesh file {str(path)!r}"
         if not path.is_file():
-            raise ParameterError(f"mesh file {str(path)!r} is not found")
+            raise ParameterError(f"{label} is not found")
         scale = check_positive("mesh scale", scale)
         try:
             with np.errstate(over="ignore"):  # meshio's binary-STL size test overflows on an ASCII file
                 data = meshio.read(path)
         except Exception as err:  # meshio raises many kinds: one line naming the file
-            raise ParameterError(f"mesh file {str(path)!r} cannot be read as STL or OBJ: {err}") from None
+            raise ParameterError(f"{label} cannot be read as STL or OBJ: {err}") from None
         blocks = [c.data for c in data.cells if c.type == "triangle"]
         if not blocks:
-            raise ParameterError(f"mesh file {str(path)!r} has no triangle")
-        vertices, inverse = np.unique(np.asarray(data.points, dtype=np.float64) * scale, axis=0, return_inverse=True)
-        triangles = inverse.reshape(-1)[np.concatenate(blocks)]
-        return cls(vertices, triangles, label=f"mesh file {str(path)!r}")
+            raise ParameterError(f"{label} has no triangle")
+        points = np.asarray(data.points, dtype=np.float64) * scale
+        if not np.isfinite(points).all():
+            k = int(np.nonzero(~np.isfinite(points).all(axis=1))[0][0])
+            raise ParameterError(f"{label}: vertex {k} = {points[k].tolist()} is not finite")
+        triangles = np.concatenate(blocks)
+        if triangles.min() < 0 or triangles.max() >= len(points):
+            raise ParameterError(f"{label}: a triangle names a vertex out of range (the file has {len(points)} "
+                                 "vertices)")
+        exact = len(np.unique(points, axis=0))
+        if weld is None:
+            weld = WELD_FRACTION * float(np.linalg.norm(np.ptp(points, axis=0)))
+        weld = check_non_negative("mesh weld", weld, "m")
+        vertices, index = weld_vertices(points, weld)
+        triangles = index[triangles]
+        keep = _not_degenerate(vertices, triangles)
+        mesh = cls(vertices, triangles[keep], label=label)
+        mesh.welded, mesh.dropped, mesh.weld = exact - len(vertices), int((~keep).sum()), weld
+        return mesh
+
+    def report(self) -> dict:
+        """The mesh in numbers: its extent (m), triangles, free edges (and the first's midpoint, m),
+        whether it is closed, and what reading it merged and dropped."""
+        free = np.argwhere(self.edge_neighbors < 0)
+        first = None
+        if len(free):
+            k, e = free[0]
+            a, b = self.triangles[k, e], self.triangles[k, (e + 1) % 3]
+            first = (0.5 * (self.vertices[a] + self.vertices[b])).tolist()
+        lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
+        return {"extent": (hi - lo).tolist(), "lo": lo.tolist(), "hi": hi.tolist(), "triangles": self.n_triangles,
+                "free_edges": len(free), "first_free_edge": first, "closed": not len(free),
+                "welded": self.welded, "dropped": self.dropped, "weld": self.weld}
+
+    def report_line(self) -> str:
+        """``report`` in one line of words."""
+        r = self.report()
+        size = " x ".join(f"{v:.4g}" for v in r["extent"])
+        edges = ("closed" if r["closed"] else
+                 f"{r['free_edges']} free edges, the first at ({', '.join(f'{v:.4g}' for v in r['first_free_edge'])}) m")
+        read = ""
+        if r["weld"] is not None:
+            read = (f"; vertices merged within {r['weld']:.2g} m: {r['welded']}, degenerate triangles dropped: "
+                    f"{r['dropped']}")
+        return f"{self.label}: {size} m, {r['triangles']} triangles, {edges}{read}"
 
     def write(self, path) -> Path:
         """Write the mesh as STL (or any format meshio names by the suffix), to look at in ParaView."""
@@ -156,6 +246,9 @@ class MeshWall(Wall):
 
     kind = WALL_MESH
 
+    #: whether the mesh's size is checked against the particles' (``wall_set.check_mesh_size``)
+    check_size = True
+
     def __init__(self, vertices, triangles=None, material=None, velocity=(0.0, 0.0, 0.0),
                  angular_velocity=(0.0, 0.0, 0.0), point=None, name=None):
         super().__init__(material, velocity, angular_velocity, name)
@@ -171,9 +264,11 @@ class MeshWall(Wall):
         self.point = self.centroid() if point is None else check_vector("mesh point", point)
 
     @classmethod
-    def from_file(cls, path, material=None, scale: float = 1.0, name=None, **motion) -> "MeshWall":
-        """A mesh wall read from an STL (ASCII or binary) or OBJ file; coordinates times ``scale``."""
-        return cls(TriangleMesh.from_file(path, scale), material=material, name=name, **motion)
+    def from_file(cls, path, material=None, scale: float = 1.0, name=None, weld: float | None = None,
+                  **motion) -> "MeshWall":
+        """A mesh wall read from an STL (ASCII or binary) or OBJ file; coordinates times ``scale``,
+        vertices within ``weld`` merged (``TriangleMesh.from_file``)."""
+        return cls(TriangleMesh.from_file(path, scale, weld), material=material, name=name, **motion)
 
     @classmethod
     def shape(cls, shape: str, material=None, name=None, velocity=(0.0, 0.0, 0.0),
@@ -222,13 +317,15 @@ class MeshWall(Wall):
     @classmethod
     def from_description(cls, d: dict, material, mesh: TriangleMesh) -> "MeshWall":
         """The wall ``describe`` described, with its mesh as it is now (``Simulation.restore``)."""
-        return cls(mesh, material=material, velocity=d["velocity"], angular_velocity=d["angular_velocity"],
+        wall = cls(mesh, material=material, velocity=d["velocity"], angular_velocity=d["angular_velocity"],
                    point=d["point"], name=d.get("name"))
+        wall.check_size = d.get("check_size", True)
+        return wall
 
     def describe(self) -> dict:
         return {"type": "mesh", "point": list(self.point), "velocity": list(self.velocity),
                 "angular_velocity": list(self.angular_velocity), "name": self.name,
-                "triangles": self.mesh.n_triangles}
+                "triangles": self.mesh.n_triangles, "check_size": self.check_size}
 
     def __repr__(self):
         return (f"MeshWall(name={self.name!r}, material={self.material!r}, triangles={self.mesh.n_triangles}, "

@@ -28,9 +28,15 @@ class Removed(Wall):
         return f"<removed wall {self.wall!r}>"
 
 
+#: a mesh more than this many mean particle diameters across is refused (``check_mesh_size``): a
+#: DEM scene that large would hold some 10^12 spheres; a file in mm read as m is 1000 times too large
+MAX_MESH_DIAMETERS = 1e4
+
+
 def check_mesh_size(wall, radius) -> None:
-    """Refuse a mesh smaller than one particle: a file in mm read as m, or the reverse."""
-    if not len(radius):
+    """Refuse a mesh smaller than one particle, or larger than ``MAX_MESH_DIAMETERS`` mean
+    diameters (unless its ``check_size`` is off): a file in mm read as m, or the reverse."""
+    if not len(radius) or not getattr(wall, "check_size", True):
         return
     extent = float(np.ptp(wall.mesh.vertices, axis=0).max())
     diameter = 2.0 * float(radius.min())
@@ -38,6 +44,11 @@ def check_mesh_size(wall, radius) -> None:
         raise ParameterError(f"{wall.mesh.label}: the mesh is {extent:.3g} m across, smaller than one particle "
                              f"(diameter {diameter:.3g} m): a unit mistake? give its scale (0.001 for a file "
                              "in mm)")
+    mean = 2.0 * float(np.mean(radius))
+    if extent > MAX_MESH_DIAMETERS * mean:
+        raise ParameterError(f"{wall.mesh.label}: the mesh is {extent:.3g} m across, {extent / mean:.3g} mean particle "
+                             f"diameters ({mean:.3g} m), more than {MAX_MESH_DIAMETERS:.0f}: a unit mistake? give its "
+                             "scale (0.001 for a file in mm), or check_size: false to accept it")
 
 
 class WallSet:

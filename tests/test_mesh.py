@@ -357,3 +357,28 @@ stages:
     result = CliRunner().invoke(app, ["check", str(tmp_path / "case.yaml")])
     assert result.exit_code == 0, result.output
     assert "wall 'big', disk: 400 x 400 x 0 m, 48 triangles, 48 free edges, the first at (" in result.output
+
+
+def test_damaged_mesh_files_get_one_line_each(tmp_path):
+    """A file of another format, a binary STL cut short, an OBJ face naming a vertex that does not
+    exist and a file in another format named .obj: each is refused with one line naming the file
+    (a ParameterError), none hangs or exits."""
+    import meshio
+
+    (tmp_path / "part.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\n")
+    with pytest.raises(ParameterError, match="part.ply' is not allowed: rollingdem reads STL .* and OBJ"):
+        TriangleMesh.from_file(tmp_path / "part.ply")
+    meshio.write(tmp_path / "whole.stl", meshio.Mesh(SQUARE[0], [("triangle", SQUARE[1])]), binary=True)
+    data = (tmp_path / "whole.stl").read_bytes()
+    assert len(data) == 84 + 50 * 2
+    (tmp_path / "cut.stl").write_bytes(data[:-30])
+    with pytest.raises(ParameterError, match=r"cut.stl' cannot be read as STL: its header counts 2 triangles, which "
+                                             r"take 184 bytes, but the file has 154"):
+        TriangleMesh.from_file(tmp_path / "cut.stl")
+    assert TriangleMesh.from_file(tmp_path / "whole.stl").n_triangles == 2
+    (tmp_path / "bad.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n")
+    with pytest.raises(ParameterError, match="bad.obj'"):
+        TriangleMesh.from_file(tmp_path / "bad.obj")
+    (tmp_path / "other.obj").write_bytes(data)  # a binary STL named .obj
+    with pytest.raises(ParameterError, match="other.obj'"):
+        TriangleMesh.from_file(tmp_path / "other.obj")

@@ -47,6 +47,25 @@ def weld_vertices(points, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
     return merged, label[inverse]
 
 
+def _check_binary_stl(path: Path, label: str) -> None:
+    """Refuse a binary STL whose length is not that of the triangles its header counts (84 bytes and
+    50 per triangle): a file cut short, or not an STL. An ASCII STL starts with "solid" and is text."""
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+    try:
+        if head[:5].lower() == b"solid" and head.decode("ascii"):
+            return  # an ASCII STL: meshio parses it and says where it fails
+    except UnicodeDecodeError:
+        pass
+    if len(head) < 84:
+        raise ParameterError(f"{label} cannot be read as STL: {size} bytes, shorter than a binary STL's 84-byte header")
+    count = int(np.frombuffer(head[80:84], dtype="<u4")[0])
+    if size != 84 + 50 * count:
+        raise ParameterError(f"{label} cannot be read as STL: its header counts {count} triangles, which take "
+                             f"{84 + 50 * count} bytes, but the file has {size}: cut short, or not a binary STL")
+
+
 def _not_degenerate(vertices, triangles) -> np.ndarray:
     """Which triangles have three distinct corners and an area above ``DEGENERATE_AREA``."""
     a, b, c = (vertices[triangles[:, i]] for i in range(3))
@@ -169,11 +188,17 @@ class TriangleMesh:
         if not path.is_file():
             raise ParameterError(f"{label} is not found")
         scale = check_positive("mesh scale", scale)
+        suffix = path.suffix.lower()
+        if suffix not in (".stl", ".obj"):
+            raise ParameterError(f"{label} is not allowed: rollingdem reads STL (.stl) and OBJ (.obj) files; convert "
+                                 f"the {suffix or 'suffix-less'} file to one of them")
+        if suffix == ".stl":
+            _check_binary_stl(path, label)
         try:
             with np.errstate(over="ignore"):  # meshio's binary-STL size test overflows on an ASCII file
-                data = meshio.read(path)
-        except Exception as err:  # meshio raises many kinds: one line naming the file
-            raise ParameterError(f"{label} cannot be read as STL or OBJ: {err}") from None
+                data = meshio.read(path, file_format="stl" if suffix == ".stl" else "obj")
+        except (Exception, SystemExit) as err:  # meshio raises many kinds, and exits on some: one line naming the file
+            raise ParameterError(f"{label} cannot be read as {suffix[1:].upper()}: {err}") from None
         blocks = [c.data for c in data.cells if c.type == "triangle"]
         if not blocks:
             raise ParameterError(f"{label} has no triangle")

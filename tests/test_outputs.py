@@ -241,3 +241,34 @@ def test_the_default_case_ends_at_rest_and_measures_its_pile(tmp_path):
     assert 20.0 < pile["angle"] < 40.0 and pile["r_squared"] >= 0.8
     assert max(abs(a - pile["angle"]) for a in pile["options"].values()) <= 1.0
     assert (tmp_path / "o" / "pile.png").exists() and "repose angle:" in result.output
+
+
+def test_planes_and_cylinders_are_in_the_snapshots_once_while_they_stand_still(tmp_path):
+    """Spheres falling in an infinite upright tube onto a floor, beside a finite cylinder lying along
+    x, snapshot 4 times: each wall is one VTU file with one entry in its PVD (none moved). The
+    floor's patch lies in its plane and covers every sphere seen from above; the tubes' vertices
+    lie on their radius about their axes (1e-12 m); the lying one spans exactly its extent, the
+    upright one every sphere's height."""
+    import xml.etree.ElementTree as ET
+
+    import meshio
+
+    sim = rd.Simulation(gravity=(0, 0, -9.81))
+    sim.add_material(rd.Material("m", 1e7, 0.3, 1000.0, friction=0.5, restitution=0.5))
+    sim.add_wall(rd.Plane((0, 0, 0), (0, 0, 1), material="m", name="floor"))
+    sim.add_wall(rd.Cylinder(0.03, material="m", name="tube"))
+    sim.add_wall(rd.Cylinder(0.02, point=(0.5, 0.0, 0.1), axis=(1, 0, 0), extent=(0.0, 0.2), material="m",
+                             name="roller"))
+    sim.insert(rd.CylinderRegion(0.03, 0.0, 0.1), 40, 0.004, "m", seed=1)
+    sim.run(0.03, observers=[rd.VTKSnapshots(tmp_path / "vtk", interval=0.01)])
+    for name in ("floor", "tube", "roller"):
+        entries = list(ET.parse(tmp_path / "vtk" / f"wall_{name}.pvd").getroot().iter("DataSet"))
+        assert len(entries) == 1 and len(list((tmp_path / "vtk").glob(f"wall_{name}_*.vtu"))) == 1
+    read = {n: meshio.read(next((tmp_path / "vtk").glob(f"wall_{n}_*.vtu"))).points for n in ("floor", "tube", "roller")}
+    assert np.all(read["floor"][:, 2] == 0.0)
+    half = read["floor"][:, :2].max(axis=0)
+    assert np.all(np.abs(sim.positions[:, :2]) < half)
+    assert np.allclose(np.hypot(read["tube"][:, 0], read["tube"][:, 1]), 0.03, atol=1e-12)
+    assert read["tube"][:, 2].min() < sim.positions[:, 2].min() and read["tube"][:, 2].max() > sim.positions[:, 2].max()
+    assert np.allclose(np.hypot(read["roller"][:, 1], read["roller"][:, 2] - 0.1), 0.02, atol=1e-12)
+    assert sorted(set(np.round(read["roller"][:, 0], 12))) == [0.5, 0.7]

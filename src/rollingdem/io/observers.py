@@ -112,9 +112,10 @@ class TimeSeries(Observer):
 
 
 class VTKSnapshots(Observer):
-    """Particle snapshots as VTU files plus a PVD collection that ParaView opens; each mesh wall as
-    its own series beside them (``wall_{name}_{step}.vtu``, ``wall_{name}.pvd``: its triangles where they
-    are at that time), so the geometry moves with the particles.
+    """Particle snapshots as VTU files plus a PVD collection that ParaView opens; each wall as its
+    own series beside them (``wall_{name}_{step}.vtu``, ``wall_{name}.pvd``: its triangles where they
+    are at that time, ``wall_surfaces``), written again only when they have moved: a static wall is
+    one file, a moving one goes with the particles.
 
     Point data: radius (m), velocity (m/s), angular_velocity (rad/s), material (index), fixed (1 for a
     fixed particle), id (``Simulation.particle_ids``: a particle keeps it when others are taken out).
@@ -158,13 +159,19 @@ class VTKSnapshots(Observer):
             entries = self._mesh_entries.setdefault("bonds", [])
             entries.append((sim.time, bond_name))
             self._write_pvd("bonds", entries)
-        for label, mesh in sim.mesh_walls().items():
+        written = self.__dict__.setdefault("_written", {})
+        for label, (vertices, triangles) in wall_surfaces(sim).items():
+            import hashlib
+
+            key = hashlib.sha1(vertices.tobytes() + triangles.tobytes()).hexdigest()
+            if written.get(label) == key:
+                continue  # where it was at its last file: ParaView holds that one
+            written[label] = key
             import meshio
 
             stem = f"wall_{label}"
             mesh_name = f"{stem}_{sim.step:09d}.vtu"
-            meshio.write(self.directory / mesh_name, meshio.Mesh(mesh.vertices, [("triangle", mesh.triangles)]),
-                         binary=True)
+            meshio.write(self.directory / mesh_name, meshio.Mesh(vertices, [("triangle", triangles)]), binary=True)
             entries = self._mesh_entries.setdefault(stem, [])
             entries.append((sim.time, mesh_name))
             self._write_pvd(stem, entries)
@@ -178,6 +185,66 @@ class VTKSnapshots(Observer):
         tmp = self.directory / f"{stem}.pvd.tmp"
         tmp.write_text("\n".join(lines))
         tmp.replace(self.directory / f"{stem}.pvd")
+
+
+#: sides of the polygon a cylinder wall is drawn with in the snapshots
+CYLINDER_SEGMENTS = 64
+
+
+def _nice(length: float) -> float:
+    """``length`` rounded up to a power of two (m): a drawn extent that grows in a few steps."""
+    return float(2.0 ** np.ceil(np.log2(max(length, 1e-6))))
+
+
+def wall_surfaces(sim) -> dict:
+    """Each wall in place as (vertices (n, 3), triangles (m, 3)), by a file-safe label (its name,
+    else its kind and slot): a mesh as it is now; a plane as a square patch about its point,
+    covering the particles seen along its normal with two of their largest diameters to spare;
+    a cylinder as a ``CYLINDER_SEGMENTS``-sided tube through its radius over its extent (an
+    infinite one over the particles' span along its axis, two largest diameters beyond). The
+    patch's half side and an infinite tube's ends are rounded out to powers of two, so that they
+    change only when the particles spread past them."""
+    from rollingdem.scene.walls import INACTIVE
+
+    x = sim.positions
+    margin = 4.0 * float(sim.radii.max()) if len(x) else 0.0
+    meshes = sim.mesh_walls()
+    out = {}
+    for k, wall in enumerate(sim.wall_set.slots):
+        kind = type(wall).__name__.lower()
+        if wall.kind == INACTIVE or kind not in ("plane", "cylinder", "meshwall"):
+            continue
+        label = "".join(c if c.isalnum() or c in "-_" else "_" for c in wall.name) if wall.name else None
+        if kind == "meshwall":
+            mesh = meshes[label or f"mesh{k}"]
+            out[label or f"mesh{k}"] = (mesh.vertices, mesh.triangles)
+            continue
+        point = np.asarray(wall.point, float)
+        axis = np.asarray(wall.normal if kind == "plane" else wall.axis, float)
+        u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(axis, u)
+        rel = x - point
+        if kind == "plane":
+            half = _nice(float(np.abs(np.column_stack([rel @ u, rel @ v])).max(initial=0.0)) + margin)
+            corners = [point + half * (a * u + b * v) for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+            out[label or f"plane{k}"] = (np.array(corners), np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64))
+            continue
+        s0, s1 = wall.extent
+        if not np.isfinite(s0) or not np.isfinite(s1):
+            along = rel @ axis
+            lo, hi = (float(along.min()) - margin, float(along.max()) + margin) if len(x) else (-wall.radius, wall.radius)
+            s0 = s0 if np.isfinite(s0) else -_nice(-lo) if lo < 0 else 0.0
+            s1 = s1 if np.isfinite(s1) else _nice(hi) if hi > 0 else 0.0
+        n = CYLINDER_SEGMENTS
+        phi = 2.0 * np.pi * np.arange(n) / n
+        ring = wall.radius * (np.outer(np.cos(phi), u) + np.outer(np.sin(phi), v))
+        vertices = np.vstack([point + ring + s0 * axis, point + ring + s1 * axis])
+        j = np.arange(n)
+        triangles = np.vstack([np.column_stack([j, (j + 1) % n, n + j]),
+                               np.column_stack([(j + 1) % n, n + (j + 1) % n, n + j])]).astype(np.int64)
+        out[label or f"cylinder{k}"] = (vertices, triangles)
+    return out
 
 
 def _field_data(sim) -> dict:

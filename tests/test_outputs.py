@@ -272,3 +272,25 @@ def test_planes_and_cylinders_are_in_the_snapshots_once_while_they_stand_still(t
     assert read["tube"][:, 2].min() < sim.positions[:, 2].min() and read["tube"][:, 2].max() > sim.positions[:, 2].max()
     assert np.allclose(np.hypot(read["roller"][:, 1], read["roller"][:, 2] - 0.1), 0.02, atol=1e-12)
     assert sorted(set(np.round(read["roller"][:, 0], 12))) == [0.5, 0.7]
+
+
+def test_the_schema_command_prints_a_json_schema_the_shipped_cases_meet():
+    """``rollingdem schema`` prints the case file's JSON Schema: every shipped case file meets it
+    (jsonschema), and a case with an unknown top-level key or a mesh wall without its material
+    does not."""
+    import jsonschema
+
+    from rollingdem.experiments.case_file import shipped_cases
+    from rollingdem.io.mapping_file import read_mapping
+
+    result = CliRunner().invoke(app, ["schema"])
+    assert result.exit_code == 0
+    schema = json.loads(result.output)
+    for path in shipped_cases().values():
+        jsonschema.validate(read_mapping(path)[0], schema)
+    data = read_mapping(shipped_cases()["drum"])[0]
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate({**data, "colour": "red"}, schema)
+    data["walls"][0] = {k: v for k, v in data["walls"][0].items() if k != "material"}
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate(data, schema)

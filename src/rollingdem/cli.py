@@ -422,6 +422,16 @@ def _case_targets(cases, targets, experiment, observable, uncertainty):
 
 
 @app.command()
+def schema():
+    """Print the case file's JSON Schema (for an editor's completion and checks)."""
+    import json
+
+    from rollingdem.io.casefile import CaseSpec
+
+    typer.echo(json.dumps(CaseSpec.model_json_schema(), indent=1))
+
+
+@app.command()
 def check(case: Path = typer.Argument(..., help="Case file to validate.")):
     """Validate a case file without running it."""
     from rollingdem.io import casefile

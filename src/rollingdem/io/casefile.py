@@ -440,7 +440,8 @@ def _until(value):
 class StageSpec(_Strict):
     name: str = "run"
     duration: Optional[Number] = None
-    until: Optional[Annotated[UntilSpec, BeforeValidator(_until)]] = None
+    until: Optional[Annotated[UntilSpec, BeforeValidator(_until, json_schema_input_type=Union[
+        Literal["settled", "empty"], UntilSpec])]] = None
     max_duration: Optional[Number] = None
     gravity: Optional[Vector] = None
     remove_walls: list[str] = []

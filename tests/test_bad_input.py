@@ -52,6 +52,9 @@ CATALOGUE = [
      "rolling model 'cdt': parameter limiter = 'abc' is not allowed: must be a number"),
     ("jkr cohesion on hooke", edit("walls:", "contact: {normal: hooke, cohesion: jkr}\nwalls:"),
      "cohesion model 'jkr' with normal model 'hooke' is not allowed: JKR's force-overlap relation is built on Hertz"),
+    ("jkr cohesion with no surface energy anywhere", edit("walls:", "contact: {cohesion: jkr}\nwalls:"),
+     "contact: cohesion = 'jkr' is not allowed here: every material pair's surface_energy is 0, so it would do nothing; give "
+     "the materials (or a pair) a surface_energy (J/m^2), or use cohesion 'none'"),
     ("unknown cohesion model", edit("walls:", "contact: {cohesion: dmt}\nwalls:"),
      "cohesion model = 'dmt' is not known: allowed are 'jkr', 'none', 'sjkr'"),
     ("negative surface energy", edit("restitution: 0.5}", "restitution: 0.5, surface_energy: -0.1}"),

@@ -897,6 +897,8 @@ def check_case(case: CaseSpec, sim=None):
             raise ParameterError(f"output.time_series.particles = {bad[0]} is not allowed: must be in [0, {n - 1}] "
                                  f"(the case has {n} particles)")
     _check_first_time_step(sim, first_velocities)
+    with _InCase("contact"):
+        sim.time_step_policy.check_contact_reach()
     return sim
 
 

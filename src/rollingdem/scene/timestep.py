@@ -87,10 +87,18 @@ class TimeStepPolicy:
 
     def check_contact_reach(self) -> None:
         """A cohesion law whose contacts last past touching (``jkr``) needs the neighbor list to
-        reach that far: refuse a skin shorter than the largest pair's separation limit."""
+        reach that far: refuse a skin shorter than the largest pair's separation limit. A cohesion
+        law whose parameter is 0 for every material pair is refused too: it would do nothing."""
         sim = self.sim
         cohesion = sim.contact.cohesion
         st = sim._state
+        n = len(sim.materials.materials)
+        if cohesion.name != "none" and n and not any(
+                any(v != 0.0 for v in cohesion.pair_values(sim.materials.pair(a, b))) for a in range(n) for b in range(n)):
+            what = "surface_energy (J/m^2)" if cohesion.name == "jkr" else "cohesion_energy_density (J/m^3)"
+            raise ParameterError(f"cohesion = {cohesion.name!r} is not allowed here: every material pair's "
+                                 f"{what.split(' ')[0]} is 0, so it would do nothing; give the materials (or a pair) "
+                                 f"a {what}, or use cohesion 'none'")
         if cohesion.detach_slot is None or st.n == 0:
             return
         r_eff = 0.5 * float(st.radius.max())

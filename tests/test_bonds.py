@@ -524,3 +524,21 @@ def test_the_time_step_check_takes_the_stiffest_bond_mode():
     k = dict(zip(BOND_PARAMETERS._fields, B1.parameter_row(R, R)))
     assert limit == pytest.approx(0.1 * 2 * math.pi / math.sqrt(7 * k["shear_stiffness"] / MASS), rel=1e-12)
     assert math.sqrt(7 * k["shear_stiffness"] / MASS) == pytest.approx(20494, rel=1e-4)
+
+
+def test_a_gap_that_bonds_nothing_says_so_once(table1):
+    """Two spheres 1 mm apart: gap = -0.0001 m (asking for an overlap of 0.1 mm) bonds none and
+    warns that it made no bond; gap = 0.002 m bonds the pair, silently."""
+    import warnings
+
+    import rollingdem as rd
+
+    sim = rd.Simulation()
+    sim.add_material(table1())
+    sim.add_particles([[0, 0, 0], [0.011, 0, 0]], 0.005, "m")
+    bond = ParallelBond(youngs_modulus=1e8, tensile_strength=2e5, cohesion=2e5)
+    with pytest.warns(RuntimeWarning, match=r"bonds: gap = -0.0001 m made no bond"):
+        assert sim.add_bonds(bond, gap=-1e-4) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert sim.add_bonds(bond, gap=0.002) == 1

@@ -106,6 +106,12 @@ class BondSet:
             raise ParameterError(f"pairs = {pairs!r}, gap = {gap!r} is not allowed: give exactly one of pairs "
                                  "(particle index pairs) and gap (m)")
         ids = self._pairs_within(check_finite("gap", gap)) if pairs is None else self._pairs_given(pairs)
+        if pairs is None and not len(ids) and st.n > 1:
+            import warnings
+
+            warnings.warn(f"bonds: gap = {gap:g} m made no bond: no two particles' surfaces are that close (a "
+                          "negative gap asks for spheres overlapping by at least -gap); the run goes on unbonded",
+                          RuntimeWarning, stacklevel=3)
         slots = st.slots(ids.ravel()).reshape(-1, 2)
         key = np.sort(np.concatenate([st.bond_pairs, slots]), axis=1)
         if len(np.unique(key, axis=0)) < len(key):

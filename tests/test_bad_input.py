@@ -526,3 +526,19 @@ def test_an_existing_output_file_may_be_written_again(tmp_path):
         check_output_path("--json", tmp_path, folder=False)
     with pytest.raises(ParameterError, match="is a file; must be a folder"):
         check_output_path("--json", old / "x.json", folder=False)
+
+
+def test_a_youngs_modulus_in_pa_meant_in_mpa_is_warned_of(tmp_path):
+    """E = 40 Pa (40 MPa meant): ``rollingdem check`` says valid, with a warning naming the material
+    and the value (the command line prints it on one line: test_outlets_inflows); 40 MPa draws none."""
+    import warnings
+
+    case = tmp_path / "case.yaml"
+    case.write_text(edit("youngs_modulus: 1.0e7", "youngs_modulus: 40.0"))
+    with pytest.warns(RuntimeWarning, match="material 'm': youngs_modulus = 40 Pa is below 1000 Pa"):
+        result = CliRunner().invoke(app, ["check", str(case)])
+    assert result.exit_code == 0, result.output
+    case.write_text(edit("youngs_modulus: 1.0e7", "youngs_modulus: 4.0e7"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert CliRunner().invoke(app, ["check", str(case)]).exit_code == 0

@@ -11,6 +11,11 @@ from dataclasses import dataclass, field, fields, replace
 from rollingdem.errors import ParameterError, check_non_negative, check_positive, check_range
 
 
+#: Young's modulus (Pa) below which a material is taken for a unit mistake and warned of: soft
+#: hydrogel beads, the softest granular particles simulated, are some kPa and up
+SOFTEST_MODULUS = 1e3
+
+
 @dataclass(frozen=True)
 class Material:
     """A particle or wall material.
@@ -48,6 +53,12 @@ class Material:
             raise ParameterError(f"material name = {self.name!r} is not allowed: must be a non-empty string")
         p = f"material {self.name!r}: "
         object.__setattr__(self, "youngs_modulus", check_positive(p + "youngs_modulus", self.youngs_modulus, "Pa"))
+        if self.youngs_modulus < SOFTEST_MODULUS:
+            import warnings
+
+            warnings.warn(f"{p}youngs_modulus = {self.youngs_modulus:g} Pa is below {SOFTEST_MODULUS:g} Pa, softer than "
+                          "soft hydrogel beads: a value meant in MPa? The run goes on with it (and a time step to "
+                          "match)", RuntimeWarning, stacklevel=3)
         object.__setattr__(self, "poisson_ratio", check_range(p + "poisson_ratio", self.poisson_ratio, -1.0, 0.5,
                                                               low_open=True, high_open=True))
         object.__setattr__(self, "density", check_positive(p + "density", self.density, "kg/m^3"))

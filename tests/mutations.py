@@ -251,6 +251,13 @@ MUTATIONS = [
       "basis = np.column_stack([across, across, self.axis])  # a turn: distances kept", ("tests/test_drum.py",)),
     M("drum weight moment without g", "src/rollingdem/io/measurements.py",
       "abs(g * float(m @ frame[:, 0]))]", "abs(float(m @ frame[:, 0]))]", ("tests/test_drum.py",)),
+    M("mesh file read without welding", "src/rollingdem/scene/mesh.py",
+      "    if tolerance <= 0.0 or len(unique) < 2:", "    if True:", ("tests/test_mesh.py",)),
+    M("cylinder drawn at its diameter", "src/rollingdem/io/observers.py",
+      "ring = wall.radius * (np.outer(np.cos(phi), u) + np.outer(np.sin(phi), v))",
+      "ring = 2.0 * wall.radius * (np.outer(np.cos(phi), u) + np.outer(np.sin(phi), v))", ("tests/test_outputs.py",)),
+    M("cohesion that does nothing let through", "src/rollingdem/scene/timestep.py",
+      'if cohesion.name != "none" and n and not any(', 'if False and not any(', ("tests/test_bad_input.py",)),
     M("mesh flow counts a shared edge twice", "src/rollingdem/io/measurements.py",
       "for p in np.flatnonzero(hit.sum(axis=1) > 1):", "for p in []:", ("tests/test_measurements.py",)),
 ]

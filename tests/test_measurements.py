@@ -314,6 +314,26 @@ def test_a_mesh_surface_counts_what_passes_through_its_triangles_by_their_normal
     assert closed.count == 0
 
 
+# 200 spheres of 1.5 mm in a flat-bottomed silo 40 mm wide, its orifice ORIFICE m in radius
+# (a closed drum standing upright in its place, as a silo with no orifice, when SHAPE is replaced)
+SILO_SHAPE = "shape: silo, size: {radius: 0.02, height: 0.08, orifice_radius: ORIFICE}"
+SMALL_SILO = """\
+name: small-silo
+materials:
+  - {name: glass, youngs_modulus: 5.0e6, poisson_ratio: 0.3, density: 2500.0, friction: 0.5}
+walls:
+  - {type: mesh, name: silo, material: glass, SHAPE}
+particles:
+  - insert: {type: cylinder, radius: 0.0175, z_min: 0.002, z_max: 0.07}
+    count: 200
+    radius: 0.0015
+    material: glass
+    seed: 2
+outlets:
+  - {name: bin, region: {type: box, lo: [-1, -1, -2], hi: [1, 1, -0.05]}}
+"""
+
+
 def test_a_mesh_disk_in_a_case_file_counts_what_the_analytic_disk_counts(tmp_path):
     """A silo drains 0.3 s through a 48-sided mesh disk (``type: mesh_flow``, ``shape: disk``) and an
     analytic disk of the same radius in the same plane, 1 cm under the orifice: every sphere that
@@ -329,20 +349,7 @@ def test_a_mesh_disk_in_a_case_file_counts_what_the_analytic_disk_counts(tmp_pat
 
     from rollingdem.cli import app
 
-    (tmp_path / "case.yaml").write_text("""\
-name: meshflow
-materials:
-  - {name: glass, youngs_modulus: 5.0e6, poisson_ratio: 0.3, density: 2500.0, friction: 0.5}
-walls:
-  - {type: mesh, name: silo, material: glass, shape: silo, size: {radius: 0.02, height: 0.08, orifice_radius: 0.008}}
-particles:
-  - insert: {type: cylinder, radius: 0.0175, z_min: 0.002, z_max: 0.07}
-    count: 200
-    radius: 0.0015
-    material: glass
-    seed: 2
-outlets:
-  - {name: bin, region: {type: box, lo: [-1, -1, -2], hi: [1, 1, -0.05]}}
+    (tmp_path / "case.yaml").write_text(SMALL_SILO.replace("SHAPE", SILO_SHAPE).replace("ORIFICE", "0.008") + """\
 measurements:
   - {name: mesh, type: mesh_flow, shape: disk, size: {radius: 0.03}, place: {translate: [0, 0, -0.01]}}
   - {name: disk, type: mass_flow, point: [0, 0, -0.01], normal: [0, 0, 1], radius: 0.03}
@@ -409,21 +416,7 @@ def test_a_closed_mesh_region_holds_what_its_polygon_prism_holds():
         MeshRegion(drum(R, L, segments=n, caps=False))
 
 
-SILO_TWO_CONDITIONS = """\
-name: two-conditions
-materials:
-  - {name: glass, youngs_modulus: 5.0e6, poisson_ratio: 0.3, density: 2500.0, friction: 0.5, rolling_friction: 0.1}
-contact: {normal: hertz, rolling: epsd}
-walls:
-  - {type: mesh, name: silo, material: glass, shape: silo, size: {radius: 0.02, height: 0.08, orifice_radius: ORIFICE}}
-particles:
-  - insert: {type: cylinder, radius: 0.0175, z_min: 0.002, z_max: 0.07}
-    count: 200
-    radius: 0.0015
-    material: glass
-    seed: 2
-outlets:
-  - {name: bin, region: {type: box, lo: [-1, -1, -2], hi: [1, 1, -0.05]}}
+SILO_TWO_CONDITIONS = SMALL_SILO + """\
 measurements:
   - {name: out, type: outlet, outlet: bin, interval: 0.002}
 stages:
@@ -432,18 +425,19 @@ output: {plot: false, report: null, time_series: null}
 """
 
 
-@pytest.mark.parametrize("orifice, ends", [(0.008, "out.count"), (0.001, "settled")])
-def test_a_stage_with_two_conditions_ends_at_the_first_met(tmp_path, orifice, ends):
+@pytest.mark.parametrize("shape, ends", [(SILO_SHAPE.replace("ORIFICE", "0.008"), "out.count"),
+                                         ("shape: drum, size: {radius: 0.02, length: 0.08}", "settled")])
+def test_a_stage_with_two_conditions_ends_at_the_first_met(tmp_path, shape, ends):
     """The poured silo's stage waits for 10 spheres out or for the bed to settle: through an
-    orifice 5 sphere diameters wide they flow out before the bed has settled; through one narrower
-    than a sphere none can, and the bed settles, well within the 1.5 s allowed."""
+    orifice 5 sphere diameters wide they flow out before the bed has settled; from a closed drum
+    standing in its place none can, and the bed settles, well within the 1.5 s allowed."""
     from typer.testing import CliRunner
 
     from rollingdem.cli import app
 
     import json
 
-    (tmp_path / "case.yaml").write_text(SILO_TWO_CONDITIONS.replace("ORIFICE", str(orifice)))
+    (tmp_path / "case.yaml").write_text(SILO_TWO_CONDITIONS.replace("SHAPE", shape))
     result = CliRunner().invoke(app, ["run", str(tmp_path / "case.yaml"), "--out", str(tmp_path / "o"), "--no-progress"])
     assert result.exit_code == 0, result.output
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())

@@ -121,17 +121,7 @@ def test_the_shipped_repose_rough_base_is_what_the_validation_runs_at_its_base_p
     completes it, equals the shipped file's, numbers to the 6 figures the file writes them with
     (rel. 1e-5). The output aside."""
     from rollingdem.experiments import EXPERIMENTS
-    from rollingdem.experiments.case_file import shipped_cases
     from rollingdem.experiments.repose import pile_case
-    from rollingdem.io.casefile import load_case
-    from test_silo import _flat
+    from test_silo import assert_same_case
 
-    ours = _flat(load_case(pile_case(**EXPERIMENTS["repose-rough-base"].pile_arguments({}))).model_dump())
-    shipped = _flat(load_case(shipped_cases()["repose-rough-base"]).model_dump())
-    keep = [k for k in ours if not k.startswith("output.")]
-    assert sorted(keep) == sorted(k for k in shipped if not k.startswith("output."))
-    for k in keep:
-        if isinstance(ours[k], float):
-            assert ours[k] == pytest.approx(shipped[k], rel=1e-5, abs=1e-12), k
-        else:
-            assert ours[k] == shipped[k], k
+    assert_same_case(pile_case(**EXPERIMENTS["repose-rough-base"].pile_arguments({})), "repose-rough-base", 1e-5)

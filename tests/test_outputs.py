@@ -294,3 +294,13 @@ def test_the_schema_command_prints_a_json_schema_the_shipped_cases_meet():
     data["walls"][0] = {k: v for k, v in data["walls"][0].items() if k != "material"}
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate(data, schema)
+
+
+def test_no_command_shows_a_type_for_a_flag():
+    """Every command's help: a flag (--overwrite, --no-progress, --help) takes no value, so no
+    ``<bool>`` is shown; options that take one keep their type (``<path>``)."""
+    commands = ["run", "validate", "bench", "sweep", "calibrate", "check", "schema", "experiments"]
+    for command in commands:
+        result = CliRunner().invoke(app, [command, "--help"], env={"COLUMNS": "200"})
+        assert result.exit_code == 0 and "<bool>" not in result.output, command
+    assert "<path>" in CliRunner().invoke(app, ["run", "--help"], env={"COLUMNS": "200"}).output

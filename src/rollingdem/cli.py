@@ -1,4 +1,4 @@
-"""Command line: ``rollingdem run | validate | bench | sweep | calibrate | check | experiments``."""
+"""Command line: ``rollingdem run | validate | bench | sweep | calibrate | check | schema | experiments``."""
 
 from __future__ import annotations
 
@@ -12,6 +12,16 @@ from rollingdem.errors import ParameterError, SimulationError, check_output_path
 
 app = typer.Typer(add_completion=False, no_args_is_help=False,
                   help="rollingdem: DEM simulation of spheres, built around rolling resistance.")
+
+_option_type = typer.core.TyperOption.display_type_rich
+
+
+def _flag_without_type(self, ctx):
+    """A flag takes no value: its help line shows no ``<bool>``."""
+    return "" if self.is_flag and self.metavar is None else _option_type(self, ctx)
+
+
+typer.core.TyperOption.display_type_rich = _flag_without_type
 
 
 def _one_line_warning(message, category, filename, lineno, line=None) -> str:

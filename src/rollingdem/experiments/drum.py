@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -104,9 +104,7 @@ def drum_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     data, _ = read_mapping(SHIPPED)
     data["dt"] = dt
     data["gravity"] = [0.0, -g, 0.0]
-    beads = {k: v for k, v in vars(material.as_material("beads")).items() if k != "name"}
-    lining = {k: v for k, v in vars(material.wall_material("lining")).items() if k != "name"}
-    data["materials"] = [{"name": "beads", **beads}, {"name": "lining", **lining}]
+    data["materials"] = [asdict(material.as_material("beads")), asdict(material.wall_material("lining"))]
     data["pairs"] = [{"materials": ["beads", "lining"], "friction": setup.wall_friction,
                       "rolling_friction": setup.wall_rolling_friction}]
     if material.cohesion != "none":  # cohesive spheres, not cohesive to the drum

@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import math
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -626,6 +627,25 @@ class DrumAngle(Measurement):
         return [angle, abs(com_angle(frame, m)) if len(m) else math.nan, abs(g * float(m @ frame[:, 0]))]
 
 
+class _DrumSample(NamedTuple):
+    """One sample of ``DrumFlow``, across the drum: positions and velocities (across, up, along),
+    the surface line (slope, a point on it), omega, the mean diameter, the largest radius and the
+    flowing layer's profile (depth, downslope speed) at the chord's middle."""
+    time: float
+    x: np.ndarray
+    v: np.ndarray
+    slope: float
+    point: np.ndarray
+    omega: float
+    diameter: float
+    largest: float  # radius (m)
+    profile: tuple
+
+    def surface(self) -> tuple:
+        """What ``rotation_ratios`` takes of it."""
+        return self.x, self.v, self.slope, self.point
+
+
 class DrumFlow(Measurement):
     """How a drum's bed flows, seen along the drum's ``axis`` through ``center`` (gravity gives
     "down"), in a drum of ``radius`` (m) turned by the wall named ``wall`` (its angular velocity
@@ -653,7 +673,7 @@ class DrumFlow(Measurement):
         self.radius = check_positive("drum_flow radius", radius, "m")
         self.wall = wall
         self.extent = None if extent is None else _window(extent)
-        self._samples: list[tuple] = []  # (time, positions, velocities, slope, point, omega) across the drum
+        self._samples: list[_DrumSample] = []  # those in the window
 
     def describe(self):
         return (f"drum bed's flow about the axis {tuple(self.axis.tolist())} through {tuple(self.center.tolist())}, "
@@ -689,29 +709,30 @@ class DrumFlow(Measurement):
         except (ParameterError, ValueError):
             self._record(sim, [math.nan] * 3)
             return
-        sample = (sim.time, x, v, slope, (xm, ym), omega, d, float(r.max()))
-        depth = flowing_depth(*flowing_layer(x, v, slope, (xm, ym), d), d)
-        ratios = rotation_ratios([(x, v, slope, np.array((xm, ym)))], omega, self.radius, depth, d, float(r.max()))
+        sample = _DrumSample(sim.time, x, v, slope, np.array((xm, ym)), omega, d, float(r.max()),
+                             flowing_layer(x, v, slope, (xm, ym), d))
+        depth = flowing_depth(*sample.profile, d)
+        ratios = rotation_ratios([sample.surface()], omega, self.radius, depth, d, sample.largest)
         if self.window is None or self.window[0] - 1e-12 <= sim.time <= self.window[1] + 1e-12:
             self._samples.append(sample)
         self._record(sim, [depth, *ratios])
 
     def pooled(self) -> tuple[float, float, float]:
         """(flowing depth, passive and wall layer speed ratios) over the summary's window's samples."""
-        from rollingdem.analysis.drum import flowing_depth, flowing_layer, rotation_ratios
+        from rollingdem.analysis.drum import flowing_depth, rotation_ratios
 
         if not self._rows:
             return math.nan, math.nan, math.nan
         _, (t0, t1), _ = self._in_window()
-        chosen = [s for s in self._samples if t0 - 1e-12 <= s[0] <= t1 + 1e-12]
+        chosen = [s for s in self._samples if t0 - 1e-12 <= s.time <= t1 + 1e-12]
         if not chosen:
             return math.nan, math.nan, math.nan
-        d = float(np.mean([s[6] for s in chosen]))
-        profiles = [flowing_layer(x, v, slope, point, d) for _, x, v, slope, point, *_ in chosen]
-        depth = flowing_depth(np.concatenate([p[0] for p in profiles]), np.concatenate([p[1] for p in profiles]), d)
-        omega = float(np.mean([s[5] for s in chosen]))
-        ratios = rotation_ratios([(x, v, slope, np.array(point)) for _, x, v, slope, point, *_ in chosen], omega,
-                                 self.radius, depth, d, max(s[7] for s in chosen))
+        d = float(np.mean([s.diameter for s in chosen]))
+        depth = flowing_depth(np.concatenate([s.profile[0] for s in chosen]),
+                              np.concatenate([s.profile[1] for s in chosen]), d)
+        omega = float(np.mean([s.omega for s in chosen]))
+        ratios = rotation_ratios([s.surface() for s in chosen], omega, self.radius, depth, d,
+                                 max(s.largest for s in chosen))
         return depth, *ratios
 
     def summary(self) -> dict:

@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_non_negative, check_positive, check_vector
+from rollingdem.errors import ParameterError, check_integer, check_non_negative, check_positive, check_vector
 from rollingdem.scene import periodic as periodic_box
 from rollingdem.scene.particles import sphere_mass
 from rollingdem.scene.schedule import INSERT, REMOVE, Operation
@@ -120,9 +120,7 @@ class Outlet(Boundary):
     def __init__(self, region, name=None, interval=None, refill=None, seed=0):
         super().__init__(region, name, interval)
         self.refill = None if refill is None else _check_region("outlet refill", refill)
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ParameterError(f"outlet seed = {seed!r} is not allowed: must be a whole number >= 0")
-        self.seed = int(seed)
+        self.seed = check_integer("outlet seed", seed, low=0)
         self.count = 0
         self.mass = 0.0
         self.waiting_radius = np.zeros(0)  # the spheres to put back: radius (m) and material index
@@ -150,12 +148,8 @@ class Outlet(Boundary):
             self.put_back(sim)
 
     def put_back(self, sim) -> None:
-        st = sim._state
-        sim.wall_set.refresh()
-        reach = 2.0 * float(max(st.radius.max(initial=0.0), self.waiting_radius.max()))
-        near_x, near_r, _ = periodic_box.with_images(sim.periodic, st.x, st.radius, reach)
-        x = place_spheres(self.refill, self.waiting_radius, near_x, near_r, sim.walls,
-                          np.random.default_rng([self.seed, self.actions, 2]))
+        x = free_places(sim, self.refill, self.waiting_radius, float(self.waiting_radius.max()),
+                        np.random.default_rng([self.seed, self.actions, 2]))
         self.actions += 1
         placed = np.isfinite(x[:, 0])
         for m in np.unique(self.waiting_material[placed]):
@@ -239,14 +233,10 @@ class Inflow(Boundary):
         """Insert what is due, if due, where it finds room."""
         if not self.due(sim.step, sim.dt) or sim.time < self.start:
             return
-        st = sim._state
         density = sim.materials[self.material].density
         radii = self.radii_due(sim.time, density)
-        walls = sim.walls
-        sim.wall_set.refresh()
-        reach = 2.0 * float(max(st.radius.max(initial=0.0), self.radius.max_radius))
-        near_x, near_r, _ = periodic_box.with_images(sim.periodic, st.x, st.radius, reach)
-        x = self.place(radii, near_x, near_r, walls)
+        x = free_places(sim, self.region, radii, self.radius.max_radius,
+                        np.random.default_rng([self.seed, self.actions, 1]))
         placed = np.isfinite(x[:, 0])
         if placed.any():
             r = radii[placed]
@@ -279,11 +269,6 @@ class Inflow(Boundary):
             take += 1
         return radii[:take]
 
-    def place(self, radii: np.ndarray, existing_x, existing_r, walls) -> np.ndarray:
-        """Centres for as many of ``radii`` as find room (in order; the rest NaN)."""
-        return place_spheres(self.region, radii, existing_x, existing_r, walls,
-                             np.random.default_rng([self.seed, self.actions, 1]))
-
     def note_shortfall(self, missing: int, time: float) -> None:
         self.shortfall = missing
         if missing and not self.warned:
@@ -300,6 +285,17 @@ class Inflow(Boundary):
                      velocity=d["velocity"], seed=d["seed"], name=d["name"], interval=d["interval"], start=d["start"])
         inflow.restore_counters(d)
         return inflow
+
+
+def free_places(sim, region, radii: np.ndarray, largest: float, rng) -> np.ndarray:
+    """``place_spheres`` in ``region`` of ``sim``: among its walls as they are now and its particles
+    with their periodic images, for spheres of radius at most ``largest`` (m)."""
+    st = sim._state
+    walls = sim.walls
+    sim.wall_set.refresh()
+    reach = 2.0 * float(max(st.radius.max(initial=0.0), largest))
+    near_x, near_r, _ = periodic_box.with_images(sim.periodic, st.x, st.radius, reach)
+    return place_spheres(region, radii, near_x, near_r, walls, rng)
 
 
 def place_spheres(region, radii: np.ndarray, existing_x, existing_r, walls, rng) -> np.ndarray:

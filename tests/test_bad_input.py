@@ -37,6 +37,7 @@ def edit(old, new, text=BASE):
 
 
 STAGE = "  - {name: s, duration: 0.0002}"
+FLOOR = "{type: plane, name: floor, material: m}"
 SERIES = "time_series: {interval: 0.0001}"
 
 # (name, case-file text, a piece of the one-line message)
@@ -204,6 +205,29 @@ CATALOGUE = [
      "measurements.0: tube: a region's mesh must be closed, but edge"),
     ("an unknown measurement type", edit("stages:", "measurements:\n  - {name: a, type: speedometer}\nstages:"),
      "key 'measurements.0.type' = \"speedometer\" is not allowed: must be one of"),
+    ("two motion programs on one wall", edit(FLOOR, FLOOR[:-1] + ", oscillate: {frequency: 10, amplitude: [0, 0, 0.001]}, "
+                                               "servo: {direction: [0, 0, 1], max_speed: 0.1, force: 1}}"),
+     "walls.0: oscillate and servo are not allowed together: a wall follows one motion program"),
+    ("a plane oscillating by an angle", edit(FLOOR, FLOOR[:-1] + ", oscillate: {frequency: 10, angle: 5, axis: [0, 0, 1]}}"),
+     "walls.0: wall 'floor' motion: an oscillation with an angle is not allowed for a plane (it moves only by "
+     "translation"),
+    ("a stage turning a plane by a table",
+     edit(STAGE, "  - {name: s, duration: 0.0002, wall_motion: [{wall: floor, table: {times: [0, 1], angles: [0, 5], "
+                 "axis: [0, 0, 1]}}]}"),
+     "stage 's': wall_motion 'floor': wall 'floor' motion: a motion table with an angle is not allowed for a plane"),
+    ("a motion table whose times do not increase",
+     edit(FLOOR, FLOOR[:-1] + ", table: {times: [0, 0.1, 0.1], displacements: [[0, 0, 0], [0, 0, 0.001], [0, 0, 0]]}}"),
+     "walls.0: table: motion table times = [0.0, 0.1, 0.1] is not allowed: need at least two finite times, each later"),
+    ("a motion table file that is not there", edit(FLOOR, FLOOR[:-1] + ", table: {file: nothere.csv}}"),
+     "walls.0: table: file = "),
+    ("a servo pressure without its area",
+     edit(FLOOR, FLOOR[:-1] + ", servo: {direction: [0, 0, 1], max_speed: 0.1, pressure: 1000}}"),
+     "walls.0: servo: servo area = None is not allowed with pressure = 1000.0: give the area (m^2)"),
+    ("an oscillation of no frequency", edit(FLOOR, FLOOR[:-1] + ", oscillate: {frequency: 0, amplitude: [0, 0, 1]}}"),
+     "walls.0: oscillate: oscillation frequency = 0 is not allowed: must be > 0 (Hz)"),
+    ("a servo without its speed limit",
+     edit(STAGE, "  - {name: s, duration: 0.0002, wall_motion: [{wall: floor, servo: {direction: [0, 0, 1], force: 1}}]}"),
+     "key 'stages.0.wall_motion.0.servo.max_speed': missing (required)"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),
     ("empty file", "", "is empty: must hold a mapping of keys"),
     ("a list, not a mapping", "- a\n- b\n", "must hold a mapping of keys, got list"),

@@ -102,6 +102,28 @@ SCENES = textwrap.dedent('''
             assert sim.unwrapped_positions[4, 0] > 0.004 > sim.positions[4, 0]
         return sim
 
+    def programmed(backend):
+        """Walls moved by programs: a floor shaken sideways, a mesh lid that a servo presses down on
+        four spheres, a mesh plate turning by a table of times."""
+        sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), dt=2e-6, backend=backend)
+        material(sim, 0.2)
+        sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), motion=rd.Oscillation(50.0, amplitude=(2e-4, 0, 0))))
+        lid = np.array([[-0.004, -0.004, 0.002015], [0.004, -0.004, 0.002015], [0.004, 0.004, 0.002015],
+                        [-0.004, 0.004, 0.002015]])
+        sim.add_wall(rd.MeshWall(lid, [[0, 1, 2], [0, 2, 3]], material="glass",
+                                 motion=rd.Servo((0, 0, -1), max_speed=0.5, force=0.01, gain=0.5)))
+        plate = np.array([[0.006, -0.002, 0], [0.01, -0.002, 0], [0.01, 0.002, 0]])
+        sim.add_wall(rd.MeshWall(plate, [[0, 1, 2]], material="glass", point=(0.008, 0, 0),
+                                 motion=rd.MotionTable([0, 0.001, 0.002], [[0, 0, 0], [0, 0, 2e-4], [0, 0, 2e-4]],
+                                                       [0, 0.3, 0.5], axis=(0, 0, 1))))
+        sim.add_particles([[-0.0011, -0.0011, 0.00101], [0.0011, -0.0011, 0.00101], [0.0011, 0.0011, 0.00101],
+                           [-0.0011, 0.0011, 0.00101], [0.008, 0, 0.0013]], radius=1e-3,
+                          material=["glass", "glass 2", "glass", "glass 2", "glass"])
+        sim.run(steps=1500)
+        if backend == "cpu":  # the servo lid has come down onto the spheres
+            assert sim.wall_loads()["#1"]["force"][2] > 0.0
+        return sim
+
     def bed(backend, timed=True):
         """32 touching spheres in a periodic x-y box on a floor, stirred: with a small skin the list
         is rebuilt on the device every few tens of steps while contacts last, so that each rebuild
@@ -183,7 +205,7 @@ SCENES = textwrap.dedent('''
                 k["place_keys"] = saved.get(name, k["place_keys"])
 
     out = {}
-    for name, make in (("mesh, bonds, periodic", bonded), ("checkpoint handed over", handed_over), ("pair", pair), ("pair of one material", lambda b: pair(b, ("glass", "glass"))),
+    for name, make in (("mesh, bonds, periodic", bonded), ("checkpoint handed over", handed_over), ("pair", pair), ("wall programs", programmed), ("pair of one material", lambda b: pair(b, ("glass", "glass"))),
                        ("rolling epsd flat", lambda b: rolling(b, "epsd", 0.0)),
                        ("rolling cdt flat", lambda b: rolling(b, "cdt", 0.0)),
                        ("rolling epsd slope", lambda b: rolling(b, "epsd", 0.05)),
@@ -347,7 +369,8 @@ def simulated(children):
 
 
 @pytest.mark.parametrize("scene", ["pair", "rolling epsd flat", "rolling cdt flat", "rolling epsd slope",
-                                   "rolling cdt slope", "pile", "bed", "bed, slots in reverse", "fine floor", "mesh, bonds, periodic", "checkpoint handed over"])
+                                   "rolling cdt slope", "pile", "bed", "bed, slots in reverse", "fine floor", "mesh, bonds, periodic", "checkpoint handed over",
+                                   "wall programs"])
 def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene):
     """Positions, velocities and spins after the run equal the CPU engine's bit for bit, and so do
     the contact counts: the GPU's kernels run the same compiled functions in the same order (each

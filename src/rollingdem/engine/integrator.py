@@ -7,6 +7,9 @@ import warnings
 from numba import njit, prange
 from numba.core.errors import NumbaPerformanceWarning
 
+from rollingdem.engine.layout import MESH_MOTION as MO, MOTION_SERVO, MOTION_STEADY
+from rollingdem.engine.wall_motion import plane_loads, step_program
+
 # The ``*_serial`` passes are compiled with parallel=True but use range, not prange: no threads
 # start, and Numba's parallel pipeline makes them 2-4x faster than a plain njit of the same code.
 warnings.filterwarnings("ignore", message="(?s).*parallel=True.*no transformation for parallel execution",
@@ -101,6 +104,15 @@ def undo_drift(dt, particles):
 
 @njit(cache=True, inline="always")
 def move_walls(dt, walls):
+    """Move the planes and cylinders by dt: at their velocity, or by their program
+    (``engine.wall_motion``), whose step's mean velocity the contacts then see."""
     for wl in range(walls.geometry.shape[0]):
-        for d in range(3):
-            walls.geometry[wl, d] += dt * walls.velocity[wl, d]
+        mo = walls.program[wl]
+        if mo[MO.program] == MOTION_STEADY:
+            for d in range(3):
+                walls.geometry[wl, d] += dt * walls.velocity[wl, d]
+            continue
+        fx, fy, fz = plane_loads(walls, wl) if mo[MO.program] == MOTION_SERVO else (0.0, 0.0, 0.0)
+        step_program(mo, walls.motion_table, dt, fx, fy, fz)
+        walls.geometry[wl, 0], walls.geometry[wl, 1], walls.geometry[wl, 2] = mo[MO.ox], mo[MO.oy], mo[MO.oz]
+        walls.velocity[wl, 0], walls.velocity[wl, 1], walls.velocity[wl, 2] = mo[MO.tvx], mo[MO.tvy], mo[MO.tvz]

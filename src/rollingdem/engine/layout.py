@@ -26,10 +26,25 @@ KICK_NONE, KICK_CLOSE, KICK_CLOSE_AND_DRIFT = 0.0, 1.0, 2.0
 #: contacts one sphere can hold with triangle meshes at once (one per touched surface feature: 3 in
 #: the corner of a box); a sphere that would need more stops the run with an error
 MESH_SLOTS = 6
-#: a mesh's motion row (``WallArrays.motion``, ``engine.schema.MESH_RECORD``): velocity (m/s), angular velocity (rad/s) about the axis
-#: through (px, py, pz) where the motion began, and the time since it began (s)
-MESH_MOTION = slots("vx", "vy", "vz", "wx", "wy", "wz", "px", "py", "pz", "elapsed")
+#: a wall's motion row (a mesh's ``WallArrays.motion``, a plane's or cylinder's ``WallArrays.motion_program``;
+#: ``rollingdem.engine.wall_motion``): its steady velocity (m/s) and angular velocity (rad/s) about the axis through
+#: (px, py, pz) where the motion began, the time since it began (s); the program added to it (``program``:
+#: MOTION_STEADY, MOTION_OSCILLATION, MOTION_TABLE, MOTION_SERVO) with its parameters; and over the present step the
+#: velocity, the angular velocity and where the axis's point is now (what a contact sees)
+MESH_MOTION = slots("vx", "vy", "vz", "wx", "wy", "wz", "px", "py", "pz", "elapsed",
+                    "program",
+                    "ax", "ay", "az",       # oscillation: translation amplitude (m); servo: its unit direction
+                    "ux", "uy", "uz",       # the program's rotation axis (unit)
+                    "angle",                # oscillation: angle amplitude (rad)
+                    "omega", "phase",       # oscillation: angular frequency 2 pi f (rad/s), phase (rad)
+                    "first", "last", "period",  # table: its rows of ``motion_table``, repeated every period (s; 0: holds)
+                    "target", "gain", "max_speed",  # servo: the load to hold (N), gain (m/s per N), speed limit (m/s)
+                    "shift", "load",        # servo: its displacement along the direction so far (m), the last load (N)
+                    "tvx", "tvy", "tvz", "twx", "twy", "twz", "ox", "oy", "oz")
 MESH_MOTION_SIZE = len(MESH_MOTION)
+MOTION_STEADY, MOTION_OSCILLATION, MOTION_TABLE, MOTION_SERVO = 0.0, 1.0, 2.0, 3.0
+#: a row of ``motion_table``: time (s), displacement (m), angle about the program's axis (rad)
+MOTION_TABLE_ROW = slots("t", "dx", "dy", "dz", "angle")
 #: the triangle grid's shape (``WallArrays.grid``): the reach it was binned for (m), cell size (m),
 #: origin (m), cells along x, y, z, whether it holds the meshes as they are (1.0), and whether a
 #: mesh moves (1.0)

@@ -8,7 +8,8 @@ import math
 from numba import njit
 
 from rollingdem.physics.records import WALL_LOAD_SIZE
-from rollingdem.engine.layout import MESH_GRID as GR, MESH_MOTION as MO, MESH_SLOTS
+from rollingdem.engine.layout import MESH_GRID as GR, MESH_MOTION as MO, MESH_SLOTS, MOTION_SERVO, MOTION_STEADY
+from rollingdem.engine.wall_motion import mesh_loads, step_program
 from rollingdem.physics.mesh import closest_point_on_triangle, touching_features
 
 #: a new mesh contact takes over the history of an ended contact of the same mesh whose normal was
@@ -126,6 +127,7 @@ def prepare_mesh_grid(reach, walls):
     for m in range(walls.motion.shape[0]):
         for c in range(6):
             moving |= walls.motion[m, c] != 0.0
+        moving |= walls.motion[m, MO.program] != MOTION_STEADY
     if moving or grid[GR.valid] == 0.0 or grid[GR.reach] != reach:
         needed = bin_triangles(reach, walls)
         if needed:
@@ -172,28 +174,45 @@ def mesh_candidate_row(i, x, radius, skin, walls, fill):
 
 @njit(cache=True)
 def move_meshes(dt, walls, half_skin):
-    """Advance each moving mesh by dt: vertex = p0 + v tau + R(omega tau) (reference - p0), tau the
-    time since its motion began (exact rigid motion, no drift of repeated small rotations).
-    Returns 1 if a vertex is now skin/2 or more from where the candidate lists were built."""
+    """Advance each moving mesh by dt: vertex = origin + R (reference - p), origin = p + v tau (plus
+    its program's displacement, ``engine.wall_motion``), R the turn by omega tau (or about the
+    program's axis), tau the time since its motion began (exact rigid motion, no drift of repeated
+    small rotations). Returns 1 if a vertex is now skin/2 or more from where the candidate lists
+    were built."""
     motion, ref, vert, built = walls.motion, walls.reference, walls.vertices, walls.built
     exceed = 0
     for m in range(motion.shape[0]):
-        vx, vy, vz = motion[m, MO.vx], motion[m, MO.vy], motion[m, MO.vz]
-        wx, wy, wz = motion[m, MO.wx], motion[m, MO.wy], motion[m, MO.wz]
-        if vx == 0.0 and vy == 0.0 and vz == 0.0 and wx == 0.0 and wy == 0.0 and wz == 0.0:
-            continue
-        tau = motion[m, MO.elapsed] + dt
-        motion[m, MO.elapsed] = tau
+        mo = motion[m]
+        vx, vy, vz = mo[MO.vx], mo[MO.vy], mo[MO.vz]
+        wx, wy, wz = mo[MO.wx], mo[MO.wy], mo[MO.wz]
+        if mo[MO.program] == MOTION_STEADY:
+            if vx == 0.0 and vy == 0.0 and vz == 0.0 and wx == 0.0 and wy == 0.0 and wz == 0.0:
+                continue
+            tau = mo[MO.elapsed] + dt
+            mo[MO.elapsed] = tau
+            speed = math.sqrt(wx * wx + wy * wy + wz * wz)
+            angle = speed * tau
+            ux, uy, uz = (wx / speed, wy / speed, wz / speed) if speed > 0.0 else (0.0, 0.0, 1.0)
+            ox, oy, oz = mo[MO.px] + vx * tau, mo[MO.py] + vy * tau, mo[MO.pz] + vz * tau
+            mo[MO.ox], mo[MO.oy], mo[MO.oz] = ox, oy, oz
+        else:
+            fx, fy, fz = mesh_loads(walls, m) if mo[MO.program] == MOTION_SERVO else (0.0, 0.0, 0.0)
+            turned = step_program(mo, walls.motion_table, dt, fx, fy, fz)
+            tau = mo[MO.elapsed]
+            ux, uy, uz = mo[MO.ux], mo[MO.uy], mo[MO.uz]
+            if ux == 0.0 and uy == 0.0 and uz == 0.0:  # the program turns nothing: the steady turn
+                speed = math.sqrt(wx * wx + wy * wy + wz * wz)
+                angle = speed * tau
+                ux, uy, uz = (wx / speed, wy / speed, wz / speed) if speed > 0.0 else (0.0, 0.0, 1.0)
+            else:  # omega lies along u (``scene.motion`` checks it)
+                angle = (wx * ux + wy * uy + wz * uz) * tau + turned
+            ox, oy, oz = mo[MO.ox], mo[MO.oy], mo[MO.oz]
         # Rodrigues: R = I + sin(a) K + (1 - cos(a)) K^2, K the cross-product matrix of the unit axis
-        speed = math.sqrt(wx * wx + wy * wy + wz * wz)
-        angle = speed * tau
-        ux, uy, uz = (wx / speed, wy / speed, wz / speed) if speed > 0.0 else (0.0, 0.0, 1.0)
         s, c1 = math.sin(angle), 1.0 - math.cos(angle)
         r00, r01, r02 = 1.0 - c1 * (uy * uy + uz * uz), c1 * ux * uy - s * uz, c1 * ux * uz + s * uy
         r10, r11, r12 = c1 * ux * uy + s * uz, 1.0 - c1 * (ux * ux + uz * uz), c1 * uy * uz - s * ux
         r20, r21, r22 = c1 * ux * uz - s * uy, c1 * uy * uz + s * ux, 1.0 - c1 * (ux * ux + uy * uy)
-        px, py, pz = motion[m, MO.px], motion[m, MO.py], motion[m, MO.pz]
-        ox, oy, oz = px + vx * tau, py + vy * tau, pz + vz * tau
+        px, py, pz = mo[MO.px], mo[MO.py], mo[MO.pz]
         for k in range(walls.vertex_start[m], walls.vertex_start[m + 1]):
             ax, ay, az = ref[k, 0] - px, ref[k, 1] - py, ref[k, 2] - pz
             vert[k, 0] = ox + r00 * ax + r01 * ay + r02 * az
@@ -207,15 +226,14 @@ def move_meshes(dt, walls, half_skin):
 
 @njit(cache=True, inline="always")
 def surface_velocity(walls, m, cx, cy, cz):
-    """Velocity (m/s) of mesh m's surface at the point c: v + omega x (c - o), o the rotation axis's
-    point now."""
+    """Velocity (m/s) of mesh m's surface at the point c over the present step: v + omega x (c - o),
+    o the rotation axis's point now."""
     mo = walls.motion
-    tau = mo[m, MO.elapsed]
-    rx = cx - (mo[m, MO.px] + mo[m, MO.vx] * tau)
-    ry = cy - (mo[m, MO.py] + mo[m, MO.vy] * tau)
-    rz = cz - (mo[m, MO.pz] + mo[m, MO.vz] * tau)
-    wx, wy, wz = mo[m, MO.wx], mo[m, MO.wy], mo[m, MO.wz]
-    return mo[m, MO.vx] + (wy * rz - wz * ry), mo[m, MO.vy] + (wz * rx - wx * rz), mo[m, MO.vz] + (wx * ry - wy * rx)
+    rx = cx - mo[m, MO.ox]
+    ry = cy - mo[m, MO.oy]
+    rz = cz - mo[m, MO.oz]
+    wx, wy, wz = mo[m, MO.twx], mo[m, MO.twy], mo[m, MO.twz]
+    return mo[m, MO.tvx] + (wy * rz - wz * ry), mo[m, MO.tvy] + (wz * rx - wx * rz), mo[m, MO.tvz] + (wx * ry - wy * rx)
 
 
 @njit(cache=True)

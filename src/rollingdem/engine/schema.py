@@ -22,6 +22,7 @@ import dataclasses
 
 import numpy as np
 
+from rollingdem.engine.layout import MESH_MOTION_SIZE
 from rollingdem.physics.records import (BOND_LOAD_SIZE, BOND_PARAMETERS, BOND_STATE, ENERGY_CHANNELS,
                                         WALL_GEOMETRY_SIZE, WALL_LOAD_SIZE)
 
@@ -125,6 +126,8 @@ WALL = (
     Field("wall_vel", width=(3,), per=PER_WALL, record="velocity", doc="velocity (m/s)"),
     Field("wall_omega", width=(3,), per=PER_WALL, record="angular_velocity", doc="angular velocity (rad/s)"),
     Field("wall_mat", np.int32, per=PER_WALL, record="material", doc="material index"),
+    Field("wall_program", width=(MESH_MOTION_SIZE,), per=PER_WALL, record="program",
+          doc="the wall's motion row (engine.layout.MESH_MOTION; moved by it unless its program is steady)"),
     Field("whist", width=(HISTORY,), per=PER_PARTICLE_WALL, record="history",
           doc="contact history of particle i and wall w"),
     Field("wtouch", np.uint8, per=PER_PARTICLE_WALL, record="touching", saved=False,
@@ -160,6 +163,7 @@ MESH_RECORD = (
     "grid",              # (len(MESH_GRID),) the triangle grid's shape
     "grid_start",        # (cells + 1,) int64 CSR rows: the triangles binned in each cell of the grid
     "grid_items",        # (entries,) int64
+    "motion_table",      # (rows, len(MOTION_TABLE_ROW)) the rows of every wall's motion table (planes' too)
 )
 
 

@@ -12,7 +12,7 @@ from rollingdem.engine import layout  # SERIAL_BELOW read at the call: a test se
 from rollingdem.engine.backends import BACKENDS
 from rollingdem.errors import SimulationError
 from rollingdem.physics.records import ENERGY_CHANNELS, WALL_LOAD_SIZE
-from rollingdem.engine.layout import CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION_SIZE, MESH_SLOTS, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, Scratch, block_columns
+from rollingdem.engine.layout import CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION as MO, MESH_MOTION_SIZE, MESH_SLOTS, MOTION_TABLE_ROW, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, Scratch, block_columns
 from rollingdem.engine.schema import PER_BOND, PER_PARTICLE, PER_PARTICLE_WALL, PER_WALL, SCHEMA
 from rollingdem.engine.neighbors import ContactList
 from rollingdem.engine.threads import ThreadGovernor
@@ -499,6 +499,18 @@ class EngineState:
         return st
 
 
+def pad_motion_rows(motion: np.ndarray) -> np.ndarray:
+    """Mesh motion rows of an older checkpoint (velocity, angular velocity, point, time) as rows of
+    ``layout.MESH_MOTION``: steady, the step's velocity the steady one, the axis's point where it is."""
+    if motion.shape[1] == MESH_MOTION_SIZE:
+        return motion
+    out = np.zeros((motion.shape[0], MESH_MOTION_SIZE))
+    out[:, :motion.shape[1]] = motion
+    out[:, [MO.tvx, MO.tvy, MO.tvz, MO.twx, MO.twy, MO.twz]] = motion[:, 0:6]
+    out[:, [MO.ox, MO.oy, MO.oz]] = motion[:, 6:9] + motion[:, 0:3] * motion[:, 9:10]
+    return out
+
+
 class MeshState:
     """The triangle meshes' arrays of the engine (the walls' record from ``reference``
     on, ``schema.MESH_RECORD``): every mesh's vertices and triangles in one array, their motion, and per sphere the
@@ -519,6 +531,7 @@ class MeshState:
         self.triangle_mesh = np.zeros(0, dtype=np.int32)
         self.motion = np.zeros((0, MESH_MOTION_SIZE))
         self.material = np.zeros(0, dtype=np.int32)
+        self.motion_table = np.zeros((0, len(MOTION_TABLE_ROW)))
         self._grid_arrays()
         self._particle_arrays(0)
         self.allocate(0)
@@ -597,9 +610,10 @@ class MeshState:
 
     def set_meshes(self, meshes: list, carry: list):
         """Replace the meshes. Each is a dict of ``vertices``, ``triangles``, ``neighbors``,
-        ``velocity``, ``angular_velocity``, ``point`` (the rotation axis's point) and ``material``;
-        its motion starts now from these vertices. ``carry[m]``: the index new mesh m had before
-        (the contacts with its triangles are kept), or -1."""
+        ``material`` and its ``motion`` row (``layout.MESH_MOTION``), with ``reference``, the
+        vertices where that motion began (default: ``vertices``, the motion starts now).
+        ``carry[m]``: the index new mesh m had before (the contacts with its triangles are kept),
+        or -1."""
         old_start, old_slots = self.triangle_start, self.slot_triangle
         nv = [len(m["vertices"]) for m in meshes]
         nt = [len(m["triangles"]) for m in meshes]
@@ -607,19 +621,17 @@ class MeshState:
         self.triangle_start = np.concatenate([[0], np.cumsum(nt)]).astype(np.int64)
         cat = (lambda parts, shape, dtype: np.ascontiguousarray(np.concatenate(parts), dtype=dtype) if parts
                else np.zeros(shape, dtype=dtype))
-        self.reference = cat([np.asarray(m["vertices"], dtype=float) for m in meshes], (0, 3), np.float64)
-        self.vertices = self.reference.copy()
-        self.built = self.reference.copy()
+        self.vertices = cat([np.asarray(m["vertices"], dtype=float) for m in meshes], (0, 3), np.float64)
+        self.reference = cat([np.asarray(m.get("reference", m["vertices"]), dtype=float) for m in meshes], (0, 3),
+                             np.float64)
+        self.built = self.vertices.copy()
         self.triangles = cat([np.asarray(m["triangles"]) + v0 for m, v0 in zip(meshes, self.vertex_start)], (0, 3),
                              np.int64)
         self.neighbors = cat([np.where(np.asarray(m["neighbors"]) >= 0, np.asarray(m["neighbors"]) + t0, -1)
                               for m, t0 in zip(meshes, self.triangle_start)], (0, 3), np.int64)
         self.triangle_mesh = np.repeat(np.arange(len(meshes), dtype=np.int32), nt)
-        self.motion = np.zeros((len(meshes), MESH_MOTION_SIZE))
-        for k, m in enumerate(meshes):
-            self.motion[k, 0:3] = m["velocity"]
-            self.motion[k, 3:6] = m["angular_velocity"]
-            self.motion[k, 6:9] = m["point"]
+        self.motion = cat([np.asarray(m["motion"], dtype=float)[None] for m in meshes], (0, MESH_MOTION_SIZE),
+                          np.float64)
         self.material = np.array([m["material"] for m in meshes], dtype=np.int32)
         self._grid_arrays()
         if not meshes:
@@ -648,15 +660,15 @@ class MeshState:
                 self.triangle_mesh, self.motion, self.material, self.candidate_start, self.candidates,
                 self.candidate_gap, self.touch_triangle, self.touch_feature, self.touch_point, self.touch_slot,
                 self.slot_triangle, self.history, self.load, self.mesh_error, self.grid, self.grid_start,
-                self.grid_items)
+                self.grid_items, self.motion_table)
 
     CHECKPOINT = ("reference", "vertices", "built", "vertex_start", "triangle_start", "triangles", "neighbors",
-                  "triangle_mesh", "motion", "material", "slot_triangle", "history", "load")
+                  "triangle_mesh", "motion", "material", "slot_triangle", "history", "load", "motion_table")
 
     def to_arrays(self) -> dict:
-        """The meshes' arrays for a checkpoint (none without a mesh)."""
+        """The meshes' arrays for a checkpoint (none without a mesh), the walls' motion tables."""
         if not self.n_meshes:
-            return {}
+            return {"mesh_motion_table": self.motion_table} if len(self.motion_table) else {}
         out = {f"mesh_{name}": getattr(self, name) for name in self.CHECKPOINT}
         out["mesh_candidate_start"] = self.candidate_start  # the lists as built: a restored run goes on the same
         out["mesh_candidates"] = self.candidates[:int(self.candidate_start[-1])] if self.n else self.candidates[:0]
@@ -664,16 +676,20 @@ class MeshState:
 
     def from_arrays(self, arrays: dict, n: int):
         self.n = n
+        if "mesh_motion_table" in arrays:
+            self.motion_table = np.array(arrays["mesh_motion_table"])
         if "mesh_triangles" not in arrays:
             return
         self._particle_arrays(n)
         for name in self.CHECKPOINT:
-            setattr(self, name, np.array(arrays[f"mesh_{name}"]))
+            if f"mesh_{name}" in arrays:  # an older checkpoint has no motion table
+                setattr(self, name, np.array(arrays[f"mesh_{name}"]))
         self._grid_arrays()
         candidates = arrays["mesh_candidates"]
         self.allocate(max(4 * n, int(len(candidates) * LIST_MARGIN) + 16))
         self.candidates[:len(candidates)] = candidates
         self.candidate_start[:] = arrays["mesh_candidate_start"]
+        self.motion = pad_motion_rows(self.motion)
 
     def save_contacts(self):
         return self.slot_triangle.copy(), self.history.copy()

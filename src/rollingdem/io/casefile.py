@@ -75,7 +75,47 @@ class ContactSpec(_Strict):
     cohesion: Any = "none"
 
 
-class PlaneSpec(_Strict):
+class OscillateSpec(_Strict):
+    """``rollingdem.Oscillation``: ``frequency`` (Hz), ``amplitude`` (m, a vector), ``angle`` (degrees)
+    about ``axis`` (a mesh wall only), ``phase`` (degrees)."""
+    frequency: Number
+    amplitude: Vector = (0.0, 0.0, 0.0)
+    angle: Number = 0.0
+    axis: Optional[Vector] = None
+    phase: Number = 0.0
+
+
+class TableSpec(_Strict):
+    """``rollingdem.MotionTable``: ``times`` (s) with ``displacements`` (m) and/or ``angles`` (degrees,
+    about ``axis``; a mesh wall only), or a CSV ``file`` whose header names the columns t, dx, dy,
+    dz and angle (each but t optional); ``repeat`` starts it again at its end."""
+    file: Optional[str] = None
+    times: Optional[list[Number]] = None
+    displacements: Optional[list[Vector]] = None
+    angles: Optional[list[Number]] = None
+    axis: Optional[Vector] = None
+    repeat: bool = False
+
+
+class ServoSpec(_Strict):
+    """``rollingdem.Servo``: moves along ``direction`` within ``max_speed`` (m/s) to hold ``force`` (N)
+    or ``pressure`` (Pa) on ``area`` (m^2); ``gain`` (m/s per N)."""
+    direction: Vector
+    max_speed: Number
+    force: Optional[Number] = None
+    pressure: Optional[Number] = None
+    area: Optional[Number] = None
+    gain: Optional[Number] = None
+
+
+class _ProgramKeys(_Strict):
+    """A wall's motion program: at most one of ``oscillate``, ``table``, ``servo``."""
+    oscillate: Optional[OscillateSpec] = None
+    table: Optional[TableSpec] = None
+    servo: Optional[ServoSpec] = None
+
+
+class PlaneSpec(_ProgramKeys):
     type: Literal["plane"]
     name: Optional[str] = None
     material: str
@@ -85,7 +125,7 @@ class PlaneSpec(_Strict):
     angular_velocity: Vector = (0.0, 0.0, 0.0)
 
 
-class CylinderSpec(_Strict):
+class CylinderSpec(_ProgramKeys):
     type: Literal["cylinder"]
     name: Optional[str] = None
     material: str
@@ -108,7 +148,7 @@ class RotateSpec(_Strict):
     angle: Optional[Number] = None
 
 
-class MotionSpec(_Strict):
+class MotionSpec(_ProgramKeys):
     velocity: Vector = (0.0, 0.0, 0.0)
     rotate: Optional[RotateSpec] = None
 
@@ -697,7 +737,8 @@ def build_simulation(case: CaseSpec):
             if w.type == "mesh":
                 sim.add_wall(_mesh_wall(w, case.base_directory))
                 continue
-            d = w.model_dump(exclude={"type"})
+            d = w.model_dump(exclude={"type", "oscillate", "table", "servo"})
+            d["motion"] = _program(w, case.base_directory)
             sim.add_wall(Plane(**d) if w.type == "plane" else Cylinder(**d))
     for k, p in enumerate(case.particles):
         with where(f"particles.{k}"):
@@ -744,14 +785,75 @@ def _sensor_mesh(spec, base: Path):
     return _mesh_wall(surface, base).mesh
 
 
-def _motion(spec, mesh: bool = False) -> dict:
-    """Keyword arguments of a wall's motion (velocity, angular_velocity, point) from a MotionSpec; a
-    ``mesh`` turns about the origin unless its point is given, a plane or cylinder about its own."""
+def _program(spec, base: Path):
+    """The motion program (``rollingdem.scene.motion``) of a block's ``oscillate``, ``table`` or
+    ``servo`` key, or None; angles in degrees."""
+    from rollingdem.errors import check_finite
+    from rollingdem.scene.motion import MotionTable, Oscillation, Servo
+
+    given = [key for key in ("oscillate", "table", "servo") if getattr(spec, key) is not None]
+    if len(given) > 1:
+        raise ParameterError(f"{' and '.join(given)} are not allowed together: a wall follows one motion program")
+    if not given:
+        return None
+    key = given[0]
+    with _InCase(key):
+        if key == "oscillate":
+            o = spec.oscillate
+            return Oscillation(o.frequency, o.amplitude, np.radians(check_finite("angle", o.angle)), o.axis,
+                               np.radians(check_finite("phase", o.phase)))
+        if key == "servo":
+            return Servo(**spec.servo.model_dump())
+        t = spec.table
+        if t.file is not None:
+            if t.times is not None or t.displacements is not None or t.angles is not None:
+                raise ParameterError(f"file = {t.file!r} is not allowed with times, displacements or angles: the "
+                                     "file holds them")
+            times, displacements, angles = _table_file(Path(t.file) if Path(t.file).is_absolute() else base / t.file)
+        else:
+            times, displacements, angles = t.times, t.displacements, t.angles
+            if times is None:
+                raise ParameterError("times = None is not allowed: give times (s) with displacements and/or angles, "
+                                     "or a CSV file")
+        angles = None if angles is None else np.radians(np.asarray(angles, dtype=float))
+        return MotionTable(times, displacements, angles, t.axis, t.repeat)
+
+
+def _table_file(path: Path) -> tuple:
+    """times, displacements (or None) and angles (degrees, or None) of a motion table's CSV file."""
+    import pandas as pd
+
+    try:
+        frame = pd.read_csv(path, skipinitialspace=True)
+    except FileNotFoundError:
+        raise ParameterError(f"file = {str(path)!r} is not allowed: no such file") from None
+    except Exception as err:  # noqa: BLE001 - pandas raises many kinds for a file it cannot parse
+        raise ParameterError(f"file = {str(path)!r} is not allowed: not a CSV table ({err})") from None
+    columns = [str(c).strip() for c in frame.columns]
+    unknown = [c for c in columns if c not in ("t", "dx", "dy", "dz", "angle")]
+    if unknown or "t" not in columns:
+        raise ParameterError(f"file = {str(path)!r} is not allowed: its header names {columns}; allowed columns are "
+                             "t (required), dx, dy, dz (m) and angle (degrees)")
+    frame.columns = columns
+    values = frame.apply(pd.to_numeric, errors="coerce")
+    if values.isna().any().any():
+        row = int(values.isna().any(axis=1).to_numpy().argmax())
+        raise ParameterError(f"file = {str(path)!r} is not allowed: row {row + 2} holds a value that is no number")
+    moves = any(c in columns for c in ("dx", "dy", "dz"))
+    displacements = (np.column_stack([values[c].to_numpy() if c in columns else np.zeros(len(values))
+                                      for c in ("dx", "dy", "dz")]) if moves else None)
+    return values["t"].to_numpy(), displacements, values["angle"].to_numpy() if "angle" in columns else None
+
+
+def _motion(spec, mesh: bool = False, base: Path = Path(".")) -> dict:
+    """Keyword arguments of a wall's motion (velocity, angular_velocity, point, motion) from a
+    MotionSpec; a ``mesh`` turns about the origin unless its point is given, a plane or cylinder
+    about its own."""
     from rollingdem.errors import check_finite, check_vector
 
     if spec is None:
         return {}
-    out = {"velocity": spec.velocity}
+    out = {"velocity": spec.velocity, "motion": _program(spec, base)}
     if spec.rotate is not None:
         r = spec.rotate
         if (r.angular_velocity is None) == (r.rpm is None):
@@ -791,7 +893,7 @@ def _mesh_wall(w: MeshSpec, base: Path):
             about = np.array(check_vector("place rotate point", w.place.rotate.point or (0.0, 0.0, 0.0)))
         shift = about - matrix @ about + np.array(check_vector("place translate", w.place.translate))
         wall = MeshWall(wall.mesh.moved(matrix, shift), material=w.material, name=w.name)
-    motion = _motion(w.motion, mesh=True)
+    motion = _motion(w.motion, mesh=True, base=base)
     if motion:
         wall = MeshWall(wall.mesh, material=w.material, name=w.name, **motion)
     wall.check_size = w.check_size
@@ -820,6 +922,7 @@ def check_case(case: CaseSpec, sim=None):
     the first stage. ``rollingdem check`` and ``rollingdem run`` both call it; returns the
     simulation (``sim`` if given, else a new one)."""
     from rollingdem.errors import check_non_negative, check_positive, check_vector
+    from rollingdem.scene.motion import check_program
     from rollingdem.scene.periodic import check_scene
 
     sim = build_simulation(case) if sim is None else sim
@@ -851,7 +954,9 @@ def check_case(case: CaseSpec, sim=None):
                 raise ParameterError(f"{where}: wall_motion wall = {m.wall!r} is not allowed: no wall in place has "
                                      f"that name; wall names are {', '.join(map(repr, sorted(in_place))) or 'none'}")
             try:
-                _motion(m)
+                motion = _motion(m, base=case.base_directory)
+                wall = next(w for w in sim.walls if w.name == m.wall)
+                check_program(wall, motion["motion"], repr(m.wall), motion.get("angular_velocity", (0.0, 0.0, 0.0)))
             except ParameterError as err:
                 raise ParameterError(f"{where}: wall_motion {m.wall!r}: {err}") from None
             mesh = next(w.type == "mesh" for w in case.walls if w.name == m.wall)

@@ -276,9 +276,11 @@ class _Run:
             sim.remove_wall(walls.pop(name))
         meshes = {w.name for w in self.case.walls if w.type == "mesh"}
         for m in stage.wall_motion:
-            motion = _motion(m, mesh=m.wall in meshes)
+            motion = _motion(m, mesh=m.wall in meshes, base=self.case.base_directory)
+            sim.set_wall_motion(m.wall, None)  # the old program may not suit the new velocity
             sim.set_wall_velocity(m.wall, motion["velocity"], motion.get("angular_velocity", (0.0, 0.0, 0.0)),
                                   point=motion.get("point"))
+            sim.set_wall_motion(m.wall, motion["motion"])
         if stage.set_velocity is not None:
             sv = stage.set_velocity
             idx = np.flatnonzero(~sim.fixed) if sv.particles == "all" else sv.particles

@@ -264,9 +264,10 @@ class MeshWall(Wall):
     Both sides of each triangle repel; a sphere has one contact per touched surface feature
     (``touching_features``), and its springs go with it from triangle to triangle. The mesh moves as
     a rigid body: ``velocity`` (m/s) and ``angular_velocity`` (rad/s) about the axis through
-    ``point`` (default: the centroid of its area), both constant during a run and changed between
-    runs with ``Simulation.set_wall_velocity``; the contact uses its surface velocity at the
-    contact point, v + omega x (c - point).
+    ``point`` (default: the centroid of its area), plus a ``motion`` program (``Oscillation``,
+    ``MotionTable``, ``Servo``), changed between runs with ``Simulation.set_wall_velocity`` and
+    ``set_wall_motion``; the contact uses its surface velocity at the contact point,
+    v + omega x (c - point).
     """
 
     kind = WALL_MESH
@@ -275,7 +276,7 @@ class MeshWall(Wall):
     check_size = True
 
     def __init__(self, vertices, triangles=None, material=None, velocity=(0.0, 0.0, 0.0),
-                 angular_velocity=(0.0, 0.0, 0.0), point=None, name=None):
+                 angular_velocity=(0.0, 0.0, 0.0), point=None, name=None, motion=None):
         super().__init__(material, velocity, angular_velocity, name)
         if isinstance(vertices, TriangleMesh):
             if triangles is not None:
@@ -287,6 +288,7 @@ class MeshWall(Wall):
                                      "triangles, or a TriangleMesh as the first argument")
             self.mesh = TriangleMesh(vertices, triangles, label=f"mesh {name!r}" if name else "mesh")
         self.point = self.centroid() if point is None else check_vector("mesh point", point)
+        self.set_motion(motion)
 
     @classmethod
     def from_file(cls, path, material=None, scale: float = 1.0, name=None, weld: float | None = None,
@@ -297,7 +299,7 @@ class MeshWall(Wall):
 
     @classmethod
     def shape(cls, shape: str, material=None, name=None, velocity=(0.0, 0.0, 0.0),
-              angular_velocity=(0.0, 0.0, 0.0), point=None, **dimensions) -> "MeshWall":
+              angular_velocity=(0.0, 0.0, 0.0), point=None, motion=None, **dimensions) -> "MeshWall":
         """A ready-made shape by name (``SHAPES``: drum, silo, hopper, disk, box, chute) with its
         dimensions as keywords, e.g. ``MeshWall.shape("hopper", top_radius=0.1, outlet_radius=0.01,
         height=0.1, segments=96)``."""
@@ -314,7 +316,7 @@ class MeshWall(Wall):
         if missing:
             raise ParameterError(f"mesh shape {shape!r}: {', '.join(missing)} missing ({', '.join(allowed)} allowed)")
         return cls(SHAPES[shape](**dimensions), material=material, name=name, velocity=velocity,
-                   angular_velocity=angular_velocity, point=point)
+                   angular_velocity=angular_velocity, point=point, motion=motion)
 
     def centroid(self) -> tuple:
         """The centroid of the mesh's area (m)."""
@@ -327,7 +329,7 @@ class MeshWall(Wall):
         """What ``engine.MeshState.set_meshes`` takes of this wall."""
         return {"vertices": self.mesh.vertices, "triangles": self.mesh.triangles, "neighbors": self.mesh.edge_neighbors,
                 "velocity": self.velocity, "angular_velocity": self.angular_velocity, "point": self.point,
-                "material": material}
+                "material": material, "motion": None}
 
     def overlap(self, x, r) -> np.ndarray:
         """Overlap (m) of spheres (centres x, radii r) with the mesh: R minus the distance to its
@@ -343,14 +345,14 @@ class MeshWall(Wall):
     def from_description(cls, d: dict, material, mesh: TriangleMesh) -> "MeshWall":
         """The wall ``describe`` described, with its mesh as it is now (``Simulation.restore``)."""
         wall = cls(mesh, material=material, velocity=d["velocity"], angular_velocity=d["angular_velocity"],
-                   point=d["point"], name=d.get("name"))
+                   point=d["point"], name=d.get("name"), motion=d.get("motion"))
         wall.check_size = d.get("check_size", True)
         return wall
 
     def describe(self) -> dict:
         return {"type": "mesh", "point": list(self.point), "velocity": list(self.velocity),
                 "angular_velocity": list(self.angular_velocity), "name": self.name,
-                "triangles": self.mesh.n_triangles, "check_size": self.check_size}
+                "triangles": self.mesh.n_triangles, "check_size": self.check_size, **self.describe_motion()}
 
     def __repr__(self):
         return (f"MeshWall(name={self.name!r}, material={self.material!r}, triangles={self.mesh.n_triangles}, "

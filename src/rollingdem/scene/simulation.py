@@ -9,8 +9,8 @@
 What it holds, each in its own module: the spheres (``scene.particles.Particles``), the walls
 (``scene.wall_set.WallSet``), the bonds (``scene.bonds.BondSet``), the outlets and inflows
 (``scene.boundaries.Boundaries``), everything that acts between steps (``scene.schedule.Schedule``),
-the time-step policy (``scene.timestep``) and checkpoints (``scene.checkpoint``). Its engine state
-(``engine.state.EngineState``) holds the arrays the step loop reads and writes.
+the time-step policy (``scene.timestep``) and checkpoints (``scene.checkpoint``); its engine state
+(``engine.state.EngineState``) the arrays the step loop reads and writes.
 """
 
 from __future__ import annotations
@@ -100,7 +100,6 @@ class Simulation:
 
     def _scene_changed(self) -> None:  # particles, walls or coefficients changed: a new pair table
         self._pair_params = None
-
     # --- settings --------------------------------------------------------------------------------
     def _refuse_contact(self, value):
         raise ParameterError(f"contact = {value!r} is not allowed after the Simulation is made: pass it as "
@@ -263,10 +262,13 @@ class Simulation:
         self.wall_set.remove(wall)
 
     def set_wall_velocity(self, wall: Wall | str, velocity=None, angular_velocity=None, point=None) -> None:
-        """Give a wall (the object or its name) a new prescribed velocity (m/s) and/or angular
-        velocity (rad/s), from now on: a mesh turns about the axis through ``point`` (default: the
-        point it turned about), a plane or cylinder turns its surface about its own axis."""
+        """A wall's (the object or its name) new steady velocity (m/s) and/or angular velocity (rad/s) from
+        now on, about ``point`` for a mesh (default: its own); a plane or cylinder turns its surface."""
         self.wall_set.set_velocity(wall, velocity, angular_velocity, point)
+
+    def set_wall_motion(self, wall: Wall | str, motion) -> None:
+        """A wall's program from now on (``Oscillation``, ``MotionTable``, ``Servo``; None: none), from where it is."""
+        self.wall_set.set_motion(wall, motion)
 
     def wall_loads(self, point=None) -> dict:
         """Force (N) and torque (N m) on each wall in place at the last step, by the wall's name (or
@@ -350,8 +352,7 @@ class Simulation:
         """Each criterion of docs/models.md §2 that applies: (description, largest allowed dt)."""
         return self.time_step_policy.limits()
 
-    def stable_time_step(self) -> float:
-        """The largest dt all criteria allow (s)."""
+    def stable_time_step(self) -> float:  # the largest dt all criteria allow (s)
         return self.time_step_policy.stable()
 
     def check_time_step(self) -> None:
@@ -360,9 +361,8 @@ class Simulation:
 
     # --- running ---------------------------------------------------------------------------------
     def check_before_run(self) -> None:
-        """Everything ``run`` refuses before its first step: a non-finite state (first, or the dt
-        check's message would be a riddle), a mesh smaller than a particle, dt, the reach of a
-        cohesion law, the periodic lengths."""
+        """What ``run`` refuses before its first step: a non-finite state (first: the dt check's message would
+        be a riddle), a mesh smaller than a particle, dt, the reach of a cohesion law, the periodic lengths."""
         self.schedule.check_finite_state(self)
         self.wall_set.check_mesh_sizes()
         self.time_step_policy.check()

@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from rollingdem.engine.layout import MESH_MOTION as MO, MOTION_TABLE_ROW
 from rollingdem.errors import ParameterError, check_vector, short_repr
 from rollingdem.physics.records import WALL_MESH
 from rollingdem.scene.mesh import MeshWall, TriangleMesh
+from rollingdem.scene.motion import check_program, motion_row
 from rollingdem.scene.walls import INACTIVE, Wall, wall_from_dict
 
 
@@ -135,6 +137,16 @@ class WallSet:
                 raise ParameterError(f"point = {point!r} is not allowed for wall {self.label(wall)}: a plane or "
                                      "cylinder turns about its own point; only a mesh wall takes a rotation point")
             wall.point = check_vector("mesh point", point)
+        wall._restart_motion = True
+        if wall.motion is not None:
+            check_program(wall, wall.motion, self.label(wall))
+        self.hand_over()
+
+    def set_motion(self, wall: Wall | str, motion) -> None:
+        """``Simulation.set_wall_motion``."""
+        wall = self.own(wall)
+        self.refresh()
+        wall.set_motion(motion)
         self.hand_over()
 
     def label(self, wall) -> str:
@@ -152,30 +164,62 @@ class WallSet:
         return f"#{next(k for k, w in enumerate(self.slots) if w is wall)}"
 
     def hand_over(self) -> None:
-        """Give the engine the walls in place, each keeping its contact history."""
-        self.refresh()  # a mesh's motion starts again from where it is now
+        """Give the engine the walls in place, each keeping its contact history (and its motion, unless
+        that changed: a changed motion starts again from where the wall is now)."""
+        self.refresh()
         st, materials = self.state, self.sim.materials
         active = [wl for wl in self.in_place() if wl.kind != WALL_MESH]
+        meshes = [wl for wl in self.in_place() if wl.kind == WALL_MESH]
+        rows, table = self._motion_rows(active + meshes)
         carry = [next((k for k, old in enumerate(self.in_engine) if old is wl), -1) for wl in active]
         st.set_walls(carry, wall_kind=[wl.kind for wl in active], wall_geom=[wl.geometry() for wl in active],
-                     wall_vel=[wl.velocity for wl in active], wall_omega=[wl.angular_velocity for wl in active],
-                     wall_mat=[materials.index(wl.material) for wl in active])
+                     wall_vel=[r[[MO.tvx, MO.tvy, MO.tvz]] for r in rows[:len(active)]],
+                     wall_omega=[wl.angular_velocity for wl in active],
+                     wall_mat=[materials.index(wl.material) for wl in active], wall_program=rows[:len(active)])
         self.in_engine = active
-        meshes = [wl for wl in self.in_place() if wl.kind == WALL_MESH]
         carry = [next((k for k, old in enumerate(st.meshes.names) if old is wl), -1) for wl in meshes]
-        st.set_meshes([wl.engine_mesh(materials.index(wl.material)) for wl in meshes], carry, meshes)
+        described = []
+        for wl, row in zip(meshes, rows[len(active):]):
+            described.append({**wl.engine_mesh(materials.index(wl.material)), "motion": row})
+            if wl.motion is not None and not wl._restart_motion and wl._motion_reference is not None:
+                described[-1]["reference"] = wl._motion_reference
+        st.meshes.motion_table = table
+        st.set_meshes(described, carry, meshes)
+        for wl in active + meshes:
+            wl._restart_motion = False
         self.sim._scene_changed()
 
+    @staticmethod
+    def _motion_rows(walls) -> tuple:
+        """Each wall's motion row (its carried one, unless its motion changed or it has none to
+        carry) and the walls' motion tables in one array, each row pointing at its own."""
+        rows, tables, start = [], [], 0
+        for wl in walls:
+            if wl.motion is not None and not wl._restart_motion and wl._motion_row is not None:
+                row = wl._motion_row.copy()
+            else:
+                row = motion_row(wl, wl.point)
+            part = wl.motion.table_rows() if wl.motion is not None else None
+            if part is not None:
+                row[MO.first], row[MO.last] = start, start + len(part)
+                start += len(part)
+                tables.append(part)
+            rows.append(row)
+        table = np.concatenate(tables) if tables else np.zeros((0, len(MOTION_TABLE_ROW)))
+        return rows, np.ascontiguousarray(table)
+
     def refresh(self) -> None:
-        """Copy where the engine has moved each wall to its ``Wall`` object."""
+        """Copy where the engine has moved each wall (and its motion row) to its ``Wall`` object."""
         st = self.state
-        for wl, g in zip(self.in_engine, st.wall_geom):
+        for k, (wl, g) in enumerate(zip(self.in_engine, st.wall_geom)):
             wl.update_from_geometry(g)
+            wl._motion_row = st.wall_program[k].copy()
         ms = st.meshes
         for m, wl in enumerate(ms.names):
             v0, v1 = ms.vertex_start[m], ms.vertex_start[m + 1]
             mo = ms.motion[m]
-            wl.update_from_engine(ms.vertices[v0:v1], mo[6:9] + mo[0:3] * mo[9])
+            wl.update_from_engine(ms.vertices[v0:v1], mo[[MO.ox, MO.oy, MO.oz]])
+            wl._motion_row, wl._motion_reference = mo.copy(), ms.reference[v0:v1].copy()
 
     def loads(self, point=None) -> dict:
         """``Simulation.wall_loads``."""
@@ -240,3 +284,5 @@ class WallSet:
             wl.update_from_geometry(g)
         ms.names = [wl for wl in self.in_place() if wl.kind == WALL_MESH]
         self.refresh()
+        for wl in self.in_place():  # the programs go on from the checkpoint's rows
+            wl._restart_motion = False

@@ -27,6 +27,26 @@ class Wall:
         self.velocity = check_vector("wall velocity", velocity)
         self.angular_velocity = check_vector("wall angular_velocity", angular_velocity)
         self.name = name
+        self.motion = None
+        # the engine's motion row (and a mesh's vertices where it began) at the last refresh, carried
+        # to the engine again unless the motion changed since (``WallSet.hand_over``)
+        self._motion_row = self._motion_reference = None
+        self._restart_motion = True
+
+    def set_motion(self, motion) -> None:
+        """Set the wall's program (``rollingdem.scene.motion``: ``Oscillation``, ``MotionTable``,
+        ``Servo``; None for none), added to its steady motion; it starts from where the wall is when
+        it goes to the engine."""
+        from rollingdem.scene.motion import check_program, program_from_dict
+
+        if isinstance(motion, dict):
+            motion = program_from_dict(motion)
+        check_program(self, motion, repr(self.name) if self.name else f"({type(self).__name__.lower()})")
+        self.motion = motion
+        self._restart_motion = True
+
+    def describe_motion(self) -> dict:
+        return {"motion": None if self.motion is None else self.motion.describe()}
 
     #: the direction a plane's or cylinder's angular velocity must lie along: its surface turns in
     #: itself (a turntable, a drum), its geometry stays; a mesh turns as a whole instead
@@ -81,11 +101,12 @@ class Plane(Wall):
     spin_axis_name = "normal"
 
     def __init__(self, point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), material=None, velocity=(0.0, 0.0, 0.0),
-                 angular_velocity=(0.0, 0.0, 0.0), name=None):
+                 angular_velocity=(0.0, 0.0, 0.0), name=None, motion=None):
         super().__init__(material, velocity, (0.0, 0.0, 0.0), name)
         self.point = check_vector("plane point", point)
         self.normal = check_vector("plane normal", normal, unit=True)
         self.set_angular_velocity(angular_velocity)
+        self.set_motion(motion)
 
     def geometry(self) -> np.ndarray:
         g = np.zeros(GEOMETRY_SIZE)
@@ -98,7 +119,8 @@ class Plane(Wall):
 
     def describe(self) -> dict:
         return {"type": "plane", "point": list(self.point), "normal": list(self.normal),
-                "velocity": list(self.velocity), "angular_velocity": list(self.angular_velocity), "name": self.name}
+                "velocity": list(self.velocity), "angular_velocity": list(self.angular_velocity), "name": self.name,
+                **self.describe_motion()}
 
 
 class Cylinder(Wall):
@@ -112,12 +134,13 @@ class Cylinder(Wall):
     spin_axis_name = "axis"
 
     def __init__(self, radius, point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), extent=None, material=None,
-                 velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), name=None):
+                 velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), name=None, motion=None):
         super().__init__(material, velocity, (0.0, 0.0, 0.0), name)
         self.radius = check_positive("cylinder radius", radius, "m")
         self.point = check_vector("cylinder point", point)
         self.axis = check_vector("cylinder axis", axis, unit=True)
         self.set_angular_velocity(angular_velocity)
+        self.set_motion(motion)
         if extent is None:
             self.extent = (-math.inf, math.inf)
         else:
@@ -143,7 +166,7 @@ class Cylinder(Wall):
     def describe(self) -> dict:
         return {"type": "cylinder", "radius": self.radius, "point": list(self.point), "axis": list(self.axis),
                 "extent": [self.extent[0], self.extent[1]], "velocity": list(self.velocity),
-                "angular_velocity": list(self.angular_velocity), "name": self.name}
+                "angular_velocity": list(self.angular_velocity), "name": self.name, **self.describe_motion()}
 
 
 def wall_overlap(geometry: np.ndarray, kind: int, x: np.ndarray, r: np.ndarray) -> np.ndarray:

@@ -142,7 +142,7 @@ def mesh_contacts(i, dt, particles, walls, pair_params, half_skin):
         k = i * uint64(MESH_SLOTS) + uint64(s)
         res = contact(walls.mesh_history, np.int64(k),
                       (nx, ny, nz, overlap, v[i, 0] - swx, v[i, 1] - swy, v[i, 2] - swz, w[i, 0], w[i, 1], w[i, 2],
-                       walls.motion[m, MO.wx], walls.motion[m, MO.wy], walls.motion[m, MO.wz], ri - 0.5 * overlap, 0.0, ri, mi,
+                       walls.motion[m, MO.twx], walls.motion[m, MO.twy], walls.motion[m, MO.twz], ri - 0.5 * overlap, 0.0, ri, mi,
                        INERTIA_R_FACTOR * mi * ri * ri),
                       pair_params[particles.mat[i], walls.mesh_material[m]], dt)
         wall_load(walls.mesh_load, k, res, qx, qy, qz)

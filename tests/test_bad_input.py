@@ -185,7 +185,7 @@ CATALOGUE = [
     ("until a quantity the measurement lacks",
      edit("stages:", "measurements:\n  - {name: load, type: wall, wall: floor}\nstages:",
           edit(STAGE, "  - {name: s, until: {measurement: load.count, above: 5}, max_duration: 1}")),
-     "stage 's': until: until load.count is not allowed: 'load' measures fx, fy, fz, tx, ty, tz, power"),
+     "stage 's': until: until load.count is not allowed: 'load' measures fx, fy, fz, tx, ty, tz, power, x, y, z"),
     ("until no condition", edit(STAGE, "  - {name: s, until: {every: 0.01}, max_duration: 1}"),
      "give settled, empty or measurement"),
     ("a measurement of an unknown wall", edit("stages:", "measurements:\n  - {name: load, type: wall, wall: lid}\n"
@@ -228,6 +228,14 @@ CATALOGUE = [
     ("a servo without its speed limit",
      edit(STAGE, "  - {name: s, duration: 0.0002, wall_motion: [{wall: floor, servo: {direction: [0, 0, 1], force: 1}}]}"),
      "key 'stages.0.wall_motion.0.servo.max_speed': missing (required)"),
+    ("a plane across a periodic axis", edit("walls:", "periodic: {z: [-0.1, 0.1]}\nwalls:"),
+     "periodic: wall 'floor': a plane of normal [0.0, 0.0, 1.0] is not allowed with the periodic z: it cuts across "
+     "that axis"),
+    ("an inflow inside the floor",
+     edit("stages:", "inflows:\n  - {region: {type: box, lo: [0, 0, -0.2], hi: [0.1, 0.1, -0.1]}, radius: 0.005, "
+                     "material: m, rate: 10}\nstages:"),
+     "inflows: inflow region BoxRegion(lo=[0.0, 0.0, -0.2], hi=[0.1, 0.1, -0.1]) is not allowed: the walls leave no "
+     "room in it for a sphere of radius 0.005 m (wall 'floor' covers all of it)"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),
     ("empty file", "", "is empty: must hold a mapping of keys"),
     ("a list, not a mapping", "- a\n- b\n", "must hold a mapping of keys, got list"),
@@ -255,6 +263,23 @@ def test_check_and_run_refuse_a_bad_case_alike(tmp_path, name, text, expected):
         assert expected in result.output, result.output
     assert checked.output == ran.output
     assert not out.exists()
+
+
+def test_check_refuses_an_output_folder_a_run_could_not_write(tmp_path, monkeypatch):
+    """The case's output.directory under a file: ``check`` refuses it in the line ``run`` (without
+    --out, so writing there) refuses it with, and leaves nothing."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("")
+    case = tmp_path / "case.yaml"
+    case.write_text(edit("  plot: false", "  plot: false\n  directory: afile/out"))
+    checked = CliRunner().invoke(app, ["check", str(case)])
+    ran = CliRunner().invoke(app, ["run", str(case), "--no-progress"])
+    for result in (checked, ran):
+        assert result.exit_code == 2, result.output
+        assert result.output.startswith("error: output.directory = 'afile/out' is not allowed: ")
+        assert result.output.endswith("afile is a file; must be a folder\n") and result.output.count("\n") == 1
+    assert checked.output == ran.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "case.yaml"]
 
 
 def test_valid_case_is_checked_valid_and_runs(tmp_path):

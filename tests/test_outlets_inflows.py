@@ -292,3 +292,24 @@ def test_a_refill_region_over_its_outlet_is_refused(table1):
         sim.add_outlet(rd.BoxRegion((0, 0, -1), (1, 1, 0)), refill=rd.BoxRegion((0.5, 0.5, -0.5), (0.9, 0.9, 0.5)))
     with pytest.raises(ParameterError, match="outlet seed = -1 is not allowed"):
         sim.add_outlet(rd.BoxRegion((0, 0, -1), (1, 1, 0)), refill=rd.BoxRegion((0, 0, 0.5), (1, 1, 1)), seed=-1)
+
+
+def test_an_inflow_the_walls_leave_no_room_in_is_refused_before_the_run():
+    """An inflow region below the floor plane: every centre drawn in it is behind the floor, so
+    nothing could ever be inserted; ``run`` refuses it in one line naming the floor, before a step.
+    The same region raised to straddle the floor leaves room above it and runs."""
+    sim = rd.Simulation()
+    sim.add_material(rd.Material("m", 1e7, 0.3, 2500.0))
+    sim.add_wall(rd.Plane(material="m", name="floor"))
+    sim.add_particles([[0, 0, 0.01]], 0.002, "m")
+    sim.add_inflow(rd.BoxRegion((0, 0, -0.02), (0.02, 0.02, -0.005)), radius=0.002, material="m", rate=100)
+    with pytest.raises(rd.ParameterError, match="the walls leave no room in it for a sphere of radius 0.002 m "
+                                                 r"\(wall 'floor' covers all of it\)"):
+        sim.run(steps=1)
+    assert sim.step == 0
+    ok = rd.Simulation()
+    ok.add_material(rd.Material("m", 1e7, 0.3, 2500.0))
+    ok.add_wall(rd.Plane(material="m", name="floor"))
+    ok.add_particles([[0, 0, 0.01]], 0.002, "m")
+    ok.add_inflow(rd.BoxRegion((0, 0, -0.02), (0.02, 0.02, 0.02)), radius=0.002, material="m", rate=100)
+    ok.run(steps=1)

@@ -254,3 +254,43 @@ def test_a_case_file_moves_its_walls_as_the_python_api_does(tmp_path):
     expected = (point + [1e-3, 0, 0] + turn.apply(placed - point)).mean(axis=0)
     assert np.abs(centre - expected).max() < 1e-14
     assert ran["status"] == "ok"
+
+
+def test_a_wall_measurement_reads_a_programmed_floor_s_power_and_travel():
+    """A floor raised by a table at 0.02 m/s (one row at t = 1 s, 0.02 m up) carries a resting
+    sphere: the power it gives the sphere is m g v averaged over the window, as for a floor with a
+    steady velocity (the measurement takes the program's velocity, not the steady one, which is 0),
+    and the measurement's z is the floor's travel, 0.02 t, at each sample (the time summed step by
+    step: to 1e-12 m)."""
+    sim = rd.Simulation(gravity=(0, 0, -G))
+    sim.add_material(rd.Material("m", 1e7, 0.3, 2500.0, friction=0.5, restitution=0.1))
+    sim.add_wall(rd.Plane(material="m", name="floor", motion=rd.MotionTable([0, 1], [[0, 0, 0], [0, 0, 0.02]])))
+    sim.add_particles([[0, 0, R * 0.999]], R, "m", allow_overlap=True)
+    load = rd.WallLoad("floor", wall="floor", interval=1e-3, window=(0.1, 0.3))
+    sim.run(0.3, observers=[load])
+    m = float(sim.masses[0])
+    s = load.summary()
+    assert s["power"]["mean"] == pytest.approx(m * G * 0.02, rel=2e-3)
+    frame = load.series()
+    assert np.abs(frame["z"] - 0.02 * frame["time"]).max() < 1e-12
+
+
+def test_the_time_step_check_counts_the_walls_speed():
+    """The Hertz time at impact falls with the impact speed (as v^-1/5), and a sphere at rest meets a
+    moving wall at the wall's speed: a mesh drum turning at 1e5 rad/s (its farthest vertex 0.0539 m
+    from the axis: 5.39e3 m/s) and a plate oscillating at 1 kHz by 1 mm (2 pi f A = 6.28 m/s) each
+    set the impact speed of the limit; a dt above it is refused, naming it."""
+    from rollingdem.scene.mesh import SHAPES
+
+    drum = rd.Simulation(dt=1e-5)
+    material(drum)
+    drum.add_wall(rd.MeshWall(SHAPES["drum"](radius=0.05, length=0.02), material="m", angular_velocity=(0, 0, 1e5),
+                              point=(0, 0, 0)))
+    drum.add_particles([[0, 0, 0.01]], 2e-3, "m")
+    with pytest.raises(rd.ParameterError, match=r"dt = 1e-05 s exceeds the stable limit .* at impact speed 5.39e\+03 m/s"):
+        drum.run(steps=1)
+    plate = rd.Simulation()
+    material(plate)
+    plate.add_wall(rd.Plane(material="m", motion=rd.Oscillation(1000.0, amplitude=(0, 0, 1e-3))))
+    plate.add_particles([[0, 0, 2e-3]], 2e-3, "m")
+    assert any("at impact speed 6.28 m/s" in label for label, _ in plate.time_step_limits())

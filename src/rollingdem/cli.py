@@ -445,10 +445,12 @@ def schema():
 def check(case: Path = typer.Argument(..., help="Case file to validate.")):
     """Validate a case file without running it."""
     from rollingdem.io import casefile
+    from rollingdem.io.runner import check_output_folder
 
     try:
         spec = casefile.load_case(case)
         sim = casefile.check_case(spec)  # what run refuses before its first step, refused here
+        check_output_folder(spec)  # where a run without --out writes
     except ParameterError as err:
         _refuse(err)
     typer.echo(f"{case}: valid; {sim.n_particles} particles, {len(sim.walls)} walls, {len(spec.stages)} stages, "

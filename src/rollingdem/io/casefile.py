@@ -1004,6 +1004,8 @@ def check_case(case: CaseSpec, sim=None):
     _check_first_time_step(sim, first_velocities)
     with _InCase("contact"):
         sim.time_step_policy.check_contact_reach()
+    with _InCase("inflows"):
+        sim.boundary_set.check_room()
     return sim
 
 

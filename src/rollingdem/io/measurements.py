@@ -496,11 +496,14 @@ class OutletTotals(Measurement):
 
 class WallLoad(Measurement):
     """The load on a wall: force ``fx, fy, fz`` (N) and torque ``tx, ty, tz`` (N m, about the wall's
-    own point, ``Simulation.wall_loads``) from the particles, and ``power`` (W): what the wall's
-    motion gives the particles, -(F . v + T . omega)."""
+    own point, ``Simulation.wall_loads``) from the particles, ``power`` (W): what the wall's motion
+    gives the particles, -(F . v + T . omega) with the velocity of its last step (a program's
+    included), and where the wall's point is, ``x, y, z`` (m; a mesh's turns with it): a servo
+    lid's travel, a vibrating table's stroke."""
 
     kind = "wall"
-    QUANTITIES = {"fx": "N", "fy": "N", "fz": "N", "tx": "N m", "ty": "N m", "tz": "N m", "power": "W"}
+    QUANTITIES = {"fx": "N", "fy": "N", "fz": "N", "tx": "N m", "ty": "N m", "tz": "N m", "power": "W",
+                  "x": "m", "y": "m", "z": "m"}
 
     def __init__(self, name: str, wall: str, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
@@ -524,8 +527,10 @@ class WallLoad(Measurement):
         if load is None or wall is None:  # removed by an earlier stage
             return [math.nan] * len(self.QUANTITIES)
         f, t = np.array(load["force"]), np.array(load["torque"])
-        power = -(f @ np.asarray(wall.velocity, float) + t @ np.asarray(wall.angular_velocity, float))
-        return [*f, *t, float(power)]
+        sim.wall_set.refresh()  # where the engine has moved it in this run so far
+        velocity, angular_velocity = wall.present_velocity()
+        power = -(f @ velocity + t @ angular_velocity)
+        return [*f, *t, float(power), *wall.point]
 
     def headline(self):
         return ["fz", "power"]

@@ -53,18 +53,24 @@ def earlier_run(folder: Path) -> list[str]:
     return [name for name in RUN_FILES if (Path(folder) / name).exists()]
 
 
+def check_output_folder(case: CaseSpec, out=None) -> Path:
+    """The folder a run of ``case`` would write into (``out``, else the case's output.directory or
+    rollingdem-output/NAME, with a time stamp when that exists), refused when it could not be
+    written (``rollingdem check`` asks too)."""
+    from rollingdem.errors import check_output_path
+
+    base = Path(out or case.output.directory or Path("rollingdem-output") / case.name)
+    outdir = _fresh_directory(base) if out is None else base
+    key = "output folder" if out is not None or not case.output.directory else "output.directory"
+    check_output_path(key, outdir)
+    return outdir
+
+
 def _output_folder(case: CaseSpec, out, overwrite: bool = False) -> Path:
     """The folder a run writes into: ``out`` as given, else a fresh one (the case's directory or
     rollingdem-output/NAME, with a time stamp when that exists). Refused when it is a file, or
     when it holds an earlier run and ``overwrite`` is not given."""
-    base = Path(out or case.output.directory or Path("rollingdem-output") / case.name)
-    outdir = _fresh_directory(base) if out is None else base
-    for folder in (outdir, *outdir.parents):
-        if folder.exists():
-            if not folder.is_dir():
-                key = "output folder" if out is not None else "output.directory"
-                raise ParameterError(f"{key} = {str(outdir)!r} is not allowed: {folder} is a file; must be a folder")
-            break
+    outdir = check_output_folder(case, out)
     found = earlier_run(outdir) if outdir.is_dir() else []
     if found and not overwrite:
         raise ParameterError(f"output folder = {str(outdir)!r} is not allowed: it holds an earlier run "

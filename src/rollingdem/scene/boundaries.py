@@ -287,6 +287,10 @@ class Inflow(Boundary):
         return inflow
 
 
+#: centres drawn in an inflow's region to see that the walls leave room in it (``Boundaries.check_room``)
+ROOM_SAMPLES = 1000
+
+
 def free_places(sim, region, radii: np.ndarray, largest: float, rng) -> np.ndarray:
     """``place_spheres`` in ``region`` of ``sim``: among its walls as they are now and its particles
     with their periodic images, for spheres of radius at most ``largest`` (m)."""
@@ -381,6 +385,30 @@ class Boundaries:
         for outlet in self.outlets:
             check_outlet_inflow(outlet, inflow)
         return sim.schedule.add(inflow)
+
+    def check_room(self) -> None:
+        """Refuse an inflow whose region the walls leave no room in (inside the floor, behind a
+        plane): of ``ROOM_SAMPLES`` centres drawn in it for its largest sphere, none clear of every
+        wall. Each inflow is checked once, before its first run."""
+        rng = np.random.default_rng(0)
+        for inflow in self.inflows:
+            if getattr(inflow, "_room_checked", False):
+                continue
+            r = np.full(ROOM_SAMPLES, inflow.radius.max_radius)
+            x = inflow.region.sample(rng, r)
+            clear = np.ones(len(x), dtype=bool)
+            blocking = None
+            for wall in self.sim.walls:
+                inside = wall.overlap(x, r) > 0.0
+                if inside.all():
+                    blocking = wall
+                clear &= ~inside
+            if not clear.any():
+                by = f" (wall {self.sim.wall_set.label(blocking)} covers all of it)" if blocking is not None else ""
+                raise ParameterError(f"inflow region {inflow.region!r} is not allowed: the walls leave no room in it for "
+                                     f"a sphere of radius {inflow.radius.max_radius:g} m{by}: it lies inside or behind "
+                                     "them; move it into the open")
+            inflow._room_checked = True
 
     def _check_name(self, new) -> None:
         if new.name is not None and any(b.name == new.name for b in self.outlets + self.inflows if b.kind == new.kind):

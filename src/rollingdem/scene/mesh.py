@@ -336,6 +336,10 @@ class MeshWall(Wall):
         nearest point."""
         return sphere_overlap(self.mesh, x, r)
 
+    def reach(self, x) -> float:
+        """The farthest a vertex lies from the point the mesh turns about (m)."""
+        return float(np.linalg.norm(self.mesh.vertices - np.asarray(self.point, float), axis=1).max())
+
     def update_from_engine(self, vertices, point):
         """Take the engine's vertices and rotation point after a run (the mesh has moved)."""
         self.mesh = _with_vertices(self.mesh, vertices)

@@ -55,6 +55,11 @@ class Oscillation:
     def table_rows(self):
         return None
 
+    def peak_speed(self, reach: float) -> float:
+        """The fastest the program moves a point ``reach`` (m) from its axis (m/s)."""
+        omega = 2.0 * math.pi * self.frequency
+        return omega * (float(np.linalg.norm(self.amplitude)) + abs(self.angle) * reach)
+
     def position(self, t: float) -> tuple:
         """The displacement (m) and angle (rad) t seconds after the program began (the steady motion
         not included)."""
@@ -126,6 +131,10 @@ class MotionTable:
     def table_rows(self) -> np.ndarray:
         return np.column_stack([self.times, self.displacements, self.angles])
 
+    def peak_speed(self, reach: float) -> float:
+        step = np.linalg.norm(np.diff(self.displacements, axis=0), axis=1) + np.abs(np.diff(self.angles)) * reach
+        return float((step / np.diff(self.times)).max())
+
     def position(self, t: float) -> tuple:
         if self.repeat:
             t = t % (self.times[-1] - self.times[0])
@@ -180,6 +189,9 @@ class Servo:
 
     def table_rows(self):
         return None
+
+    def peak_speed(self, reach: float) -> float:
+        return self.max_speed
 
     def describe(self) -> dict:
         return {"type": "servo", "direction": list(self.direction), "max_speed": self.max_speed,

@@ -45,9 +45,22 @@ def check_length(periodic: dict, largest_radius: float, skin: float) -> None:
 
 
 def check_scene(sim) -> None:
-    """``check_length`` for a simulation, with its largest particle (or inflow particle) and skin."""
+    """``check_length`` for a simulation, with its largest particle (or inflow particle) and skin;
+    and no plane across a periodic axis (a particle leaving through one end would come back on the
+    wrong side of it: the wall is not periodic)."""
+    from rollingdem.physics.records import WALL_PLANE
+
     if sim.periodic and sim.n_particles:
         check_length(sim.periodic, sim.particle_set.largest_radius(sim.inflows), sim.skin)
+    for wall in sim.walls:
+        if wall.kind != WALL_PLANE:
+            continue
+        for axis in sim.periodic:
+            if abs(wall.normal["xyz".index(axis)]) > 1e-12:
+                raise ParameterError(f"wall {sim.wall_set.label(wall)}: a plane of normal {list(wall.normal)} is not "
+                                     f"allowed with the periodic {axis}: it cuts across that axis, and a particle "
+                                     f"leaving at one end of the box would come back on its other side; make {axis} "
+                                     "not periodic, or the plane parallel to it")
 
 
 def check_in_box(periodic: dict, x: np.ndarray, first: int) -> None:

@@ -361,10 +361,10 @@ class Simulation:
 
     # --- running ---------------------------------------------------------------------------------
     def check_before_run(self) -> None:
-        """What ``run`` refuses before its first step: a non-finite state (first: the dt check's message would
-        be a riddle), a mesh smaller than a particle, dt, the reach of a cohesion law, the periodic lengths."""
+        """What ``run`` refuses before its first step: a non-finite state (first: the dt check's message would be
+        a riddle), a mesh smaller than a particle, an inflow walled in, dt, a cohesion law's reach, periodic lengths."""
         self.schedule.check_finite_state(self)
-        self.wall_set.check_mesh_sizes()
+        self.wall_set.check_scene()
         self.time_step_policy.check()
         self.time_step_policy.check_contact_reach()
         periodic_box_checks.check_scene(self)

@@ -29,6 +29,8 @@ class TimeStepPolicy:
             return []
         limits = []
         normal = contact.normal
+        # a sphere meets a wall at its own speed plus the wall surface's there
+        walls = max((w.peak_speed(st.x) for w in sim.walls), default=0.0)
         for k, mat in enumerate(materials.materials):
             sel = st.mat == k
             # the spheres an inflow will insert count as if they were there
@@ -42,7 +44,7 @@ class TimeStepPolicy:
             pair = materials.pair(k, k)
             speed = np.sqrt((st.v[sel] ** 2).sum(axis=1))
             fastest = max([float(speed[np.isfinite(speed)].max(initial=0.0))] + [v for _, v in coming])
-            impact = 2.0 * fastest  # a non-finite v is reported apart
+            impact = max(2.0 * fastest, fastest + walls)  # a non-finite v is reported apart
             limits += normal.time_step_limits(mat, pair, rmin, mmin, impact)
             limits += contact.cohesion.time_step_limits(mat, pair, rmin, mmin)
             r_eff = 0.5 * rmin

@@ -90,11 +90,13 @@ class WallSet:
         self.hand_over()
         return wall
 
-    def check_mesh_sizes(self) -> None:
-        """``check_mesh_size`` of each mesh wall in place against the particles now in the scene."""
+    def check_scene(self) -> None:
+        """``check_mesh_size`` of each mesh wall in place against the particles now in the scene, and
+        each inflow's region against the walls (``Boundaries.check_room``)."""
         for wall in self.in_place():
             if wall.kind == WALL_MESH:
                 check_mesh_size(wall, self.state.radius)
+        self.sim.boundary_set.check_room()
 
     def remove(self, wall: Wall | str) -> None:
         """``Simulation.remove_wall``."""

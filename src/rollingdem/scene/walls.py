@@ -45,6 +45,31 @@ class Wall:
         self.motion = motion
         self._restart_motion = True
 
+    def reach(self, x: np.ndarray) -> float:
+        """The farthest a point of ``x`` (m, particle centres) lies from the wall's spin axis (m)."""
+        if not len(x):
+            return 0.0
+        axis = np.asarray(getattr(self, self.spin_axis_name), float)
+        d = x - np.asarray(self.point, float)
+        return float(np.linalg.norm(d - np.outer(d @ axis, axis), axis=1).max())
+
+    def peak_speed(self, x: np.ndarray) -> float:
+        """The fastest the wall's surface can move where particles (centres ``x``) meet it (m/s): its
+        velocity, its turn at the farthest reach, and its program's peak (the dt check's wall speed)."""
+        reach = self.reach(x)
+        speed = float(np.linalg.norm(self.velocity)) + float(np.linalg.norm(self.angular_velocity)) * reach
+        return speed + (self.motion.peak_speed(reach) if self.motion is not None else 0.0)
+
+    def present_velocity(self) -> tuple:
+        """The velocity (m/s) and angular velocity (rad/s) of the wall's last step (a program's
+        included), as the engine moved it; the steady ones before it has moved."""
+        from rollingdem.engine.layout import MESH_MOTION as MO
+
+        row = self._motion_row
+        if self.motion is None or row is None:
+            return np.asarray(self.velocity, float), np.asarray(self.angular_velocity, float)
+        return row[[MO.tvx, MO.tvy, MO.tvz]], row[[MO.twx, MO.twy, MO.twz]]
+
     def describe_motion(self) -> dict:
         return {"motion": None if self.motion is None else self.motion.describe()}
 

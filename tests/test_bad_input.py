@@ -236,6 +236,24 @@ CATALOGUE = [
                      "material: m, rate: 10}\nstages:"),
      "inflows: inflow region BoxRegion(lo=[0.0, 0.0, -0.2], hi=[0.1, 0.1, -0.1]) is not allowed: the walls leave no "
      "room in it for a sphere of radius 0.005 m (wall 'floor' covers all of it)"),
+    ("an insert with a count and a fraction",
+     edit("    material: m\n", "    material: m\n  - {insert: {type: box, lo: [0, 0.1, 0.01], hi: [0.1, 0.2, 0.1]}, count: 10, "
+                                "fraction: 0.2, radius: 0.005, material: m}\n"),
+     "particles.1: count = 10, fraction = 0.2 is not allowed: give exactly one of count, mass (kg) and fraction"),
+    ("an insert to a fraction random insertion cannot reach",
+     edit("    material: m\n", "    material: m\n  - {insert: {type: box, lo: [0, 0.1, 0.01], hi: [0.1, 0.2, 0.1]}, "
+                                "fraction: 0.7, radius: 0.005, material: m}\n"),
+     "particles.1: fraction = 0.7 is not allowed: must be in (0, 0.55] (random insertion tops out near 0.3-0.35"),
+    ("an insert into the mesh of a wall that is not there",
+     edit("    material: m\n", "    material: m\n  - {insert: {type: mesh, wall: bin}, count: 10, radius: 0.005, "
+                                "material: m}\n"),
+     "particles.1: wall = 'bin' is not allowed: no mesh wall has that name; mesh walls are none"),
+    ("a sieve curve that does not reach 1",
+     edit("    material: m\n", "    material: m\n  - {insert: {type: box, lo: [0, 0.1, 0.01], hi: [0.1, 0.2, 0.1]}, "
+                                "count: 10, radius: {distribution: sieve, diameters: [0.004, 0.006], passing: [0, 0.9]}, "
+                                "material: m}\n"),
+     "particles.1: SieveCurve passing = [0.0, 0.9] is not allowed: the fraction of the mass passing each sieve must "
+     "not decrease, from 0 at the first to 1 at the last"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),
     ("empty file", "", "is empty: must hold a mapping of keys"),
     ("a list, not a mapping", "- a\n- b\n", "must hold a mapping of keys, got list"),

@@ -193,7 +193,23 @@ class CylinderRegionSpec(_Strict):
     center: tuple[Number, Number] = (0.0, 0.0)
 
 
-RegionSpec = Annotated[Union[BoxRegionSpec, CylinderRegionSpec], Field(discriminator="type")]
+class _SensorMeshSpec(_Strict):
+    """A sensor's mesh, given as a mesh wall is: ``file`` with ``scale``, or ``shape`` with ``size``; ``place``."""
+    file: Optional[str] = None
+    scale: Number = 1.0
+    shape: Optional[str] = None
+    size: dict[str, Any] = {}
+    place: Optional[PlaceSpec] = None
+
+
+class MeshRegionSpec(_SensorMeshSpec):
+    """``rollingdem.MeshRegion``: the volume a closed mesh encloses, given as a mesh wall is, or the
+    mesh of the ``wall`` named so (a region to fill)."""
+    type: Literal["mesh"]
+    wall: Optional[str] = None
+
+
+RegionSpec = Annotated[Union[BoxRegionSpec, CylinderRegionSpec, MeshRegionSpec], Field(discriminator="type")]
 
 
 class UniformSpec(_Strict):
@@ -216,6 +232,20 @@ class DiscreteSpec(_Strict):
     weights: Optional[list[Number]] = None
 
 
+class MassFractionsSpec(_Strict):
+    """``rollingdem.MassFractions``: the ``radii`` (m) and the fraction of the mass each makes up."""
+    distribution: Literal["mass_fractions"]
+    radii: list[Number]
+    fractions: list[Number]
+
+
+class SieveSpec(_Strict):
+    """``rollingdem.SieveCurve``: the mass fraction ``passing`` each sieve of ``diameters`` (m)."""
+    distribution: Literal["sieve"]
+    diameters: list[Number]
+    passing: list[Number]
+
+
 def _radius_kind(value):
     """The tag of a radius: a number, or the distribution of a mapping (or of a parsed distribution)."""
     if isinstance(value, dict):
@@ -224,15 +254,20 @@ def _radius_kind(value):
 
 
 RadiusSpec = Annotated[Union[Annotated[Number, Tag("number")], Annotated[UniformSpec, Tag("uniform")],
-                             Annotated[NormalSpec, Tag("normal")], Annotated[DiscreteSpec, Tag("discrete")]],
+                             Annotated[NormalSpec, Tag("normal")], Annotated[DiscreteSpec, Tag("discrete")],
+                             Annotated[MassFractionsSpec, Tag("mass_fractions")], Annotated[SieveSpec, Tag("sieve")]],
                        Discriminator(_radius_kind, custom_error_type="radius_kind",
                                      custom_error_message="must be a number or a distribution {distribution: uniform "
-                                                          "| normal | discrete, ...}")]
+                                                          "| normal | discrete | mass_fractions | sieve, ...}")]
 
 
 class InsertSpec(_Strict):
+    """Spheres inserted in a region: ``count`` of them, or ``mass`` (kg), or a ``fraction`` of the
+    region's volume."""
     insert: RegionSpec
-    count: Whole
+    count: Optional[Whole] = None
+    mass: Optional[Number] = None
+    fraction: Optional[Number] = None
     radius: RadiusSpec
     material: str
     seed: Whole = 0
@@ -310,20 +345,6 @@ class MassFlowSpec(_MeasurementBase):
     point: Vector
     normal: Vector
     radius: Optional[Number] = None
-
-
-class _SensorMeshSpec(_Strict):
-    """A sensor's mesh, given as a mesh wall is: ``file`` with ``scale``, or ``shape`` with ``size``; ``place``."""
-    file: Optional[str] = None
-    scale: Number = 1.0
-    shape: Optional[str] = None
-    size: dict[str, Any] = {}
-    place: Optional[PlaceSpec] = None
-
-
-class MeshRegionSpec(_SensorMeshSpec):
-    """``rollingdem.MeshRegion``: the volume a closed mesh encloses."""
-    type: Literal["mesh"]
 
 
 class ProbeSpec(_MeasurementBase):
@@ -684,7 +705,7 @@ def load_case(path_or_dict) -> CaseSpec:
 
 
 def _radius(spec):
-    from rollingdem.scene.insertion import Discrete, Normal, Uniform
+    from rollingdem.scene.insertion import Discrete, MassFractions, Normal, SieveCurve, Uniform
 
     if isinstance(spec, (int, float)):
         return float(spec)
@@ -692,6 +713,10 @@ def _radius(spec):
         return Uniform(spec.low, spec.high)
     if isinstance(spec, NormalSpec):
         return Normal(spec.mean, spec.std, spec.low, spec.high)
+    if isinstance(spec, MassFractionsSpec):
+        return MassFractions(spec.radii, spec.fractions)
+    if isinstance(spec, SieveSpec):
+        return SieveCurve(spec.diameters, spec.passing)
     return Discrete(spec.values, spec.weights)
 
 
@@ -743,7 +768,8 @@ def build_simulation(case: CaseSpec):
     for k, p in enumerate(case.particles):
         with where(f"particles.{k}"):
             if isinstance(p, InsertSpec):
-                sim.insert(_region(p.insert), p.count, _radius(p.radius), p.material, seed=p.seed, velocity=p.velocity)
+                sim.insert(_region(p.insert, case.base_directory, sim), p.count, _radius(p.radius), p.material,
+                           seed=p.seed, velocity=p.velocity, mass=p.mass, fraction=p.fraction)
             elif isinstance(p, RoughBaseSpec):
                 base = rough_base(**p.rough_base.model_dump())
                 sim.add_particles(base, p.rough_base.radius, p.material, fixed=True)
@@ -759,21 +785,33 @@ def build_simulation(case: CaseSpec):
                 check_mesh_size(wall, sim.radii)
     for k, o in enumerate(case.outlets):
         with where(f"outlets.{k}"):
-            sim.add_outlet(_region(o.region), name=o.name, interval=o.interval,
-                           refill=None if o.refill is None else _region(o.refill), seed=o.seed)
+            refill = None if o.refill is None else _region(o.refill, case.base_directory, sim)
+            sim.add_outlet(_region(o.region, case.base_directory, sim), name=o.name, interval=o.interval,
+                           refill=refill, seed=o.seed)
     for k, i in enumerate(case.inflows):
         with where(f"inflows.{k}"):
-            sim.add_inflow(_region(i.region), _radius(i.radius), i.material, rate=i.rate, mass_rate=i.mass_rate,
+            sim.add_inflow(_region(i.region, case.base_directory, sim), _radius(i.radius), i.material, rate=i.rate, mass_rate=i.mass_rate,
                            velocity=i.velocity, seed=i.seed, name=i.name, interval=i.interval, start=i.start)
     return sim
 
 
-def _region(r, base: Path | None = None):
+def _region(r, base: Path | None = None, sim=None):
+    """The region of a case block; a mesh region's mesh given as a mesh wall is, or a wall's of ``sim``."""
     from rollingdem.scene.insertion import BoxRegion, CylinderRegion
 
     if r.type == "mesh":
         from rollingdem.scene.mesh import MeshRegion
 
+        if r.wall is not None:
+            if r.file is not None or r.shape is not None:
+                raise ParameterError(f"wall = {r.wall!r} is not allowed with a file or shape: the region is that "
+                                     "wall's mesh")
+            walls = [w for w in (sim.walls if sim is not None else []) if w.name == r.wall and hasattr(w, "mesh")]
+            if not walls:
+                names = [w.name for w in (sim.walls if sim is not None else []) if w.name and hasattr(w, "mesh")]
+                raise ParameterError(f"wall = {r.wall!r} is not allowed: no mesh wall has that name; mesh walls are "
+                                     f"{', '.join(map(repr, names)) or 'none'}")
+            return MeshRegion(walls[0])
         return MeshRegion(_sensor_mesh(r, base))
     return BoxRegion(r.lo, r.hi) if r.type == "box" else CylinderRegion(r.radius, r.z_min, r.z_max, center=r.center)
 
@@ -1023,7 +1061,7 @@ def build_measurements(case: CaseSpec, sim) -> dict:
             if m.type == "mass_flow":
                 made[m.name] = ms.MassFlow(point=m.point, normal=m.normal, radius=m.radius, **common)
             elif m.type == "probe":
-                made[m.name] = ms.Probe(region=_region(m.region, case.base_directory), **common)
+                made[m.name] = ms.Probe(region=_region(m.region, case.base_directory, sim), **common)
             elif m.type == "outlet":
                 made[m.name] = ms.OutletTotals(outlet=m.outlet, **common)
             elif m.type == "wall":
@@ -1128,10 +1166,12 @@ def _check_first_time_step(sim, sv) -> None:
 
 def mesh_lines(sim) -> list[str]:
     """Each mesh wall in one line (``TriangleMesh.report_line``): its size, triangles, free edges,
-    what reading its file merged and dropped."""
+    what reading its file merged and dropped; then each insert's spheres and the size distribution
+    they realise."""
     from rollingdem.physics.records import WALL_MESH
 
-    return [f"wall {w.name or '(unnamed)'!r}, {w.mesh.report_line()}" for w in sim.walls if w.kind == WALL_MESH]
+    return ([f"wall {w.name or '(unnamed)'!r}, {w.mesh.report_line()}" for w in sim.walls if w.kind == WALL_MESH]
+            + [f"inserted {line}" for line in sim.particle_set.fills])
 
 
 def default_case_path() -> Path:

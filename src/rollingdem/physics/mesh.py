@@ -176,3 +176,56 @@ def touching_features(px, py, pz, radius, vertices, triangles, edge_neighbors, c
             out_point[n, 2] = qz
             n += 1
     return n - lo
+
+
+@njit(cache=True, inline="always")
+def _edge_counts(ax, ay, bx, by, px, py):
+    """Whether p is inside, to the left of, the directed edge a -> b, ties broken by the half-open
+    rule (an edge pointing up, or left along x, owns the points on it): a point on an edge that two
+    triangles share, the same way round, is inside exactly one of them."""
+    e = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+    if e != 0.0:
+        return e > 0.0
+    dy = by - ay
+    return dy > 0.0 or (dy == 0.0 and bx < ax)
+
+
+@njit(cache=True)
+def inside_closed_mesh(points, vertices, triangles, cell_start, cell_items, x0, y0, h, nx, ny, out):
+    """Whether each point lies inside a closed triangle mesh: the parity of the triangles a ray from
+    it along +z crosses. A triangle is taken in projection on the xy plane, turned counter-clockwise,
+    with the half-open rule on its edges (``_edge_counts``), so a ray through a shared edge or vertex
+    crosses once; where the surface folds over, the two triangles at the fold count twice or not at
+    all, which keeps the parity. Triangles upright in projection (no area) are skipped: a ray along
+    them meets their neighbours. ``cell_start``/``cell_items``: the triangles whose xy box meets each
+    cell of an nx by ny grid of cells h wide from (x0, y0)."""
+    for p in range(points.shape[0]):
+        px, py, pz = points[p, 0], points[p, 1], points[p, 2]
+        i, j = int(math.floor((px - x0) / h)), int(math.floor((py - y0) / h))
+        out[p] = False
+        if i < 0 or j < 0 or i >= nx or j >= ny:
+            continue
+        cell = i * ny + j
+        crossings = 0
+        for k in range(cell_start[cell], cell_start[cell + 1]):
+            t = cell_items[k]
+            a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+            ax, ay, bx, by, cx, cy = vertices[a, 0], vertices[a, 1], vertices[b, 0], vertices[b, 1], \
+                vertices[c, 0], vertices[c, 1]
+            area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+            if area == 0.0:
+                continue
+            if area < 0.0:  # counter-clockwise in projection
+                b, c = c, b
+                bx, by, cx, cy = cx, cy, bx, by
+                area = -area
+            if not (_edge_counts(ax, ay, bx, by, px, py) and _edge_counts(bx, by, cx, cy, px, py)
+                    and _edge_counts(cx, cy, ax, ay, px, py)):
+                continue
+            # the triangle's height over p, from the barycentric coordinates of p's projection
+            wb = ((cx - ax) * (ay - py) - (cy - ay) * (ax - px)) / area
+            wc = ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) / area
+            z = vertices[a, 2] + wb * (vertices[b, 2] - vertices[a, 2]) + wc * (vertices[c, 2] - vertices[a, 2])
+            if z > pz:
+                crossings += 1
+        out[p] = crossings % 2 == 1

@@ -269,6 +269,92 @@ class Discrete(SizeDistribution):
         return f"Discrete({self.values.tolist()}, weights={self.weights.tolist()})"
 
 
+class MassFractions(Discrete):
+    """Radii ``radii`` (m) making up the given ``fractions`` of the mass (a bulk solid's size classes):
+    each drawn with the number weight f_k / r_k^3 (so N_k m_k is in proportion to f_k). The realised
+    mass fractions are ``realised(radii)``."""
+
+    def __init__(self, radii, fractions):
+        super().__init__(radii, fractions)
+        self.fractions = self.weights.copy()
+        number = self.fractions / self.values ** 3
+        self.weights = number / number.sum()
+        self.classes = [(float(v), float(v)) for v in self.values]
+
+    def realised(self, radii) -> np.ndarray:
+        """The mass fraction of each radius among ``radii`` (equal density)."""
+        r = np.asarray(radii, dtype=float)
+        volume = np.array([np.sum(r[np.isclose(r, v, rtol=1e-12, atol=0.0)] ** 3) for v in self.values])
+        return volume / max(float(np.sum(r ** 3)), 1e-300)
+
+    def __repr__(self) -> str:
+        return f"MassFractions({self.values.tolist()}, {self.fractions.tolist()})"
+
+
+class SieveCurve(SizeDistribution):
+    """A grading curve: the mass fraction ``passing`` (0 to 1, not decreasing, from 0 to 1) at each of
+    the sieve ``diameters`` (m, increasing), as a sieve analysis gives it. Between two sieves the
+    passing fraction is taken linear in the diameter: a constant mass per unit of diameter, so a
+    number density c / d^3, drawn by inverting its distribution; the class takes the number share
+    (P_k+1 - P_k) / (d_k+1 - d_k) (d_k^-2 - d_k+1^-2) / 2 (up to a common factor), which gives it
+    the mass share P_k+1 - P_k. ``realised(radii)``: the mass fraction in each class."""
+
+    def __init__(self, diameters, passing):
+        try:
+            d = np.asarray(diameters, dtype=float).reshape(-1)
+            p = np.asarray(passing, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ParameterError(f"SieveCurve diameters = {diameters!r}, passing = {passing!r} is not allowed: must "
+                                 "be numbers") from None
+        if len(d) < 2 or len(p) != len(d):
+            raise ParameterError(f"SieveCurve passing = {p.tolist()} is not allowed: need one per diameter "
+                                 f"({len(d)}), and at least two")
+        if not (np.all(np.isfinite(d)) and d[0] > 0.0 and np.all(np.diff(d) > 0.0)):
+            raise ParameterError(f"SieveCurve diameters = {d.tolist()} is not allowed: must be > 0 (m) and increasing")
+        if not (np.all(np.isfinite(p)) and np.all(np.diff(p) >= 0.0) and p[0] == 0.0 and p[-1] == 1.0):
+            raise ParameterError(f"SieveCurve passing = {p.tolist()} is not allowed: the fraction of the mass passing "
+                                 "each sieve must not decrease, from 0 at the first to 1 at the last")
+        self.diameters, self.passing = d, p
+        self.mass_shares = np.diff(p)
+        inv2 = 1.0 / d ** 2
+        number = self.mass_shares / np.diff(d) * 0.5 * (inv2[:-1] - inv2[1:])
+        self.number_shares = number / number.sum()
+        self.min_radius = 0.5 * float(d[np.argmax(self.mass_shares > 0)])
+        self.max_radius = 0.5 * float(d[len(self.mass_shares) - np.argmax(self.mass_shares[::-1] > 0)])
+        self.classes = [(0.5 * float(a), 0.5 * float(b)) for a, b in zip(d[:-1], d[1:])]
+
+    def sample(self, rng, n):
+        n = int(n)
+        k = rng.choice(len(self.number_shares), size=n, p=self.number_shares)
+        u = rng.random(n)
+        lo2, hi2 = self.diameters[k] ** -2.0, self.diameters[k + 1] ** -2.0
+        return 0.5 / np.sqrt(lo2 - u * (lo2 - hi2))  # the inverse of F(d) = (d_k^-2 - d^-2) / (d_k^-2 - d_k+1^-2)
+
+    def realised(self, radii) -> np.ndarray:
+        """The mass fraction of ``radii`` in each class between two sieves (equal density)."""
+        d = 2.0 * np.asarray(radii, dtype=float)
+        k = np.clip(np.searchsorted(self.diameters, d, side="right") - 1, 0, len(self.mass_shares) - 1)
+        volume = np.bincount(k, weights=d ** 3, minlength=len(self.mass_shares))
+        return volume / max(float(volume.sum()), 1e-300)
+
+    def __repr__(self) -> str:
+        return f"SieveCurve({self.diameters.tolist()}, {self.passing.tolist()})"
+
+
+def realised_line(distribution, radii) -> str:
+    """The realised mass fraction of each class beside the one asked for, for a distribution by mass;
+    for another, the radii's range and mean."""
+    r = np.asarray(radii, dtype=float)
+    if not len(r):
+        return "no spheres"
+    if hasattr(distribution, "realised"):
+        asked = distribution.fractions if isinstance(distribution, MassFractions) else distribution.mass_shares
+        got = distribution.realised(r)
+        return ("mass fractions " + " ".join(f"{g:.3f}" for g in got) + " (asked " + " ".join(f"{a:.3f}" for a in asked)
+                + ")")
+    return f"radius {r.min():.4g}-{r.max():.4g} m, mean {r.mean():.4g} m"
+
+
 def as_distribution(radius) -> SizeDistribution:
     """A ``SizeDistribution`` as is; a plain number as ``Constant``."""
     if isinstance(radius, SizeDistribution):
@@ -279,7 +365,7 @@ def as_distribution(radius) -> SizeDistribution:
         float(radius)
     except (TypeError, ValueError):
         raise ParameterError(f"radius = {radius!r} is not allowed: must be a number (m) or a size distribution "
-                             "(Uniform, Normal, Discrete)") from None
+                             "(Uniform, Normal, Discrete, MassFractions, SieveCurve)") from None
     return Constant(radius)
 
 
@@ -447,21 +533,46 @@ class _FreeCells:
         return True
 
 
-def fill_region(region: Region, count: int, radius, seed=0, existing_positions=None, existing_radii=None,
-                walls=(), max_attempts: int = 200) -> tuple[np.ndarray, np.ndarray]:
-    """Place ``count`` non-overlapping spheres wholly inside ``region`` by random sequential addition.
+def radii_to_volume(dist: SizeDistribution, rng, volume: float) -> np.ndarray:
+    """Radii drawn from ``dist`` one after another until their spheres' volume comes nearest
+    ``volume`` (m^3): the first k, k the count whose total is nearest."""
+    drawn, total, size = [], 0.0, 64
+    while total < volume:
+        batch = np.asarray(dist.sample(rng, size), dtype=float)
+        drawn.append(batch)
+        total += float(np.sum(4.0 / 3.0 * math.pi * batch ** 3))
+        mean = total / sum(len(b) for b in drawn)
+        size = int(min(1.1 * max(volume - total, 0.0) / mean + 64, 1e7))  # what is left, and a margin
+    r = np.concatenate(drawn)
+    cum = np.cumsum(4.0 / 3.0 * math.pi * r ** 3)
+    k = int(np.searchsorted(cum, volume))  # cum[k] >= volume > cum[k - 1]
+    if k > 0 and volume - cum[k - 1] < cum[k] - volume:
+        k -= 1
+    return r[:k + 1]
 
-    ``radius`` is a number (m) or a distribution (``Uniform``, ``Normal``, ``Discrete``). The spheres
-    overlap neither each other, the ``existing_positions`` / ``existing_radii`` particles nor any of
-    ``walls`` (``Plane`` / ``Cylinder``). Each sphere gets up to ``max_attempts`` random candidate
-    positions. Same ``seed``, same result. Returns (positions (count, 3), radii (count,)).
+
+def fill_region(region: Region, count: int | None, radius, seed=0, existing_positions=None, existing_radii=None,
+                walls=(), max_attempts: int = 200, volume: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Place ``count`` non-overlapping spheres wholly inside ``region`` by random sequential addition;
+    or, with ``volume`` (m^3) instead, as many as bring their volume nearest it (``radii_to_volume``).
+
+    ``radius`` is a number (m) or a distribution (``Uniform``, ``Normal``, ``Discrete``,
+    ``MassFractions``, ``SieveCurve``). The spheres overlap neither each other, the
+    ``existing_positions`` / ``existing_radii`` particles nor any of ``walls``. Each sphere gets up
+    to ``max_attempts`` random candidate positions. Same ``seed``, same result. Returns (positions
+    (count, 3), radii (count,)).
     """
     if not isinstance(region, Region):
-        raise ParameterError(f"region = {region!r} is not allowed: must be a BoxRegion or CylinderRegion")
-    n = _check_count("count", count)
+        raise ParameterError(f"region = {region!r} is not allowed: must be a BoxRegion, CylinderRegion or MeshRegion")
     max_attempts = _check_count("max_attempts", max_attempts)
     dist = as_distribution(radius)
     rng = np.random.default_rng(seed)
+    if volume is None:
+        n = _check_count("count", count)
+        r_all = np.asarray(dist.sample(rng, n), dtype=np.float64)
+    else:
+        r_all = radii_to_volume(dist, rng, check_positive("volume", volume, "m^3"))
+        n = len(r_all)
 
     # Existing particles.
     if existing_positions is None or np.size(existing_positions) == 0:
@@ -486,8 +597,7 @@ def fill_region(region: Region, count: int, radius, seed=0, existing_positions=N
 
     walls = [w for w in (walls or ()) if getattr(w, "kind", -1) >= 0]
 
-    # Radii, and the checks that need no attempt.
-    r_all = np.asarray(dist.sample(rng, n), dtype=np.float64)
+    # the checks that need no attempt
     rmax = float(r_all.max())
     vol = region.volume()
     fraction = float((4.0 / 3.0) * math.pi * np.sum(r_all ** 3) / vol)
@@ -564,6 +674,10 @@ def _slab_plan(region: Region, rho0: float, rmax: float, n: int) -> list[tuple[R
             z_lo, z_hi = lo[axis] + s_lo, lo[axis] + s_hi + 2.0 * rmax
             if isinstance(region, CylinderRegion):
                 plan.append((CylinderRegion(region.radius, z_lo, z_hi, region.center), idx))
+            elif hasattr(region, "clipped"):  # a mesh's volume, cut into slabs of its box
+                b_lo, b_hi = lo.copy(), hi.copy()
+                b_lo[axis], b_hi[axis] = z_lo, z_hi
+                plan.append((region.clipped(b_lo, b_hi), idx))
             else:
                 b_lo, b_hi = lo.copy(), hi.copy()
                 b_lo[axis], b_hi[axis] = z_lo, z_hi
@@ -620,7 +734,7 @@ def _fill(region: Region, r_all: np.ndarray, rng, ex: np.ndarray, er: np.ndarray
         attempts[waiting] += k
         if grid is None:
             xc = region.sample(rng, rc)
-            ok = np.ones(sph.size, dtype=bool)
+            ok = np.isfinite(xc[:, 0])  # a region drawn by rejection marks a candidate it found no place for
         else:
             xc = grid.sample(rng, sph.size)
             if xc is None:  # no free place left anywhere: no attempt can succeed

@@ -400,31 +400,15 @@ def sphere_overlap(mesh: TriangleMesh, x, r) -> np.ndarray:
     return out
 
 
-def winding_number(mesh: TriangleMesh, x, block: int = 1 << 18) -> np.ndarray:
-    """The winding number of a closed ``mesh`` about each point of ``x`` (n, 3): the sum of its
-    triangles' solid angles over 4 pi, +-1 inside (the sign is the normals' orientation), 0 outside.
-    Each triangle's solid angle is Van Oosterom & Strackee's (IEEE Trans. Biomed. Eng. 30, 1983):
-    tan(Omega / 2) = a.(b x c) / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|), with a, b, c its
-    corners relative to the point."""
-    x = np.asarray(x, dtype=float).reshape(-1, 3)
-    corners = mesh.vertices[mesh.triangles]  # (m, 3, 3)
-    out = np.zeros(len(x))
-    step = max(1, block // max(1, len(corners)))
-    for s in range(0, len(x), step):
-        rel = corners[None, :, :, :] - x[s:s + step, None, None, :]  # (p, m, 3, 3)
-        a, b, c = rel[:, :, 0], rel[:, :, 1], rel[:, :, 2]
-        la, lb, lc = (np.linalg.norm(q, axis=2) for q in (a, b, c))
-        det = np.einsum("pmi,pmi->pm", a, np.cross(b, c))
-        den = (la * lb * lc + np.einsum("pmi,pmi->pm", a, b) * lc + np.einsum("pmi,pmi->pm", a, c) * lb
-               + np.einsum("pmi,pmi->pm", b, c) * la)
-        out[s:s + step] = 2.0 * np.arctan2(det, den).sum(axis=1) / (4.0 * math.pi)
-    return out
+#: centres drawn to see whether a sphere fits in a mesh region, and rounds of drawing its centres
+FIT_TRIES, SAMPLE_ROUNDS = 2000, 50
 
 
 class MeshRegion(Region):
     """The volume a closed triangle ``mesh`` (a ``TriangleMesh``, or a ``MeshWall``'s) encloses: a
-    probe's region. A point is inside where the mesh's winding number about it is above one half in
-    magnitude; a sphere, where its centre is inside and no point of the mesh is nearer than its radius.
+    probe's region, a region to fill. A point is inside where a ray from it crosses the mesh an odd
+    number of times (``physics.mesh.inside_closed_mesh``); a sphere, where its centre is inside and no
+    point of the mesh is nearer than its radius.
     Refused in one line when the mesh is not closed (an edge of one triangle only)."""
 
     def __init__(self, mesh):
@@ -439,9 +423,42 @@ class MeshRegion(Region):
                                  f"of triangle {k} belongs to no other triangle ({len(free)} such edges)")
         self.mesh = mesh
         self._volume = abs(mesh.enclosed_volume())
+        self._clip = None
+        self._bin_triangles()
+
+    def _bin_triangles(self):
+        """The triangles binned by their xy boxes on a grid of about four cells a triangle (the ray
+        test's, ``physics.mesh.inside_closed_mesh``)."""
+        v, t = self.mesh.vertices, self.mesh.triangles
+        lo, hi = v[:, :2].min(axis=0), v[:, :2].max(axis=0)
+        span = np.maximum(hi - lo, 1e-12 * max(float((hi - lo).max()), 1e-300))
+        h = float(math.sqrt(span[0] * span[1] / (4.0 * len(t))))
+        n = np.maximum(np.ceil(span / h).astype(np.int64), 1)
+        corners = v[t][:, :, :2]
+        first = np.clip(np.floor((corners.min(axis=1) - lo) / h).astype(np.int64), 0, n - 1)
+        last = np.clip(np.floor((corners.max(axis=1) - lo) / h).astype(np.int64), 0, n - 1)
+        cells, items = [], []
+        for k in range(len(t)):
+            ii, jj = np.meshgrid(np.arange(first[k, 0], last[k, 0] + 1), np.arange(first[k, 1], last[k, 1] + 1),
+                                 indexing="ij")
+            cells.append((ii * n[1] + jj).reshape(-1))
+            items.append(np.full(cells[-1].size, k, dtype=np.int64))
+        cells, items = np.concatenate(cells), np.concatenate(items)
+        order = np.argsort(cells, kind="stable")
+        self._grid = (np.concatenate([[0], np.cumsum(np.bincount(cells, minlength=int(n[0] * n[1])))]).astype(np.int64),
+                      items[order], float(lo[0]), float(lo[1]), h, int(n[0]), int(n[1]))
 
     def volume(self) -> float:
         return self._volume
+
+    def inside(self, x) -> np.ndarray:
+        """Whether each point of ``x`` (n, 3) lies inside the mesh (the parity of a ray's crossings)."""
+        from rollingdem.physics.mesh import inside_closed_mesh
+
+        x = np.ascontiguousarray(np.asarray(x, dtype=float).reshape(-1, 3))
+        out = np.zeros(len(x), dtype=np.bool_)
+        inside_closed_mesh(x, self.mesh.vertices, self.mesh.triangles, *self._grid, out)
+        return out
 
     def contains(self, x, r):
         x = np.asarray(x, dtype=float).reshape(-1, 3)
@@ -449,20 +466,50 @@ class MeshRegion(Region):
         lo, hi = self.bounds()
         inside = ((x - r[:, None] >= lo) & (x + r[:, None] <= hi)).all(axis=1)  # the box first: most points are out
         k = np.nonzero(inside)[0]
-        inside[k] = np.abs(winding_number(self.mesh, x[k])) > 0.5
+        inside[k] = self.inside(x[k])
         k = k[inside[k] & (r[k] > 0)]
         if len(k):
             inside[k] = sphere_overlap(self.mesh, x[k], r[k]) <= 0.0
         return inside
 
     def fits(self, r: float) -> bool:
-        raise ParameterError("MeshRegion: insertion into a mesh volume is not available; a mesh region is a probe's")
+        """Whether a sphere of radius r fits inside: one of ``FIT_TRIES`` centres drawn in the box does."""
+        rng = np.random.default_rng(0)
+        lo, hi = self.bounds()
+        if np.any(hi - lo <= 2.0 * r):
+            return False
+        x = lo + r + rng.random((FIT_TRIES, 3)) * (hi - lo - 2.0 * r)
+        return bool(self.contains(x, np.full(FIT_TRIES, r)).any())
 
     def sample(self, rng, r):
-        self.fits(float(np.max(r)))
+        """Centres uniform over where each sphere (radius r) fits, drawn in the box and kept inside."""
+        r = np.asarray(r, dtype=float).reshape(-1)
+        lo, hi = self.bounds()
+        out = np.empty((len(r), 3))
+        todo = np.arange(len(r))
+        for _ in range(SAMPLE_ROUNDS):
+            if not len(todo):
+                return out
+            x = lo + r[todo, None] + rng.random((len(todo), 3)) * np.maximum(hi - lo - 2.0 * r[todo, None], 0.0)
+            ok = self.contains(x, r[todo])
+            out[todo[ok]] = x[ok]
+            todo = todo[~ok]
+        out[todo] = np.nan  # no place found: a candidate that fails
+        return out
 
     def bounds(self):
-        return self.mesh.vertices.min(axis=0), self.mesh.vertices.max(axis=0)
+        lo, hi = self.mesh.vertices.min(axis=0), self.mesh.vertices.max(axis=0)
+        if self._clip is not None:
+            lo, hi = np.maximum(lo, self._clip[0]), np.minimum(hi, self._clip[1])
+        return lo, hi
+
+    def clipped(self, lo, hi) -> "MeshRegion":
+        """The part of the region inside the box [lo, hi] (a slab of a large fill, ``insertion._slab_plan``)."""
+        import copy
+
+        part = copy.copy(self)
+        part._clip = (np.asarray(lo, dtype=float), np.asarray(hi, dtype=float))
+        return part
 
     def __repr__(self) -> str:
         return f"MeshRegion({self.mesh.label}, {self.mesh.n_triangles} triangles, volume {self._volume:.6g} m^3)"

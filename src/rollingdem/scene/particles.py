@@ -9,7 +9,7 @@ import numpy as np
 
 from rollingdem.engine.layout import I_FORCES_VALID
 from rollingdem.engine.schema import PER_PARTICLE, SCHEMA
-from rollingdem.errors import ParameterError, short_repr
+from rollingdem.errors import ParameterError, check_finite, check_positive, short_repr
 from rollingdem.scene import periodic as periodic_box
 
 SOLID_SPHERE = 0.4
@@ -59,6 +59,7 @@ class Particles:
 
     def __init__(self, sim):
         self.sim = sim
+        self.fills: list[str] = []  # each insert's count, region and realised size distribution, in words
 
     @property
     def state(self):
@@ -153,18 +154,41 @@ class Particles:
                 raise ParameterError(f"particle {first + k} overlaps wall {sim.wall_set.label(wl)} by {ov[k]:.3g} m "
                                      f"at insertion ({sim.hints['allow_overlap']} to accept it)")
 
-    def insert(self, region, count, radius, material, seed=0, velocity=None, max_attempts=200) -> np.ndarray:
+    def insert(self, region, count, radius, material, seed=0, velocity=None, max_attempts=200, mass=None,
+               fraction=None) -> np.ndarray:
         """``Simulation.insert``."""
         from rollingdem.engine.neighbors import spatial_order
-        from rollingdem.scene.insertion import fill_region
+        from rollingdem.scene.insertion import MAX_PACKING_FRACTION, as_distribution, fill_region, realised_line
 
         sim = self.sim
+        if radius is None or material is None:
+            raise ParameterError(f"{'radius' if radius is None else 'material'} = None is not allowed: give the "
+                                 "spheres' radius (m, or a size distribution) and material")
         for mat in (material if isinstance(material, (list, tuple, np.ndarray)) else [material]):
             sim.materials.index(mat)  # an unknown material is refused before a long fill
         if velocity is not None:
             vectors_of("velocity", velocity, 1)
+        given = [(k, v) for k, v in (("count", count), ("mass", mass), ("fraction", fraction)) if v is not None]
+        if len(given) != 1:
+            raise ParameterError(f"{', '.join(f'{k} = {v!r}' for k, v in given) or 'count = None'} is not allowed: "
+                                 "give exactly one of count, mass (kg) and fraction (of the region's volume)")
+        volume = None
+        if mass is not None or fraction is not None:
+            if isinstance(material, (list, tuple, np.ndarray)):
+                raise ParameterError(f"material = {short_repr(material)} is not allowed with {given[0][0]}: give one "
+                                     "material (its density turns the mass into a volume)")
+            if mass is not None:
+                volume = check_positive("mass", mass, "kg") / sim.materials[material].density
+            else:
+                fraction = check_finite("fraction", fraction)
+                if not 0.0 < fraction <= MAX_PACKING_FRACTION:
+                    raise ParameterError(f"fraction = {fraction:g} is not allowed: must be in (0, {MAX_PACKING_FRACTION}] "
+                                         "(random insertion tops out near 0.3-0.35; insert less and let it settle)")
+                volume = fraction * region.volume()
         x, r = fill_region(region, count, radius, seed=seed, existing_positions=self.state.x,
-                           existing_radii=self.state.radius, walls=sim.walls, max_attempts=max_attempts)
+                           existing_radii=self.state.radius, walls=sim.walls, max_attempts=max_attempts,
+                           volume=volume)
+        self.fills.append(f"{len(r)} spheres in {region!r}: {realised_line(as_distribution(radius), r)}")
         order = spatial_order(x, 2.0 * float(r.max()))  # neighbors in space get nearby indices
         return self.add(x[order], r[order], material, velocity=velocity)
 

@@ -177,15 +177,13 @@ class Simulation:
         """
         return self.particle_set.add(positions, radius, material, velocity, angular_velocity, allow_overlap, fixed)
 
-    def insert(self, region, count: int, radius, material, seed: int = 0, velocity=None,
-               max_attempts: int = 200) -> np.ndarray:
-        """Fill ``region`` (``BoxRegion`` / ``CylinderRegion``) with ``count`` non-overlapping spheres.
-
-        ``radius`` is a number or a distribution (``rd.Uniform``, ``rd.Normal``, ``rd.Discrete``).
-        Reproducible from ``seed``; raises when the region cannot hold them. The new spheres are
-        numbered in Morton order of their positions (``rollingdem.engine.neighbors.spatial_order``).
-        """
-        return self.particle_set.insert(region, count, radius, material, seed, velocity, max_attempts)
+    def insert(self, region, count: int | None = None, radius=None, material=None, seed: int = 0, velocity=None,
+               max_attempts: int = 200, mass: float | None = None, fraction: float | None = None) -> np.ndarray:
+        """Fill ``region`` (``BoxRegion``, ``CylinderRegion``, ``MeshRegion``) with ``count`` non-overlapping
+        spheres, or with spheres of ``mass`` (kg) or a ``fraction`` of its volume in all. ``radius``: a number or
+        a distribution (``rd.Uniform``, ``Normal``, ``Discrete``, ``MassFractions``, ``SieveCurve``). Reproducible
+        from ``seed``; raises when the region cannot hold them. The new spheres are numbered in Morton order."""
+        return self.particle_set.insert(region, count, radius, material, seed, velocity, max_attempts, mass, fraction)
 
     positions = _particle_view("x", "Positions (m), (N, 3), in the order the particles were added.")
     velocities = _particle_view("v", "Velocities (m/s), (N, 3).")

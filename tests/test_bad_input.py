@@ -254,6 +254,11 @@ CATALOGUE = [
                                 "material: m}\n"),
      "particles.1: SieveCurve passing = [0.0, 0.9] is not allowed: the fraction of the mass passing each sieve must "
      "not decrease, from 0 at the first to 1 at the last"),
+    ("an inflow going back through its face",
+     edit("stages:", "inflows:\n  - {region: {type: disk, center: [0, 0, 0.1], normal: [0, 0, -1], radius: 0.02}, "
+                     "radius: 0.005, material: m, rate: 10, velocity: [0, 0, 1]}\nstages:"),
+     "inflows.0: inflow velocity = [0.0, 0.0, 1.0] is not allowed through Disk(center=[0.0, 0.0, 0.1], normal=[0.0, "
+     "0.0, -1.0], radius=0.02): it points back through the face (against its normal)"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),
     ("empty file", "", "is empty: must hold a mapping of keys"),
     ("a list, not a mapping", "- a\n- b\n", "must hold a mapping of keys, got list"),

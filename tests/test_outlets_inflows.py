@@ -313,3 +313,54 @@ def test_an_inflow_the_walls_leave_no_room_in_is_refused_before_the_run():
     ok.add_particles([[0, 0, 0.01]], 0.002, "m")
     ok.add_inflow(rd.BoxRegion((0, 0, -0.02), (0.02, 0.02, 0.02)), radius=0.002, material="m", rate=100)
     ok.run(steps=1)
+
+
+@pytest.mark.parametrize("face", ["disk", "rectangle", "mesh face"])
+def test_an_inflow_through_a_face_streams_its_mass_rate_through_it(face):
+    """With no gravity, spheres streamed through a face at 0.5 m/s along its normal: each is placed
+    wholly behind the face (its centre r to 1.2 r behind: the layer is 2.2 r deep, more than the
+    0.5 m/s x 1 ms = 0.5 mm the stream moves in an interval), laterally within it, moving at the
+    stream's velocity (so at most 0.5 m/s x t nearer the face by t); and the mass crossing the face's
+    plane over 0.1 to 0.3 s (``MassFlow``'s least-squares rate) is the inflow's 0.05 kg/s: the
+    inflow has asked for mass_rate x t to the nearest sphere by each action, so the rate is off by
+    at most two spheres' mass over the 0.2 s window (1.7 %)."""
+    from rollingdem.scene.mesh import TriangleMesh
+
+    r = 0.002
+    if face == "disk":
+        region = rd.Disk(center=(0, 0, 0.1), normal=(0, 0, -1), radius=0.02)
+    elif face == "rectangle":
+        region = rd.Rectangle(center=(0, 0, 0.1), normal=(0, 0, -1), size=(0.04, 0.03), axis=(1, 1, 0))
+    else:
+        square = TriangleMesh([[-0.02, -0.02, 0.1], [0.02, -0.02, 0.1], [0.02, 0.02, 0.1], [-0.02, 0.02, 0.1]],
+                              [[0, 1, 2], [0, 2, 3]], label="inlet")
+        region = rd.MeshFace(square, normal=(0, 0, -1))
+    sim = rd.Simulation(gravity=(0, 0, 0))
+    sim.add_material(rd.Material("m", 1e7, 0.3, 2500.0))
+    sim.add_inflow(region, radius=r, material="m", mass_rate=0.05, velocity=(0, 0, -0.5), seed=1)
+    sim.run(2e-3)
+    x = sim.positions
+    assert sim.n_particles > 0
+    assert np.all(x[:, 2] >= 0.1 + r - 0.5 * sim.time - 1e-12) and np.all(x[:, 2] <= 0.1 + 1.2 * r + 1e-12)
+    if face == "disk":
+        assert np.all(np.hypot(x[:, 0], x[:, 1]) <= 0.02 - r + 1e-12)
+    elif face == "rectangle":
+        e1 = np.array([1, 1, 0]) / math.sqrt(2)
+        e2 = np.cross([0, 0, -1], e1)
+        assert np.all(np.abs(x @ e1) <= 0.02 - r + 1e-12) and np.all(np.abs(x @ e2) <= 0.015 - r + 1e-12)
+    else:
+        assert np.all(np.abs(x[:, :2]) <= 0.02 + 1e-12)
+    assert np.allclose(sim.velocities, [0, 0, -0.5])
+    flow = rd.MassFlow("face", point=(0, 0, 0.1), normal=(0, 0, -1), interval=1e-3, window=(0.1, 0.3))
+    sim.run(0.3, observers=[flow])
+    one = 2500.0 * 4.0 / 3.0 * math.pi * r ** 3
+    assert flow.summary()["rate"]["mean"] == pytest.approx(0.05, abs=2 * one / 0.2)
+
+
+def test_an_inflow_through_a_face_is_refused_going_back_through_it():
+    sim = rd.Simulation(gravity=(0, 0, 0))
+    sim.add_material(rd.Material("m", 1e7, 0.3, 2500.0))
+    with pytest.raises(ParameterError, match=r"inflow velocity = \[0.0, 0.0, 0.5\] is not allowed through Disk\(.*\): "
+                                             "it points back through the face"):
+        sim.add_inflow(rd.Disk((0, 0, 0.1), (0, 0, -1), 0.02), radius=0.002, material="m", rate=10,
+                       velocity=(0, 0, 0.5))

@@ -17,8 +17,8 @@ from rollingdem.scene import convert  # noqa: E402
 from rollingdem.scene.bonds import ParallelBond  # noqa: E402
 from rollingdem.physics.contact import ContactModel  # noqa: E402
 from rollingdem.errors import ParameterError, SimulationError  # noqa: E402
-from rollingdem.scene.insertion import (BoxRegion, CylinderRegion, Discrete, MassFractions, Normal, SieveCurve,  # noqa: E402
-                                       Uniform, rough_base)  # noqa: E402
+from rollingdem.scene.insertion import (BoxRegion, CylinderRegion, Discrete, Disk, MassFractions, MeshFace,  # noqa: E402
+                                       Normal, Rectangle, SieveCurve, Uniform, rough_base)  # noqa: E402
 from rollingdem.scene.materials import Material, MaterialTable  # noqa: E402
 from rollingdem.scene.mesh import MeshRegion, MeshWall, TriangleMesh  # noqa: E402
 from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots  # noqa: E402
@@ -36,7 +36,7 @@ globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (r
 __all__ = [
     "convert", "Simulation", "ContactModel", "ParallelBond", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "Oscillation", "MotionTable", "Servo", "MeshRegion", "TriangleMesh", "TimeSeries",
     "VTKSnapshots", "Checkpoints", "Callback", "Observer", "MassFlow", "MeshFlow", "Probe", "OutletTotals", "WallLoad",
-    "PileAngle", "DrumAngle", "DrumFlow", "SurfaceProfile", "Function", "Settled", "Reaches", "Empty", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "MassFractions", "SieveCurve",
+    "PileAngle", "DrumAngle", "DrumFlow", "SurfaceProfile", "Function", "Settled", "Reaches", "Empty", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "MassFractions", "SieveCurve", "Disk", "Rectangle", "MeshFace",
     "Discrete", "rough_base", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
     *_contact.SUBMODELS,
 ]

@@ -320,8 +320,35 @@ class OutletSpec(_Strict):
     seed: Whole = 0
 
 
+class DiskFaceSpec(_Strict):
+    """``rollingdem.Disk``: a face of ``radius`` about ``center``, particles going along ``normal``."""
+    type: Literal["disk"]
+    center: Vector
+    normal: Vector
+    radius: Number
+
+
+class RectangleFaceSpec(_Strict):
+    """``rollingdem.Rectangle``: a face of ``size`` (width, height) about ``center``, its width along ``axis``."""
+    type: Literal["rectangle"]
+    center: Vector
+    normal: Vector
+    size: tuple[Number, Number]
+    axis: Optional[Vector] = None
+
+
+class MeshFaceSpec(_SensorMeshSpec):
+    """``rollingdem.MeshFace``: a flat mesh (given as a mesh wall is, or the ``wall`` named so) as a face."""
+    type: Literal["mesh_face"]
+    wall: Optional[str] = None
+    normal: Optional[Vector] = None
+
+
 class InflowSpec(_Strict):
-    region: RegionSpec
+    """Particles inserted during the run into ``region``, or through a face (``disk``, ``rectangle``,
+    ``mesh_face``) at ``velocity``."""
+    region: Annotated[Union[BoxRegionSpec, CylinderRegionSpec, MeshRegionSpec, DiskFaceSpec, RectangleFaceSpec,
+                            MeshFaceSpec], Field(discriminator="type")]
     radius: RadiusSpec
     material: str
     rate: Optional[Number] = None
@@ -557,7 +584,7 @@ class CaseSpec(_Strict):
     contact: ContactSpec = ContactSpec()
     periodic: Optional[PeriodicSpec] = None
     walls: list[WallSpec] = []
-    particles: list[ParticleSpec] = Field(min_length=1)
+    particles: list[ParticleSpec] = []  # none: an inflow fills the scene
     outlets: list[OutletSpec] = []
     inflows: list[InflowSpec] = []
     measurements: list[MeasurementSpec] = []
@@ -736,6 +763,9 @@ def build_simulation(case: CaseSpec):
     def where(key):
         return _InCase(key)
 
+    if not case.particles and not case.inflows:
+        raise ParameterError("particles = [] is not allowed without an inflow: give a particle block, or an inflow "
+                             "that fills the scene")
     with where("contact"):
         contact = ContactModel(**case.contact.model_dump())
     periodic = {k: v for k, v in case.periodic.model_dump().items() if v is not None} if case.periodic else None
@@ -799,9 +829,19 @@ def _region(r, base: Path | None = None, sim=None):
     """The region of a case block; a mesh region's mesh given as a mesh wall is, or a wall's of ``sim``."""
     from rollingdem.scene.insertion import BoxRegion, CylinderRegion
 
-    if r.type == "mesh":
+    if r.type == "disk":
+        from rollingdem.scene.insertion import Disk
+
+        return Disk(r.center, r.normal, r.radius)
+    if r.type == "rectangle":
+        from rollingdem.scene.insertion import Rectangle
+
+        return Rectangle(r.center, r.normal, r.size, r.axis)
+    if r.type in ("mesh", "mesh_face"):
+        from rollingdem.scene.insertion import MeshFace
         from rollingdem.scene.mesh import MeshRegion
 
+        made = MeshRegion if r.type == "mesh" else (lambda mesh: MeshFace(mesh, r.normal))
         if r.wall is not None:
             if r.file is not None or r.shape is not None:
                 raise ParameterError(f"wall = {r.wall!r} is not allowed with a file or shape: the region is that "
@@ -811,8 +851,8 @@ def _region(r, base: Path | None = None, sim=None):
                 names = [w.name for w in (sim.walls if sim is not None else []) if w.name and hasattr(w, "mesh")]
                 raise ParameterError(f"wall = {r.wall!r} is not allowed: no mesh wall has that name; mesh walls are "
                                      f"{', '.join(map(repr, names)) or 'none'}")
-            return MeshRegion(walls[0])
-        return MeshRegion(_sensor_mesh(r, base))
+            return made(walls[0])
+        return made(_sensor_mesh(r, base))
     return BoxRegion(r.lo, r.hi) if r.type == "box" else CylinderRegion(r.radius, r.z_min, r.z_max, center=r.center)
 
 

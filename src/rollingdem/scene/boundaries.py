@@ -21,7 +21,8 @@ from rollingdem.errors import ParameterError, check_integer, check_non_negative,
 from rollingdem.scene import periodic as periodic_box
 from rollingdem.scene.particles import sphere_mass
 from rollingdem.scene.schedule import INSERT, REMOVE, Operation
-from rollingdem.scene.insertion import BoxRegion, Constant, CylinderRegion, Discrete, Normal, Region, Uniform, as_distribution
+from rollingdem.scene.insertion import (BoxRegion, Constant, CylinderRegion, Discrete, Face, FacePrism, MassFractions, Normal,
+                                       Region, SieveCurve, Uniform, as_distribution, face_from_dict)
 
 DEFAULT_INTERVAL = 1e-3
 """Seconds between two actions of an outlet or inflow, unless given: a sphere falling at 1 m/s goes
@@ -33,6 +34,8 @@ PLACEMENT_ATTEMPTS = 100
 
 
 def region_to_dict(region: Region) -> dict:
+    if hasattr(region, "to_dict"):  # a face's prism, a mesh's volume
+        return region.to_dict()
     if isinstance(region, BoxRegion):
         return {"type": "box", "lo": region.lo.tolist(), "hi": region.hi.tolist()}
     return {"type": "cylinder", "radius": region.radius, "z_min": region.z_min, "z_max": region.z_max,
@@ -42,6 +45,12 @@ def region_to_dict(region: Region) -> dict:
 def region_from_dict(d: dict) -> Region:
     if d["type"] == "box":
         return BoxRegion(d["lo"], d["hi"])
+    if d["type"] == "face":
+        return FacePrism(face_from_dict(d["face"]), d["depth"])
+    if d["type"] == "mesh":
+        from rollingdem.scene.mesh import MeshRegion, TriangleMesh
+
+        return MeshRegion(TriangleMesh(d["vertices"], d["triangles"], label=d["label"]))
     return CylinderRegion(d["radius"], d["z_min"], d["z_max"], center=d["center"])
 
 
@@ -52,18 +61,25 @@ def distribution_to_dict(dist) -> dict:
         return {"distribution": "uniform", "low": dist.low, "high": dist.high}
     if isinstance(dist, Normal):
         return {"distribution": "normal", "mean": dist.mean, "std": dist.std, "low": dist.low, "high": dist.high}
+    if isinstance(dist, MassFractions):
+        return {"distribution": "mass_fractions", "radii": dist.values.tolist(), "fractions": dist.fractions.tolist()}
+    if isinstance(dist, SieveCurve):
+        return {"distribution": "sieve", "diameters": dist.diameters.tolist(), "passing": dist.passing.tolist()}
     return {"distribution": "discrete", "values": dist.values.tolist(), "weights": dist.weights.tolist()}
 
 
 def distribution_from_dict(d: dict):
     kind = d["distribution"]
     args = {k: v for k, v in d.items() if k != "distribution"}
-    return {"constant": Constant, "uniform": Uniform, "normal": Normal, "discrete": Discrete}[kind](**args)
+    return {"constant": Constant, "uniform": Uniform, "normal": Normal, "discrete": Discrete,
+            "mass_fractions": MassFractions, "sieve": SieveCurve}[kind](**args)
 
 
 def _check_region(what: str, region) -> Region:
     if not isinstance(region, Region):
-        raise ParameterError(f"{what} region = {region!r} is not allowed: must be a rd.BoxRegion or rd.CylinderRegion")
+        faces = ", or a face (rd.Disk, Rectangle, MeshFace)" if what == "inflow" else ""
+        raise ParameterError(f"{what} region = {region!r} is not allowed: must be a rd.BoxRegion, CylinderRegion or "
+                             f"MeshRegion{faces}")
     return region
 
 
@@ -197,6 +213,14 @@ class Inflow(Boundary):
 
     def __init__(self, region, radius, material, rate=None, mass_rate=None, velocity=None, seed=0, name=None,
                  interval=None, start=0.0):
+        if isinstance(region, Face):  # through a face: placed behind it, as deep as they go in an interval
+            v = check_vector("inflow velocity", (0.0, 0.0, 0.0) if velocity is None else velocity)
+            ahead = float(np.asarray(v) @ region.normal)
+            if ahead < 0.0:
+                raise ParameterError(f"inflow velocity = {list(v)} is not allowed through {region!r}: it points "
+                                     "back through the face (against its normal)")
+            every = DEFAULT_INTERVAL if interval is None else check_positive("inflow interval", interval, "s")
+            region = region.prism(max(FACE_DEPTH * as_distribution(radius).max_radius, ahead * every))
         super().__init__(region, name, interval)
         if (rate is None) == (mass_rate is None):
             raise ParameterError(f"inflow rate = {rate!r}, mass_rate = {mass_rate!r} is not allowed: give exactly one, "
@@ -287,6 +311,8 @@ class Inflow(Boundary):
         return inflow
 
 
+#: the least depth behind a face an inflow places its spheres in, in largest radii (a layer of them)
+FACE_DEPTH = 2.2
 #: centres drawn in an inflow's region to see that the walls leave room in it (``Boundaries.check_room``)
 ROOM_SAMPLES = 1000
 

@@ -503,6 +503,10 @@ class MeshRegion(Region):
             lo, hi = np.maximum(lo, self._clip[0]), np.minimum(hi, self._clip[1])
         return lo, hi
 
+    def to_dict(self) -> dict:
+        return {"type": "mesh", "vertices": self.mesh.vertices.tolist(), "triangles": self.mesh.triangles.tolist(),
+                "label": self.mesh.label}
+
     def clipped(self, lo, hi) -> "MeshRegion":
         """The part of the region inside the box [lo, hi] (a slab of a large fill, ``insertion._slab_plan``)."""
         import copy

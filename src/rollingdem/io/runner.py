@@ -235,6 +235,8 @@ class _Run:
                     self.on_stage_end(self)
             for m in self.measurements.values():
                 echo(f"  {m.summary_line()}")
+            for inflow in sim.inflows:
+                echo(f"  {inflow.realised()}")
             if self.case.output.repose_angle is not None:
                 summary["repose_angle"] = _measure_pile(sim, self.case.output.repose_angle, self.outdir, echo)
         except ParameterError as err:  # refused later on (a stage's dt after the state changed): say where
@@ -247,6 +249,7 @@ class _Run:
         finally:
             if self.measurements:  # a failed run's too, up to the failure
                 summary["measurements"] = {name: m.summary() for name, m in self.measurements.items()}
+            summary["inflows"] = [inflow.totals() for inflow in sim.inflows]
             summary.update({"time": sim.time, "steps": sim.step, "particles_left": sim.n_particles,
                             "wall_seconds": time.perf_counter() - self.tic,
                             "kinetic_energy": sum(sim.kinetic_energy()),

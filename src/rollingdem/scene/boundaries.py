@@ -22,7 +22,7 @@ from rollingdem.scene import periodic as periodic_box
 from rollingdem.scene.particles import sphere_mass
 from rollingdem.scene.schedule import INSERT, REMOVE, Operation
 from rollingdem.scene.insertion import (BoxRegion, Constant, CylinderRegion, Discrete, Face, FacePrism, MassFractions, Normal,
-                                       Region, SieveCurve, Uniform, as_distribution, face_from_dict)
+                                       Region, SieveCurve, Uniform, as_distribution, face_from_dict, fractions_line)
 
 DEFAULT_INTERVAL = 1e-3
 """Seconds between two actions of an outlet or inflow, unless given: a sphere falling at 1 m/s goes
@@ -243,6 +243,10 @@ class Inflow(Boundary):
         self.shortfall = 0
         self.actions = 0  # actions so far: each draws from its own random stream (seed, action)
         self.warned = False
+        self.waiting = np.zeros(0)  # radii drawn that found no room yet (m): the shortfall
+        self.queue = np.zeros(0)  # radii drawn for a mass rate, not yet due (m)
+        # what it inserted of each size class, for a distribution by mass (m^3): its realised fractions
+        self.class_volume = (np.zeros(len(self.radius.asked)) if hasattr(self.radius, "class_volumes") else None)
 
     def values(self) -> list:
         return [self.count, self.mass, self.shortfall]
@@ -251,47 +255,82 @@ class Inflow(Boundary):
         return {**super().describe(), "radius": distribution_to_dict(self.radius), "material": self.material, "rate": self.rate,
                 "mass_rate": self.mass_rate, "velocity": list(self.velocity), "seed": self.seed, "start": self.start,
                 "count": self.count, "mass": self.mass, "shortfall": self.shortfall, "actions": self.actions,
-                "warned": self.warned}
+                "warned": self.warned, "class_volume": None if self.class_volume is None else self.class_volume.tolist(),
+                "waiting": self.waiting.tolist(), "queue": self.queue.tolist()}
+
+    def totals(self) -> dict:
+        """What it inserted: count, mass (kg), the last shortfall, and for a distribution by mass the
+        realised and the asked mass fractions (summary.json)."""
+        out = {"name": self.name, "count": self.count, "mass": self.mass, "shortfall": self.shortfall}
+        if self.class_volume is not None:
+            total = max(float(self.class_volume.sum()), 1e-300)
+            out.update(mass_fractions=(self.class_volume / total).tolist(), asked=np.asarray(self.radius.asked).tolist())
+        return out
+
+    def realised(self) -> str | None:
+        """What it inserted so far, in words: the count and mass, and for a distribution by mass the
+        realised mass fractions beside those asked."""
+        label = f"inflow {self.name!r}" if self.name else "inflow"
+        text = f"{label}: {self.count} spheres, {self.mass:.4g} kg"
+        if self.class_volume is not None and self.class_volume.sum() > 0:
+            text += "; " + fractions_line(self.class_volume / self.class_volume.sum(), self.radius.asked)
+        return text
 
     def update(self, sim) -> None:
         """Insert what is due, if due, where it finds room."""
         if not self.due(sim.step, sim.dt) or sim.time < self.start:
             return
         density = sim.materials[self.material].density
-        radii = self.radii_due(sim.time, density)
+        # those that found no room before go first, as drawn: drawing them again would favour the sizes
+        # that find room more easily (the small ones in a crowded region)
+        radii = np.concatenate([self.waiting, self.radii_due(sim.time, density)])
         x = free_places(sim, self.region, radii, self.radius.max_radius,
                         np.random.default_rng([self.seed, self.actions, 1]))
         placed = np.isfinite(x[:, 0])
+        self.waiting = radii[~placed]
         if placed.any():
             r = radii[placed]
             sim.add_particles(x[placed], r, self.material, velocity=self.velocity, allow_overlap=True)
+            if self.class_volume is not None:
+                self.class_volume += self.radius.class_volumes(r)
             self.count += int(placed.sum())
             self.mass += float(sphere_mass(density, r).sum())
         self.actions += 1
-        self.note_shortfall(int((~placed).sum()), sim.time)
+        self.note_shortfall(len(self.waiting), sim.time)
 
     def restore_counters(self, d: dict) -> None:
         for key in ("count", "mass", "shortfall", "actions", "warned"):
             setattr(self, key, type(getattr(self, key))(d[key]))
+        if d.get("class_volume") is not None:
+            self.class_volume = np.asarray(d["class_volume"], dtype=float)
+        if d.get("waiting") is not None:  # an older checkpoint draws its shortfall again
+            self.waiting = np.asarray(d["waiting"], dtype=float)
+            self.queue = np.asarray(d["queue"], dtype=float)
 
     def radii_due(self, time: float, density: float) -> np.ndarray:
         """The radii of the spheres due at ``time`` (drawn from this action's random stream)."""
         rng = np.random.default_rng([self.seed, self.actions, 0])
         elapsed = max(time - self.start, 0.0)
         if self.rate is not None:
-            due = int(math.floor(self.rate * elapsed * (1.0 + 1e-12))) - self.count
+            due = int(math.floor(self.rate * elapsed * (1.0 + 1e-12))) - self.count - len(self.waiting)
             return np.asarray(self.radius.sample(rng, due), dtype=float) if due > 0 else np.zeros(0)
-        deficit = self.mass_rate * elapsed - self.mass
-        mean_mass = density * 4.0 / 3.0 * math.pi * float(np.mean(self.radius.sample(rng, 64) ** 3))
-        if deficit < 0.5 * mean_mass:
-            return np.zeros(0)
-        radii = np.asarray(self.radius.sample(rng, int(deficit / mean_mass * 1.5) + 8), dtype=float)
-        mass = density * 4.0 / 3.0 * math.pi * np.cumsum(radii ** 3)
-        # the spheres whose running mass comes nearest the deficit (a whole sphere more or less)
-        take = int(np.searchsorted(mass, deficit))
-        if take < len(mass) and (take == 0 or mass[take] - deficit < deficit - mass[take - 1]):
-            take += 1
-        return radii[:take]
+        deficit = self.mass_rate * elapsed - self.mass - float(sphere_mass(density, self.waiting).sum())
+        # the spheres drawn are taken in the order drawn, each once it is due: when the mass still
+        # due is at least half its own (a sphere left over waits for the next action; dropping and
+        # drawing again would favour the small ones, which fit a small remainder more often)
+        taken, draw = [], 64
+        while True:
+            if not len(self.queue):
+                self.queue = np.asarray(self.radius.sample(rng, draw), dtype=float)
+                draw *= 2
+            mass = sphere_mass(density, self.queue)
+            due = np.cumsum(mass) - 0.5 * mass <= deficit
+            k = len(self.queue) if due.all() else int(np.argmin(due))
+            taken.append(self.queue[:k])
+            deficit -= float(mass[:k].sum())
+            self.queue = self.queue[k:]
+            if len(self.queue):
+                return np.concatenate(taken)
 
     def note_shortfall(self, missing: int, time: float) -> None:
         self.shortfall = missing
@@ -312,7 +351,7 @@ class Inflow(Boundary):
 
 
 #: the least depth behind a face an inflow places its spheres in, in largest radii (a layer of them)
-FACE_DEPTH = 2.2
+FACE_DEPTH = 4.0
 #: centres drawn in an inflow's region to see that the walls leave room in it (``Boundaries.check_room``)
 ROOM_SAMPLES = 1000
 

@@ -483,11 +483,18 @@ class MassFractions(Discrete):
         self.weights = number / number.sum()
         self.classes = [(float(v), float(v)) for v in self.values]
 
+    def class_volumes(self, radii) -> np.ndarray:
+        """The volume (m^3) of ``radii``'s spheres of each radius."""
+        r = np.asarray(radii, dtype=float)
+        return np.array([4.0 / 3.0 * math.pi * np.sum(r[np.isclose(r, v, rtol=1e-12, atol=0.0)] ** 3)
+                         for v in self.values])
+
     def realised(self, radii) -> np.ndarray:
         """The mass fraction of each radius among ``radii`` (equal density)."""
-        r = np.asarray(radii, dtype=float)
-        volume = np.array([np.sum(r[np.isclose(r, v, rtol=1e-12, atol=0.0)] ** 3) for v in self.values])
-        return volume / max(float(np.sum(r ** 3)), 1e-300)
+        volume = self.class_volumes(radii)
+        return volume / max(float(volume.sum()), 1e-300)
+
+    asked = property(lambda self: self.fractions)
 
     def __repr__(self) -> str:
         return f"MassFractions({self.values.tolist()}, {self.fractions.tolist()})"
@@ -532,12 +539,18 @@ class SieveCurve(SizeDistribution):
         lo2, hi2 = self.diameters[k] ** -2.0, self.diameters[k + 1] ** -2.0
         return 0.5 / np.sqrt(lo2 - u * (lo2 - hi2))  # the inverse of F(d) = (d_k^-2 - d^-2) / (d_k^-2 - d_k+1^-2)
 
-    def realised(self, radii) -> np.ndarray:
-        """The mass fraction of ``radii`` in each class between two sieves (equal density)."""
+    def class_volumes(self, radii) -> np.ndarray:
+        """The volume (m^3) of ``radii``'s spheres in each class between two sieves."""
         d = 2.0 * np.asarray(radii, dtype=float)
         k = np.clip(np.searchsorted(self.diameters, d, side="right") - 1, 0, len(self.mass_shares) - 1)
-        volume = np.bincount(k, weights=d ** 3, minlength=len(self.mass_shares))
+        return np.bincount(k, weights=math.pi / 6.0 * d ** 3, minlength=len(self.mass_shares))
+
+    def realised(self, radii) -> np.ndarray:
+        """The mass fraction of ``radii`` in each class between two sieves (equal density)."""
+        volume = self.class_volumes(radii)
         return volume / max(float(volume.sum()), 1e-300)
+
+    asked = property(lambda self: self.mass_shares)
 
     def __repr__(self) -> str:
         return f"SieveCurve({self.diameters.tolist()}, {self.passing.tolist()})"
@@ -550,11 +563,12 @@ def realised_line(distribution, radii) -> str:
     if not len(r):
         return "no spheres"
     if hasattr(distribution, "realised"):
-        asked = distribution.fractions if isinstance(distribution, MassFractions) else distribution.mass_shares
-        got = distribution.realised(r)
-        return ("mass fractions " + " ".join(f"{g:.3f}" for g in got) + " (asked " + " ".join(f"{a:.3f}" for a in asked)
-                + ")")
+        return fractions_line(distribution.realised(r), distribution.asked)
     return f"radius {r.min():.4g}-{r.max():.4g} m, mean {r.mean():.4g} m"
+
+
+def fractions_line(got, asked) -> str:
+    return "mass fractions " + " ".join(f"{g:.3f}" for g in got) + " (asked " + " ".join(f"{a:.3f}" for a in asked) + ")"
 
 
 def as_distribution(radius) -> SizeDistribution:

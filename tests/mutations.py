@@ -206,7 +206,7 @@ MUTATIONS = [
     M("probe kinetic energy without rotation", "src/rollingdem/io/measurements.py",
       "+ inertia @ np.einsum(\"ij,ij->i\", w, w))", ")", ("tests/test_measurements.py",)),
     M("wall power with the wrong sign", "src/rollingdem/io/measurements.py",
-      "power = -(f @ np.asarray(wall.velocity, float)", "power = (f @ np.asarray(wall.velocity, float)",
+      "power = -(f @ velocity + t @ angular_velocity)", "power = (f @ velocity + t @ angular_velocity)",
       ("tests/test_measurements.py",)),
     M("settled threshold ten times higher", "src/rollingdem/scene/conditions.py",
       "return 1e-6 * float(sim.masses[free].mean())", "return 1e-5 * float(sim.masses[free].mean())",

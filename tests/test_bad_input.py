@@ -259,6 +259,17 @@ CATALOGUE = [
                      "radius: 0.005, material: m, rate: 10, velocity: [0, 0, 1]}\nstages:"),
      "inflows.0: inflow velocity = [0.0, 0.0, 1.0] is not allowed through Disk(center=[0.0, 0.0, 0.1], normal=[0.0, "
      "0.0, -1.0], radius=0.02): it points back through the face (against its normal)"),
+    ("a misspelled key of an insert's region, named where the file has it",
+     edit("  - positions: [[0, 0, 0.006], [0.02, 0, 0.006]]\n    radius: 0.005\n", "  - insert: {type: cylinder, radius: 0.05, "
+          "zmin: 0.01, z_max: 0.1}\n    count: 10\n    radius: 0.005\n"),
+     "key 'particles.0.insert.zmin': not a known key: did you mean 'z_min'? (allowed are type, radius, z_min, z_max, "
+     "center)"),
+    ("an unknown region type, named where the file has it",
+     edit("  - positions: [[0, 0, 0.006], [0.02, 0, 0.006]]\n    radius: 0.005\n", "  - insert: {type: cone, radius: 0.05, "
+          "z_min: 0.01, z_max: 0.1}\n    count: 10\n    radius: 0.005\n"),
+     "key 'particles.0.insert.type' = \"cone\" is not allowed: must be one of 'box', 'cylinder', 'mesh'"),
+    ("a servo with no target", edit(FLOOR, FLOOR[:-1] + ", servo: {direction: [0, 0, 1], max_speed: 0.1}}"),
+     "walls.0: servo: servo force = None is not allowed with pressure = None: give one of force (N) and pressure (Pa)"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),
     ("empty file", "", "is empty: must hold a mapping of keys"),
     ("a list, not a mapping", "- a\n- b\n", "must hold a mapping of keys, got list"),

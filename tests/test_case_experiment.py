@@ -130,8 +130,9 @@ def test_the_shipped_case_files_are_listed_shown_and_valid(tmp_path):
         (tmp_path / f"{name}.yaml").write_text(shown.output)
         checked = CliRunner().invoke(app, ["check", str(tmp_path / f"{name}.yaml")])
         assert checked.exit_code == 0, checked.output
-    bad = CliRunner().invoke(app, ["experiments", "show", "angle-of-repose"])
+    bad = CliRunner().invoke(app, ["experiments", "show", "angle-of-repos"])
     assert bad.exit_code == 2 and "the case files shipped are pile, drum-slice, drum, hopper, repose-rough-base, silo" in bad.output
+    assert "the built-in experiments are" in bad.output and "angle-of-repose" in bad.output
 
 
 def test_runs_that_share_their_first_stage_share_it_and_end_as_from_scratch(tmp_path):

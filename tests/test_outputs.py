@@ -95,7 +95,7 @@ def test_cli_reports_bad_case_clearly(tmp_path):
     result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "--no-progress"])
     assert result.exit_code == 2
     assert "particles.0" in result.output and "cuont" in result.output and "not a known key" in result.output
-    assert "count" in result.output and "missing" in result.output
+    assert "did you mean 'count'?" in result.output
     result = CliRunner().invoke(app, ["run", str(tmp_path / "nope.yaml")])
     assert result.exit_code == 2 and "does not exist" in result.output
 
@@ -304,3 +304,36 @@ def test_no_command_shows_a_type_for_a_flag():
         result = CliRunner().invoke(app, [command, "--help"], env={"COLUMNS": "200"})
         assert result.exit_code == 0 and "<bool>" not in result.output, command
     assert "<path>" in CliRunner().invoke(app, ["run", "--help"], env={"COLUMNS": "200"}).output
+
+
+def test_each_command_s_help_runs_on_unbroken_and_lists_what_there_is():
+    """A command's description is its docstring's paragraphs, each one line for the terminal to
+    wrap: at 400 columns each first paragraph stands on one line of its help (a docstring's own line
+    breaks once cut sentences in two). ``shapes`` lists every ready-made mesh shape with each of
+    its dimensions, and ``experiments show`` a built-in experiment's every parameter with its
+    default, and every observable."""
+    import inspect
+
+    from rollingdem.experiments import EXPERIMENTS
+    from rollingdem.scene.mesh import SHAPES
+
+    def walk(typer_app, prefix=()):
+        for info in typer_app.registered_commands:
+            yield prefix + ((info.name or info.callback.__name__).replace("_", "-").removeprefix("experiments-"),), info
+        for group in typer_app.registered_groups:
+            yield from walk(group.typer_instance, prefix + (group.name,))
+
+    for words, info in walk(app):
+        first = " ".join(inspect.cleandoc(info.callback.__doc__).split("\n\n")[0].split())
+        out = CliRunner().invoke(app, [*words, "--help"], env={"COLUMNS": "400"}).output
+        assert first in " ".join(line.strip(" │") for line in out.splitlines()), words
+        assert any(first in line for line in out.splitlines()), words
+    listed = CliRunner().invoke(app, ["shapes"]).output
+    for name, make in SHAPES.items():
+        line = next(s for s in listed.splitlines() if s.startswith(f"{name}: "))
+        assert all(k in line for k in inspect.signature(make).parameters), line
+    shown = CliRunner().invoke(app, ["experiments", "show", "rotating-drum"]).output
+    drum = EXPERIMENTS["rotating-drum"]
+    for p in drum.parameters:
+        assert any(s.split()[:3] == [p.name, "default", repr(p.default)] for s in shown.splitlines()), p.name
+    assert all(any(s.split()[:1] == [k] for s in shown.splitlines()) for k in drum.observables)

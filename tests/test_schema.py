@@ -75,8 +75,8 @@ def test_the_records_hold_the_fields_in_the_step_loops_order():
     fields = st.records()[0]._fields
     assert fields[:5] == ("x", "v", "w", "f", "t") and fields[-2:] == ("bond_start", "bond_ends")
     assert "tags" not in fields and "bond_pairs" in fields
-    assert st.records()[1]._fields[:8] == ("kind", "geometry", "velocity", "angular_velocity", "material", "history",
-                                           "touching", "load")
+    assert st.records()[1]._fields[:9] == ("kind", "geometry", "velocity", "angular_velocity", "material", "program",
+                                           "history", "touching", "load")
 
 
 def test_a_simulation_reads_and_writes_a_field_in_the_particles_order():

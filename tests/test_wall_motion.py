@@ -294,3 +294,27 @@ def test_the_time_step_check_counts_the_walls_speed():
     plate.add_wall(rd.Plane(material="m", motion=rd.Oscillation(1000.0, amplitude=(0, 0, 1e-3))))
     plate.add_particles([[0, 0, 2e-3]], 2e-3, "m")
     assert any("at impact speed 6.28 m/s" in label for label, _ in plate.time_step_limits())
+
+
+def test_an_automatic_dt_is_lowered_when_the_speeds_outgrow_it():
+    """A dt the checks chose follows the scene: a sphere launched at 20 m/s after it was chosen
+    (the Hertz time at twice that speed now binds) lowers it to the new stable limit, with a warning
+    that names both, and the run's duration is counted in the new steps; a dt the user gave is
+    refused instead, as before."""
+    sim = rd.Simulation()
+    material(sim)
+    sim.add_wall(rd.Plane(material="m"))
+    sim.add_particles([[0, 0, 0.01]], 2e-3, "m")
+    chosen = sim.dt
+    sim.set_velocities([0], velocity=(0, 0, -20.0))
+    limit = sim.stable_time_step()
+    with pytest.warns(RuntimeWarning, match=f"dt is lowered from {chosen:.4g} s to .* at impact speed 40 m/s"):
+        sim.run(1e-4)
+    assert sim.dt < chosen and sim.dt == limit
+    assert sim.time == pytest.approx(1e-4, abs=sim.dt)
+    given = rd.Simulation(dt=chosen)
+    material(given)
+    given.add_wall(rd.Plane(material="m"))
+    given.add_particles([[0, 0, 0.01]], 2e-3, "m", velocity=[[0, 0, -20.0]])
+    with pytest.raises(rd.ParameterError, match=f"dt = {chosen:.4g} s exceeds the stable limit"):
+        given.run(1e-4)

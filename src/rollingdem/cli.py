@@ -481,15 +481,70 @@ def experiments_list():
 
 
 @experiments_app.command("show")
-def experiments_show(name: str = typer.Argument(..., help="A shipped case file's name (rollingdem experiments list).")):
-    """Print a shipped case file, to save and edit: rollingdem experiments show drum > my_drum.yaml."""
-    from rollingdem.experiments.case_file import shipped_cases
+def experiments_show(name: str = typer.Argument(..., help="A shipped case file's or a built-in experiment's name "
+                                                          "(rollingdem experiments list).")):
+    """Print a shipped case file, to save and edit (rollingdem experiments show drum > my_drum.yaml); or a
+    built-in experiment's parameters (name, default, allowed range, unit) and observables."""
+    from rollingdem.experiments import EXPERIMENTS
+    from rollingdem.experiments.case_file import is_case_file, shipped_cases
 
     cases = shipped_cases()
-    if name not in cases:
-        _refuse(f"experiment = {name!r} is not allowed: the case files shipped are {', '.join(cases)} (a built-in "
-                "experiment is code, not a file: rollingdem experiments list)")
-    typer.echo(cases[name].read_text(), nl=False)
+    if name in cases:
+        typer.echo(cases[name].read_text(), nl=False)
+        return
+    built_in = [n for n in EXPERIMENTS if not is_case_file(n)]
+    if name not in built_in:
+        _refuse(f"experiment = {name!r} is not known: the case files shipped are {', '.join(cases)}; the built-in "
+                f"experiments are {', '.join(built_in)}")
+    e = EXPERIMENTS[name]
+    typer.echo(f"{name}: {' '.join((e.description or '').split())}")
+    typer.echo("parameters (rollingdem sweep / calibrate --experiment NAME, as name=value):" if e.parameters
+               else "parameters: none (validated only)")
+    for p in e.parameters:
+        if p.choice:
+            allowed = f"a {p.choice} model name"
+        else:
+            lo = "-inf" if p.low is None else f"{p.low:g}"
+            hi = "inf" if p.high is None else f"{p.high:g}"
+            allowed = f"{'(' if p.low_open or p.low is None else '['}{lo}, {hi}{']' if p.high is not None else ')'}"
+            allowed += f" {p.unit}" if p.unit else ""
+        typer.echo(f"  {p.name:<24} default {p.default!r:<10} {allowed:<22} {p.description}")
+    typer.echo("observables:")
+    for key, meaning in e.observables.items():
+        typer.echo(f"  {key:<24} {meaning}")
+
+
+@app.command()
+def shapes():
+    """List the ready-made mesh shapes (a mesh wall's or a region's shape: and size:) with their dimensions
+    and defaults, in m."""
+    import inspect
+
+    from rollingdem.scene.mesh import SHAPES
+
+    for name, make in SHAPES.items():
+        dims = [f"{k}" if p.default is inspect.Parameter.empty else f"{k}={p.default!r}"
+                for k, p in inspect.signature(make).parameters.items()]
+        doc = " ".join((make.__doc__ or "").replace("``", "").split(". ")[0].split())
+        typer.echo(f"{name}: {', '.join(dims)}")
+        if doc:
+            typer.echo(f"  {doc.rstrip('.')}.")
+
+
+def _reflow_help(typer_app) -> None:
+    """Each command's help from its docstring with the lines of a paragraph joined: the terminal
+    wraps them, and no line breaks mid-sentence where the source did."""
+    import inspect
+
+    for info in typer_app.registered_commands:
+        if info.help is None and info.callback is not None and info.callback.__doc__:
+            paragraphs = inspect.cleandoc(info.callback.__doc__).split("\n\n")
+            info.help = "\n\n".join(" ".join(p.split()) for p in paragraphs)
+    for group in typer_app.registered_groups:
+        _reflow_help(group.typer_instance)
+
+
+_reflow_help(app)
 
 
 def main():

@@ -108,14 +108,7 @@ class ServoSpec(_Strict):
     gain: Optional[Number] = None
 
 
-class _ProgramKeys(_Strict):
-    """A wall's motion program: at most one of ``oscillate``, ``table``, ``servo``."""
-    oscillate: Optional[OscillateSpec] = None
-    table: Optional[TableSpec] = None
-    servo: Optional[ServoSpec] = None
-
-
-class PlaneSpec(_ProgramKeys):
+class PlaneSpec(_Strict):
     type: Literal["plane"]
     name: Optional[str] = None
     material: str
@@ -123,9 +116,12 @@ class PlaneSpec(_ProgramKeys):
     normal: Vector = (0.0, 0.0, 1.0)
     velocity: Vector = (0.0, 0.0, 0.0)
     angular_velocity: Vector = (0.0, 0.0, 0.0)
+    oscillate: Optional[OscillateSpec] = None  # a motion program: at most one of the three
+    table: Optional[TableSpec] = None
+    servo: Optional[ServoSpec] = None
 
 
-class CylinderSpec(_ProgramKeys):
+class CylinderSpec(_Strict):
     type: Literal["cylinder"]
     name: Optional[str] = None
     material: str
@@ -135,6 +131,9 @@ class CylinderSpec(_ProgramKeys):
     extent: Optional[tuple[Number, Number]] = None
     velocity: Vector = (0.0, 0.0, 0.0)
     angular_velocity: Vector = (0.0, 0.0, 0.0)
+    oscillate: Optional[OscillateSpec] = None  # a motion program: at most one of the three
+    table: Optional[TableSpec] = None
+    servo: Optional[ServoSpec] = None
 
 
 class RotateSpec(_Strict):
@@ -148,9 +147,12 @@ class RotateSpec(_Strict):
     angle: Optional[Number] = None
 
 
-class MotionSpec(_ProgramKeys):
+class MotionSpec(_Strict):
     velocity: Vector = (0.0, 0.0, 0.0)
     rotate: Optional[RotateSpec] = None
+    oscillate: Optional[OscillateSpec] = None  # a motion program: at most one of the three
+    table: Optional[TableSpec] = None
+    servo: Optional[ServoSpec] = None
 
 
 class PlaceSpec(_Strict):
@@ -621,7 +623,7 @@ def _key_path(loc) -> tuple:
     return tuple(keep)
 
 
-def _spec_at(path) -> Optional[type]:
+def _spec_at(path, data=None) -> Optional[type]:
     """The model class of the mapping at ``path`` (None where it cannot be told), to list its keys."""
     from typing import get_args, get_origin
 
@@ -638,26 +640,72 @@ def _spec_at(path) -> Optional[type]:
             return found[0] if len(found) == 1 else None
         return None
 
-    spec = CaseSpec
-    for part in path:
+    def tagged(value):
+        """A hint that keeps the union members whose tag (``type``, ``distribution``) is the value's."""
+        if not isinstance(value, dict):
+            return None
+
+        def hint(m):
+            particle = {InsertSpec: "insert", RoughBaseSpec: "rough_base", ListSpec: "list"}.get(m)
+            if particle is not None:
+                return particle == _particle_kind(value)
+            for key in ("type", "distribution"):
+                field = m.model_fields.get(key)
+                if key in value and field is not None and value[key] not in get_args(field.annotation):
+                    return False
+            return True
+        return hint
+
+    spec, node = CaseSpec, data
+    for k, part in enumerate(path):
         if isinstance(part, int):
             continue
         field = spec.model_fields.get(part) if spec is not None else None
         if field is None:
             return None
-        spec = model_of(field.annotation)
+        node = _value_at(node, (part,) + tuple(p for p in path[k + 1:k + 2] if isinstance(p, int)))
+        spec = model_of(field.annotation, tagged(node))
     return spec
+
+
+def _data_path(loc, data, missing: bool) -> tuple:
+    """The keys of a pydantic error location as the file has them: each step kept where the file has
+    that key (or index) there, union members and tags (``cylinder``, ``float``, ...) left out; a
+    missing key is kept at the end."""
+    keep, tag_seen = [], False
+    for k, part in enumerate(loc):
+        last = k == len(loc) - 1
+        if (isinstance(data, dict) and not last and not tag_seen
+                and part in (data.get("type"), data.get("distribution"), _particle_kind(data))):
+            tag_seen = True  # the union's tag for this mapping (once), not one of its keys
+            continue
+        if isinstance(data, list) and isinstance(part, int) and 0 <= part < len(data):
+            keep.append(part)
+            data, tag_seen = data[part], False
+        elif isinstance(data, dict) and part in data:
+            keep.append(part)
+            data, tag_seen = data[part], False
+        elif last and missing and (isinstance(part, int) or _NOT_A_KEY.match(part)):
+            keep.append(part)
+    return tuple(keep)
 
 
 def _describe_error(e: dict, data) -> tuple[tuple, str]:
     """(key path, what is wrong) of one pydantic error, in the words of the house style."""
-    path = _key_path(e["loc"])
+    path = (_data_path(e["loc"], data, e["type"] == "missing") if isinstance(data, dict)
+            else _key_path(e["loc"]))
     kind = e["type"]
     ctx = e.get("ctx") or {}
     if kind == "extra_forbidden":
-        parent = _spec_at(path[:-1])
-        allowed = f": allowed are {', '.join(parent.model_fields)}" if parent is not None else ""
-        return path, f"not a known key (misspelled?){allowed}"
+        import difflib
+
+        parent = _spec_at(path[:-1], data)
+        if parent is None:
+            return path, "not a known key (misspelled?)"
+        near = difflib.get_close_matches(str(path[-1]), list(parent.model_fields), n=1, cutoff=0.75) if path else []
+        allowed = f"allowed are {', '.join(parent.model_fields)}"
+        return path, (f"not a known key: did you mean {near[0]!r}? ({allowed})" if near
+                      else f"not a known key (misspelled?): {allowed}")
     if kind == "missing":
         return path, "missing (required)"
     if kind in _KIND_OF_INPUT:
@@ -702,6 +750,11 @@ def _format_validation_error(err: ValidationError, source: str, data=None) -> st
         kinds.setdefault(path, kind)
         if what not in problems.setdefault(path, []):
             problems[path].append(what)
+    # a misspelled key is one problem, not two: the line of the unknown key names the one the file lacks
+    for path in [p for p, k in kinds.items() if k == "extra_forbidden" and p]:
+        meant = re.search(r"did you mean '([^']+)'", problems[path][0])
+        if meant and path[:-1] + (meant.group(1),) in problems and kinds[path[:-1] + (meant.group(1),)] == "missing":
+            del problems[path[:-1] + (meant.group(1),)]
     lines = []
     for path, whats in problems.items():
         key = ".".join(str(p) for p in path) or "(top level)"

@@ -215,9 +215,9 @@ class _Run:
                     self._begin(stage)
                     st.begun, st.stage_start = True, sim.step
                     st.conditions = stage_conditions(stage, self.measurements)
+                sim.check_before_run()  # (it may lower an automatic dt: the stage is counted in its steps)
                 steps_left = int(round(stage_duration(stage) / sim.dt)) - (sim.step - st.stage_start)
                 t0, steps0 = time.perf_counter(), sim.step
-                sim.check_before_run()
                 ended = sim.schedule.run(sim, max(steps_left, 0), st.observers, self.progress, stage.name,
                                          st.conditions, continuing=continuing)
                 continuing = False

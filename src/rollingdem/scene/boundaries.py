@@ -21,8 +21,9 @@ from rollingdem.errors import ParameterError, check_integer, check_non_negative,
 from rollingdem.scene import periodic as periodic_box
 from rollingdem.scene.particles import sphere_mass
 from rollingdem.scene.schedule import INSERT, REMOVE, Operation
-from rollingdem.scene.insertion import (BoxRegion, Constant, CylinderRegion, Discrete, Face, FacePrism, MassFractions, Normal,
-                                       Region, SieveCurve, Uniform, as_distribution, face_from_dict, fractions_line)
+from rollingdem.scene.insertion import (BoxRegion, Constant, CylinderRegion, Discrete, Disk, Face, FacePrism,
+                                       MassFractions, MeshFace, Normal, Rectangle, Region, SieveCurve, Uniform,
+                                       as_distribution, fractions_line)
 
 DEFAULT_INTERVAL = 1e-3
 """Seconds between two actions of an outlet or inflow, unless given: a sphere falling at 1 m/s goes
@@ -52,6 +53,16 @@ def region_from_dict(d: dict) -> Region:
 
         return MeshRegion(TriangleMesh(d["vertices"], d["triangles"], label=d["label"]))
     return CylinderRegion(d["radius"], d["z_min"], d["z_max"], center=d["center"])
+
+
+def face_from_dict(d: dict) -> Face:
+    d = dict(d)
+    kind = d.pop("type")
+    if kind == "mesh_face":
+        from rollingdem.scene.mesh import TriangleMesh
+
+        return MeshFace(TriangleMesh(d["vertices"], d["triangles"], label=d["label"]), d["normal"])
+    return {"disk": Disk, "rectangle": Rectangle}[kind](**d)
 
 
 def distribution_to_dict(dist) -> dict:

@@ -35,6 +35,7 @@ def write(sim, path) -> Path:
         "materials": sim.materials.to_dict(),
         "gravity": list(sim.gravity),
         "dt": sim.dt,
+        "dt_automatic": sim.dt_automatic,
         "skin": sim._skin,
         "check_timestep": sim.check_timestep,
         "track_energy": sim.track_energy,
@@ -92,4 +93,5 @@ def restore(simulation_class, path, backend: str | None = None):
     sim.time = float(meta["time"])
     origin = meta.get("time_origin", (sim.time, sim.step))  # absent in older checkpoints
     sim._time_origin = (float(origin[0]), int(origin[1]))
+    sim.dt_automatic = bool(meta.get("dt_automatic", False))
     return sim

@@ -333,16 +333,6 @@ class FacePrism(Region):
         return f"{self.face!r} (placing within {_fmt(self.depth)} m behind it)"
 
 
-def face_from_dict(d: dict) -> Face:
-    d = dict(d)
-    kind = d.pop("type")
-    if kind == "mesh_face":
-        from rollingdem.scene.mesh import TriangleMesh
-
-        return MeshFace(TriangleMesh(d["vertices"], d["triangles"], label=d["label"]), d["normal"])
-    return {"disk": Disk, "rectangle": Rectangle}[kind](**d)
-
-
 class SizeDistribution:
     """Base class of radius distributions; ``sample(rng, n)`` gives n radii (m)."""
 

@@ -76,6 +76,7 @@ class Simulation:
         self.materials = MaterialTable()
         self.gravity = gravity
         self._dt = None if dt is None else check_positive("dt", dt, "s")
+        self.dt_automatic = dt is None  # chosen by the checks, and lowered by them when a run's speeds need it
         self._skin = None if skin is None else check_positive("skin", skin, "m")
         self.check_timestep = bool(check_timestep)
         self.track_energy = bool(track_energy)
@@ -138,7 +139,7 @@ class Simulation:
     @dt.setter
     def dt(self, value):
         self._dt = check_positive("dt", value, "s")
-        self._time_origin = (self.time, self.step)
+        self._time_origin, self.dt_automatic = (self.time, self.step), False
 
     @property
     def skin(self) -> float:
@@ -377,12 +378,12 @@ class Simulation:
         simulated time, steps/s and time left. A run that goes unstable stops with
         ``SimulationError`` after the observers have written what they had.
         """
-        steps = steps_of(duration, steps, self.dt)
+        steps_of(duration, steps, self.dt)
         observers, conditions = as_observers(observers), as_conditions(until)
         if not isinstance(label, str):
             raise ParameterError(f"label = {label!r} is not allowed: must be a string")
-        self.check_before_run()
-        return self.schedule.run(self, steps, observers, progress, label, conditions)
+        self.check_before_run()  # (it may lower an automatic dt: the duration is counted in its steps)
+        return self.schedule.run(self, steps_of(duration, steps, self.dt), observers, progress, label, conditions)
 
     # --- checkpoint ------------------------------------------------------------------------------
     def checkpoint(self, path):

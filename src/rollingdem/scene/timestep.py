@@ -5,6 +5,7 @@ they allow, and the checks a run makes before its first step."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -81,6 +82,15 @@ class TimeStepPolicy:
         if seen is not None and seen[0][:4] == key[:4] and seen[0][4] is key[4] and (speeds <= seen[1]).all():
             return
         for label, limit in self.limits():
+            if sim.dt > limit * (1 + 1e-12) and getattr(sim, "dt_automatic", False):
+                # an automatic dt follows the scene: the speeds have grown since it was chosen
+                old, sim.dt = sim.dt, self.stable()
+                sim.dt_automatic = True
+                warnings.warn(f"at t = {sim.time:.6g} s dt is lowered from {old:.4g} s to {sim.dt:.4g} s, the stable "
+                              f"limit now ({label}): the speeds have grown since it was chosen", RuntimeWarning,
+                              stacklevel=4)
+                key = (sim.dt,) + key[1:]
+                break
             if sim.dt > limit * (1 + 1e-12):
                 raise ParameterError(f"dt = {sim.dt:.4g} s exceeds the stable limit {limit:.4g} s "
                                      f"({label}): choose dt <= {limit:.4g} s, or {sim.hints['check_timestep']} "

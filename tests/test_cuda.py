@@ -111,7 +111,7 @@ SCENES = textwrap.dedent('''
         lid = np.array([[-0.004, -0.004, 0.002015], [0.004, -0.004, 0.002015], [0.004, 0.004, 0.002015],
                         [-0.004, 0.004, 0.002015]])
         sim.add_wall(rd.MeshWall(lid, [[0, 1, 2], [0, 2, 3]], material="glass",
-                                 motion=rd.Servo((0, 0, -1), max_speed=0.5, force=0.01, gain=0.5)))
+                                 motion=rd.Servo((0, 0, -1), max_speed=0.5, force=0.01, gain=2.0)))
         plate = np.array([[0.006, -0.002, 0], [0.01, -0.002, 0], [0.01, 0.002, 0]])
         sim.add_wall(rd.MeshWall(plate, [[0, 1, 2]], material="glass", point=(0.008, 0, 0),
                                  motion=rd.MotionTable([0, 0.001, 0.002], [[0, 0, 0], [0, 0, 2e-4], [0, 0, 2e-4]],
@@ -119,7 +119,7 @@ SCENES = textwrap.dedent('''
         sim.add_particles([[-0.0011, -0.0011, 0.00101], [0.0011, -0.0011, 0.00101], [0.0011, 0.0011, 0.00101],
                            [-0.0011, 0.0011, 0.00101], [0.008, 0, 0.0013]], radius=1e-3,
                           material=["glass", "glass 2", "glass", "glass 2", "glass"])
-        sim.run(steps=1500)
+        sim.run(steps=600)
         if backend == "cpu":  # the servo lid has come down onto the spheres
             assert sim.wall_loads()["#1"]["force"][2] > 0.0
         return sim
@@ -380,7 +380,8 @@ def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene)
     with contacts to carry over, its phases timed for the bench half way, and again with the
     counting sorts' atomic slots taken in the opposite order of the threads), EPSD and CDT rolling
     on a flat and a sloped floor, and bonds (one breaking), a moving triangle mesh, a fine mesh
-    whose candidate arrays grow, a fixed sphere and a periodic box. A checkpoint written on one
+    whose candidate arrays grow, a fixed sphere and a periodic box, and walls moved by programs (a
+    floor shaken sideways, a servo lid, a mesh turned by a table of times). A checkpoint written on one
     backend restores on the other and goes on as the run on that backend would. Their spheres are of two
     materials (the same glass), so that the CPU too takes the scalar pair path; the pile, 27
     spheres thrown into a box, amplifies a difference of one unit in the last place to 1e-7 m

@@ -72,7 +72,7 @@ def program_offset(mo, table, tau):
     return 0.0, 0.0, 0.0, 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)  # called, not inlined: compiled once, not into every engine module's step loop
 def step_program(mo, table, dt, fx, fy, fz):
     """Advance a programmed motion row by dt (the servo from the force (fx, fy, fz) on its wall at
     the last step): the step's mean velocity and turning rate, the axis's point at the step's end,

@@ -1,9 +1,10 @@
 """The walls of a scene: adding, removing, moving and naming them, and handing them to the engine.
 
 The engine owns wall motion: it moves planes, cylinders and meshes with their prescribed velocities
-at every step (``rollingdem.engine.integrator.move_walls``, the mesh passes). The ``Wall`` objects a
-user holds are refreshed from it (``WallSet.refresh``) at the end of each run and before anything
-reads or changes where a wall is; a changed wall goes back to the engine (``WallSet.hand_over``)."""
+and programs (``engine.wall_motion``) at every step (``rollingdem.engine.integrator.move_walls``, the
+mesh passes). The ``Wall`` objects a user holds are refreshed from it (``WallSet.refresh``) at the
+end of each run and before anything reads or changes where a wall is; a changed wall goes back to
+the engine (``WallSet.hand_over``), a program that did not change with its row."""
 
 from __future__ import annotations
 

@@ -2,8 +2,9 @@
 
 A wall is a contact partner of infinite radius and mass with a prescribed velocity
 (docs/models.md §0: R* = R_i, m* = m_i). It can move with a constant velocity, its surface can move
-with an angular velocity (a rotating drum: surface velocity v + omega x (c - point)), and it can be
-removed or given a new velocity between runs.
+with an angular velocity (a rotating drum: surface velocity v + omega x (c - point)), follow a motion
+program on top (``rollingdem.scene.motion``: an oscillation, a table of times, a servo), and it can be
+removed or given a new motion between runs.
 """
 
 from __future__ import annotations

@@ -1,0 +1,265 @@
+"""Clump templates: rigid bodies of spheres (multispheres), their mass properties and principal frame.
+
+A ``Clump`` is a set of member spheres (centres and radii, overlapping allowed) that move as one
+rigid body. Its mass properties are those of the union of its spheres at a uniform density:
+
+- exactly, where no point lies in three spheres: the union's moments are the spheres' less each
+  overlapping pair's lens, a lens being the two spherical caps either side of the pair's circle of
+  intersection, each cap's volume, first and second moments integrated in closed form
+  (``cap_moments``);
+- otherwise by a quadrature: the midpoint rule on a grid over the clump's box
+  (``QUADRATURE_CELLS`` cells along its longest side), whose accuracy is stated in
+  ``QUADRATURE_ACCURACY`` and tested against the exact answer (tests/test_clumps.py).
+
+The named shapes are those of issue 46: a dimer, a trimer, a tetrahedron of four, a ring prism of n
+touching spheres, a rod of n.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rollingdem.errors import ParameterError, check_integer, check_positive
+
+#: cells along the longest side of a clump's box for the quadrature of its mass properties
+QUADRATURE_CELLS = 200
+#: the relative accuracy of that quadrature (volume, centre of mass over the clump's size, each
+#: principal moment), as measured on overlapping dimers and trimers against the exact moments
+QUADRATURE_ACCURACY = 2e-3
+#: how far apart two members may be and still count as touching, as a fraction of the smaller radius
+TOUCH_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class MassProperties:
+    """Mass properties of a clump at a density: ``volume`` (m^3), ``mass`` (kg), ``centre`` of mass
+    (m, in the template's frame), ``inertia`` (3x3 tensor about the centre of mass, kg m^2),
+    ``principal_moments`` (ascending, kg m^2) and ``principal_axes`` (columns, a right-handed frame),
+    and whether they are ``exact`` (else the quadrature's, to ``QUADRATURE_ACCURACY``)."""
+
+    volume: float
+    mass: float
+    centre: np.ndarray
+    inertia: np.ndarray
+    principal_moments: np.ndarray
+    principal_axes: np.ndarray
+    exact: bool
+
+
+def cap_moments(radius: float, height: float) -> tuple[float, float, float, float]:
+    """A spherical cap of ``height`` h cut from a sphere of ``radius`` R, measured from the sphere's
+    centre along the cap's axis z (the cap spans R - h <= z <= R): its volume, first moment along z,
+    second moment along z (the integral of z^2 dV) and across it (the integral of x^2 dV, equal for
+    y). Each is the integral over z of a disk of area pi (R^2 - z^2): dV = pi (R^2 - z^2) dz, and a
+    disk's integral of x^2 is pi rho^4 / 4."""
+    r2 = radius * radius
+    lo = radius - height
+    volume = np.polynomial.Polynomial([math.pi * r2, 0.0, -math.pi])          # pi (R^2 - z^2)
+    first = volume * np.polynomial.Polynomial([0.0, 1.0])                     # z dV
+    along = first * np.polynomial.Polynomial([0.0, 1.0])                      # z^2 dV
+    across = np.polynomial.Polynomial([r2, 0.0, -1.0]) ** 2 * (math.pi / 4.0)  # pi (R^2 - z^2)^2 / 4
+
+    def integral(p):
+        q = p.integ()
+        return float(q(radius) - q(lo))
+
+    return integral(volume), integral(first), integral(along), integral(across)
+
+
+def _moments_of_cap(centre, axis, radius, height):
+    """(V, first moment vector, second moment tensor about the origin) of a cap of the sphere at
+    ``centre`` facing along the unit ``axis``."""
+    v, m1, szz, sxx = cap_moments(radius, height)
+    e = np.asarray(axis, float)
+    c = np.asarray(centre, float)
+    first_local = m1 * e
+    local = szz * np.outer(e, e) + sxx * (np.eye(3) - np.outer(e, e))
+    second = local + np.outer(c, first_local) + np.outer(first_local, c) + v * np.outer(c, c)
+    return v, v * c + first_local, second
+
+
+def _moments_of_sphere(centre, radius):
+    v = 4.0 / 3.0 * math.pi * radius ** 3
+    c = np.asarray(centre, float)
+    return v, v * c, v * (radius ** 2 / 5.0 * np.eye(3) + np.outer(c, c))
+
+
+class Clump:
+    """A rigid body of member spheres: ``centres`` (k, 3) and ``radii`` (k,) in m, in the template's
+    own frame. Members must overlap or touch, so that the clump is one body (``connected=False``
+    accepts apart ones). ``mass_properties(density)`` gives its volume, mass, centre of mass, inertia
+    tensor and principal frame."""
+
+    def __init__(self, centres, radii, name: str | None = None, connected: bool = True):
+        try:
+            x = np.array(centres, dtype=float, ndmin=2)
+            r = np.array(radii, dtype=float, ndmin=1)
+        except (TypeError, ValueError):
+            raise ParameterError(f"clump centres = {centres!r}, radii = {radii!r} is not allowed: must be numbers")
+        if x.size == 0:
+            raise ParameterError("clump centres = [] is not allowed: a clump needs at least one sphere")
+        if x.ndim != 2 or x.shape[1] != 3:
+            raise ParameterError(f"clump centres with shape {x.shape} are not allowed: need (k, 3)")
+        if r.size == 1 and len(x) > 1:
+            r = np.full(len(x), float(r[0]))
+        if r.shape != (len(x),):
+            raise ParameterError(f"clump radii with {r.size} values are not allowed: need one per centre ({len(x)})")
+        if not (np.isfinite(x).all() and np.isfinite(r).all()):
+            raise ParameterError("clump centres / radii hold a non-finite value: must be finite")
+        bad = np.flatnonzero(r <= 0.0)
+        if len(bad):
+            raise ParameterError(f"clump radii[{int(bad[0])}] = {r[bad[0]]:g} is not allowed: must be > 0 (m)")
+        self.centres, self.radii, self.name = x, r, name
+        if connected and not self.is_connected():
+            raise ParameterError(f"clump {name or ''!r}: its members do not all overlap or touch (it would be "
+                                 "several bodies); pass connected=False to accept it".replace("clump '': ", "clump: "))
+
+    # --- the named shapes -----------------------------------------------------------------------
+    @classmethod
+    def dimer(cls, radius, distance=None) -> "Clump":
+        """Two spheres of ``radius`` whose centres are ``distance`` apart along x (default 2 R: touching)."""
+        r = check_positive("dimer radius", radius, "m")
+        d = 2.0 * r if distance is None else check_positive("dimer distance", distance, "m")
+        return cls([[-d / 2, 0, 0], [d / 2, 0, 0]], [r, r], name="dimer")
+
+    @classmethod
+    def trimer(cls, radius, distance=None) -> "Clump":
+        """Three spheres at the corners of an equilateral triangle of side ``distance`` (default 2 R)
+        in the xy plane."""
+        r = check_positive("trimer radius", radius, "m")
+        d = 2.0 * r if distance is None else check_positive("trimer distance", distance, "m")
+        return cls.ring_prism(3, r, distance=d, name="trimer")
+
+    @classmethod
+    def tetrahedron(cls, radius, distance=None) -> "Clump":
+        """Four spheres at the corners of a regular tetrahedron of edge ``distance`` (default 2 R)."""
+        r = check_positive("tetrahedron radius", radius, "m")
+        d = 2.0 * r if distance is None else check_positive("tetrahedron distance", distance, "m")
+        corners = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], float) * d / (2.0 * math.sqrt(2.0))
+        return cls(corners, np.full(4, r), name="tetrahedron")
+
+    @classmethod
+    def ring_prism(cls, n, radius, distance=None, name=None) -> "Clump":
+        """``n`` spheres around the z axis, neighbours ``distance`` apart (default 2 R: touching): their
+        centres on a circle of radius distance / (2 sin(pi / n)) in the xy plane (a prism of n sides
+        rolls about its axis on a slope, issue 46)."""
+        n = check_integer("ring_prism n", n, low=3)
+        r = check_positive("ring_prism radius", radius, "m")
+        d = 2.0 * r if distance is None else check_positive("ring_prism distance", distance, "m")
+        a = d / (2.0 * math.sin(math.pi / n))
+        phi = 2.0 * math.pi * np.arange(n) / n
+        return cls(np.column_stack([a * np.cos(phi), a * np.sin(phi), np.zeros(n)]), np.full(n, r),
+                   name=name or f"ring prism of {n}")
+
+    @classmethod
+    def rod(cls, n, radius, spacing=None) -> "Clump":
+        """``n`` spheres in a row along x, centres ``spacing`` apart (default 2 R), centred on the origin."""
+        n = check_integer("rod n", n, low=1)
+        r = check_positive("rod radius", radius, "m")
+        s = 2.0 * r if spacing is None else check_positive("rod spacing", spacing, "m")
+        x = (np.arange(n) - (n - 1) / 2.0) * s
+        return cls(np.column_stack([x, np.zeros(n), np.zeros(n)]), np.full(n, r), name=f"rod of {n}")
+
+    # --- geometry -------------------------------------------------------------------------------
+    def _gaps(self) -> np.ndarray:
+        d = np.linalg.norm(self.centres[:, None, :] - self.centres[None, :, :], axis=2)
+        return d - (self.radii[:, None] + self.radii[None, :])
+
+    def is_connected(self) -> bool:
+        """Whether every member reaches every other through members that overlap or touch."""
+        k = len(self.radii)
+        touch = self._gaps() <= TOUCH_TOLERANCE * np.minimum(self.radii[:, None], self.radii[None, :])
+        seen, todo = {0}, [0]
+        while todo:
+            i = todo.pop()
+            for j in np.flatnonzero(touch[i]):
+                if int(j) not in seen:
+                    seen.add(int(j))
+                    todo.append(int(j))
+        return len(seen) == k
+
+    def _overlapping_pairs(self) -> list[tuple[int, int]]:
+        gaps = self._gaps()
+        return [(i, j) for i in range(len(self.radii)) for j in range(i + 1, len(self.radii)) if gaps[i, j] < 0.0]
+
+    def _triple_overlap(self, pairs) -> bool:
+        """Whether some point may lie in three members (three members overlapping pairwise: a
+        conservative test, the exact moments need none)."""
+        partners = {}
+        for i, j in pairs:
+            partners.setdefault(i, set()).add(j)
+            partners.setdefault(j, set()).add(i)
+        return any(partners.get(j, set()) & partners.get(i, set()) for i, j in pairs)
+
+    # --- mass properties ------------------------------------------------------------------------
+    def moments(self, method: str = "auto") -> tuple[float, np.ndarray, np.ndarray, bool]:
+        """(volume, first moment vector, second moment tensor about the template's origin, exact) of
+        the union of the members: ``method`` 'exact' (refused where three members overlap), 'quadrature',
+        or 'auto' (exact where it can be)."""
+        if method not in ("auto", "exact", "quadrature"):
+            raise ParameterError(f"method = {method!r} is not known: allowed are 'auto', 'exact', 'quadrature'")
+        pairs = self._overlapping_pairs()
+        triple = self._triple_overlap(pairs)
+        if method == "exact" and triple:
+            raise ParameterError("method = 'exact' is not allowed for this clump: three of its members overlap "
+                                 "one another; use 'quadrature'")
+        if method == "quadrature" or (method == "auto" and triple):
+            return (*self._quadrature(), False)
+        v, m1, m2 = 0.0, np.zeros(3), np.zeros((3, 3))
+        for c, r in zip(self.centres, self.radii):
+            dv, d1, d2 = _moments_of_sphere(c, r)
+            v, m1, m2 = v + dv, m1 + d1, m2 + d2
+        for i, j in pairs:  # less each lens: the cap of i beyond the plane of the circle, and of j
+            ci, cj, ri, rj = self.centres[i], self.centres[j], self.radii[i], self.radii[j]
+            d = float(np.linalg.norm(cj - ci))
+            if d <= abs(ri - rj):  # one member inside the other: the smaller one adds nothing
+                small = i if ri <= rj else j
+                dv, d1, d2 = _moments_of_sphere(self.centres[small], self.radii[small])
+                v, m1, m2 = v - dv, m1 - d1, m2 - d2
+                continue
+            e = (cj - ci) / d
+            plane = (d * d + ri * ri - rj * rj) / (2.0 * d)  # the circle's plane, from c_i along e
+            for c, r, axis, h in ((ci, ri, e, ri - plane), (cj, rj, -e, rj - (d - plane))):
+                dv, d1, d2 = _moments_of_cap(c, axis, r, h)
+                v, m1, m2 = v - dv, m1 - d1, m2 - d2
+        return v, m1, m2, True
+
+    def _quadrature(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """The midpoint rule on ``QUADRATURE_CELLS`` cells along the box's longest side."""
+        lo = (self.centres - self.radii[:, None]).min(axis=0)
+        hi = (self.centres + self.radii[:, None]).max(axis=0)
+        h = float((hi - lo).max()) / QUADRATURE_CELLS
+        n = np.maximum(np.ceil((hi - lo) / h).astype(int), 1)
+        xs, ys, zs = (lo[k] + (np.arange(n[k]) + 0.5) * h for k in range(3))
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        v, m1, m2 = 0.0, np.zeros(3), np.zeros((3, 3))
+        for z in zs:  # a slice at a time: the grid may hold 10^7 points
+            p = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, z)])
+            inside = np.zeros(len(p), dtype=bool)
+            for c, r in zip(self.centres, self.radii):
+                inside |= ((p - c) ** 2).sum(axis=1) <= r * r
+            q = p[inside]
+            v += len(q)
+            m1 += q.sum(axis=0)
+            m2 += q.T @ q
+        cell = h ** 3
+        return v * cell, m1 * cell, m2 * cell
+
+    def mass_properties(self, density: float, method: str = "auto") -> MassProperties:
+        """The union's mass properties at ``density`` (kg/m^3); see ``MassProperties``."""
+        rho = check_positive("clump density", density, "kg/m^3")
+        v, m1, m2, exact = self.moments(method)
+        centre = m1 / v
+        central = m2 - v * np.outer(centre, centre)  # the second moment about the centre of mass
+        inertia = rho * (np.trace(central) * np.eye(3) - central)
+        moments, axes = np.linalg.eigh(inertia)
+        if np.linalg.det(axes) < 0.0:
+            axes[:, 2] = -axes[:, 2]
+        return MassProperties(volume=v, mass=rho * v, centre=centre, inertia=inertia, principal_moments=moments,
+                              principal_axes=axes, exact=exact)
+
+    def __repr__(self) -> str:
+        return f"Clump({self.name or 'custom'}, {len(self.radii)} spheres)"

@@ -123,3 +123,40 @@ def test_a_bad_template_is_refused_in_one_line(args, match):
 def test_members_apart_are_accepted_when_asked():
     clump = rd.Clump([[0, 0, 0], [5e-3, 0, 0]], [1e-3, 1e-3], connected=False)
     assert clump.mass_properties(RHO).volume == pytest.approx(2 * 4 / 3 * math.pi * 1e-9, rel=1e-12)
+
+
+def resting_on_a_side(n):
+    """The rotation that lays a ring prism of n (axis z) with its axis along y and members 0 and 1,
+    whose mid-direction is (cos pi/n, sin pi/n, 0), side by side on the floor."""
+    from scipy.spatial.transform import Rotation
+
+    mid = [math.cos(math.pi / n), math.sin(math.pi / n), 0.0]
+    turn, _ = Rotation.align_vectors([[0, 1, 0], [0, 0, -1]], [[0, 0, 1], mid])
+    return turn.as_matrix()
+
+
+@pytest.mark.parametrize("n,degrees", [(3, 32.37), (4, 26.57), (6, 20.10)])
+def test_a_ring_prism_tips_where_statics_says_and_a_sphere_of_tan_theta_rolls_there(n, degrees):
+    """A ring prism of n touching spheres of radius r, its axis along the slope's contour lines,
+    resting on two neighbours: it tips when gravity's line through its centre passes the downhill
+    neighbour, tan theta = r / (r + a_n), a_n the centre's height above the centres it rests on
+    (r / sqrt 3, r, sqrt 3 r): 32.37, 26.57 and 20.10 deg (the issue's values, to their 0.01 deg).
+    The equivalent rolling friction is tan theta: 0.634, 0.500, 0.366."""
+    r = 1e-3
+    clump = rd.Clump.ring_prism(n, r)
+    a_n = {3: r / math.sqrt(3), 4: r, 6: math.sqrt(3) * r}[n]
+    theta = rd.onset_angle(clump, resting_on_a_side(n))
+    assert math.tan(theta) == pytest.approx(r / (r + a_n), rel=1e-12)
+    assert math.degrees(theta) == pytest.approx(degrees, abs=0.005)
+    assert rd.equivalent_rolling_friction(clump, resting_on_a_side(n)) == pytest.approx(r / (r + a_n), rel=1e-12)
+
+
+def test_a_sphere_rolls_at_once_and_a_clump_that_does_not_rest_is_refused():
+    """A single sphere stands on one point under its centre: it rolls at any tilt (theta 0). A large
+    and a small sphere side by side stand on the large one's lowest point alone, their centre of mass
+    off it towards the small one: that pose does not rest (it would fall onto both), refused in one
+    line."""
+    assert rd.onset_angle(rd.Clump([[0, 0, 0]], [1e-3])) == 0.0
+    pair = rd.Clump([[0, 0, 0], [1.5e-3, 0, 0]], [1e-3, 0.6e-3])
+    with pytest.raises(rd.ParameterError, match="it does not rest in this orientation"):
+        rd.onset_angle(pair)

@@ -263,3 +263,44 @@ class Clump:
 
     def __repr__(self) -> str:
         return f"Clump({self.name or 'custom'}, {len(self.radii)} spheres)"
+
+
+def onset_angle(clump: Clump, rotation=None, downhill=(1.0, 0.0, 0.0)) -> float:
+    """The tilt (rad) of a plane at which ``clump``, resting on it, starts to tip over downhill, with
+    friction enough that nothing slides: the clump turned by ``rotation`` (a 3x3 matrix, default
+    none) rests on its lowest members on the plane z = 0; tilted by theta towards ``downhill`` (a
+    horizontal direction), it tips about its downhill-most point of support once gravity's line
+    through the centre of mass passes it: tan theta = (p . e - c . e) / c_z, p that point, c the
+    centre of mass, e the downhill direction (the statics of a rigid body on a slope)."""
+    from rollingdem.errors import check_vector
+
+    turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
+    if turn.shape != (3, 3) or not np.allclose(turn @ turn.T, np.eye(3), atol=1e-9):
+        raise ParameterError(f"rotation = {rotation!r} is not allowed: must be a 3x3 rotation matrix")
+    e = np.array(check_vector("downhill", downhill, unit=True))
+    if abs(e[2]) > 1e-12:
+        raise ParameterError(f"downhill = {list(e)} is not allowed: must be horizontal (no z component)")
+    centres = clump.centres @ turn.T
+    bottoms = centres[:, 2] - clump.radii
+    floor = float(bottoms.min())
+    size = float(np.ptp(centres, axis=0).max() + 2.0 * clump.radii.max())
+    support = centres[bottoms <= floor + 1e-9 * size]  # the members on the plane; each touches below its centre
+    centre = clump.mass_properties(1.0).centre @ turn.T
+    reach = support @ e
+    lateral = support - np.outer(reach, e)  # across the slope, the support must hold the centre too
+    cross = np.cross([0.0, 0.0, 1.0], e)
+    behind, ahead = float(reach.min()), float(reach.max())
+    side = lateral @ cross
+    if not (behind - 1e-9 * size <= centre @ e <= ahead + 1e-9 * size
+            and side.min() - 1e-9 * size <= centre @ cross <= side.max() + 1e-9 * size):
+        raise ParameterError(f"clump {clump.name or ''}: it does not rest in this orientation (its centre of mass "
+                             "lies outside the members it stands on): turn it so that it rests")
+    return math.atan2(ahead - float(centre @ e), float(centre[2]) - floor)
+
+
+def equivalent_rolling_friction(clump: Clump, rotation=None, downhill=(1.0, 0.0, 0.0)) -> float:
+    """The rolling friction coefficient at which a sphere starts to roll on the slope at which
+    ``clump`` starts to tip (``onset_angle``): mu_r = tan(theta), for the rolling models whose limit
+    moment on a wall is mu_r R F_n (EPSD, CDT; a sphere on a slope rolls once m g sin(theta) R
+    exceeds mu_r R m g cos(theta), docs/models.md §13, case 0)."""
+    return math.tan(onset_angle(clump, rotation, downhill))

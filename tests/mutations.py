@@ -286,6 +286,11 @@ MUTATIONS = [
     M("clump: three overlapping members not noticed", "src/rollingdem/scene/clumps.py",
       "return any(partners.get(j, set()) & partners.get(i, set()) for i, j in pairs)", "return False",
       ("tests/test_clumps.py",)),
+    M("rigid body: the middle turn half as long", "src/rollingdem/engine/rigid_body.py",
+      "_turn(2, pz * dt / moments[2]", "_turn(2, pz * h / moments[2]", ("tests/test_rigid_body.py",)),
+    M("rigid body: the body frame turned the wrong way", "src/rollingdem/engine/rigid_body.py",
+      "    return (vx + qw * tx + (qy * tz - qz * ty),", "    return (vx - qw * tx + (qy * tz - qz * ty),",
+      ("tests/test_rigid_body.py",)),
     M("mesh flow counts a shared edge twice", "src/rollingdem/io/measurements.py",
       "for p in np.flatnonzero(hit.sum(axis=1) > 1):", "for p in []:", ("tests/test_measurements.py",)),
 ]

@@ -318,3 +318,20 @@ def test_an_automatic_dt_is_lowered_when_the_speeds_outgrow_it():
     given.add_particles([[0, 0, 0.01]], 2e-3, "m", velocity=[[0, 0, -20.0]])
     with pytest.raises(rd.ParameterError, match=f"dt = {chosen:.4g} s exceeds the stable limit"):
         given.run(1e-4)
+
+
+@pytest.mark.parametrize("make,match", [
+    (lambda: rd.MotionTable([0, 1, 2], [[0, 0, 0], [0, 0, 1]]),
+     r"motion table displacements = .* must be finite, three numbers \(x, y, z\) per time \(3 times\)"),
+    (lambda: rd.MotionTable([0, 1], None, [0, float("nan")], axis=(0, 0, 1)),
+     r"motion table angles = \[0.0, nan\] is not allowed: must be finite, one number per time"),
+    (lambda: rd.MotionTable([0, 1], [[0, 0, 0], [0, 0, 1]], repeat=True),
+     "motion table repeat = True is not allowed: the last row differs from the first"),
+    (lambda: rd.Oscillation(10.0), r"oscillation amplitude = \(0, 0, 0\) is not allowed with angle = 0"),
+    (lambda: rd.Oscillation(10.0, angle=0.1), "oscillation axis = None is not allowed with angle = 0.1 rad"),
+    (lambda: rd.Servo((0, 0, -1), 0.1, force=1.0, area=0.01), "servo area = 0.01 is not allowed with force"),
+    (lambda: rd.Plane(motion="shake"), "motion = 'shake' is not allowed: must be a rollingdem.Oscillation"),
+])
+def test_a_bad_program_is_refused_in_one_line(make, match):
+    with pytest.raises(rd.ParameterError, match=match):
+        make()

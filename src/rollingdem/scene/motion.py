@@ -15,7 +15,7 @@ import numpy as np
 
 from rollingdem.engine.layout import MESH_MOTION as MO, MESH_MOTION_SIZE, MOTION_OSCILLATION, MOTION_SERVO, \
     MOTION_TABLE
-from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector
+from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector, short_repr
 
 
 class Oscillation:
@@ -114,9 +114,9 @@ class MotionTable:
         except (TypeError, ValueError):
             raise ParameterError(f"motion table {name} = {_short(values)} is not allowed: must be numbers") from None
         if a.shape != shape or not np.all(np.isfinite(a)):
-            raise ParameterError(f"motion table {name} = {_short(a)} is not allowed: must be finite, one "
-                                 f"{'(x, y, z) ' if len(shape) == 2 else ''}per time ({len(shape) == 2 and 3 or 1} "
-                                 f"number{'s' if len(shape) == 2 else ''} x {shape[0]} times)")
+            what = "three numbers (x, y, z) per time" if len(shape) == 2 else "one number per time"
+            raise ParameterError(f"motion table {name} = {_short(a)} is not allowed: must be finite, {what} "
+                                 f"({shape[0]} times)")
         return a
 
     @property
@@ -203,8 +203,8 @@ PROGRAMS = {"oscillation": Oscillation, "table": MotionTable, "servo": Servo}
 
 
 def _short(value) -> str:
-    text = repr(np.asarray(value).tolist()) if isinstance(value, np.ndarray) else repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+    """``short_repr`` of a value, an array as its list."""
+    return short_repr(np.asarray(value).tolist() if isinstance(value, np.ndarray) else value)
 
 
 def program_from_dict(d: dict | None):

@@ -160,3 +160,34 @@ def test_a_sphere_rolls_at_once_and_a_clump_that_does_not_rest_is_refused():
     pair = rd.Clump([[0, 0, 0], [1.5e-3, 0, 0]], [1e-3, 0.6e-3])
     with pytest.raises(rd.ParameterError, match="it does not rest in this orientation"):
         rd.onset_angle(pair)
+
+
+def test_a_clump_placed_at_random_orientations_keeps_its_shape_and_turns_uniformly():
+    """Placed at 20,000 random orientations (Shoemake's quaternions) about a point, a rod of 3 keeps
+    its centre of mass there and every distance between its members (a rigid turn, to 1e-15 m);
+    the engine's quaternion turn (``engine.rigid_body``) puts its end member at the same place; its
+    axis points uniformly over the sphere: by Archimedes, its z component is uniform on
+    [-1, 1], which a Kolmogorov-Smirnov test does not reject (p > 0.001; the seed is fixed, so the
+    test is the same each run). ``reach`` is the farthest member surface from the centre: 2 R +
+    R for a rod of three touching spheres."""
+    from scipy.stats import kstest
+
+    from rollingdem.scene.clumps import random_orientations
+
+    r = 1e-3
+    rod = rd.Clump.rod(3, r)
+    assert rod.reach() == pytest.approx(3 * r, rel=1e-12)
+    q = random_orientations(np.random.default_rng(8), 20000)
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, rtol=1e-12)
+    from rollingdem.engine.rigid_body import quaternion_rotate
+
+    for quat in q[:2000]:
+        x = rod.placed((0.1, 0.2, 0.3), quat)
+        assert np.abs(x.mean(axis=0) - (0.1, 0.2, 0.3)).max() < 1e-15
+        assert np.linalg.norm(x[2] - x[0]) == pytest.approx(4 * r, rel=1e-12)
+        # the same turn as the engine's (body frame to space frame)
+        np.testing.assert_allclose(x[2] - (0.1, 0.2, 0.3), quaternion_rotate(*quat, 2 * r, 0.0, 0.0), atol=1e-15)
+    # the rod's axis (x in its frame) turned by each quaternion: its z component, 2 (x z - w y)
+    w, x_, y, zq = q.T
+    z = 2 * (x_ * zq - w * y)
+    assert kstest(z, "uniform", args=(-1, 2)).pvalue > 1e-3

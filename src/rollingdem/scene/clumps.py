@@ -261,8 +261,34 @@ class Clump:
         return MassProperties(volume=v, mass=rho * v, centre=centre, inertia=inertia, principal_moments=moments,
                               principal_axes=axes, exact=exact)
 
+    def reach(self) -> float:
+        """The farthest any member's surface lies from the centre of mass (m): how far the body
+        reaches as it turns."""
+        centre = self.mass_properties(1.0).centre
+        return float((np.linalg.norm(self.centres - centre, axis=1) + self.radii).max())
+
+    def placed(self, position, orientation) -> np.ndarray:
+        """The members' centres (k, 3) with the centre of mass at ``position`` and the template
+        turned by the unit quaternion ``orientation`` (w, x, y, z)."""
+        q = np.asarray(orientation, dtype=float)
+        q = q / np.linalg.norm(q)
+        w, v = q[0], q[1:]
+        offsets = self.centres - self.mass_properties(1.0).centre
+        t = 2.0 * np.cross(v, offsets)  # q r q* = r + w t + v x t
+        return np.asarray(position, dtype=float) + offsets + w * t + np.cross(v, t)
+
     def __repr__(self) -> str:
         return f"Clump({self.name or 'custom'}, {len(self.radii)} spheres)"
+
+
+def random_orientations(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` unit quaternions (w, x, y, z) uniform over the rotations (Shoemake, Graphics Gems III,
+    1992: from three uniform numbers u, q = (sqrt(1-u1) sin 2pi u2, sqrt(1-u1) cos 2pi u2,
+    sqrt(u1) sin 2pi u3, sqrt(u1) cos 2pi u3)), for clumps inserted at random orientation."""
+    u1, u2, u3 = rng.random((3, int(n)))
+    a, b = np.sqrt(1.0 - u1), np.sqrt(u1)
+    return np.column_stack([b * np.cos(2 * math.pi * u3), a * np.sin(2 * math.pi * u2),
+                            a * np.cos(2 * math.pi * u2), b * np.sin(2 * math.pi * u3)])
 
 
 def onset_angle(clump: Clump, rotation=None, downhill=(1.0, 0.0, 0.0)) -> float:

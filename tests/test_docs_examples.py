@@ -337,3 +337,28 @@ def test_the_readme_case_file_settles_its_pile_and_prints_its_angle(tmp_path):
     assert [s["ended"][:7] for s in summary["stages"]] == ["settled", "duratio", "settled"]
     assert 10.0 < summary["repose_angle"]["angle"] < 45.0 and "repose angle:" in result.output
     assert (tmp_path / "o" / "pile.png").exists()
+
+
+def test_the_readme_case_file_programs_build_what_they_say(tmp_path):
+    """README, the wall programs "In a case file": the plane's ``oscillate`` fragment builds an
+    oscillation of 20 Hz, 0.5 mm along z, starting at rest (phase 90 deg = pi/2), and a ``table``
+    read from a CSV with the columns it names repeats the table's rows."""
+    import math
+    import re
+
+    import yaml
+
+    from rollingdem.io.casefile import MotionSpec, PlaneSpec, _program
+
+    text = (ROOT / "README.md").read_text()
+    start = text.index("In a case file the programs are")
+    fragments = re.findall(r"`([^`]*)`", text[start:text.index("docs/models.md §16", start)])
+    plane = yaml.safe_load(next(f for f in fragments if f.startswith("- {type: plane")))[0]
+    program = _program(PlaneSpec(**plane), tmp_path)
+    assert program.frequency == 20.0 and program.amplitude == (0.0, 0.0, 0.0005)
+    assert program.phase == pytest.approx(math.pi / 2)
+    table = yaml.safe_load("{" + next(f for f in fragments if f.startswith("table:")) + "}")
+    columns = next(f for f in fragments if f.startswith("t, dx"))
+    (tmp_path / "kinematics.csv").write_text(columns + "\n0, 0, 0, 0\n0.1, 0.001, 0, 0\n0.2, 0, 0, 0\n")
+    repeated = _program(MotionSpec(**table, velocity=(0, 0, 0)), tmp_path)
+    assert repeated.repeat and repeated.position(0.25)[0][0] == pytest.approx(0.0005)  # 0.05 s into a new round

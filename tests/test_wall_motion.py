@@ -77,6 +77,28 @@ def test_a_sphere_rolls_two_sevenths_of_a_plate_shaken_sideways():
     assert worst < 0.01 * (2.0 / 7.0) * 2.0 * amplitude, worst
 
 
+def test_a_sphere_rolls_two_sevenths_of_a_mesh_plate_shaken_sideways():
+    """The same on a flat mesh plate (two triangles, 0.2 m square) moved by the same program: the
+    mesh's contact sees the step's velocity of its surface (``surface_velocity``), so the sphere
+    rolls 2/7 of the plate's travel within the same 1 %."""
+    f, amplitude = 5.0, 2e-3
+    sim = rd.Simulation(gravity=(0, 0, -G), dt=5e-6)
+    material(sim)
+    square = [[-0.1, -0.1, 0], [0.1, -0.1, 0], [0.1, 0.1, 0], [-0.1, 0.1, 0]]
+    plate = sim.add_wall(rd.MeshWall(square, [[0, 1, 2], [0, 2, 3]], material="m", name="plate"))
+    sim.add_particles([[0.01, 0.01, R]], radius=R, material="m")  # off the diagonal: a face contact
+    sim.run(0.02)
+    sim.set_wall_motion(plate, rd.Oscillation(frequency=f, amplitude=(amplitude, 0, 0), phase=math.pi / 2))
+    t0, x0, p0 = sim.time, sim.positions[0, 0], plate.point[0]
+    worst = 0.0
+    for _ in range(20):
+        sim.run(0.01)
+        travel = amplitude * (math.cos(2.0 * math.pi * f * (sim.time - t0)) - 1.0)
+        assert plate.point[0] - p0 == pytest.approx(travel, abs=1e-9 * amplitude)
+        worst = max(worst, abs((sim.positions[0, 0] - x0) - 2.0 / 7.0 * travel))
+    assert worst < 0.01 * (2.0 / 7.0) * 2.0 * amplitude, worst
+
+
 def mesh_tray(sim, motion, angular_velocity=(0, 0, 0)):
     return sim.add_wall(rd.MeshWall.shape("box", material="m", name="tray", size=(0.05, 0.05, 0.02),
                                           point=(0.025, 0.025, 0.0), angular_velocity=angular_velocity,

@@ -17,6 +17,7 @@ touching spheres, a rod of n.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -261,11 +262,15 @@ class Clump:
         return MassProperties(volume=v, mass=rho * v, centre=centre, inertia=inertia, principal_moments=moments,
                               principal_axes=axes, exact=exact)
 
+    @functools.cached_property
+    def centre_of_mass(self) -> np.ndarray:
+        """The union's centre of mass in the template's frame (m; any uniform density)."""
+        return self.mass_properties(1.0).centre
+
     def reach(self) -> float:
         """The farthest any member's surface lies from the centre of mass (m): how far the body
         reaches as it turns."""
-        centre = self.mass_properties(1.0).centre
-        return float((np.linalg.norm(self.centres - centre, axis=1) + self.radii).max())
+        return float((np.linalg.norm(self.centres - self.centre_of_mass, axis=1) + self.radii).max())
 
     def placed(self, position, orientation) -> np.ndarray:
         """The members' centres (k, 3) with the centre of mass at ``position`` and the template
@@ -273,7 +278,7 @@ class Clump:
         q = np.asarray(orientation, dtype=float)
         q = q / np.linalg.norm(q)
         w, v = q[0], q[1:]
-        offsets = self.centres - self.mass_properties(1.0).centre
+        offsets = self.centres - self.centre_of_mass
         t = 2.0 * np.cross(v, offsets)  # q r q* = r + w t + v x t
         return np.asarray(position, dtype=float) + offsets + w * t + np.cross(v, t)
 
@@ -311,7 +316,7 @@ def onset_angle(clump: Clump, rotation=None, downhill=(1.0, 0.0, 0.0)) -> float:
     floor = float(bottoms.min())
     size = float(np.ptp(centres, axis=0).max() + 2.0 * clump.radii.max())
     support = centres[bottoms <= floor + 1e-9 * size]  # the members on the plane; each touches below its centre
-    centre = clump.mass_properties(1.0).centre @ turn.T
+    centre = clump.centre_of_mass @ turn.T
     reach = support @ e
     lateral = support - np.outer(reach, e)  # across the slope, the support must hold the centre too
     cross = np.cross([0.0, 0.0, 1.0], e)

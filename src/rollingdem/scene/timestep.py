@@ -82,7 +82,7 @@ class TimeStepPolicy:
         if seen is not None and seen[0][:4] == key[:4] and seen[0][4] is key[4] and (speeds <= seen[1]).all():
             return
         for label, limit in self.limits():
-            if sim.dt > limit * (1 + 1e-12) and getattr(sim, "dt_automatic", False):
+            if sim.dt > limit * (1 + 1e-12) and sim.dt_automatic:
                 # an automatic dt follows the scene: the speeds have grown since it was chosen
                 old, sim.dt = sim.dt, self.stable()
                 sim.dt_automatic = True

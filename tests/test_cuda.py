@@ -162,6 +162,24 @@ SCENES = textwrap.dedent('''
         sim.run(steps=300)
         return sim
 
+    def clumps(backend):
+        """Clumps (two dimers, two tetrahedra, two rings of four) turned at random, thrown onto a floor
+        and onto each other spinning, with a sphere: the clump kernel's sums, kicks and turns, its
+        members' contacts with walls, spheres and other clumps' members, and the list rebuilt as
+        they move."""
+        sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), dt=2e-6, backend=backend)
+        material(sim, 0.2)
+        sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
+        shapes = (rd.Clump.dimer(1e-3, 1.5e-3), rd.Clump.tetrahedron(8e-4), rd.Clump.ring_prism(4, 6e-4))
+        for k, shape in enumerate(shapes):
+            sim.add_clumps(shape, [[0.004 * k - 0.004, 0, 0.0022], [0.004 * k - 0.0035, 0.0005, 0.0058]], "glass",
+                           orientations=rd.random_orientations(np.random.default_rng(k), 2),
+                           velocity=[[0.3 * (1 - k), 0, -0.3], [0, 0, -1.0]],
+                           angular_velocity=[[0, 200, 50], [30, 0, 0]])
+        sim.add_particles([[0.0005, -0.0035, 0.0015]], radius=1e-3, material="glass 2", velocity=[0.1, 0.3, 0])
+        sim.run(steps=1500)
+        return sim
+
     def handed_over(backend):
         """The pair's first 300 steps on the other backend, checkpointed, restored on ``backend``
         for the last 300: a checkpoint does not depend on the backend that wrote it."""
@@ -205,7 +223,7 @@ SCENES = textwrap.dedent('''
                 k["place_keys"] = saved.get(name, k["place_keys"])
 
     out = {}
-    for name, make in (("mesh, bonds, periodic", bonded), ("checkpoint handed over", handed_over), ("pair", pair), ("wall programs", programmed), ("pair of one material", lambda b: pair(b, ("glass", "glass"))),
+    for name, make in (("mesh, bonds, periodic", bonded), ("checkpoint handed over", handed_over), ("pair", pair), ("wall programs", programmed), ("clumps", clumps), ("pair of one material", lambda b: pair(b, ("glass", "glass"))),
                        ("rolling epsd flat", lambda b: rolling(b, "epsd", 0.0)),
                        ("rolling cdt flat", lambda b: rolling(b, "cdt", 0.0)),
                        ("rolling epsd slope", lambda b: rolling(b, "epsd", 0.05)),
@@ -370,7 +388,7 @@ def simulated(children):
 
 @pytest.mark.parametrize("scene", ["pair", "rolling epsd flat", "rolling cdt flat", "rolling epsd slope",
                                    "rolling cdt slope", "pile", "bed", "bed, slots in reverse", "fine floor", "mesh, bonds, periodic", "checkpoint handed over",
-                                   "wall programs"])
+                                   "wall programs", "clumps"])
 def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene):
     """Positions, velocities and spins after the run equal the CPU engine's bit for bit, and so do
     the contact counts: the GPU's kernels run the same compiled functions in the same order (each
@@ -381,7 +399,8 @@ def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene)
     counting sorts' atomic slots taken in the opposite order of the threads), EPSD and CDT rolling
     on a flat and a sloped floor, and bonds (one breaking), a moving triangle mesh, a fine mesh
     whose candidate arrays grow, a fixed sphere and a periodic box, and walls moved by programs (a
-    floor shaken sideways, a servo lid, a mesh turned by a table of times). A checkpoint written on one
+    floor shaken sideways, a servo lid, a mesh turned by a table of times), and clumps (rigid bodies of
+    spheres) landing on the floor and on each other. A checkpoint written on one
     backend restores on the other and goes on as the run on that backend would. Their spheres are of two
     materials (the same glass), so that the CPU too takes the scalar pair path; the pile, 27
     spheres thrown into a box, amplifies a difference of one unit in the last place to 1e-7 m

@@ -69,11 +69,13 @@ def test_a_field_is_declared_once():
 
 
 def test_the_records_hold_the_fields_in_the_step_loops_order():
-    """The particles' record is the schema's fields with a step-loop name, then the bonds' and the
-    bond index; tags (the user's numbers) stay on the host."""
+    """The particles' record is the schema's fields with a step-loop name, then the bonds', the
+    clumps', the bond index and the clump index; tags (the user's numbers) stay on the host."""
     st = EngineState(6)
     fields = st.records()[0]._fields
-    assert fields[:5] == ("x", "v", "w", "f", "t") and fields[-2:] == ("bond_start", "bond_ends")
+    assert fields[:5] == ("x", "v", "w", "f", "t")
+    assert fields[-4:] == ("bond_start", "bond_ends", "clump_start", "clump_members")
+    assert fields.index("bond_pairs") < fields.index("clump_x") < fields.index("bond_start")
     assert "tags" not in fields and "bond_pairs" in fields
     assert st.records()[1]._fields[:9] == ("kind", "geometry", "velocity", "angular_velocity", "material", "program",
                                            "history", "touching", "load")

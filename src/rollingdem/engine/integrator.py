@@ -23,11 +23,11 @@ def next_drift_bound(dt, vx, vy, vz, fx, fy, fz, m):
 
 
 @njit(cache=True, inline="always")
-def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, half_skin):
+def kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, clump, half_skin):
     """Opening half kick and drift of particle i; 1 if it is now skin/2 or more from where the list
-    was built (NaN: 1). A fixed particle stays. Arrays, not the record: it is inlined into a prange
-    body."""
-    if fixed.shape[0] != 0 and fixed[i]:
+    was built (NaN: 1). A fixed particle stays; a clump's member is moved by its clump
+    (``rigid_body.clump_rows``). Arrays, not the record: it is inlined into a prange body."""
+    if (fixed.shape[0] != 0 and fixed[i]) or (clump.shape[0] != 0 and clump[i] >= 0):
         return 0
     a = 0.5 * dt / mass[i]
     b = 0.5 * dt / inertia[i]
@@ -46,10 +46,11 @@ def kick_drift(dt, particles, half_skin):
     """Opening half kick and drift of velocity Verlet; the count of particles now skin/2 or more
     from where the list was built."""
     x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
-    mass, inertia, x_ref, fixed = particles.mass, particles.inertia, particles.x_ref, particles.fixed
+    mass, inertia, x_ref, fixed, clump = particles.mass, particles.inertia, particles.x_ref, particles.fixed, \
+        particles.clump
     nexceed = 0
     for i in prange(x.shape[0]):
-        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, half_skin)
+        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, clump, half_skin)
     return nexceed
 
 
@@ -58,20 +59,22 @@ def kick_drift_range(lo, hi, dt, particles, half_skin):
     """``kick_drift`` on particles lo..hi-1, compiled as it is (the GPU's drift kernel,
     ``rollingdem.engine.cuda.step_loop``)."""
     x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
-    mass, inertia, x_ref, fixed = particles.mass, particles.inertia, particles.x_ref, particles.fixed
+    mass, inertia, x_ref, fixed, clump = particles.mass, particles.inertia, particles.x_ref, particles.fixed, \
+        particles.clump
     nexceed = 0
     for i in range(lo, hi):
-        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, half_skin)
+        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, clump, half_skin)
     return nexceed
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def kick_drift_serial(dt, particles, half_skin):
     x, v, w, f, t = particles.x, particles.v, particles.w, particles.f, particles.t
-    mass, inertia, x_ref, fixed = particles.mass, particles.inertia, particles.x_ref, particles.fixed
+    mass, inertia, x_ref, fixed, clump = particles.mass, particles.inertia, particles.x_ref, particles.fixed, \
+        particles.clump
     nexceed = 0
     for i in range(x.shape[0]):
-        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, half_skin)
+        nexceed += kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, x_ref, fixed, clump, half_skin)
     return nexceed
 
 
@@ -85,6 +88,8 @@ def undo_drift(dt, particles):
         particles.inertia
     for i in range(x.shape[0]):
         if particles.fixed.shape[0] != 0 and particles.fixed[i]:
+            continue
+        if particles.clump.shape[0] != 0 and particles.clump[i] >= 0:  # undone by its clump
             continue
         a = 0.5 * dt / mass[i]
         vx = v[i, 0] - a * f[i, 0]

@@ -178,22 +178,22 @@ def minimum_image(d, length, inv_length):
 
 
 @njit(cache=True, parallel=True)
-def _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, counts, new_start, new_j,
+def _scan_pairs(x, radius, skin, ids, fixed, clump, box, dims, cell_start, cell_items, cell_of, counts, new_start, new_j,
                 fill):
     """``scan_row`` for every particle: the rows' lengths into ``counts`` (fill = False) or the rows
     written (fill = True)."""
     for i in prange(x.shape[0]):
-        k = scan_row(i, x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, new_start, new_j,
+        k = scan_row(i, x, radius, skin, ids, fixed, clump, box, dims, cell_start, cell_items, cell_of, new_start, new_j,
                      fill)
         if not fill:
             counts[i] = k
 
 
 @njit(cache=True, inline="always")
-def scan_row(i, x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, new_start, new_j, fill):
+def scan_row(i, x, radius, skin, ids, fixed, clump, box, dims, cell_start, cell_items, cell_of, new_start, new_j, fill):
     """Row i of the half list: the j with ids[j] > ids[i] in the 27 cells around i's (across the
     ends of a periodic axis) with |x_i - x_j| < R_i + R_j + skin (the minimum image), not both
-    fixed. Returns their count (fill = False: nothing written) or writes them, sorted by id, from
+    fixed, not members of one clump. Returns their count (fill = False: nothing written) or writes them, sorted by id, from
     ``new_start[i]`` in ``new_j`` (fill = True). A periodic axis has at least 2 cells (its length is
     at least twice the cutoff); with 2, the cells on either side are the same one and are visited
     once."""
@@ -217,6 +217,7 @@ def scan_row(i, x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, 
     ri = radius[i]
     idi = ids[i]
     fixed_i = has_fixed and fixed[i] != 0
+    clump_i = clump[i] if clump.shape[0] != 0 else -1
     for dz in range(-1, 2):
         z = cz + dz
         if z < 0 or z >= dims[2]:
@@ -254,6 +255,8 @@ def scan_row(i, x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, 
                     # candidates, in no pattern: a mispredicted branch each other time)
                     if (ids[j] > idi) & (ddx * ddx + ddy * ddy + ddz * ddz < cut * cut):
                         if fixed_i and fixed[j] != 0:  # two fixed particles never touch
+                            continue
+                        if clump_i >= 0 and clump[j] == clump_i:  # nor two members of one rigid body
                             continue
                         if fill:
                             new_j[k] = j
@@ -384,9 +387,10 @@ def list_rows(n, nl_start, nl_i):
 
 
 @njit(cache=True)
-def rebuild_neighbor_list(x, radius, skin, ids, fixed, image, x_ref, lists):
+def rebuild_neighbor_list(x, radius, skin, ids, fixed, clump, image, x_ref, lists):
     """Rebuild the half list (``lists``, a ``layout.ListArrays``) at the current positions,
-    carrying contact history over (pairs of two fixed particles are left out); the centres are first
+    carrying contact history over (pairs of two fixed particles, and of two members of one clump, are
+    left out); the centres are first
     put back into the periodic box (``wrap_positions``); ``x_ref`` gets the positions it was built at.
 
     Returns the number of list entries, or minus the capacity needed when ``nl_j`` is too short
@@ -412,7 +416,7 @@ def rebuild_neighbor_list(x, radius, skin, ids, fixed, image, x_ref, lists):
     _bin_particles(x, cells, lo, dims, cell_start, cell_items, cell_of)
     # np.bool_, not a literal False/True: a literal compiles _scan_pairs once per value (1.5 s more
     # of a cold compile, and the rebuild no faster: 16.6 and 16.1 ms on the 20,000-sphere column)
-    _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
+    _scan_pairs(x, radius, skin, ids, fixed, clump, box, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
                 np.bool_(False))
     total = 0
     for i in range(n):
@@ -423,7 +427,7 @@ def rebuild_neighbor_list(x, radius, skin, ids, fixed, image, x_ref, lists):
     nl_start[0] = 0
     for i in range(n):
         nl_start[i + 1] = nl_start[i] + counts[i]
-    _scan_pairs(x, radius, skin, ids, fixed, box, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
+    _scan_pairs(x, radius, skin, ids, fixed, clump, box, dims, cell_start, cell_items, cell_of, counts, nl_start, nl_j,
                 np.bool_(True))
     _drop_lost_contacts(n, ids, nl_start, nl_j, pool, tr_start, tr_k)
     _place_contacts(n, nl_start, nl_j, contact_row, pool, tr_start, tr_k, groups)
@@ -524,11 +528,11 @@ class ContactList:
         return int(self.start[-1]) if self.start.size else 0
 
     # --- building --------------------------------------------------------------------------
-    def rebuild(self, x, radius, skin, ids, fixed, image, x_ref, grow) -> int:
+    def rebuild(self, x, radius, skin, ids, fixed, clump, image, x_ref, grow) -> int:
         """Rebuild at the present positions, carrying the contacts over; ``grow(needed)`` is called
         while the arrays are too short. Returns the number of entries."""
         while True:
-            total = rebuild_neighbor_list(x, radius, skin, ids, fixed, image, x_ref, self.arrays())
+            total = rebuild_neighbor_list(x, radius, skin, ids, fixed, clump, image, x_ref, self.arrays())
             if total >= 0:
                 list_rows(self.rows, self.start, self.i)
                 return total

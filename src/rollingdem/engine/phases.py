@@ -46,7 +46,7 @@ class Passes:
         self.gather_walls = lambda: gather(dt, KICK_NONE, gravity, pp, particles, walls, lists, 0.5 * skin)
         self.gather_plain = lambda: gather(dt, KICK_NONE, gravity, pp, particles, no_walls, lists, 0.5 * skin)
         self.kick = lambda: kick_drift(0.0, particles, 0.5 * skin)
-        self.rebuild = lambda: rebuild_neighbor_list(st.x, st.radius, skin, st.ids, st.fixed, st.image, st.x_ref, lists)
+        self.rebuild = lambda: rebuild_neighbor_list(st.x, st.radius, skin, st.ids, st.fixed, st.clump, st.image, st.x_ref, lists)
         self.mesh_candidates = lambda: build_mesh_candidates(st.x, st.radius, skin, walls)
 
     def restore(self) -> None:

@@ -31,6 +31,7 @@ PER_PARTICLE = "particle"
 PER_BOND = "bond"
 PER_WALL = "wall"
 PER_PARTICLE_WALL = "particle_wall"  # a row per particle and wall, particle i's at i * walls + w
+PER_CLUMP = "clump"  # a row per clump (a rigid body of member spheres)
 HISTORY = "history"  # a width: the contact law's history size, known when the state is made
 
 
@@ -101,6 +102,12 @@ PARTICLE = (
     Field("fixed", np.uint8, lazy=True,
           doc="1: a fixed particle (never moves; walls and gravity skip it; its contacts take the free "
               "partner's mass and rolling inertia, as a wall's); no rows while no particle is fixed"),
+    Field("clump", np.int64, fill=-1, lazy=True, settable=False,
+          doc="the clump (rigid body) the particle is a member of, -1 none: the clump moves it, the neighbor "
+              "list leaves out its pairs with its clump's other members; no rows while there is no clump"),
+    Field("body_offset", width=(3,), lazy=True, settable=False,
+          doc="a clump member's centre in its clump's principal frame, from the clump's centre of mass (m); "
+              "rows while there is a clump"),
     Field("tags", np.int64, record=None, settable=False, doc="each particle's number for good (VTK id); ids are renumbered "
                                               "when particles go"),
 )
@@ -114,6 +121,24 @@ BOND = (
     Field("bond_load", width=(BOND_LOAD_SIZE,), per=PER_BOND,
           doc="the last step's force on i and torques on i and j"),
 )
+CLUMP = (
+    Field("clump_x", width=(3,), per=PER_CLUMP,
+          doc="centre of mass (m); across a periodic boundary it is not wrapped, its members are"),
+    Field("clump_v", width=(3,), per=PER_CLUMP, doc="velocity of the centre of mass (m/s)"),
+    Field("clump_q", width=(4,), per=PER_CLUMP,
+          doc="orientation: the unit quaternion (w, x, y, z) turning the principal frame into the space frame"),
+    Field("clump_L", width=(3,), per=PER_CLUMP, doc="angular momentum about the centre of mass, space frame (kg m^2/s)"),
+    Field("clump_mass", per=PER_CLUMP, doc="mass (kg)"),
+    Field("clump_moments", width=(3,), per=PER_CLUMP, doc="principal moments of inertia (kg m^2)"),
+    Field("clump_f", width=(3,), per=PER_CLUMP, doc="the members' forces summed at the last step (N)"),
+    Field("clump_t", width=(3,), per=PER_CLUMP,
+          doc="the members' torques and moments of their forces about the centre of mass, summed (N m)"),
+)
+#: each clump's members, made from ``clump`` (``EngineState.index_clumps``): CSR rows (clumps + 1)
+#: and the members' slots, each row in the members' order (by tag: the order forces are summed in,
+#: whatever the slots); empty without clumps
+CLUMP_INDEX = ("clump_start", "clump_members")
+
 #: each particle's bonds, made from ``bond_pairs`` (``EngineState.index_bonds``): CSR rows (n + 1)
 #: of each particle's bond ends, and the ends (2 b for bond b's i, 2 b + 1 for its j), each row in
 #: ascending order; empty without bonds
@@ -170,8 +195,9 @@ MESH_RECORD = (
 class Schema:
     """The declared fields, and the step loop's record types made from them."""
 
-    def __init__(self, particle, bond, wall):
-        self.fields = {PER_PARTICLE: list(particle), PER_BOND: list(bond), PER_WALL: [], PER_PARTICLE_WALL: []}
+    def __init__(self, particle, bond, wall, clump):
+        self.fields = {PER_PARTICLE: list(particle), PER_BOND: list(bond), PER_WALL: [], PER_PARTICLE_WALL: [],
+                       PER_CLUMP: list(clump)}
         for f in wall:
             self.fields[f.per].append(f)
         self._types = {}
@@ -180,8 +206,8 @@ class Schema:
         return self.fields[per]
 
     def all(self) -> list[Field]:
-        """Every declared field: the particles', the bonds', the walls', the particle-wall ones."""
-        return [f for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL) for f in self.fields[per]]
+        """Every declared field: the particles', the bonds', the walls', the particle-wall ones, the clumps'."""
+        return [f for per in (PER_PARTICLE, PER_BOND, PER_WALL, PER_PARTICLE_WALL, PER_CLUMP) for f in self.fields[per]]
 
     def declare(self, field: Field) -> None:
         """Add a field (its name new): every state made afterwards has it."""
@@ -205,9 +231,10 @@ class Schema:
         return self._types[key]
 
     def particle_record(self):
-        """The step loop's ``ParticleArrays`` type: the particles' fields, the bonds', the bond index."""
-        names = tuple(f.record_name for per in (PER_PARTICLE, PER_BOND) for f in self.fields[per]
-                      if f.record_name is not None) + BOND_INDEX
+        """The step loop's ``ParticleArrays`` type: the particles' fields, the bonds', the bond index,
+        the clumps' fields and the clump index."""
+        names = tuple(f.record_name for per in PARTICLE_RECORD for f in self.fields[per]
+                      if f.record_name is not None) + BOND_INDEX + CLUMP_INDEX
         return self._record_type("ParticleArrays", names)
 
     def wall_record(self):
@@ -217,7 +244,9 @@ class Schema:
         return self._record_type("WallArrays", names)
 
 
-SCHEMA = Schema(PARTICLE, BOND, WALL)
+#: the kinds of field in the particles' record, in its order (the bond index and the clump index follow)
+PARTICLE_RECORD = (PER_PARTICLE, PER_BOND, PER_CLUMP)
+SCHEMA = Schema(PARTICLE, BOND, WALL, CLUMP)
 # The declared schema's record types, bound to this module's names: Numba's disk cache keys a
 # compiled function by its argument types and pickles a namedtuple's class by reference only when
 # the class is the module attribute of its name; a class it cannot find so is pickled by value and

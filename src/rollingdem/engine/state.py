@@ -13,7 +13,7 @@ from rollingdem.engine.backends import BACKENDS
 from rollingdem.errors import SimulationError
 from rollingdem.physics.records import ENERGY_CHANNELS, WALL_LOAD_SIZE
 from rollingdem.engine.layout import CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION as MO, MESH_MOTION_SIZE, MESH_SLOTS, MOTION_TABLE_ROW, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, Scratch, block_columns
-from rollingdem.engine.schema import PER_BOND, PER_PARTICLE, PER_PARTICLE_WALL, PER_WALL, SCHEMA
+from rollingdem.engine.schema import PARTICLE_RECORD, PER_BOND, PER_CLUMP, PER_PARTICLE, PER_PARTICLE_WALL, PER_WALL, SCHEMA
 from rollingdem.engine.neighbors import ContactList
 from rollingdem.engine.threads import ThreadGovernor
 # list capacity = entries needed x this (16 bytes per entry and a pool row of 8 (history + 6) bytes,
@@ -50,6 +50,8 @@ class EngineState:
             setattr(self, field.name, field.rows(0, history_size))
         self.bond_start = np.zeros(0, dtype=np.int64)
         self.bond_ends = np.zeros(0, dtype=np.int64)
+        self.clump_start = np.zeros(0, dtype=np.int64)
+        self.clump_members = np.zeros(0, dtype=np.int64)
         self.next_tag = 0
         self._slots = None  # slot of each id, once the slots were re-sorted
         self._governor = None  # made by governor() when first used
@@ -75,7 +77,7 @@ class EngineState:
     def rebuild_list(self, skin: float) -> int:
         """Rebuild the neighbor list at the present positions, carrying the contacts over (the
         arrays grow as needed); returns its number of entries."""
-        return self.contact_list.rebuild(self.x, self.radius, skin, self.ids, self.fixed, self.image, self.x_ref,
+        return self.contact_list.rebuild(self.x, self.radius, skin, self.ids, self.fixed, self.clump, self.image, self.x_ref,
                                          self.grow)
 
     def derive_wall_touch(self):
@@ -130,6 +132,7 @@ class EngineState:
         self.meshes.resize_particles(self.n)
         if len(self.bond_pairs):
             self.index_bonds()
+        self.index_clumps()
         self.info[I_NEED_REBUILD] = 1
         self.info[I_FORCES_VALID] = 0
         self.steps_since_sort = SORT_EVERY  # the new particles come in the user's order: sort at the next run
@@ -196,6 +199,48 @@ class EngineState:
         self.bond_ends = np.ascontiguousarray(code[order], dtype=np.int64)
         self.bond_start = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=self.n))]).astype(np.int64)
 
+    # --- clumps --------------------------------------------------------------------------------
+    @property
+    def n_clumps(self) -> int:
+        return self.clump_mass.shape[0]
+
+    def add_clumps(self, members: np.ndarray, offsets: np.ndarray, **values) -> None:
+        """Append clumps: ``values`` their per-clump fields' rows (``clump_x``, ``clump_q``,
+        ``clump_mass``, ...), ``members`` (m,) the clump (0..count-1 among the new ones) of each
+        particle appended last, in its members' order, ``offsets`` (m, 3) their centres in the
+        clump's principal frame (m). The members are placed by the step loop."""
+        count = len(values["clump_mass"])
+        first, n0 = self.n_clumps, self.n - len(members)
+        for field in SCHEMA.of(PER_CLUMP):
+            setattr(self, field.name, np.concatenate([getattr(self, field.name),
+                                                      field.rows(count, self.history_size, values.get(field.name))]))
+        for name, new in (("clump", first + np.asarray(members, dtype=np.int64)), ("body_offset", offsets)):
+            field = next(f for f in SCHEMA.of(PER_PARTICLE) if f.name == name)
+            old = getattr(self, name)
+            if len(old) != self.n:
+                old = field.rows(self.n, self.history_size)
+            old[n0:] = new
+            setattr(self, name, old)
+        self.index_clumps()
+        self.info[I_FORCES_VALID] = 0
+
+    def index_clumps(self) -> None:
+        """Each clump's members' slots in the order of their tags (``clump_start``,
+        ``clump_members``), the order its forces are summed in whatever the slots; empty arrays
+        without clumps (the step loop then skips them)."""
+        if self.n_clumps == 0:
+            self.clump_start = np.zeros(0, dtype=np.int64)
+            self.clump_members = np.zeros(0, dtype=np.int64)
+            self.clump, self.body_offset = self.clump[:0], self.body_offset[:0]
+            return
+        if len(self.body_offset) != self.n:  # every member at its clump's centre: no rows were kept
+            self.body_offset = np.zeros((self.n, 3))
+        members = np.nonzero(self.clump >= 0)[0]
+        order = np.lexsort((self.tags[members], self.clump[members]))
+        self.clump_members = np.ascontiguousarray(members[order], dtype=np.int64)
+        self.clump_start = np.concatenate([[0], np.cumsum(np.bincount(self.clump[members],
+                                                                      minlength=self.n_clumps))]).astype(np.int64)
+
     def sort(self, cell_size: float) -> None:
         """Re-sort the slots in Morton order of the positions; the neighbor list, its history and
         every per-particle array follow, so the next step computes exactly the same contacts."""
@@ -213,6 +258,7 @@ class EngineState:
         if len(self.bond_pairs):
             self.bond_pairs = inv[self.bond_pairs]
             self.index_bonds()
+        self.index_clumps()
         self._slots = np.argsort(self.ids)
         self.steps_since_sort = 0
 
@@ -237,6 +283,11 @@ class EngineState:
         gone = np.asarray(gone, dtype=bool)
         if not gone.any():
             return
+        if self.n_clumps:  # a clump goes whole with any of its members
+            member = self.clump >= 0
+            clump_gone = np.zeros(self.n_clumps, dtype=bool)
+            clump_gone[self.clump[gone & member]] = True
+            gone = gone | (member & clump_gone[np.maximum(self.clump, 0)])
         keep = ~gone
         n, h = self.n, self.history_size
         arrays = self.to_arrays()
@@ -269,6 +320,11 @@ class EngineState:
             for field in SCHEMA.of(PER_BOND):
                 arrays[field.name] = arrays[field.name][held]
             arrays["bond_pairs"] = slot[arrays["bond_pairs"]]
+        if self.n_clumps:
+            for field in SCHEMA.of(PER_CLUMP):
+                arrays[field.name] = arrays[field.name][~clump_gone]
+            renumber = np.cumsum(~clump_gone) - 1
+            arrays["clump"] = np.where(arrays["clump"] >= 0, renumber[np.maximum(arrays["clump"], 0)], -1)
         fresh = EngineState.from_arrays(arrays, h)
         names = self.meshes.names
         for key, value in fresh.__dict__.items():
@@ -303,10 +359,11 @@ class EngineState:
         they grow: records are made for each call): the particles' and the walls' (their fields
         from the schema, ``rollingdem.engine.schema``), the list's and the scratch
         (``rollingdem.engine.layout``)."""
-        particle_fields = [f for per in (PER_PARTICLE, PER_BOND) for f in SCHEMA.of(per) if f.record_name is not None]
+        particle_fields = [f for per in PARTICLE_RECORD for f in SCHEMA.of(per) if f.record_name is not None]
         wall_fields = [f for per in (PER_WALL, PER_PARTICLE_WALL) for f in SCHEMA.of(per) if f.record_name is not None]
         return (SCHEMA.particle_record()._make([getattr(self, f.name) for f in particle_fields]
-                                               + [self.bond_start, self.bond_ends]),
+                                               + [self.bond_start, self.bond_ends, self.clump_start,
+                                                  self.clump_members]),
                 SCHEMA.wall_record()._make([getattr(self, f.name) for f in wall_fields] + list(self.meshes.arrays())),
                 self.contact_list.arrays(),
                 Scratch(*self.contact_blocks()))
@@ -464,7 +521,7 @@ class EngineState:
         st = cls(history_size)
         n = len(arrays["x"])
         walls = len(arrays["wall_kind"])
-        count = {PER_PARTICLE: n, PER_BOND: 0, PER_WALL: walls, PER_PARTICLE_WALL: n * walls}
+        count = {PER_PARTICLE: n, PER_BOND: 0, PER_WALL: walls, PER_PARTICLE_WALL: n * walls, PER_CLUMP: 0}
         for field in SCHEMA.all():
             if not field.saved:
                 continue
@@ -483,6 +540,7 @@ class EngineState:
         st.next_tag = int(arrays["next_tag"]) if "next_tag" in arrays else st.n
         st.meshes.from_arrays(arrays, st.n)
         st.index_bonds()
+        st.index_clumps()
         if not np.array_equal(st.ids, np.arange(st.n)):
             st._slots = np.argsort(st.ids)
         cl = st.contact_list = ContactList(history_size, rows=st.n)

@@ -9,6 +9,7 @@ import numpy as np
 
 from rollingdem.engine.layout import I_FORCES_VALID
 from rollingdem.engine.schema import PER_PARTICLE, SCHEMA
+from rollingdem.physics.records import ENERGY_CHANNELS
 from rollingdem.errors import ParameterError, check_finite, check_positive, short_repr
 from rollingdem.scene import periodic as periodic_box
 
@@ -120,9 +121,10 @@ class Particles:
                                  "must be one material or one per sphere")
         return np.array([materials.index(mm) for mm in material], dtype=np.int32)
 
-    def check_no_overlap(self, x, r, tolerance=1e-12, walls=True):
+    def check_no_overlap(self, x, r, tolerance=1e-12, walls=True, bodies=None):
         """Refuse new spheres (``x``, ``r``) that overlap a sphere before them (or its periodic
-        image) or, with ``walls``, a wall in place."""
+        image) or, with ``walls``, a wall in place; ``bodies`` (one label per new sphere): new
+        spheres of one label (a clump's members) may overlap each other."""
         from scipy.spatial import cKDTree
 
         sim, st = self.sim, self.state
@@ -137,6 +139,9 @@ class Particles:
             near = np.asarray(near, dtype=np.int64)
             i = first + k
             near = near[source[near] < i]
+            if bodies is not None:
+                new = source[near] - first
+                near = near[(new < 0) | (bodies[np.maximum(new, 0)] != bodies[k])]
             if near.size == 0:
                 continue
             gap = np.linalg.norm(imgx[near] - allx[i], axis=1) - imgr[near] - allr[i]
@@ -256,11 +261,22 @@ class Particles:
         st.info[I_FORCES_VALID] = 0
 
     def kinetic_energy(self) -> tuple[float, float]:
-        """(translational, rotational) kinetic energy (J): 1/2 sum m v^2, 1/2 sum I w^2."""
+        """(translational, rotational) kinetic energy (J): 1/2 sum m v^2, 1/2 sum I w^2 over the
+        spheres, and over the clumps as bodies (``ClumpSet.kinetic_energy``), not their members."""
         st = self.state
-        trans = 0.5 * float(np.dot(st.mass, np.einsum("ij,ij->i", st.v, st.v)))
-        rot = 0.5 * float(np.dot(st.inertia, np.einsum("ij,ij->i", st.w, st.w)))
-        return trans, rot
+        free = st.clump < 0 if len(st.clump) else slice(None)
+        trans = 0.5 * float(np.dot(st.mass[free], np.einsum("ij,ij->i", st.v[free], st.v[free])))
+        rot = 0.5 * float(np.dot(st.inertia[free], np.einsum("ij,ij->i", st.w[free], st.w[free])))
+        clump_trans, clump_rot = self.sim.clump_set.kinetic_energy()
+        return trans + clump_trans, rot + clump_rot
+
+    def dissipated_energy(self) -> dict[str, float]:
+        """``Simulation.dissipated_energy``."""
+        if not self.sim.track_energy and not self.state.energy.any():
+            raise ParameterError("dissipated_energy: track_energy = False, so no dissipated energy was summed; "
+                                 "create the Simulation with track_energy=True (or set sim.track_energy = True "
+                                 "before the run)")
+        return dict(zip(ENERGY_CHANNELS, self.state.energy.sum(axis=0).tolist()))
 
     def largest_radius(self, inflows=()) -> float:
         """The largest radius in place or to come from ``inflows`` (0 when none)."""

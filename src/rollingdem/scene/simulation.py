@@ -23,13 +23,13 @@ from rollingdem.engine.layout import I_FORCES_VALID
 from rollingdem.engine.state import EngineState, periodic_box
 from rollingdem.errors import ParameterError, check_positive, check_vector
 from rollingdem.physics.contact.model import ContactModel
-from rollingdem.physics.records import ENERGY_CHANNELS
 from rollingdem.scene import checkpoint, periodic as periodic_box_checks
 from rollingdem.scene.bonds import BondSet
 from rollingdem.scene.boundaries import Boundaries
 from rollingdem.scene.checkpoint import VERSION as __version__  # noqa: F401
 from rollingdem.scene.materials import Material, MaterialTable
 from rollingdem.scene.particles import Particles
+from rollingdem.scene.rigid_bodies import ClumpSet
 from rollingdem.scene.conditions import as_conditions
 from rollingdem.scene.schedule import Schedule, as_observers, steps_of
 from rollingdem.scene.timestep import TimeStepPolicy
@@ -85,6 +85,7 @@ class Simulation:
         self.periodic = periodic_box_checks.check_periodic(periodic)
         self._state.contact_list.box = periodic_box(self.periodic)
         self.particle_set, self.wall_set, self.bond_set = Particles(self), WallSet(self), BondSet(self)
+        self.clump_set = ClumpSet(self)
         self.schedule = Schedule()
         self.boundary_set = Boundaries(self)
         self.time_step_policy = TimeStepPolicy(self)
@@ -186,6 +187,16 @@ class Simulation:
         from ``seed``; raises when the region cannot hold them. The new spheres are numbered in Morton order."""
         return self.particle_set.insert(region, count, radius, material, seed, velocity, max_attempts, mass, fraction)
 
+    def add_clumps(self, clump, positions, material, orientations=None, velocity=None, angular_velocity=None,
+                   fixed: bool = False, allow_overlap: bool = False) -> np.ndarray:
+        """Add rigid bodies of ``clump`` (``rd.Clump``), centres of mass at ``positions``, turned by ``orientations``
+        (unit quaternions w, x, y, z); returns their indices in ``clumps``. Members are particles (docs/models.md §17)."""
+        return self.clump_set.add(clump, positions, material, orientations, velocity, angular_velocity, fixed,
+                                  allow_overlap)
+
+    clumps = property(lambda self: self.clump_set.table(), doc="Each clump's centre, velocity, angular_velocity, "
+                      "orientation (of its principal frame), axes (columns), mass, moments, angular_momentum, by row.")
+
     positions = _particle_view("x", "Positions (m), (N, 3), in the order the particles were added.")
     velocities = _particle_view("v", "Velocities (m/s), (N, 3).")
     angular_velocities = _particle_view("w", "Angular velocities (rad/s), (N, 3).")
@@ -205,20 +216,17 @@ class Simulation:
         return self.particle_set.unwrapped_positions()
 
     def particle_field(self, name: str) -> np.ndarray:
-        """A per-particle field of the state's schema (``rollingdem.engine.schema``: ``radius``,
-        ``contacts``, or one declared with ``SCHEMA.declare``), in the order of ``positions``."""
+        """A per-particle field of the state's schema (``engine.schema``: ``radius``, ``clump``, ...), by ``positions``."""
         return self.particle_set.by_id(self.particle_set.field(name).name)
 
     def set_particle_field(self, name: str, indices, values) -> None:
         """Set a per-particle field of some particles (``values`` one for all, or one each)."""
         self.particle_set.set_field(name, indices, values)
 
-    def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
-        """Set translational (m/s) and/or angular (rad/s) velocities of some particles."""
+    def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:  # m/s, rad/s
         self.particle_set.set_velocities(indices, velocity, angular_velocity)
 
-    def kinetic_energy(self) -> tuple[float, float]:
-        """(translational, rotational) kinetic energy (J)."""
+    def kinetic_energy(self) -> tuple[float, float]:  # (translational, rotational) kinetic energy (J)
         return self.particle_set.kinetic_energy()
 
     # --- outlets and inflows ---------------------------------------------------------------------
@@ -245,8 +253,7 @@ class Simulation:
     outlets = property(lambda self: self.boundary_set.outlets, doc="The outlets (``Outlet``), in the order added.")
     inflows = property(lambda self: self.boundary_set.inflows, doc="The inflows (``Inflow``), in the order added.")
 
-    def boundary_counts(self) -> dict:
-        """The cumulative counts of each outlet and inflow, by time-series column."""
+    def boundary_counts(self) -> dict:  # the cumulative counts of each outlet and inflow, by time-series column
         return self.boundary_set.counts()
 
     # --- walls -----------------------------------------------------------------------------------
@@ -300,8 +307,7 @@ class Simulation:
         """``bonds_intact``, ``bonds_broken_tension``, ``bonds_broken_shear``; empty without bonds."""
         return self.bond_set.counts()
 
-    def bond_energy(self) -> float:
-        """The strain energy (J) of the intact bonds (docs/models.md §1.7)."""
+    def bond_energy(self) -> float:  # the strain energy (J) of the intact bonds (docs/models.md §1.7)
         return self.bond_set.energy()
 
     # --- engine ----------------------------------------------------------------------------------
@@ -331,12 +337,7 @@ class Simulation:
     def dissipated_energy(self) -> dict[str, float]:
         """Energy (J) dissipated while ``track_energy`` was on, by normal damping, sliding, rolling
         and twisting."""
-        if not self.track_energy and not self._state.energy.any():
-            raise ParameterError("dissipated_energy: track_energy = False, so no dissipated energy was summed; "
-                                 "create the Simulation with track_energy=True (or set sim.track_energy = True "
-                                 "before the run)")
-        totals = self._state.energy.sum(axis=0)
-        return dict(zip(ENERGY_CHANNELS, totals.tolist()))
+        return self.particle_set.dissipated_energy()
 
     def number_of_contacts(self) -> int:
         return int(self._state.contacts.sum())

@@ -114,7 +114,7 @@ def kernel_bodies(module) -> dict:
         if i < particles.x.shape[0]:
             g = rebuild.grid
             dims = (int(g[3]), int(g[4]), int(g[5]))
-            k = scan_row(i, particles.x, particles.radius, skin, particles.ids, particles.fixed, lists.box, dims,
+            k = scan_row(i, particles.x, particles.radius, skin, particles.ids, particles.fixed, particles.clump, lists.box, dims,
                          lists.cell_start, lists.cell_items, lists.cell_of, lists.start, lists.j, fill != 0)
             if fill == 0:
                 lists.counts[i] = k

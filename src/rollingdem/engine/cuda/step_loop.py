@@ -12,6 +12,7 @@ driving differs:
 - bonds: one thread per bond (``bond_forces``), each writing its own row;
 - gather: one thread per particle (``gather_rows`` on one particle): its own row's sum, the
   entries where it is the second partner in list order, walls, gravity, the kicks and the drift;
+- clumps: one thread per clump (``clump_rows``), summing its members in their order and moving them;
 - neighbor list: rebuilt on the device (``rollingdem.engine.cuda.neighbors``), the same list as the CPU's.
 
 No force is summed with atomics: every particle's force is written by one thread in a fixed order,
@@ -33,6 +34,7 @@ from rollingdem.engine.cuda import target as cuda_target
 from rollingdem.engine.cuda import neighbors as gpu_neighbors
 from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST, KICK_CLOSE, KICK_CLOSE_AND_DRIFT, KICK_NONE, STATUS_TOO_FAST
 from rollingdem.engine.neighbors import index_list, put_entry_history
+from rollingdem.engine.rigid_body import KICK_OPEN
 
 #: what a kernel needs besides the records; the flags count particles past skin/2 and too fast
 StepInputs = collections.namedtuple("StepInputs", ("gravity", "pair_params", "flags"))
@@ -51,6 +53,7 @@ def kernel_bodies(module) -> dict:
     cuda = cuda_target.cuda_module()
     pair_rows_scalar, gather_rows, bond_forces = module.pair_rows_scalar, module.gather_rows, module.bond_forces
     kick_drift_range, move_walls, move_meshes = module.kick_drift_range, module.move_walls, module.move_meshes
+    clump_rows = module.clump_rows
 
     def pairs(dt, particles, lists, step):
         i = cuda.grid(1)
@@ -72,6 +75,16 @@ def kernel_bodies(module) -> dict:
             if fast:
                 cuda.atomic.add(step.flags, FAST, fast)
 
+    def clumps(dt, kick, half_skin, particles, lists, step):
+        """One thread per clump (``clump_rows``): after the gather, or for the opening half alone."""
+        c = cuda.grid(1)
+        if c < particles.clump_mass.shape[0]:
+            exceed, fast = clump_rows(c, c + 1, dt, kick, step.gravity, particles, lists.box, half_skin)
+            if exceed:
+                cuda.atomic.add(step.flags, EXCEED, exceed)
+            if fast:
+                cuda.atomic.add(step.flags, FAST, fast)
+
     def drift(dt, half_skin, particles, step):
         i = cuda.grid(1)
         if i < particles.x.shape[0]:
@@ -86,7 +99,7 @@ def kernel_bodies(module) -> dict:
             move_walls(dt, walls)
             step.flags[EXCEED] += move_meshes(dt, walls, half_skin)
 
-    return dict(pairs=pairs, bonds=bonds, gather=gather, drift=drift, walls_move=walls_move,
+    return dict(pairs=pairs, bonds=bonds, gather=gather, clumps=clumps, drift=drift, walls_move=walls_move,
                 **gpu_neighbors.kernel_bodies(module))
 
 
@@ -117,7 +130,7 @@ class CudaStepLoop:
         host = self._host(gravity, pair_params, particles, walls, lists)
         info[I_STATUS] = 0
         info[I_STEPS_DONE] = 0
-        n_bonds = particles.bond_pairs.shape[0]
+        n_bonds, n_clumps = particles.bond_pairs.shape[0], particles.clump_mass.shape[0]
         dev, rebuild = self._upload(host, m.HISTORY_SIZE)
         self._counted = 0  # particles past skin/2 counted on the device so far (``_flags``)
         self.device_bytes = sum(a.nbytes for record in (*dev[:3], rebuild.arrays) for a in record) + \
@@ -130,6 +143,7 @@ class CudaStepLoop:
                 cuda_target.launch(k["pairs"], n, dt, dev[0], dev[2], dev[3])
                 cuda_target.launch(k["bonds"], n_bonds, dt_bonds, dev[0], dev[2])  # none without bonds
                 cuda_target.launch(k["gather"], n, dt, kick, half_skin, *dev)
+                cuda_target.launch(k["clumps"], n_clumps, dt, kick, half_skin, dev[0], dev[2], dev[3])  # none without
                 if move_walls:
                     cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3], True)
             return self._flags(dev, launches)
@@ -151,6 +165,7 @@ class CudaStepLoop:
                         return
                     exceed, _ = self._flags(dev, lambda: (
                         cuda_target.launch(k["drift"], n, dt, half_skin, dev[0], dev[3]),
+                        cuda_target.launch(k["clumps"], n_clumps, dt, KICK_OPEN, half_skin, dev[0], dev[2], dev[3]),
                         cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3], False)))
                     info[I_NEED_REBUILD] += exceed
                     info[I_DRIFTED] = 1
@@ -171,6 +186,8 @@ class CudaStepLoop:
                         self._download(dev, host, m.HISTORY_SIZE)
                         dev = None
                         m.undo_drift(dt, particles)
+                        if n_clumps:
+                            m.clump_undo(dt, particles, lists.box)
                         info[I_STATUS] = STATUS_TOO_FAST
                         return
                     info[I_DRIFTED] = 1
@@ -222,6 +239,7 @@ class CudaStepLoop:
 
         def gather(walls_now):
             launch(k["gather"], n, dt, 0.0, half_skin, dev[0], walls_now, dev[2], dev[3])
+            launch(k["clumps"], particles.clump_mass.shape[0], dt, 0.0, half_skin, dev[0], dev[2], dev[3])
             launch(k["walls_move"], 1, dt, half_skin, walls_now, dev[3], True)
 
         (pair_s, pair_host), (gather_s, gather_host) = timed(pairs), timed(lambda: gather(dev[1]))

@@ -32,9 +32,11 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     tz = t[i, 2]
     wres = wall_contacts(i, dt, particles, walls, pair_params)
     mi = mass[i]
-    fx += wres[0] + mi * gravity[0]
-    fy += wres[1] + mi * gravity[1]
-    fz += wres[2] + mi * gravity[2]
+    member = particles.clump.shape[0] != 0 and particles.clump[i] >= 0
+    mg = 0.0 if member else mi  # a clump's weight acts at its centre of mass (rigid_body.clump_rows)
+    fx += wres[0] + mg * gravity[0]
+    fy += wres[1] + mg * gravity[1]
+    fz += wres[2] + mg * gravity[2]
     tx += wres[3]
     ty += wres[4]
     tz += wres[5]
@@ -66,6 +68,8 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     t[i, 0] = tx
     t[i, 1] = ty
     t[i, 2] = tz
+    if member:  # its clump sums its force and torque and moves it (rigid_body.clump_rows)
+        return 0, 1 if stop else 0
     if kick >= 1.0:
         a = 0.5 * dt / mi
         b = 0.5 * dt / inertia[i]
@@ -81,7 +85,8 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     # the next step's opening half kick and drift, also when i is too fast (the chunk then stops
     # and undo_drift takes them back), but not when i is not finite
     if kick == 2.0 and step_move - step_move == 0.0:
-        exceed = kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, particles.x_ref, particles.fixed, half_skin)
+        exceed = kick_drift_one(i, dt, x, v, w, f, t, mass, inertia, particles.x_ref, particles.fixed, particles.clump,
+                                half_skin)
     return exceed, fast
 
 

@@ -13,6 +13,8 @@ from rollingdem.engine.integrator import kick_drift, move_walls, undo_drift
 # kick_drift_serial, the GPU's drift kernel kick_drift_range
 from rollingdem.engine.integrator import kick_drift_range, kick_drift_serial  # noqa: F401
 from rollingdem.engine.neighbors import list_rows, rebuild_neighbor_list
+from rollingdem.engine.rigid_body import KICK_OPEN, clump_pass, clump_undo
+from rollingdem.engine.rigid_body import clump_pass_serial, clump_rows  # noqa: F401
 from rollingdem.engine.mesh_passes import build_mesh_candidates, move_meshes
 from rollingdem.engine.template.pairs import pair_forces  # @@PART
 from rollingdem.engine.template.gather import bond_forces, gather  # @@PART
@@ -20,7 +22,7 @@ from rollingdem.engine.template.gather import bond_forces, gather  # @@PART
 
 @njit(cache=True)
 def _rebuild(particles, walls, lists, skin, info):
-    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.fixed, particles.image,
+    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.fixed, particles.clump, particles.image,
                                   particles.x_ref, lists)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY
@@ -56,6 +58,8 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
             # starts unloaded and a run resumed after a change of the scene adds nothing twice
             bond_forces(0, particles.bond_pairs.shape[0], 0.0, particles, lists.box)
         exceed, fast = gather(dt, 0.0, gravity, pair_params, particles, walls, lists, half_skin)
+        if particles.clump_mass.shape[0] != 0:
+            fast += clump_pass(dt, 0.0, gravity, particles, lists.box, half_skin)[1]
         info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
         info[I_FORCES_VALID] = 1
@@ -66,6 +70,8 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
             exceed = kick_drift(dt, particles, half_skin)
+            if particles.clump_mass.shape[0] != 0:
+                exceed += clump_pass(dt, KICK_OPEN, gravity, particles, lists.box, half_skin)[0]
             info[I_NEED_REBUILD] += exceed
             move_walls(dt, walls)
             info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
@@ -80,6 +86,10 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         if particles.bond_pairs.shape[0] != 0:
             bond_forces(0, particles.bond_pairs.shape[0], dt, particles, lists.box)
         exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin)
+        if particles.clump_mass.shape[0] != 0:
+            clump_exceed, clump_fast = clump_pass(dt, kick, gravity, particles, lists.box, half_skin)
+            exceed += clump_exceed
+            fast += clump_fast
         info[I_NEED_REBUILD] = exceed
         info[I_TOO_FAST] = fast
         info[I_STEPS_DONE] = step + 1
@@ -87,6 +97,8 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         if drift:
             if info[I_TOO_FAST] > 0:
                 undo_drift(dt, particles)
+                if particles.clump_mass.shape[0] != 0:
+                    clump_undo(dt, particles, lists.box)
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
             move_walls(dt, walls)  # with the next step's drift, made in the gather

@@ -220,3 +220,19 @@ def test_an_interrupted_settle_resumes_from_its_checkpoint(monkeypatch, tmp_path
     assert resumed.step == whole.step == 1000
     np.testing.assert_array_equal(resumed.positions, whole.positions)
     np.testing.assert_array_equal(resumed.angular_velocities, whole.angular_velocities)
+
+
+def test_the_clumps_scene_times_clumps_against_their_members_count_of_spheres(monkeypatch, tmp_path):
+    """100 tetrahedra (400 members) and 400 spheres, settled 0.02 s, 60 steps in turn: the note's
+    clump-step cost in sphere-steps is the two reported times per body, and a clump adds its own
+    23 numbers (centre, velocity, quaternion, angular momentum, mass, moments, force, torque: 184 B),
+    its members' clump index and offset (4 x 32 B) and its index rows (8 B per member and per
+    clump): 352 B."""
+    monkeypatch.setattr(bench, "_cache_dir", lambda: tmp_path)
+    monkeypatch.setattr(bench, "CLUMP_BED_SETTLE", 0.02)
+    clumps, spheres = bench.clump_bed(members=400, steps=60, threads=1, echo=lambda *a: None)
+    assert (clumps.particles, spheres.particles) == (400, 400) and clumps.scene == spheres.scene == "clumps"
+    cost = (clumps.wall_s / 100) / (spheres.wall_s / 400)
+    assert f"a clump-step costs {cost:.2f} sphere-steps" in clumps.note
+    assert "a clump adds 352 B to its members'" in clumps.note
+    assert "100 tetrahedra of 4 spheres" in clumps.note and "400 spheres at rest" in spheres.note

@@ -20,7 +20,7 @@ import numpy as np
 from rollingdem.errors import ParameterError, check_output_path
 
 SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling", "mesh-hopper",
-          "rough-bed")
+          "rough-bed", "clumps")
 GPU_SCENES = ("column-collapse", "slab")  # the scenes ``--backend cuda`` times
 SCALING_SMALL = 20000
 SCALING_LARGE = 1_000_000
@@ -50,6 +50,10 @@ HOPPER_FILL = 0.1  # s
 # spacing 2.2 R), and the same number settled on the bare plate, in a square box of side planes
 ROUGH_BED_SETTLE = 0.3  # s
 ROUGH_BED_CHUNKS = 6
+# the clumps scene: tetrahedra of four touching spheres of radius RADIUS settled in a square box, and
+# as many spheres as they have members settled in the same box
+CLUMP_BED_SETTLE = 0.4  # s
+CLUMP_BED_CHUNKS = 6
 DENSE_BED_MODELS = ("none", "cdt", "epsd", "epsd2", "epsd3", "rrlinear", "sds", "displacement_damping",
                     "force_proportional", "viscous", "walton_braun", "walton", "sjkr", "jkr")
 # the contact laws of dense-bed other than Hertz + history + a rolling model: each on Hertz-history
@@ -566,6 +570,77 @@ def rough_bed(particles=20000, steps=2000, threads=None, echo=print) -> list[Ben
     return results
 
 
+def clump_bed_simulation(members: int, clumps: bool, seed: int = 1, echo=print):
+    """``members`` // 4 tetrahedra of spheres of radius ``RADIUS`` (``clumps``), or as many spheres as
+    they have members, poured into a square box and settled for ``CLUMP_BED_SETTLE`` s; from the disk
+    cache or built now."""
+    from rollingdem import BoxRegion, Clump, Plane, __version__
+
+    count = members // 4 if clumps else members // 4 * 4
+    path = _cache_dir() / f"clumpbed_{count}_{'tetrahedra' if clumps else 'spheres'}_seed{seed}_v{__version__}.npz"
+    if path.exists():
+        from rollingdem import Simulation
+
+        sim = Simulation.restore(path)
+        sim.track_energy = False
+        return sim
+    echo(f"settling {count} {'tetrahedra' if clumps else 'spheres'} in a box for {CLUMP_BED_SETTLE} s (cached "
+         f"afterwards in {path.parent}) ...")
+    tetrahedron = Clump.tetrahedron(RADIUS)
+    reach = tetrahedron.reach() if clumps else RADIUS
+    side = max(2.0 * column_radius(members), 10.0 * tetrahedron.reach())
+    half = 0.5 * side
+    sim = _column_simulation()
+    for axis in (0, 1):
+        for sign in (-1.0, 1.0):
+            point, normal = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+            point[axis], normal[axis] = sign * half, -sign
+            sim.add_wall(Plane(point=point, normal=normal, material="table1"))
+    height = count * 4.0 / 3.0 * math.pi * reach ** 3 / (0.2 * side * side)
+    region = BoxRegion((-half, -half, 0.0), (half, half, height))
+    if clumps:
+        sim.insert(region, count, material="table1", clump=tetrahedron, seed=seed)
+    else:
+        sim.insert(region, count, RADIUS, "table1", seed=seed)
+    sim.run(CLUMP_BED_SETTLE)
+    sim.checkpoint(path)
+    sim.track_energy = False
+    return sim
+
+
+def clump_bed(members=20000, steps=2000, threads=None, echo=print) -> list[BenchResult]:
+    """Tetrahedral clumps at rest in a box against as many spheres as they have members in the same
+    box, timed in ``CLUMP_BED_CHUNKS`` chunks taken in turn: clump-steps per second, the cost of a
+    clump-step in sphere-steps (issue 46's target: no more than its members + 1, 5), the bytes a
+    clump adds to its members' (its own fields, its members' clump index and offset, the index)."""
+    import numba
+
+    from rollingdem import ContactModel
+    from rollingdem.engine.schema import PER_CLUMP, SCHEMA
+
+    threads = threads or numba.get_num_threads()
+    compile_s = compile_time(ContactModel("hertz", rolling="epsd"), members)
+    sims = [clump_bed_simulation(members, True, echo=echo), clump_bed_simulation(members, False, echo=echo)]
+    walls, rebuilds = _in_turn(sims, steps, CLUMP_BED_CHUNKS)
+    st = sims[0]._state
+    n_clumps = st.n_clumps
+    extra = sum(getattr(st, f.name).nbytes for f in SCHEMA.of(PER_CLUMP)) + sum(
+        getattr(st, name).nbytes for name in ("clump", "body_offset", "clump_start", "clump_members"))
+    per_clump = (walls[0] / n_clumps) / (walls[1] / sims[1].n_particles)
+    results = []
+    for s, (sim, what) in enumerate(zip(sims, ("tetrahedra of 4 spheres", "spheres"))):
+        bodies = n_clumps if s == 0 else sim.n_particles
+        results.append(_result("clumps", "epsd", sim, steps, compile_s, float(walls[s].sum()), rebuilds[s], threads,
+                               f"{bodies} {what} at rest in a box, {sim.n_particles} spheres in all; in "
+                               f"{CLUMP_BED_CHUNKS} chunks in turn; {bodies * steps / walls[s].sum() / 1e6:.3f} M "
+                               f"{'clump' if s == 0 else 'sphere'}-steps/s"))
+    whole = (walls[0].sum() / n_clumps) / (walls[1].sum() / sims[1].n_particles)
+    results[0].note += (f": a clump-step costs {whole:.2f} sphere-steps (target <= 5; chunk by chunk "
+                        f"{', '.join(f'{r:.2f}' for r in per_clump)}, median {np.median(per_clump):.2f}); a clump "
+                        f"adds {extra / n_clumps:.0f} B to its members'")
+    return results
+
+
 def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump=None, models=None,
               echo=print, backend="cpu") -> list[BenchResult]:
     unknown = [s for s in scenes if s not in SCENES]
@@ -596,8 +671,8 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
             results.append(mesh_hopper(particles or 20000, steps or 5000, threads, echo))
         elif scene == "slab":
             results.append(slab(particles or 20000, steps or 1000, threads, echo, backend))
-        elif scene == "rough-bed":
-            pair = rough_bed(particles or 20000, steps or 2000, threads, echo)
+        elif scene in ("rough-bed", "clumps"):
+            pair = (rough_bed if scene == "rough-bed" else clump_bed)(particles or 20000, steps or 2000, threads, echo)
             echo(format_row(pair[0]))
             results += pair
         elif scene in ("scaling", "collapse-scaling"):

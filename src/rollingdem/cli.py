@@ -186,13 +186,16 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
                                                     "settling the column of 10^6 spheres once takes 2-3 h on 2 cores), "
                                                     "mesh-hopper (spheres discharging from a 10,000-triangle STL "
                                                     "hopper), rough-bed (free spheres at rest on half as many fixed "
-                                                    "ones and on the bare plate, in turn) (repeatable)."),
+                                                    "ones and on the bare plate, in turn), clumps (tetrahedral "
+                                                    "clumps and as many spheres as their members, at rest in a box, "
+                                                    "in turn) (repeatable)."),
           particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Spheres in column-collapse, "
-                                                  "dense-bed, slab, mesh-hopper and rough-bed (default 20,000), and the large scene of "
+                                                  "dense-bed, slab, mesh-hopper and rough-bed, clump members in "
+                                                  "clumps (default 20,000), and the large scene of "
                                                   "scaling and collapse-scaling (default 1,000,000; the small one has "
                                                   "20,000)."),
           steps: Optional[int] = typer.Option(None, "--steps", help="Timed steps (default: 10,000 column-collapse, "
-                                              "150,000 single-particle, 2,000 dense-bed and rough-bed, 1,000 slab, "
+                                              "150,000 single-particle, 2,000 dense-bed, rough-bed and clumps, 1,000 slab, "
                                               "300 scaling and collapse-scaling, 5,000 mesh-hopper)."),
           threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
           model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Rolling models and contact laws "

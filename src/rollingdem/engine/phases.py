@@ -30,7 +30,7 @@ class Passes:
         particles, walls, lists, scratch = st.records()
         self.saved = [(owner, name, getattr(owner, name).copy())
                       for owner, names in ((st, ("whist", "wtouch", "wall_load", "energy", "f", "t", "contacts",
-                                                 "x_ref")),
+                                                 "x_ref", "x", "v", "w", "clump_f", "clump_t")),
                                            (st.meshes, ("slot_triangle", "history", "load", "candidate_start",
                                                         "candidates", "candidate_gap", "built")),
                                            (st.contact_list, ("pool", "contact_row", "groups", "start", "j", "i",
@@ -46,6 +46,8 @@ class Passes:
         self.gather_walls = lambda: gather(dt, KICK_NONE, gravity, pp, particles, walls, lists, 0.5 * skin)
         self.gather_plain = lambda: gather(dt, KICK_NONE, gravity, pp, particles, no_walls, lists, 0.5 * skin)
         self.kick = lambda: kick_drift(0.0, particles, 0.5 * skin)
+        clump_pass = module.clump_pass_serial if serial else module.clump_pass
+        self.clumps = lambda: clump_pass(dt, KICK_NONE, gravity, particles, lists.box, 0.5 * skin)
         self.rebuild = lambda: rebuild_neighbor_list(st.x, st.radius, skin, st.ids, st.fixed, st.clump, st.image, st.x_ref, lists)
         self.mesh_candidates = lambda: build_mesh_candidates(st.x, st.radius, skin, walls)
 
@@ -78,6 +80,8 @@ def cpu_phase_seconds(passes: Passes, repeats: int, rebuilds_per_step: float) ->
     if passes.state.meshes.n_triangles:
         split["walls"] += seconds_per_call(passes.mesh_candidates, repeats) * rebuilds_per_step
     split["integration and gathering"] = gather_plain + seconds_per_call(passes.kick, repeats)
+    if passes.state.n_clumps:
+        split["integration and gathering"] += seconds_per_call(passes.clumps, repeats)
     split["neighbor search"] = seconds_per_call(passes.rebuild, repeats) * rebuilds_per_step
     passes.restore()  # the timing calls must leave the state as it was
     return split

@@ -124,6 +124,11 @@ class VTKSnapshots(Observer):
     not periodic. With bonds, ``bonds_{step}.vtu`` / ``bonds.pvd``: each bond a line between its
     particles' centres, with cell data status (0 intact, 1 broken in tension, 2 in shear),
     normal_force (N, tension positive), shear_force (N), twisting_moment and bending_moment (N m).
+    With clumps, the particles' point data has clump (the clump a member belongs to, -1 for a
+    sphere of its own), and ``clumps_{step}.vtu`` / ``clumps.pvd`` hold each clump's centre of mass
+    as a point, with velocity, angular_velocity, mass (kg), orientation (the quaternion w, x, y, z
+    of its principal frame) and its principal axes axis_1, axis_2, axis_3 (unit vectors, in the
+    order of the principal moments, ascending): ParaView's Glyph filter draws them.
     """
 
     def __init__(self, directory, interval: float, prefix: str = "particles"):
@@ -142,9 +147,20 @@ class VTKSnapshots(Observer):
         write_vtu(self.directory / name, sim.positions, {
             "radius": sim.radii, "velocity": sim.velocities, "angular_velocity": sim.angular_velocities,
             "material": sim.material_indices.astype(np.int32), "fixed": sim.fixed.astype(np.uint8),
-            "id": sim.particle_ids.astype(np.int64)}, field_data=_field_data(sim))
+            "id": sim.particle_ids.astype(np.int64)} | self._clump_points(sim), field_data=_field_data(sim))
         self._entries.append((sim.time, name))
         self._write_pvd(self.prefix, self._entries)
+        clumps = sim.clumps
+        if len(clumps["mass"]):
+            clump_name = f"clumps_{sim.step:09d}.vtu"
+            write_vtu(self.directory / clump_name, clumps["centre"], {
+                "velocity": clumps["velocity"], "angular_velocity": clumps["angular_velocity"],
+                "mass": clumps["mass"], "orientation": clumps["orientation"],
+                **{f"axis_{k + 1}": np.ascontiguousarray(clumps["axes"][:, :, k]) for k in range(3)}},
+                field_data=_field_data(sim))
+            entries = self._mesh_entries.setdefault("clumps", [])
+            entries.append((sim.time, clump_name))
+            self._write_pvd("clumps", entries)
         bonds = sim.bonds()
         if len(bonds):
             import meshio
@@ -175,6 +191,13 @@ class VTKSnapshots(Observer):
             entries = self._mesh_entries.setdefault(stem, [])
             entries.append((sim.time, mesh_name))
             self._write_pvd(stem, entries)
+
+    @staticmethod
+    def _clump_points(sim) -> dict:
+        """The particles' clump point data, {} while there is no clump."""
+        if not len(sim.clumps["mass"]):
+            return {}
+        return {"clump": sim.particle_field("clump").astype(np.int64)}
 
     def _write_pvd(self, stem, entries):
         lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',

@@ -160,12 +160,17 @@ class Particles:
                                      f"at insertion ({sim.hints['allow_overlap']} to accept it)")
 
     def insert(self, region, count, radius, material, seed=0, velocity=None, max_attempts=200, mass=None,
-               fraction=None) -> np.ndarray:
+               fraction=None, clump=None) -> np.ndarray:
         """``Simulation.insert``."""
         from rollingdem.engine.neighbors import spatial_order
         from rollingdem.scene.insertion import MAX_PACKING_FRACTION, as_distribution, fill_region, realised_line
 
         sim = self.sim
+        if clump is not None:
+            if radius is not None:
+                raise ParameterError(f"radius = {short_repr(radius)} is not allowed with a clump: its members' radii "
+                                     "are the clump's; leave radius out")
+            return sim.clump_set.insert(region, count, clump, material, seed, velocity, max_attempts, mass, fraction)
         if radius is None or material is None:
             raise ParameterError(f"{'radius' if radius is None else 'material'} = None is not allowed: give the "
                                  "spheres' radius (m, or a size distribution) and material")

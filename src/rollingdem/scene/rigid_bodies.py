@@ -124,6 +124,39 @@ class ClumpSet:
         sim._scene_changed()
         return np.arange(first, first + m)
 
+    def insert(self, region, count, clump, material, seed=0, velocity=None, max_attempts=200, mass=None,
+               fraction=None) -> np.ndarray:
+        """``Simulation.insert`` with a clump: each clump's bounding sphere (its ``reach`` about its
+        centre of mass) placed as the spheres are (wholly inside ``region``, clear of the particles and
+        walls there), the clump in it at a random orientation (``random_orientations``, from ``seed``),
+        as LIGGGHTS inserts its multispheres. ``mass`` or ``fraction`` of the region's volume give the
+        count of clumps nearest them."""
+        from rollingdem.errors import check_finite, check_positive
+        from rollingdem.scene.insertion import MAX_PACKING_FRACTION, fill_region
+        from rollingdem.scene.clumps import random_orientations
+
+        sim = self.sim
+        if not isinstance(clump, Clump):
+            raise ParameterError(f"clump = {short_repr(clump)} is not allowed: must be a rollingdem.Clump")
+        if material is None or isinstance(material, (list, tuple, np.ndarray)):
+            raise ParameterError(f"material = {short_repr(material)} is not allowed: give the clumps' one material")
+        given = [(k, v) for k, v in (("count", count), ("mass", mass), ("fraction", fraction)) if v is not None]
+        if len(given) != 1:
+            raise ParameterError(f"{', '.join(f'{k} = {v!r}' for k, v in given) or 'count = None'} is not allowed: "
+                                 "give exactly one of count, mass (kg) and fraction (of the region's volume)")
+        volume = clump.mass_properties(1.0).volume
+        if mass is not None:
+            count = max(1, round(check_positive("mass", mass, "kg") / (sim.materials[material].density * volume)))
+        elif fraction is not None:
+            fraction = check_finite("fraction", fraction)
+            if not 0.0 < fraction <= MAX_PACKING_FRACTION:
+                raise ParameterError(f"fraction = {fraction:g} is not allowed: must be in (0, {MAX_PACKING_FRACTION}]")
+            count = max(1, round(fraction * region.volume() / volume))
+        centres, _ = fill_region(region, count, clump.reach(), seed=seed, existing_positions=self.state.x,
+                                 existing_radii=self.state.radius, walls=sim.walls, max_attempts=max_attempts)
+        turns = random_orientations(np.random.default_rng([seed, 46]), len(centres))
+        return self.add(clump, centres, material, turns, velocity)
+
     def check_periodic_reach(self, clump: Clump) -> None:
         """Refuse a clump that spans half a periodic length: its members would meet its own image."""
         for axis, (lo, hi) in self.sim.periodic.items():

@@ -180,12 +180,12 @@ class Simulation:
         return self.particle_set.add(positions, radius, material, velocity, angular_velocity, allow_overlap, fixed)
 
     def insert(self, region, count: int | None = None, radius=None, material=None, seed: int = 0, velocity=None,
-               max_attempts: int = 200, mass: float | None = None, fraction: float | None = None) -> np.ndarray:
-        """Fill ``region`` (``BoxRegion``, ``CylinderRegion``, ``MeshRegion``) with ``count`` non-overlapping
-        spheres, or with spheres of ``mass`` (kg) or a ``fraction`` of its volume in all. ``radius``: a number or
-        a distribution (``rd.Uniform``, ``Normal``, ``Discrete``, ``MassFractions``, ``SieveCurve``). Reproducible
-        from ``seed``; raises when the region cannot hold them. The new spheres are numbered in Morton order."""
-        return self.particle_set.insert(region, count, radius, material, seed, velocity, max_attempts, mass, fraction)
+               max_attempts: int = 200, mass: float | None = None, fraction: float | None = None, clump=None) -> np.ndarray:
+        """Fill ``region`` (``BoxRegion``, ``CylinderRegion``, ``MeshRegion``) with ``count`` non-overlapping spheres,
+        or of ``mass`` (kg) or a ``fraction`` of its volume; ``radius``: a number or a distribution (``rd.Uniform``,
+        ``Normal``, ``Discrete``, ``MassFractions``, ``SieveCurve``); with ``clump`` (``rd.Clump``) clumps at random
+        orientations. Reproducible from ``seed``. Returns the new spheres' (in Morton order) or clumps' indices."""
+        return self.particle_set.insert(region, count, radius, material, seed, velocity, max_attempts, mass, fraction, clump)
 
     def add_clumps(self, clump, positions, material, orientations=None, velocity=None, angular_velocity=None,
                    fixed: bool = False, allow_overlap: bool = False) -> np.ndarray:

@@ -270,6 +270,31 @@ CATALOGUE = [
      "key 'particles.0.insert.type' = \"cone\" is not allowed: must be one of 'box', 'cylinder', 'mesh'"),
     ("a servo with no target", edit(FLOOR, FLOOR[:-1] + ", servo: {direction: [0, 0, 1], max_speed: 0.1}}"),
      "walls.0: servo: servo force = None is not allowed with pressure = None: give one of force (N) and pressure (Pa)"),
+    ("a clump template with no sphere",
+     edit("    material: m\n", "    material: m\n  - {clump: {spheres: []}, positions: [[0, 0, 0.1]], material: m}\n"),
+     "particles.1: clump centres = [] is not allowed: a clump needs at least one sphere"),
+    ("a clump member of zero radius",
+     edit("    material: m\n", "    material: m\n  - {clump: {spheres: [[0, 0, 0, 0.0]]}, positions: [[0, 0, 0.1]], "
+          "material: m}\n"),
+     "particles.1: clump radii[0] = 0 is not allowed: must be > 0 (m)"),
+    ("clump members apart",
+     edit("    material: m\n", "    material: m\n  - {clump: {spheres: [[0, 0, 0, 0.002], [0.01, 0, 0, 0.002]]}, "
+          "positions: [[0, 0, 0.1]], material: m}\n"),
+     "its members do not all overlap or touch (it would be several bodies); set clump.connected: false"),
+    ("a clump shape misspelled",
+     edit("    material: m\n", "    material: m\n  - {clump: {shape: cube, radius: 0.002}, positions: [[0, 0, 0.1]], "
+          "material: m}\n"),
+     "key 'particles.1.clump.shape' = \"cube\" is not allowed: must be 'dimer', 'trimer', 'tetrahedron', 'ring_prism' or "
+     "'rod'"),
+    ("a clump larger than half the periodic length",
+     edit("walls:", "periodic: {x: [-0.05, 0.05]}\nwalls:",
+          edit("    material: m\n", "    material: m\n  - {clump: {shape: rod, n: 8, radius: 0.004}, "
+               "positions: [[0, 0, 0.1]], material: m}\n")),
+     "must span less than half the periodic length (4 x its reach), or it would touch its own image"),
+    ("clumps both inserted and placed",
+     edit("    material: m\n", "    material: m\n  - {clump: {shape: dimer, radius: 0.002}, positions: [[0, 0, 0.1]], "
+          "count: 3, material: m}\n"),
+     "particles.1: count, mass and fraction go with insert: with positions each position is a clump"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),
     ("empty file", "", "is empty: must hold a mapping of keys"),
     ("a list, not a mapping", "- a\n- b\n", "must hold a mapping of keys, got list"),

@@ -329,3 +329,26 @@ def test_inserting_clumps_refuses_a_radius():
     with pytest.raises(ParameterError, match="radius = 0.001 is not allowed with a clump"):
         sim.insert(rd.BoxRegion((0, 0, 0), (0.01, 0.01, 0.01)), 2, radius=0.001, material="g",
                    clump=rd.Clump.dimer(0.001))
+
+
+def test_a_case_file_builds_the_clumps_python_builds():
+    """A case file's clump blocks (a named shape inserted in a box; a template of its own spheres
+    placed and turned) give the scene the same Python calls give, member for member."""
+    from rollingdem.io.casefile import build_simulation, load_case
+
+    material = {"name": "g", "youngs_modulus": 1e8, "poisson_ratio": 0.3, "density": 2500.0, "friction": 0.5,
+                "restitution": 0.5}
+    box = {"type": "box", "lo": [-0.01, -0.01, 0.0], "hi": [0.01, 0.01, 0.02]}
+    q = [0.9, 0.1, -0.3, 0.2]
+    case = load_case({"name": "c", "materials": [material], "stages": [{"name": "s", "duration": 0.0}],
+                      "particles": [{"clump": {"shape": "ring_prism", "n": 4, "radius": 0.001}, "insert": box,
+                                     "count": 12, "material": "g", "seed": 3},
+                                    {"clump": {"spheres": [[0, 0, 0, 0.0015], [0.002, 0, 0, 0.001]]},
+                                     "positions": [[0, 0, 0.03]], "orientations": [q], "material": "g"}]})
+    sim = build_simulation(case)
+    python = rd.Simulation()
+    glass(python)
+    python.insert(rd.BoxRegion(box["lo"], box["hi"]), 12, material="g", clump=rd.Clump.ring_prism(4, 0.001), seed=3)
+    python.add_clumps(rd.Clump([[0, 0, 0], [0.002, 0, 0]], [0.0015, 0.001]), [[0, 0, 0.03]], "g", orientations=[q])
+    assert np.array_equal(sim.positions, python.positions) and sim.n_particles == 12 * 4 + 2
+    assert np.array_equal(sim.clumps["orientation"], python.clumps["orientation"])

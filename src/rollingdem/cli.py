@@ -456,7 +456,9 @@ def check(case: Path = typer.Argument(..., help="Case file to validate.")):
         check_output_folder(spec)  # where a run without --out writes
     except ParameterError as err:
         _refuse(err)
-    typer.echo(f"{case}: valid; {sim.n_particles} particles, {len(sim.walls)} walls, {len(spec.stages)} stages, "
+    clumps = len(sim.clumps["mass"])
+    typer.echo(f"{case}: valid; {sim.n_particles} particles{f' ({clumps} clumps)' if clumps else ''}, "
+               f"{len(sim.walls)} walls, {len(spec.stages)} stages, "
                f"dt = {sim.dt:.3g} s")
     for line in casefile.mesh_lines(sim):
         typer.echo(f"  {line}")

@@ -301,16 +301,91 @@ class RoughBaseSpec(_Strict):
     material: str
 
 
+class ClumpShapeSpec(_Strict):
+    """A clump template (``rd.Clump``): a named ``shape`` (dimer, trimer, tetrahedron, ring_prism,
+    rod) with its members' ``radius``, their centres' ``distance`` (a rod's spacing; default 2 R,
+    touching) and ``n`` (ring_prism, rod); or its ``spheres`` as rows x, y, z, r (m)."""
+    shape: Optional[Literal["dimer", "trimer", "tetrahedron", "ring_prism", "rod"]] = None
+    radius: Optional[Number] = None
+    distance: Optional[Number] = None
+    n: Optional[Whole] = None
+    spheres: Optional[list[tuple[Number, Number, Number, Number]]] = None
+    connected: bool = True
+
+
+class ClumpSpec(_Strict):
+    """Clumps of one template: inserted in a region (``insert`` with ``count``, ``mass`` or
+    ``fraction``, at random orientations from ``seed``) or placed at ``positions`` (their centres of
+    mass) turned by ``orientations`` (unit quaternions w, x, y, z; default the template's frame)."""
+    clump: ClumpShapeSpec
+    material: str
+    insert: Optional[RegionSpec] = None
+    count: Optional[Whole] = None
+    mass: Optional[Number] = None
+    fraction: Optional[Number] = None
+    seed: Whole = 0
+    positions: Optional[list[Vector]] = None
+    orientations: Optional[list[tuple[Number, Number, Number, Number]]] = None
+    velocity: Optional[Vector] = None
+    angular_velocity: Optional[Vector] = None
+    allow_overlap: bool = False
+    fixed: bool = False
+
+
 def _particle_kind(value):
-    """A particle block with an ``insert`` key fills a region, one with ``rough_base`` lays a fixed
-    base; any other lists its spheres."""
+    """A particle block with a ``clump`` key adds clumps, one with ``insert`` fills a region, one
+    with ``rough_base`` lays a fixed base; any other lists its spheres."""
     if isinstance(value, dict):
-        return "insert" if "insert" in value else "rough_base" if "rough_base" in value else "list"
-    return {InsertSpec: "insert", RoughBaseSpec: "rough_base", ListSpec: "list"}.get(type(value))
+        return ("clump" if "clump" in value else "insert" if "insert" in value else
+                "rough_base" if "rough_base" in value else "list")
+    return {InsertSpec: "insert", RoughBaseSpec: "rough_base", ListSpec: "list", ClumpSpec: "clump"}.get(type(value))
 
 
 ParticleSpec = Annotated[Union[Annotated[InsertSpec, Tag("insert")], Annotated[RoughBaseSpec, Tag("rough_base")],
-                               Annotated[ListSpec, Tag("list")]], Discriminator(_particle_kind)]
+                               Annotated[ListSpec, Tag("list")], Annotated[ClumpSpec, Tag("clump")]],
+                         Discriminator(_particle_kind)]
+
+
+def _clump(spec: ClumpShapeSpec):
+    """The ``rd.Clump`` of a case file's clump block."""
+    from rollingdem.scene.clumps import Clump
+
+    if (spec.shape is None) == (spec.spheres is None):
+        raise ParameterError("clump: give exactly one of shape (dimer, trimer, tetrahedron, ring_prism, rod) and "
+                             "spheres (rows x, y, z, r)")
+    if spec.spheres is not None:
+        rows = np.array(spec.spheres, dtype=float).reshape(-1, 4)
+        try:
+            return Clump(rows[:, :3], rows[:, 3], connected=spec.connected)
+        except ParameterError as err:
+            raise ParameterError(str(err).replace("pass connected=False", "set clump.connected: false")) from None
+    if spec.radius is None:
+        raise ParameterError(f"clump.radius = None is not allowed: shape {spec.shape!r} needs its members' radius (m)")
+    if spec.shape in ("ring_prism", "rod"):
+        if spec.n is None:
+            raise ParameterError(f"clump.n = None is not allowed: shape {spec.shape!r} needs its number of spheres")
+        return getattr(Clump, spec.shape)(spec.n, spec.radius, spec.distance)
+    if spec.n is not None:
+        raise ParameterError(f"clump.n = {spec.n} is not allowed: shape {spec.shape!r} has a fixed number of spheres")
+    return getattr(Clump, spec.shape)(spec.radius, spec.distance)
+
+
+def _add_clumps(sim, p: ClumpSpec, base: Path) -> None:
+    """A case file's clump block into ``sim``."""
+    clump = _clump(p.clump)
+    if (p.insert is None) == (p.positions is None):
+        raise ParameterError("give exactly one of insert (a region, with count, mass or fraction) and positions")
+    if p.insert is not None:
+        if p.orientations is not None or p.angular_velocity is not None or p.fixed or p.allow_overlap:
+            raise ParameterError("orientations, angular_velocity, fixed and allow_overlap go with positions: inserted "
+                                 "clumps are turned at random, at rest or at the block's velocity")
+        sim.insert(_region(p.insert, base, sim), p.count, None, p.material, seed=p.seed, velocity=p.velocity,
+                   mass=p.mass, fraction=p.fraction, clump=clump)
+        return
+    if p.count is not None or p.mass is not None or p.fraction is not None:
+        raise ParameterError("count, mass and fraction go with insert: with positions each position is a clump")
+    sim.add_clumps(clump, p.positions, p.material, orientations=p.orientations, velocity=p.velocity,
+                   angular_velocity=p.angular_velocity, fixed=p.fixed, allow_overlap=p.allow_overlap)
 
 
 class OutletSpec(_Strict):
@@ -853,6 +928,8 @@ def build_simulation(case: CaseSpec):
             if isinstance(p, InsertSpec):
                 sim.insert(_region(p.insert, case.base_directory, sim), p.count, _radius(p.radius), p.material,
                            seed=p.seed, velocity=p.velocity, mass=p.mass, fraction=p.fraction)
+            elif isinstance(p, ClumpSpec):
+                _add_clumps(sim, p, case.base_directory)
             elif isinstance(p, RoughBaseSpec):
                 base = rough_base(**p.rough_base.model_dump())
                 sim.add_particles(base, p.rough_base.radius, p.material, fixed=True)

@@ -421,7 +421,9 @@ def header_lines(case: CaseSpec, sim) -> list[str]:
     walls = ", ".join(w.name or type(w).__name__.lower() for w in sim.walls) or "none"
     from rollingdem.io.casefile import mesh_lines
 
+    clumps = len(sim.clumps["mass"])
     return [f"{sim.n_particles - fixed} free particles" + (f" and {fixed} fixed" if fixed else "")
+            + (f" ({clumps} clumps among them)" if clumps else "")
             + f"; walls: {walls}; dt = {sim.dt:.3g} s", *mesh_lines(sim), f"contact: {sim.contact.describe()}"]
 
 

@@ -191,3 +191,29 @@ def test_a_clump_placed_at_random_orientations_keeps_its_shape_and_turns_uniform
     w, x_, y, zq = q.T
     z = 2 * (x_ * zq - w * y)
     assert kstest(z, "uniform", args=(-1, 2)).pvalue > 1e-3
+
+
+def test_the_onset_follows_the_support_polygon_not_its_farthest_point():
+    """The centre's footprint leaves the hull of the points a clump stands on where its downhill
+    ray crosses the hull: a trimer of touching spheres lying flat (centres on a circle of radius
+    2r / sqrt 3, one on +x) tips over the vertex on +x when downhill is +x (t = 2r / sqrt 3,
+    tan theta = 2 / sqrt 3) and over the opposite edge when downhill is -x (t = r / sqrt 3, the
+    inradius); a regular tetrahedron resting on a face with an edge facing downhill tips at
+    tan theta = (r / sqrt 3) / (r + r sqrt(2/3) / 2), its centre r sqrt(2/3) / 2 above the face's
+    centres. Standing on an edge across the slope (the template's own pose) it tips at once."""
+    from scipy.spatial.transform import Rotation
+
+    r = 1e-3
+    trimer = rd.Clump.trimer(r)
+    assert math.tan(rd.onset_angle(trimer)) == pytest.approx(2 / math.sqrt(3), rel=1e-12)
+    assert math.tan(rd.onset_angle(trimer, downhill=(-1, 0, 0))) == pytest.approx(1 / math.sqrt(3), rel=1e-12)
+    tetra = rd.Clump.tetrahedron(r)
+    assert rd.onset_angle(tetra) == 0.0
+    # turn the face opposite member 0 (normal -(1, 1, 1)/sqrt 3) down, then an edge of it to face -x
+    down, _ = Rotation.align_vectors([[0, 0, -1]], [-np.ones(3) / math.sqrt(3)])
+    face = down.apply(tetra.centres[1:])
+    edge_mid = 0.5 * (face[0] + face[1]) - face.mean(axis=0)
+    spin = Rotation.from_euler("z", math.pi - math.atan2(edge_mid[1], edge_mid[0]))
+    turn = (spin * down).as_matrix()
+    expected = (1 / math.sqrt(3)) / (1 + math.sqrt(2 / 3) / 2)
+    assert math.tan(rd.onset_angle(tetra, turn, downhill=(-1, 0, 0))) == pytest.approx(expected, rel=1e-9)

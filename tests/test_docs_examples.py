@@ -362,3 +362,33 @@ def test_the_readme_case_file_programs_build_what_they_say(tmp_path):
     (tmp_path / "kinematics.csv").write_text(columns + "\n0, 0, 0, 0\n0.1, 0.001, 0, 0\n0.2, 0, 0, 0\n")
     repeated = _program(MotionSpec(**table, velocity=(0, 0, 0)), tmp_path)
     assert repeated.repeat and repeated.position(0.25)[0][0] == pytest.approx(0.0005)  # 0.05 s into a new round
+
+
+def test_the_readme_clumps_example_pours_tetrahedra_onto_the_floor(capsys):
+    """README, "Clumps": the equivalent mu_r is printed (a trimer lying flat tips over the edge
+    facing downhill: tan theta = (r / sqrt 3) / r, 0.577); 60 clumps of 240 spheres come to rest on the floor within 0.3 s (each below 0.05 m/s,
+    and the highest centre below the 30 mm they were poured from), and the case-file block builds
+    60 tetrahedra."""
+    import math
+    import re
+
+    import yaml
+
+    import rollingdem as rd
+    from rollingdem.io.casefile import _add_clumps, ClumpSpec
+
+    exec(compile(python_block(ROOT / "README.md", "Clumps (multispheres)"), "README.md", "exec"), scope := {})
+    printed = capsys.readouterr().out.splitlines()
+    mu_r = float(re.search(r"mu_r = ([0-9.]+)", printed[0]).group(1))
+    assert mu_r == pytest.approx(1 / math.sqrt(3), abs=5e-4)
+    assert printed[1].startswith("60 clumps of 240 spheres")
+    sim = scope["sim"]
+    assert np.linalg.norm(sim.clumps["velocity"], axis=1).max() < 0.05
+    assert float(re.search(r"highest centre ([0-9.]+) mm", printed[1]).group(1)) < 30.0
+    text = (ROOT / "README.md").read_text()
+    block = yaml.safe_load(text[text.index("Clumps (multispheres)"):].split("```yaml\n", 1)[1].split("```", 1)[0])
+    fresh = rd.Simulation()
+    fresh.add_material(rd.Material("glass", youngs_modulus=1e8, poisson_ratio=0.3, density=2500))
+    for spec in block["particles"]:
+        _add_clumps(fresh, ClumpSpec(**spec), ROOT)
+    assert len(fresh.clumps["mass"]) == 61 and fresh.n_particles == 60 * 4 + 2

@@ -52,7 +52,7 @@ ROUGH_BED_SETTLE = 0.3  # s
 ROUGH_BED_CHUNKS = 6
 # the clumps scene: tetrahedra of four touching spheres of radius RADIUS settled in a square box, and
 # as many spheres as they have members settled in the same box
-CLUMP_BED_SETTLE = 0.4  # s
+CLUMP_BED_SETTLE = 1.0  # s
 CLUMP_BED_CHUNKS = 6
 DENSE_BED_MODELS = ("none", "cdt", "epsd", "epsd2", "epsd3", "rrlinear", "sds", "displacement_damping",
                     "force_proportional", "viscous", "walton_braun", "walton", "sjkr", "jkr")
@@ -596,7 +596,7 @@ def clump_bed_simulation(members: int, clumps: bool, seed: int = 1, echo=print):
             point, normal = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
             point[axis], normal[axis] = sign * half, -sign
             sim.add_wall(Plane(point=point, normal=normal, material="table1"))
-    height = count * 4.0 / 3.0 * math.pi * reach ** 3 / (0.2 * side * side)
+    height = count * 4.0 / 3.0 * math.pi * reach ** 3 / (0.25 * side * side)
     region = BoxRegion((-half, -half, 0.0), (half, half, height))
     if clumps:
         sim.insert(region, count, material="table1", clump=tetrahedron, seed=seed)

@@ -300,9 +300,14 @@ def onset_angle(clump: Clump, rotation=None, downhill=(1.0, 0.0, 0.0)) -> float:
     """The tilt (rad) of a plane at which ``clump``, resting on it, starts to tip over downhill, with
     friction enough that nothing slides: the clump turned by ``rotation`` (a 3x3 matrix, default
     none) rests on its lowest members on the plane z = 0; tilted by theta towards ``downhill`` (a
-    horizontal direction), it tips about its downhill-most point of support once gravity's line
-    through the centre of mass passes it: tan theta = (p . e - c . e) / c_z, p that point, c the
-    centre of mass, e the downhill direction (the statics of a rigid body on a slope)."""
+    horizontal direction), it tips once gravity's line through the centre of mass leaves its
+    support, the convex hull of the points it stands on (each member's lowest point): tan theta =
+    t / c_z, t how far the centre's footprint goes downhill before it crosses the hull's boundary,
+    c_z the centre's height (the statics of a rigid body on a slope). A clump standing on one point,
+    or on a line across the slope, tips at once (0). A pose whose centre of mass is not over its
+    support is refused: it does not rest."""
+    from scipy.spatial import ConvexHull
+
     from rollingdem.errors import check_vector
 
     turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
@@ -315,18 +320,35 @@ def onset_angle(clump: Clump, rotation=None, downhill=(1.0, 0.0, 0.0)) -> float:
     bottoms = centres[:, 2] - clump.radii
     floor = float(bottoms.min())
     size = float(np.ptp(centres, axis=0).max() + 2.0 * clump.radii.max())
-    support = centres[bottoms <= floor + 1e-9 * size]  # the members on the plane; each touches below its centre
-    centre = clump.centre_of_mass @ turn.T
-    reach = support @ e
-    lateral = support - np.outer(reach, e)  # across the slope, the support must hold the centre too
-    cross = np.cross([0.0, 0.0, 1.0], e)
-    behind, ahead = float(reach.min()), float(reach.max())
-    side = lateral @ cross
-    if not (behind - 1e-9 * size <= centre @ e <= ahead + 1e-9 * size
-            and side.min() - 1e-9 * size <= centre @ cross <= side.max() + 1e-9 * size):
-        raise ParameterError(f"clump {clump.name or ''}: it does not rest in this orientation (its centre of mass "
-                             "lies outside the members it stands on): turn it so that it rests")
-    return math.atan2(ahead - float(centre @ e), float(centre[2]) - floor)
+    tol = 1e-9 * size
+    support = centres[bottoms <= floor + tol][:, :2] - (clump.centre_of_mass @ turn.T)[:2]  # from the footprint
+    height = float((clump.centre_of_mass @ turn.T)[2]) - floor
+    e2 = e[:2]
+    refuse = ParameterError(f"clump {clump.name or ''}: it does not rest in this orientation (its centre of mass "
+                            "lies outside the members it stands on): turn it so that it rests")
+    spread = support - support.mean(axis=0)
+    _, sv, vt = np.linalg.svd(spread) if len(support) > 1 else (None, np.zeros(2), np.eye(2))
+    if sv[0] <= tol:  # one point
+        if np.linalg.norm(support.mean(axis=0)) > tol:
+            raise refuse
+        return 0.0
+    if len(sv) < 2 or sv[1] <= tol * math.sqrt(len(support)):  # a line of support
+        u = vt[0]
+        along, across = support @ u, support @ np.array([-u[1], u[0]])
+        if np.abs(across).max() > tol or not along.min() - tol <= 0.0 <= along.max() + tol:
+            raise refuse
+        if abs(float(e2 @ np.array([-u[1], u[0]]))) > 1e-12:
+            return 0.0  # across the slope: it tips at once
+        reach = along.max() if e2 @ u > 0 else -along.min()
+        return math.atan2(max(float(reach), 0.0), height)
+    hull = ConvexHull(support)
+    # each facet: outward normal n and offset b, n . p + b <= 0 inside; the footprint is at 0
+    normals, offsets = hull.equations[:, :2], hull.equations[:, 2]
+    if (offsets > tol).any():
+        raise refuse
+    going = normals @ e2
+    reach = np.min(-offsets[going > 1e-12] / going[going > 1e-12])
+    return math.atan2(max(float(reach), 0.0), height)
 
 
 def equivalent_rolling_friction(clump: Clump, rotation=None, downhill=(1.0, 0.0, 0.0)) -> float:

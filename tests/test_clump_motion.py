@@ -352,3 +352,48 @@ def test_a_case_file_builds_the_clumps_python_builds():
     python.add_clumps(rd.Clump([[0, 0, 0], [0.002, 0, 0]], [0.0015, 0.001]), [[0, 0, 0.03]], "g", orientations=[q])
     assert np.array_equal(sim.positions, python.positions) and sim.n_particles == 12 * 4 + 2
     assert np.array_equal(sim.clumps["orientation"], python.clumps["orientation"])
+
+
+# --- rollingdem validate --experiment clumps: its checks on known inputs --------------------------------
+def test_the_onset_bisection_brackets_a_known_step():
+    """On a known onset (12.34 deg), the bisection's bracket holds it and is no wider than asked;
+    a bracket whose low end already tips, or whose high end holds, gives NaN."""
+    from rollingdem.experiments.clumps import bisect_onset
+
+    low, high = bisect_onset(lambda a: a > 12.34, 11.0, 13.5, 0.05)
+    assert low <= 12.34 < high and high - low <= 0.05
+    assert all(math.isnan(v) for v in bisect_onset(lambda a: a > 12.34, 12.5, 13.5, 0.05))
+    assert all(math.isnan(v) for v in bisect_onset(lambda a: a > 12.34, 11.0, 12.0, 0.05))
+
+
+def test_the_flip_theory_has_the_small_wobble_limit_and_the_crossings_read_a_period():
+    """Spun near its major axis, a body's angular velocity wobbles at
+    Omega = omega_3 sqrt((I_3 - I_1)(I_3 - I_2) / (I_1 I_2)) (k -> 0, K -> pi/2 in the elliptic
+    period): to 1e-6 for a nudge of 1e-3 omega_3. The zero crossings of sin(2 pi t / T), sampled
+    300 times a period, give T to 1e-6."""
+    from rollingdem.experiments.clumps import crossings_period, flip_theory
+
+    moments = np.array([1.0, 2.0, 3.0])
+    wobble = 100.0 * math.sqrt((3 - 1) * (3 - 2) / (1 * 2))
+    assert flip_theory(moments, [0.1, 0.1, 100.0]) == pytest.approx(2 * math.pi / wobble, rel=1e-6)
+    t = np.arange(0.0, 5.0, 0.7 / 300)
+    assert crossings_period(t, np.sin(2 * math.pi * t / 0.7)) == pytest.approx(0.7, rel=1e-6)
+    assert math.isnan(crossings_period(t[:200], np.sin(2 * math.pi * t[:200] / 0.7)))
+
+
+def test_the_lens_volume_has_its_limits():
+    """Two spheres touching (d = 2R) are two whole spheres; coincident (d = 0), one."""
+    from rollingdem.experiments.clumps import lens_volume
+
+    v = 4 / 3 * math.pi * 0.001 ** 3
+    assert lens_volume(0.001, 0.002) == pytest.approx(2 * v, rel=1e-15)
+    assert lens_volume(0.001, 0.0) == pytest.approx(v, rel=1e-15)
+
+
+def test_the_quick_clump_validation_passes_and_names_each_check():
+    """``rollingdem validate --experiment clumps --quick``: every check passes (the figures behind
+    them are the tests above and docs/models.md §17), 14 of them."""
+    from rollingdem.experiments.clumps import clumps
+
+    result = clumps(quick=True)
+    assert len(result.checks) == 14 and result.passed, [c for c in result.checks if not c.passed]

@@ -6,7 +6,8 @@ its scene, all in one registry, ``EXPERIMENTS``, that ``rollingdem validate``, `
   rolling up a slope), on the scenes of ``single_sphere``;
 - ``repose``: the seed report's angle-of-repose pile and the pile on a rough base;
 - ``drum``: the rotating drum; ``silo``: silo discharge;
-- ``contact_laws``: the contact laws against their closed forms.
+- ``contact_laws``: the contact laws against their closed forms;
+- ``clumps``: clumps against rigid-body statics and dynamics.
 
 Importing this package defines, and so registers, every one. The PFC repose-angle study, a sweep
 of the pile, is a study (``rollingdem.studies.repose_study``); ``default.yaml`` is the case file
@@ -19,6 +20,7 @@ from rollingdem.experiments import contact_laws  # noqa: F401
 from rollingdem.experiments import repose  # noqa: F401
 from rollingdem.experiments import drum  # noqa: F401
 from rollingdem.experiments import silo  # noqa: F401
+from rollingdem.experiments import clumps  # noqa: F401
 from rollingdem.experiments import case_file  # noqa: F401  (get_experiment takes a case file's path)
 from rollingdem.experiments.registry import EXPERIMENTS, Experiment, Parameter, get_experiment
 from rollingdem.experiments.results import ValidationResult, Check

@@ -232,16 +232,25 @@ def test_a_clump_crosses_a_periodic_boundary_whole():
 
 def test_an_outlet_takes_a_clump_whole():
     """Clumps falling through an outlet: a clump goes as soon as one member's centre is in it, with
-    all its members; the ones left are whole (k members each) and numbered 0.. anew."""
+    all its members, and the outlet counts them all and the clump's whole mass; the ones left are
+    whole (k members each) and numbered 0.. anew. A refill would put spheres back, and a clump's
+    members would come back apart: refused."""
     sim = rd.Simulation(gravity=(0, 0, -G), dt=5e-6)
     glass(sim)
-    sim.add_clumps(rd.Clump.trimer(0.001), [[0.01 * k, 0, 0.004 * k + 0.01] for k in range(5)], "g")
-    sim.add_outlet(rd.BoxRegion((-0.01, -0.01, -0.1), (0.06, 0.01, 0.0)), interval=1e-4)
+    trimer = rd.Clump.trimer(0.001)
+    sim.add_clumps(trimer, [[0.01 * k, 0, 0.004 * k + 0.01] for k in range(5)], "g")
+    outlet = sim.add_outlet(rd.BoxRegion((-0.01, -0.01, -0.1), (0.06, 0.01, 0.0)), interval=1e-4)
     sim.run(0.05)  # the lowest fall 1 cm and more in 0.05 s: at least one reaches z < 0
     left = len(sim.clumps["mass"])
     assert 0 < left < 5
     assert sim.n_particles == 3 * left
     assert np.bincount(sim.particle_field("clump")).tolist() == [3] * left
+    assert outlet.count == 3 * (5 - left)
+    assert outlet.mass == pytest.approx((5 - left) * trimer.mass_properties(2500.0).mass, rel=1e-12)
+    sim.add_outlet(rd.BoxRegion((-0.01, -0.01, -0.2), (0.06, 0.01, -0.15)),
+                   refill=rd.BoxRegion((-0.01, -0.01, 0.05), (0.06, 0.01, 0.06)))
+    with pytest.raises(ParameterError, match="is not allowed in a scene of clumps: it puts back spheres"):
+        sim.run(0.001)
 
 
 @pytest.mark.parametrize("call, fragment", [
@@ -397,3 +406,27 @@ def test_the_quick_clump_validation_passes_and_names_each_check():
 
     result = clumps(quick=True)
     assert len(result.checks) == 14 and result.passed, [c for c in result.checks if not c.passed]
+
+
+def test_a_clump_s_velocity_is_set_as_a_body_and_its_members_refuse_their_own():
+    """Setting a clump's velocity and angular velocity: its members move with V + omega x r at the
+    next step (a free dimer: after one step its centre has moved V dt and its members turned by
+    |omega| dt). Setting a member's velocity or position alone would be overwritten by its clump:
+    refused in one line, naming the clump."""
+    sim = rd.Simulation(gravity=(0, 0, 0), dt=1e-6)
+    glass(sim)
+    sim.add_particles([[0.0, 0.0, 0.01]], 0.001, "g")
+    sim.add_clumps(rd.Clump.dimer(0.001), [[0.0, 0.0, 0.0]], "g")
+    sim.set_clump_velocities([0], velocity=[0.5, 0, 0], angular_velocity=[0, 0, 100.0])
+    sim.run(steps=1)
+    assert sim.clumps["centre"][0, 0] == pytest.approx(0.5e-6, rel=1e-12)
+    np.testing.assert_allclose(sim.clumps["angular_velocity"][0], [0, 0, 100.0], rtol=1e-12)
+    axis = sim.positions[2] - sim.positions[1]
+    assert math.atan2(axis[1], axis[0]) == pytest.approx(100.0 * 1e-6, rel=1e-9)
+    for call in (lambda: sim.set_velocities([1], velocity=[1, 0, 0]),
+                 lambda: sim.set_particle_field("x", [2], [[0, 0, 0]])):
+        with pytest.raises(ParameterError, match="particle [12] is a member of clump 0, which moves as one body"):
+            call()
+    sim.set_velocities([0], velocity=[1, 0, 0])  # a sphere of its own: as before
+    with pytest.raises(ParameterError, match="must be clump indices"):
+        sim.set_clump_velocities([1], velocity=[1, 0, 0])

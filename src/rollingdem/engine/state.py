@@ -224,6 +224,17 @@ class EngineState:
         self.index_clumps()
         self.info[I_FORCES_VALID] = 0
 
+    def whole_clumps(self, slots: np.ndarray) -> np.ndarray:
+        """The mask of slots ``slots`` with every member of each clump one of them is in: a clump
+        goes whole with any of its members."""
+        slots = np.asarray(slots, dtype=bool)
+        if not self.n_clumps or not slots.any():
+            return slots
+        member = self.clump >= 0
+        hit = np.zeros(self.n_clumps, dtype=bool)
+        hit[self.clump[slots & member]] = True
+        return slots | (member & hit[np.maximum(self.clump, 0)])
+
     def index_clumps(self) -> None:
         """Each clump's members' slots in the order of their tags (``clump_start``,
         ``clump_members``), the order its forces are summed in whatever the slots; empty arrays
@@ -280,14 +291,12 @@ class EngineState:
         and every contact among them its history; their ids are renumbered in the same order (so
         each pair keeps its orientation in the half list), their tags stay. Forces are computed
         anew at the next step, without the particles that went."""
-        gone = np.asarray(gone, dtype=bool)
+        gone = self.whole_clumps(gone)
         if not gone.any():
             return
-        if self.n_clumps:  # a clump goes whole with any of its members
-            member = self.clump >= 0
+        if self.n_clumps:
             clump_gone = np.zeros(self.n_clumps, dtype=bool)
-            clump_gone[self.clump[gone & member]] = True
-            gone = gone | (member & clump_gone[np.maximum(self.clump, 0)])
+            clump_gone[self.clump[gone & (self.clump >= 0)]] = True
         keep = ~gone
         n, h = self.n, self.history_size
         arrays = self.to_arrays()

@@ -163,7 +163,7 @@ class Outlet(Boundary):
         st = sim._state
         if not self.due(sim.step, sim.dt) or st.n == 0:
             return
-        gone = self.inside(st.x) & ~st.is_fixed
+        gone = st.whole_clumps(self.inside(st.x) & ~st.is_fixed)
         if gone.any():
             self.count += int(gone.sum())
             self.mass += float(st.mass[gone].sum())
@@ -465,7 +465,14 @@ class Boundaries:
     def check_room(self) -> None:
         """Refuse an inflow whose region the walls leave no room in (inside the floor, behind a
         plane): of ``ROOM_SAMPLES`` centres drawn in it for its largest sphere, none clear of every
-        wall. Each inflow is checked once, before its first run."""
+        wall. Each inflow is checked once, before its first run. And refuse an outlet's refill in a
+        scene of clumps: it puts back spheres, and a clump's members would come back apart."""
+        if self.sim._state.n_clumps:
+            for outlet in self.outlets:
+                if outlet.refill is not None:
+                    raise ParameterError(f"outlet {outlet.name or ''!r}: refill = {outlet.refill!r} is not allowed in "
+                                         "a scene of clumps: it puts back spheres, and a clump's members would come "
+                                         "back apart; leave refill out (or refill with an inflow of spheres)")
         rng = np.random.default_rng(0)
         for inflow in self.inflows:
             if getattr(inflow, "_room_checked", False):

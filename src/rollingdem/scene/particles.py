@@ -233,11 +233,22 @@ class Particles:
             raise ParameterError(f"indices = {short_repr(indices)} is not allowed with a nonzero velocity: particle "
                                  f"{int(ids[np.argmax(held)])} is fixed and never moves; leave the fixed particles "
                                  "out (sim.fixed says which they are)")
+        self.refuse_members(ids, idx, "velocity / angular_velocity")
         if velocity is not None:
             st.v[idx] = vectors_of("velocity", velocity, len(idx))
         if angular_velocity is not None:
             st.w[idx] = vectors_of("angular_velocity", angular_velocity, len(idx))
         st.info[I_FORCES_VALID] = 0
+
+    def refuse_members(self, ids, idx, what: str) -> None:
+        """Refuse setting ``what`` of a clump's members (slots ``idx``, ids ``ids``): their clump moves
+        them, and would overwrite it."""
+        st = self.state
+        if st.n_clumps and (st.clump[idx] >= 0).any():
+            k = int(np.argmax(st.clump[idx] >= 0))
+            raise ParameterError(f"indices = {short_repr(ids.tolist())} is not allowed for {what}: particle {int(ids[k])} "
+                                 f"is a member of clump {int(st.clump[idx[k]])}, which moves as one body; set the "
+                                 "clump's with sim.set_clump_velocities")
 
     def field(self, name: str):
         """The schema's per-particle field ``name``; else a refusal naming the fields."""
@@ -253,7 +264,10 @@ class Particles:
         if not field.settable:
             raise ParameterError(f"field = {name!r} is not allowed: the engine keeps it; settable are "
                                  + ", ".join(f.name for f in SCHEMA.of(PER_PARTICLE) if f.settable))
-        idx = st.slots(self.indices(indices))
+        ids = self.indices(indices)
+        idx = st.slots(ids)
+        if field.name in ("x", "v", "w"):
+            self.refuse_members(ids, idx, field.name)
         array = getattr(st, field.name)
         if field.lazy and len(array) != st.n:  # no rows yet: every particle at the fill
             array = field.rows(st.n, st.history_size)

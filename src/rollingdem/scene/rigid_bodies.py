@@ -157,6 +157,31 @@ class ClumpSet:
         turns = random_orientations(np.random.default_rng([seed, 46]), len(centres))
         return self.add(clump, centres, material, turns, velocity)
 
+    def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
+        """``Simulation.set_clump_velocities``: the centre's velocity (m/s) and the angular velocity
+        (rad/s, space frame) of some clumps; their members follow at the next step."""
+        from rollingdem.engine.layout import I_FORCES_VALID
+
+        st = self.state
+        arr = np.atleast_1d(np.asarray(indices))
+        if arr.dtype.kind not in "iu" or arr.ndim != 1 or ((arr < 0) | (arr >= st.n_clumps)).any():
+            raise ParameterError(f"indices = {short_repr(indices)} is not allowed: must be clump indices (whole "
+                                 f"numbers in [0, {st.n_clumps - 1}])" if st.n_clumps else
+                                 f"indices = {short_repr(indices)} is not allowed: there are no clumps")
+        first = st.clump_start[arr]
+        if len(st.fixed) and st.fixed[st.clump_members[first]].any() and (
+                np.any(velocity) or np.any(angular_velocity)):
+            raise ParameterError(f"indices = {short_repr(indices)} is not allowed with a nonzero velocity: a fixed "
+                                 "clump never moves")
+        if velocity is not None:
+            st.clump_v[arr] = vectors_of("velocity", velocity, len(arr))
+        if angular_velocity is not None:
+            omega = vectors_of("angular_velocity", angular_velocity, len(arr))
+            turn = rotation_matrices(st.clump_q[arr])
+            body = np.einsum("cji,cj->ci", turn, omega) * st.clump_moments[arr]
+            st.clump_L[arr] = np.einsum("cij,cj->ci", turn, body)
+        st.info[I_FORCES_VALID] = 0
+
     def check_periodic_reach(self, clump: Clump) -> None:
         """Refuse a clump that spans half a periodic length: its members would meet its own image."""
         for axis, (lo, hi) in self.sim.periodic.items():

@@ -226,6 +226,9 @@ class Simulation:
     def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:  # m/s, rad/s
         self.particle_set.set_velocities(indices, velocity, angular_velocity)
 
+    def set_clump_velocities(self, indices, velocity=None, angular_velocity=None) -> None:  # of clumps, as above
+        self.clump_set.set_velocities(indices, velocity, angular_velocity)
+
     def kinetic_energy(self) -> tuple[float, float]:  # (translational, rotational) kinetic energy (J)
         return self.particle_set.kinetic_energy()
 
@@ -324,11 +327,8 @@ class Simulation:
         return st.backend.phase_seconds(st, self.engine_module(), (self.dt, self.gravity, self.skin,
                                                                    self.pair_parameters()), repeats, rebuilds_per_step)
 
-    def passes(self):
-        """Each pass of the step as a call of its own on the present state (``engine.phases.Passes``,
-        on the CPU), to time them one against another."""
+    def passes(self):  # each pass of the step as a call on the present state (engine.phases.Passes, CPU), to time
         from rollingdem.engine.phases import Passes
-
         return Passes(self._state, self.engine_module(), self.dt, self.gravity, self.skin, self.pair_parameters())
 
     device_memory_bytes = property(lambda self: self._state.backend.device_bytes(self._state),

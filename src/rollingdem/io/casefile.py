@@ -721,7 +721,7 @@ def _spec_at(path, data=None) -> Optional[type]:
             return None
 
         def hint(m):
-            particle = {InsertSpec: "insert", RoughBaseSpec: "rough_base", ListSpec: "list"}.get(m)
+            particle = {InsertSpec: "insert", RoughBaseSpec: "rough_base", ListSpec: "list", ClumpSpec: "clump"}.get(m)
             if particle is not None:
                 return particle == _particle_kind(value)
             for key in ("type", "distribution"):

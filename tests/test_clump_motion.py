@@ -430,3 +430,56 @@ def test_a_clump_s_velocity_is_set_as_a_body_and_its_members_refuse_their_own():
     sim.set_velocities([0], velocity=[1, 0, 0])  # a sphere of its own: as before
     with pytest.raises(ParameterError, match="must be clump indices"):
         sim.set_clump_velocities([1], velocity=[1, 0, 0])
+
+
+def test_a_fixed_clump_never_moves_and_bears_a_falling_sphere():
+    """A fixed ring prism lying flat is an obstacle: a sphere dropped onto it comes to rest on it
+    (restitution 0.5) while the prism's members keep their positions bit for bit and its state
+    (centre, orientation) does not change; the load the sphere puts on it is its weight."""
+    sim = rd.Simulation(gravity=(0, 0, -G))
+    glass(sim)
+    ring = rd.Clump.ring_prism(6, 0.001)
+    sim.add_clumps(ring, [[0, 0, 0]], "g", fixed=True)
+    before, centre = sim.positions.copy(), sim.clumps["centre"].copy()
+    # the ring's hole (centres on a circle of 2 mm) holds the sphere of 1.5 mm above its middle
+    sim.add_particles([[0, 0, 0.004]], 0.0015, "g")
+    sim.run(0.3)
+    assert np.array_equal(sim.positions[:6], before) and np.array_equal(sim.clumps["centre"], centre)
+    assert np.linalg.norm(sim.velocities[6]) < 1e-6
+    assert sim.forces[:6, 2].sum() == pytest.approx(-sim.masses[6] * G, rel=1e-6)
+
+
+def test_the_stand_in_study_puts_clumps_in_a_column_as_tall_as_their_bounding_spheres_need():
+    """The pile case edited for clumps: its column of spheres of radius r_eq becomes a clump block of
+    the same count in a region 1.25 (reach / r_eq)^3 times as tall (the insertion packs bounding
+    spheres as it packs spheres; the quarter more for the tube's wall), the tube at least that tall, the fall time that of the new top:
+    2 sqrt(2 z_max / g) + 0.1 s."""
+    from rollingdem.experiments.clump_stand_in import equal_volume_radius, with_clumps
+
+    tetra = rd.Clump.tetrahedron(0.0025)
+    r_eq = equal_volume_radius(tetra)
+    assert 4 / 3 * math.pi * r_eq ** 3 == pytest.approx(4 * 4 / 3 * math.pi * 0.0025 ** 3, rel=1e-12)  # touching
+    data = {"particles": [{"rough_base": {}}, {"insert": {"type": "cylinder", "radius": 0.02, "z_min": 0.01,
+                                                          "z_max": 0.05}, "count": 100, "material": "beads",
+                                               "seed": 3, "radius": r_eq}],
+            "walls": [{"name": "plate"}, {"name": "tube", "extent": [0.0, 0.2]}], "stages": [{"duration": 1.0}]}
+    edited = with_clumps(tetra, "tetrahedron", 0.0025)(data)
+    block = edited["particles"][1]
+    taller = 1.25 * (tetra.reach() / r_eq) ** 3
+    assert block["clump"] == {"shape": "tetrahedron", "radius": 0.0025} and block["count"] == 100
+    assert block["insert"]["z_max"] == pytest.approx(0.01 + taller * 0.04, rel=1e-12) and taller > 3.0
+    assert edited["walls"][1]["extent"][1] >= block["insert"]["z_max"]
+    assert edited["stages"][0]["duration"] == pytest.approx(2 * math.sqrt(2 * block["insert"]["z_max"] / 9.81) + 0.1)
+
+
+def test_a_small_stand_in_study_point_builds_both_piles():
+    """One point of ``clump-stand-in`` at 150 clumps of 4 (seed 1): both piles are built and run to
+    their end, the pile of clumps forms (its angle above 5 deg: their shape resists rolling), and
+    the stand-in mu_r is ``stand_in_rolling_friction``'s for the tetrahedron (0.5156, tested in
+    test_clumps.py)."""
+    from rollingdem.experiments.clump_stand_in import ClumpStandIn
+
+    out = ClumpStandIn().observe({"count": 150, "seed": 1})
+    assert out["mur_stand_in"] == pytest.approx(0.5156, abs=1e-3)
+    assert out["angle_clumps"] > 5.0
+    assert math.isfinite(out["angle_spheres"]) or "slices" in out["note_spheres"]

@@ -217,3 +217,28 @@ def test_the_onset_follows_the_support_polygon_not_its_farthest_point():
     turn = (spin * down).as_matrix()
     expected = (1 / math.sqrt(3)) / (1 + math.sqrt(2 / 3) / 2)
     assert math.tan(rd.onset_angle(tetra, turn, downhill=(-1, 0, 0))) == pytest.approx(expected, rel=1e-9)
+
+
+def test_the_stand_in_mu_r_averages_the_onset_over_the_directions_a_resting_face_may_take():
+    """On a face whose support is a regular polygon of inradius rho, the footprint's ray in a
+    direction psi from an edge's normal leaves it at rho / cos psi; averaged over psi in
+    (-pi/m, pi/m), rho (m / (2 pi)) 2 ln tan(pi/4 + pi/(2m)). A trimer lying flat (m = 3,
+    rho = r / sqrt 3, centre height r): 0.72608; a regular tetrahedron on a face (its centre
+    r sqrt(2/3) / 2 higher): 0.51559; a ring of four lying flat (m = 4, rho = r): 1.12223; each to
+    1e-3 (the average over 360 directions). A dimer has no face: it rolls across its axis at once,
+    0. The tetrahedron has four faces to rest on, the trimer two (its two sides)."""
+    r = 1e-3
+
+    def polygon_mean(m, rho):
+        return rho * m / math.pi * math.log(math.tan(math.pi / 4 + math.pi / (2 * m)))
+
+    assert rd.stand_in_rolling_friction(rd.Clump.trimer(r)) == pytest.approx(polygon_mean(3, r / math.sqrt(3)) / r,
+                                                                             rel=1e-3)
+    tetra_height = r * (1 + math.sqrt(2 / 3) / 2)
+    assert rd.stand_in_rolling_friction(rd.Clump.tetrahedron(r)) == pytest.approx(
+        polygon_mean(3, r / math.sqrt(3)) / tetra_height, rel=1e-3)
+    assert rd.stand_in_rolling_friction(rd.Clump.ring_prism(4, r)) == pytest.approx(polygon_mean(4, r) / r, rel=1e-3)
+    assert rd.stand_in_rolling_friction(rd.Clump.dimer(r)) == 0.0
+    from rollingdem.scene.clumps import resting_rotations
+
+    assert len(resting_rotations(rd.Clump.tetrahedron(r))) == 4 and len(resting_rotations(rd.Clump.trimer(r))) == 2

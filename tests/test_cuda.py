@@ -309,6 +309,7 @@ PTX = textwrap.dedent('''
     scan, sort = Scan(lists.counts, lists.counts), CountingSort(lists.cell_of, lists.cell_start, lists.cell_items)
     args = dict(pairs=(1e-6, particles, lists, step), bonds=(1e-6, particles, lists),
                 gather=(1e-6, 2.0, 1e-4, particles, walls, lists, step), drift=(1e-6, 1e-4, particles, step),
+                clumps=(1e-6, 2.0, 1e-4, particles, lists, step),
                 walls_move=(1e-6, 1e-4, walls, step, True),
                 prepare=(particles, lists, rebuild), bounds=(particles, rebuild), grid=(1e-4, 64, lists, rebuild),
                 bin_particles=(particles, lists, rebuild), count_rows=(1e-4, particles, lists, rebuild, 1),

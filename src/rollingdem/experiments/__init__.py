@@ -7,7 +7,8 @@ its scene, all in one registry, ``EXPERIMENTS``, that ``rollingdem validate``, `
 - ``repose``: the seed report's angle-of-repose pile and the pile on a rough base;
 - ``drum``: the rotating drum; ``silo``: silo discharge;
 - ``contact_laws``: the contact laws against their closed forms;
-- ``clumps``: clumps against rigid-body statics and dynamics.
+- ``clumps``: clumps against rigid-body statics and dynamics; ``clump_stand_in``: a pile of clumps
+  against one of the spheres with the mu_r that stands in for them.
 
 Importing this package defines, and so registers, every one. The PFC repose-angle study, a sweep
 of the pile, is a study (``rollingdem.studies.repose_study``); ``default.yaml`` is the case file
@@ -21,6 +22,7 @@ from rollingdem.experiments import repose  # noqa: F401
 from rollingdem.experiments import drum  # noqa: F401
 from rollingdem.experiments import silo  # noqa: F401
 from rollingdem.experiments import clumps  # noqa: F401
+from rollingdem.experiments import clump_stand_in  # noqa: F401
 from rollingdem.experiments import case_file  # noqa: F401  (get_experiment takes a case file's path)
 from rollingdem.experiments.registry import EXPERIMENTS, Experiment, Parameter, get_experiment
 from rollingdem.experiments.results import ValidationResult, Check

@@ -19,6 +19,11 @@ import pandas as pd
 
 from rollingdem.experiments.registry import Experiment
 from rollingdem.experiments.results import Check, ValidationResult, pyplot
+from rollingdem.physics.contact.model import ContactModel
+from rollingdem.scene.clumps import Clump, onset_angle
+from rollingdem.scene.materials import Material
+from rollingdem.scene.simulation import Simulation
+from rollingdem.scene.walls import Plane
 
 CASE = "clumps"
 G = 9.81
@@ -33,8 +38,6 @@ TIPPED = 15.0  # deg: turned through more than this, the prism has tipped (it re
 def material(sim, friction=1.0, restitution=0.2, **kw):
     """Glass-like spheres, soft enough for a large step (E = 1e8 Pa: overlaps of 1e-8 m under a
     prism's weight, 1e-5 of r, which leave the statics unchanged)."""
-    from rollingdem import Material
-
     sim.add_material(Material("g", 1e8, 0.3, 2500.0, friction=friction, restitution=restitution, **kw))
 
 
@@ -42,8 +45,6 @@ def prism_pose(n: int):
     """A ring prism of n touching spheres of ``RADIUS`` and the rotation that stands it on two
     neighbours with its axis along y (the contour lines of a slope falling along x)."""
     from scipy.spatial.transform import Rotation
-
-    from rollingdem import Clump
 
     turn = Rotation.from_euler("x", 90, degrees=True) * Rotation.from_euler("z", -90 + 180.0 / n, degrees=True)
     return Clump.ring_prism(n, RADIUS), turn
@@ -53,8 +54,6 @@ def prism_turn(n: int, tilt_deg: float) -> float:
     """The angle (deg) a ring prism of n turns through on a plane tilted slowly to ``tilt_deg``
     (settled 0.1 s flat, gravity turned in ``TILT_STEPS`` steps over ``TILT_TIME``, held ``HOLD``);
     friction 1.0, so nothing slides."""
-    from rollingdem import ContactModel, Plane, Simulation
-
     clump, turn = prism_pose(n)
     sim = Simulation(contact=ContactModel("hertz"), gravity=(0, 0, -G))
     material(sim)
@@ -99,8 +98,6 @@ def sphere_rolls(model: str, mu_r: float, tilt_deg: float) -> bool:
 def free_rotation(steps: int):
     """An asymmetric clump (spheres of 2, 1.5 and 1 mm, two overlapping) spun about a tilted axis, no
     gravity, ``steps`` steps: (relative energy change, relative change of |L|, |omega| dt)."""
-    from rollingdem import Clump, Simulation
-
     sim = Simulation(gravity=(0, 0, 0), dt=5e-6)
     material(sim)
     clump = Clump([[0, 0, 0], [0.003, 0, 0], [0, 0.002, 0.001]], [0.002, 0.0015, 0.001])
@@ -148,8 +145,6 @@ def intermediate_axis_flip(periods: int = 3):
     """A clump spun at 100 rad/s about its intermediate axis, nudged by 1 and 2 rad/s about the
     others, in the engine: (the measured period of omega_2 from its zero crossings over ``periods``
     periods, the theory's)."""
-    from rollingdem import Clump, Simulation
-
     # a lone body: no contact can form, so the contact time-step limits do not apply
     sim = Simulation(gravity=(0, 0, 0), dt=5e-6, check_timestep=False)  # omega dt = 5e-4
     material(sim)
@@ -177,8 +172,6 @@ def intermediate_axis_flip(periods: int = 3):
 def flat_drop(restitution: float) -> float:
     """A dimer of touching 2 mm spheres dropped flat on a plane at 1 m/s (Hertz, no gravity): its
     rebound speed over its impact speed."""
-    from rollingdem import Clump, ContactModel, Plane, Simulation
-
     sim = Simulation(contact=ContactModel("hertz"), gravity=(0, 0, 0), dt=2e-7)
     material(sim, friction=0.5, restitution=restitution)
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1)))
@@ -190,8 +183,6 @@ def flat_drop(restitution: float) -> float:
 def dimer_loads():
     """Spheres of 2 and 1 mm, centres 2.5 mm apart, at rest on a plane on both (settled 0.2 s): the
     measured reactions (N1, N2) and statics' (the union's centre of mass between them)."""
-    from rollingdem import Clump, ContactModel, Plane, Simulation
-
     sim = Simulation(contact=ContactModel("hertz"), gravity=(0, 0, -G))
     material(sim, friction=0.5, restitution=0.3)
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1)))
@@ -216,8 +207,6 @@ def lens_volume(radius: float, distance: float) -> float:
 def clumps(quick=False, outdir=None, progress=None) -> ValidationResult:
     """The clump checks; ``quick``: the onsets bracketed at +-0.2 deg only, the sphere stand-ins for
     n = 3 with EPSD, 10^4 free steps and two flips."""
-    from rollingdem import Clump, onset_angle
-
     start = time.perf_counter()
     checks, rows = [], []
 

@@ -226,7 +226,7 @@ def pile_case(rolling="epsd", twisting="none", count=3000, seed=1, material: Pil
 
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
              collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT, label=None,
-             setup: PileSetup = PileSetup()) -> PileRun:
+             setup: PileSetup = PileSetup(), edit=None) -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
     Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
@@ -240,11 +240,15 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     1e-3 sqrt(g d) (:func:`rollingdem.analysis.repose.default_max_speed`). A sphere rolling alone over the
     plate (with little rolling resistance it may roll for seconds) and a few rattlers caged in
     the pile do not change its surface. Then the angle is measured. ``setup``: the tube and the
-    floor (``PileSetup``). The scene and the stages' times are :func:`pile_case`'s.
+    floor (``PileSetup``). The scene and the stages' times are :func:`pile_case`'s; ``edit``, a
+    function of the case's data, may change it before it is built (the clumps' study puts clumps in
+    the column, ``experiments.clump_stand_in``).
     """
     from rollingdem.io.casefile import build_simulation, load_case
 
     data = pile_case(rolling, twisting, count, seed, material, collapse, normal, polydispersity, dt, setup)
+    if edit is not None:
+        data = edit(data)
     lift_speed, sample, max_collapse = collapse.lift_speed, collapse.sample, collapse.max_time
     tic = time.perf_counter()
     sim = build_simulation(load_case(data))
@@ -270,7 +274,7 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
         if t >= collapse.min_time - 1e-9 and tube not in sim.walls:
             pile = touching(sim.positions[free], sim.radii[free])
             speed = np.linalg.norm(sim.velocities[free][pile], axis=1)
-            if np.count_nonzero(speed >= limit) <= MOVING_FRACTION * count:
+            if np.count_nonzero(speed >= limit) <= MOVING_FRACTION * np.count_nonzero(free):
                 settled_at = t
                 break
     ke = np.array(ke)

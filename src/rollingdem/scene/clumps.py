@@ -183,8 +183,12 @@ class Clump:
         return len(seen) == k
 
     def _overlapping_pairs(self) -> list[tuple[int, int]]:
+        """The pairs that overlap by more than rounding: members meant to touch (a lens of depth
+        below ``TOUCH_TOLERANCE`` of the smaller radius, of relative volume below 1e-18) do not."""
         gaps = self._gaps()
-        return [(i, j) for i in range(len(self.radii)) for j in range(i + 1, len(self.radii)) if gaps[i, j] < 0.0]
+        small = np.minimum(self.radii[:, None], self.radii[None, :])
+        return [(i, j) for i in range(len(self.radii)) for j in range(i + 1, len(self.radii))
+                if gaps[i, j] < -TOUCH_TOLERANCE * small[i, j]]
 
     def _triple_overlap(self, pairs) -> bool:
         """Whether some point may lie in three members (three members overlapping pairwise: a
@@ -357,3 +361,52 @@ def equivalent_rolling_friction(clump: Clump, rotation=None, downhill=(1.0, 0.0,
     moment on a wall is mu_r R F_n (EPSD, CDT; a sphere on a slope rolls once m g sin(theta) R
     exceeds mu_r R m g cos(theta), docs/models.md §13, case 0)."""
     return math.tan(onset_angle(clump, rotation, downhill))
+
+
+def resting_rotations(clump: Clump) -> list[np.ndarray]:
+    """The rotations (3x3) that stand ``clump`` on each of its faces: each plane tangent to three
+    members with every member on one side (a facet of the members' convex hull), n . c_m + r_m = h
+    for the three, turned so that its outward normal n points down. Members in a line or fewer
+    than three have none."""
+    from itertools import combinations
+
+    from scipy.spatial.transform import Rotation
+
+    c, r = clump.centres, clump.radii
+    size = float(np.ptp(c, axis=0).max() + 2.0 * r.max())
+    found = []
+    for i, j, k in combinations(range(len(r)), 3):
+        a, b = c[j] - c[i], c[k] - c[i]
+        normal = np.cross(a, b)
+        if np.linalg.norm(normal) <= 1e-12 * size * size:
+            continue
+        gram = np.array([[a @ a, a @ b], [a @ b, b @ b]])
+        x, y = np.linalg.solve(gram, [r[i] - r[j], r[i] - r[k]])  # n . a = r_i - r_j, n . b = r_i - r_k
+        p = x * a + y * b
+        if p @ p > 1.0:
+            continue
+        for sign in (1.0, -1.0):
+            n = p + sign * math.sqrt(1.0 - p @ p) * normal / np.linalg.norm(normal)
+            h = n @ c[i] + r[i]
+            if (c @ n + r <= h + 1e-9 * size).all() and not any(np.allclose(n, m, atol=1e-9) for m, _ in found):
+                turn, _ = Rotation.align_vectors([[0.0, 0.0, -1.0]], [n])
+                found.append((n, turn.as_matrix()))
+    return [turn for _, turn in found]
+
+
+def stand_in_rolling_friction(clump: Clump, azimuths: int = 360) -> float:
+    """The rolling friction of the sphere that stands in for ``clump`` lying at random on a slope:
+    the mean over ``azimuths`` downhill directions of tan theta (``onset_angle``) on the face it
+    rests on most stably (of ``resting_rotations``, the one with the largest mean; a clump with no
+    face, a dimer or a rod, rolls across its line at once: 0). What a sphere of that mu_r does on a
+    slope, the clump does on average over the directions it may face."""
+    best = 0.0
+    phi = 2.0 * math.pi * np.arange(int(azimuths)) / int(azimuths)
+    for turn in resting_rotations(clump):
+        try:
+            tans = [math.tan(onset_angle(clump, turn, (math.cos(f), math.sin(f), 0.0))) for f in phi]
+        except ParameterError:  # its centre of mass is not over that face: it does not rest there
+            continue
+        best = max(best, float(np.mean(tans)))
+    return best
+

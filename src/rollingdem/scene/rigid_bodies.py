@@ -152,8 +152,12 @@ class ClumpSet:
             if not 0.0 < fraction <= MAX_PACKING_FRACTION:
                 raise ParameterError(f"fraction = {fraction:g} is not allowed: must be in (0, {MAX_PACKING_FRACTION}]")
             count = max(1, round(fraction * region.volume() / volume))
-        centres, _ = fill_region(region, count, clump.reach(), seed=seed, existing_positions=self.state.x,
-                                 existing_radii=self.state.radius, walls=sim.walls, max_attempts=max_attempts)
+        try:
+            centres, _ = fill_region(region, count, clump.reach(), seed=seed, existing_positions=self.state.x,
+                                     existing_radii=self.state.radius, walls=sim.walls, max_attempts=max_attempts)
+        except ParameterError as err:  # it placed the clumps' bounding spheres: say so
+            raise ParameterError(str(err).replace(" spheres in ", " clumps (their bounding spheres, radius "
+                                                  f"{clump.reach():.3g} m) in ", 1)) from None
         turns = random_orientations(np.random.default_rng([seed, 46]), len(centres))
         return self.add(clump, centres, material, turns, velocity)
 

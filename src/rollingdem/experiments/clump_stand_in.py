@@ -1,0 +1,159 @@
+"""``clump-stand-in``: a pile of clumps against a pile of spheres with the rolling friction that stands
+in for them (issue 46; docs/studies.md, "Clumps and the mu_r that stands in for them").
+
+The same lifted-cylinder pile on a rough base (``repose-rough-base``'s protocol, ``repose.pile_case``)
+twice: once of clumps of a named shape (spheres of ``radius``, no rolling resistance of their own:
+their shape resists), once of as many spheres of the clump's volume with the rolling friction
+``rd.stand_in_rolling_friction`` gives for that shape (the mean over the directions a resting face
+may take of tan theta at which the clump tips on a slope), both of the same material. It reports
+both angles side by side and says whether the stand-in holds: whether the angles' difference is
+within the seeds' 95 % interval of zero.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pandas as pd
+
+from rollingdem.errors import check_choice
+from rollingdem.experiments.registry import BedExperiment, Parameter
+from rollingdem.experiments.repose import Collapse, PileMaterial, PileSetup, column_size, pile_run
+from rollingdem.experiments.results import Check, ValidationResult, mean_ci, pyplot
+from rollingdem.scene.clumps import Clump, stand_in_rolling_friction
+
+CASE = "clump-stand-in"
+#: the clump shapes by the number of their members (a Parameter is a number): 2 dimer, 3 trimer, 4 tetrahedron
+SHAPE_OF_MEMBERS = {2: "dimer", 3: "trimer", 4: "tetrahedron"}
+
+
+def clump_template(members: int, radius: float):
+    """The named clump of ``members`` touching spheres of ``radius``."""
+    check_choice("members", members, tuple(SHAPE_OF_MEMBERS))
+    return getattr(Clump, SHAPE_OF_MEMBERS[members])(radius)
+
+
+def equal_volume_radius(clump) -> float:
+    """The radius of the sphere of the clump's volume (m)."""
+    return (3.0 * clump.mass_properties(1.0).volume / (4.0 * math.pi)) ** (1.0 / 3.0)
+
+
+def with_clumps(clump, shape: str, member_radius: float):
+    """An edit of a pile case's data (``pile_run(edit=...)``): its column of spheres made a column of
+    the same number of clumps, inserted in a region 1.25 times as much taller as their bounding
+    spheres are larger than the spheres (insertion packs bounding spheres as it packs spheres, and
+    the tube's wall costs the larger ones more room), inside a tube
+    as much taller, falling for as much longer."""
+    def edit(data: dict) -> dict:
+        block = data["particles"][-1]
+        region = dict(block["insert"])
+        r_eq = block["radius"]
+        taller = 1.25 * (clump.reach() / r_eq) ** 3  # and a quarter more: walls cost bounding spheres more room
+        region["z_max"] = region["z_min"] + taller * (region["z_max"] - region["z_min"])
+        data["particles"][-1] = {"clump": {"shape": shape, "radius": member_radius}, "insert": region,
+                                 "count": block["count"], "material": block["material"], "seed": block["seed"]}
+        tube = next(w for w in data["walls"] if w["name"] == "tube")
+        tube["extent"] = [0.0, max(tube["extent"][1], region["z_max"] + 0.1)]
+        settle = data["stages"][0]
+        settle["duration"] = 2.0 * math.sqrt(2.0 * region["z_max"] / 9.81) + 0.1
+        return data
+    return edit
+
+
+class ClumpStandIn(BedExperiment):
+    """A pile of clumps against a pile of equal-volume spheres with the stand-in mu_r (issue 46)."""
+
+    name = "clump-stand-in"
+    description = ("the lifted-cylinder pile on a rough base of clumps, and of as many equal-volume spheres with the "
+                   "rolling friction that stands in for them")
+    parameters = (Parameter("model", "epsd", "the spheres' rolling resistance model", choice="rolling"),
+                  Parameter("members", 4, "clump shape by its members: 2 dimer, 3 trimer, 4 tetrahedron", low=2,
+                            high=4, integer=True),
+                  Parameter("mu", 0.6, "sliding friction coefficient", low=0.0, low_open=True),
+                  Parameter("count", 500, "clumps (and spheres) in the column", low=50, integer=True),
+                  Parameter("radius", 0.0025, "the clumps' spheres' radius", "m", low=0.0, low_open=True),
+                  Parameter("seed", 1, "random seed (insertion, orientations, base)", low=0, integer=True),
+                  Parameter("dt", 0.0, "time step (0: the largest the checks allow)", "s", low=0.0),
+                  Parameter("max_collapse", 3.0, "longest collapse before a pile counts as unsettled", "s", low=0.0,
+                            low_open=True))
+    observables = {"angle_clumps": "deg, the pile of clumps", "angle_spheres": "deg, the pile of stand-in spheres",
+                   "mur_stand_in": "the spheres' rolling friction, rd.stand_in_rolling_friction"}
+    default_observable = "angle_clumps"
+    targets = {"angle_clumps": (0.0, 90.0), "angle_spheres": (0.0, 90.0)}
+    sizes = {"quick": {"count": 300, "seeds": (1, 2)}, "full": {"count": 1500, "seeds": (1, 2, 3, 4)}}
+
+    def observe(self, params: dict) -> dict:
+        """Both piles at ``params`` (one seed): their angles and the stand-in mu_r."""
+        from rollingdem.experiments.registry import resolve_rolling
+
+        p = self.resolve(params)
+        clump = clump_template(p["members"], p["radius"])
+        r_eq = equal_volume_radius(clump)
+        mu_r = stand_in_rolling_friction(clump)
+        tube_radius, _ = column_size(p["count"], r_eq, 0.0)
+        setup = PileSetup(base="rough", radius=r_eq, tube_radius=tube_radius, base_radius=r_eq,
+                          clearance=2.0 * r_eq)
+        collapse = Collapse(max_time=p["max_collapse"], sample=0.02, lift_speed=0.1)
+        out = {"mur_stand_in": mu_r}
+        for what, mur, edit in (("clumps", 0.0, with_clumps(clump, SHAPE_OF_MEMBERS[p["members"]], p["radius"])),
+                                ("spheres", mu_r, None)):
+            material = PileMaterial(friction=p["mu"], rolling_friction=mur, youngs_modulus=5e6)
+            run = pile_run(resolve_rolling(p["model"]), "none", p["count"], p["seed"], material, collapse,
+                           polydispersity=0.0, dt=p["dt"] or None, setup=setup, edit=edit, label=what)
+            out[f"angle_{what}"] = run.angle.angle if run.angle else math.nan
+            out[f"note_{what}"] = run.angle_error[:200]
+        return out
+
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
+        return stand_in_study(model, quick=quick, outdir=outdir, progress=progress, runner=runner)
+
+
+def stand_in_study(model="epsd", members=4, quick=False, outdir=None, progress=None, runner=map) -> ValidationResult:
+    """Both piles over the seeds of the size (``ClumpStandIn.sizes``): their angles, the mean
+    difference with its 95 % Student-t interval, and whether the stand-in holds (the interval holds
+    0). Checks: a pile forms of each (every angle above 5 deg: a clump's shape resists rolling, and
+    so does the stand-in's mu_r)."""
+    tic = time.perf_counter()
+    experiment = ClumpStandIn()
+    size = experiment.sizes["quick" if quick else "full"]
+    points = [{"model": model, "members": members, "count": size["count"], "seed": s} for s in size["seeds"]]
+
+    def one(point):
+        return experiment.observe(point)
+
+    rows = []
+    for point, res in zip(points, runner(one, points)):
+        rows.append({"seed": point["seed"], **{k: v for k, v in res.items() if not k.startswith("note")}})
+        if progress:
+            progress()
+    table = pd.DataFrame(rows)
+    shape = SHAPE_OF_MEMBERS[members]
+    checks = [Check(CASE, f"{shape}s", f"pile angle, seed {r['seed']} (deg)", r["angle_clumps"], 5.0, 0.0,
+                    bound="lower", source="a clump's shape resists rolling: a pile forms") for r in rows]
+    checks += [Check(CASE, f"spheres, {model}, mu_r = {rows[0]['mur_stand_in']:.3f}",
+                     f"pile angle, seed {r['seed']} (deg)", r["angle_spheres"], 5.0, 0.0, bound="lower",
+                     source="the stand-in's mu_r resists rolling: a pile forms") for r in rows]
+    result = ValidationResult(CASE, f"Clumps ({shape}s) and the mu_r that stands in for them", table, checks)
+    diff = table["angle_spheres"] - table["angle_clumps"]
+    if len(diff) >= 2 and np.isfinite(diff).all():
+        mean, half = mean_ci(diff.to_numpy())
+        holds = abs(mean) <= half
+        result.notes.append(f"pile angle: {shape}s {table['angle_clumps'].mean():.1f} deg, stand-in spheres "
+                            f"{table['angle_spheres'].mean():.1f} deg (mu_r = {rows[0]['mur_stand_in']:.3f}); "
+                            f"spheres - clumps = {mean:+.1f} +- {half:.1f} deg (95 %, {len(diff)} seeds): the "
+                            f"stand-in {'holds' if holds else 'does not hold'} for the angle at this size")
+    if outdir is not None:
+        plt = pyplot()
+        fig, ax = plt.subplots(figsize=(5, 4))
+        ax.plot(table["seed"], table["angle_clumps"], "o", label=f"{shape}s, no rolling resistance")
+        ax.plot(table["seed"], table["angle_spheres"], "s", label=f"spheres, μr = {rows[0]['mur_stand_in']:.3f}")
+        ax.set_xlabel("seed")
+        ax.set_ylabel("pile angle (deg)")
+        ax.legend()
+        ax.set_title("A pile of clumps and of their stand-in spheres")
+        result.add_figure(fig, outdir, "clump_stand_in.png")
+    result.wall_time = time.perf_counter() - tic
+    return result
+

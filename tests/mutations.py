@@ -50,6 +50,7 @@ WT = ("tests/test_walton_tangential.py",)
 COH = ("tests/test_cohesion.py",)
 BOND = ("tests/test_bonds.py",)
 GPU = ("tests/test_cuda.py::test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine",)
+CLUMP = ("tests/test_clump_motion.py",)
 MUTATIONS = [
     # --- normal (contact/normal.py) and the material pair ------------------------------------------
     M("hertz k_n = 4/3 E* a -> E* a", C + "normal.py", "kn = (4.0 / 3.0) * p[P_YOUNG] * a", "kn = 1.0 * p[P_YOUNG] * a", HERTZ),
@@ -295,6 +296,27 @@ MUTATIONS = [
     M("rigid body: the body frame turned the wrong way", "src/rollingdem/engine/rigid_body.py",
       "    return (vx + qw * tx + (qy * tz - qz * ty),", "    return (vx - qw * tx + (qy * tz - qz * ty),",
       ("tests/test_rigid_body.py",)),
+    M("clump torque: r x f with its sign flipped", "src/rollingdem/engine/rigid_body.py",
+      "tx += t[m, 0] + ry * f[m, 2] - rz * f[m, 1]", "tx += t[m, 0] - ry * f[m, 2] + rz * f[m, 1]", CLUMP),
+    M("clump: the member's own torque left out", "src/rollingdem/engine/rigid_body.py",
+      "ty += t[m, 1] + rz * f[m, 0] - rx * f[m, 2]", "ty += rz * f[m, 0] - rx * f[m, 2]", CLUMP),
+    M("clump: its weight left out", "src/rollingdem/engine/rigid_body.py",
+      "F[0], F[1], F[2] = fx + M * gravity[0], fy + M * gravity[1], fz + M * gravity[2]",
+      "F[0], F[1], F[2] = fx, fy, fz", CLUMP),
+    M("clump members' weight at their own centres too", "src/rollingdem/engine/template/gather.py",
+      "mg = 0.0 if member else mi", "mg = mi", CLUMP),
+    M("clump member's velocity without omega x r", "src/rollingdem/engine/rigid_body.py",
+      "v[m, 0] = V[0] + oy * rz - oz * ry", "v[m, 0] = V[0]", CLUMP),
+    M("clump: the closing kick of L doubled", "src/rollingdem/engine/rigid_body.py",
+      "                    L[d] += 0.5 * dt * T[d]\n", "                    L[d] += dt * T[d]\n", CLUMP),
+    M("clump members' mass the whole clump's", "src/rollingdem/scene/rigid_bodies.py",
+      "share = np.tile(props.mass * volumes / volumes.sum(), m)", "share = np.tile(props.mass + 0.0 * volumes, m)",
+      CLUMP),
+    M("clump members pair with each other", "src/rollingdem/engine/neighbors.py",
+      "if clump_i >= 0 and clump[j] == clump_i:", "if clump_i >= 0 and clump[j] == clump_i and False:", CLUMP),
+    M("clump onset: the footprint's farthest point, not the hull", "src/rollingdem/scene/clumps.py",
+      "reach = np.min(-offsets[going > 1e-12] / going[going > 1e-12])", "reach = np.max(support @ e2)",
+      ("tests/test_clumps.py",)),
     M("mesh flow counts a shared edge twice", "src/rollingdem/io/measurements.py",
       "for p in np.flatnonzero(hit.sum(axis=1) > 1):", "for p in []:", ("tests/test_measurements.py",)),
 ]

@@ -483,3 +483,14 @@ def test_a_small_stand_in_study_point_builds_both_piles():
     assert out["mur_stand_in"] == pytest.approx(0.5156, abs=1e-3)
     assert out["angle_clumps"] > 5.0
     assert math.isfinite(out["angle_spheres"]) or "slices" in out["note_spheres"]
+
+
+def test_the_stand_in_verdict_reads_the_interval_of_the_differences():
+    """Differences spread about 0 (mean 0.1, half-width 1.5 deg): it holds; about 5 deg with a
+    half-width of 0.2: it does not; two seeds 70 deg apart: nothing can be told."""
+    from rollingdem.experiments.clump_stand_in import stand_in_verdict
+
+    assert stand_in_verdict([1.0, -1.2, 0.5, 0.1])[2].startswith("the stand-in holds")
+    assert stand_in_verdict([5.1, 4.9, 5.0, 5.2])[2].startswith("the stand-in does not hold")
+    assert "too much to tell" in stand_in_verdict([30.0, -40.0])[2]
+    assert "too much to tell" in stand_in_verdict([3.0])[2]

@@ -434,8 +434,8 @@ def test_spheres_of_one_material_agree_to_round_off(simulated):
 
 def test_the_scenes_exercise_what_they_claim(simulated):
     """Guards on the scenes themselves, from the CPU engine: the pair collides (its spheres leave
-    slower than they came), the flat rollers slow down under rolling resistance, and the pile's
-    spheres hit the floor and each other (some move up at the end)."""
+    slower than they came), the flat rollers slow down under rolling resistance, the pile's
+    spheres hit the floor and each other (some move up at the end), and the clumps touch."""
     pair = simulated["pair"]["cpu"]
     assert np.abs(np.asarray(pair["v"])[:, 2]).max() < 0.5
     for model in ("epsd", "cdt"):
@@ -448,6 +448,8 @@ def test_the_scenes_exercise_what_they_claim(simulated):
     # the fine floor's spheres have more candidate triangles than the arrays first held (4 per sphere)
     for backend in ("cpu", "cuda"):
         assert simulated["fine floor"][backend]["candidates"] > 4 * 3
+    # the clumps land on the floor and on each other: they touch at the end (7 contacts on the CPU)
+    assert simulated["clumps"]["cpu"]["contacts"] >= 4 and simulated["clumps"]["cpu"]["rebuilds"] >= 5
     # the hand-over's two halves are the pair's 600 steps: its CPU half started on the GPU
     for key in ("x", "v", "w"):
         assert np.array_equal(simulated["checkpoint handed over"]["cpu"][key], simulated["pair"]["cpu"][key])

@@ -482,7 +482,8 @@ def test_a_small_stand_in_study_point_builds_both_piles():
     out = ClumpStandIn().observe({"count": 150, "seed": 1})
     assert out["mur_stand_in"] == pytest.approx(0.5156, abs=1e-3)
     assert out["angle_clumps"] > 5.0
-    assert math.isfinite(out["angle_spheres"]) or "slices" in out["note_spheres"]
+    # 150 spheres may be too few for a cone fit (the quick size has 300): then the run says why
+    assert math.isfinite(out["angle_spheres"]) or "too small" in out["note_spheres"] or "slices" in out["note_spheres"]
 
 
 def test_the_stand_in_verdict_reads_the_interval_of_the_differences():

@@ -62,6 +62,19 @@ def test_a_free_clump_keeps_its_shape_energy_and_angular_momentum():
     np.testing.assert_allclose(sim.angular_velocities, np.tile(omega, (3, 1)), rtol=0, atol=1e-12 * np.abs(omega).max())
 
 
+def test_a_clump_falls_freely_with_g():
+    """Gravity alone on a turning clump: its centre falls z0 - g t^2 / 2 with velocity -g t (velocity
+    Verlet is exact for a constant force, to rounding over 2000 steps: 1e-9 of the fall), its
+    weight counted once."""
+    sim = rd.Simulation(gravity=(0, 0, -G), dt=5e-6)
+    glass(sim)
+    sim.add_clumps(asymmetric(), [[0, 0, 0]], "g", angular_velocity=[0, 30.0, 5.0])
+    sim.run(steps=2000)
+    t = sim.time
+    np.testing.assert_allclose(sim.clumps["velocity"][0], [0, 0, -G * t], rtol=0, atol=1e-9 * G * t)
+    assert sim.clumps["centre"][0, 2] == pytest.approx(-0.5 * G * t * t, rel=1e-9)
+
+
 def _drop(kind, restitution=0.6):
     """A dimer of touching 2 mm spheres dropped flat onto a plane at 1 m/s, or one of its spheres
     alone; Hertz, no gravity (the impact alone)."""
@@ -114,6 +127,9 @@ def test_an_unequal_dimer_at_rest_loads_the_plane_as_statics_says():
     x, mass, centre = sim.positions, sim.clumps["mass"][0], sim.clumps["centre"][0]
     n1 = mass * G * (x[1, 0] - centre[0]) / (x[1, 0] - x[0, 0])
     np.testing.assert_allclose(sim.forces[:, 2], [n1, mass * G - n1], rtol=0, atol=1e-5 * mass * G)
+    # and the plane carries the weight once (the members' forces are their contacts' alone)
+    plane = next(iter(sim.wall_loads().values()))
+    assert -plane["force"][2] == pytest.approx(mass * G, rel=1e-5)
     assert sim.masses.sum() == pytest.approx(mass, rel=1e-12)
     assert sim.masses[0] / sim.masses[1] == pytest.approx(8.0, rel=1e-12)
 

@@ -9,7 +9,6 @@ import math
 import numba
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 import rollingdem as rd
 from rollingdem.errors import ParameterError
@@ -114,19 +113,11 @@ def test_an_unequal_dimer_at_rest_loads_the_plane_as_statics_says():
     settling's tangential couple (2e-5 N each way, statically indeterminate) acting over the
     difference of the two contacts' depths (their overlaps, ~1e-7 m): ~1e-9 N. Were each member's
     share of the weight put at its own centre, the big sphere would carry 8/9 of it: 0.9 % off."""
-    sim = rd.Simulation(contact=rd.ContactModel("hertz"), gravity=(0, 0, -G))
-    glass(sim, restitution=0.3)
-    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
-    r1, r2, d = 0.002, 0.001, 0.0025
-    clump = rd.Clump([[0, 0, 0], [d, 0, 0]], [r1, r2])
-    tilt = math.asin((r1 - r2) / d)  # both members on the plane
-    q = [math.cos(tilt / 2), 0, math.sin(tilt / 2), 0]
-    placed = clump.placed([0, 0, 0], q)
-    sim.add_clumps(clump, [[0, 0, -min(placed[0, 2] - r1, placed[1, 2] - r2) + 1e-7]], "g", orientations=q)
-    sim.run(0.2)
-    x, mass, centre = sim.positions, sim.clumps["mass"][0], sim.clumps["centre"][0]
-    n1 = mass * G * (x[1, 0] - centre[0]) / (x[1, 0] - x[0, 0])
-    np.testing.assert_allclose(sim.forces[:, 2], [n1, mass * G - n1], rtol=0, atol=1e-5 * mass * G)
+    from rollingdem.experiments.clumps import dimer_loads
+
+    measured, statics, weight, sim = dimer_loads()
+    np.testing.assert_allclose(measured, statics, rtol=0, atol=1e-5 * weight)
+    mass = sim.clumps["mass"][0]
     # and the plane carries the weight once (the members' forces are their contacts' alone)
     plane = next(iter(sim.wall_loads().values()))
     assert -plane["force"][2] == pytest.approx(mass * G, rel=1e-5)
@@ -134,39 +125,21 @@ def test_an_unequal_dimer_at_rest_loads_the_plane_as_statics_says():
     assert sim.masses[0] / sim.masses[1] == pytest.approx(8.0, rel=1e-12)
 
 
-def _tilt(n, margin_deg):
-    """A ring prism of n touching 1 mm spheres resting on two members, its axis along the slope's
-    contour lines, on a plane tilted slowly (200 steps of the gravity's direction over 0.2 s, then
-    0.2 s held) to the onset angle plus ``margin_deg``; friction 1.0, so nothing slides. Returns the
-    angle it turned through (degrees)."""
-    r = 0.001
-    clump = rd.Clump.ring_prism(n, r)
-    turn = Rotation.from_euler("x", 90, degrees=True) * Rotation.from_euler("z", -90 + 180.0 / n, degrees=True)
-    theta = rd.onset_angle(clump, turn.as_matrix()) + math.radians(margin_deg)
-    sim = rd.Simulation(contact=rd.ContactModel("hertz"), gravity=(0, 0, -G))
-    glass(sim, friction=1.0, restitution=0.2)
-    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
-    x, y, z, w = turn.as_quat()
-    sim.add_clumps(clump, [[0, 0, r - (clump.centres @ turn.as_matrix().T)[:, 2].min()]], "g", orientations=[w, x, y, z])
-    sim.run(0.1)
-    start = sim.clumps["orientation"][0].copy()
-    for k in range(1, 201):
-        sim.gravity = (G * math.sin(theta * k / 200), 0, -G * math.cos(theta * k / 200))
-        sim.run(0.001)
-    sim.run(0.2)
-    return 2 * math.degrees(math.acos(min(1.0, abs(float(np.dot(start, sim.clumps["orientation"][0]))))))
-
-
 @pytest.mark.parametrize("n, onset", [(3, 32.37), (4, 26.57), (6, 20.10)])
 def test_a_ring_prism_tips_at_its_onset_angle(n, onset):
-    """tan theta = r / (r + a_n) (issue 46; ``rd.onset_angle``): 0.2 deg below it the prism stays
-    (turned by less than 0.05 deg: the elastic settling), 0.2 deg above it tips over (more than
-    15 deg in 0.2 s; it starts from rest at the edge of balance)."""
-    clump = rd.Clump.ring_prism(n, 0.001)
-    turn = Rotation.from_euler("x", 90, degrees=True) * Rotation.from_euler("z", -90 + 180.0 / n, degrees=True)
-    assert math.degrees(rd.onset_angle(clump, turn.as_matrix())) == pytest.approx(onset, abs=0.005)
-    assert _tilt(n, -0.2) < 0.05
-    assert _tilt(n, 0.2) > 15.0
+    """tan theta = r / (r + a_n) (issue 46; ``rd.onset_angle``): a ring prism of n touching 1 mm
+    spheres resting on two neighbours, its axis along the contour lines, on a plane tilted slowly
+    (``experiments.clumps.prism_turn``: gravity turned in 200 steps over 0.2 s, then held 0.2 s;
+    friction 1.0, so nothing slides). 0.2 deg below the onset the prism stays (turned by less than
+    0.05 deg: the elastic settling), 0.2 deg above it tips over (more than 15 deg in 0.2 s; it
+    starts from rest at the edge of balance)."""
+    from rollingdem.experiments.clumps import prism_pose, prism_turn
+
+    clump, turn = prism_pose(n)
+    onset_deg = math.degrees(rd.onset_angle(clump, turn.as_matrix()))
+    assert onset_deg == pytest.approx(onset, abs=0.005)
+    assert prism_turn(n, onset_deg - 0.2) < 0.05
+    assert prism_turn(n, onset_deg + 0.2) > 15.0
 
 
 def _heap(threads=None, sort=False, checkpoint_at=None, tmp_path=None):

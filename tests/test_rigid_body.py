@@ -2,11 +2,9 @@
 torque-free asymmetric top keeps its energy and its angular momentum, a spin near its intermediate
 axis flips with the period rigid-body theory gives, and a constant torque adds dt T to L per step."""
 
-import math
 
 import numpy as np
 import pytest
-from scipy.special import ellipk
 
 from rollingdem.engine.rigid_body import body_angular_velocity, rigid_rotation_step, rotate_free_body
 
@@ -36,22 +34,11 @@ def test_a_free_asymmetric_top_keeps_its_energy_and_its_angular_momentum():
 
 
 def flip_period(omega_body):
-    """The period of the body's angular velocity in torque-free rotation (Landau & Lifshitz,
-    Mechanics, sect. 37): with I_1 < I_2 < I_3, energy E and L^2 > 2 E I_2, omega_2 goes as
-    sn(tau, k), tau = t sqrt((I_3 - I_2)(L^2 - 2 E I_1) / (I_1 I_2 I_3)), k^2 = (I_2 - I_1)(2 E I_3
-    - L^2) / ((I_3 - I_2)(L^2 - 2 E I_1)); its period is 4 K(k) in tau. For L^2 < 2 E I_2, axes 1
-    and 3 exchange their parts."""
-    i1, i2, i3 = MOMENTS
-    w = np.asarray(omega_body, float)
-    energy = 0.5 * np.sum(MOMENTS * w ** 2)
-    l2 = np.sum((MOMENTS * w) ** 2)
-    if l2 > 2 * energy * i2:
-        rate = math.sqrt((i3 - i2) * (l2 - 2 * energy * i1) / (i1 * i2 * i3))
-        m = (i2 - i1) * (2 * energy * i3 - l2) / ((i3 - i2) * (l2 - 2 * energy * i1))
-    else:
-        rate = math.sqrt((i2 - i1) * (2 * energy * i3 - l2) / (i1 * i2 * i3))
-        m = (i3 - i2) * (l2 - 2 * energy * i1) / ((i2 - i1) * (2 * energy * i3 - l2))
-    return 4.0 * ellipk(m) / rate
+    """The period of the body's angular velocity in torque-free rotation, Landau & Lifshitz §37
+    (``experiments.clumps.flip_theory``, its small-wobble limit tested in test_clump_motion.py)."""
+    from rollingdem.experiments.clumps import flip_theory
+
+    return flip_theory(MOMENTS, omega_body)
 
 
 @pytest.mark.parametrize("omega", [(1.0, 100.0, 2.0), (2.0, 100.0, 1.0)])

@@ -515,31 +515,51 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene=
 def rough_bed_simulation(particles: int, rough: bool, seed: int = 1, echo=print):
     """``particles`` spheres settled for ``ROUGH_BED_SETTLE`` s in a square box on a rough base of
     particles / 2 fixed spheres (``rough``) or on the bare plate; from the disk cache or built now."""
-    from rollingdem import BoxRegion, Plane, Simulation, __version__, rough_base
+    from rollingdem import BoxRegion, __version__, rough_base
     from rollingdem.scene.insertion import ROUGH_BASE_SPACING
 
     path = _cache_dir() / f"roughbed_{particles}_{'rough' if rough else 'plate'}_seed{seed}_v{__version__}.npz"
     if path.exists():
-        sim = Simulation.restore(path)
-        sim.track_energy = False
-        return sim
+        return _restored(path)
     echo(f"settling {particles} spheres on {'a rough base' if rough else 'the plate'} for {ROUGH_BED_SETTLE} s "
          f"(cached afterwards in {path.parent}) ...")
     side = math.sqrt(0.5 * particles * math.sqrt(3.0) / 2.0) * ROUGH_BASE_SPACING * RADIUS
     half = 0.5 * side
-    sim = _column_simulation()
-    for axis in (0, 1):
-        for sign in (-1.0, 1.0):
-            point, normal = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
-            point[axis], normal[axis] = sign * half, -sign
-            sim.add_wall(Plane(point=point, normal=normal, material="table1"))
+    sim = _box_simulation(half)
     floor = 0.0
     if rough:
         sim.add_particles(rough_base(RADIUS, ((-half, half), (-half, half)), seed=seed), RADIUS, "table1", fixed=True)
         floor = 2.0 * RADIUS
     height = particles * 4.0 / 3.0 * math.pi * RADIUS ** 3 / (0.3 * side * side)
     sim.insert(BoxRegion((-half, -half, floor), (half, half, floor + height)), particles, RADIUS, "table1", seed=seed)
-    sim.run(ROUGH_BED_SETTLE)
+    return _settled(sim, ROUGH_BED_SETTLE, path)
+
+
+def _box_simulation(half: float):
+    """The column's simulation (plate, Table 1) with four side planes at x, y = +-``half``."""
+    from rollingdem import Plane
+
+    sim = _column_simulation()
+    for axis in (0, 1):
+        for sign in (-1.0, 1.0):
+            point, normal = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+            point[axis], normal[axis] = sign * half, -sign
+            sim.add_wall(Plane(point=point, normal=normal, material="table1"))
+    return sim
+
+
+def _restored(path):
+    """A cached scene, as the bench times it (without the energy sums)."""
+    from rollingdem import Simulation
+
+    sim = Simulation.restore(path)
+    sim.track_energy = False
+    return sim
+
+
+def _settled(sim, seconds: float, path):
+    """``sim`` run ``seconds`` and cached at ``path``, as the bench times it."""
+    sim.run(seconds)
     sim.checkpoint(path)
     sim.track_energy = False
     return sim
@@ -574,38 +594,26 @@ def clump_bed_simulation(members: int, clumps: bool, seed: int = 1, echo=print):
     """``members`` // 4 tetrahedra of spheres of radius ``RADIUS`` (``clumps``), or as many spheres as
     they have members, poured into a square box and settled for ``CLUMP_BED_SETTLE`` s; from the disk
     cache or built now."""
-    from rollingdem import BoxRegion, Clump, Plane, __version__
+    from rollingdem import BoxRegion, Clump, __version__
 
     count = members // 4 if clumps else members // 4 * 4
     path = _cache_dir() / f"clumpbed_{count}_{'tetrahedra' if clumps else 'spheres'}_seed{seed}_v{__version__}.npz"
     if path.exists():
-        from rollingdem import Simulation
-
-        sim = Simulation.restore(path)
-        sim.track_energy = False
-        return sim
+        return _restored(path)
     echo(f"settling {count} {'tetrahedra' if clumps else 'spheres'} in a box for {CLUMP_BED_SETTLE} s (cached "
          f"afterwards in {path.parent}) ...")
     tetrahedron = Clump.tetrahedron(RADIUS)
     reach = tetrahedron.reach() if clumps else RADIUS
     side = max(2.0 * column_radius(members), 10.0 * tetrahedron.reach())
     half = 0.5 * side
-    sim = _column_simulation()
-    for axis in (0, 1):
-        for sign in (-1.0, 1.0):
-            point, normal = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
-            point[axis], normal[axis] = sign * half, -sign
-            sim.add_wall(Plane(point=point, normal=normal, material="table1"))
+    sim = _box_simulation(half)
     height = count * 4.0 / 3.0 * math.pi * reach ** 3 / (0.25 * side * side)
     region = BoxRegion((-half, -half, 0.0), (half, half, height))
     if clumps:
         sim.insert(region, count, material="table1", clump=tetrahedron, seed=seed)
     else:
         sim.insert(region, count, RADIUS, "table1", seed=seed)
-    sim.run(CLUMP_BED_SETTLE)
-    sim.checkpoint(path)
-    sim.track_energy = False
-    return sim
+    return _settled(sim, CLUMP_BED_SETTLE, path)
 
 
 def clump_bed(members=20000, steps=2000, threads=None, echo=print) -> list[BenchResult]:

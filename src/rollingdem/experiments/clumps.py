@@ -182,7 +182,8 @@ def flat_drop(restitution: float) -> float:
 
 def dimer_loads():
     """Spheres of 2 and 1 mm, centres 2.5 mm apart, at rest on a plane on both (settled 0.2 s): the
-    measured reactions (N1, N2) and statics' (the union's centre of mass between them)."""
+    measured reactions (N1, N2), statics' (the union's centre of mass between them), the clump's
+    weight M g and the simulation."""
     sim = Simulation(contact=ContactModel("hertz"), gravity=(0, 0, -G))
     material(sim, friction=0.5, restitution=0.3)
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1)))
@@ -195,7 +196,7 @@ def dimer_loads():
     sim.run(0.2)
     x, mass, centre = sim.positions, sim.clumps["mass"][0], sim.clumps["centre"][0]
     n1 = mass * G * (x[1, 0] - centre[0]) / (x[1, 0] - x[0, 0])
-    return sim.forces[:, 2].copy(), np.array([n1, mass * G - n1]), mass * G
+    return sim.forces[:, 2].copy(), np.array([n1, mass * G - n1]), mass * G, sim
 
 
 def lens_volume(radius: float, distance: float) -> float:
@@ -259,7 +260,7 @@ def clumps(quick=False, outdir=None, progress=None) -> ValidationResult:
     for e in ((0.6,) if quick else (0.3, 0.6, 0.9)):
         check("dimer dropped flat", f"rebound / impact speed at e = {e}", flat_drop(e), e, 1e-3,
               source="each member a sphere of half the mass on its own contact")
-    measured_loads, statics, weight = dimer_loads()
+    measured_loads, statics, weight, _ = dimer_loads()
     for k in range(2):
         check("unequal dimer at rest", f"reaction under sphere {k + 1} (N)", measured_loads[k], statics[k],
               1e-5 * weight, relative=False, source="statics: N1 + N2 = M g, moments about the centre of mass")

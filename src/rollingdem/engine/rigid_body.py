@@ -215,9 +215,11 @@ def clump_rows(lo, hi, dt, kick, gravity, particles, box, half_skin):
         if not drift:
             q, F, T = particles.clump_q[c], particles.clump_f[c], particles.clump_t[c]
             fx = fy = fz = tx = ty = tz = 0.0
+            reach2 = 0.0
             for e in range(first, last):
                 m = members[e]
                 rx, ry, rz = quaternion_rotate(q[0], q[1], q[2], q[3], offset[m, 0], offset[m, 1], offset[m, 2])
+                reach2 = max(reach2, rx * rx + ry * ry + rz * rz)
                 fx += f[m, 0]
                 fy += f[m, 1]
                 fz += f[m, 2]
@@ -234,7 +236,7 @@ def clump_rows(lo, hi, dt, kick, gravity, particles, box, half_skin):
                     V[d] += a * F[d]
                     L[d] += 0.5 * dt * T[d]
             bound = clump_drift_bound(dt, c, particles, particles.clump_v[c], particles.clump_L[c],
-                                      clump_reach(c, particles))
+                                      math.sqrt(reach2))
             if not bound < half_skin:  # NaN too
                 nfast += 1
             # the next step's opening half, also when too fast (the chunk then stops and

@@ -346,6 +346,44 @@ def test_cylinder_wall_holds_particles(table1):
     assert abs(sim.positions[0, 2]) < 1e-12  # nothing pulls it along the axis
 
 
+
+def _static_overlap():
+    from conftest import TABLE1, sphere_mass
+
+    e_star = TABLE1["youngs_modulus"] / (2 * (1 - TABLE1["poisson_ratio"] ** 2))
+    return (3 * sphere_mass() * 9.81 / (4 * e_star * np.sqrt(R))) ** (2 / 3)
+
+
+def test_cylinder_wall_outer_face_and_rim(table1):
+    """A cylinder is a thin shell (docs/models.md section 0). (1) A sphere outside it, pulled against
+    it by g along +x, rests on the outer face at the Hertz static overlap, 1 % as the inner-face test
+    above: were the inner face's overlap r + R - Rc taken there (2R - delta, 10 mm), the sphere would
+    be thrown through the wall. (2) A sphere centred over the top rim (r = Rc exactly, so the
+    normal is the axis) rests on the rim at the same static overlap: delta = R - |centre - rim|.
+    (3) A frictionless sphere dropped beside the rim, its centre R/2 outside it, glances off it
+    outward and falls past the outer face: its centre ends below the rim with r >= Rc + R - delta
+    (a normal the wrong way round, or the inner face's pull, puts it inside)."""
+    delta = _static_overlap()
+    rc, top = 0.02, 0.05
+    sim = rd.Simulation(contact=rd.ContactModel("hertz"), gravity=(9.81, 0, 0), dt=5e-6)
+    sim.add_material(table1(friction=0.0))
+    sim.add_wall(rd.Cylinder(radius=rc, point=(0, 0, 0), axis=(0, 0, 1), extent=(0.0, top), material="m"))
+    sim.add_particles([[-(rc + R), 0, 0.02]], R, "m", allow_overlap=True)
+    sim.run(0.3)
+    assert np.abs(sim.velocities[0]).max() < 1e-6
+    assert (rc + R) - np.hypot(*sim.positions[0, :2]) == pytest.approx(delta, rel=0.01)
+
+    sim = rd.Simulation(contact=rd.ContactModel("hertz"), dt=5e-6)
+    sim.add_material(table1(friction=0.0))
+    sim.add_wall(rd.Cylinder(radius=rc, point=(0, 0, 0), axis=(0, 0, 1), extent=(0.0, top), material="m"))
+    sim.add_particles([[rc, 0, top + R], [-(rc + 0.5 * R), 0, top + 1.2 * R]], R, "m")
+    sim.run(0.3)
+    on_rim, beside = sim.positions
+    assert abs(sim.velocities[0]).max() < 1e-6
+    assert (top + R) - on_rim[2] == pytest.approx(delta, rel=0.01)
+    assert beside[2] < top and np.hypot(*beside[:2]) >= rc + R - delta
+
+
 def _bed(table1, n=600, seed=5, skin=0.002):
     sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5, skin=skin, track_energy=True)
     sim.add_material(table1())

@@ -1,5 +1,6 @@
-"""The geometry of a sphere's contact with a plane or a cylinder wall (particles inside): the
-overlap and the contact normal, from the wall's geometry row (``rollingdem.scene.walls``)."""
+"""The geometry of a sphere's contact with a plane (a half-space) or a cylinder wall (a thin shell
+with rounded rims): the overlap and the contact normal, from the wall's geometry row
+(``rollingdem.scene.walls``)."""
 
 import math
 
@@ -10,8 +11,9 @@ from rollingdem.physics.records import WALL_CYLINDER as CYLINDER, WALL_PLANE as 
 
 @njit(cache=True, inline="always")
 def wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom):
-    """(overlap, n) of sphere i (radius ri) and wall wl; overlap -1 where the wall cannot touch it
-    (past a cylinder's ends, or on its axis). Geometry rows: ``rollingdem.scene.walls``."""
+    """(overlap, n) of sphere i (radius ri) and wall wl, n from the wall to the sphere; overlap -1
+    where the wall cannot touch it (past a cylinder's rims, or on its axis). Geometry rows:
+    ``rollingdem.scene.walls``."""
     kind = wall_kind[wl]
     overlap = -1.0
     nx = ny = nz = 0.0
@@ -23,6 +25,9 @@ def wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom):
         ny = wall_geom[wl, 4]
         nz = wall_geom[wl, 5]
     elif kind == CYLINDER:
+        # a thin shell: its inner face (the particles it holds), its outer face, and rounded rims at
+        # its ends, so that a sphere that got out under a lifted tube's rim meets the rim or the
+        # outer face, not the inner face's pull from behind (docs/models.md §0)
         ux = wall_geom[wl, 3]
         uy = wall_geom[wl, 4]
         uz = wall_geom[wl, 5]
@@ -30,14 +35,31 @@ def wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom):
         ddy = x[i, 1] - wall_geom[wl, 1]
         ddz = x[i, 2] - wall_geom[wl, 2]
         s = ddx * ux + ddy * uy + ddz * uz
-        if s >= wall_geom[wl, 7] and s <= wall_geom[wl, 8]:
-            qx = ddx - s * ux
-            qy = ddy - s * uy
-            qz = ddz - s * uz
-            r = math.sqrt(qx * qx + qy * qy + qz * qz)
-            if r > 0.0:
-                overlap = r + ri - wall_geom[wl, 6]
-                nx = -qx / r
-                ny = -qy / r
-                nz = -qz / r
+        qx = ddx - s * ux
+        qy = ddy - s * uy
+        qz = ddz - s * uz
+        r = math.sqrt(qx * qx + qy * qy + qz * qz)
+        R = wall_geom[wl, 6]
+        if r > 0.0:
+            if s >= wall_geom[wl, 7] and s <= wall_geom[wl, 8]:
+                if r <= R:
+                    overlap = r + ri - R
+                    nx = -qx / r
+                    ny = -qy / r
+                    nz = -qz / r
+                else:
+                    overlap = R + ri - r
+                    nx = qx / r
+                    ny = qy / r
+                    nz = qz / r
+            else:
+                # the rim: the circle at the nearer end; n from it to the centre
+                ds = s - wall_geom[wl, 7] if s < wall_geom[wl, 7] else s - wall_geom[wl, 8]
+                dr = r - R
+                d = math.sqrt(ds * ds + dr * dr)
+                if d < ri and d > 0.0:
+                    overlap = ri - d
+                    nx = (ds * ux + dr * qx / r) / d
+                    ny = (ds * uy + dr * qy / r) / d
+                    nz = (ds * uz + dr * qz / r) / d
     return overlap, nx, ny, nz

@@ -1,4 +1,4 @@
-"""Walls: infinite plane and cylinder (particles inside).
+"""Walls: infinite plane and cylinder (a thin shell; particles are placed inside).
 
 A wall is a contact partner of infinite radius and mass with a prescribed velocity
 (docs/models.md §0: R* = R_i, m* = m_i). It can move with a constant velocity, its surface can move
@@ -150,7 +150,9 @@ class Plane(Wall):
 
 
 class Cylinder(Wall):
-    """Cylinder of ``radius`` about the axis through ``point`` along ``axis``; particles inside.
+    """Cylinder of ``radius`` about the axis through ``point`` along ``axis``: a thin shell that
+    holds particles inside and pushes those outside away, with rounded rims at its ends
+    (docs/models.md §0); insertion and placement fill it inside.
 
     ``extent`` = (s_min, s_max) limits it along the axis (axial coordinate s = (x - point) . axis,
     m); None means infinite. There are no end caps: add planes for those.
@@ -198,8 +200,9 @@ class Cylinder(Wall):
 def wall_overlap(geometry: np.ndarray, kind: int, x: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Overlap (m) of spheres (centres x, radii r) with a wall; > 0 means they overlap.
 
-    The same rule as the step loop's: a plane is a half-space, a cylinder holds particles inside within
-    its axial extent.
+    The rule for placing spheres: a plane is a half-space, a cylinder holds particles inside within
+    its axial extent (a sphere outside it there counts as in the wall, so a drum or tube is filled
+    inside; in contact it is a thin shell, docs/models.md §0).
     """
     if kind == PLANE:
         return r - (x - geometry[0:3]) @ geometry[3:6]

@@ -489,18 +489,56 @@ def test_the_stand_in_study_puts_clumps_in_a_column_as_tall_as_their_bounding_sp
     assert edited["stages"][0]["duration"] == pytest.approx(2 * math.sqrt(2 * block["insert"]["z_max"] / 9.81) + 0.1)
 
 
-def test_a_small_stand_in_study_point_builds_both_piles():
-    """One point of ``clump-stand-in`` at 150 clumps of 4 (seed 1): both piles are built and run to
-    their end, the pile of clumps forms (its angle above 5 deg: their shape resists rolling), and
-    the stand-in mu_r is ``stand_in_rolling_friction``'s for the tetrahedron (0.5156, tested in
-    test_clumps.py)."""
-    from rollingdem.experiments.clump_stand_in import ClumpStandIn
+def test_the_stand_in_study_fills_a_silo_with_clumps_as_tall_as_their_bounding_spheres_need():
+    """The silo case edited for clumps: no refill (an outlet cannot put a clump back whole), the
+    column of spheres of radius r_eq a clump block of the same count in a region 1.25 (reach /
+    r_eq)^3 times as tall and narrower by reach - r_eq (bounding spheres clear of the wall as the
+    spheres were), a silo as tall as that plus 4 reach with its rings in proportion, and the
+    settling and the bed's density window at the fall time of the new top, 2 sqrt(2 z_max / g) + 0.2 s."""
+    from rollingdem.experiments.clump_stand_in import equal_volume_radius, silo_with_clumps, silo_without_refill
+    from rollingdem.experiments.silo import silo_case
 
-    out = ClumpStandIn().observe({"count": 150, "seed": 1})
+    tetra = rd.Clump.tetrahedron(0.0025)
+    r_eq = equal_volume_radius(tetra)
+    data = silo_case(radius=r_eq, polydispersity=0.0)
+    spheres = silo_without_refill(silo_case(radius=r_eq, polydispersity=0.0))
+    assert "refill" in data["outlets"][0] and "refill" not in spheres["outlets"][0]
+    before = dict(data["particles"][0]["insert"]), dict(data["walls"][0]["size"])
+    edited = silo_with_clumps(tetra, "tetrahedron", 0.0025)(data)
+    block, size = edited["particles"][0], edited["walls"][0]["size"]
+    taller = 1.25 * (tetra.reach() / r_eq) ** 3
+    assert "refill" not in edited["outlets"][0] and block["clump"] == {"shape": "tetrahedron", "radius": 0.0025}
+    assert block["insert"]["z_max"] == pytest.approx(
+        before[0]["z_min"] + taller * (before[0]["z_max"] - before[0]["z_min"]), rel=1e-12)
+    assert block["insert"]["radius"] == pytest.approx(before[0]["radius"] - (tetra.reach() - r_eq), rel=1e-12)
+    assert size["height"] == pytest.approx(block["insert"]["z_max"] + 4 * tetra.reach(), rel=1e-12)
+    assert size["rings"] == round(before[1]["rings"] * size["height"] / before[1]["height"])
+    settle = 2 * math.sqrt(2 * block["insert"]["z_max"] / 9.81) + 0.2
+    assert edited["stages"][0]["duration"] == pytest.approx(settle)
+    assert edited["measurements"][0]["window"] == pytest.approx([settle - 0.05, settle])
+
+
+def test_a_small_stand_in_study_point_builds_both_piles_and_both_silos():
+    """One point of ``clump-stand-in`` at 150 clumps of 4 (seed 1) and a silo 10 d wide filled 5 d
+    high (about 450 clumps): both piles are built and run to their end, the pile of clumps forms
+    (its angle above 5 deg: their shape resists rolling), the stand-in mu_r is
+    ``stand_in_rolling_friction``'s for the tetrahedron (0.5156, tested in test_clumps.py), and
+    both silos drain through an orifice of 8 d (5.7 bounding diameters of a clump) at a rate
+    within a factor of two of Beverloo's W = 0.58 rho_b sqrt(g) (D0 - 1.5 d)^2.5 with rho_b = 0.6 rho
+    (a narrow silo and a draining bed: the factor is loose; a rate in particles instead of kg, or
+    the members counted four times over, is off by orders of magnitude)."""
+    from rollingdem.experiments.clump_stand_in import ClumpStandIn, equal_volume_radius
+
+    out = ClumpStandIn().observe({"count": 150, "seed": 1, "silo_diameters": 10.0, "fill_diameters": 5.0,
+                                  "measured": 100})
     assert out["mur_stand_in"] == pytest.approx(0.5156, abs=1e-3)
     assert out["angle_clumps"] > 5.0
     # 150 spheres may be too few for a cone fit (the quick size has 300): then the run says why
     assert math.isfinite(out["angle_spheres"]) or "too small" in out["note_spheres"] or "slices" in out["note_spheres"]
+    d = 2 * equal_volume_radius(rd.Clump.tetrahedron(0.0025))
+    beverloo = 0.58 * 0.6 * 1056.0 * math.sqrt(9.81) * (8 * d - 1.5 * d) ** 2.5
+    for what in ("clumps", "spheres"):
+        assert 0.5 * beverloo < out[f"flow_{what}"] < 2.0 * beverloo, (what, out[f"flow_{what}"], beverloo)
 
 
 def test_the_stand_in_verdict_reads_the_interval_of_the_differences():

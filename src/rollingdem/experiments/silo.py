@@ -237,15 +237,21 @@ def silo_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
 
 
 def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: SiloSetup = SiloSetup(),
-             radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None) -> SiloRun:
+             radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None,
+             edit=None) -> SiloRun:
     """The case of :func:`silo_case`, run as ``rollingdem run`` runs it (in a folder removed
     afterwards), and read: the discharged mass from the opening on, the window of the
     ``setup.measured`` spheres after the first ``setup.transient``, the settled bed's bulk density
-    (the probe's, over the last 0.05 s before the opening) and the orifice zone's over the window."""
+    (the probe's, over the last 0.05 s before the opening) and the orifice zone's over the window.
+    ``edit``, a function of the case's data, may change it before it runs (the clumps' study fills
+    the silo with clumps, ``experiments.clump_stand_in``); the counts of ``setup`` are of the
+    outlet's particles (a clump's members each)."""
     from rollingdem.experiments.case_file import run_case_data
 
     tic = time.perf_counter()
     data = silo_case(rolling, twisting, material, setup, radius, polydispersity, seed, dt)
+    if edit is not None:
+        data = edit(data)
     summary, read = run_case_data(data, ("discharge", "orifice_zone"), "silo")
     out, zone = read["discharge"], read["orifice_zone"]
     opened = data["stages"][0]["duration"]

@@ -395,7 +395,8 @@ class Probe(Measurement):
     ``MeshRegion``, the volume a closed mesh encloses):
     ``count``, ``mass`` (kg), ``bulk_density`` (their mass over the region's volume, kg/m^3),
     ``solid_fraction`` (their volume over the region's), the mean velocity ``vx, vy, vz`` (m/s,
-    mass-weighted), ``kinetic_energy`` (J, translational and rotational) and ``coordination`` (the
+    mass-weighted), ``kinetic_energy`` (J, translational and rotational; a clump's member counts its
+    mass share of the clump's energy as a body) and ``coordination`` (the
     mean number of other particles a particle in it touches, ``coordination``). Counting by centres
     makes the densities uncertain by about a diameter over the region's width: make it wide."""
 
@@ -427,7 +428,18 @@ class Probe(Measurement):
         mass = float(m.sum())
         mean_v = (m @ v) / mass if mass > 0 else np.zeros(3)
         inertia = sim.particle_field("inertia")[inside]
-        energy = 0.5 * float(m @ np.einsum("ij,ij->i", v, v) + inertia @ np.einsum("ij,ij->i", w, w))
+        each = 0.5 * (m * np.einsum("ij,ij->i", v, v) + inertia * np.einsum("ij,ij->i", w, w))
+        clumps = sim.particle_field("clump")  # empty without clumps
+        if len(clumps):
+            # a member carries its mass share of its clump's energy as a body, 1/2 M V^2 + 1/2 L . omega
+            clump = clumps[inside]
+            member = clump >= 0
+            if member.any():
+                bodies = sim.clumps
+                body = 0.5 * (bodies["mass"] * np.einsum("ij,ij->i", bodies["velocity"], bodies["velocity"])
+                              + np.einsum("ij,ij->i", bodies["angular_momentum"], bodies["angular_velocity"]))
+                each[member] = m[member] / bodies["mass"][clump[member]] * body[clump[member]]
+        energy = float(each.sum())
         return [int(inside.sum()), mass, mass / volume, float((4.0 / 3.0 * math.pi * r ** 3).sum()) / volume,
                 *mean_v, energy, coordination(sim, inside)]
 

@@ -6,8 +6,8 @@ twice: once of clumps of a named shape (spheres of ``radius``, no rolling resist
 their shape resists), once of as many spheres of the clump's volume with the rolling friction
 ``rd.stand_in_rolling_friction`` gives for that shape (the mean over the directions a resting face
 may take of tan theta at which the clump tips on a slope), both of the same material; and the
-flat-bottomed silo (``silo-discharge``'s protocol, ``silo.silo_case``) filled with each and drained
-through its orifice, without refill. It reports both angles and both mass flow rates side by side
+flat-bottomed silo (``silo-discharge``'s protocol, ``silo.silo_case``) filled with each and
+discharging at a steady head. It reports both angles and both mass flow rates side by side
 and says for each whether the stand-in holds: whether the difference is within the seeds' 95 %
 interval of zero.
 """
@@ -71,25 +71,20 @@ def with_clumps(clump, shape: str, member_radius: float):
 
 
 
-def silo_without_refill(data: dict) -> dict:
-    """An edit of a silo case's data (``silo_run(edit=...)``): its outlet puts nothing back, so the
-    bed drains (an outlet cannot put a clump back whole, and both silos of the study run alike)."""
-    data["outlets"][0].pop("refill", None)
-    return data
-
-
 def silo_with_clumps(clump, shape: str, member_radius: float):
-    """An edit of a silo case's data: its spheres made as many clumps, inserted as their bounding
-    spheres in a column ``with_clumps``'s factor taller, clear of the wall by a bounding radius,
-    in a silo as much taller, settling for the fall from the new top; no refill."""
+    """An edit of a silo case's data (``silo_run(edit=...)``): its spheres made as many clumps,
+    inserted as their bounding spheres in a column ``with_clumps``'s factor taller, clear of the
+    wall by a bounding radius (and so the refill's layer), in a silo as much taller, settling for
+    the fall from the new top."""
     def edit(data: dict) -> dict:
-        data = silo_without_refill(data)
         block = data["particles"][0]
         region = dict(block["insert"])
         r_eq, reach = block["radius"], clump.reach()
         taller = 1.25 * (reach / r_eq) ** 3
         region["z_max"] = region["z_min"] + taller * (region["z_max"] - region["z_min"])
         region["radius"] = region["radius"] + r_eq - reach
+        refill = data["outlets"][0]["refill"]
+        refill["radius"] = refill["radius"] + r_eq - reach
         data["particles"][0] = {"clump": {"shape": shape, "radius": member_radius}, "insert": region,
                                 "count": block["count"], "material": block["material"], "seed": block["seed"]}
         silo = data["walls"][0]
@@ -169,16 +164,16 @@ class ClumpStandIn(BedExperiment):
 
 def silo_flow(p: dict, material, r_eq: float, clump, what: str) -> tuple[float, str]:
     """The mass flow rate (kg/s) of the silo of ``params`` ``p`` filled with clumps or with their
-    stand-in spheres (``what``), drained without refill, over ``measured`` out after the first 200
-    (counted in the outlet's particles: a clump's members each); NaN and why where it clogged."""
+    stand-in spheres (``what``), at a steady head (each one out put back on top), over ``measured``
+    out after the first 200 (counted in the outlet's particles: a clump's members each); NaN and
+    why where it clogged."""
     from rollingdem.experiments.registry import resolve_rolling
 
     k = len(clump.radii) if what == "clumps" else 1
     setup = SiloSetup(orifice_diameters=p["orifice_diameters"], silo_diameters=p["silo_diameters"],
                       fill_diameters=p["fill_diameters"], transient=200 * k, measured=p["measured"] * k,
                       max_time=10.0, clog_time=0.5)
-    edit = silo_with_clumps(clump, SHAPE_OF_MEMBERS[p["members"]], p["radius"]) if what == "clumps" \
-        else silo_without_refill
+    edit = silo_with_clumps(clump, SHAPE_OF_MEMBERS[p["members"]], p["radius"]) if what == "clumps" else None
     run = silo_run(resolve_rolling(p["model"]), "none", material, setup, radius=r_eq, polydispersity=0.0,
                    seed=p["seed"], dt=p["dt"], edit=edit)
     if not math.isfinite(run.window[1]):

@@ -138,7 +138,9 @@ class Outlet(Boundary):
     With a ``refill`` region each sphere taken out is put back at once, at rest, with its radius
     and material, at a random place in ``refill`` where it overlaps neither a particle nor a wall
     (reproducibly from ``seed``): the bed keeps its mass and its size distribution, and a silo its
-    head. What finds no room waits for the next action (``waiting``; one warning the first time)."""
+    head. A clump is put back whole, as it is inserted: its bounding sphere placed as a sphere is,
+    the clump in it at a random orientation. What finds no room waits for the next action
+    (``waiting``; one warning the first time)."""
 
     kind = "outlet"
     order = REMOVE
@@ -152,6 +154,7 @@ class Outlet(Boundary):
         self.mass = 0.0
         self.waiting_radius = np.zeros(0)  # the spheres to put back: radius (m) and material index
         self.waiting_material = np.zeros(0, dtype=np.int64)
+        self.waiting_clumps = []  # the clumps to put back: (members' centres in the principal frame, radii, material)
         self.actions = 0  # put-back actions so far: each draws from its own random stream (seed, action)
         self.warned = False
 
@@ -168,24 +171,45 @@ class Outlet(Boundary):
             self.count += int(gone.sum())
             self.mass += float(st.mass[gone].sum())
             if self.refill is not None:
-                self.waiting_radius = np.concatenate([self.waiting_radius, st.radius[gone]])
-                self.waiting_material = np.concatenate([self.waiting_material, st.mat[gone].astype(np.int64)])
+                self.wait_for(st, gone)
             st.remove(gone)
-        if self.refill is not None and len(self.waiting_radius):
+        if self.refill is not None and (len(self.waiting_radius) or self.waiting_clumps):
             self.put_back(sim)
 
+    def wait_for(self, st, gone) -> None:
+        """Queue the spheres and the clumps of the slots ``gone`` to be put back."""
+        spheres = gone & (st.clump < 0) if len(st.clump) else gone
+        self.waiting_radius = np.concatenate([self.waiting_radius, st.radius[spheres]])
+        self.waiting_material = np.concatenate([self.waiting_material, st.mat[spheres].astype(np.int64)])
+        if len(st.clump) and (gone & (st.clump >= 0)).any():
+            st.index_clumps()
+            for c in np.unique(st.clump[gone & (st.clump >= 0)]):
+                members = st.clump_members[st.clump_start[c]:st.clump_start[c + 1]]
+                self.waiting_clumps.append((st.body_offset[members].copy(), st.radius[members].copy(),
+                                            int(st.mat[members[0]])))
+
     def put_back(self, sim) -> None:
-        x = free_places(sim, self.refill, self.waiting_radius, float(self.waiting_radius.max()),
-                        np.random.default_rng([self.seed, self.actions, 2]))
+        from rollingdem.scene.clumps import Clump, random_orientations
+
+        templates = [Clump(centres, radii, connected=False) for centres, radii, _ in self.waiting_clumps]
+        radii = np.concatenate([self.waiting_radius, [t.reach() for t in templates]])
+        x = free_places(sim, self.refill, radii, float(radii.max()), np.random.default_rng([self.seed, self.actions, 2]))
+        turns = random_orientations(np.random.default_rng([self.seed, self.actions, 3]), len(templates))
         self.actions += 1
         placed = np.isfinite(x[:, 0])
-        for m in np.unique(self.waiting_material[placed]):
-            take = placed & (self.waiting_material == m)
-            sim.add_particles(x[take], self.waiting_radius[take], int(m), allow_overlap=True)
-        self.waiting_radius, self.waiting_material = self.waiting_radius[~placed], self.waiting_material[~placed]
-        if len(self.waiting_radius) and not self.warned:
+        k = len(self.waiting_radius)
+        for m in np.unique(self.waiting_material[placed[:k]]):
+            take = placed[:k] & (self.waiting_material == m)
+            sim.add_particles(x[:k][take], self.waiting_radius[take], int(m), allow_overlap=True)
+        for j, (template, (_, _, material)) in enumerate(zip(templates, self.waiting_clumps)):
+            if placed[k + j]:
+                sim.add_clumps(template, x[k + j:k + j + 1], int(material), turns[j:j + 1], allow_overlap=True)
+        self.waiting_clumps = [w for j, w in enumerate(self.waiting_clumps) if not placed[k + j]]
+        self.waiting_radius, self.waiting_material = self.waiting_radius[~placed[:k]], self.waiting_material[~placed[:k]]
+        waiting = len(self.waiting_radius) + len(self.waiting_clumps)
+        if waiting and not self.warned:
             self.warned = True
-            warnings.warn(f"outlet {self.name or ''!r} at t = {sim.time:.6g} s: {len(self.waiting_radius)} sphere(s) "
+            warnings.warn(f"outlet {self.name or ''!r} at t = {sim.time:.6g} s: {waiting} sphere(s) or clump(s) "
                           f"found no room in its refill region {self.refill!r}; they are put back as room frees up; "
                           "use a larger refill region", RuntimeWarning, stacklevel=5)
 
@@ -196,7 +220,8 @@ class Outlet(Boundary):
         d = {**super().describe(), "count": self.count, "mass": self.mass}
         if self.refill is not None:
             d.update(refill=region_to_dict(self.refill), seed=self.seed, actions=self.actions, warned=self.warned,
-                     waiting_radius=self.waiting_radius.tolist(), waiting_material=self.waiting_material.tolist())
+                     waiting_radius=self.waiting_radius.tolist(), waiting_material=self.waiting_material.tolist(),
+                     waiting_clumps=[[c.tolist(), r.tolist(), m] for c, r, m in self.waiting_clumps])
         return d
 
     @classmethod
@@ -208,6 +233,8 @@ class Outlet(Boundary):
             out.actions, out.warned = int(d["actions"]), bool(d["warned"])
             out.waiting_radius = np.asarray(d["waiting_radius"], dtype=float)
             out.waiting_material = np.asarray(d["waiting_material"], dtype=np.int64)
+            out.waiting_clumps = [(np.asarray(c, dtype=float).reshape(-1, 3), np.asarray(r, dtype=float), int(m))
+                                  for c, r, m in d.get("waiting_clumps", [])]
         return out
 
 
@@ -465,14 +492,7 @@ class Boundaries:
     def check_room(self) -> None:
         """Refuse an inflow whose region the walls leave no room in (inside the floor, behind a
         plane): of ``ROOM_SAMPLES`` centres drawn in it for its largest sphere, none clear of every
-        wall. Each inflow is checked once, before its first run. And refuse an outlet's refill in a
-        scene of clumps: it puts back spheres, and a clump's members would come back apart."""
-        if self.sim._state.n_clumps:
-            for outlet in self.outlets:
-                if outlet.refill is not None:
-                    raise ParameterError(f"outlet {outlet.name or ''!r}: refill = {outlet.refill!r} is not allowed in "
-                                         "a scene of clumps: it puts back spheres, and a clump's members would come "
-                                         "back apart; leave refill out (or refill with an inflow of spheres)")
+        wall. Each inflow is checked once, before its first run."""
         rng = np.random.default_rng(0)
         for inflow in self.inflows:
             if getattr(inflow, "_room_checked", False):

@@ -571,3 +571,14 @@ def test_every_mutation_targets_a_line_that_is_there():
     stale = [f"{m.name}: {m.file} holds its line {(SOURCE.parents[1] / m.file).read_text().count(m.original)} times"
              for m in module.MUTATIONS if (SOURCE.parents[1] / m.file).read_text().count(m.original) != 1]
     assert not stale, "\n".join(stale)
+
+
+def test_every_registered_experiment_has_its_own_validate():
+    """``rollingdem validate`` runs each experiment's ``validate``: the base class's only raises, so
+    an experiment whose method slipped out of its class (indented into a function below it) would
+    fail there, not here."""
+    from rollingdem.experiments import EXPERIMENTS
+    from rollingdem.experiments.registry import Experiment
+
+    missing = [name for name, e in EXPERIMENTS.items() if type(e).validate is Experiment.validate]
+    assert not missing

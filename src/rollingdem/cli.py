@@ -137,10 +137,8 @@ def _set_threads(threads):
 @app.command()
 def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-o", help="Output folder."),
              experiment: Optional[list[str]] = typer.Option(None, "--experiment", "-e", "--case", "-c", help="Run "
-                                                            "only this experiment (repeatable): inclined-wall, "
-                                                            "rolling-flat, rolling-slope, angle-of-repose, repose-sweep, "
-                                                            "repose-rough-base, rotating-drum, silo-discharge, "
-                                                            "contact-laws."),
+                                                            "only this experiment (repeatable); `rollingdem "
+                                                            "experiments list` names them."),
              model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Only this model (repeatable), "
                                                        "e.g. epsd, 'cdt (liggghts)': each experiment runs those of its "
                                                        "models named; repose-sweep sweeps one. An experiment that runs "

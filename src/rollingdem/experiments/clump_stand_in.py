@@ -161,6 +161,9 @@ class ClumpStandIn(BedExperiment):
                 out[f"flow_{what}"], out[f"flow_note_{what}"] = silo_flow(p, material, r_eq, clump, what)
         return out
 
+    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
+        return stand_in_study(model, quick=quick, outdir=outdir, progress=progress, runner=runner)
+
 
 def silo_flow(p: dict, material, r_eq: float, clump, what: str) -> tuple[float, str]:
     """The mass flow rate (kg/s) of the silo of ``params`` ``p`` filled with clumps or with their
@@ -179,9 +182,6 @@ def silo_flow(p: dict, material, r_eq: float, clump, what: str) -> tuple[float, 
     if not math.isfinite(run.window[1]):
         return math.nan, "the orifice clogged" if run.clogged else "the silo ran out of time"
     return discharge_rate(run.t, run.discharged, run.window, blocks=BLOCKS)[0], ""
-
-    def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
-        return stand_in_study(model, quick=quick, outdir=outdir, progress=progress, runner=runner)
 
 
 def stand_in_verdict(differences, width: float = VERDICT_WIDTH, what: str = "the angle",

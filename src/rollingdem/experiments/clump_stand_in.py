@@ -48,6 +48,16 @@ def equal_volume_radius(clump) -> float:
     return (3.0 * clump.mass_properties(1.0).volume / (4.0 * math.pi)) ** (1.0 / 3.0)
 
 
+def taller_column(clump, r_eq: float, region: dict) -> dict:
+    """An insertion region of spheres of radius ``r_eq`` made 1.25 (reach / r_eq)^3 times as tall, for
+    as many clumps: insertion packs their bounding spheres as it packs spheres, and walls cost the
+    larger ones a quarter more room."""
+    region = dict(region)
+    taller = 1.25 * (clump.reach() / r_eq) ** 3
+    region["z_max"] = region["z_min"] + taller * (region["z_max"] - region["z_min"])
+    return region
+
+
 def with_clumps(clump, shape: str, member_radius: float):
     """An edit of a pile case's data (``pile_run(edit=...)``): its column of spheres made a column of
     the same number of clumps, inserted in a region 1.25 times as much taller as their bounding
@@ -56,10 +66,7 @@ def with_clumps(clump, shape: str, member_radius: float):
     as much taller, falling for as much longer."""
     def edit(data: dict) -> dict:
         block = data["particles"][-1]
-        region = dict(block["insert"])
-        r_eq = block["radius"]
-        taller = 1.25 * (clump.reach() / r_eq) ** 3  # and a quarter more: walls cost bounding spheres more room
-        region["z_max"] = region["z_min"] + taller * (region["z_max"] - region["z_min"])
+        region = taller_column(clump, block["radius"], block["insert"])
         data["particles"][-1] = {"clump": {"shape": shape, "radius": member_radius}, "insert": region,
                                  "count": block["count"], "material": block["material"], "seed": block["seed"]}
         tube = next(w for w in data["walls"] if w["name"] == "tube")
@@ -70,18 +77,15 @@ def with_clumps(clump, shape: str, member_radius: float):
     return edit
 
 
-
 def silo_with_clumps(clump, shape: str, member_radius: float):
     """An edit of a silo case's data (``silo_run(edit=...)``): its spheres made as many clumps,
-    inserted as their bounding spheres in a column ``with_clumps``'s factor taller, clear of the
+    inserted as their bounding spheres in a column ``taller_column`` makes, clear of the
     wall by a bounding radius (and so the refill's layer), in a silo as much taller, settling for
     the fall from the new top."""
     def edit(data: dict) -> dict:
         block = data["particles"][0]
-        region = dict(block["insert"])
         r_eq, reach = block["radius"], clump.reach()
-        taller = 1.25 * (reach / r_eq) ** 3
-        region["z_max"] = region["z_min"] + taller * (region["z_max"] - region["z_min"])
+        region = taller_column(clump, r_eq, block["insert"])
         region["radius"] = region["radius"] + r_eq - reach
         refill = data["outlets"][0]["refill"]
         refill["radius"] = refill["radius"] + r_eq - reach

@@ -35,31 +35,34 @@ def wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom):
         ddy = x[i, 1] - wall_geom[wl, 1]
         ddz = x[i, 2] - wall_geom[wl, 2]
         s = ddx * ux + ddy * uy + ddz * uz
-        qx = ddx - s * ux
-        qy = ddy - s * uy
-        qz = ddz - s * uz
-        r = math.sqrt(qx * qx + qy * qy + qz * qz)
-        R = wall_geom[wl, 6]
-        if r > 0.0:
-            if s >= wall_geom[wl, 7] and s <= wall_geom[wl, 8]:
-                if r <= R:
-                    overlap = r + ri - R
-                    nx = -qx / r
-                    ny = -qy / r
-                    nz = -qz / r
+        lo = wall_geom[wl, 7]
+        hi = wall_geom[wl, 8]
+        ds = s - lo if s < lo else (s - hi if s > hi else 0.0)  # past the nearer end; 0 within the extent
+        if ds * ds < ri * ri:  # a sphere farther past an end than its radius touches nothing
+            qx = ddx - s * ux
+            qy = ddy - s * uy
+            qz = ddz - s * uz
+            r = math.sqrt(qx * qx + qy * qy + qz * qz)
+            R = wall_geom[wl, 6]
+            if r > 0.0:
+                if ds == 0.0:
+                    if r <= R:
+                        overlap = r + ri - R
+                        nx = -qx / r
+                        ny = -qy / r
+                        nz = -qz / r
+                    else:
+                        overlap = R + ri - r
+                        nx = qx / r
+                        ny = qy / r
+                        nz = qz / r
                 else:
-                    overlap = R + ri - r
-                    nx = qx / r
-                    ny = qy / r
-                    nz = qz / r
-            else:
-                # the rim: the circle at the nearer end; n from it to the centre
-                ds = s - wall_geom[wl, 7] if s < wall_geom[wl, 7] else s - wall_geom[wl, 8]
-                dr = r - R
-                d = math.sqrt(ds * ds + dr * dr)
-                if d < ri and d > 0.0:
-                    overlap = ri - d
-                    nx = (ds * ux + dr * qx / r) / d
-                    ny = (ds * uy + dr * qy / r) / d
-                    nz = (ds * uz + dr * qz / r) / d
+                    # the rim: the circle at the nearer end; n from it to the centre
+                    dr = r - R
+                    d = math.sqrt(ds * ds + dr * dr)
+                    if d < ri and d > 0.0:
+                        overlap = ri - d
+                        nx = (ds * ux + dr * qx / r) / d
+                        ny = (ds * uy + dr * qy / r) / d
+                        nz = (ds * uz + dr * qz / r) / d
     return overlap, nx, ny, nz

@@ -931,8 +931,10 @@ def build_simulation(case: CaseSpec):
             elif isinstance(p, ClumpSpec):
                 _add_clumps(sim, p, case.base_directory)
             elif isinstance(p, RoughBaseSpec):
-                base = rough_base(**p.rough_base.model_dump())
-                sim.add_particles(base, p.rough_base.radius, p.material, fixed=True)
+                shape, alpha = p.rough_base.model_dump(), sim.materials[p.material].coarse_graining
+                for key in ("radius", "spacing", "jitter"):  # a base of parcels: its lengths the parcels'
+                    shape[key] = None if shape[key] is None else alpha * shape[key]
+                sim.add_particles(rough_base(**shape), p.rough_base.radius, p.material, fixed=True)
             else:
                 sim.add_particles(p.positions, p.radius, p.material, velocity=p.velocity,
                                   angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap, fixed=p.fixed)

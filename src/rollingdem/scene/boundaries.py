@@ -23,7 +23,7 @@ from rollingdem.scene.particles import sphere_mass
 from rollingdem.scene.schedule import INSERT, REMOVE, Operation
 from rollingdem.scene.insertion import (BoxRegion, Constant, CylinderRegion, Discrete, Disk, Face, FacePrism,
                                        MassFractions, MeshFace, Normal, Rectangle, Region, SieveCurve, Uniform,
-                                       as_distribution, fractions_line)
+                                       Parcels, as_distribution, fractions_line, parcels_of)
 
 DEFAULT_INTERVAL = 1e-3
 """Seconds between two actions of an outlet or inflow, unless given: a sphere falling at 1 m/s goes
@@ -66,6 +66,8 @@ def face_from_dict(d: dict) -> Face:
 
 
 def distribution_to_dict(dist) -> dict:
+    if isinstance(dist, Parcels):
+        return {"distribution": "parcels", "alpha": dist.alpha, "real": distribution_to_dict(dist.real)}
     if isinstance(dist, Constant):
         return {"distribution": "constant", "radius": dist.radius}
     if isinstance(dist, Uniform):
@@ -81,6 +83,8 @@ def distribution_to_dict(dist) -> dict:
 
 def distribution_from_dict(d: dict):
     kind = d["distribution"]
+    if kind == "parcels":
+        return Parcels(distribution_from_dict(d["real"]), d["alpha"])
     args = {k: v for k, v in d.items() if k != "distribution"}
     return {"constant": Constant, "uniform": Uniform, "normal": Normal, "discrete": Discrete,
             "mass_fractions": MassFractions, "sieve": SieveCurve}[kind](**args)
@@ -200,7 +204,7 @@ class Outlet(Boundary):
         k = len(self.waiting_radius)
         for m in np.unique(self.waiting_material[placed[:k]]):
             take = placed[:k] & (self.waiting_material == m)
-            sim.add_particles(x[:k][take], self.waiting_radius[take], int(m), allow_overlap=True)
+            sim.particle_set.add(x[:k][take], self.waiting_radius[take], int(m), allow_overlap=True, parcels=True)
         for j, (template, (_, _, material)) in enumerate(zip(templates, self.waiting_clumps)):
             if placed[k + j]:
                 sim.add_clumps(template, x[k + j:k + j + 1], int(material), turns[j:j + 1], allow_overlap=True)
@@ -328,7 +332,7 @@ class Inflow(Boundary):
         self.waiting = radii[~placed]
         if placed.any():
             r = radii[placed]
-            sim.add_particles(x[placed], r, self.material, velocity=self.velocity, allow_overlap=True)
+            sim.particle_set.add(x[placed], r, self.material, velocity=self.velocity, allow_overlap=True, parcels=True)
             if self.class_volume is not None:
                 self.class_volume += self.radius.class_volumes(r)
             self.count += int(placed.sum())
@@ -480,9 +484,11 @@ class Boundaries:
                    interval=None, start=None) -> Inflow:
         """``Simulation.add_inflow``."""
         sim = self.sim
-        sim.materials.index(material)
-        inflow = Inflow(region, radius, material, rate=rate, mass_rate=mass_rate, velocity=velocity, seed=seed,
-                        name=name, interval=interval, start=sim.time if start is None else start)
+        alpha = sim.materials[material].coarse_graining
+        if rate is not None and alpha != 1.0:  # particles represented per second: alpha^3 in a parcel
+            rate = check_positive("inflow rate", rate, "particles/s") / alpha ** 3
+        inflow = Inflow(region, parcels_of(radius, alpha), material, rate=rate, mass_rate=mass_rate, velocity=velocity,
+                        seed=seed, name=name, interval=interval, start=sim.time if start is None else start)
         self._check_name(inflow)
         periodic_box.check_region_inside(sim.periodic, "inflow", inflow.region)
         for outlet in self.outlets:

@@ -546,6 +546,37 @@ class SieveCurve(SizeDistribution):
         return f"SieveCurve({self.diameters.tolist()}, {self.passing.tolist()})"
 
 
+class Parcels(SizeDistribution):
+    """Coarse-grained parcels of the ``real`` particles' distribution: each radius ``alpha`` times one
+    drawn from it, from the same random numbers (docs/models.md §18). A distribution by mass keeps its
+    classes: ``realised`` and ``class_volumes`` take parcels' radii and answer for the real ones."""
+
+    def __init__(self, real: SizeDistribution, alpha: float):
+        self.real, self.alpha = real, float(alpha)
+        self.min_radius, self.max_radius = self.alpha * real.min_radius, self.alpha * real.max_radius
+
+    def sample(self, rng, n):
+        return self.alpha * np.asarray(self.real.sample(rng, n), dtype=float)
+
+    def __getattr__(self, name):
+        if name in ("realised", "class_volumes"):  # only where the real distribution has them
+            of_real = getattr(self.__dict__["real"], name)
+            return lambda radii: of_real(np.asarray(radii, dtype=float) / self.alpha)
+        if name == "asked":
+            return self.__dict__["real"].asked
+        raise AttributeError(name)
+
+    def __repr__(self) -> str:
+        return f"Parcels({self.real!r}, alpha={self.alpha:g})"
+
+
+def parcels_of(radius, alpha: float) -> SizeDistribution:
+    """The distribution of the spheres placed for ``radius`` (a number or a distribution, the real
+    particles') of a material coarse-grained by ``alpha``."""
+    real = as_distribution(radius)
+    return real if alpha == 1.0 else Parcels(real, alpha)
+
+
 def realised_line(distribution, radii) -> str:
     """The realised mass fraction of each class beside the one asked for, for a distribution by mass;
     for another, the radii's range and mean."""
@@ -576,7 +607,7 @@ def as_distribution(radius) -> SizeDistribution:
 
 
 # --- filling -------------------------------------------------------------------------------------
-def _check_count(name, value) -> int:
+def check_count(name, value) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         raise ParameterError(f"{name} = {value!r} is not allowed: must be a positive integer")
     v = int(value)
@@ -770,11 +801,11 @@ def fill_region(region: Region, count: int | None, radius, seed=0, existing_posi
     """
     if not isinstance(region, Region):
         raise ParameterError(f"region = {region!r} is not allowed: must be a BoxRegion, CylinderRegion or MeshRegion")
-    max_attempts = _check_count("max_attempts", max_attempts)
+    max_attempts = check_count("max_attempts", max_attempts)
     dist = as_distribution(radius)
     rng = np.random.default_rng(seed)
     if volume is None:
-        n = _check_count("count", count)
+        n = check_count("count", count)
         r_all = np.asarray(dist.sample(rng, n), dtype=np.float64)
     else:
         r_all = radii_to_volume(dist, rng, check_positive("volume", volume, "m^3"))

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
-from rollingdem.errors import ParameterError, check_non_negative, check_positive, check_range
+from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_positive, check_range
 
 
 #: Young's modulus (Pa) below which a material is taken for a unit mistake and warned of: soft
@@ -35,6 +35,10 @@ class Material:
         law takes (pull-off force 3/2 pi w R*; LAMMPS's ``jkr`` gamma is w / 2).
     cohesion_energy_density: k_c (J/m^3), >= 0: the ``sjkr`` cohesion law's F = k_c A (LIGGGHTS's
         ``cohesionEnergyDensity``).
+    coarse_graining: alpha (-), >= 1 (default 1: none): each sphere of this material is a parcel of
+        alpha times the radius given, with the mass of alpha^3 real particles, and the contact laws'
+        dimensional parameters scaled so that the bulk behaves as the real material
+        (docs/models.md §18). Every other value stays the real material's.
     """
 
     name: str
@@ -47,6 +51,7 @@ class Material:
     rolling_damping: float = 0.0
     surface_energy: float = 0.0
     cohesion_energy_density: float = 0.0
+    coarse_graining: float = 1.0
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
@@ -70,6 +75,11 @@ class Material:
         object.__setattr__(self, "surface_energy", check_non_negative(p + "surface_energy", self.surface_energy, "J/m^2"))
         object.__setattr__(self, "cohesion_energy_density",
                            check_non_negative(p + "cohesion_energy_density", self.cohesion_energy_density, "J/m^3"))
+        alpha = check_finite(p + "coarse_graining", self.coarse_graining)
+        if alpha < 1.0:
+            raise ParameterError(f"{p}coarse_graining = {alpha:g} is not allowed: must be >= 1 (a parcel is alpha times "
+                                 "the real particle's radius; 1 is no coarse graining)")
+        object.__setattr__(self, "coarse_graining", alpha)
 
     @property
     def shear_modulus(self) -> float:
@@ -93,6 +103,7 @@ class PairProperties:
     rolling_damping: float
     surface_energy: float = 0.0
     cohesion_energy_density: float = 0.0
+    coarse_graining: float = 1.0     # alpha of the parcels in contact (docs/models.md §18)
 
 
 def effective_youngs_modulus(a: Material, b: Material) -> float:
@@ -112,14 +123,23 @@ class MaterialTable:
     materials: list[Material] = field(default_factory=list)
     overrides: dict[tuple[int, int], dict[str, float]] = field(default_factory=dict)
 
-    def add(self, material: Material) -> int:
+    def add(self, material: Material, contact=None) -> int:
+        """Add ``material`` (once; the same again gives its index); with ``contact`` (the scene's
+        ``ContactModel``) a coarse-graining factor its sub-models have no rule for is refused."""
         if not isinstance(material, Material):
             raise ParameterError(f"material = {material!r} is not allowed: must be a rollingdem.Material")
+        if contact is not None:
+            contact.check_coarse_graining(material.coarse_graining)
         for k, m in enumerate(self.materials):
             if m.name == material.name:
                 if m == material:
                     return k
                 raise ParameterError(f"material name = {material.name!r} is already used by a different material")
+        for m in self.materials:
+            if 1.0 != m.coarse_graining != material.coarse_graining != 1.0:
+                raise ParameterError(f"material {material.name!r}: coarse_graining = {material.coarse_graining:g} is not "
+                                     f"allowed beside material {m.name!r}'s {m.coarse_graining:g}: one coarse-graining "
+                                     "factor per scene (materials without coarse graining, as walls', take 1)")
         self.materials.append(material)
         return len(self.materials) - 1
 
@@ -158,7 +178,9 @@ class MaterialTable:
         a, b = self.materials[i], self.materials[j]
         coeffs = {c: 0.5 * (getattr(a, c) + getattr(b, c)) for c in PAIR_COEFFICIENTS}
         coeffs.update(self.overrides.get((min(i, j), max(i, j)), {}))
-        return PairProperties(effective_youngs_modulus(a, b), effective_shear_modulus(a, b), **coeffs)
+        # a parcel meets a wall, or a real sphere, as a parcel: the pair takes the larger factor
+        return PairProperties(effective_youngs_modulus(a, b), effective_shear_modulus(a, b), **coeffs,
+                              coarse_graining=max(a.coarse_graining, b.coarse_graining))
 
     def pairs(self) -> list[list[PairProperties]]:
         """``pair(a, b)`` of every pair of materials, as rows: what ``ContactModel.pair_table`` takes."""

@@ -71,8 +71,10 @@ class Particles:
         return self.state.by_id(getattr(self.state, name))
 
     def add(self, positions, radius, material, velocity=None, angular_velocity=None, allow_overlap=False,
-            fixed=False) -> np.ndarray:
-        """``Simulation.add_particles``."""
+            fixed=False, parcels=False) -> np.ndarray:
+        """``Simulation.add_particles``: ``radius`` the real particles', which a coarse-grained material
+        turns into its parcels' (times alpha, docs/models.md §18); ``parcels``: the radii are the
+        parcels' already (an inflow's, an outlet's refill)."""
         sim = self.sim
         try:
             x = np.array(positions, dtype=np.float64, ndmin=2)
@@ -100,6 +102,8 @@ class Particles:
             raise ParameterError("velocity / angular_velocity of fixed particles is not allowed: a fixed particle "
                                  "never moves; leave them out (or add the particles with fixed=False)")
         mats = self.material_indices(material, m)
+        if not parcels:
+            r = r * np.array([mat.coarse_graining for mat in sim.materials.materials])[mats]
         periodic_box.check_in_box(sim.periodic, x, self.state.n)
         if not allow_overlap:
             self.check_no_overlap(x, r, walls=not fixed)  # walls never touch a fixed particle
@@ -163,7 +167,7 @@ class Particles:
                fraction=None, clump=None) -> np.ndarray:
         """``Simulation.insert``."""
         from rollingdem.engine.neighbors import spatial_order
-        from rollingdem.scene.insertion import MAX_PACKING_FRACTION, as_distribution, fill_region, realised_line
+        from rollingdem.scene.insertion import MAX_PACKING_FRACTION, check_count, fill_region, parcels_of, realised_line
 
         sim = self.sim
         if clump is not None:
@@ -174,8 +178,7 @@ class Particles:
         if radius is None or material is None:
             raise ParameterError(f"{'radius' if radius is None else 'material'} = None is not allowed: give the "
                                  "spheres' radius (m, or a size distribution) and material")
-        for mat in (material if isinstance(material, (list, tuple, np.ndarray)) else [material]):
-            sim.materials.index(mat)  # an unknown material is refused before a long fill
+        alpha = self.coarse_graining(material)  # an unknown material is refused before a long fill
         if velocity is not None:
             vectors_of("velocity", velocity, 1)
         given = [(k, v) for k, v in (("count", count), ("mass", mass), ("fraction", fraction)) if v is not None]
@@ -195,12 +198,27 @@ class Particles:
                     raise ParameterError(f"fraction = {fraction:g} is not allowed: must be in (0, {MAX_PACKING_FRACTION}] "
                                          "(random insertion tops out near 0.3-0.35; insert less and let it settle)")
                 volume = fraction * region.volume()
-        x, r = fill_region(region, count, radius, seed=seed, existing_positions=self.state.x,
+        placed = parcels_of(radius, alpha)
+        if count is not None and alpha != 1.0:  # the real particles to stand for, alpha^3 in a parcel
+            count = max(1, int(round(check_count("count", count) / alpha ** 3)))
+        x, r = fill_region(region, count, placed, seed=seed, existing_positions=self.state.x,
                            existing_radii=self.state.radius, walls=sim.walls, max_attempts=max_attempts,
                            volume=volume)
-        self.fills.append(f"{len(r)} spheres in {region!r}: {realised_line(as_distribution(radius), r)}")
+        what = "spheres" if alpha == 1.0 else f"parcels (alpha {alpha:g}, {len(r) * alpha ** 3:.4g} particles)"
+        self.fills.append(f"{len(r)} {what} in {region!r}: {realised_line(placed, r)}")
         order = spatial_order(x, 2.0 * float(r.max()))  # neighbors in space get nearby indices
-        return self.add(x[order], r[order], material, velocity=velocity)
+        return self.add(x[order], r[order], material, velocity=velocity, parcels=True)
+
+    def coarse_graining(self, material) -> float:
+        """The coarse-graining factor alpha of ``material`` (a name, an index, or one per sphere, all of
+        one alpha)."""
+        materials = self.sim.materials
+        given = material if isinstance(material, (list, tuple, np.ndarray)) else [material]
+        alphas = sorted({materials[mat].coarse_graining for mat in given})
+        if len(alphas) > 1:
+            raise ParameterError(f"material = {short_repr(material)} is not allowed: its materials are coarse-grained "
+                                 f"by different factors {alphas}; insert each material on its own")
+        return alphas[0] if alphas else 1.0
 
     def unwrapped_positions(self) -> np.ndarray:
         """``Simulation.unwrapped_positions``."""

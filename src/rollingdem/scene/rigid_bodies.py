@@ -60,6 +60,14 @@ def orientations_of(orientations, m: int) -> np.ndarray:
     return np.broadcast_to(q / norm[:, None], (m, 4)).copy()
 
 
+def refuse_coarse_graining(material) -> None:
+    """Clumps are not coarse-grained: the rule for a parcel of clumps is not known."""
+    if material.coarse_graining != 1.0:
+        raise ParameterError(f"material {material.name!r}: coarse_graining = {material.coarse_graining:g} is not allowed "
+                             "for clumps: coarse graining is for spheres (a clump's parcel has no known rule); give "
+                             "the clumps a material with coarse_graining 1")
+
+
 class ClumpSet:
     """The clumps of ``sim``, in its engine state's per-clump fields."""
 
@@ -96,6 +104,7 @@ class ClumpSet:
             raise ParameterError(f"material = {short_repr(material)} is not allowed: a clump's members are of one "
                                  "material; add clumps of different materials in separate calls")
         mat = sim.materials.index(material)
+        refuse_coarse_graining(sim.materials[mat])
         periodic_box.check_in_box(sim.periodic, X, st.n)
         self.check_periodic_reach(clump)
         props = clump.mass_properties(sim.materials.materials[mat].density)
@@ -140,6 +149,7 @@ class ClumpSet:
             raise ParameterError(f"clump = {short_repr(clump)} is not allowed: must be a rollingdem.Clump")
         if material is None or isinstance(material, (list, tuple, np.ndarray)):
             raise ParameterError(f"material = {short_repr(material)} is not allowed: give the clumps' one material")
+        refuse_coarse_graining(sim.materials[material])
         given = [(k, v) for k, v in (("count", count), ("mass", mass), ("fraction", fraction)) if v is not None]
         if len(given) != 1:
             raise ParameterError(f"{', '.join(f'{k} = {v!r}' for k, v in given) or 'count = None'} is not allowed: "

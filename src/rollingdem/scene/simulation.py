@@ -151,7 +151,7 @@ class Simulation:
 
     def add_material(self, material: Material) -> int:
         self._scene_changed()
-        return self.materials.add(material)
+        return self.materials.add(material, self.contact)
 
     def set_pair(self, a, b, **coefficients) -> None:
         """Override pair coefficients (friction, rolling_friction, restitution, rolling_damping)."""

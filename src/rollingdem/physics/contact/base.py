@@ -78,13 +78,34 @@ class SubModel:
         """The declared ``parameters`` of a material pair, in their order (default: none)."""
         return ()
 
+    def coarse_graining_exponents(self) -> tuple[float, ...] | None:
+        """The power of alpha by which each declared parameter is multiplied for parcels alpha times the
+        real particle's size, so that contact forces scale as alpha^2 and moments as alpha^3
+        (stress similarity, docs/models.md §18); None: no rule is known, and coarse graining is
+        refused with this sub-model. Every parameter of a built-in model that is a ratio, a modulus,
+        a velocity or a switch keeps its value (exponent 0)."""
+        return None
+
+    def check_coarse_graining(self, alpha: float) -> None:
+        """Refuse coarse graining (``alpha`` > 1) with a sub-model that declares no rule for it."""
+        if alpha != 1.0 and self.coarse_graining_exponents() is None:
+            known = ", ".join(sorted(k for k, c in _REGISTRIES[self.slot].items() if _has_rule(c)))
+            raise ParameterError(f"coarse_graining = {alpha:g} is not allowed with {self.slot} model {self.name!r}: "
+                                 f"how its parameters scale with the parcel is not known; {self.slot} models with a "
+                                 f"rule are {known}")
+
     def pair_row(self, pair) -> tuple[float, ...]:
-        """``pair_values`` as floats, checked against the declaration."""
+        """``pair_values`` as floats, checked against the declaration, each multiplied by the pair's
+        coarse-graining factor to its declared power (``coarse_graining_exponents``)."""
         values = tuple(float(x) for x in self.pair_values(pair))
         if len(values) != self.n_parameters:
             raise TypeError(f"{type(self).__name__}.pair_values gave {len(values)} values for its "
                             f"{self.n_parameters} declared parameters {self.parameters._fields}")
-        return values
+        alpha = getattr(pair, "coarse_graining", 1.0)
+        if alpha == 1.0:
+            return values
+        self.check_coarse_graining(alpha)
+        return tuple(v * alpha ** e if e else v for v, e in zip(values, self.coarse_graining_exponents()))
 
     def settings(self) -> dict:
         """The constructor arguments, for case files and checkpoints."""
@@ -110,6 +131,18 @@ class SubModel:
 
     def __hash__(self):
         return hash((type(self), tuple(sorted(self.settings().items()))))
+
+
+def nothing_to_scale(self) -> tuple:
+    """``coarse_graining_exponents`` of a sub-model without parameters of its own: its law sees only
+    the pair's moduli and coefficients and the contact's geometry, which scale by themselves."""
+    return ()
+
+
+def _has_rule(cls) -> bool:
+    """Whether a sub-model class declares how it scales with coarse graining (its defaults, or any
+    instance: a declared rule does not depend on whether it can be built without arguments)."""
+    return cls.coarse_graining_exponents is not SubModel.coarse_graining_exponents
 
 
 def _describe_parameters(params) -> str:

@@ -18,7 +18,7 @@ from numba import njit
 
 from rollingdem.errors import ParameterError
 from rollingdem.physics.records import CONTACT_INPUTS as IN, NORMAL_RESULT as NR
-from rollingdem.physics.contact.base import P_YOUNG, SubModel, slots
+from rollingdem.physics.contact.base import P_YOUNG, SubModel, nothing_to_scale, slots
 
 
 @njit(cache=True, inline="always")
@@ -53,6 +53,7 @@ class NoCohesion(Cohesion):
 
     name = "none"
     function = staticmethod(no_cohesion)
+    coarse_graining_exponents = nothing_to_scale
 
 
 SJKR_PARAMETERS = slots("energy_density")
@@ -94,6 +95,9 @@ class SJKR(Cohesion):
 
     def pair_values(self, pair):
         return (pair.cohesion_energy_density,)
+
+    def coarse_graining_exponents(self):
+        return (0,)  # F = k_c A with the area A ~ alpha^2
 
 
 JKR_PARAMETERS = slots("surface_energy")
@@ -193,15 +197,22 @@ class JKR(Cohesion):
     def pair_values(self, pair):
         return (pair.surface_energy,)
 
+    def coarse_graining_exponents(self):
+        return (1,)  # pull-off 3/2 pi w R* ~ alpha^2 with w ~ alpha; a_0 ~ (w R*^2 / E*)^(1/3) ~ alpha
+
+    def surface_energy(self, pair) -> float:
+        """w (J/m^2) as the parcels meet it."""
+        return self.pair_row(pair)[JKR_PARAMETERS.surface_energy]
+
     def separation_limit(self, pair, r_eff) -> float:
-        return jkr_separation_limit(pair.surface_energy, r_eff, pair.effective_youngs_modulus)
+        return jkr_separation_limit(self.surface_energy(pair), r_eff, pair.effective_youngs_modulus)
 
     def time_step_limits(self, material, pair, r_min, m_min):
         """The period of small oscillations about the zero-load overlap, T = 2 pi sqrt(m* / k),
         k = dF/d(delta) at a_0 = (9 pi w R*^2 / (2 E*))^(1/3), over 50: the snap-in and the tail
         out to delta_c are then crossed in many steps (a coarser step misjudges the sticking
         velocity by the work of the tail's last step)."""
-        w, young, r_eff, m_eff = pair.surface_energy, pair.effective_youngs_modulus, 0.5 * r_min, 0.5 * m_min
+        w, young, r_eff, m_eff = self.surface_energy(pair), pair.effective_youngs_modulus, 0.5 * r_min, 0.5 * m_min
         if w <= 0.0:
             return []
         a0 = (9.0 * math.pi * w * r_eff ** 2 / (2.0 * young)) ** (1.0 / 3.0)

@@ -32,6 +32,11 @@ class ContactModel:
         self.cohesion = make_submodel("cohesion", cohesion)
         self.cohesion.check_normal(self.normal)
 
+    def check_coarse_graining(self, alpha: float) -> None:
+        """Refuse coarse graining by ``alpha`` if a sub-model declares no rule for it."""
+        for sub in self.submodels:
+            sub.check_coarse_graining(alpha)
+
     @property
     def submodels(self) -> tuple[SubModel, ...]:
         return (self.normal, self.tangential, self.rolling, self.twisting, self.cohesion)

@@ -195,6 +195,9 @@ class Hertz(NormalModel):
         return (hertz_damping_factor(pair.restitution),
                 math.sqrt(4.0 * pair.effective_shear_modulus / pair.effective_youngs_modulus))
 
+    def coarse_graining_exponents(self):
+        return (0, 0)  # with the same E and G, F ∝ E* sqrt(R*) delta^1.5 scales as alpha^2 by itself
+
     def reference_stiffness(self, pair, r_eff, m_eff, r_min):
         # 1 % of R_min: the Hertz stiffnesses grow as sqrt(overlap), and are larger there than in
         # any sane packing
@@ -234,6 +237,9 @@ class Hooke(NormalModel):
     def pair_values(self, pair):
         return (2.0 * linear_damping_ratio(pair.restitution), self.characteristic_velocity,
                 self.tangential_stiffness_ratio)
+
+    def coarse_graining_exponents(self):
+        return (0, 0, 0)  # k from E*, R*, m* and V_c scales as alpha by itself
 
     def settings(self):
         return {"characteristic_velocity": self.characteristic_velocity,
@@ -276,12 +282,16 @@ class Linear(NormalModel):
         zn = linear_damping_ratio(pair.restitution) if self.normal_damping_ratio is None else self.normal_damping_ratio
         return (self.normal_stiffness, self.shear_stiffness, 2.0 * zn, 2.0 * self.shear_damping_ratio)
 
+    def coarse_graining_exponents(self):
+        return (1, 1, 0, 0)
+
     def settings(self):
         return {"normal_stiffness": self.normal_stiffness, "shear_stiffness": self.shear_stiffness,
                 "normal_damping_ratio": self.normal_damping_ratio, "shear_damping_ratio": self.shear_damping_ratio}
 
     def reference_stiffness(self, pair, r_eff, m_eff, r_min):
-        return self.normal_stiffness, self.shear_stiffness, math.sqrt(m_eff / self.normal_stiffness)
+        kn, ks = self.pair_row(pair)[:2]  # as the parcels meet them
+        return kn, ks, math.sqrt(m_eff / kn)
 
 
 class WaltonBraun(NormalModel):
@@ -335,6 +345,9 @@ class WaltonBraun(NormalModel):
         return (self.k1 or 0.0, self.characteristic_velocity or 0.0, ratio, self.tangential_stiffness_ratio,
                 2.0 * self.damping_ratio, ratio if self.kn_source == "unloading" else 1.0)
 
+    def coarse_graining_exponents(self):
+        return (1, 0, 0, 0, 0, 0)
+
     def settings(self):
         return {"loading_stiffness": self.loading_stiffness, "characteristic_velocity": self.characteristic_velocity,
                 "tangential_stiffness_ratio": self.tangential_stiffness_ratio, "damping_ratio": self.damping_ratio,
@@ -343,7 +356,7 @@ class WaltonBraun(NormalModel):
     def loading_stiffness_of(self, pair, r_eff, m_eff) -> float:
         """k1 (N/m) of a contact of effective radius r_eff and mass m_eff."""
         if self.characteristic_velocity is None:
-            return self.k1
+            return self.pair_row(pair)[WALTON_BRAUN_PARAMETERS.loading_stiffness]  # as the parcels meet it
         return equivalent_stiffness(pair.effective_youngs_modulus, r_eff, m_eff, self.characteristic_velocity)
 
     def reference_stiffness(self, pair, r_eff, m_eff, r_min):

@@ -14,7 +14,7 @@ from numba import njit
 
 from rollingdem.errors import ParameterError, check_non_negative, check_positive
 from rollingdem.physics.records import CONTACT_INPUTS as IN
-from rollingdem.physics.contact.base import P_ROLLING_DAMPING, P_ROLLING_FRICTION, SubModel, slots
+from rollingdem.physics.contact.base import P_ROLLING_DAMPING, P_ROLLING_FRICTION, SubModel, nothing_to_scale, slots
 from rollingdem.physics.contact.frame import carry_with_frame, project_onto_plane
 
 
@@ -96,6 +96,7 @@ class NoRolling(SubModel):
     slot = "rolling"
     name = "none"
     function = staticmethod(no_rolling)
+    coarse_graining_exponents = nothing_to_scale
 
 
 class CDT(SubModel):
@@ -125,6 +126,9 @@ class CDT(SubModel):
 
     def pair_values(self, pair):
         return (self.limiter, 1.0 if self.parity == "liggghts" else 0.0)
+
+    def coarse_graining_exponents(self):
+        return (0, 0)  # M = mu_r R* F_n scales as alpha^3 by itself; the limiter f is a ratio
 
     def settings(self):
         return {"limiter": self.limiter, "parity": self.parity}
@@ -297,12 +301,18 @@ class _SpringRolling(SubModel):
         if self.stiffness_mode == STIFFNESS_TANGENTIAL:
             return c * tangential_stiffness * r_eff ** 2
         if self.stiffness_mode == STIFFNESS_GIVEN:
-            return c * r_eff ** 2
+            return self.pair_row(pair)[SPRING_PARAMETERS.stiffness_coefficient] * r_eff ** 2  # as the parcels meet it
         return pair.rolling_friction * r_eff * normal_force / c
 
     def pair_values(self, pair):
         return (float(self.stiffness_mode), self.stiffness_coefficient(), float(self.damping_mode),
                 self.damping_value(pair), self.slip_damping)
+
+    def coarse_graining_exponents(self):
+        # k_r from k_n or k_t and R*^2 scales as alpha^3 by itself, and the dashpot's ratio keeps its
+        # value; a given stiffness (N/m) scales as alpha and a given damping (N s/m) as alpha^2
+        given = self.stiffness_mode == STIFFNESS_GIVEN
+        return (0, 1 if given else 0, 0, 2 if self.damping_mode == DAMPING_GIVEN else 0, 0)
 
     def kernel_modes(self):
         """(cap, force, history, wall rate): the parity preset's switches, one engine module per preset."""
@@ -474,6 +484,7 @@ class ForceProportional(SubModel):
     slot = "rolling"
     name = "force_proportional"
     function = staticmethod(force_proportional_moment)
+    coarse_graining_exponents = nothing_to_scale
 
 
 VISCOUS_PARAMETERS = slots("coefficient", "kratos_form")
@@ -512,6 +523,11 @@ class Viscous(SubModel):
 
     def pair_values(self, pair):
         return (self.coefficient, 1.0 if self.form == "kratos" else 0.0)
+
+    def coarse_graining_exponents(self):
+        # M = c_v F_n R* dw (zhou) must scale as alpha^3 with F_n ~ alpha^2, R* ~ alpha and spins
+        # ~ 1/alpha (velocities kept): c_v ~ alpha; the kratos form's extra R* makes up for it
+        return (0 if self.form == "kratos" else 1, 0)
 
     def settings(self):
         return {"coefficient": self.coefficient, "form": self.form}

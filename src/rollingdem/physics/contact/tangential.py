@@ -14,7 +14,7 @@ from numba import njit
 
 from rollingdem.errors import check_positive
 from rollingdem.physics.records import NORMAL_RESULT as NR
-from rollingdem.physics.contact.base import P_FRICTION, SubModel, slots
+from rollingdem.physics.contact.base import P_FRICTION, SubModel, nothing_to_scale, slots
 from rollingdem.physics.contact.frame import carry_with_frame
 
 
@@ -79,6 +79,7 @@ class HistorySpring(SubModel):
     name = "history"
     history = slots("spring_x", "spring_y", "spring_z")  # xi (m), carried with the contact frame
     function = staticmethod(history_spring)
+    coarse_graining_exponents = nothing_to_scale
 
 
 @njit(cache=True, inline="always")
@@ -207,6 +208,9 @@ class WaltonTangential(SubModel):
 
     def pair_values(self, pair):
         return (self.exponent,)
+
+    def coarse_graining_exponents(self):
+        return (0,)
 
     def settings(self):
         return {"exponent": self.exponent}

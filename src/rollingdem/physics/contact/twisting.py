@@ -16,7 +16,7 @@ from numba import njit
 
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_positive
 from rollingdem.physics.records import CONTACT_INPUTS as IN, NORMAL_RESULT as NR
-from rollingdem.physics.contact.base import P_FRICTION, SubModel, slots
+from rollingdem.physics.contact.base import P_FRICTION, SubModel, nothing_to_scale, slots
 
 
 @njit(cache=True, inline="always")
@@ -31,6 +31,7 @@ class NoTwisting(SubModel):
     slot = "twisting"
     name = "none"
     function = staticmethod(no_twisting)
+    coarse_graining_exponents = nothing_to_scale
 
 
 TWISTING_PARAMETERS = slots("marshall", "twisting_stiffness", "twisting_damping", "twisting_friction")
@@ -85,6 +86,9 @@ class Marshall(SubModel):
     def pair_values(self, pair):
         return (1.0, 0.0, 0.0, 0.0)
 
+    def coarse_graining_exponents(self):
+        return (0, 0, 0, 0)  # from k_t, gamma_t and a = sqrt(R* delta): alpha^3 by themselves
+
     def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force, pair):
         return 0.5 * tangential_stiffness * r_eff * overlap
 
@@ -124,8 +128,13 @@ class TwistingSDS(SubModel):
     def pair_values(self, pair):
         return (0.0, self.twisting_stiffness, self.twisting_damping, self.twisting_friction)
 
+    def coarse_graining_exponents(self):
+        # M = k_tw xi + gamma_tw Omega must scale as alpha^3 with xi kept and Omega ~ 1/alpha, and
+        # the cap mu_tw F_n with F_n ~ alpha^2
+        return (0, 3, 4, 1)
+
     def rotational_stiffness(self, normal_stiffness, tangential_stiffness, r_eff, overlap, normal_force, pair):
-        return self.twisting_stiffness
+        return self.pair_row(pair)[TWISTING_PARAMETERS.twisting_stiffness]  # as the parcels meet it
 
     def settings(self):
         return {"twisting_stiffness": self.twisting_stiffness, "twisting_damping": self.twisting_damping,

@@ -56,6 +56,8 @@ CATALOGUE = [
     ("jkr cohesion with no surface energy anywhere", edit("walls:", "contact: {cohesion: jkr}\nwalls:"),
      "contact: cohesion = 'jkr' is not allowed here: every material pair's surface_energy is 0, so it would do nothing; give "
      "the materials (or a pair) a surface_energy (J/m^2), or use cohesion 'none'"),
+    ("coarse graining below 1", edit("restitution: 0.5}", "restitution: 0.5, coarse_graining: 0.5}"),
+     "material 'm': coarse_graining = 0.5 is not allowed: must be >= 1"),
     ("unknown cohesion model", edit("walls:", "contact: {cohesion: dmt}\nwalls:"),
      "cohesion model = 'dmt' is not known: allowed are 'jkr', 'none', 'sjkr'"),
     ("negative surface energy", edit("restitution: 0.5}", "restitution: 0.5, surface_energy: -0.1}"),

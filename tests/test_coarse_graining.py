@@ -116,3 +116,165 @@ def test_every_built_in_sub_model_is_in_a_chain():
     built_in = {(slot, name) for slot, reg in _REGISTRIES.items() for name, cls in reg.items()
                 if cls.__module__.startswith("rollingdem.")}
     assert built_in <= used, sorted(built_in - used)
+
+
+def collision_scene(alpha: float) -> rd.Simulation:
+    """Two spheres meeting obliquely with spin, and a third glancing off a plane wall (of a material
+    without coarse graining), with no gravity: the real scene at alpha = 1, its parcels at alpha
+    (positions alpha x, the same velocities, spins / alpha, dt alpha x)."""
+    # a law with a given stiffness (N/m), which the parcels' pairs must scale
+    sim = rd.Simulation(contact=rd.ContactModel(normal=rd.Linear(2e4, 2e4 * 2 / 7)), gravity=(0, 0, 0), dt=alpha * 2e-7)
+    sim.add_material(rd.Material("m", **REAL, coarse_graining=alpha))
+    sim.add_material(rd.Material("steel", 2e11, 0.3, 7800.0, friction=0.3, rolling_friction=0.1, restitution=0.8))
+    sim.add_wall(rd.Plane(point=(0, 0, -alpha * 3e-3), normal=(0, 0, 1), material="steel"))
+    x = alpha * np.array([[-1.05e-3, 0.0, 0.0], [1.05e-3, 0.4e-3, 0.0], [5e-3, 0.0, -1.9e-3]])
+    sim.add_particles(x, 1e-3, "m", velocity=[[0.6, 0.0, 0.1], [-0.6, 0.0, 0.0], [0.2, 0.1, -0.5]],
+                      angular_velocity=np.array([[0, 50.0, 20.0], [10.0, 0, -30.0], [0, 0, 40.0]]) / alpha)
+    return sim
+
+
+def test_parcels_collide_as_the_real_spheres_scaled():
+    """Through the engine: parcels of alpha = 2 given the real radius end, after the collisions, at
+    alpha times the real positions, with the real velocities and 1/alpha the real spins (module
+    docstring: exact similarity, RT). Catches the radius not scaled at ``add_particles``, a mass
+    or inertia not from the parcel's radius, the wall pair's alpha taken from the wall (1) instead
+    of the parcel."""
+    real, parcel = collision_scene(1.0), collision_scene(ALPHA)
+    assert parcel.radii.tolist() == [ALPHA * 1e-3] * 3
+    real.run(steps=3000)
+    parcel.run(steps=3000)
+    assert np.abs(real.velocities[2, 2]) > 0 and real.velocities[2, 2] > 0  # bounced off the wall
+    assert real.velocities[0, 0] < 0.6  # the pair met
+    np.testing.assert_allclose(parcel.positions / ALPHA, real.positions, rtol=0, atol=RT * 1e-2)
+    np.testing.assert_allclose(parcel.velocities, real.velocities, rtol=0, atol=RT)
+    np.testing.assert_allclose(parcel.angular_velocities * ALPHA, real.angular_velocities, rtol=0, atol=RT * 100)
+
+
+@pytest.mark.parametrize("chain", list(CHAINS))
+def test_the_time_step_limits_of_parcels_are_alpha_times_the_real(chain):
+    """Every limit of docs/models.md §2 is a time of the contact (a Rayleigh time ~ r, a spring period
+    ~ sqrt(m / k) ~ alpha, a Hertz time at kept speeds ~ alpha): parcels' limits are alpha times the
+    real ones. Catches a time-step path that reads a sub-model's unscaled value (linear's k_n, SDS's
+    k_roll, TwistingSDS's k_tw, JKR's w)."""
+    limits = []
+    for alpha in (1.0, ALPHA):
+        sim = rd.Simulation(contact=rd.ContactModel(**CHAINS[chain]))
+        sim.add_material(rd.Material("m", **REAL, coarse_graining=alpha))
+        sim.add_particles([[0, 0, 0], [0, 0, 0.01 * alpha]], 1e-3, "m", velocity=[[0, 0, 0.5], [0, 0, -0.5]])
+        limits.append(sim.time_step_limits())
+    assert [label.split(" ")[0] for label, _ in limits[0]] == [label.split(" ")[0] for label, _ in limits[1]]
+    for (label, real), (_, parcel) in zip(*limits):
+        assert parcel == pytest.approx(ALPHA * real, rel=1e-12), label
+
+
+def parcel_scene(alpha=ALPHA, contact=None) -> rd.Simulation:
+    sim = rd.Simulation(contact=contact, gravity=(0, 0, -9.81))
+    sim.add_material(rd.Material("m", **REAL, coarse_graining=alpha))
+    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1), material="m"))
+    return sim
+
+
+def test_insert_places_parcels_for_the_real_count_and_mass():
+    """``count`` counts real particles: 800 of radius 1 mm are 800 / alpha^3 = 100 parcels of 2 mm with
+    the same total mass (a parcel of the same density is alpha^3 particles, exactly); ``mass`` gives the
+    parcels nearest it (within one parcel's mass); ``represented`` counts alpha^3 per parcel."""
+    sim = parcel_scene()
+    sim.insert(rd.BoxRegion((-0.03, -0.03, 0.01), (0.03, 0.03, 0.05)), 800, 1e-3, "m", seed=1)
+    real_mass = 2500.0 * 4 / 3 * math.pi * 1e-9
+    assert sim.n_particles == 100 and set(sim.radii.tolist()) == {ALPHA * 1e-3}
+    assert float(sim.masses.sum()) == pytest.approx(800 * real_mass, rel=1e-12)
+    assert sim.particle_set.represented() == 800
+    assert "800 particles" in sim.particle_set.fills[-1] and "100 parcels" in sim.particle_set.fills[-1]
+    sim.insert(rd.BoxRegion((-0.03, -0.03, 0.06), (0.03, 0.03, 0.1)), radius=1e-3, material="m", mass=0.004)
+    assert abs(float(sim.masses.sum()) - 800 * real_mass - 0.004) <= 0.5 * ALPHA ** 3 * real_mass
+
+
+def test_an_inflow_of_parcels_keeps_the_real_rate_and_size_distribution(tmp_path):
+    """An inflow's ``rate`` counts real particles: 40,000 /s of them come as 5,000 parcels /s; its
+    radii (a distribution of the real particles) are alpha times theirs, and a checkpoint keeps that.
+    It acts every 1 ms, so after 0.02 s it has placed what was due at its last action, 95 to 100
+    parcels (800 had the rate counted parcels), all of radius 2 to 3 mm."""
+    sim = parcel_scene()
+    inflow = sim.add_inflow(rd.BoxRegion((-0.05, -0.05, 0.05), (0.05, 0.05, 0.09)), rd.Uniform(1e-3, 1.5e-3), "m",
+                            rate=40000.0)
+    sim.run(0.02)
+    assert 95 <= inflow.count <= 100 and inflow.count == sim.n_particles
+    assert ALPHA * 1e-3 <= sim.radii.min() and sim.radii.max() <= ALPHA * 1.5e-3
+    sim.checkpoint(tmp_path / "c.npz")
+    restored = rd.Simulation.restore(tmp_path / "c.npz")
+    assert restored.inflows[0].radius.max_radius == ALPHA * 1.5e-3
+    assert restored.inflows[0].rate == pytest.approx(40000.0 / ALPHA ** 3, rel=1e-15)
+
+
+def test_an_outlet_refill_puts_a_parcel_back_as_it_was():
+    """A parcel taken out and put back keeps its radius (alpha r, not alpha^2 r) and mass."""
+    sim = parcel_scene()
+    sim.add_particles([[0, 0, 0.0021]], 1e-3, "m")
+    sim.add_outlet(rd.BoxRegion((-0.01, -0.01, 0.0), (0.01, 0.01, 0.01)), interval=1e-4,
+                   refill=rd.BoxRegion((-0.01, -0.01, 0.05), (0.01, 0.01, 0.06)))
+    mass = float(sim.masses[0])
+    sim.run(steps=20)
+    assert sim.positions[0, 2] > 0.05 and sim.radii.tolist() == [ALPHA * 1e-3] and sim.masses[0] == mass
+
+
+def test_a_case_file_rough_base_of_parcels_scales_its_lengths():
+    """A case file's rough base of a coarse-grained material is a layer of parcels: radius and
+    spacing alpha times the real, so alpha^2 fewer spheres on the same plate (within the rows cut at
+    the edges: about one spacing of 9 in each direction, 25 %), none overlapping, on the plate."""
+    from scipy.spatial import cKDTree
+
+    from rollingdem.io import casefile
+
+    def base(alpha):
+        case = casefile.load_case({
+            "name": "cg", "materials": [dict(name="m", **REAL, coarse_graining=alpha)],
+            "walls": [{"type": "plane", "material": "m"}],
+            "particles": [{"rough_base": {"radius": 1e-3, "extent": [[-0.02, 0.02], [-0.02, 0.02]], "seed": 1},
+                           "material": "m"}],
+            "stages": [{"name": "s", "duration": 1e-4}]})
+        return casefile.build_simulation(case)
+
+    real, parcels = base(1.0), base(ALPHA)
+    x = parcels.positions
+    assert set(parcels.radii.tolist()) == {ALPHA * 1e-3} and np.allclose(x[:, 2], ALPHA * 1e-3)
+    assert cKDTree(x).query(x, k=2)[0][:, 1].min() >= 2 * ALPHA * 1e-3
+    assert parcels.n_particles == pytest.approx(real.n_particles / ALPHA ** 2, rel=0.25)
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: rd.Material("m", 1e7, 0.3, 1000.0, coarse_graining=0.5),
+     "material 'm': coarse_graining = 0.5 is not allowed: must be >= 1"),
+    (lambda: parcel_scene(contact=rd.ContactModel(rolling="epsd")).add_material(
+        rd.Material("other", 1e7, 0.3, 1000.0, coarse_graining=3.0)),
+     "material 'other': coarse_graining = 3 is not allowed beside material 'm''s 2: one coarse-graining factor"),
+    (lambda: parcel_scene().add_clumps(rd.Clump([[0, 0, 0], [1e-3, 0, 0]], [1e-3, 1e-3]), [[0, 0, 0.01]], "m"),
+     "material 'm': coarse_graining = 2 is not allowed for clumps"),
+])
+def test_coarse_graining_bad_input_is_one_line(make, message):
+    with pytest.raises(rd.ParameterError, match=message.replace("(", r"\(")):
+        make()
+
+
+def test_a_sub_model_without_a_rule_refuses_coarse_graining():
+    """A user's sub-model that declares no ``coarse_graining_exponents`` runs at alpha = 1 and is
+    refused, in one line naming it, with a coarse-grained material: its parameters' scaling is not
+    known. The refusal lists the models that have a rule."""
+    from numba import njit
+
+    from rollingdem.physics.contact.base import ROLLING_MODELS, SubModel
+
+    @njit
+    def no_moment(hist, k, history_at, g, frame, normal, dt, p, params_at, modes):
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+
+    class Unscaled(SubModel):
+        slot, name, function = "rolling", "unscaled_test", staticmethod(no_moment)
+
+    try:
+        sim = rd.Simulation(contact=rd.ContactModel(rolling="unscaled_test"))
+        sim.add_material(rd.Material("real", **REAL))
+        with pytest.raises(rd.ParameterError, match="coarse_graining = 2 is not allowed with rolling model "
+                                                    "'unscaled_test': .* rolling models with a rule are cdt, "):
+            sim.add_material(rd.Material("m", **REAL, coarse_graining=2.0))
+    finally:
+        ROLLING_MODELS.pop("unscaled_test", None)

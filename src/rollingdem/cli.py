@@ -455,7 +455,8 @@ def check(case: Path = typer.Argument(..., help="Case file to validate.")):
     except ParameterError as err:
         _refuse(err)
     clumps = len(sim.clumps["mass"])
-    typer.echo(f"{case}: valid; {sim.n_particles} particles{f' ({clumps} clumps)' if clumps else ''}, "
+    typer.echo(f"{case}: valid; {sim.n_particles} particles{f' ({clumps} clumps)' if clumps else ''}"
+               f"{sim.particle_set.coarse_graining_note()}, "
                f"{len(sim.walls)} walls, {len(spec.stages)} stages, "
                f"dt = {sim.dt:.3g} s")
     for line in casefile.mesh_lines(sim):

@@ -251,6 +251,7 @@ class _Run:
                 summary["measurements"] = {name: m.summary() for name, m in self.measurements.items()}
             summary["inflows"] = [inflow.totals() for inflow in sim.inflows]
             summary.update({"time": sim.time, "steps": sim.step, "particles_left": sim.n_particles,
+                            "particles_represented": sim.particle_set.represented(),
                             "wall_seconds": time.perf_counter() - self.tic,
                             "kinetic_energy": sum(sim.kinetic_energy()),
                             "dissipated": sim.dissipated_energy() if sim.track_energy else None,
@@ -423,7 +424,7 @@ def header_lines(case: CaseSpec, sim) -> list[str]:
 
     clumps = len(sim.clumps["mass"])
     return [f"{sim.n_particles - fixed} free particles" + (f" and {fixed} fixed" if fixed else "")
-            + (f" ({clumps} clumps among them)" if clumps else "")
+            + (f" ({clumps} clumps among them)" if clumps else "") + sim.particle_set.coarse_graining_note()
             + f"; walls: {walls}; dt = {sim.dt:.3g} s", *mesh_lines(sim), f"contact: {sim.contact.describe()}"]
 
 

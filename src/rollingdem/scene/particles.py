@@ -315,6 +315,19 @@ class Particles:
                                  "before the run)")
         return dict(zip(ENERGY_CHANNELS, self.state.energy.sum(axis=0).tolist()))
 
+    def represented(self) -> float:
+        """The real particles the spheres stand for: alpha^3 for a parcel of a material coarse-grained by
+        alpha, 1 for any other sphere (docs/models.md §18)."""
+        alpha = np.array([m.coarse_graining for m in self.sim.materials.materials] or [1.0])
+        return float(np.sum(alpha[self.state.mat[:self.state.n]] ** 3))
+
+    def coarse_graining_note(self) -> str:
+        """"; parcels of alpha A, standing for N particles" when a material is coarse-grained, else ""."""
+        alphas = sorted({m.coarse_graining for m in self.sim.materials.materials} - {1.0})
+        if not alphas:
+            return ""
+        return f"; parcels of alpha {alphas[0]:g}, standing for {self.represented():.6g} particles"
+
     def largest_radius(self, inflows=()) -> float:
         """The largest radius in place or to come from ``inflows`` (0 when none)."""
         return max([float(self.state.radius.max(initial=0.0))] + [i.radius.max_radius for i in inflows])

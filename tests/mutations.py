@@ -51,6 +51,7 @@ COH = ("tests/test_cohesion.py",)
 BOND = ("tests/test_bonds.py",)
 GPU = ("tests/test_cuda.py::test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine",)
 CLUMP = ("tests/test_clump_motion.py",)
+CG = ("tests/test_coarse_graining.py",)
 MUTATIONS = [
     # --- normal (contact/normal.py) and the material pair ------------------------------------------
     M("hertz k_n = 4/3 E* a -> E* a", C + "normal.py", "kn = (4.0 / 3.0) * p[P_YOUNG] * a", "kn = 1.0 * p[P_YOUNG] * a", HERTZ),
@@ -331,6 +332,21 @@ MUTATIONS = [
       ("tests/test_clumps.py",)),
     M("mesh flow counts a shared edge twice", "src/rollingdem/io/measurements.py",
       "for p in np.flatnonzero(hit.sum(axis=1) > 1):", "for p in []:", ("tests/test_measurements.py",)),
+    # --- coarse graining (docs/models.md §18) --------------------------------------------------------
+    M("coarse graining: sds rolling damping as alpha", C + "rolling.py",
+      "2 if self.damping_mode == DAMPING_GIVEN else 0", "1 if self.damping_mode == DAMPING_GIVEN else 0", CG),
+    M("coarse graining: jkr w unscaled", C + "cohesion.py", "return (1,)  # pull-off", "return (0,)  # pull-off", CG),
+    M("coarse graining: twisting sds mu_tw unscaled", C + "twisting.py", "return (0, 3, 4, 1)", "return (0, 3, 4, 0)",
+      CG),
+    M("coarse graining: the pair takes the smaller alpha", "src/rollingdem/scene/materials.py",
+      "coarse_graining=max(a.coarse_graining, b.coarse_graining))",
+      "coarse_graining=min(a.coarse_graining, b.coarse_graining))", CG),
+    M("coarse graining: insert counts parcels", "src/rollingdem/scene/particles.py",
+      "count = max(1, int(round(check_count(\"count\", count) / alpha ** 3)))",
+      "count = max(1, int(round(check_count(\"count\", count) / 1.0)))", CG),
+    M("coarse graining: linear time step from the unscaled k_n", C + "normal.py",
+      "kn, ks = self.pair_row(pair)[:2]  # as the parcels meet them", "kn, ks = self.normal_stiffness, self.shear_stiffness",
+      CG),
 ]
 
 

@@ -13,6 +13,7 @@ nine orders of magnitude above it.
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import rollingdem as rd
@@ -183,7 +184,7 @@ def test_insert_places_parcels_for_the_real_count_and_mass():
     real_mass = 2500.0 * 4 / 3 * math.pi * 1e-9
     assert sim.n_particles == 100 and set(sim.radii.tolist()) == {ALPHA * 1e-3}
     assert float(sim.masses.sum()) == pytest.approx(800 * real_mass, rel=1e-12)
-    assert sim.particle_set.represented() == 800
+    assert sim.particles_represented == 800
     assert "800 particles" in sim.particle_set.fills[-1] and "100 parcels" in sim.particle_set.fills[-1]
     sim.insert(rd.BoxRegion((-0.03, -0.03, 0.06), (0.03, 0.03, 0.1)), radius=1e-3, material="m", mass=0.004)
     assert abs(float(sim.masses.sum()) - 800 * real_mass - 0.004) <= 0.5 * ALPHA ** 3 * real_mass
@@ -278,3 +279,113 @@ def test_a_sub_model_without_a_rule_refuses_coarse_graining():
             sim.add_material(rd.Material("m", **REAL, coarse_graining=2.0))
     finally:
         ROLLING_MODELS.pop("unscaled_test", None)
+
+
+# --- the study's checks on known inputs (experiments/coarse_graining.py) ------------------------------
+
+def test_welch_difference_interval_by_hand():
+    """(1, 2, 3) against (2, 3, 4): difference -1, variances 1/3 each, Welch's nu = 4,
+    half-width t(0.975, 4) sqrt(2/3) = 2.7764 x 0.8165 = 2.2670."""
+    from rollingdem.analysis.intervals import difference_interval
+
+    diff, half = difference_interval([1, 2, 3], [2, 3, 4])
+    assert diff == -1.0 and half == pytest.approx(2.776445 * math.sqrt(2 / 3), rel=1e-6)
+    assert math.isnan(difference_interval([1.0], [2.0, 3.0])[1])
+
+
+def test_beverloo_ratio_by_hand():
+    """Orifice 12 d, k = 1.5: parcels of alpha 2 leave (12 - 3)^2.5 / (12 - 1.5)^2.5 = 0.6802 of the flow."""
+    from rollingdem.experiments.coarse_graining import beverloo_ratio
+
+    assert beverloo_ratio(12.0, 2.0) == pytest.approx((9 / 10.5) ** 2.5, rel=1e-12)
+    assert beverloo_ratio(12.0, 1.0) == 1.0
+
+
+def study_runs(pile_shift, drum_shift, flow_ratio, mur_crit):
+    """A made-up table of the study's runs: real angles 30, 31, 32 deg, parcels shifted by the given
+    amounts, silo flows 1.0, 1.02, 0.98 kg/s and the parcels' times ``flow_ratio``."""
+    rows = []
+    for k, s in enumerate((1, 2, 3)):
+        for alpha in (1.0, 2.0):
+            rows.append(dict(scene="pile", alpha=alpha, mur=0.4, length_convention=0, seed=s,
+                             angle=30.0 + k + (pile_shift if alpha > 1 else 0.0)))
+            rows.append(dict(scene="drum", alpha=alpha, seed=s, angle=25.0 + 0.1 * k + (drum_shift if alpha > 1 else 0),
+                             particles=1000, wall_time=10.0 / alpha ** 2))
+            rows.append(dict(scene="silo", alpha=alpha, seed=s,
+                             flow_rate=(1.0, 1.02, 0.98)[k] * (flow_ratio if alpha > 1 else 1.0)))
+    rows.append(dict(scene="slope", alpha=3.0, model="epsd", beta=20.0, mur_critical=mur_crit))
+    return pd.DataFrame(rows)
+
+
+@pytest.mark.parametrize("pile_shift, drum_shift, flow_ratio, mur_crit, failing", [
+    (0.5, -0.5, 0.97, math.tan(math.radians(20.0)) * 1.003, []),
+    (1.5, 0.0, 1.0, math.tan(math.radians(20.0)), ["pile angle, alpha 2 - alpha 1"]),
+    (0.0, 1.2, 1.0, math.tan(math.radians(20.0)), ["drum angle, alpha 2 - alpha 1"]),
+    (0.0, 0.0, 0.94, math.tan(math.radians(20.0)), ["silo flow rate, alpha 2 / alpha 1"]),
+    (0.0, 0.0, 1.0, math.tan(math.radians(20.0)) * 1.006, ["parcel (alpha 3): mu_r,crit / tan(beta) at 20 deg"]),
+])
+def test_the_study_s_checks_on_known_tables(pile_shift, drum_shift, flow_ratio, mur_crit, failing):
+    """Each full-size check passes inside its bound and fails just outside it: the pile's mean angle
+    1 deg, the drum's 1 deg, the silo's flow 5 %, the slope's mu_r,crit 0.5 % of tan(beta); the
+    notes state each difference with its interval, and the drum's particles represented per second."""
+    from rollingdem.experiments.coarse_graining import (drum_checks, pile_checks, silo_checks, slope_checks)
+    from rollingdem.experiments.results import ValidationResult
+
+    runs = study_runs(pile_shift, drum_shift, flow_ratio, mur_crit)
+    result = ValidationResult("coarse-graining", "test", runs, [])
+    pile_checks(result, runs, "epsd", {"murs": (0.4,)}, quick=False)
+    drum_checks(result, runs, "epsd", quick=False)
+    silo_checks(result, runs, "epsd", quick=False)
+    slope_checks(result, runs)
+    failed = [c.quantity for c in result.checks if not c.passed]
+    assert [f for f in failed if not any(f.startswith(x) for x in failing)] == []
+    assert all(any(f.startswith(x) for f in failed) for x in failing)
+    notes = " ".join(result.notes)
+    assert f"difference {pile_shift:+.2f} +- " in notes and "alpha 2: 400 (4 x alpha 1)" in notes
+    assert f"{100 * (flow_ratio - 1):+.1f} +- " in notes and "Beverloo" in notes
+
+
+def test_a_silo_orifice_narrower_than_a_parcel_is_refused():
+    """An orifice of 5 real diameters with parcels of alpha 6 (7.2 d with the 20 % spread): one line."""
+    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.silo import SiloSetup, silo_case
+
+    with pytest.raises(rd.ParameterError, match=r"orifice_diameters = 5 is not allowed with coarse_graining = 6: "
+                                                r"the orifice \(0.05 m\) is narrower than the largest parcel"):
+        silo_case(material=PileMaterial(coarse_graining=6.0), setup=SiloSetup(orifice_diameters=5.0))
+
+
+def test_a_region_narrower_than_a_parcel_is_refused_naming_the_coarse_graining():
+    """Parcels of alpha 15 of 1 mm spheres (1.5 cm radius) into a tube region 1 cm in radius: one line."""
+    sim = parcel_scene(alpha=15.0)
+    with pytest.raises(rd.ParameterError, match=r"coarse_graining = 15 is not allowed for CylinderRegion\(radius=0.01.*"
+                                                r"its parcels, up to 0.015 m in radius, do not fit in it"):
+        sim.insert(rd.CylinderRegion(0.01, 0.0, 0.2), 100, 1e-3, "m")
+
+
+def test_the_study_goes_on_from_the_runs_it_kept(tmp_path, monkeypatch):
+    """With an output folder each run's observables are kept as it ends: the study run again there
+    runs nothing it has (a study stopped goes on where it was), and reads the same numbers."""
+    import rollingdem.experiments.coarse_graining as cg
+
+    calls = []
+
+    def fake(kind):
+        def run(*args, **kwargs):
+            calls.append(kind)
+            return {"angle": 30.0 + len(calls), "r_squared": 0.9, "parcels": 1, "flow_rate": 1.0 + len(calls),
+                    "flow_rate_ci": 0.0, "particles": 100, "wall_time": 1.0, "angle_ci": 0.1, "mur_critical": 0.3640}
+        return run
+
+    monkeypatch.setattr(cg.CoarseGraining, "observe", fake("pile"))
+    for name in ("drum_point", "silo_point", "slope_point"):
+        monkeypatch.setattr(cg, name, fake(name))
+    first = cg.coarse_graining_study(quick=True, outdir=tmp_path)
+    n = len(calls)
+    assert n == len(first.table) and len(list((tmp_path / "coarse-graining-runs").glob("*.json"))) == n
+    (tmp_path / "coarse-graining-runs" / sorted(p.name for p in (tmp_path / "coarse-graining-runs").glob("*.json"))[0]
+     ).unlink()  # one run lost with the kill
+    again = cg.coarse_graining_study(quick=True, outdir=tmp_path)
+    assert len(calls) == n + 1
+    changed = (first.table[["angle", "flow_rate"]] != again.table[["angle", "flow_rate"]]).any(axis=1)
+    assert int(changed.sum()) == 1  # the rerun one; the others read back as they were

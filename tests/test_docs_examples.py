@@ -392,3 +392,24 @@ def test_the_readme_clumps_example_pours_tetrahedra_onto_the_floor(capsys):
     for spec in block["particles"]:
         _add_clumps(fresh, ClumpSpec(**spec), ROOT)
     assert len(fresh.clumps["mass"]) == 61 and fresh.n_particles == 60 * 4 + 2
+
+
+def test_the_readme_coarse_graining_example_delivers_what_it_says(capsys):
+    """README, "Coarse graining", as printed: 27,000 grains of 1 mm are 27,000 / 3^3 = 1,000 parcels of
+    3 mm, whose mass is the grains' (2650 kg/m^3 x 27,000 x 4/3 pi (1 mm)^3, to round-off) and whose
+    time step is 3 times the real grains' (every limit of models.md §2 is a contact time ~ alpha)."""
+    import math
+
+    import rollingdem as rd
+
+    scope = {}
+    exec(compile(python_block(ROOT / "README.md", "Coarse graining: a material"), "README.md", "exec"), scope)
+    sim = scope["sim"]
+    assert "1000 parcels of 3 mm stand for 27000 grains" in capsys.readouterr().out
+    assert float(sim.masses.sum()) == pytest.approx(2650 * 27000 * 4 / 3 * math.pi * 1e-9, rel=1e-12)
+    real = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"))
+    real.add_material(rd.Material("sand", youngs_modulus=5e6, poisson_ratio=0.3, density=2650, friction=0.5,
+                                  rolling_friction=0.3, restitution=0.5))
+    real.add_particles([[0, 0, 0.001]], 0.001, "sand")
+    assert scope["sim"].time == pytest.approx(0.2, abs=sim.dt)
+    assert sim.dt == pytest.approx(3 * real.dt, rel=1e-12)

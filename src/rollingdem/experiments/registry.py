@@ -228,8 +228,15 @@ def granular_parameters() -> tuple[Parameter, ...]:
                Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
                Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
                Parameter("youngs_modulus", 5e6, "Young's modulus", "Pa", low=0.0, low_open=True),
-               Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True))
+               Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True), coarse_graining_parameter())
             + cohesion_parameters())
+
+
+def coarse_graining_parameter() -> Parameter:
+    """alpha: the spheres are parcels alpha times the radius given, each standing for alpha^3 of them
+    (docs/models.md §18); the scene's sizes and counts stay the real particles'."""
+    return Parameter("coarse_graining", 1.0, "coarse-graining factor alpha: parcels alpha times the radius, each standing "
+                                             "for alpha^3 spheres (counts and sizes are the real spheres')", low=1.0)
 
 
 UNBOUNDED = (0.0, math.inf)

@@ -21,8 +21,9 @@ from rollingdem.analysis.repose import ReposeAngle, default_max_speed, plot_pile
 from rollingdem.errors import ParameterError, check_choice
 from rollingdem.scene.materials import Material
 from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
-from rollingdem.experiments.registry import (BedExperiment, Experiment, Parameter, cohesion_parameters,
-                                             common_parameters, resolve_rolling, twisting_parameter)
+from rollingdem.experiments.registry import (BedExperiment, Experiment, Parameter, coarse_graining_parameter,
+                                             cohesion_parameters, common_parameters, resolve_rolling,
+                                             twisting_parameter)
 from rollingdem.experiments.single_sphere import DT, G, RADIUS, TABLE1
 
 POLYDISPERSITY = 0.2  # radii uniform in R (1 +- 0.2)
@@ -69,7 +70,8 @@ class PileMaterial:
     1056 kg/m^3 it keeps): sliding and rolling friction coefficients, Young's modulus (Pa),
     coefficient of restitution and rolling viscous damping ratio; the cohesion law (``cohesion``:
     "none", "sjkr", "jkr", docs/models.md §1.6) and its parameters, the work of adhesion
-    ``surface_energy`` (J/m^2) and the ``cohesion_energy_density`` (J/m^3). Checked by
+    ``surface_energy`` (J/m^2) and the ``cohesion_energy_density`` (J/m^3); ``coarse_graining`` alpha,
+    parcels alpha times the radii given (docs/models.md §18; the walls' material keeps 1). Checked by
     :class:`rollingdem.Material` and :class:`rollingdem.ContactModel` when the pile is built."""
 
     friction: float = TABLE1["friction"]
@@ -82,14 +84,15 @@ class PileMaterial:
     cohesion: str = "none"
     surface_energy: float = 0.0
     cohesion_energy_density: float = 0.0
+    coarse_graining: float = 1.0
 
     @classmethod
     def from_parameters(cls, p: dict) -> "PileMaterial":
         """The material of an experiment's parameters (``mu``, ``mur``, ``youngs_modulus``, ``e``,
         ``eta_r``, and where given ``poisson_ratio``, ``density`` and the cohesion parameters;
         Table 1's otherwise)."""
-        extra = {k: p[k] for k in ("poisson_ratio", "density", "cohesion", "surface_energy", "cohesion_energy_density")
-                 if k in p}
+        extra = {k: p[k] for k in ("poisson_ratio", "density", "cohesion", "surface_energy", "cohesion_energy_density",
+                                   "coarse_graining") if k in p}
         return cls(friction=p["mu"], rolling_friction=p["mur"], youngs_modulus=p["youngs_modulus"],
                    restitution=p["e"], rolling_damping=p["eta_r"], **extra)
 
@@ -98,12 +101,13 @@ class PileMaterial:
         return Material(name, youngs_modulus=self.youngs_modulus, poisson_ratio=self.poisson_ratio,
                         density=self.density, friction=self.friction, rolling_friction=self.rolling_friction,
                         restitution=self.restitution, rolling_damping=self.rolling_damping,
-                        surface_energy=self.surface_energy, cohesion_energy_density=self.cohesion_energy_density)
+                        surface_energy=self.surface_energy, cohesion_energy_density=self.cohesion_energy_density,
+                        coarse_graining=self.coarse_graining)
 
     def wall_material(self, name: str) -> Material:
         """The walls' material: the spheres', without cohesion (the spheres stick to each other, not
         to the tube, the plate or the drum); ``Simulation.set_pair`` must zero the pair's too."""
-        return replace(self, surface_energy=0.0, cohesion_energy_density=0.0).as_material(name)
+        return replace(self, surface_energy=0.0, cohesion_energy_density=0.0, coarse_graining=1.0).as_material(name)
 
 
 @dataclass(frozen=True)
@@ -471,7 +475,8 @@ class ReposeRoughBase(BedExperiment):
     description = "the lifted-cylinder pile on a rough base of fixed spheres (PFC and LIGGGHTS protocol): the case file repose-rough-base, sized"
     parameters = (common_parameters(mu=0.6, mur=0.1, mur_range=(0.0, 0.6))
                   + (twisting_parameter(),
-                     Parameter("count", 2000, "spheres in the column", low=50, integer=True),
+                     Parameter("count", 2000, "spheres in the column (real particles: coarse_graining^3 to a "
+                                              "parcel)", low=50, integer=True),
                      Parameter("radius", 0.005, "mean sphere radius R", "m", low=0.0, low_open=True),
                      Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.9),
                      Parameter("tube_radius", 0.0, "cylinder radius (0: sized so that the column is one diameter high "
@@ -488,7 +493,8 @@ class ReposeRoughBase(BedExperiment):
                      Parameter("density", 1056.0, "particle density", "kg/m^3", low=0.0, low_open=True),
                      Parameter("dt", 2.5e-5, "time step", "s", low=0.0, low_open=True),
                      Parameter("max_collapse", 3.0, "longest collapse before the pile counts as unsettled", "s",
-                               low=0.0, low_open=True))
+                               low=0.0, low_open=True),
+                     coarse_graining_parameter())
                   + cohesion_parameters())
     observables = pile_observables("the cylinder starts to lift")
     default_observable = "angle"

@@ -33,7 +33,7 @@ class SiloSetup:
     """The silo, in mean particle diameters d: the orifice's diameter D0 (``orifice_diameters``),
     the silo's (``silo_diameters``; None: max(2.5 D0, D0 + 30 d), wide enough that its wall does
     not change the flow) and the bed's settled height (``fill_diameters``; None: 20 d, at least
-    2 D0). ``gravity`` g (m/s^2). W is measured over ``measured`` spheres out, after the first
+    2 D0). ``gravity`` g (m/s^2). W is measured over ``measured`` spheres out (real ones: a parcel counts alpha^3), after the first
     ``transient`` (the opening's); ``max_time`` s of discharge at most, and ``clog_time`` s
     without a sphere out count as a clogged orifice."""
 
@@ -190,6 +190,12 @@ def silo_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     check_integer("measured", setup.measured, low=10)  # the 5 sub-windows of W need a few spheres each
     d = 2.0 * radius
     d0, ds, fill = (v * d for v in setup.sizes())
+    alpha = material.coarse_graining
+    if d0 < alpha * d * (1.0 + polydispersity):
+        raise ParameterError(f"orifice_diameters = {d0 / d:g} is not allowed with coarse_graining = {alpha:g}: the orifice "
+                             f"({d0:.3g} m) is narrower than the largest parcel ({alpha * d * (1.0 + polydispersity):.3g} m); "
+                             "lower coarse_graining (an orifice of 6 parcels or more flows as the real one, "
+                             "docs/models.md §18)")
     if not d0 < ds:
         raise ParameterError(f"silo_diameters = {ds / d:g} is not allowed: must exceed orifice_diameters = {d0 / d:g}")
     g = setup.gravity
@@ -198,8 +204,9 @@ def silo_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     count = int(round(0.6 * math.pi / 4.0 * ds ** 2 * fill
                       / (4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2))))
     poured = 2.2 * fill + 2.0 * d  # the random insertion packs at about 0.3
-    top = poured + 4.0 * d
-    inner = 0.5 * ds - r_max
+    placed_d, placed_r_max = alpha * d, alpha * r_max  # the spheres simulated: parcels of alpha
+    top = poured + 4.0 * placed_d
+    inner = 0.5 * ds - placed_r_max
     data, _ = read_mapping(SHIPPED)
     data["dt"] = dt
     data["gravity"] = [0.0, 0.0, -g]
@@ -215,12 +222,14 @@ def silo_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
                                       "segments": SEGMENTS, "rings": max(1, int(round(top / (math.pi * ds / SEGMENTS))))})
     gate["material"] = walls
     insert = data["particles"][0]
-    insert.update(insert={"type": "cylinder", "radius": inner, "z_min": r_max, "z_max": poured - r_max}, count=count,
+    insert.update(insert={"type": "cylinder", "radius": inner, "z_min": placed_r_max, "z_max": poured - placed_r_max},
+                  count=count,
                   radius={"distribution": "uniform", "low": radius * (1.0 - polydispersity), "high": r_max}
                   if polydispersity else radius, seed=seed)
     outlet = data["outlets"][0]
-    outlet.update(region={"type": "box", "lo": [-ds, -ds, -ds], "hi": [ds, ds, -2.0 * r_max]}, seed=seed,
-                  refill={"type": "cylinder", "radius": inner, "z_min": fill + 1.5 * d, "z_max": fill + 3.5 * d})
+    outlet.update(region={"type": "box", "lo": [-ds, -ds, -ds], "hi": [ds, ds, -2.0 * placed_r_max]}, seed=seed,
+                  refill={"type": "cylinder", "radius": inner, "z_min": fill + 1.5 * placed_d,
+                          "z_max": fill + 3.5 * placed_d})
     settle = 2.0 * math.sqrt(2.0 * poured / g) + 0.2  # the fall from the top, then as long again to settle
     bed, discharge, zone = data["measurements"]
     # 3 d off the wall, the floor and the top (a quarter of the height in a shallow bed)
@@ -230,10 +239,16 @@ def silo_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     zone["region"] = {"type": "cylinder", "radius": 0.5 * d0, "z_min": 0.0, "z_max": 0.5 * d0}
     fill_stage, run = data["stages"]
     fill_stage["duration"] = settle
-    run.update(until={"measurement": "discharge.count", "above": setup.transient + setup.measured,
+    run.update(until={"measurement": "discharge.count", "above": parcels_out(setup.transient + setup.measured, alpha),
                       "settled": {"hold": setup.clog_time}}, max_duration=setup.max_time)
     data["output"] = {"time_series": {"interval": 0.05}, "snapshots": None, "plot": False, "report": None}
     return data
+
+
+def parcels_out(particles: int, alpha: float) -> int:
+    """The outlet's count (of parcels of a material coarse-grained by ``alpha``) for ``particles``
+    real particles out."""
+    return int(round(particles / alpha ** 3))
 
 
 def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: SiloSetup = SiloSetup(),
@@ -257,9 +272,9 @@ def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     opened = data["stages"][0]["duration"]
     flow = out[out["time"] >= opened - 1e-9]
     t, mass, count = (flow[c].to_numpy(float) for c in ("time", "mass", "count"))
-    wanted = setup.transient + setup.measured
+    wanted = parcels_out(setup.transient + setup.measured, material.coarse_graining)
     done = len(count) and count[-1] >= wanted
-    after = count >= setup.transient
+    after = count >= parcels_out(setup.transient, material.coarse_graining)
     start = float(mass[after][0]) if after.any() else math.nan
     in_window = zone["time"].to_numpy() >= (t[after][0] if after.any() else math.inf)
     bed = summary["measurements"]["bed"]

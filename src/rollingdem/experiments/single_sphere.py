@@ -78,7 +78,8 @@ def sphere_on_wall(rolling, settle=0.2, material=None, gravity=(0.0, 0.0, -G), w
     sim = Simulation(contact=ContactModel("hertz", rolling=rolling), gravity=gravity, dt=DT, track_energy=True)
     sim.add_material(Material("table1", **dict(TABLE1, **(material or {}))))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1") if wall is None else wall("table1"))
-    sim.add_particles([[at[0], at[1], RADIUS]], RADIUS, "table1")
+    alpha = (material or {}).get("coarse_graining", 1.0)  # a parcel of alpha R rests at alpha R
+    sim.add_particles([[at[0], at[1], alpha * RADIUS]], RADIUS, "table1")
     sim.run(settle)
     return sim
 
@@ -217,16 +218,17 @@ def rolling_threshold_speed(beta_deg, margin=0.005) -> float:
     return 0.5 * 5 / 7 * G * margin * math.sin(math.radians(beta_deg)) * 0.25
 
 
-def critical_rolling_friction(rolling, beta_deg, rel_tol=1e-3, bracket=0.05, wall=None) -> float:
+def critical_rolling_friction(rolling, beta_deg, rel_tol=1e-3, bracket=0.05, wall=None, material=None) -> float:
     """mu_r at which the sphere starts to roll down a wall inclined by beta, by bisection in
     [tan b (1 - bracket), tan b (1 + bracket)] to a relative width ``rel_tol``. Returns the middle
-    of the final bracket, or NaN when the bracket does not contain the threshold."""
+    of the final bracket, or NaN when the bracket does not contain the threshold. ``material``
+    overrides Table 1 entries (a parcel's ``coarse_graining``)."""
     tan_b = math.tan(math.radians(beta_deg))
     lo, hi = tan_b * (1 - bracket), tan_b * (1 + bracket)
     threshold = rolling_threshold_speed(beta_deg, rel_tol)
 
     def rolls(mu_r):
-        return speed_down_incline(rolling, mu_r, beta_deg, wall=wall) > threshold
+        return speed_down_incline(rolling, mu_r, beta_deg, material=material, wall=wall) > threshold
 
     if not rolls(lo) or rolls(hi):
         return math.nan

@@ -199,6 +199,10 @@ class Particles:
                                          "(random insertion tops out near 0.3-0.35; insert less and let it settle)")
                 volume = fraction * region.volume()
         placed = parcels_of(radius, alpha)
+        if alpha != 1.0 and not region.fits(placed.max_radius):
+            raise ParameterError(f"coarse_graining = {alpha:g} is not allowed for {region!r}: its parcels, up to "
+                                 f"{placed.max_radius:.3g} m in radius, do not fit in it; lower the material's "
+                                 "coarse_graining (or use a larger region)")
         if count is not None and alpha != 1.0:  # the real particles to stand for, alpha^3 in a parcel
             count = max(1, int(round(check_count("count", count) / alpha ** 3)))
         x, r = fill_region(region, count, placed, seed=seed, existing_positions=self.state.x,

@@ -208,6 +208,8 @@ class Simulation:
     particle_ids = _particle_view("tags", "Each particle's number for good: the index it had when it was added "
                                           "(equal to its index until an outlet takes particles out).")
     fixed = _particle_view("is_fixed", "Whether each particle is fixed (add_particles(..., fixed=True)), bool.")
+    particles_represented = property(lambda self: self.particle_set.represented(), doc="The real particles the "
+                                     "spheres stand for: alpha^3 a parcel of coarse_graining alpha (docs/models.md §18).")
 
     @property
     def unwrapped_positions(self) -> np.ndarray:
@@ -355,8 +357,7 @@ class Simulation:
     def stable_time_step(self) -> float:  # the largest dt all criteria allow (s)
         return self.time_step_policy.stable()
 
-    def check_time_step(self) -> None:
-        """Refuse a dt above a stable limit (unless ``check_timestep`` is off), as ``run`` does."""
+    def check_time_step(self) -> None:  # refuse a dt above a stable limit (unless check_timestep is off), as run does
         self.time_step_policy.check()
 
     # --- running ---------------------------------------------------------------------------------
@@ -393,7 +394,6 @@ class Simulation:
 
     @classmethod
     def restore(cls, path, backend: str | None = None) -> "Simulation":
-        """The simulation a checkpoint (``Simulation.checkpoint``, ``Checkpoints``, a run's
-        ``final.npz``) holds, to step on ``backend`` (a checkpoint does not depend on the backend
-        that wrote it)."""
+        """The simulation a checkpoint (``Simulation.checkpoint``, ``Checkpoints``, a run's ``final.npz``) holds,
+        to step on ``backend`` (a checkpoint does not depend on the backend that wrote it)."""
         return checkpoint.restore(cls, path, backend)

@@ -301,9 +301,10 @@ def test_beverloo_ratio_by_hand():
     assert beverloo_ratio(12.0, 1.0) == 1.0
 
 
-def study_runs(pile_shift, drum_shift, flow_ratio, mur_crit):
+def study_runs(pile_shift, drum_shift, flow_over_beverloo, mur_crit):
     """A made-up table of the study's runs: real angles 30, 31, 32 deg, parcels shifted by the given
-    amounts, silo flows 1.0, 1.02, 0.98 kg/s and the parcels' times ``flow_ratio``."""
+    amounts; silo flows 1.0, 1.02, 0.98 kg/s and the parcels' Beverloo's ratio (0.6802 through 12 d
+    at alpha 2) times ``flow_over_beverloo``."""
     rows = []
     for k, s in enumerate((1, 2, 3)):
         for alpha in (1.0, 2.0):
@@ -311,27 +312,33 @@ def study_runs(pile_shift, drum_shift, flow_ratio, mur_crit):
                              angle=30.0 + k + (pile_shift if alpha > 1 else 0.0)))
             rows.append(dict(scene="drum", alpha=alpha, seed=s, angle=25.0 + 0.1 * k + (drum_shift if alpha > 1 else 0),
                              particles=1000, wall_time=10.0 / alpha ** 2))
-            rows.append(dict(scene="silo", alpha=alpha, seed=s,
-                             flow_rate=(1.0, 1.02, 0.98)[k] * (flow_ratio if alpha > 1 else 1.0)))
+            rows.append(dict(scene="silo", alpha=alpha, seed=s, flow_rate=(1.0, 1.02, 0.98)[k]
+                             * ((9 / 10.5) ** 2.5 * flow_over_beverloo if alpha > 1 else 1.0)))
     rows.append(dict(scene="slope", alpha=3.0, model="epsd", beta=20.0, mur_critical=mur_crit))
     return pd.DataFrame(rows)
 
 
-@pytest.mark.parametrize("pile_shift, drum_shift, flow_ratio, mur_crit, failing", [
-    (0.5, -0.5, 0.97, math.tan(math.radians(20.0)) * 1.003, []),
-    (1.5, 0.0, 1.0, math.tan(math.radians(20.0)), ["pile angle, alpha 2 - alpha 1"]),
-    (0.0, 1.2, 1.0, math.tan(math.radians(20.0)), ["drum angle, alpha 2 - alpha 1"]),
-    (0.0, 0.0, 0.94, math.tan(math.radians(20.0)), ["silo flow rate, alpha 2 / alpha 1"]),
-    (0.0, 0.0, 1.0, math.tan(math.radians(20.0)) * 1.006, ["parcel (alpha 3): mu_r,crit / tan(beta) at 20 deg"]),
+TAN20 = math.tan(math.radians(20.0))
+
+
+@pytest.mark.parametrize("pile_shift, drum_shift, flow_over_beverloo, mur_crit, failing", [
+    (0.5, -0.5, 0.97, TAN20 * 1.003, []),
+    (1.5, 0.0, 1.0, TAN20, ["pile angle, alpha 2 - alpha 1"]),
+    (0.0, 1.2, 1.0, TAN20, ["drum angle, alpha 2 - alpha 1"]),
+    (0.0, 0.0, 0.94, TAN20, ["silo flow rate, alpha 2 / alpha 1"]),
+    (0.0, 0.0, 1.0 / (9 / 10.5) ** 2.5, TAN20, ["silo flow rate, alpha 2 / alpha 1"]),  # the real flow unchanged
+    (0.0, 0.0, 1.0, TAN20 * 1.006, ["parcel (alpha 3): mu_r,crit / tan(beta) at 20 deg"]),
 ])
-def test_the_study_s_checks_on_known_tables(pile_shift, drum_shift, flow_ratio, mur_crit, failing):
+def test_the_study_s_checks_on_known_tables(pile_shift, drum_shift, flow_over_beverloo, mur_crit, failing):
     """Each full-size check passes inside its bound and fails just outside it: the pile's mean angle
-    1 deg, the drum's 1 deg, the silo's flow 5 %, the slope's mu_r,crit 0.5 % of tan(beta); the
-    notes state each difference with its interval, and the drum's particles represented per second."""
+    1 deg, the drum's 1 deg, the silo's flow 5 % of Beverloo's at the parcels' diameter (an
+    unchanged flow fails), the slope's mu_r,crit 0.5 % of tan(beta); the notes state each
+    difference with its interval, Beverloo's expectation and the drum's particles represented per
+    second."""
     from rollingdem.experiments.coarse_graining import (drum_checks, pile_checks, silo_checks, slope_checks)
     from rollingdem.experiments.results import ValidationResult
 
-    runs = study_runs(pile_shift, drum_shift, flow_ratio, mur_crit)
+    runs = study_runs(pile_shift, drum_shift, flow_over_beverloo, mur_crit)
     result = ValidationResult("coarse-graining", "test", runs, [])
     pile_checks(result, runs, "epsd", {"murs": (0.4,)}, quick=False)
     drum_checks(result, runs, "epsd", quick=False)
@@ -342,7 +349,7 @@ def test_the_study_s_checks_on_known_tables(pile_shift, drum_shift, flow_ratio, 
     assert all(any(f.startswith(x) for f in failed) for x in failing)
     notes = " ".join(result.notes)
     assert f"difference {pile_shift:+.2f} +- " in notes and "alpha 2: 400 (4 x alpha 1)" in notes
-    assert f"{100 * (flow_ratio - 1):+.1f} +- " in notes and "Beverloo" in notes
+    assert "expects -32.0 %" in notes and f"flow at {flow_over_beverloo:.3f} of that" in notes
 
 
 def test_a_silo_orifice_narrower_than_a_parcel_is_refused():

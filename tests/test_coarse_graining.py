@@ -396,3 +396,23 @@ def test_the_study_goes_on_from_the_runs_it_kept(tmp_path, monkeypatch):
     assert len(calls) == n + 1
     changed = (first.table[["angle", "flow_rate"]] != again.table[["angle", "flow_rate"]]).any(axis=1)
     assert int(changed.sum()) == 1  # the rerun one; the others read back as they were
+
+
+def test_rollingdem_check_says_what_the_parcels_stand_for(tmp_path):
+    """``rollingdem check`` of a case with a coarse-grained material: 800 particles inserted are 100
+    parcels of alpha 2, and the line says so."""
+    import yaml
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+
+    case = {"name": "cg", "materials": [dict(name="m", **REAL, coarse_graining=ALPHA)],
+            "walls": [{"type": "plane", "material": "m"}],
+            "particles": [{"insert": {"type": "box", "lo": [-0.03, -0.03, 0.01], "hi": [0.03, 0.03, 0.05]},
+                           "count": 800, "radius": 1e-3, "material": "m", "seed": 1}],
+            "stages": [{"name": "s", "duration": 1e-4}]}
+    path = tmp_path / "cg.yaml"
+    path.write_text(yaml.safe_dump(case))
+    out = CliRunner().invoke(app, ["check", str(path)])
+    assert out.exit_code == 0, out.output
+    assert "100 particles; parcels of alpha 2, standing for 800 particles" in out.output

@@ -13,7 +13,7 @@ and its spheres made parcels alpha times larger (``coarse_graining`` of ``repose
 - the silo at alpha = 1, 2 through an orifice of 6 parcel diameters or more: its mass flow rate,
   beside Beverloo's (D0 - k alpha d)^(5/2), which expects the parcels' empty annulus to slow it;
 - one parcel of alpha = 3 on a slope: its critical mu_r against tan(beta) for every rolling model
-  with a static threshold.
+  with a static threshold (the seed report's Table 2).
 
 Each comparison is the difference of the means over seeds with Welch's 95 % interval.
 """
@@ -153,7 +153,7 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
     (full size: the quick one runs too few seeds to tell, and says so in its notes, with every pile
     forming and every silo draining as its checks); a parcel's critical mu_r within 0.5 % of
     tan(beta) on every slope."""
-    from rollingdem.experiments.single_sphere import CREEPING, NO_THRESHOLD, validation_models
+    from rollingdem.experiments.single_sphere import NO_THRESHOLD, validation_models
 
     tic = time.perf_counter()
     experiment = CoarseGraining()
@@ -165,7 +165,7 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
                for mur in size["murs"] for s in size["seeds"]]
     points += [{"scene": "drum", "alpha": a, "seed": s} for a in size["drum"]["alphas"] for s in size["drum"]["seeds"]]
     points += [{"scene": "silo", "alpha": a, "seed": s} for a in size["silo"]["alphas"] for s in size["silo"]["seeds"]]
-    slope_models = size["slope"]["models"] or [m for m in validation_models() if m not in NO_THRESHOLD + CREEPING]
+    slope_models = size["slope"]["models"] or [m for m in validation_models() if m not in NO_THRESHOLD]
     points += [{"scene": "slope", "alpha": 3.0, "model": m, "beta": b} for m in slope_models
                for b in size["slope"]["angles"]]
     points.sort(key=lambda p: -p["alpha"])  # the cheap runs first: what a stopped study keeps is most of them

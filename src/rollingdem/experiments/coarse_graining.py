@@ -42,6 +42,10 @@ FLOW_TOLERANCE = 0.05
 BEVERLOO_K = 1.5
 #: deg: the inclined wall's angles at which a parcel's critical mu_r is found (seed report, Table 2)
 SLOPE_ANGLES = (10.0, 20.0)
+#: s: how long the pile may come to rest once the lifted tube is clear of it
+REST = 3.0
+#: m and m/s: the pile's mean sphere radius and the tube's lift speed (``repose-rough-base``'s defaults)
+PILE_RADIUS, LIFT_SPEED = 0.005, 0.1
 
 
 def dt_of(alpha: float, dt: float) -> float:
@@ -93,12 +97,23 @@ class CoarseGraining(BedExperiment):
         mur = p["mur"] / p["alpha"] if p["length_convention"] else p["mur"]
         res = ReposeRoughBase().observe({"model": p["model"], "mu": p["mu"], "mur": mur, "count": p["count"],
                                          "seed": p["seed"], "coarse_graining": p["alpha"],
-                                         "dt": dt_of(p["alpha"], p["dt"])})
+                                         "dt": dt_of(p["alpha"], p["dt"]),
+                                         "max_collapse": lift_time(p["count"], p["alpha"]) + REST})
         return {"angle": res["angle"], "r_squared": res["r_squared"],
                 "parcels": int(round(p["count"] / p["alpha"] ** 3)), "note": res["note"]}
 
     def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
         return coarse_graining_study(model, quick=quick, outdir=outdir, progress=progress, runner=runner)
+
+
+def lift_time(count: int, alpha: float) -> float:
+    """s: how long ``repose-rough-base``'s tube takes to rise clear of a column of ``count`` real
+    particles on a base of parcels of ``alpha`` (``repose.tube_clearing_time``, clearance one real
+    diameter): the pile's collapse may last that long and ``REST`` more."""
+    from rollingdem.experiments.repose import column_size, tube_clearing_time
+
+    _, height = column_size(count, PILE_RADIUS, 0.2)
+    return tube_clearing_time(2.0 * alpha * PILE_RADIUS, height, PILE_RADIUS, 2.0 * PILE_RADIUS, LIFT_SPEED)
 
 
 def drum_point(model: str, alpha: float, seed: int, size: dict) -> dict:

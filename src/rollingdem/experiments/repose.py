@@ -203,7 +203,7 @@ def pile_case(rolling="epsd", twisting="none", count=3000, seed=1, material: Pil
         particles.append({"rough_base": {"radius": base_radius, "extent": [[-half, half], [-half, half]],
                                          "spacing": setup.base_spacing, "jitter": setup.base_jitter, "seed": seed},
                           "material": "beads"})
-        floor = 2.0 * base_radius
+        floor = 2.0 * base_radius * material.coarse_graining  # the base of parcels is alpha times taller
     fill = height * PACKING / INSERT_PACKING
     particles.append({"insert": {"type": "cylinder", "radius": tube_radius, "z_min": floor, "z_max": floor + fill},
                       "count": count, "material": "beads", "seed": seed,

@@ -218,17 +218,21 @@ def rolling_threshold_speed(beta_deg, margin=0.005) -> float:
     return 0.5 * 5 / 7 * G * margin * math.sin(math.radians(beta_deg)) * 0.25
 
 
-def critical_rolling_friction(rolling, beta_deg, rel_tol=1e-3, bracket=0.05, wall=None, material=None) -> float:
+def critical_rolling_friction(rolling, beta_deg, rel_tol=1e-3, bracket=0.05, wall=None, material=None,
+                              time_scale=1.0) -> float:
     """mu_r at which the sphere starts to roll down a wall inclined by beta, by bisection in
     [tan b (1 - bracket), tan b (1 + bracket)] to a relative width ``rel_tol``. Returns the middle
     of the final bracket, or NaN when the bracket does not contain the threshold. ``material``
-    overrides Table 1 entries (a parcel's ``coarse_graining``)."""
+    overrides Table 1 entries (a parcel's ``coarse_graining``); ``time_scale`` makes the tilt and
+    the hold that many times longer (a parcel of alpha: its contact's times are alpha times longer,
+    and the tilt must stay as slow beside them, docs/models.md §18)."""
     tan_b = math.tan(math.radians(beta_deg))
     lo, hi = tan_b * (1 - bracket), tan_b * (1 + bracket)
     threshold = rolling_threshold_speed(beta_deg, rel_tol)
 
     def rolls(mu_r):
-        return speed_down_incline(rolling, mu_r, beta_deg, material=material, wall=wall) > threshold
+        return speed_down_incline(rolling, mu_r, beta_deg, tilt_time=0.3 * time_scale, hold=0.3 * time_scale,
+                                  material=material, wall=wall) > threshold
 
     if not rolls(lo) or rolls(hi):
         return math.nan

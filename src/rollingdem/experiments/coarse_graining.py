@@ -186,7 +186,8 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
     slope_models = size["slope"]["models"] or [m for m in validation_models() if m not in NO_THRESHOLD]
     points += [{"scene": "slope", "alpha": 3.0, "model": m, "beta": b} for m in slope_models
                for b in size["slope"]["angles"]]
-    points.sort(key=lambda p: -p["alpha"])  # the cheap runs first: what a stopped study keeps is most of them
+    # the cheap runs first (the real particles' piles last): what a stopped study keeps is most of them
+    points.sort(key=lambda p: (-p["alpha"], p["scene"] == "pile"))
 
     done = None if outdir is None else Path(outdir) / "coarse-graining-runs"
 

@@ -191,20 +191,20 @@ def silo_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     d = 2.0 * radius
     d0, ds, fill = (v * d for v in setup.sizes())
     alpha = material.coarse_graining
-    if d0 < alpha * d * (1.0 + polydispersity):
+    r_max = radius * (1.0 + polydispersity)
+    placed_d, placed_r_max = alpha * d, alpha * r_max  # the spheres simulated: parcels of alpha
+    if d0 < 2.0 * placed_r_max:
         raise ParameterError(f"orifice_diameters = {d0 / d:g} is not allowed with coarse_graining = {alpha:g}: the orifice "
-                             f"({d0:.3g} m) is narrower than the largest parcel ({alpha * d * (1.0 + polydispersity):.3g} m); "
+                             f"({d0:.3g} m) is narrower than the largest parcel ({2.0 * placed_r_max:.3g} m); "
                              "lower coarse_graining (an orifice of 6 parcels or more flows as the real one, "
                              "docs/models.md §18)")
     if not d0 < ds:
         raise ParameterError(f"silo_diameters = {ds / d:g} is not allowed: must exceed orifice_diameters = {d0 / d:g}")
     g = setup.gravity
-    r_max = radius * (1.0 + polydispersity)
     # <r^3> = R^3 (1 + p^2) for radii uniform in R (1 +- p)
     count = int(round(0.6 * math.pi / 4.0 * ds ** 2 * fill
                       / (4.0 / 3.0 * math.pi * radius ** 3 * (1.0 + polydispersity ** 2))))
     poured = 2.2 * fill + 2.0 * d  # the random insertion packs at about 0.3
-    placed_d, placed_r_max = alpha * d, alpha * r_max  # the spheres simulated: parcels of alpha
     top = poured + 4.0 * placed_d
     inner = 0.5 * ds - placed_r_max
     data, _ = read_mapping(SHIPPED)

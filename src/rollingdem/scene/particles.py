@@ -103,7 +103,7 @@ class Particles:
                                  "never moves; leave them out (or add the particles with fixed=False)")
         mats = self.material_indices(material, m)
         if not parcels:
-            r = r * np.array([mat.coarse_graining for mat in sim.materials.materials])[mats]
+            r = r * self.coarse_graining_factors()[mats]
         periodic_box.check_in_box(sim.periodic, x, self.state.n)
         if not allow_overlap:
             self.check_no_overlap(x, r, walls=not fixed)  # walls never touch a fixed particle
@@ -322,8 +322,11 @@ class Particles:
     def represented(self) -> float:
         """The real particles the spheres stand for: alpha^3 for a parcel of a material coarse-grained by
         alpha, 1 for any other sphere (docs/models.md §18)."""
-        alpha = np.array([m.coarse_graining for m in self.sim.materials.materials] or [1.0])
-        return float(np.sum(alpha[self.state.mat[:self.state.n]] ** 3))
+        return float(np.sum(self.coarse_graining_factors()[self.state.mat[:self.state.n]] ** 3))
+
+    def coarse_graining_factors(self) -> np.ndarray:
+        """alpha of each material, by material index."""
+        return np.array([m.coarse_graining for m in self.sim.materials.materials] or [1.0])
 
     def coarse_graining_note(self) -> str:
         """"; parcels of alpha A, standing for N particles" when a material is coarse-grained, else ""."""

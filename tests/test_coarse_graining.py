@@ -416,3 +416,67 @@ def test_rollingdem_check_says_what_the_parcels_stand_for(tmp_path):
     out = CliRunner().invoke(app, ["check", str(path)])
     assert out.exit_code == 0, out.output
     assert "100 particles; parcels of alpha 2, standing for 800 particles" in out.output
+
+
+def test_the_pile_of_parcels_stands_on_its_taller_base_and_lifts_clear_of_it():
+    """``repose-rough-base`` of parcels: the column is poured from the top of the base of parcels
+    (2 alpha R), and the tube's lift lasts ``coarse_graining.lift_time`` (the base's extra
+    2 (alpha - 1) R at 0.1 m/s, 0.1 s at alpha 2 for R = 5 mm, longer than the real pile's); the
+    material is the parcels', the walls' keeps alpha 1."""
+    from rollingdem.experiments.coarse_graining import lift_time
+    from rollingdem.experiments.repose import ReposeRoughBase, pile_case
+
+    args = {alpha: ReposeRoughBase().pile_arguments({"coarse_graining": alpha, "count": 4000, "clearance": 1.0})
+            for alpha in (1.0, 2.0)}
+    material = args[2.0]["material"]
+    assert material.as_material("b").coarse_graining == 2.0 and material.wall_material("w").coarse_graining == 1.0
+    cases = {a: pile_case(**{k: v for k, v in kw.items()}) for a, kw in args.items()}
+    assert cases[2.0]["particles"][-1]["insert"]["z_min"] == pytest.approx(4 * 0.005, rel=1e-12)
+    lifts = {a: next(s for s in c["stages"] if s["name"] == "lift")["duration"] for a, c in cases.items()}
+    assert lifts[2.0] - lifts[1.0] == pytest.approx(0.1, abs=0.02 + 1e-9)  # rounded up to 0.02 s samples
+    assert lift_time(4000, 2.0) - lift_time(4000, 1.0) == pytest.approx(0.1, rel=1e-9)
+
+
+def test_the_silo_of_parcels_counts_real_particles_out_and_refills_a_layer_of_parcels():
+    """``silo-discharge`` of parcels of alpha 2: the discharge ends at (200 + 1000) / 8 = 150 parcels
+    out, the outlet lies two parcel radii below the floor and the refill layer is 2 parcel
+    diameters thick from 1.5 above the fill."""
+    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.silo import SiloSetup, silo_case
+
+    d, r_max = 0.01, 0.006
+    data = silo_case(material=PileMaterial(coarse_graining=2.0), setup=SiloSetup(orifice_diameters=12.0))
+    assert data["stages"][1]["until"]["above"] == 150
+    outlet = data["outlets"][0]
+    assert outlet["region"]["hi"][2] == pytest.approx(-2 * 2 * r_max, rel=1e-12)
+    fill = 24 * d  # the default fill: max(20 d, 2 D0)
+    assert (outlet["refill"]["z_min"], outlet["refill"]["z_max"]) == (pytest.approx(fill + 3 * d),
+                                                                      pytest.approx(fill + 7 * d))
+
+
+def test_a_parcel_on_the_slope_is_tilted_alpha_times_as_slowly(monkeypatch):
+    """``slope_point`` at alpha 3: every tilt of the bisection lasts 0.9 s and holds 0.9 s (3 x the real
+    sphere's 0.3 s), on a material of coarse_graining 3."""
+    import rollingdem.experiments.single_sphere as ss
+    from rollingdem.experiments.coarse_graining import slope_point
+
+    seen = []
+
+    def tilt(rolling, mu_r, beta_deg, tilt_time=0.3, hold=0.3, material=None, wall=None):
+        seen.append((tilt_time, hold, material["coarse_graining"]))
+        return 1.0 if mu_r < math.tan(math.radians(beta_deg)) else 0.0
+
+    monkeypatch.setattr(ss, "speed_down_incline", tilt)
+    res = slope_point("epsd", 3.0, 20.0)
+    assert res["mur_critical"] == pytest.approx(math.tan(math.radians(20.0)), rel=1e-3)
+    assert seen and all((t, h, a) == (pytest.approx(0.9), pytest.approx(0.9), 3.0) for t, h, a in seen)
+
+
+def test_a_parcel_on_a_wall_rests_on_it():
+    """``single_sphere.sphere_on_wall`` with coarse_graining 3: the parcel of 3 R rests on the wall at
+    its Hertz static overlap, far below 1 % of its radius, not sunk to R."""
+    from rollingdem.experiments.single_sphere import RADIUS, sphere_on_wall
+
+    sim = sphere_on_wall("epsd", settle=0.05, material={"coarse_graining": 3.0})
+    assert sim.radii[0] == pytest.approx(3 * RADIUS)
+    assert 0.0 < 3 * RADIUS - sim.positions[0, 2] < 0.01 * 3 * RADIUS

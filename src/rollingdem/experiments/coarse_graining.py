@@ -82,7 +82,7 @@ class CoarseGraining(BedExperiment):
                        "slope": {"models": ("epsd",), "angles": (20.0,)}},
              # at least 1,500 parcels at alpha = 3: 40,500 real particles
              "full": {"count": 40500, "alphas": (1.0, 2.0, 3.0), "murs": (0.1, 0.4), "seeds": (1, 2, 3),
-                      # a drum 30 d in radius: 15 parcels of alpha 2 (one of 15 d is 5 deg steeper at alpha 2)
+                      # a drum 30 d in radius: 15 parcels of alpha 2 across its radius
                       "drum": {"alphas": (1.0, 2.0, 3.0), "seeds": (1, 2, 3), "drum_diameters": 30.0, "spin_up": 90.0,
                                "measure": 180.0, "samples": 30},
                       "silo": {"alphas": (1.0, 2.0), "seeds": (1, 2, 3), "silo_diameters": 30.0, "fill_diameters": 20.0,
@@ -147,9 +147,8 @@ def silo_point(model: str, alpha: float, seed: int, size: dict) -> dict:
 def slope_point(model: str, alpha: float, beta: float) -> dict:
     """One parcel of ``alpha`` on a wall tilted to ``beta``: the critical mu_r by bisection (seed
     report case 0, ``single_sphere.critical_rolling_friction``), tilted and held alpha times as long
-    as the real sphere (its rolling spring's period is alpha times longer: a tilt as short as the
-    real sphere's makes the displacement-damping parcel overshoot, 1.0051 tan(beta) at 10 deg
-    against 1.0004 at alpha times the time)."""
+    as the real sphere: its rolling spring's period is alpha times longer, and the tilt must stay as
+    slow beside it (docs/models.md §18)."""
     from rollingdem.experiments.single_sphere import critical_rolling_friction
 
     return {"mur_critical": critical_rolling_friction(resolve_rolling(model), beta, rel_tol=1e-3,

@@ -64,6 +64,28 @@ def test_unloading_after_full_slip_follows_masing():
     assert t[-1] == pytest.approx(-MU * N, rel=1e-12)
 
 
+def test_a_dashpot_above_the_limit_does_not_turn_the_spring():
+    """At the start of an impact the normal force, and so mu N, grows from zero while the slip speed is
+    already finite: the dashpot alone, gamma_t v_t = 2 N, exceeds mu N (0.05 N at the first step).
+    The total force is then -mu N (against the slip), and the spring T stays along the slip, at most
+    mu N: backed out through the dashpot it pointed against the slip, a false turning point after
+    which the friction fell below mu N while the contact slid on (Chung & Ooi's test 4 lost most
+    of its friction impulse so). Each step's force must be exactly -mu N while slipping on."""
+    hist = np.zeros((1, len(WALTON_TANGENTIAL_HISTORY)))
+    p = np.array([0.0, 0.0, MU, 0.0, 0.0, 0.0, 1 / 3])
+    g = contact_inputs()
+    for step in range(1, 40):
+        n = 0.1 * step ** 1.5  # N: mu N from 0.05 N to 12 N, below the dashpot's 2 N until step 8
+        fx, _, _, _ = walton_tangential(hist, 0, 0, g, IDENTITY, (1.0, 0.0, 0.0), (n, n, 1e5, K0, 2.0), 1e-6, p, 6)
+        spring = hist[0, WALTON_TANGENTIAL_HISTORY.force_x]
+        assert 0.0 <= spring <= MU * n * (1 + 1e-12)
+        if spring == pytest.approx(MU * n, rel=1e-12):  # the spring at its limit: the total is capped
+            assert fx == pytest.approx(-MU * n, rel=1e-12)
+        else:  # below its limit the spring grows with K_0 ds = 0.1 N and more per step
+            assert fx == pytest.approx(max(-spring - 2.0, -MU * n), rel=1e-12)
+    assert spring == pytest.approx(MU * n, rel=1e-12)  # slipping on at the end
+
+
 def branch(t_turn, sign, u):
     """Walton's branch from a turn at T* = t_turn, loading in the direction ``sign`` for a slip u
     since the turn, integrated in closed form: dT/du = sign K_0 (1 - |T - T*| / (mu N - sign T*))^(1/3)

@@ -117,6 +117,8 @@ MUTATIONS = [
       "    gamma_t = normal[NR.tangential_damping]\n", K),
     M("tangential spring backed out without the dashpot", C + "tangential.py", "xx = -(fx + gamma_t * vtx) / kt",
       "xx = -fx / kt", K),
+    M("tangential spring backed out through a dashpot above the cap", C + "tangential.py",
+      "if kt > 0.0 and gamma_t * gamma_t * (vtx * vtx + vty * vty + vtz * vtz) < limit * limit:", "if kt > 0.0:", K),
     M("tangential dissipation ignores the stored energy", C + "tangential.py", "stored_before = 0.5 * kt *",
       "stored_before = 0.0 * kt *", K),
     M("frame spin rotated the wrong way", C + "frame.py", "hx = rx * cs + cx * sn + nx * nd * (1.0 - cs)",

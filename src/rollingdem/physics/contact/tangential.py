@@ -25,7 +25,8 @@ def history_spring(hist, k, history_at, g, frame, slip, normal, dt, p, params_at
     xi <- carry(xi) + v_t dt;  F_trial = -k_t xi - gamma_t v_t;
     if |F_trial| > mu max(F_n, 0): F_t = mu max(F_n, 0) F_trial/|F_trial| and the spring is backed
     out of it, xi = -(F_t + gamma_t v_t)/k_t (LAMMPS ``tangential mindlin``: the total force,
-    spring and dashpot, never exceeds the Coulomb limit).
+    spring and dashpot, never exceeds the Coulomb limit), or xi = 0 where the dashpot alone exceeds
+    the limit: that spring would push along the slip (docs/models.md §1.2).
     The spring is carried with the contact frame (rotated, not just projected: docs/models.md §11.3).
     The limit uses max(F_n, 0), never |F_n|: a contact pulled by its dashpot cannot grip (§11.4).
     Dissipation: the work of F_t over the step, -F_t . v_t dt, minus the increase of the spring
@@ -56,11 +57,12 @@ def history_spring(hist, k, history_at, g, frame, slip, normal, dt, p, params_at
             fx *= s
             fy *= s
             fz *= s
-        if kt > 0.0:
+        if kt > 0.0 and gamma_t * gamma_t * (vtx * vtx + vty * vty + vtz * vtz) < limit * limit:
             xx = -(fx + gamma_t * vtx) / kt
             xy = -(fy + gamma_t * vty) / kt
             xz = -(fz + gamma_t * vtz) / kt
-        else:
+        else:  # the dashpot alone at or above the limit (an impact's first steps, a pulling contact):
+            # backed out through it, the spring would push along the slip
             xx = 0.0
             xy = 0.0
             xz = 0.0

@@ -25,6 +25,7 @@ from rollingdem.experiments import silo  # noqa: F401
 from rollingdem.experiments import clumps  # noqa: F401
 from rollingdem.experiments import clump_stand_in  # noqa: F401
 from rollingdem.experiments import coarse_graining  # noqa: F401
+from rollingdem.experiments import chung_ooi  # noqa: F401
 from rollingdem.experiments import case_file  # noqa: F401  (get_experiment takes a case file's path)
 from rollingdem.experiments.registry import EXPERIMENTS, Experiment, Parameter, get_experiment
 from rollingdem.experiments.results import ValidationResult, Check

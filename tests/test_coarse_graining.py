@@ -372,7 +372,8 @@ def test_a_region_narrower_than_a_parcel_is_refused_naming_the_coarse_graining()
 
 def test_the_study_goes_on_from_the_runs_it_kept(tmp_path, monkeypatch):
     """With an output folder each run's observables are kept as it ends: the study run again there
-    runs nothing it has (a study stopped goes on where it was), and reads the same numbers."""
+    runs nothing it has (a study stopped goes on where it was), and reads the same numbers; runs kept
+    under an earlier revision of the contact laws are run again."""
     import rollingdem.experiments.coarse_graining as cg
 
     calls = []
@@ -396,6 +397,10 @@ def test_the_study_goes_on_from_the_runs_it_kept(tmp_path, monkeypatch):
     assert len(calls) == n + 1
     changed = (first.table[["angle", "flow_rate"]] != again.table[["angle", "flow_rate"]]).any(axis=1)
     assert int(changed.sum()) == 1  # the rerun one; the others read back as they were
+    # a new revision of the contact laws runs every point afresh
+    monkeypatch.setattr(cg, "LAWS_REVISION", cg.LAWS_REVISION + 1)
+    cg.coarse_graining_study(quick=True, outdir=tmp_path)
+    assert len(calls) == 2 * n + 1
 
 
 def test_rollingdem_check_says_what_the_parcels_stand_for(tmp_path):

@@ -48,6 +48,11 @@ REST = 3.0
 PILE_RADIUS, LIFT_SPEED = 0.005, 0.1
 
 
+#: the contact laws' revision a kept run was made with: raised when a law the study uses changes what
+#: it gives, so that the runs of the laws before are run again (2: the history spring's cap, §1.2)
+LAWS_REVISION = 2
+
+
 def dt_of(alpha: float, dt: float) -> float:
     """The parcels' time step: alpha times the real particles' (every limit of §2 scales so)."""
     return alpha * dt
@@ -195,9 +200,10 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
         stopped, goes on from the runs it has."""
         if done is None:
             return run_point(point)
-        # the run's key: the model, the point and the size it belongs to (a changed size runs afresh)
-        path = done / (hashlib.sha1(json.dumps([model, size, point], sort_keys=True, default=str).encode()).hexdigest()[:16]
-                       + ".json")
+        # the run's key: the model, the point, the size it belongs to and the laws' revision (a changed
+        # size or contact law runs afresh)
+        key = [model, size, point, LAWS_REVISION]
+        path = done / (hashlib.sha1(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16] + ".json")
         if path.exists():
             return json.loads(path.read_text())["result"]
         res = run_point(point)

@@ -6,7 +6,8 @@ its scene, all in one registry, ``EXPERIMENTS``, that ``rollingdem validate``, `
   rolling up a slope), on the scenes of ``single_sphere``;
 - ``repose``: the seed report's angle-of-repose pile and the pile on a rough base;
 - ``drum``: the rotating drum; ``silo``: silo discharge;
-- ``contact_laws``: the contact laws against their closed forms;
+- ``contact_laws``: the contact laws against their closed forms; ``chung_ooi``: Chung & Ooi's eight
+  impact benchmarks;
 - ``clumps``: clumps against rigid-body statics and dynamics; ``clump_stand_in``: a pile of clumps
   against one of the spheres with the mu_r that stands in for them; ``coarse_graining``: parcels
   against the real particles they stand for.

@@ -128,19 +128,9 @@ def test_a_sliding_oblique_impact_and_a_spinning_one_rebound_as_sliding_friction
     test 6 at R omega = 0.6 m/s (aluminium alloy, V_n = 0.2 m/s, mu = 0.4, e = 0.5), history spring:
     each within the tolerance of ``oblique_checks``. Test 6 is the one the history spring failed by
     29 % when it was backed out through a dashpot above the cap."""
-    rows = []
-    for test, solid, radius, vn, vt, spin, mu, e in (
-            (4, "aluminium oxide", 0.0025, 3.9 * math.cos(math.pi / 4), 3.9 * math.sin(math.pi / 4), 0.0, 0.092, 0.98),
-            (6, "aluminium alloy", 0.1, 0.2, 0.0, 6.0, 0.4, 0.5)):
-        s = co.SOLIDS[solid]
-        got = co.plane_impact(s, radius, vn, vt, spin, "history", mu, e, STEPS)
-        incoming = vt + radius * spin
-        e_star, _ = co.effective_moduli(s)
-        lever = co.hertz_impact(e_star, radius, co.sphere_mass(s, radius), vn)["overlap_max"] / radius
-        rows.append({"test": test, "law": "history", "material": solid, "point": 45 if test == 4 else spin,
-                     "normal_speed": vn, "tangential_speed": vt, "spin": spin, "contact_speed_in": incoming,
-                     "radius": radius, "friction": mu, "restitution": e, "lever": lever,
-                     "psi": co.psi(s, incoming, vn, mu), **got})
+    rows = [co.oblique_row(4, "aluminium oxide", 0.0025, 3.9 * math.cos(math.pi / 4), 3.9 * math.sin(math.pi / 4),
+                           0.0, "history", 0.092, 0.98, STEPS, 45),
+            co.oblique_row(6, "aluminium alloy", 0.1, 0.2, 0.0, 6.0, "history", 0.4, 0.5, STEPS, 6.0)]
     checks = co.oblique_checks(pd.DataFrame(rows), math.pi / STEPS)
     assert len(checks) == 5
     assert all(c.passed for c in checks), [(c.quantity, c.measured, c.reference) for c in checks if not c.passed]

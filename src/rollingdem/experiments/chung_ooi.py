@@ -247,9 +247,11 @@ def rebound(bodies: list[Body], tangential: str, friction: float, restitution: f
     else:
         m_eff = 1.0 / (1.0 / mass + 1.0 / sphere_mass(partner.solid, partner.radius))
     r_eff = a.radius if plane else 1.0 / (1.0 / a.radius + 1.0 / partner.radius)
-    direction = (np.zeros(3) if plane else np.subtract(partner.position, a.position))
-    direction = np.array([0.0, 0.0, -1.0]) if plane else direction / np.linalg.norm(direction)
-    closing = float(np.dot(a.velocity, direction) - (0.0 if plane else np.dot(partner.velocity, direction)))
+    if plane:
+        closing = -a.velocity[2]
+    else:
+        direction = np.subtract(partner.position, a.position)
+        closing = float(np.dot(np.subtract(a.velocity, partner.velocity), direction) / np.linalg.norm(direction))
     dt = hertz_impact(e_star, r_eff, m_eff, closing)["contact_time"] / steps
     sim = scene(bodies, contact_model("hertz", tangential), friction, restitution, dt, plane)
     run_through_contact(sim, steps)
@@ -365,6 +367,25 @@ def restitution_tolerance(restitution: float, steps: int) -> float:
     return 2 * zeta * e * math.pi / steps + (math.pi / steps) ** 2
 
 
+def oblique_row(test: int, name: str, radius: float, normal_speed: float, tangential_speed: float, spin: float,
+                tangential: str, friction: float, restitution: float, steps: int, point: float) -> dict:
+    """One impact of test 4, 5, 6 or 8 (8: onto a fixed sphere of 5 R) as the row ``oblique_checks``
+    reads: what went in (``point``, the swept value), the rebound (``plane_impact``), psi and
+    ``lever`` = delta_max / R of the elastic Hertz impact at the normal speed."""
+    solid = SOLIDS[name]
+    partner = 5 * radius if test == 8 else None
+    e_star, _ = effective_moduli(solid, None if partner is None else solid)
+    r_eff = radius if partner is None else radius * partner / (radius + partner)
+    got = plane_impact(solid, radius, normal_speed, tangential_speed, spin, tangential, friction, restitution, steps,
+                       partner_radius=partner)
+    incoming = tangential_speed + radius * spin
+    lever = hertz_impact(e_star, r_eff, sphere_mass(solid, radius), normal_speed)["overlap_max"] / radius
+    return {"test": test, "law": tangential, "material": name, "point": point, "normal_speed": normal_speed,
+            "tangential_speed": tangential_speed, "spin": spin, "contact_speed_in": incoming, "radius": radius,
+            "friction": friction, "restitution": restitution, "lever": lever,
+            "psi": psi(solid, incoming, normal_speed, friction), **got}
+
+
 def oblique_checks(table: pd.DataFrame, order1: float) -> list[Check]:
     """The checks of tests 4, 5, 6 and 8: each impact that slides from its first step (psi >= 1) to
     its last (``rigid_sliding`` has it slide on at 5 % or more of its incoming contact speed)
@@ -449,19 +470,9 @@ def chung_ooi(quick=False, outdir=None, progress=None) -> ValidationResult:
             (6, ("aluminium alloy", "nylon"), 0.1, 0.4, 0.5, [(0.2, 0.0, w, w) for w in size["spins"]]),
             (8, ("aluminium alloy", "nylon"), 0.1, 0.4, 0.5, [(0.2, 0.0, w, w) for w in size["spins"]])):
         for name in names:
-            solid = SOLIDS[name]
-            e_star, _ = effective_moduli(solid, None if test != 8 else solid)
-            r_eff = radius if test != 8 else radius * 5 * radius / (6 * radius)
             for law in TANGENTIAL_LAWS:
                 for vn, vt, spin, label in points:
-                    got = plane_impact(solid, radius, vn, vt, spin, law, mu, e, steps,
-                                       partner_radius=5 * radius if test == 8 else None)
-                    incoming = vt + radius * spin
-                    lever = hertz_impact(e_star, r_eff, sphere_mass(solid, radius), vn)["overlap_max"] / radius
-                    obliques.append({"test": test, "law": law, "material": name, "point": label, "normal_speed": vn,
-                                     "tangential_speed": vt, "spin": spin, "contact_speed_in": incoming,
-                                     "radius": radius, "friction": mu, "restitution": e, "lever": lever,
-                                     "psi": psi(solid, incoming, vn, mu), **got})
+                    obliques.append(oblique_row(test, name, radius, vn, vt, spin, law, mu, e, steps, label))
     table = pd.DataFrame(obliques)
     checks += oblique_checks(table, order1)
     # 7: two spheres whose surfaces do not slip

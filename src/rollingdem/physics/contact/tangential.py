@@ -176,7 +176,7 @@ def walton_tangential(hist, k, history_at, g, frame, slip, normal, dt, p, params
     tz = t_new * uz + k0 * (dsz - ds_par * uz)
     # the spring's force is capped on its own and never backed out through the dashpot: at the start
     # of an impact gamma_t |v_t| can exceed mu N, and T = -(F + gamma_t v_t) would then point against
-    # the slip, a turning point that is not one (Chung & Ooi test 4 lost most of its friction so)
+    # the slip, a turning point that is not one
     tx, ty, tz, _ = capped(tx, ty, tz, mu_n)
     fx, fy, fz, _ = capped(-tx - gamma_t * vtx, -ty - gamma_t * vty, -tz - gamma_t * vtz, mu_n)
     hist[k, history_at + WALTON_TANGENTIAL_HISTORY.force_x] = tx

@@ -10,16 +10,19 @@ G = 9.81
 
 
 def pytest_collection_finish(session):
-    """Start the GPU backend's child processes (tests/test_cuda.py) once tests of that module are
-    selected, so that they run beside the rest of the suite instead of before its own tests. Not in
+    """Start the GPU backend's child processes (tests/test_cuda.py) that the selected tests of that
+    module take, so that they run beside the rest of the suite instead of before its own tests. Not in
     a pytest-xdist worker: each collects every test, and the one that gets the module starts them."""
     if hasattr(session.config, "workerinput"):
         return
+    started, needed = None, set()
     for item in session.items:
         children = getattr(getattr(item, "module", None), "CHILDREN", None)
         if children is not None:
-            children.start()
-            return
+            started = children
+            needed.update(name for name in children.jobs if name in item.fixturenames)
+    if started is not None:
+        started.start(needed)  # only the children whose tests were selected
 
 
 @pytest.fixture

@@ -7,7 +7,8 @@ law, the CPU's through its vectorised blocks whose frame rotation uses a series 
 (docs/architecture.md): the two agree to round-off, not bit for bit, so each quantity is compared
 at a relative 1e-9 of its scale. And every kernel compiles to PTX for compute capabilities 8.0 and
 9.0 with NVIDIA's NVVM from PyPI, which needs no device: code the simulator runs but the real
-compiler rejects fails here.
+compiler rejects fails here. The simulator's scenes are marked slow (below); the PTX check runs in
+the default suite.
 """
 
 import atexit
@@ -22,6 +23,9 @@ import numpy as np
 import pytest
 
 pytestmark = pytest.mark.cuda
+# The simulator's scenes took over 15 minutes in a fresh-clone suite on 2 cores, the default suite's
+# whole budget: they run with the slow tests (``pytest -m "slow and cuda"``), the PTX check by default.
+simulator = pytest.mark.slow
 
 SCENES = textwrap.dedent('''
     import json, sys
@@ -340,17 +344,31 @@ class Children:
         self.jobs = {"simulated": (SCENES, dict(os.environ, NUMBA_ENABLE_CUDASIM="1")), "ptx": (PTX, cpu_only)}
         self.results = {}
         self.finished = {name: threading.Event() for name in self.jobs}
+        self.queued = []
+        self.lock = threading.Lock()
         self.thread = None
         self.running = None
 
-    def start(self):
-        if self.thread is None:
-            self.thread = threading.Thread(target=self._run, daemon=True)
-            self.thread.start()
-            atexit.register(self._stop)
+    def start(self, names=None):
+        """Queue the jobs ``names`` (all if None) not queued yet; they run in the background, one after
+        the other, in the order of ``jobs``."""
+        with self.lock:
+            self.queued += [n for n in self.jobs if (names is None or n in names) and n not in self.queued]
+            if self.thread is None or not self.thread.is_alive():
+                self.thread = threading.Thread(target=self._run, daemon=True)
+                self.thread.start()
+                atexit.register(self._stop)
+
+    def _next(self):
+        with self.lock:
+            pending = [n for n in self.queued if not self.finished[n].is_set()]
+            if not pending:
+                self.thread = None
+            return pending[0] if pending else None
 
     def _run(self):
-        for name, (code, env) in self.jobs.items():
+        while (name := self._next()) is not None:
+            code, env = self.jobs[name]
             try:
                 self.running = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
                                                 stderr=subprocess.PIPE, text=True, env=env)
@@ -366,7 +384,7 @@ class Children:
             self.running.kill()
 
     def result(self, name):
-        self.start()
+        self.start([name])
         self.finished[name].wait()
         return self.results[name]
 
@@ -375,18 +393,20 @@ CHILDREN = Children()
 
 
 @pytest.fixture(scope="module")
-def children():
-    return CHILDREN
+def ptx():
+    """The PTX check's child process: (return code, stdout, stderr)."""
+    return CHILDREN.result("ptx")
 
 
 @pytest.fixture(scope="module")
-def simulated(children):
+def simulated():
     """Every scene run on the CPU engine and on the CUDA simulator, in one child process."""
-    returncode, stdout, stderr = children.result("simulated")
+    returncode, stdout, stderr = CHILDREN.result("simulated")
     assert returncode == 0, stderr[-3000:]
     return json.loads(stdout)
 
 
+@simulator
 @pytest.mark.parametrize("scene", ["pair", "rolling epsd flat", "rolling cdt flat", "rolling epsd slope",
                                    "rolling cdt slope", "pile", "bed", "bed, slots in reverse", "fine floor", "mesh, bonds, periodic", "checkpoint handed over",
                                    "wall programs", "clumps"])
@@ -412,6 +432,7 @@ def test_the_simulated_gpu_steps_bit_for_bit_as_the_cpu_engine(simulated, scene)
     assert gpu["contacts"] == cpu["contacts"]
 
 
+@simulator
 def test_a_declared_particle_field_goes_to_the_device_and_back(simulated):
     """A per-particle field declared in the state's schema at run time (``temperature``, set to
     300 K + the particle's tag) is in the particles' record the GPU backend uploads, with each
@@ -421,6 +442,7 @@ def test_a_declared_particle_field_goes_to_the_device_and_back(simulated):
     assert field["after"] == [300.0, 301.0, 302.0]
 
 
+@simulator
 def test_spheres_of_one_material_agree_to_round_off(simulated):
     """Spheres of one material take the CPU's vectorised pair path, whose frame rotation uses a
     series for cos and sin (docs/architecture.md), the GPU the scalar one: the colliding pair ends
@@ -432,6 +454,7 @@ def test_spheres_of_one_material_agree_to_round_off(simulated):
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-9 * np.abs(a).max(), err_msg=key)
 
 
+@simulator
 def test_the_scenes_exercise_what_they_claim(simulated):
     """Guards on the scenes themselves, from the CPU engine: the pair collides (its spheres leave
     slower than they came), the flat rollers slow down under rolling resistance, the pile's
@@ -455,6 +478,7 @@ def test_the_scenes_exercise_what_they_claim(simulated):
         assert np.array_equal(simulated["checkpoint handed over"]["cpu"][key], simulated["pair"]["cpu"][key])
 
 
+@simulator
 def test_bench_times_each_gpu_phase_apart(simulated):
     """``rollingdem bench --backend cuda`` splits a step as on the CPU (contact forces, walls,
     integration and gathering, neighbor search) plus the host's share (its launches, which the
@@ -468,12 +492,14 @@ def test_bench_times_each_gpu_phase_apart(simulated):
                split["host launches (overlapped)"]) > 0, split
 
 
+@simulator
 def test_the_bench_column_settles_on_the_gpu(simulated):
     """``rollingdem bench --backend cuda -s column-collapse`` settles a column it lacks on the GPU
     (hours for 10^6 spheres on two cores): its steps ran through the GPU's step loop."""
     assert simulated["column settled on"] == dict(backend="cuda", steps=20, loops=1)
 
 
+@simulator
 def test_the_prefix_sum_and_counting_sort_at_the_devices_chunk(simulated):
     """The rebuild's prefix sum and counting sort take 64 values a thread on a device (4 in the
     simulator's scenes): at 64, the sum of 5,000 values through three levels of chunk totals is
@@ -482,13 +508,13 @@ def test_the_prefix_sum_and_counting_sort_at_the_devices_chunk(simulated):
     assert simulated["device chunk"] == dict(levels=3, scan=True, start=True, items=True)
 
 
-def test_every_kernel_compiles_to_ptx_without_a_device(children):
+def test_every_kernel_compiles_to_ptx_without_a_device(ptx):
     """Each CUDA kernel, typed for a scene with pairs, walls and bonds (the clumps' kernel typed for
     the same records: their arrays have the clumps' types with no rows), compiles to PTX for compute
     capabilities 8.0 and 9.0 with NVIDIA's NVVM (the ``nvidia-cuda-nvcc-cu12`` package): no GPU or
     driver is needed, and what the simulator accepts but the real compiler rejects fails here."""
     pytest.importorskip("numba_cuda", reason="numba-cuda is in the test extra")
-    returncode, stdout, stderr = children.result("ptx")
+    returncode, stdout, stderr = ptx
     assert returncode == 0, stderr[-3000:]
     assert stdout.count("\n") == 2 * 24  # 24 kernels (the clumps' one of them), for each of the 2 targets
 

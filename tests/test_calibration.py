@@ -13,6 +13,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.optimize import brentq
 
@@ -25,20 +26,24 @@ def test_inclined_wall_gives_back_tan_beta_with_the_interval_of_the_target(tmp_p
     """beta = 20 deg +- 0.5 deg (one sigma): mu_r = tan 20 deg = 0.36397.
 
     Tolerance 0.5 %: the bisection brackets tan(beta_crit) to 2e-3 relative (1e-3 from its middle),
-    the classification threshold at a quarter of that adds 5e-4, and the monotone interpolation
-    over the refined spacing (0.0065 in mu_r) of the smooth atan adds < 1e-5.
+    the classification threshold at a quarter of that adds 5e-4, and the linear interpolation of the
+    smooth atan between refined points h apart adds at most h^2 |atan''| / 8 < 2e-4 rad for
+    h < 0.05 in mu_r (one round of refinement: runs.csv's points, checked below).
     Interval: a deterministic case has no seed spread, so the 95 % interval is the target's:
     mu_r = tan(beta +- 1.96 sigma), half-width 1.96 sigma sec^2(beta) = 0.01937 (+-10 % for the
     bootstrap's percentile estimate and the curvature of tan over the interval).
     """
     res = calibrate("inclined-wall", 20.0, 0.5, fix={"model": "epsd"}, free="mur", out=tmp_path,
-                    execution=Execution(workers=2), progress=False)
+                    execution=Execution(workers=2), progress=False, search=Search(rounds=1))
     exact = math.tan(math.radians(20.0))
     assert res.value == pytest.approx(exact, rel=0.005)
     assert res.low < exact < res.high
     half = 0.5 * (res.high - res.low)
     assert half == pytest.approx(1.96 * math.radians(0.5) / math.cos(math.radians(20.0)) ** 2, rel=0.1)
-    assert res.direction == "increasing" and res.runs == 5 + 2 * 4
+    assert res.direction == "increasing" and res.runs == 5 + 4
+    points = np.unique(pd.read_csv(tmp_path / "runs.csv")["mur"])
+    k = np.searchsorted(points, res.value)
+    assert points[k] - points[k - 1] < 0.05  # the interpolation's h
     saved = json.loads((tmp_path / "calibration.json").read_text())
     assert saved["value"] == pytest.approx(res.value) and (tmp_path / "calibration.png").exists()
 

@@ -21,7 +21,7 @@ def pytest_collection_finish(session):
         if children is not None:
             started = children
             needed.update(name for name in children.jobs if name in item.fixturenames)
-    if started is not None:
+    if needed:
         started.start(needed)  # only the children whose tests were selected
 
 

@@ -348,16 +348,16 @@ class Children:
         self.lock = threading.Lock()
         self.thread = None
         self.running = None
+        atexit.register(self._stop)
 
-    def start(self, names=None):
-        """Queue the jobs ``names`` (all if None) not queued yet; they run in the background, one after
-        the other, in the order of ``jobs``."""
+    def start(self, names):
+        """Queue the jobs ``names`` not queued yet; they run in the background, one after the other,
+        in the order of ``jobs``."""
         with self.lock:
-            self.queued += [n for n in self.jobs if (names is None or n in names) and n not in self.queued]
+            self.queued += [n for n in self.jobs if n in names and n not in self.queued]
             if self.thread is None or not self.thread.is_alive():
                 self.thread = threading.Thread(target=self._run, daemon=True)
                 self.thread.start()
-                atexit.register(self._stop)
 
     def _next(self):
         with self.lock:

@@ -370,6 +370,83 @@ def test_a_region_narrower_than_a_parcel_is_refused_naming_the_coarse_graining()
         sim.insert(rd.CylinderRegion(0.01, 0.0, 0.2), 100, 1e-3, "m")
 
 
+def test_a_mesh_opening_is_measured_across():
+    """``TriangleMesh.openings``: the silo's orifice of radius r drawn with n = 48 segments is a
+    regular polygon whose edges lie r cos(pi/n) from its centre, so it is 2 r cos(pi/n) wide, on the
+    axis at the floor (rounding: 1e-12); its open top likewise. A sheet's outer rim has its centre on
+    the sheet (a disk) and a closed mesh has no free edge (a box, a capped drum): no opening."""
+    from rollingdem.scene.mesh import box, disk, drum, silo
+
+    holes = sorted(silo(0.1, 0.3, 0.01, segments=48).openings(), key=lambda h: h[1])
+    assert len(holes) == 2
+    for (centre, width), radius, z in zip(holes, (0.01, 0.1), (0.0, 0.3)):
+        assert width == pytest.approx(2 * radius * math.cos(math.pi / 48), rel=1e-12)
+        np.testing.assert_allclose(centre, [0.0, 0.0, z], rtol=0, atol=1e-12)
+    assert disk(0.1).openings() == box((0.1, 0.2, 0.3)).openings() == drum(0.1, 0.05).openings() == []
+
+
+@pytest.mark.parametrize("real_radius, alpha, refused", [(2e-3, 6.0, True), (2e-3, 4.0, False), (0.0105, 2.0, False)])
+def test_a_mesh_opening_the_parcels_cannot_pass_is_refused(real_radius, alpha, refused):
+    """A silo mesh's orifice 2 cm cos(pi/48) = 19.96 mm wide: real spheres of 4 mm pass it, their parcels
+    of alpha 6 (24 mm) do not, refused in one line naming the mesh, the opening and both sizes, whether
+    the mesh or the parcels come first (at add_wall; at run). Parcels of alpha 4 (16 mm) pass: no
+    refusal. Real spheres of 21 mm do not pass either: the parcels jam where the material does, so
+    alpha 2 is not refused."""
+    message = (r"silo: coarse_graining = .* is not allowed with its opening at \(0, 0, 0\) m, 0.02 m wide: the "
+               r"real particles \(from 0.004 m\) pass it, the parcels \(to 0.024 m\) do not")
+
+    def scene():
+        sim = rd.Simulation(gravity=(0, 0, -9.81))
+        sim.add_material(rd.Material("m", **REAL, coarse_graining=alpha))
+        return sim
+
+    def add_parcels(sim):
+        sim.insert(rd.CylinderRegion(0.09, 0.05, 0.25), int(20 * alpha ** 3), real_radius, "m", seed=1)
+
+    def silo():
+        return rd.MeshWall.shape("silo", radius=0.1, height=0.3, orifice_radius=0.01, name="silo")
+
+    first_parcels, first_mesh = scene(), scene()
+    add_parcels(first_parcels)
+    first_mesh.add_wall(silo())
+    add_parcels(first_mesh)
+    if refused:
+        with pytest.raises(rd.ParameterError, match=message):
+            first_parcels.add_wall(silo())
+        with pytest.raises(rd.ParameterError, match=message):
+            first_mesh.run(steps=1)
+    else:
+        first_parcels.add_wall(silo())
+        first_mesh.check_before_run()
+
+
+def test_rollingdem_check_refuses_an_opening_the_inflow_s_parcels_cannot_pass(tmp_path):
+    """A case file: an inflow of parcels of alpha 6 of 4 mm spheres over a silo mesh whose orifice
+    (19.96 mm) the real spheres pass: ``rollingdem check`` refuses it in one line naming the wall
+    (exit 2); the same case at alpha 4 is valid."""
+    import yaml
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+
+    def check(alpha):
+        case = {"name": "cg", "materials": [dict(name="m", **REAL, coarse_graining=alpha)],
+                "walls": [{"type": "mesh", "name": "silo", "material": "m", "shape": "silo",
+                           "size": {"radius": 0.1, "height": 0.3, "orifice_radius": 0.01}}],
+                "inflows": [{"name": "pour", "region": {"type": "box", "lo": [-0.05, -0.05, 0.2], "hi": [0.05, 0.05, 0.28]},
+                             "radius": 2e-3, "material": "m", "rate": 1000}],
+                "stages": [{"name": "s", "duration": 1e-4}]}
+        path = tmp_path / f"cg{alpha:g}.yaml"
+        path.write_text(yaml.safe_dump(case))
+        return CliRunner().invoke(app, ["check", str(path)])
+
+    out = check(6.0)
+    assert out.exit_code == 2, out.output
+    lines = out.output.strip().splitlines()
+    assert len(lines) == 1 and "walls.0" in lines[0] and "parcels (to 0.024 m) do not" in lines[0], out.output
+    assert check(4.0).exit_code == 0
+
+
 def test_the_study_goes_on_from_the_runs_it_kept(tmp_path, monkeypatch):
     """With an output folder each run's observables are kept as it ends: the study run again there
     runs nothing it has (a study stopped goes on where it was), and reads the same numbers; runs kept

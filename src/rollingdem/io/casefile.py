@@ -939,7 +939,7 @@ def build_simulation(case: CaseSpec):
                 sim.add_particles(p.positions, p.radius, p.material, velocity=p.velocity,
                                   angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap, fixed=p.fixed)
     from rollingdem.physics.records import WALL_MESH
-    from rollingdem.scene.wall_set import check_mesh_size
+    from rollingdem.scene.wall_set import check_mesh_size, check_openings
 
     for k, wall in enumerate(sim.walls):  # against the particles now in place: a unit mistake
         if wall.kind == WALL_MESH:
@@ -954,6 +954,10 @@ def build_simulation(case: CaseSpec):
         with where(f"inflows.{k}"):
             sim.add_inflow(_region(i.region, case.base_directory, sim), _radius(i.radius), i.material, rate=i.rate, mass_rate=i.mass_rate,
                            velocity=i.velocity, seed=i.seed, name=i.name, interval=i.interval, start=i.start)
+    for k, wall in enumerate(sim.walls):  # against the parcels in place and the inflows' parcels
+        if wall.kind == WALL_MESH:
+            with where(f"walls.{k}"):
+                check_openings(wall, sim)
     return sim
 
 

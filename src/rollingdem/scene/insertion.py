@@ -850,7 +850,7 @@ def fill_region(region: Region, count: int | None, radius, seed=0, existing_posi
     x_out = np.empty((n, 3))
     placed, why = 0, None
     known = np.zeros(n, dtype=bool)  # the new spheres placed so far
-    for sub, idx in _slab_plan(region, float(r_all.min()), rmax, n):
+    for sub, idx in _slab_plan(region, float(r_all.min()), rmax, n, r_all):
         # each slab sees everything placed before it as existing particles
         known_x = np.concatenate([ex, x_out[known]])
         known_r = np.concatenate([er, r_all[known]])
@@ -874,7 +874,8 @@ SLAB_PASSES = 4
 quarter of a slab higher (``_slab_plan``)."""
 
 
-def _slab_plan(region: Region, rho0: float, rmax: float, n: int) -> list[tuple[Region, np.ndarray]]:
+def _slab_plan(region: Region, rho0: float, rmax: float, n: int,
+               radii: np.ndarray | None = None) -> list[tuple[Region, np.ndarray]]:
     """(sub-region, indices of the spheres it takes) in the order to fill them: ``[(region, all)]``
     when the free-cell grid of the whole region at its finest cell size (``_FreeCells.CELL`` rho0)
     holds at most ``_FreeCells.MAX_DENSE`` cells. A larger region's grid would have cells too
@@ -886,7 +887,11 @@ def _slab_plan(region: Region, rho0: float, rmax: float, n: int) -> list[tuple[R
     (as random insertion does against any wall: ~10 % more centres in the diameter below the seam
     and ~10 % fewer above it, measured at a packing fraction of 0.27). So the spheres go in
     ``SLAB_PASSES`` passes, each over all the slabs with an equal share of the spheres, the seams of
-    each pass shifted by 1/SLAB_PASSES of a slab: each seam is met at a quarter of the density."""
+    each pass shifted by 1/SLAB_PASSES of a slab: each seam is met at a quarter of the density.
+    With ``radii``, the passes take the spheres largest first (the first pass the largest quarter),
+    as one region's insertion does, and each slab of a pass sizes from all over the pass's range:
+    spheres of 4-6 mm at a packing fraction of 0.28 ran out of attempts with 31,500 of 40,500
+    placed when the passes took them unsorted (the last pass's large spheres into a bed at 0.21)."""
     lo, hi = region.bounds()
     h = _FreeCells.CELL * rho0
     ext = np.maximum(hi - lo - 2.0 * rho0, h)
@@ -898,14 +903,20 @@ def _slab_plan(region: Region, rho0: float, rmax: float, n: int) -> list[tuple[R
         return [(region, np.arange(n))]  # (too wide across to help: one coarse grid, as before)
     k = math.ceil(length / per_slab)
     plan = []
-    for p, share in enumerate(np.array_split(np.arange(n), SLAB_PASSES)):
+    largest_first = np.arange(n) if radii is None else np.argsort(-np.asarray(radii), kind="stable")
+    for p, share in enumerate(np.array_split(largest_first, SLAB_PASSES)):
         inner = (np.arange(1 if p == 0 else 0, k) + p / SLAB_PASSES) * length / k
         seams = np.concatenate([[0.0], inner, [length]])
         # spheres per slab in proportion to the centres' range, by largest remainders
         want = share.size * np.diff(seams) / length
         count = np.floor(want).astype(np.int64)
         count[np.argsort(count - want)[:share.size - count.sum()]] += 1
-        for s_lo, s_hi, idx in zip(seams[:-1], seams[1:], np.split(share, np.cumsum(count)[:-1])):
+        # the share's j-th sphere to the slab whose evenly spaced quantiles come j-th: each slab's
+        # sizes spread over the share's range
+        quantile = np.concatenate([(np.arange(c) + 0.5) / c for c in count if c])
+        slab = np.repeat(np.arange(len(count)), count)[np.argsort(quantile, kind="stable")]
+        by_slab = np.argsort(slab, kind="stable")  # the share's positions, slab by slab, in order within each
+        for s_lo, s_hi, idx in zip(seams[:-1], seams[1:], np.split(share[by_slab], np.cumsum(count)[:-1])):
             if idx.size == 0:
                 continue
             z_lo, z_hi = lo[axis] + s_lo, lo[axis] + s_hi + 2.0 * rmax

@@ -247,6 +247,31 @@ class TriangleMesh:
                     f"{r['dropped']}")
         return f"{self.label}: {size} m, {r['triangles']} triangles, {edges}{read}"
 
+    def openings(self) -> list[tuple[np.ndarray, float]]:
+        """The holes in the mesh, as (centre, width): each loop of free edges whose centre (the mean
+        of its edges' midpoints, weighted by length) lies off the mesh, farther from it than half its
+        distance to the loop (a sheet's outer rim has its centre on the sheet). The width is twice
+        the distance from the centre to the loop's nearest edge: a circle's diameter, a slot's width."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        k, e = np.nonzero(self.edge_neighbors < 0)
+        if not len(k):
+            return []
+        a, b = self.triangles[k, e], self.triangles[k, (e + 1) % 3]
+        n = len(self.vertices)
+        _, label = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
+        holes = []
+        for loop in np.unique(label[a]):
+            pa, pb = self.vertices[a[label[a] == loop]], self.vertices[b[label[a] == loop]]
+            length = np.linalg.norm(pb - pa, axis=1)
+            centre = (0.5 * (pa + pb) * length[:, None]).sum(axis=0) / length.sum()
+            t = np.clip(np.einsum("ij,ij->i", centre - pa, pb - pa) / length ** 2, 0.0, 1.0)
+            half = float(np.linalg.norm(pa + t[:, None] * (pb - pa) - centre, axis=1).min())
+            if half > 0.0 and sphere_overlap(self, centre, half)[0] < 0.5 * half:  # off the mesh by more than half
+                holes.append((centre, 2.0 * half))
+        return holes
+
     def write(self, path) -> Path:
         """Write the mesh as STL (or any format meshio names by the suffix), to look at in ParaView."""
         import meshio

@@ -54,6 +54,29 @@ def check_mesh_size(wall, radius) -> None:
                              "scale (0.001 for a file in mm), or check_size: false to accept it")
 
 
+def check_openings(wall, sim) -> None:
+    """Refuse a mesh with an opening (``TriangleMesh.openings``) that the real particles pass and
+    the parcels standing for them do not: narrower than the largest parcel and wider than the
+    smallest real particle, of those in the scene and its inflows. The material would flow
+    through it; its parcels would jam."""
+    st = sim._state
+    alpha = sim.particle_set.coarse_graining_factors()
+    inflows = [i.radius for i in sim.boundary_set.inflows if getattr(i.radius, "alpha", 1.0) != 1.0]
+    coarse = alpha[st.mat[:st.n]] != 1.0
+    if not coarse.any() and not inflows:
+        return
+    parcel = 2.0 * max([float(st.radius[:st.n][coarse].max(initial=0.0))] + [d.max_radius for d in inflows])
+    real = 2.0 * min([float((st.radius[:st.n][coarse] / alpha[st.mat[:st.n]][coarse]).min(initial=np.inf))]
+                     + [d.real.min_radius for d in inflows])
+    for centre, width in wall.mesh.openings():
+        if real < width < parcel:
+            at = ", ".join(f"{v if abs(v) > 1e-9 * width else 0.0:.4g}" for v in centre)  # no -4e-19
+            raise ParameterError(f"{wall.mesh.label}: coarse_graining = {alpha.max():g} is not allowed with its opening at "
+                                 f"({at}) m, {width:.3g} m wide: the real particles (from {real:.3g} m) pass it, the "
+                                 f"parcels (to {parcel:.3g} m) do not; lower the material's coarse_graining or widen "
+                                 "the opening")
+
+
 class WallSet:
     """The walls of ``sim`` in the order they were added. A removed wall keeps its slot (labels and
     checkpoints number walls as the user added them) but leaves the engine, whose per-sphere wall
@@ -87,16 +110,18 @@ class WallSet:
         materials.index(wall.material)
         if wall.kind == WALL_MESH:
             check_mesh_size(wall, self.state.radius)
+            check_openings(wall, self.sim)
         self.slots.append(wall)
         self.hand_over()
         return wall
 
     def check_scene(self) -> None:
-        """``check_mesh_size`` of each mesh wall in place against the particles now in the scene, and
-        each inflow's region against the walls (``Boundaries.check_room``)."""
+        """``check_mesh_size`` and ``check_openings`` of each mesh wall in place against the particles
+        now in the scene, and each inflow's region against the walls (``Boundaries.check_room``)."""
         for wall in self.in_place():
             if wall.kind == WALL_MESH:
                 check_mesh_size(wall, self.state.radius)
+                check_openings(wall, self.sim)
         self.sim.boundary_set.check_room()
 
     def remove(self, wall: Wall | str) -> None:

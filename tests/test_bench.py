@@ -1,6 +1,7 @@
 """``rollingdem bench``: what it reports, that timing leaves the physics alone, and its refusals."""
 
 import json
+import math
 import time
 
 import numpy as np
@@ -236,3 +237,23 @@ def test_the_clumps_scene_times_clumps_against_their_members_count_of_spheres(mo
     assert f"a clump-step costs {cost:.2f} sphere-steps" in clumps.note
     assert "a clump adds 352 B to its members'" in clumps.note
     assert "100 tetrahedra of 4 spheres" in clumps.note and "400 spheres at rest" in spheres.note
+
+
+def test_the_coarse_graining_scene_times_parcels_against_the_real_particles_over_the_same_time(monkeypatch, tmp_path):
+    """A drum 6 d in radius (374 real spheres; the scene's own is the study's 30 d): the parcels of
+    alpha 3 are round(374 / 27) = 14 standing for 14 x 27 = 378, step at 3 dt and so take a third of
+    the real particles' 600 steps for the same 0.015 s, in a drum turning at the same angular velocity
+    (the same Froude number in the same drum); the note's ratio is the two runs' particles represented
+    x simulated time per reported second of wall time."""
+    monkeypatch.setattr(bench, "_cache_dir", lambda: tmp_path)
+    monkeypatch.setattr(bench, "CG_SPIN_UP", 0.02)
+    real, parcels = bench.coarse_graining_bench(steps=600, threads=1, echo=lambda *a: None, drum_diameters=6.0)
+    assert (real.particles, parcels.particles) == (374, 14) and real.scene == parcels.scene == "coarse-graining"
+    assert (real.steps, parcels.steps) == (600, 200)
+    assert "374 real particles standing for 374 particles, dt 2.5e-05 s" in real.note
+    assert "14 parcels of alpha 3 standing for 378 particles, dt 7.5e-05 s, 200 steps (0.015 s simulated)" in parcels.note
+    ratio = (378 * 200 * 7.5e-5 / parcels.wall_s) / (374 * 600 * 2.5e-5 / real.wall_s)
+    assert f": {ratio:.3g}x the real particles'" in parcels.note
+    drums = [bench.coarse_graining_drum(a, drum_diameters=6.0) for a in (1.0, 3.0)]
+    spins = [sim.walls[0].angular_velocity for sim in drums]
+    assert spins[0] == spins[1] and spins[0][2] == pytest.approx(math.sqrt(5e-3 * 9.81 / (6 * 0.01)), rel=1e-12)

@@ -20,7 +20,7 @@ import numpy as np
 from rollingdem.errors import ParameterError, check_output_path
 
 SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling", "mesh-hopper",
-          "rough-bed", "clumps")
+          "rough-bed", "clumps", "coarse-graining")
 GPU_SCENES = ("column-collapse", "slab")  # the scenes ``--backend cuda`` times
 SCALING_SMALL = 20000
 SCALING_LARGE = 1_000_000
@@ -54,6 +54,12 @@ ROUGH_BED_CHUNKS = 6
 # as many spheres as they have members settled in the same box
 CLUMP_BED_SETTLE = 1.0  # s
 CLUMP_BED_CHUNKS = 6
+# the coarse-graining scene: the coarse-graining study's drum (30 d in radius, a slice 10 d long, 9,346
+# real particles) of the real particles and of parcels of CG_ALPHA, each settled and turned
+# CG_SPIN_UP s at the same Froude number, timed over the same simulated time in chunks taken in turn
+CG_ALPHA = 3.0
+CG_SPIN_UP = 0.2  # s
+CG_CHUNKS = 6
 DENSE_BED_MODELS = ("none", "cdt", "epsd", "epsd2", "epsd3", "rrlinear", "sds", "displacement_damping",
                     "force_proportional", "viscous", "walton_braun", "walton", "sjkr", "jkr")
 # the contact laws of dense-bed other than Hertz + history + a rolling model: each on Hertz-history
@@ -649,6 +655,72 @@ def clump_bed(members=20000, steps=2000, threads=None, echo=print) -> list[Bench
     return results
 
 
+def coarse_graining_drum(alpha: float, seed: int = 1, echo=print, drum_diameters: float | None = None):
+    """The coarse-graining study's drum (``experiments.coarse_graining.drum_parameters``; another
+    radius in real diameters with ``drum_diameters``) of parcels of ``alpha``, settled (its case's
+    settling stage) and turned ``CG_SPIN_UP`` s at the case's angular velocity; from the disk cache
+    or built now."""
+    from rollingdem import __version__
+    from rollingdem.experiments.coarse_graining import CoarseGraining, drum_parameters
+    from rollingdem.experiments.drum import RotatingDrum, drum_case
+    from rollingdem.io.casefile import build_simulation, load_case
+
+    size = CoarseGraining().sizes["full"]["drum"]
+    if drum_diameters is not None:
+        size = {**size, "drum_diameters": drum_diameters}
+    params = drum_parameters("epsd", alpha, seed, size)
+    data = drum_case(**RotatingDrum().drum_arguments(params))
+    size = f"{data['walls'][0]['radius']:.4g}m"
+    path = _cache_dir() / f"cgdrum_{size}_alpha{alpha:g}_seed{seed}_v{__version__}.npz"
+    if path.exists():
+        return _restored(path)
+    echo(f"settling the drum of {'parcels of alpha ' + format(alpha, 'g') if alpha != 1.0 else 'real particles'} "
+         f"and turning it for {CG_SPIN_UP} s (cached afterwards in {path.parent}) ...")
+    sim = build_simulation(load_case(data))
+    sim.run(data["stages"][0]["duration"])
+    turn = data["stages"][1]["wall_motion"][0]
+    sim.set_wall_velocity(turn["wall"], angular_velocity=[turn["rotate"]["angular_velocity"] * a
+                                                           for a in turn["rotate"]["axis"]])
+    return _settled(sim, CG_SPIN_UP, path)
+
+
+def coarse_graining_bench(steps=12000, threads=None, echo=print, drum_diameters: float | None = None) -> list[BenchResult]:
+    """The coarse-graining study's turning drum of real particles against parcels of ``CG_ALPHA``:
+    ``steps`` steps of the real particles and as many of the parcels as take the same simulated time
+    (their dt is alpha times longer), in ``CG_CHUNKS`` chunks taken in turn; the particles represented
+    times the simulated time per second of wall time, and its ratio."""
+    import numba
+
+    threads = threads or numba.get_num_threads()
+    compile_s = compile_time(bench_contact("epsd"), 10000)
+    sims = [coarse_graining_drum(a, echo=echo, drum_diameters=drum_diameters) for a in (1.0, CG_ALPHA)]
+    for sim in sims:
+        _warm_up(sim)
+    counts = [steps, max(CG_CHUNKS, int(round(steps * sims[0].dt / sims[1].dt)))]
+    todo = np.array([[n * (c + 1) // CG_CHUNKS - n * c // CG_CHUNKS for c in range(CG_CHUNKS)] for n in counts])
+    walls = np.zeros((2, CG_CHUNKS))
+    rebuilds = [0, 0]
+    for c in range(CG_CHUNKS):
+        for s, sim in enumerate(sims):
+            walls[s, c], done = _timed_steps(sim, int(todo[s, c]))
+            rebuilds[s] += done
+    # particles represented x simulated seconds, per second of wall time: whole, and chunk by chunk
+    represented = np.array([[sim.particles_represented * sim.dt] for sim in sims])
+    rates = represented[:, 0] * todo.sum(axis=1) / walls.sum(axis=1)
+    chunks = (represented * todo / walls)[1] / (represented * todo / walls)[0]
+    drum = "the coarse-graining study's drum" if drum_diameters is None else f"a drum {drum_diameters:g} d in radius"
+    results = []
+    for s, (sim, what) in enumerate(zip(sims, ("real particles", f"parcels of alpha {CG_ALPHA:g}"))):
+        results.append(_result("coarse-graining", "epsd", sim, counts[s], compile_s, float(walls[s].sum()), rebuilds[s],
+                               threads, f"{drum} turning, {sim.n_particles} {what} standing for "
+                               f"{sim.particles_represented:.0f} particles, dt {sim.dt:.3g} s, {counts[s]} steps "
+                               f"({counts[s] * sim.dt:.3g} s simulated) in {CG_CHUNKS} chunks in turn; "
+                               f"{rates[s]:.4g} particle-seconds simulated per second of wall time"))
+    results[1].note += (f": {rates[1] / rates[0]:.3g}x the real particles' (chunk by chunk "
+                        f"{', '.join(f'{r:.3g}' for r in chunks)}, median {np.median(chunks):.3g}x)")
+    return results
+
+
 def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump=None, models=None,
               echo=print, backend="cpu") -> list[BenchResult]:
     unknown = [s for s in scenes if s not in SCENES]
@@ -681,6 +753,10 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
             results.append(slab(particles or 20000, steps or 1000, threads, echo, backend))
         elif scene in ("rough-bed", "clumps"):
             pair = (rough_bed if scene == "rough-bed" else clump_bed)(particles or 20000, steps or 2000, threads, echo)
+            echo(format_row(pair[0]))
+            results += pair
+        elif scene == "coarse-graining":
+            pair = coarse_graining_bench(steps or 12000, threads, echo)
             echo(format_row(pair[0]))
             results += pair
         elif scene in ("scaling", "collapse-scaling"):

@@ -186,7 +186,9 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
                                                     "hopper), rough-bed (free spheres at rest on half as many fixed "
                                                     "ones and on the bare plate, in turn), clumps (tetrahedral "
                                                     "clumps and as many spheres as their members, at rest in a box, "
-                                                    "in turn) (repeatable)."),
+                                                    "in turn), coarse-graining (the coarse-graining study's turning "
+                                                    "drum of real particles and of parcels of alpha 3, in turn) "
+                                                    "(repeatable)."),
           particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Spheres in column-collapse, "
                                                   "dense-bed, slab, mesh-hopper and rough-bed, clump members in "
                                                   "clumps (default 20,000), and the large scene of "
@@ -194,7 +196,8 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
                                                   "20,000)."),
           steps: Optional[int] = typer.Option(None, "--steps", help="Timed steps (default: 10,000 column-collapse, "
                                               "150,000 single-particle, 2,000 dense-bed, rough-bed and clumps, 1,000 slab, "
-                                              "300 scaling and collapse-scaling, 5,000 mesh-hopper)."),
+                                              "300 scaling and collapse-scaling, 5,000 mesh-hopper, 12,000 of the real "
+                                              "particles in coarse-graining)."),
           threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
           model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Rolling models and contact laws "
                                                     "(walton_braun, walton, sjkr, jkr) of dense-bed (repeatable; "

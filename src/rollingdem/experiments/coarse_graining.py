@@ -121,6 +121,14 @@ def lift_time(count: int, alpha: float) -> float:
     return tube_clearing_time(2.0 * alpha * PILE_RADIUS, height, PILE_RADIUS, 2.0 * PILE_RADIUS, LIFT_SPEED)
 
 
+def drum_parameters(model: str, alpha: float, seed: int, size: dict) -> dict:
+    """``rotating-drum``'s parameters for the study's drum of parcels of ``alpha`` (``size``: its
+    ``drum`` entry): mu 0.5, mu_r 0.2, a slice 10 d long, dt alpha x 2.5e-5 s."""
+    return {"model": model, "mu": 0.5, "mur": 0.2, "seed": seed, "coarse_graining": alpha, "slice_diameters": 10.0,
+            "drum_diameters": size["drum_diameters"], "dt": dt_of(alpha, 2.5e-5), "spin_up": size["spin_up"],
+            "measure": size["measure"], "samples": size["samples"]}
+
+
 def drum_point(model: str, alpha: float, seed: int, size: dict) -> dict:
     """The rotating drum (``drum_diameters`` d in radius, a slice 10 d long: a parcel of alpha = 3 fits
     the periodic length) of parcels of ``alpha``, at the real particles' Froude number: its angle and
@@ -128,10 +136,7 @@ def drum_point(model: str, alpha: float, seed: int, size: dict) -> dict:
     from rollingdem.experiments.drum import RotatingDrum
 
     tic = time.perf_counter()
-    res = RotatingDrum().observe({"model": model, "mu": 0.5, "mur": 0.2, "seed": seed, "coarse_graining": alpha,
-                                  "slice_diameters": 10.0, "drum_diameters": size["drum_diameters"],
-                                  "dt": dt_of(alpha, 2.5e-5), "spin_up": size["spin_up"],
-                                  "measure": size["measure"], "samples": size["samples"]})
+    res = RotatingDrum().observe(drum_parameters(model, alpha, seed, size))
     wall = time.perf_counter() - tic
     return {"angle": res["angle"], "angle_ci": res["angle_ci"], "particles": res["particles"],
             "parcels": int(round(res["particles"] / alpha ** 3)), "wall_time": wall}

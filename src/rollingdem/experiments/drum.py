@@ -188,18 +188,22 @@ class RotatingDrum(BedExperiment):
     #: what ``validate`` changes of the defaults: a quick run takes fewer samples over less rotation
     sizes = {"quick": {"samples": 12, "spin_up": 60.0, "measure": 60.0}, "full": {}}
 
-    def observe(self, params: dict) -> dict:
-        """A periodic slice of a drum turning in the rolling regime: its dynamic angle and the rest."""
-        from rollingdem.analysis.intervals import confidence_interval
-
+    def drum_arguments(self, params: dict) -> dict:
+        """The arguments of :func:`drum_case` and :func:`drum_run` for ``params``."""
         p = self.resolve(params)
-        material = PileMaterial.from_parameters(p)
         setup = DrumSetup(drum_diameters=p["drum_diameters"], slice_diameters=p["slice_diameters"], fill=p["fill"],
                           froude=p["froude"], gravity=p["gravity"], wall_friction=p["wall_friction"],
                           wall_rolling_friction=p["wall_rolling_friction"],
                           spin_up=p["spin_up"], measure=p["measure"], samples=p["samples"])
-        run = drum_run(resolve_rolling(p["model"]), p["twisting"], material, setup, radius=p["radius"],
-                       polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
+        return dict(rolling=resolve_rolling(p["model"]), twisting=p["twisting"],
+                    material=PileMaterial.from_parameters(p), setup=setup, radius=p["radius"],
+                    polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
+
+    def observe(self, params: dict) -> dict:
+        """A periodic slice of a drum turning in the rolling regime: its dynamic angle and the rest."""
+        from rollingdem.analysis.intervals import confidence_interval
+
+        run = drum_run(**self.drum_arguments(params))
         # successive samples are correlated: the 95 % interval is over the means of BLOCKS blocks
         blocks = [b.mean() for b in np.array_split(run.angle, min(BLOCKS, len(run.angle)))]
         return {"angle": float(run.angle.mean()), "angle_ci": confidence_interval(blocks)[1],

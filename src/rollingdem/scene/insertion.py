@@ -889,9 +889,8 @@ def _slab_plan(region: Region, rho0: float, rmax: float, n: int,
     ``SLAB_PASSES`` passes, each over all the slabs with an equal share of the spheres, the seams of
     each pass shifted by 1/SLAB_PASSES of a slab: each seam is met at a quarter of the density.
     With ``radii``, the passes take the spheres largest first (the first pass the largest quarter),
-    as one region's insertion does, and each slab of a pass sizes from all over the pass's range:
-    spheres of 4-6 mm at a packing fraction of 0.28 ran out of attempts with 31,500 of 40,500
-    placed when the passes took them unsorted (the last pass's large spheres into a bed at 0.21)."""
+    as one region's insertion does (a last pass's large spheres find no room in a bed already at a
+    packing fraction of 0.21), and each slab of a pass sizes from all over the pass's range."""
     lo, hi = region.bounds()
     h = _FreeCells.CELL * rho0
     ext = np.maximum(hi - lo - 2.0 * rho0, h)

@@ -670,8 +670,8 @@ def coarse_graining_drum(alpha: float, seed: int = 1, echo=print, drum_diameters
         size = {**size, "drum_diameters": drum_diameters}
     params = drum_parameters("epsd", alpha, seed, size)
     data = drum_case(**RotatingDrum().drum_arguments(params))
-    size = f"{data['walls'][0]['radius']:.4g}m"
-    path = _cache_dir() / f"cgdrum_{size}_alpha{alpha:g}_seed{seed}_v{__version__}.npz"
+    radius = f"{data['walls'][0]['radius']:.4g}m"
+    path = _cache_dir() / f"cgdrum_{radius}_alpha{alpha:g}_seed{seed}_v{__version__}.npz"
     if path.exists():
         return _restored(path)
     echo(f"settling the drum of {'parcels of alpha ' + format(alpha, 'g') if alpha != 1.0 else 'real particles'} "

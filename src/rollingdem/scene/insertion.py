@@ -912,7 +912,7 @@ def _slab_plan(region: Region, rho0: float, rmax: float, n: int,
         count[np.argsort(count - want)[:share.size - count.sum()]] += 1
         # the share's j-th sphere to the slab whose evenly spaced quantiles come j-th: each slab's
         # sizes spread over the share's range
-        quantile = np.concatenate([(np.arange(c) + 0.5) / c for c in count if c])
+        quantile = np.concatenate([(np.arange(c) + 0.5) / c for c in count if c] or [np.zeros(0)])
         slab = np.repeat(np.arange(len(count)), count)[np.argsort(quantile, kind="stable")]
         by_slab = np.argsort(slab, kind="stable")  # the share's positions, slab by slab, in order within each
         for s_lo, s_hi, idx in zip(seams[:-1], seams[1:], np.split(share[by_slab], np.cumsum(count)[:-1])):

@@ -348,8 +348,10 @@ def test_inserted_spheres_are_numbered_in_space_filling_order(table1):
 
 
 # --- large regions: slabs ------------------------------------------------------------------------
-@pytest.mark.parametrize("spread", [0.0, 0.2], ids=["one size", "sizes +-20 %"])
-@pytest.mark.parametrize("region", [CylinderRegion(0.03, 0.0, 0.24), BoxRegion((0, 0, 0), (0.24, 0.05, 0.05))])
+@pytest.mark.parametrize("region, spread", [(CylinderRegion(0.03, 0.0, 0.24), 0.0),
+                                            (BoxRegion((0, 0, 0), (0.24, 0.05, 0.05)), 0.0),
+                                            (CylinderRegion(0.03, 0.0, 0.24), 0.2)],
+                         ids=["cylinder", "box", "cylinder, sizes +-20 %"])
 def test_a_region_too_large_for_one_fine_grid_is_filled_in_slabs_uniformly(monkeypatch, region, spread):
     """A region whose free-cell grid would exceed MAX_DENSE cells is filled slab by slab (here
     MAX_DENSE is lowered so that ~40,000 spheres need 10 slabs; 10^6 spheres in the bench's column

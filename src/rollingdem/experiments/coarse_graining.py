@@ -94,8 +94,9 @@ class CoarseGraining(BedExperiment):
                                "measured": 3000},
                       "slope": {"models": None, "angles": SLOPE_ANGLES}}}
 
-    def observe(self, params: dict) -> dict:
-        """The pile of ``repose-rough-base`` at ``count`` real particles made parcels of ``alpha``."""
+    def observe(self, params: dict, checkpoint=None) -> dict:
+        """The pile of ``repose-rough-base`` at ``count`` real particles made parcels of ``alpha``;
+        resumable with ``checkpoint`` (``repose.pile_run``)."""
         from rollingdem.experiments.repose import ReposeRoughBase
 
         p = self.resolve(params)
@@ -103,7 +104,8 @@ class CoarseGraining(BedExperiment):
         res = ReposeRoughBase().observe({"model": p["model"], "mu": p["mu"], "mur": mur, "count": p["count"],
                                          "seed": p["seed"], "coarse_graining": p["alpha"],
                                          "dt": dt_of(p["alpha"], p["dt"]),
-                                         "max_collapse": lift_time(p["count"], p["alpha"]) + REST})
+                                         "max_collapse": lift_time(p["count"], p["alpha"]) + REST},
+                                        checkpoint=checkpoint)
         return {"angle": res["angle"], "r_squared": res["r_squared"],
                 "parcels": int(round(p["count"] / p["alpha"] ** 3)), "note": res["note"]}
 
@@ -175,7 +177,8 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
     """Every scene of the size (``CoarseGraining.sizes``) through ``runner``, compared with the
     real particles' (module docstring); with ``outdir``, each run's observables are kept in
     ``outdir/coarse-graining-runs`` as it ends, and a study run again there takes them from it (a
-    study stopped goes on where it was). Checks: each parcels' mean pile angle within 1 deg of the
+    study stopped goes on where it was; a pile stopped goes on from its last save there,
+    ``repose.pile_run``). Checks: each parcels' mean pile angle within 1 deg of the
     real particles' at each mu_r, the drum's angle within 1 deg, the silo's flow rate within 5 %
     (full size: the quick one runs too few seeds to tell, and says so in its notes, with every pile
     forming and every silo draining as its checks); a parcel's critical mu_r within 0.5 % of
@@ -211,18 +214,18 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
         path = done / (hashlib.sha1(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16] + ".json")
         if path.exists():
             return json.loads(path.read_text())["result"]
-        res = run_point(point)
         done.mkdir(parents=True, exist_ok=True)
+        res = run_point(point, path.with_suffix(".partial"))  # a pile goes on from its last save there
         path.write_text(json.dumps({"model": model, "size": key, "point": point, "result": res},
                                    default=lambda v: v.item() if hasattr(v, "item") else str(v)))
         return res
 
-    def run_point(point):
+    def run_point(point, checkpoint=None):
         scene = point["scene"]
         if scene == "pile":
             return experiment.observe({"model": model, "mur": point["mur"], "alpha": point["alpha"],
                                        "length_convention": point["length_convention"], "count": size["count"],
-                                       "seed": point["seed"]})
+                                       "seed": point["seed"]}, checkpoint=checkpoint)
         if scene == "drum":
             return drum_point(model, point["alpha"], point["seed"], size["drum"])
         if scene == "silo":

@@ -228,9 +228,70 @@ def pile_case(rolling="epsd", twisting="none", count=3000, seed=1, material: Pil
     return data
 
 
+#: s of wall time between a resumable pile's checkpoints (``pile_run``'s ``checkpoint``)
+PILE_CHECKPOINT_SECONDS = 600.0
+
+
+class PileProgress:
+    """Where a resumable pile run stands, in two slots (``.a`` and ``.b`` beside ``path``), each a
+    ``Simulation.checkpoint`` and a JSON of the collapse's time, kinetic energies so far and wall
+    time, written in that order: a kill while one slot is written leaves the other whole, and the
+    slot whose JSON names its checkpoint's step is read."""
+
+    def __init__(self, path, every: float | None = None):
+        self.path = Path(path)
+        self.every = PILE_CHECKPOINT_SECONDS if every is None else every
+        self.saved_at = time.perf_counter()
+        self.slot = 0
+
+    def _files(self, slot: int) -> tuple[Path, Path]:
+        stem = f"{self.path.name}.{'ab'[slot]}"
+        return self.path.with_name(stem + ".npz"), self.path.with_name(stem + ".json")
+
+    def load(self):
+        """(simulation, t, kinetic energies, wall time so far) of the latest whole slot, or None."""
+        import json
+
+        from rollingdem.scene.checkpoint import read
+        from rollingdem.scene.simulation import Simulation
+
+        best = None
+        for slot in (0, 1):
+            npz, meta = self._files(slot)
+            if not (npz.exists() and meta.exists()):
+                continue
+            state = json.loads(meta.read_text())
+            if read(npz)[0]["step"] == state["step"] and (best is None or state["step"] > best[1]["step"]):
+                best = (slot, state)
+        if best is None:
+            return None
+        self.slot = 1 - best[0]  # the next save goes into the other slot
+        state = best[1]
+        return (Simulation.restore(self._files(best[0])[0]), state["t"], [tuple(k) for k in state["ke"]],
+                state["wall_time"])
+
+    def save(self, sim, t: float, ke: list, wall_time: float, force: bool = False) -> None:
+        """Write the next slot if ``every`` s of wall time have passed since the last (or ``force``)."""
+        import json
+
+        if not force and time.perf_counter() - self.saved_at < self.every:
+            return
+        npz, meta = self._files(self.slot)
+        sim.checkpoint(npz)
+        tmp = meta.with_name(meta.name + ".tmp")
+        tmp.write_text(json.dumps({"step": sim.step, "t": t, "ke": ke, "wall_time": wall_time}))
+        tmp.replace(meta)
+        self.slot, self.saved_at = 1 - self.slot, time.perf_counter()
+
+    def remove(self) -> None:
+        for slot in (0, 1):
+            for f in self._files(slot):
+                f.unlink(missing_ok=True)
+
+
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
              collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT, label=None,
-             setup: PileSetup = PileSetup(), edit=None) -> PileRun:
+             setup: PileSetup = PileSetup(), edit=None, checkpoint=None) -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
     Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
@@ -246,7 +307,10 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     the pile do not change its surface. Then the angle is measured. ``setup``: the tube and the
     floor (``PileSetup``). The scene and the stages' times are :func:`pile_case`'s; ``edit``, a
     function of the case's data, may change it before it is built (the clumps' study puts clumps in
-    the column, ``experiments.clump_stand_in``).
+    the column, ``experiments.clump_stand_in``). With ``checkpoint`` (a path), the collapse is saved
+    beside it every ``PILE_CHECKPOINT_SECONDS`` of wall time (``PileProgress``) and a run started
+    again with the same path goes on from the last save, bit for bit; the saves are removed when
+    the run ends.
     """
     from rollingdem.io.casefile import build_simulation, load_case
 
@@ -255,19 +319,28 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
         data = edit(data)
     lift_speed, sample, max_collapse = collapse.lift_speed, collapse.sample, collapse.max_time
     tic = time.perf_counter()
-    sim = build_simulation(load_case(data))
-    tube = next(w for w in sim.walls if w.name == "tube")
     settle, *rest = data["stages"]
     lift_time = rest[0]["duration"] if lift_speed else 0.0
-    free = ~sim.fixed
-    sim.run(settle["duration"])
-    if lift_speed:
-        sim.set_wall_velocity(tube, velocity=(0.0, 0.0, lift_speed))
+    progress = None if checkpoint is None else PileProgress(checkpoint)
+    resumed = None if progress is None else progress.load()
+    if resumed is None:
+        sim = build_simulation(load_case(data))
+        tube = next(w for w in sim.walls if w.name == "tube")
+        sim.run(settle["duration"])
+        if lift_speed:
+            sim.set_wall_velocity(tube, velocity=(0.0, 0.0, lift_speed))
+        else:
+            sim.remove_wall(tube)
+        ke, t, earlier = [], 0.0, 0.0
+        if progress is not None:
+            progress.save(sim, t, ke, time.perf_counter() - tic, force=True)
     else:
-        sim.remove_wall(tube)
+        sim, t, ke, earlier = resumed
+        tube = next((w for w in sim.walls if w.name == "tube"), None)
+    free = ~sim.fixed
     inertia = 0.4 * sim.masses[free] * sim.radii[free] ** 2
     limit = default_max_speed(sim.radii[free])
-    ke, t, settled_at = [], 0.0, math.nan
+    settled_at = math.nan
     while t < max_collapse - 1e-9:
         sim.run(sample)
         t += sample
@@ -275,6 +348,8 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
             sim.remove_wall(tube)  # clear of the pile
         trans, rot = sim.kinetic_energy()
         ke.append((t, trans, rot, 0.5 * float(np.dot(inertia, sim.angular_velocities[free, 2] ** 2))))
+        if progress is not None:
+            progress.save(sim, t, ke, earlier + time.perf_counter() - tic)
         if t >= collapse.min_time - 1e-9 and tube not in sim.walls:
             pile = touching(sim.positions[free], sim.radii[free])
             speed = np.linalg.norm(sim.velocities[free][pile], axis=1)
@@ -290,9 +365,11 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
             angle = repose_angle(sim.positions[free], sim.radii[free])
         except ValueError as err:  # too flat or too small to fit a cone: say so
             error = str(err)
+    if progress is not None:
+        progress.remove()
     return PileRun(label or str(rolling), ke[:, 0], ke[:, 1], ke[:, 2], ke[:, 3], sim.positions[free].copy(),
                    sim.radii[free].copy(), sim.velocities[free].copy(), angle, error, settled_at,
-                   time.perf_counter() - tic)
+                   earlier + time.perf_counter() - tic)
 
 
 QUICK_PILE, FULL_PILE = 1000, 10000  # spheres in case 3
@@ -513,10 +590,11 @@ class ReposeRoughBase(BedExperiment):
                     material=PileMaterial.from_parameters(p), collapse=collapse, polydispersity=p["polydispersity"],
                     dt=p["dt"], setup=setup)
 
-    def observe(self, params: dict) -> dict:
+    def observe(self, params: dict, checkpoint=None) -> dict:
         """The lifted-cylinder pile on a rough base of fixed spheres, every protocol choice a parameter:
-        the shipped case file repose-rough-base, sized (:func:`pile_case`)."""
-        run = pile_run(**self.pile_arguments(params))
+        the shipped case file repose-rough-base, sized (:func:`pile_case`); resumable with
+        ``checkpoint`` (:func:`pile_run`)."""
+        run = pile_run(**self.pile_arguments(params), checkpoint=checkpoint)
         a = run.angle
         return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
                 "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,

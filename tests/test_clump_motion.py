@@ -8,6 +8,7 @@ import math
 
 import numba
 import numpy as np
+import pandas as pd
 import pytest
 
 import rollingdem as rd
@@ -624,3 +625,32 @@ def test_a_probe_counts_a_clump_s_kinetic_energy_as_a_body_s():
     first_centre = sim.positions[0, 0]  # the larger member, left of the centre of mass
     half = rd.Probe("half", rd.BoxRegion((-0.01, -0.01, -0.01), (first_centre + 1e-4, 0.01, 0.01))).values(sim)
     assert half[0] == 1 and half[energy] == pytest.approx(sim.masses[0] / props.mass * body, rel=1e-12)
+
+
+def test_the_stand_in_study_goes_on_from_the_seeds_it_kept(tmp_path, monkeypatch):
+    """With an output folder each seed's observables are kept in ``clump-stand-in-runs`` as it
+    ends: the quick study run again there runs none of its 2 seeds and reads the same table; with a
+    seed's file lost (a kill during it) it runs that seed only; a new revision of the contact laws
+    runs both afresh."""
+    from rollingdem.experiments import clump_stand_in as csi
+
+    calls = []
+
+    def observe(self, point):
+        calls.append(point["seed"])
+        return {"mur_stand_in": 0.5156, "angle_clumps": 27.0 + len(calls), "angle_spheres": 30.0,
+                "flow_clumps": 0.4, "flow_spheres": 0.41 + 0.01 * len(calls)}
+
+    monkeypatch.setattr(csi.ClumpStandIn, "observe", observe)
+    first = csi.stand_in_study(quick=True, outdir=tmp_path)
+    kept = sorted((tmp_path / "clump-stand-in-runs").glob("*.json"))
+    assert calls == [1, 2] and len(kept) == 2
+    again = csi.stand_in_study(quick=True, outdir=tmp_path)
+    assert calls == [1, 2]
+    pd.testing.assert_frame_equal(first.table, again.table)
+    kept[0].unlink()
+    csi.stand_in_study(quick=True, outdir=tmp_path)
+    assert len(calls) == 3
+    monkeypatch.setattr(csi, "LAWS_REVISION", csi.LAWS_REVISION + 1)
+    csi.stand_in_study(quick=True, outdir=tmp_path)
+    assert sorted(calls[3:]) == [1, 2]

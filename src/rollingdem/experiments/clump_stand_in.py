@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -24,7 +25,7 @@ from rollingdem.errors import check_choice
 from rollingdem.experiments.registry import BedExperiment, Parameter
 from rollingdem.experiments.repose import Collapse, PileMaterial, PileSetup, column_size, pile_run
 from rollingdem.analysis.intervals import confidence_interval
-from rollingdem.experiments.results import Check, ValidationResult, pyplot
+from rollingdem.experiments.results import LAWS_REVISION, Check, ValidationResult, kept_run, pyplot
 from rollingdem.experiments.silo import BLOCKS, SiloSetup, discharge_rate, silo_run
 from rollingdem.scene.clumps import Clump, stand_in_rolling_friction
 
@@ -203,7 +204,8 @@ def stand_in_verdict(differences, width: float = VERDICT_WIDTH, what: str = "the
 def stand_in_study(model="epsd", members=4, quick=False, outdir=None, progress=None, runner=map) -> ValidationResult:
     """Both piles and both silos over the seeds of the size (``ClumpStandIn.sizes``): their angles
     and flow rates, the mean differences with their 95 % Student-t intervals, and whether the
-    stand-in holds for each (the interval holds 0). Checks: a pile forms of each (every angle above
+    stand-in holds for each (the interval holds 0). With ``outdir`` each seed's runs are kept in
+    ``outdir/clump-stand-in-runs`` as they end (``results.kept_run``). Checks: a pile forms of each (every angle above
     5 deg: a clump's shape resists rolling, and so does the stand-in's mu_r), and each silo drains."""
     tic = time.perf_counter()
     experiment = ClumpStandIn()
@@ -211,8 +213,10 @@ def stand_in_study(model="epsd", members=4, quick=False, outdir=None, progress=N
     points = [{"model": model, "members": members, "count": size["count"], "seed": s, **size["silo"]}
               for s in size["seeds"]]
 
-    def one(point):
-        return experiment.observe(point)
+    def one(point):  # kept in OUT/clump-stand-in-runs: a stopped study goes on from the seeds it has
+        folder = None if outdir is None else Path(outdir) / "clump-stand-in-runs"
+        return kept_run(folder, [model, members, size, point, LAWS_REVISION], lambda _: experiment.observe(point),
+                        {"model": model, "point": point})
 
     rows = []
     for point, res in zip(points, runner(one, points)):

@@ -20,8 +20,6 @@ Each comparison is the difference of the means over seeds with Welch's 95 % inte
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import time
 from pathlib import Path
@@ -31,7 +29,7 @@ import pandas as pd
 
 from rollingdem.analysis.intervals import difference_interval
 from rollingdem.experiments.registry import BedExperiment, Parameter, resolve_rolling
-from rollingdem.experiments.results import Check, ValidationResult, pyplot
+from rollingdem.experiments.results import LAWS_REVISION, Check, ValidationResult, kept_run, pyplot
 
 CASE = "coarse-graining"
 #: deg: the issue's bound on the parcels' pile and drum angles against the real particles'
@@ -48,9 +46,6 @@ REST = 3.0
 PILE_RADIUS, LIFT_SPEED = 0.005, 0.1
 
 
-#: the contact laws' revision a kept run was made with: raised when a law the study uses changes what
-#: it gives, so that the runs of the laws before are run again (2: the history spring's cap, §1.2)
-LAWS_REVISION = 2
 
 
 def dt_of(alpha: float, dt: float) -> float:
@@ -205,20 +200,10 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
 
     def one(point):
         """The point's observables; with ``outdir`` kept in a file of their own, so that the study,
-        stopped, goes on from the runs it has."""
-        if done is None:
-            return run_point(point)
-        # the run's key: the model, the point, the size it belongs to and the laws' revision (a changed
-        # size or contact law runs afresh)
-        key = [model, size, point, LAWS_REVISION]
-        path = done / (hashlib.sha1(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16] + ".json")
-        if path.exists():
-            return json.loads(path.read_text())["result"]
-        done.mkdir(parents=True, exist_ok=True)
-        res = run_point(point, path.with_suffix(".partial"))  # a pile goes on from its last save there
-        path.write_text(json.dumps({"model": model, "size": key, "point": point, "result": res},
-                                   default=lambda v: v.item() if hasattr(v, "item") else str(v)))
-        return res
+        stopped, goes on from the runs it has (a pile from its last save). The run's key: the model,
+        the point, the size it belongs to and the laws' revision (a changed size or law runs afresh)."""
+        return kept_run(done, [model, size, point, LAWS_REVISION], lambda partial: run_point(point, partial),
+                        {"model": model, "point": point})
 
     def run_point(point, checkpoint=None):
         scene = point["scene"]

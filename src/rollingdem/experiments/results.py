@@ -74,6 +74,32 @@ class ValidationResult:
         return path
 
 
+#: the contact laws' revision a kept run (``kept_run``) was made with: raised when a law changes what
+#: the studies give, so that the runs of the laws before are run again (2: the history spring's cap, §1.2)
+LAWS_REVISION = 2
+
+
+def kept_run(folder: Path | None, key: list, compute, record: dict) -> dict:
+    """``compute``'s observables, kept in ``folder`` as ``<sha1 of key>.json`` (with ``record``, the
+    key and the result) once it returns, and read from there instead of computed when it exists:
+    a long study stopped goes on from the runs it has. ``compute`` takes the path a run in progress
+    may save itself to (``folder/<name>.partial``; None without ``folder``)."""
+    import hashlib
+    import json
+
+    if folder is None:
+        return compute(None)
+    folder = Path(folder)
+    path = folder / (hashlib.sha1(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16] + ".json")
+    if path.exists():
+        return json.loads(path.read_text())["result"]
+    folder.mkdir(parents=True, exist_ok=True)
+    res = compute(path.with_suffix(".partial"))
+    path.write_text(json.dumps({**record, "size": key, "result": res},
+                               default=lambda v: v.item() if hasattr(v, "item") else str(v)))
+    return res
+
+
 def pyplot():
     """matplotlib.pyplot on the Agg backend (no display needed), with a 20-colour cycle so that
     the twelve models of a figure stay distinguishable."""

@@ -25,6 +25,19 @@ def pytest_collection_finish(session):
         started.start(needed)  # only the children whose tests were selected
 
 
+@pytest.fixture(autouse=True)
+def _experiments_as_they_were():
+    """A case file swept or calibrated is registered as an experiment under its path
+    (``case_experiment``): each test leaves the registry as it found it, so that one that counts the
+    built-in experiments does not see another's case files."""
+    from rollingdem.experiments import EXPERIMENTS
+
+    before = dict(EXPERIMENTS)
+    yield
+    EXPERIMENTS.clear()
+    EXPERIMENTS.update(before)
+
+
 @pytest.fixture
 def table1():
     def make(name="m", **kw):

@@ -58,11 +58,11 @@ def test_angle_check_of_case_3_on_stand_in_piles(monkeypatch):
     """The angle check of case 3: EPSD2's angle minus EPSD's, reference 0, absolute tolerance
     REPOSE_ANGLE_TOLERANCE; it passes within, fails beyond, and fails when a pile has no angle."""
     def stand_in(angles):
-        def pile_run(rolling, twisting, label=None, **kw):
+        def pile_run(rolling, twisting, **kw):
             t = np.linspace(0.01, 1.5, 150)
             e = np.full(t.size, 1e-9)
-            a = angles[label]
-            return SimpleNamespace(label=label, t=t, translational=e, rotational=e, spin_vertical=e * 0.1,
+            a = angles[rolling]
+            return SimpleNamespace(label=rolling, t=t, translational=e, rotational=e, spin_vertical=e * 0.1,
                                    angle=None if a is None else SimpleNamespace(angle=a, slice_mean=a, slice_std=1.0,
                                                                                 r_squared=0.5),
                                    angle_error="" if a is not None else "too flat", settled_at=1.5, wall_time=1.0)

@@ -290,7 +290,7 @@ class PileProgress:
 
 
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
-             collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT, label=None,
+             collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT,
              setup: PileSetup = PileSetup(), edit=None, checkpoint=None) -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
@@ -367,7 +367,7 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
             error = str(err)
     if progress is not None:
         progress.remove()
-    return PileRun(label or str(rolling), ke[:, 0], ke[:, 1], ke[:, 2], ke[:, 3], sim.positions[free].copy(),
+    return PileRun(str(rolling), ke[:, 0], ke[:, 1], ke[:, 2], ke[:, 3], sim.positions[free].copy(),
                    sim.radii[free].copy(), sim.velocities[free].copy(), angle, error, settled_at,
                    earlier + time.perf_counter() - tic)
 
@@ -420,7 +420,9 @@ def angle_of_repose(quick=False, outdir=None, progress=None, count=None, models=
 
     def one(item):
         label, (rolling, twisting) = item
-        return pile_run(rolling, twisting, count=count, collapse=Collapse(collapse, collapse), label=label)
+        run = pile_run(rolling, twisting, count=count, collapse=Collapse(collapse, collapse))
+        run.label = label  # the model's name in the report ("epsd + marshall twisting")
+        return run
 
     runs = {}
     for r in runner(one, list(chosen.items())):

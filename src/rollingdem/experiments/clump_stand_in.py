@@ -158,7 +158,7 @@ class ClumpStandIn(BedExperiment):
                                 ("spheres", mu_r, None)):
             material = PileMaterial(friction=p["mu"], rolling_friction=mur, youngs_modulus=5e6)
             run = pile_run(resolve_rolling(p["model"]), "none", p["count"], p["seed"], material, collapse,
-                           polydispersity=0.0, dt=p["dt"], setup=setup, edit=edit, label=what)
+                           polydispersity=0.0, dt=p["dt"], setup=setup, edit=edit)
             out[f"angle_{what}"] = run.angle.angle if run.angle else math.nan
             out[f"note_{what}"] = run.angle_error[:200]
             out[f"flow_{what}"] = math.nan

@@ -3,25 +3,27 @@ check of case 3 on stand-in piles (fast).
 
 They assert the cases' own physics checks: EPSD's translational kinetic energy ends two decades
 below CDT's chatter floor, a twisting model removes the spin, EPSD2 and EPSD (the same rolling
-limit) leave piles of the same angle, and the repose angle grows with mu and mu_r by more than
-the seed-to-seed scatter. The default suite covers the pieces: the angle measurement on
+limit) leave piles of the same angle, and the repose angle grows with mu (the sweep's own check)
+and with mu_r by more than the seed-to-seed scatter. The default suite covers the pieces: the angle measurement on
 synthetic piles (test_analysis.py), the statistics and the report (test_validate.py).
 
 Seed-to-seed spread of the quick sweep's piles (2000 spheres, 'rrlinear', tube lifted at 0.2 m/s,
-E = 5 MPa, dt = 2.5e-5 s; rollingdem.experiments.repose.AngleOfRepose.observe with the quick sweep's
-parameters, seeds 1-3, 71-190 s a pile on one core):
+E = 5 MPa, dt = 2.5e-5 s; ``repose_sweep(quick=True, seeds=(1, 2, 3, 4))``, about 25 min on a shared
+2-core machine):
 
-    mu = 0.4, mu_r = 0.2: 17.28, 15.91, 14.18 degrees (cone fit R^2 0.48-0.58)
-    mu = 0.8, mu_r = 0.8: 31.32, 31.00 degrees (R^2 0.80), seed 3 still creeping at 2.6 s
+    mu = 0.4, mu_r = 0.2: 16.46, 18.76, 13.51, 15.85 degrees (mean 16.15)
+    mu = 0.4, mu_r = 0.8: 27.48, 25.81, 26.28, 27.12 degrees (mean 26.67)
+    mu = 0.8, mu_r = 0.2: 18.18, 19.12, 18.07, 21.36 degrees (mean 19.18)
+    mu = 0.8, mu_r = 0.8: 29.69, 29.77, 30.08 degrees (seed 4 still creeping at 2.6 s)
 
-Pooled standard deviation s = 1.27 degree (3 degrees of freedom; t(0.975, 3) = 3.18). The quick
+Pooled standard deviation s = 1.44 degree (11 degrees of freedom; t(0.975, 11) = 2.20). The quick
 sweep has two seeds a point, so the difference of two points' means has standard deviation s
-(variance s^2/2 + s^2/2), and the mean over mu_r of the mu difference s / sqrt(2). A trend is
-asserted when it is larger than t(0.975, 3) times that: 4.0 degrees for mu_r, 2.9 degrees for mu;
-a sweep in which the angle did not depend on mu or mu_r would pass with a chance of 2.5 %.
-Measured (the whole quick sweep, 11 min): mu_r raises the angle by 9.6 (mu = 0.4) and 12.6 degrees
-(mu = 0.8), mu by 3.4 degrees on average (1.95 at mu_r = 0.2, 4.9 at 0.8): the mu trend is the
-weak one at this size.
+(variance s^2/2 + s^2/2): the mu_r trend is asserted when larger than t s = 3.2 degrees, and it
+is about 10.6 (a sweep in which the angle did not depend on mu_r would pass with a chance of
+2.5 %). The mu trend is not asserted beyond the sweep's own check that it is positive: over 4 seeds
+mu raises the angle by 3.1 degrees on average, and the quick sweep's statistic (the mean over mu_r
+of the mu difference, standard deviation s / sqrt(2) = 1.0) would clear t s / sqrt(2) = 2.2 degrees
+only about 4 times in 5 (seeds 1 and 2 give 2.06).
 """
 
 import math
@@ -35,7 +37,8 @@ from rollingdem.experiments import repose
 from rollingdem.experiments.repose import REPOSE_ANGLE_TOLERANCE, angle_of_repose
 from rollingdem.studies.repose_study import repose_sweep
 
-QUICK_SWEEP_SPREAD = {(0.4, 0.2): [17.275, 15.907, 14.183], (0.8, 0.8): [31.316, 30.997]}
+QUICK_SWEEP_SPREAD = {(0.4, 0.2): [16.461, 18.758, 13.507, 15.852], (0.4, 0.8): [27.485, 25.807, 26.280, 27.122],
+                      (0.8, 0.2): [18.178, 19.119, 18.071, 21.358], (0.8, 0.8): [29.687, 29.769, 30.078]}
 
 
 def _pooled_sd(groups):
@@ -95,10 +98,9 @@ def test_repose_sweep_quick(tmp_path):
     table = result.table.set_index(["mu", "mu_r"])
     assert (table["measured"] == 2).all(), table  # every pile settled and measured
     angle = table["angle mean (deg)"]
-    print(f"\n{angle}\nmargins: mu_r {t * s:.2f}, mu {t * s / math.sqrt(2):.2f} deg")
+    print(f"\n{angle}\nmargin: mu_r {t * s:.2f} deg")
     for mu in (0.4, 0.8):
         assert angle[(mu, 0.8)] - angle[(mu, 0.2)] > t * s
-    assert np.mean([angle[(0.8, m)] - angle[(0.4, m)] for m in (0.2, 0.8)]) > t * s / math.sqrt(2)
 
 
 @pytest.mark.slow

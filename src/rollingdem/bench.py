@@ -271,18 +271,23 @@ def _time_run(sim, steps: int) -> tuple[float, int]:
     return _timed_steps(sim, steps)
 
 
-def _in_turn(sims, steps: int, chunks: int) -> tuple[np.ndarray, list[int]]:
-    """Each scene warmed up, then ``steps`` steps of each in ``chunks`` chunks taken in turn, so that
-    they see the same moments of a shared machine's load: (seconds per scene and chunk, rebuilds
-    per scene)."""
+def _chunked(steps: int, chunks: int) -> np.ndarray:
+    """``steps`` split into ``chunks`` near-equal whole chunks."""
+    return np.array([steps * (c + 1) // chunks - steps * c // chunks for c in range(chunks)])
+
+
+def _in_turn(sims, steps, chunks: int) -> tuple[np.ndarray, list[int]]:
+    """Each scene warmed up, then ``steps`` steps of each (a number, or one per scene) in ``chunks``
+    chunks taken in turn, so that they see the same moments of a shared machine's load: (seconds
+    per scene and chunk, rebuilds per scene)."""
     for sim in sims:
         _warm_up(sim)
+    todo = [_chunked(n, chunks) for n in np.broadcast_to(steps, len(sims))]
     walls = np.zeros((len(sims), chunks))
     rebuilds = [0] * len(sims)
     for c in range(chunks):
-        todo = steps * (c + 1) // chunks - steps * c // chunks
         for s, sim in enumerate(sims):
-            walls[s, c], done = _timed_steps(sim, todo)
+            walls[s, c], done = _timed_steps(sim, int(todo[s][c]))
             rebuilds[s] += done
     return walls, rebuilds
 
@@ -694,16 +699,9 @@ def coarse_graining_bench(steps=12000, threads=None, echo=print, drum_diameters:
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(bench_contact("epsd"), 10000)
     sims = [coarse_graining_drum(a, echo=echo, drum_diameters=drum_diameters) for a in (1.0, CG_ALPHA)]
-    for sim in sims:
-        _warm_up(sim)
     counts = [steps, max(CG_CHUNKS, int(round(steps * sims[0].dt / sims[1].dt)))]
-    todo = np.array([[n * (c + 1) // CG_CHUNKS - n * c // CG_CHUNKS for c in range(CG_CHUNKS)] for n in counts])
-    walls = np.zeros((2, CG_CHUNKS))
-    rebuilds = [0, 0]
-    for c in range(CG_CHUNKS):
-        for s, sim in enumerate(sims):
-            walls[s, c], done = _timed_steps(sim, int(todo[s, c]))
-            rebuilds[s] += done
+    walls, rebuilds = _in_turn(sims, counts, CG_CHUNKS)
+    todo = np.array([_chunked(n, CG_CHUNKS) for n in counts])
     # particles represented x simulated seconds, per second of wall time: whole, and chunk by chunk
     represented = np.array([[sim.particles_represented * sim.dt] for sim in sims])
     rates = represented[:, 0] * todo.sum(axis=1) / walls.sum(axis=1)

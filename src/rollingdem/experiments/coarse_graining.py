@@ -102,7 +102,8 @@ class CoarseGraining(BedExperiment):
                                          "max_collapse": lift_time(p["count"], p["alpha"]) + REST},
                                         checkpoint=checkpoint)
         return {"angle": res["angle"], "r_squared": res["r_squared"],
-                "parcels": int(round(p["count"] / p["alpha"] ** 3)), "note": res["note"]}
+                "parcels": int(round(p["count"] / p["alpha"] ** 3)), "note": res["note"],
+                "wall_time": res["wall_time"]}
 
     def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
         return coarse_graining_study(model, quick=quick, outdir=outdir, progress=progress, runner=runner)

@@ -499,7 +499,8 @@ def pile_observables(settled: str) -> dict[str, str]:
     """What a pile's experiment observes; ``settled``: from when its settling time counts."""
     return {"angle": "deg, cone fit (rollingdem.analysis.repose.repose_angle)",
             "slice_std": "deg, spread over azimuthal slices", "r_squared": "cone fit R²",
-            "settled_at": f"s after {settled}", "note": "why no angle"}
+            "settled_at": f"s after {settled}", "note": "why no angle",
+            "wall_time": "s, the run's wall time (a resumed run's parts summed)"}
 
 
 class AngleOfRepose(Experiment):
@@ -541,7 +542,7 @@ class AngleOfRepose(Experiment):
         a = run.angle
         return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
                 "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
-                "note": run.angle_error[:200]}
+                "note": run.angle_error[:200], "wall_time": run.wall_time}
 
     def validate(self, quick=False, outdir=None, progress=None, runner=map, models=None) -> ValidationResult:
         return angle_of_repose(quick=quick, outdir=outdir, progress=progress, models=models, runner=runner)
@@ -600,7 +601,7 @@ class ReposeRoughBase(BedExperiment):
         a = run.angle
         return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
                 "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
-                "note": run.angle_error[:200]}
+                "note": run.angle_error[:200], "wall_time": run.wall_time}
 
     def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
         """The lifted-cylinder pile on a rough base at mu = 0.2 and 0.6 and mu_r = 0, 0.1, 0.3, over 3

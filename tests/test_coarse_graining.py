@@ -352,6 +352,42 @@ def test_the_study_s_checks_on_known_tables(pile_shift, drum_shift, flow_over_be
     assert "expects -32.0 %" in notes and f"flow at {flow_over_beverloo:.3f} of that" in notes
 
 
+@pytest.mark.parametrize("shift, spread, passes", [
+    (0.9, 0.2, True),    # within 1 deg
+    (1.2, 0.2, False),   # outside 1 deg, the seeds' interval (+-0.45 deg) narrower
+    (1.2, 1.0, True),    # the interval (+-2.27 deg) wider than 1 deg: no difference resolved
+    (3.0, 1.0, False),   # outside the interval too
+])
+def test_the_parcels_against_the_real_scene_alpha_times_smaller(shift, spread, passes):
+    """The similarity check: the parcels' mean angle minus the smaller real scene's within 1 deg, or
+    within Welch's 95 % interval where the seeds' scatter makes that wider. Three seeds each at
+    30 +- spread (the same values in both: s = spread, half-width t(0.975, 4) s sqrt(2/3), 2.27 deg
+    at spread 1) and the parcels shifted by ``shift``; the mu_r of the pile is matched, the other
+    mu_r and the length convention ignored."""
+    from rollingdem.experiments.coarse_graining import similarity_checks
+    from rollingdem.experiments.results import ValidationResult
+
+    rows = []
+    for k, s in enumerate((1, 2, 3)):
+        real = 30.0 + spread * (k - 1)
+        for scene in ("pile", "drum"):
+            rows.append(dict(scene=f"{scene}-scaled", alpha=2.0, seed=s, angle=real))
+            rows.append(dict(scene=scene, alpha=2.0, seed=s, angle=real + shift))
+        rows += [dict(scene="pile", alpha=2.0, mur=0.4, length_convention=1, seed=s, angle=real - 10.0),
+                 dict(scene="pile", alpha=2.0, mur=0.1, length_convention=0, seed=s, angle=real - 10.0)]
+    runs = pd.DataFrame(rows)
+    piles = runs["scene"].str.startswith("pile")
+    runs.loc[piles, "mur"] = runs.loc[piles, "mur"].fillna(0.4)
+    runs.loc[piles, "length_convention"] = runs.loc[piles, "length_convention"].fillna(0)
+    result = ValidationResult("coarse-graining", "test", runs, [])
+    similarity_checks(result, runs, "epsd", quick=False)
+    assert [c.passed for c in result.checks] == [passes, passes], result.notes
+    assert all(f"parcels {shift:+.2f} +- " in n for n in result.notes) and len(result.notes) == 2
+    assert math.isclose(result.checks[0].measured, shift, abs_tol=1e-9)
+    similarity_checks(quick := ValidationResult("coarse-graining", "test", runs, []), runs, "epsd", quick=True)
+    assert quick.checks == [] and len(quick.notes) == 2
+
+
 def test_a_silo_orifice_narrower_than_a_parcel_is_refused():
     """An orifice of 5 real diameters with parcels of alpha 6 (7.2 d with the 20 % spread): one line."""
     from rollingdem.experiments.repose import PileMaterial
@@ -463,7 +499,7 @@ def test_the_study_goes_on_from_the_runs_it_kept(tmp_path, monkeypatch):
         return run
 
     monkeypatch.setattr(cg.CoarseGraining, "observe", fake("pile"))
-    for name in ("drum_point", "silo_point", "slope_point"):
+    for name in ("drum_point", "silo_point", "slope_point", "scaled_pile_point", "scaled_drum_point"):
         monkeypatch.setattr(cg, name, fake(name))
     first = cg.coarse_graining_study(quick=True, outdir=tmp_path)
     n = len(calls)

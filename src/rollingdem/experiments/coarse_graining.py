@@ -13,7 +13,10 @@ and its spheres made parcels alpha times larger (``coarse_graining`` of ``repose
 - the silo at alpha = 1, 2 through an orifice of 6 parcel diameters or more: its mass flow rate,
   beside Beverloo's (D0 - k alpha d)^(5/2), which expects the parcels' empty annulus to slow it;
 - one parcel of alpha = 3 on a slope: its critical mu_r against tan(beta) for every rolling model
-  with a static threshold (the seed report's Table 2).
+  with a static threshold (the seed report's Table 2);
+- beside each pile and drum of parcels, the real particles in the same scene alpha times smaller
+  (as many particles as parcels, speeds set by gravity 1/sqrt(alpha) as large, Young's modulus
+  1/alpha): the parcels' scene obeys the same equations as it, made alpha times larger.
 
 Each comparison is the difference of the means over seeds with Welch's 95 % interval.
 """
@@ -140,6 +143,43 @@ def drum_point(model: str, alpha: float, seed: int, size: dict) -> dict:
             "parcels": int(round(res["particles"] / alpha ** 3)), "wall_time": wall}
 
 
+def scaled_pile_point(model: str, alpha: float, mur: float, seed: int, count: int, checkpoint=None) -> dict:
+    """The real particles in the study's pile of parcels of ``alpha`` (``count`` real particles),
+    made alpha times smaller: count / alpha^3 of them (the tube, sized by the count, alpha times
+    narrower), the tube lifted at LIFT_SPEED / sqrt(alpha) (gravity sets the speeds: the same
+    Froude number) and Young's modulus E / alpha (the bed's weight is alpha times smaller: the same
+    strain), at the real particles' time step. The parcels' pile obeys the same equations as this
+    one made alpha times larger (docs/models.md §18)."""
+    from rollingdem.experiments.repose import ReposeRoughBase
+
+    experiment = ReposeRoughBase()
+    small = int(round(count / alpha ** 3))
+    params = {"model": model, "mu": CoarseGraining().resolve({})["mu"], "mur": mur, "count": small, "seed": seed,
+              "lift_speed": LIFT_SPEED / math.sqrt(alpha),
+              "youngs_modulus": experiment.resolve({})["youngs_modulus"] / alpha, "dt": dt_of(1.0, 2.5e-5),
+              "max_collapse": lift_time(count, alpha) / math.sqrt(alpha) + REST}
+    res = experiment.observe(params, checkpoint=checkpoint)
+    return {"angle": res["angle"], "r_squared": res["r_squared"], "parcels": small, "note": res["note"],
+            "wall_time": res["wall_time"]}
+
+
+def scaled_drum_point(model: str, alpha: float, seed: int, size: dict) -> dict:
+    """The real particles in the study's drum of parcels of ``alpha``, made alpha times smaller: a
+    drum and a slice alpha times fewer real diameters across (as many particles as parcels), at the
+    same Froude number (``rotating-drum`` keeps it), Young's modulus E / alpha, the real particles'
+    time step (``scaled_pile_point``)."""
+    from rollingdem.experiments.drum import RotatingDrum
+
+    experiment = RotatingDrum()
+    params = dict(drum_parameters(model, 1.0, seed, size), drum_diameters=size["drum_diameters"] / alpha,
+                  slice_diameters=drum_parameters(model, 1.0, seed, size)["slice_diameters"] / alpha,
+                  youngs_modulus=experiment.resolve({})["youngs_modulus"] / alpha)
+    tic = time.perf_counter()
+    res = experiment.observe(params)
+    return {"angle": res["angle"], "angle_ci": res["angle_ci"], "particles": res["particles"],
+            "parcels": res["particles"], "wall_time": time.perf_counter() - tic}
+
+
 def silo_point(model: str, alpha: float, seed: int, size: dict) -> dict:
     """The silo (orifice 12 d: 6 parcel diameters at alpha = 2) of parcels of ``alpha``: its flow rate."""
     from rollingdem.experiments.silo import SiloDischarge
@@ -194,6 +234,10 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
     slope_models = size["slope"]["models"] or [m for m in validation_models() if m not in NO_THRESHOLD]
     points += [{"scene": "slope", "alpha": 3.0, "model": m, "beta": b} for m in slope_models
                for b in size["slope"]["angles"]]
+    points += [{"scene": "pile-scaled", "alpha": a, "mur": mur, "seed": s} for mur in size["murs"]
+               for a in size["alphas"] if a > 1.0 for s in size["seeds"]]
+    points += [{"scene": "drum-scaled", "alpha": a, "seed": s} for a in size["drum"]["alphas"] if a > 1.0
+               for s in size["drum"]["seeds"]]
     # the cheap runs first (the real particles' piles last): what a stopped study keeps is most of them
     points.sort(key=lambda p: (-p["alpha"], p["scene"] == "pile"))
 
@@ -212,8 +256,12 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
             return experiment.observe({"model": model, "mur": point["mur"], "alpha": point["alpha"],
                                        "length_convention": point["length_convention"], "count": size["count"],
                                        "seed": point["seed"]}, checkpoint=checkpoint)
+        if scene == "pile-scaled":
+            return scaled_pile_point(model, point["alpha"], point["mur"], point["seed"], size["count"], checkpoint)
         if scene == "drum":
             return drum_point(model, point["alpha"], point["seed"], size["drum"])
+        if scene == "drum-scaled":
+            return scaled_drum_point(model, point["alpha"], point["seed"], size["drum"])
         if scene == "silo":
             return silo_point(model, point["alpha"], point["seed"], size["silo"])
         return slope_point(point["model"], point["alpha"], point["beta"])
@@ -229,6 +277,7 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
     drum_checks(result, runs, model, quick)
     silo_checks(result, runs, model, quick)
     slope_checks(result, runs)
+    similarity_checks(result, runs, model, quick)
     if outdir is not None:
         figure(result, runs, outdir)
     result.wall_time = time.perf_counter() - tic
@@ -326,6 +375,38 @@ def slope_checks(result: ValidationResult, runs: pd.DataFrame) -> None:
                                    source="theory: mu_r,crit = tan(beta) whatever the size (docs/models.md §18)"))
 
 
+def similarity_checks(result: ValidationResult, runs: pd.DataFrame, model: str, quick: bool) -> None:
+    """Each pile and drum of parcels against the real particles in the same scene alpha times
+    smaller (``scaled_pile_point``, ``scaled_drum_point``): the difference of the means with its
+    interval; full size: within 1 deg or, where the seeds' scatter is wider, within the 95 %
+    interval (no difference resolved)."""
+    for scene in ("pile", "drum"):
+        small = runs[runs["scene"] == f"{scene}-scaled"]
+        for alpha in sorted(set(small["alpha"])):
+            for mur in sorted(set(small["mur"])) if scene == "pile" else [None]:
+                at = {"mur": mur} if mur is not None else {}
+                scaled = (runs["scene"] == f"{scene}-scaled") & (runs["alpha"] == alpha)
+                parcels = (runs["scene"] == scene) & (runs["alpha"] == alpha)
+                if mur is not None:
+                    scaled &= np.isclose(runs["mur"], mur)
+                    parcels &= np.isclose(runs["mur"], mur) & (runs["length_convention"] == 0)
+                if not parcels.any():
+                    continue
+                mean, diff, half = compared(runs, "angle", scaled, parcels)
+                label = f"{scene}" + "".join(f", mu_r {v:g}" for v in at.values())
+                result.notes.append(f"{label}: parcels of alpha {alpha:g} {mean:.2f} deg; the real particles in the "
+                                    f"{scene} {alpha:g} times smaller {runs.loc[scaled, 'angle'].mean():.2f} deg: "
+                                    f"parcels {diff:+.2f} +- {half:.2f} deg (95 %, Welch)")
+                if not quick:
+                    result.checks.append(Check(CASE, model, f"{label} angle, alpha {alpha:g} - the real particles' "
+                                                            f"{scene} {alpha:g} times smaller (deg)",
+                                               diff, 0.0, ANGLE_TOLERANCE if not half > ANGLE_TOLERANCE else half,
+                                               relative=False,
+                                               source="the rule's similarity: parcels of alpha are the real particles "
+                                                      "of a scene alpha times smaller (docs/models.md §18); 1 deg, or "
+                                                      "the 95 % interval where wider"))
+
+
 def figure(result: ValidationResult, runs: pd.DataFrame, outdir) -> None:
     plt = pyplot()
     fig, (ax, ax2, ax3) = plt.subplots(1, 3, figsize=(12, 4))
@@ -333,11 +414,16 @@ def figure(result: ValidationResult, runs: pd.DataFrame, outdir) -> None:
     for (mur, convention), grp in piles.groupby(["mur", "length_convention"]):
         ax.plot(grp["alpha"], grp["angle"], "s" if convention else "o",
                 label=f"μr {mur:g}" + (", μr a length" if convention else ""))
+    for mur, grp in runs[runs["scene"] == "pile-scaled"].groupby("mur"):
+        ax.plot(grp["alpha"], grp["angle"], "x", label=f"μr {mur:g}, real particles, the pile α times smaller")
     ax.set_xlabel("α")
     ax.set_ylabel("pile angle (deg)")
     ax.legend(fontsize=7)
     drums = runs[runs["scene"] == "drum"]
-    ax2.plot(drums["alpha"], drums["angle"], "o")
+    ax2.plot(drums["alpha"], drums["angle"], "o", label="parcels of α")
+    small = runs[runs["scene"] == "drum-scaled"]
+    ax2.plot(small["alpha"], small["angle"], "x", label="real particles, the drum α times smaller")
+    ax2.legend(fontsize=7)
     ax2.set_xlabel("α")
     ax2.set_ylabel("drum dynamic angle (deg)")
     silos = runs[runs["scene"] == "silo"]

@@ -14,8 +14,8 @@ and its spheres made parcels alpha times larger (``coarse_graining`` of ``repose
   beside Beverloo's (D0 - k alpha d)^(5/2), which expects the parcels' empty annulus to slow it;
 - one parcel of alpha = 3 on a slope: its critical mu_r against tan(beta) for every rolling model
   with a static threshold (the seed report's Table 2);
-- beside each pile and drum of parcels, the real particles in the same scene alpha times smaller
-  (as many particles as parcels, speeds set by gravity 1/sqrt(alpha) as large, Young's modulus
+- beside each pile of parcels and the drum of alpha = 2, the real particles in the same scene
+  alpha times smaller (as many particles as parcels, speeds set by gravity 1/sqrt(alpha) as large, Young's modulus
   1/alpha): the parcels' scene obeys the same equations as it, made alpha times larger.
 
 Each comparison is the difference of the means over seeds with Welch's 95 % interval.
@@ -236,8 +236,9 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
                for b in size["slope"]["angles"]]
     points += [{"scene": "pile-scaled", "alpha": a, "mur": mur, "seed": s} for mur in size["murs"]
                for a in size["alphas"] if a > 1.0 for s in size["seeds"]]
-    points += [{"scene": "drum-scaled", "alpha": a, "seed": s} for a in size["drum"]["alphas"] if a > 1.0
-               for s in size["drum"]["seeds"]]
+    # the drum checked (alpha 2): at alpha 3 the smaller drum's slice, 3.3 d long, is too thin to fill at random
+    points += [{"scene": "drum-scaled", "alpha": 2.0, "seed": s} for s in size["drum"]["seeds"]
+               if 2.0 in size["drum"]["alphas"]]
     # the cheap runs first (the real particles' piles last): what a stopped study keeps is most of them
     points.sort(key=lambda p: (-p["alpha"], p["scene"] == "pile"))
 

@@ -295,7 +295,7 @@ def pile_checks(result: ValidationResult, runs: pd.DataFrame, model: str, size: 
     piles = runs[runs["scene"] == "pile"]
     for _, r in piles.iterrows():  # a pile forms: mu_r and the rough base hold one
         result.checks.append(Check(CASE, model, f"pile angle, alpha {r['alpha']:g}, mu_r {r['mur']:g}"
-                                   f"{', mu_r a length' if r['length_convention'] else ''}, seed {r['seed']} (deg)",
+                                   f"{', mu_r a length' if r['length_convention'] else ''}, seed {r['seed']:g} (deg)",
                                    r["angle"], 5.0, 0.0, bound="lower", source="a pile forms on the rough base"))
     for mur in size["murs"]:
         at = (runs["scene"] == "pile") & np.isclose(runs["mur"], mur)
@@ -338,7 +338,7 @@ def drum_checks(result: ValidationResult, runs: pd.DataFrame, model: str, quick:
     result.notes.append("drum, particles represented per second of wall time (the whole run, settling included): "
                         + ", ".join(f"alpha {a:g}: {v:.4g} ({v / speed[1.0]:.3g} x alpha 1)" for a, v in speed.items()))
     for _, r in drums.iterrows():
-        result.checks.append(Check(CASE, model, f"drum angle, alpha {r['alpha']:g}, seed {r['seed']} (deg)", r["angle"],
+        result.checks.append(Check(CASE, model, f"drum angle, alpha {r['alpha']:g}, seed {r['seed']:g} (deg)", r["angle"],
                                    0.0, 0.0, bound="lower", source="the bed turns and flows: an angle is measured"))
 
 
@@ -348,7 +348,7 @@ def silo_checks(result: ValidationResult, runs: pd.DataFrame, model: str, quick:
         return
     real = (runs["scene"] == "silo") & (runs["alpha"] == 1.0)
     for _, r in silos.iterrows():
-        result.checks.append(Check(CASE, model, f"silo flow rate, alpha {r['alpha']:g}, seed {r['seed']} (kg/s)",
+        result.checks.append(Check(CASE, model, f"silo flow rate, alpha {r['alpha']:g}, seed {r['seed']:g} (kg/s)",
                                    r["flow_rate"], 0.0, 0.0, bound="lower", source="the silo drains (clogged: NaN)"))
     for alpha in sorted(set(silos["alpha"]) - {1.0}):
         at = (runs["scene"] == "silo") & (runs["alpha"] == alpha)

@@ -130,11 +130,11 @@ def test_repose_sweep_runs_creeping_piles_again_longer(tmp_path, monkeypatch):
         calls.append((rolling_friction, seed, max_collapse))
         settle = 1.0 + 3.0 * rolling_friction if rolling_friction > 0 else math.inf
         if settle > max_collapse:
-            return SimpleNamespace(angle=None, settled_at=math.nan,
+            return SimpleNamespace(angle=None, settled_at=math.nan, wall_time=1.0,
                                    angle_error=f"the pile did not settle within {max_collapse} s")
         return SimpleNamespace(angle=SimpleNamespace(angle=10.0 + 20.0 * rolling_friction + 0.1 * seed,
                                                      slice_std=0.5, r_squared=0.95),
-                               settled_at=settle, angle_error="")
+                               settled_at=settle, angle_error="", wall_time=1.0)
 
     monkeypatch.setattr(repose, "pile_run", fake_pile)
     args = dict(frictions=(0.2, 0.6), rolling_frictions=(0.0, 0.5, 1.0), seeds=(1, 2), count=1000,

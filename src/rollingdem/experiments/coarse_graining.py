@@ -171,8 +171,8 @@ def scaled_drum_point(model: str, alpha: float, seed: int, size: dict) -> dict:
     from rollingdem.experiments.drum import RotatingDrum
 
     experiment = RotatingDrum()
-    params = dict(drum_parameters(model, 1.0, seed, size), drum_diameters=size["drum_diameters"] / alpha,
-                  slice_diameters=drum_parameters(model, 1.0, seed, size)["slice_diameters"] / alpha,
+    real = drum_parameters(model, 1.0, seed, size)
+    params = dict(real, drum_diameters=real["drum_diameters"] / alpha, slice_diameters=real["slice_diameters"] / alpha,
                   youngs_modulus=experiment.resolve({})["youngs_modulus"] / alpha)
     tic = time.perf_counter()
     res = experiment.observe(params)

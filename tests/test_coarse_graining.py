@@ -388,6 +388,41 @@ def test_the_parcels_against_the_real_scene_alpha_times_smaller(shift, spread, p
     assert quick.checks == [] and len(quick.notes) == 2
 
 
+def test_the_smaller_scene_is_the_parcels_scene_scaled_by_one_over_alpha(monkeypatch):
+    """The real particles' scene beside parcels of alpha: lengths / alpha (the count / alpha^3, the
+    drum's and slice's diameters / alpha), speeds set by gravity / sqrt(alpha) (the lift; the drum's
+    Froude number unchanged), E / alpha (docs/models.md §18: the Hertz force E sqrt(alpha R)
+    (alpha delta)^1.5 is alpha^3 times (E / alpha) sqrt(R) delta^1.5), the real time step."""
+    import rollingdem.experiments.coarse_graining as cg
+    from rollingdem.experiments.drum import RotatingDrum
+    from rollingdem.experiments.repose import ReposeRoughBase
+
+    seen = {}
+
+    def capture(self, params, checkpoint=None):
+        seen[type(self).__name__] = self.resolve(params)
+        return {"angle": 30.0, "r_squared": 0.9, "note": "", "wall_time": 1.0, "angle_ci": 0.5, "particles": 7}
+
+    monkeypatch.setattr(ReposeRoughBase, "observe", capture)
+    monkeypatch.setattr(RotatingDrum, "observe", capture)
+    cg.scaled_pile_point("epsd", 3.0, 0.4, 2, 40500)
+    pile = seen["ReposeRoughBase"]
+    assert pile["count"] == 1500 and pile["seed"] == 2 and pile["mur"] == 0.4 and pile["mu"] == 0.5
+    assert pile["lift_speed"] == pytest.approx(0.1 / math.sqrt(3.0), rel=1e-12)
+    assert pile["youngs_modulus"] == pytest.approx(5e6 / 3.0, rel=1e-12)
+    assert pile["dt"] == 2.5e-5 and pile["coarse_graining"] == 1.0 and pile["radius"] == 0.005
+    # the parcels' collapse lasts its lift and REST s; the smaller pile's lift is sqrt(alpha) shorter
+    assert pile["max_collapse"] == pytest.approx(cg.lift_time(40500, 3.0) / math.sqrt(3.0) + cg.REST, rel=1e-12)
+    size = cg.CoarseGraining.sizes["full"]["drum"]
+    cg.scaled_drum_point("epsd", 2.0, 1, size)
+    drum, parcels = seen["RotatingDrum"], RotatingDrum().resolve(cg.drum_parameters("epsd", 2.0, 1, size))
+    assert (drum["drum_diameters"], drum["slice_diameters"]) == (15.0, 5.0)
+    assert drum["youngs_modulus"] == 2.5e6 and drum["coarse_graining"] == 1.0 and drum["dt"] == 2.5e-5
+    assert parcels["coarse_graining"] == 2.0 and parcels["drum_diameters"] == 30.0
+    for same in ("froude", "gravity", "mu", "mur", "fill", "spin_up", "measure", "samples", "radius", "seed"):
+        assert drum[same] == parcels[same], same
+
+
 def test_a_silo_orifice_narrower_than_a_parcel_is_refused():
     """An orifice of 5 real diameters with parcels of alpha 6 (7.2 d with the 20 % spread): one line."""
     from rollingdem.experiments.repose import PileMaterial

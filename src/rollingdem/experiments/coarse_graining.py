@@ -15,8 +15,9 @@ and its spheres made parcels alpha times larger (``coarse_graining`` of ``repose
 - one parcel of alpha = 3 on a slope: its critical mu_r against tan(beta) for every rolling model
   with a static threshold (the seed report's Table 2);
 - beside each pile of parcels and the drum of alpha = 2, the real particles in the same scene
-  alpha times smaller (as many particles as parcels, speeds set by gravity 1/sqrt(alpha) as large, Young's modulus
-  1/alpha): the parcels' scene obeys the same equations as it, made alpha times larger.
+  alpha times smaller (as many particles as parcels, speeds set by gravity 1/sqrt(alpha) as large,
+  Young's modulus 1/alpha): the parcels' scene obeys the same equations as it, made alpha times
+  larger.
 
 Each comparison is the difference of the means over seeds with Welch's 95 % interval.
 """
@@ -385,7 +386,6 @@ def similarity_checks(result: ValidationResult, runs: pd.DataFrame, model: str, 
         small = runs[runs["scene"] == f"{scene}-scaled"]
         for alpha in sorted(set(small["alpha"])):
             for mur in sorted(set(small["mur"])) if scene == "pile" else [None]:
-                at = {"mur": mur} if mur is not None else {}
                 scaled = (runs["scene"] == f"{scene}-scaled") & (runs["alpha"] == alpha)
                 parcels = (runs["scene"] == scene) & (runs["alpha"] == alpha)
                 if mur is not None:
@@ -394,14 +394,14 @@ def similarity_checks(result: ValidationResult, runs: pd.DataFrame, model: str, 
                 if not parcels.any():
                     continue
                 mean, diff, half = compared(runs, "angle", scaled, parcels)
-                label = f"{scene}" + "".join(f", mu_r {v:g}" for v in at.values())
+                label = scene if mur is None else f"{scene}, mu_r {mur:g}"
                 result.notes.append(f"{label}: parcels of alpha {alpha:g} {mean:.2f} deg; the real particles in the "
                                     f"{scene} {alpha:g} times smaller {runs.loc[scaled, 'angle'].mean():.2f} deg: "
                                     f"parcels {diff:+.2f} +- {half:.2f} deg (95 %, Welch)")
                 if not quick:
                     result.checks.append(Check(CASE, model, f"{label} angle, alpha {alpha:g} - the real particles' "
                                                             f"{scene} {alpha:g} times smaller (deg)",
-                                               diff, 0.0, ANGLE_TOLERANCE if not half > ANGLE_TOLERANCE else half,
+                                               diff, 0.0, half if half > ANGLE_TOLERANCE else ANGLE_TOLERANCE,
                                                relative=False,
                                                source="the rule's similarity: parcels of alpha are the real particles "
                                                       "of a scene alpha times smaller (docs/models.md §18); 1 deg, or "

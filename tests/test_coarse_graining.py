@@ -551,6 +551,40 @@ def test_the_study_goes_on_from_the_runs_it_kept(tmp_path, monkeypatch):
     assert len(calls) == 2 * n + 1
 
 
+def test_the_full_study_s_kept_runs_give_the_figures_the_studies_doc_states(tmp_path, monkeypatch):
+    """The full size's runs ship in ``benchmarks/coarse_graining_runs`` (docs/studies.md): copied into
+    an output folder, the study runs none of its points again (every key is current under today's
+    ``LAWS_REVISION``) and its notes give the differences docs/studies.md states. A change of the
+    laws that leaves the kept runs stale, or a figure in the doc that the runs do not give, fails."""
+    import re
+    import shutil
+    from pathlib import Path
+
+    import rollingdem.experiments.coarse_graining as cg
+
+    root = Path(__file__).resolve().parents[1]
+    runs = tmp_path / "coarse-graining-runs"
+    runs.mkdir()
+    for f in (root / "benchmarks" / "coarse_graining_runs").glob("*.json"):
+        shutil.copy(f, runs)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a point of the full study is not among the kept runs")
+
+    monkeypatch.setattr(cg.CoarseGraining, "observe", refuse)
+    for name in ("drum_point", "silo_point", "slope_point", "scaled_pile_point", "scaled_drum_point"):
+        monkeypatch.setattr(cg, name, refuse)
+    result = cg.coarse_graining_study(quick=False, outdir=tmp_path)
+    notes = " ".join(result.notes)
+    doc = (root / "docs" / "studies.md").read_text()
+    stated = doc[doc.index("Results of the full size:"):doc.index("## Sweeps")]
+    # every "difference +-interval" the doc states, to the doc's two decimals, is a note's
+    for shift, spread in re.findall(r"([+−-]\d+\.\d\d)\s+±\s+(\d+\.\d\d)°", stated):
+        assert f"{shift.replace('−', '-')} +- {spread} deg" in notes, (shift, spread)
+    assert len(re.findall(r"±\s+\d+\.\d\d°", stated)) == 11  # 4 piles and 2 drums vs real, 5 vs smaller
+    assert "-34.4 +- 11.1 %" in notes and "0.964 of that" in notes and "0.964" in stated
+
+
 def test_rollingdem_check_says_what_the_parcels_stand_for(tmp_path):
     """``rollingdem check`` of a case with a coarse-grained material: 800 particles inserted are 100
     parcels of alpha 2, and the line says so."""

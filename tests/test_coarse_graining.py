@@ -151,6 +151,44 @@ def test_parcels_collide_as_the_real_spheres_scaled():
     np.testing.assert_allclose(parcel.angular_velocities * ALPHA, real.angular_velocities, rtol=0, atol=RT * 100)
 
 
+def bonded_scene(alpha: float, tensile_strength: float) -> rd.Simulation:
+    """Two touching spheres of the real radius 1 mm bonded (a parallel bond with dashpots), pulled
+    apart, sheared and twisted from their start, with no gravity: the real scene at alpha = 1, its
+    parcels at alpha (positions alpha x, the same velocities, spins / alpha, dt alpha x)."""
+    sim = rd.Simulation(gravity=(0, 0, 0), dt=alpha * 2e-8)
+    sim.add_material(rd.Material("m", **REAL, coarse_graining=alpha))
+    sim.add_particles(alpha * np.array([[0.0, 0.0, 0.0], [2e-3, 0.0, 0.0]]), 1e-3, "m",
+                      velocity=[[-0.02, 0.01, 0.0], [0.02, -0.01, 0.005]],
+                      angular_velocity=np.array([[5.0, 0.0, 8.0], [-3.0, 4.0, 0.0]]) / alpha)
+    assert sim.add_bonds(rd.ParallelBond(youngs_modulus=1e8, tensile_strength=tensile_strength, cohesion=1e9,
+                                         damping_ratio=0.2), pairs=[(0, 1)]) == 1
+    return sim
+
+
+@pytest.mark.parametrize("tensile_strength", [1e9, 5e3])  # the pull peaks at 1.1e4 Pa
+def test_bonded_parcels_move_and_break_as_the_real_pair_scaled(tensile_strength):
+    """docs/models.md §18, parallel bond: k_n = E / (R_i + R_j) from the parcels' radii, K_n = k_n A ~
+    alpha, K_b = k_n I ~ alpha^3, dashpots 2 zeta sqrt(m K) ~ alpha^2, strengths in Pa kept. The bonded
+    parcels end at alpha times the real positions, with the real velocities, spins / alpha, the bond's
+    forces alpha^2 and moments alpha^3 the real ones (module docstring: RT); with a tensile strength
+    the pull exceeds, both bonds break, in tension. Catches a bond stiffness, dashpot or area taken
+    from the real radius, or a strength scaled."""
+    real, parcel = bonded_scene(1.0, tensile_strength), bonded_scene(ALPHA, tensile_strength)
+    real.run(steps=4000)
+    parcel.run(steps=4000)
+    a, b = real.bonds(), parcel.bonds()
+    assert list(a["status"]) == list(b["status"]) == (["intact"] if tensile_strength > 1e8 else ["tension"])
+    if tensile_strength > 1e8:
+        assert abs(a["normal_force"].iloc[0]) > 0 and a["shear_force"].iloc[0] > 0  # loaded
+        for column, power in (("normal_force", 2), ("shear_force", 2), ("twisting_moment", 3), ("bending_moment", 3)):
+            assert b[column].iloc[0] / ALPHA ** power == pytest.approx(a[column].iloc[0], rel=RT, abs=1e-300), column
+    speed = np.abs(real.velocities).max()
+    np.testing.assert_allclose(parcel.positions / ALPHA, real.positions, rtol=0, atol=RT * 2e-3)
+    np.testing.assert_allclose(parcel.velocities, real.velocities, rtol=0, atol=RT * speed)
+    np.testing.assert_allclose(parcel.angular_velocities * ALPHA, real.angular_velocities, rtol=0,
+                               atol=RT * np.abs(real.angular_velocities).max())
+
+
 @pytest.mark.parametrize("chain", list(CHAINS))
 def test_the_time_step_limits_of_parcels_are_alpha_times_the_real(chain):
     """Every limit of docs/models.md §2 is a time of the contact (a Rayleigh time ~ r, a spring period

@@ -621,6 +621,13 @@ def test_the_full_study_s_kept_runs_give_the_figures_the_studies_doc_states(tmp_
         assert f"{shift.replace('−', '-')} +- {spread} deg" in notes, (shift, spread)
     assert len(re.findall(r"±\s+\d+\.\d\d°", stated)) == 11  # 4 piles and 2 drums vs real, 5 vs smaller
     assert "-34.4 +- 11.1 %" in notes and "0.964 of that" in notes and "0.964" in stated
+    # the README's summary: the ranges over the piles and the drum, against each scene
+    shifts = {c.quantity: c.measured for c in result.checks if "angle, alpha" in c.quantity}
+    smaller = [abs(v) for q, v in shifts.items() if "times smaller" in q]
+    real = [v for q, v in shifts.items() if " - alpha 1" in q]
+    assert len(smaller) == 5 and len(real) == 5
+    readme = " ".join((root / "README.md").read_text().split())
+    assert f"(within {min(smaller):.2f}–{max(smaller):.2f}°), {min(real):.1f}–{max(real):.1f}° steeper" in readme
 
 
 def test_rollingdem_check_says_what_the_parcels_stand_for(tmp_path):

@@ -654,3 +654,41 @@ def test_the_stand_in_study_goes_on_from_the_seeds_it_kept(tmp_path, monkeypatch
     monkeypatch.setattr(csi, "LAWS_REVISION", csi.LAWS_REVISION + 1)
     csi.stand_in_study(quick=True, outdir=tmp_path)
     assert sorted(calls[3:]) == [1, 2]
+
+
+def test_the_stand_in_study_s_kept_full_runs_give_the_table_the_studies_doc_states(tmp_path, monkeypatch):
+    """The full size's seeds ship in ``benchmarks/clump_stand_in_runs`` (docs/studies.md): copied into
+    an output folder the study runs none of them again (every key current under today's
+    ``LAWS_REVISION``), and its table and notes give docs/studies.md's per-seed figures and the two
+    verdicts. Stale kept runs, or a figure in the doc the runs do not give, fail."""
+    import re
+    import shutil
+    from pathlib import Path
+
+    from rollingdem.experiments import clump_stand_in as csi
+
+    root = Path(__file__).resolve().parents[1]
+    (tmp_path / "clump-stand-in-runs").mkdir()
+    for f in (root / "benchmarks" / "clump_stand_in_runs").glob("*.json"):
+        shutil.copy(f, tmp_path / "clump-stand-in-runs")
+
+    def refuse(self, point):
+        raise AssertionError(f"seed {point['seed']} of the full study is not among the kept runs")
+
+    monkeypatch.setattr(csi.ClumpStandIn, "observe", refuse)
+    result = csi.stand_in_study(quick=False, outdir=tmp_path)
+    doc = (root / "docs" / "studies.md").read_text()
+    section = doc[doc.index("The full size (N = 1,500 in the piles, seeds 1–4)"):doc.index("## Coarse graining")]
+    rows = re.findall(r"\| (\d) \| ([\d.]+)° \| ([\d.]+)° \| ([\d.]+) kg/s \| ([\d.]+) kg/s \|", section)
+    table = result.table.set_index("seed")
+    assert [int(r[0]) for r in rows] == [1, 2, 3, 4]
+    for seed, *values in rows:
+        got = table.loc[int(seed), ["angle_clumps", "angle_spheres", "flow_clumps", "flow_spheres"]]
+        assert [f"{v:.2f}" for v in got[:2]] + [f"{v:.3f}" for v in got[2:]] == values, seed
+    notes = " ".join(result.notes)
+    verdicts = re.findall(r"= ([+−-][\d.]+) ± ([\d.]+) ?(°|%) \(95 %, 4 seeds", section)
+    assert len(verdicts) == 2  # the angle's and the flow's
+    for shift, spread, unit in verdicts:
+        assert f"{shift.replace('−', '-')} +- {spread} {'deg' if unit == '°' else '%'}" in notes, (shift, spread)
+    assert "does not hold for the angle" in notes and "holds for the silo's flow" in notes
+    assert "does not hold.** Spheres − tetrahedra" in section and "the stand-in holds.** Spheres / tetrahedra" in section

@@ -360,6 +360,26 @@ def test_spring_rolling_at_the_cap(case):
     assert dissipated == pytest.approx(M_MAX * np.linalg.norm(DW_R) * DT, rel=tol)
 
 
+def test_spring_rolling_with_the_dashpot_alone_above_the_cap():
+    """docs/models.md §12, as it is (LAMMPS's back-out, unlike the tangential spring of §1.2): EPSD with
+    eta_r 0.9 at 50 times the rate, C_r |w| = 1.07e-3 N m above M_m = 3.75e-4 N m. The step gives the
+    cap along w, and the spring is set back to M_m w/|w| - C_r w, against w; when the relative
+    rotation stops, the moment is the cap reversed, -M_m w/|w|. Catches the spring capped at M_m
+    w/|w| instead (f = 0 in the set-back), and a change of the rule that leaves §12 stale."""
+    k_r = 2.25 * KN * MU_R ** 2 * R_EFF ** 2
+    c_r = c_ratio(0.9, k_r)
+    w = 50 * DW_R
+    what = w / np.linalg.norm(w)
+    assert c_r * np.linalg.norm(w) > 2 * M_MAX
+    hist = np.zeros((1, 3))
+    mi, _, _, _ = rolling(rd.EPSD(damping_ratio=0.9), hist=hist, wi=50 * WI, wj=50 * WJ)
+    assert_vec(mi, M_MAX * what)
+    assert_vec(hist[0], M_MAX * what - c_r * w)
+    assert hist[0] @ w < 0
+    mi, _, _, _ = rolling(rd.EPSD(damping_ratio=0.9), hist=hist, wi=np.zeros(3), wj=np.zeros(3))
+    assert_vec(mi, -M_MAX * what, scale=M_MAX)
+
+
 @pytest.mark.parametrize("model", [rd.EPSD(), rd.EPSD2(), rd.RRLinear(), rd.SDS(3e3, 0.05),
                                    rd.DisplacementDamping(damping=0.3)])
 def test_spring_rolling_pulling_contact_has_no_moment(model):

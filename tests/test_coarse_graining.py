@@ -171,8 +171,8 @@ def test_bonded_parcels_move_and_break_as_the_real_pair_scaled(tensile_strength)
     alpha, K_b = k_n I ~ alpha^3, dashpots 2 zeta sqrt(m K) ~ alpha^2, strengths in Pa kept. The bonded
     parcels end at alpha times the real positions, with the real velocities, spins / alpha, the bond's
     forces alpha^2 and moments alpha^3 the real ones (module docstring: RT); with a tensile strength
-    the pull exceeds, both bonds break, in tension. Catches a bond stiffness, dashpot or area taken
-    from the real radius, or a strength scaled."""
+    the pull exceeds, the bond breaks in both scenes, in tension. Catches a bond stiffness, dashpot or
+    area taken from the real radius, or a strength scaled."""
     real, parcel = bonded_scene(1.0, tensile_strength), bonded_scene(ALPHA, tensile_strength)
     real.run(steps=4000)
     parcel.run(steps=4000)

@@ -556,6 +556,10 @@ def test_rollingdem_check_refuses_an_opening_the_inflow_s_parcels_cannot_pass(tm
     assert check(4.0).exit_code == 0
 
 
+# the study's runners of a point besides CoarseGraining.observe (the piles'): a test stands in for them
+POINT_RUNNERS = ("drum_point", "silo_point", "slope_point", "scaled_pile_point", "scaled_drum_point")
+
+
 def test_the_study_goes_on_from_the_runs_it_kept(tmp_path, monkeypatch):
     """With an output folder each run's observables are kept as it ends: the study run again there
     runs nothing it has (a study stopped goes on where it was), and reads the same numbers; runs kept
@@ -572,7 +576,7 @@ def test_the_study_goes_on_from_the_runs_it_kept(tmp_path, monkeypatch):
         return run
 
     monkeypatch.setattr(cg.CoarseGraining, "observe", fake("pile"))
-    for name in ("drum_point", "silo_point", "slope_point", "scaled_pile_point", "scaled_drum_point"):
+    for name in POINT_RUNNERS:
         monkeypatch.setattr(cg, name, fake(name))
     first = cg.coarse_graining_study(quick=True, outdir=tmp_path)
     n = len(calls)
@@ -610,7 +614,7 @@ def test_the_full_study_s_kept_runs_give_the_figures_the_studies_doc_states(tmp_
         raise AssertionError("a point of the full study is not among the kept runs")
 
     monkeypatch.setattr(cg.CoarseGraining, "observe", refuse)
-    for name in ("drum_point", "silo_point", "slope_point", "scaled_pile_point", "scaled_drum_point"):
+    for name in POINT_RUNNERS:
         monkeypatch.setattr(cg, name, refuse)
     result = cg.coarse_graining_study(quick=False, outdir=tmp_path)
     notes = " ".join(result.notes)

@@ -386,3 +386,52 @@ def test_an_inflow_reports_the_mass_fractions_it_realised():
     sigma = 0.5 * math.sqrt(np.sum(p * v ** 2)) / (math.sqrt(n) * np.sum(p * v))
     assert np.all(np.abs(got - 0.5) < 4 * sigma), (got, sigma, n)
     assert inflow.realised().startswith(f"inflow 'feed': {n} spheres") and "(asked 0.500 0.500)" in inflow.realised()
+
+
+def test_the_dissipated_energy_never_falls_while_an_outlet_takes_spheres_out_and_refills_them(table1, tmp_path):
+    """Each channel sums the work of a dissipative force (a damper, a slip against friction), so over
+    the run it never decreases: the spheres the outlet takes out leave their share in the run's account,
+    not with them (at 0.01 s intervals, with 60+ spheres out and put back). A checkpoint keeps that
+    account: the restored run ends on the same sums, to the bit."""
+    whole, outlet, _ = _refilled_silo(table1)
+    whole.track_energy = True
+    tallies = []
+    whole.run(0.15, observers=[rd.Callback(lambda s: tallies.append(list(s.dissipated_energy().values())),
+                                           interval=0.01)])
+    whole.checkpoint(tmp_path / "mid.npz")
+    whole.run(0.15, observers=[rd.Callback(lambda s: tallies.append(list(s.dissipated_energy().values())),
+                                           interval=0.01)])
+    tallies = np.array(tallies)
+    assert outlet.count > 60
+    assert tallies[-1, :2].min() > 0  # damping and sliding both dissipated
+    assert (np.diff(tallies, axis=0) >= 0).all(), np.diff(tallies, axis=0).min(axis=0)
+    again = rd.Simulation.restore(tmp_path / "mid.npz")
+    again.run(0.15)
+    assert again.dissipated_energy() == whole.dissipated_energy()
+
+
+@pytest.mark.parametrize("dt", [4e-6, 1e-6])
+def test_energy_is_conserved_over_a_silo_discharging_onto_a_floor(table1, dt):
+    """A closed discharge (nothing leaves the scene), from rest: the potential energy released equals
+    the kinetic energy plus every channel dissipated. The dissipation is summed step by step, a
+    first-order quadrature over each collision of about 20 Hertz-time steps at 4e-6 s, so the balance
+    holds to O(dt / t_Hertz): within 4 % of the released energy at 4e-6 s and 1.2 % at 1e-6 s (measured:
+    -2.6 % and -0.8 %, and -0.36 % at 2.5e-7 s, where the spheres' stored elastic energy and the order
+    of the sums are what is left). A channel summed twice, or half, breaks the balance by 20 % or more."""
+    sim = rd.Simulation(gravity=(0, 0, -G), dt=dt, track_energy=True)
+    sim.add_material(table1(friction=0.3, rolling_friction=0.0))
+    sim.add_wall(rd.MeshWall.shape("silo", radius=0.02, height=0.08, orifice_radius=0.0075, material="m",
+                                   name="silo"))
+    sim.add_wall(rd.Plane((0, 0, -0.03), (0, 0, 1), material="m"))
+    sim.insert(rd.CylinderRegion(0.0175, 0.002, 0.07), 100, RP, "m", seed=2)
+
+    def potential():
+        return G * float(np.dot(sim.masses, sim.positions[:, 2]))
+
+    start = potential()
+    sim.run(0.2)
+    released = start - potential()
+    assert (sim.positions[:, 2] < 0).sum() > 25  # it discharged onto the floor
+    dissipated = sum(sim.dissipated_energy().values())
+    balance = (released - sum(sim.kinetic_energy()) - dissipated) / released
+    assert abs(balance) < (0.04 if dt > 2e-6 else 0.012), balance

@@ -53,6 +53,7 @@ class EngineState:
         self.clump_start = np.zeros(0, dtype=np.int64)
         self.clump_members = np.zeros(0, dtype=np.int64)
         self.next_tag = 0
+        self.energy_removed = np.zeros(len(ENERGY_CHANNELS))  # what the particles taken out had dissipated (J)
         self._slots = None  # slot of each id, once the slots were re-sorted
         self._governor = None  # made by governor() when first used
         self.steps_since_sort = 0
@@ -300,6 +301,8 @@ class EngineState:
         keep = ~gone
         n, h = self.n, self.history_size
         arrays = self.to_arrays()
+        if len(self.energy) == n:  # the run's account keeps what the particles leaving had dissipated
+            arrays["energy_removed"] = self.energy_removed + self.energy[gone].sum(axis=0)
         for field in SCHEMA.of(PER_PARTICLE):
             if field.saved and len(arrays[field.name]) == n:
                 arrays[field.name] = arrays[field.name][keep]
@@ -514,6 +517,7 @@ class EngineState:
         out = {f.name: getattr(self, f.name) for f in SCHEMA.all() if f.saved}
         out["info"] = self.info
         out["next_tag"] = np.array(self.next_tag)
+        out["energy_removed"] = self.energy_removed
         out["periodic_box"] = self.contact_list.box
         out.update(self.meshes.to_arrays())
         cl = self.contact_list
@@ -547,6 +551,8 @@ class EngineState:
         if "tags" not in arrays:
             st.tags = st.ids.copy()
         st.next_tag = int(arrays["next_tag"]) if "next_tag" in arrays else st.n
+        if "energy_removed" in arrays:
+            st.energy_removed = np.array(arrays["energy_removed"], dtype=np.float64)
         st.meshes.from_arrays(arrays, st.n)
         st.index_bonds()
         st.index_clumps()

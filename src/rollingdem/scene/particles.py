@@ -313,11 +313,13 @@ class Particles:
 
     def dissipated_energy(self) -> dict[str, float]:
         """``Simulation.dissipated_energy``."""
-        if not self.sim.track_energy and not self.state.energy.any():
+        st = self.state
+        if not self.sim.track_energy and not st.energy.any() and not st.energy_removed.any():
             raise ParameterError("dissipated_energy: track_energy = False, so no dissipated energy was summed; "
                                  "create the Simulation with track_energy=True (or set sim.track_energy = True "
                                  "before the run)")
-        return dict(zip(ENERGY_CHANNELS, self.state.energy.sum(axis=0).tolist()))
+        in_place = st.energy.sum(axis=0) if len(st.energy) else np.zeros(len(ENERGY_CHANNELS))
+        return dict(zip(ENERGY_CHANNELS, (in_place + st.energy_removed).tolist()))
 
     def represented(self) -> float:
         """The real particles the spheres stand for: alpha^3 for a parcel of a material coarse-grained by

@@ -338,7 +338,8 @@ class Simulation:
 
     def dissipated_energy(self) -> dict[str, float]:
         """Energy (J) dissipated while ``track_energy`` was on, by normal damping, sliding, rolling
-        and twisting."""
+        and twisting: a run-level account, so what particles dissipated before an outlet took them
+        out stays in it and each channel never decreases."""
         return self.particle_set.dissipated_energy()
 
     def number_of_contacts(self) -> int:

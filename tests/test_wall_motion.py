@@ -342,6 +342,52 @@ def test_an_automatic_dt_is_lowered_when_the_speeds_outgrow_it():
         given.run(1e-4)
 
 
+TWO_STAGES = """
+name: fall-then-rest
+gravity: [0, 0, 0]
+materials:
+  - {name: m, youngs_modulus: 1.0e7, poisson_ratio: 0.3, density: 2500.0, friction: 0.5, restitution: 0.5}
+walls:
+  - {type: plane, name: floor, material: m}
+particles:
+  - {positions: [[0, 0, 0.05]], radius: 0.002, material: m}
+stages:
+  - {name: launch, duration: 0.001, set_velocity: {particles: all, velocity: [0, 0, -20.0]}}
+  - {name: still, duration: 0.001, set_velocity: {particles: all, velocity: [0, 0, 0]}}
+output:
+  plot: false
+  report: null
+"""
+
+
+def test_each_stage_of_a_case_starts_at_its_own_stable_time_step(tmp_path):
+    """An automatic dt is chosen again when a stage starts: the launch at 20 m/s steps at the Hertz
+    time at impact (40 m/s) / 20, and the stage that stops the sphere goes back up to the step of a
+    scene at rest (0.2 x the Rayleigh time), instead of keeping the launch's; each stage's duration is
+    counted in its own steps. A dt the case gives stays through every stage."""
+    from rollingdem.io.casefile import load_case
+    from rollingdem.io.runner import run_case
+
+    (tmp_path / "case.yaml").write_text(TWO_STAGES)
+    ran = run_case(load_case(tmp_path / "case.yaml"), tmp_path / "out", progress=False, echo=lambda *a: None)
+    launch, still = ran["stages"]
+    sphere = rd.Simulation()
+    material(sphere)
+    sphere.add_wall(rd.Plane(material="m"))
+    sphere.add_particles([[0, 0, 0.05]], 2e-3, "m")
+    at_rest = sphere.stable_time_step()
+    sphere.set_velocities([0], velocity=(0, 0, -20.0))
+    launched = sphere.stable_time_step()
+    assert launched < 0.75 * at_rest
+    assert launch["steps"] == round(1e-3 / launched) and still["steps"] == round(1e-3 / at_rest)
+    end = rd.Simulation.restore(tmp_path / "out" / "final.npz")
+    assert end.dt == at_rest and end.time == pytest.approx(2e-3, abs=at_rest)
+    given = TWO_STAGES.replace("gravity:", f"dt: {launched!r}\ngravity:")
+    (tmp_path / "given.yaml").write_text(given)
+    ran = run_case(load_case(tmp_path / "given.yaml"), tmp_path / "given", progress=False, echo=lambda *a: None)
+    assert [s["steps"] for s in ran["stages"]] == [round(1e-3 / launched)] * 2
+
+
 @pytest.mark.parametrize("make,match", [
     (lambda: rd.MotionTable([0, 1, 2], [[0, 0, 0], [0, 0, 1]]),
      r"motion table displacements = .* must be finite, three numbers \(x, y, z\) per time \(3 times\)"),

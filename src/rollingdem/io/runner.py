@@ -298,6 +298,7 @@ class _Run:
         if stage.bonds is not None:
             made = sim.add_bonds(stage.bonds.parallel_bond(), pairs=stage.bonds.pairs, gap=stage.bonds.gap)
             self.echo(f"  stage {stage.name!r}: {made} bonds")
+        sim.choose_time_step()  # after the stage's changes: each stage starts at its own stable step
 
 
 def _relocate(state: RunState, outdir: Path) -> None:

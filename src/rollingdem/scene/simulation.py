@@ -358,6 +358,14 @@ class Simulation:
     def stable_time_step(self) -> float:  # the largest dt all criteria allow (s)
         return self.time_step_policy.stable()
 
+    def choose_time_step(self) -> None:
+        """An automatic dt chosen again, the largest stable step of the state now: raised as well as
+        lowered, so a stage that starts from rest is not held to the step the fill's fall needed. A dt
+        the user gave stays."""
+        if self.dt_automatic and self.n_particles:
+            self.dt = self.stable_time_step()
+            self.dt_automatic = True
+
     def check_time_step(self) -> None:  # refuse a dt above a stable limit (unless check_timestep is off), as run does
         self.time_step_policy.check()
 

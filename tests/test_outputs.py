@@ -1,6 +1,7 @@
 """Outputs a user opens elsewhere: CSV in pandas, VTU/PVD in ParaView (read back with meshio), the CLI."""
 
 import json
+import math
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -107,7 +108,11 @@ def test_default_case_is_valid():
 
     spec = load_case(default_case_path())
     sim = build_simulation(spec)
-    assert int((~sim.fixed).sum()) == 4000 and sim.fixed.any() and sim.dt == 1e-5
+    assert int((~sim.fixed).sum()) == 4000 and sim.fixed.any() and spec.dt is None and sim.dt_automatic
+    # 0.2 x the Rayleigh time of the smallest sphere (LIGGGHTS's formula; E 40 MPa, nu 0.49, rho 1056)
+    shear = 40e6 / (2 * 1.49)
+    rayleigh = math.pi * sim.radii.min() * math.sqrt(1056.0 / shear) / (0.1631 * 0.49 + 0.8766)
+    assert sim.dt == pytest.approx(0.2 * rayleigh, rel=1e-12) and 2.3e-5 < sim.dt < 2.34e-5
     assert [w.name for w in sim.walls] == ["plate", "tube"]
     assert spec.output.repose_angle is not None
     lift = spec.stages[1].wall_motion[0]

@@ -449,6 +449,32 @@ def test_restore_refuses_a_missing_or_foreign_file(tmp_path):
             rd.Simulation.restore(tmp_path / name)
 
 
+def test_restore_refuses_a_checkpoint_cut_or_of_a_later_format_and_checkpoint_an_unwritable_path(sim, tmp_path):
+    """A checkpoint missing an array (cut or edited), one of a format newer than this code reads, and a
+    checkpoint path that cannot be written: one line each, naming the file and what is wrong."""
+    import json
+
+    from rollingdem.scene.checkpoint import FORMAT
+
+    sim.checkpoint(tmp_path / "whole.npz")
+    with np.load(tmp_path / "whole.npz") as data:
+        arrays = {k: data[k] for k in data.files}
+    assert json.loads(str(arrays["meta"]))["format"] == FORMAT
+    np.savez(tmp_path / "cut.npz", **{k: v for k, v in arrays.items() if k != "x"})
+    with pytest.raises(rd.ParameterError, match=r"cut.npz' is not allowed: its array 'x' is missing"):
+        rd.Simulation.restore(tmp_path / "cut.npz")
+    meta = json.loads(str(arrays["meta"]))
+    np.savez(tmp_path / "later.npz", **dict(arrays, meta=np.array(json.dumps(dict(meta, format=FORMAT + 1)))))
+    with pytest.raises(rd.ParameterError, match=rf"it is of format {FORMAT + 1}, .* reads formats up to {FORMAT}"):
+        rd.Simulation.restore(tmp_path / "later.npz")
+    meta.pop("format")  # a checkpoint from before formats were recorded is read as format 1
+    np.savez(tmp_path / "older.npz", **dict(arrays, meta=np.array(json.dumps(meta))))
+    assert rd.Simulation.restore(tmp_path / "older.npz").n_particles == 1
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(rd.ParameterError, match=r"checkpoint = '.*afile/c.npz' cannot be written \(.*\): give a path"):
+        sim.checkpoint(tmp_path / "afile" / "c.npz")
+
+
 # --- item 8: run's arguments ----------------------------------------------------------------
 @pytest.mark.parametrize("kwargs,expected", [
     (dict(steps=2.5), "steps = 2.5 is not allowed: must be a whole number"),

@@ -134,3 +134,10 @@ def test_an_earlier_run_is_refused_unless_overwritten_and_resume_refuses_what_it
     assert empty.exit_code == 2 and "holds no run checkpoint" in empty.output
     both = CliRunner().invoke(app, ["run", str(case), "--resume", str(out)])
     assert both.exit_code == 2 and "is not allowed with CASE" in both.output
+    summary = json.loads((out / "summary.json").read_text())
+    (out / "summary.json").write_text(json.dumps(dict(summary, status="failed: killed")))
+    state = out / "checkpoints" / "run_state.pkl"
+    state.write_bytes(state.read_bytes()[:100])  # cut short, as a full disk leaves it
+    cut = CliRunner().invoke(app, ["run", "--resume", str(out), "--no-progress"])
+    assert cut.exit_code == 2 and "checkpoints/run_state.pkl cannot be read" in cut.output, cut.output
+    assert len(cut.output.strip().splitlines()) == 1 and "Traceback" not in cut.output

@@ -167,8 +167,15 @@ class _Run:
         if summary.exists() and json.loads(summary.read_text()).get("status") == "ok":
             raise ParameterError(f"--resume = {str(outdir)!r} is not allowed: that run finished (summary.json says "
                                  "ok); nothing is left to run")
-        with open(folder / RUN_STATE, "rb") as fh:
-            state: RunState = pickle.load(fh)
+        try:
+            with open(folder / RUN_STATE, "rb") as fh:
+                state: RunState = pickle.load(fh)
+            if not isinstance(state, RunState):
+                raise TypeError(type(state).__name__)
+        except Exception as err:  # noqa: BLE001 - a cut or foreign file: pickle raises many kinds
+            raise ParameterError(f"--resume = {str(outdir)!r} is not allowed: its checkpoints/{RUN_STATE} cannot be "
+                                 f"read ({type(err).__name__}: the file is cut short or not a rollingdem run state); "
+                                 "the run cannot be resumed, run the case again") from None
         if case is not None:
             state.case, state.base = case, str(Path(case.base_directory).resolve())
             _relocate(state, outdir)

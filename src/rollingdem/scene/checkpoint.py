@@ -21,6 +21,10 @@ from rollingdem.scene.materials import MaterialTable
 VERSION = "0.1.0"
 """The package version a checkpoint records."""
 
+FORMAT = 2
+"""The checkpoint layout this code writes; it reads every earlier one (a field an older checkpoint
+lacks gets its new rows) and refuses a later one. 1: checkpoints that record no format."""
+
 WHAT = "must be a checkpoint .npz file written by Simulation.checkpoint"
 
 
@@ -28,9 +32,9 @@ def write(sim, path) -> Path:
     """``Simulation.checkpoint``: written to a temporary file first, so a kill leaves the last
     whole checkpoint in place."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     meta = {
         "version": VERSION,
+        "format": FORMAT,
         "contact": sim.contact.to_dict(),
         "materials": sim.materials.to_dict(),
         "gravity": list(sim.gravity),
@@ -48,8 +52,15 @@ def write(sim, path) -> Path:
     }
     arrays = sim._state.to_arrays()
     tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays)
-    tmp.replace(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays)
+        tmp.replace(path)
+    except OSError as err:
+        if tmp.parent.is_dir():
+            tmp.unlink(missing_ok=True)
+        raise ParameterError(f"checkpoint = {str(path)!r} cannot be written ({err.strerror or err}): give a path "
+                             "in a folder that exists or can be made, and that this user may write to") from None
     return path
 
 
@@ -73,6 +84,11 @@ def read(path) -> tuple[dict, dict]:
     except (ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):  # not an .npz, or not rollingdem's
         raise ParameterError(f"checkpoint = {str(path)!r} is not allowed: it is not a rollingdem checkpoint; "
                              f"{WHAT}") from None
+    written = meta.get("format", 1)
+    if not isinstance(written, int) or written > FORMAT:
+        raise ParameterError(f"checkpoint = {str(path)!r} is not allowed: it is of format {written!r}, written by "
+                             f"rollingdem {meta.get('version', '?')}, and this rollingdem ({VERSION}) reads formats up "
+                             f"to {FORMAT}; restore it with the rollingdem that wrote it, or a newer one")
     return meta, arrays
 
 
@@ -85,7 +101,11 @@ def restore(simulation_class, path, backend: str | None = None):
                            periodic=meta.get("periodic"), backend=backend)
     sim.materials = MaterialTable.from_dict(meta["materials"])
     chosen = sim.backend
-    sim._state = EngineState.from_arrays(arrays, contact.history_size)
+    try:
+        sim._state = EngineState.from_arrays(arrays, contact.history_size)
+    except KeyError as err:
+        raise ParameterError(f"checkpoint = {str(path)!r} is not allowed: its array {err.args[0]!r} is missing "
+                             f"(the file was cut or edited); {WHAT}") from None
     sim.backend = chosen
     sim.wall_set.restore(meta["walls"])
     sim.boundary_set.restore(meta)

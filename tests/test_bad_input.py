@@ -297,6 +297,8 @@ CATALOGUE = [
      edit("    material: m\n", "    material: m\n  - {clump: {shape: dimer, radius: 0.002}, positions: [[0, 0, 0.1]], "
           "count: 3, material: m}\n"),
      "particles.1: count, mass and fraction go with insert: with positions each position is a clump"),
+    ("a negative dt beside a periodic axis, named as dt", edit("walls:", "dt: -1.0e-5\nperiodic: {x: [-0.1, 0.1]}\nwalls:"),
+     "error: dt = -1e-05 is not allowed: must be > 0 (s)"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),
     ("empty file", "", "is empty: must hold a mapping of keys"),
     ("a list, not a mapping", "- a\n- b\n", "must hold a mapping of keys, got list"),

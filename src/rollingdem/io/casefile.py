@@ -887,6 +887,7 @@ def build_simulation(case: CaseSpec):
     from rollingdem.scene.simulation import Simulation
     from rollingdem.scene.walls import Cylinder, Plane
     from rollingdem.scene.insertion import rough_base
+    from rollingdem.errors import check_positive
 
     def where(key):
         return _InCase(key)
@@ -897,6 +898,9 @@ def build_simulation(case: CaseSpec):
     with where("contact"):
         contact = ContactModel(**case.contact.model_dump())
     periodic = {k: v for k, v in case.periodic.model_dump().items() if v is not None} if case.periodic else None
+    for key in ("dt", "skin"):  # top-level keys: refused in their own name, before the periodic block's checks
+        if getattr(case, key) is not None:
+            check_positive(key, getattr(case, key), "s" if key == "dt" else "m")
     with where("periodic"):
         sim = Simulation(contact=contact, gravity=case.gravity, dt=case.dt, skin=case.skin,
                          check_timestep=case.check_timestep, periodic=periodic)

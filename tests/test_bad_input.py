@@ -451,6 +451,16 @@ def test_restore_refuses_a_missing_or_foreign_file(tmp_path):
             rd.Simulation.restore(tmp_path / name)
 
 
+def test_listed_positions_of_a_coarse_grained_material_that_overlap_name_the_parcels_radius():
+    """Spheres 0.02 m apart of r = 5 mm at coarse_graining 1000 are parcels of 5 m: the refusal says so,
+    instead of an overlap of 9.98 m that the positions given cannot explain."""
+    sim = rd.Simulation()
+    sim.add_material(rd.Material("m", 1e7, 0.3, 1000.0, coarse_graining=1000))
+    with pytest.raises(rd.ParameterError, match=r"overlap by 9.98 m at insertion; they are parcels of coarse_graining "
+                                                r"1000, of radius alpha r = 5 m for r = 0.005 m"):
+        sim.add_particles([[0, 0, 0.01], [0.02, 0, 0.01]], 0.005, "m")
+
+
 def test_restore_refuses_a_checkpoint_cut_or_of_a_later_format_and_checkpoint_an_unwritable_path(sim, tmp_path):
     """A checkpoint missing an array (cut or edited), one of a format newer than this code reads, and a
     checkpoint path that cannot be written: one line each, naming the file and what is wrong."""

@@ -382,3 +382,26 @@ def test_damaged_mesh_files_get_one_line_each(tmp_path):
     (tmp_path / "other.obj").write_bytes(data)  # a binary STL named .obj
     with pytest.raises(ParameterError, match="other.obj'"):
         TriangleMesh.from_file(tmp_path / "other.obj")
+
+
+def test_an_ascii_stl_cut_mid_facet_is_said_to_be_cut_and_an_obj_of_quads_is_read_as_triangles(tmp_path):
+    """An ASCII STL that stops inside a facet is refused as cut short (not as a number that does not
+    parse); an OBJ of one unit quad is two triangles of total area 1 m^2, and one of a pentagon face is
+    refused naming the face kind."""
+    import meshio
+
+    meshio.write(tmp_path / "whole.stl", meshio.Mesh(SQUARE[0], [("triangle", SQUARE[1])]), binary=False)
+    text = (tmp_path / "whole.stl").read_text()
+    cut = text[:text.index("vertex", text.index("facet", text.index("endfacet"))) + 12]  # mid-number
+    (tmp_path / "cut.stl").write_text(cut)
+    with pytest.raises(ParameterError, match=r"cut.stl' cannot be read as STL: an ASCII STL cut short \(it does not "
+                                             r"end with 'endsolid'"):
+        TriangleMesh.from_file(tmp_path / "cut.stl")
+    (tmp_path / "quad.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+    quad = TriangleMesh.from_file(tmp_path / "quad.obj")
+    a, b, c = (quad.vertices[quad.triangles[:, k]] for k in range(3))
+    assert quad.n_triangles == 2
+    assert 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum() == pytest.approx(1.0, rel=1e-12)
+    (tmp_path / "five.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0.5 1.5 0\nv 0 1 0\nf 1 2 3 4 5\n")
+    with pytest.raises(ParameterError, match=r"five.obj' has no triangle or quad face \(its faces are polygon"):
+        TriangleMesh.from_file(tmp_path / "five.obj")

@@ -66,6 +66,18 @@ def _check_binary_stl(path: Path, label: str) -> None:
                              f"{84 + 50 * count} bytes, but the file has {size}: cut short, or not a binary STL")
 
 
+def _ascii_stl_cut_short(path: Path) -> bool:
+    """Whether ``path`` is an ASCII STL (it starts with "solid" and is text) whose last word is not
+    "endsolid" (nor "endsolid NAME")."""
+    with open(path, "rb") as fh:
+        if fh.read(5).lower() != b"solid":
+            return False
+        fh.seek(max(0, path.stat().st_size - 512))
+        tail = fh.read().decode("ascii", errors="replace").split("\n")
+    last = [line.strip() for line in tail if line.strip()]
+    return not last or not last[-1].lower().startswith("endsolid")
+
+
 def _not_degenerate(vertices, triangles) -> np.ndarray:
     """Which triangles have three distinct corners and an area above ``DEGENERATE_AREA``."""
     a, b, c = (vertices[triangles[:, i]] for i in range(3))
@@ -198,10 +210,18 @@ class TriangleMesh:
             with np.errstate(over="ignore"):  # meshio's binary-STL size test overflows on an ASCII file
                 data = meshio.read(path, file_format="stl" if suffix == ".stl" else "obj")
         except (Exception, SystemExit) as err:  # meshio raises many kinds, and exits on some: one line naming the file
+            if suffix == ".stl" and _ascii_stl_cut_short(path):
+                raise ParameterError(f"{label} cannot be read as STL: an ASCII STL cut short (it does not end with "
+                                     "'endsolid', so its last facet is incomplete); write the file again") from None
             raise ParameterError(f"{label} cannot be read as {suffix[1:].upper()}: {err}") from None
         blocks = [c.data for c in data.cells if c.type == "triangle"]
+        # a quad face (OBJ) is two triangles, split along its first diagonal
+        blocks += [np.concatenate([c.data[:, [0, 1, 2]], c.data[:, [0, 2, 3]]]) for c in data.cells if c.type == "quad"]
         if not blocks:
-            raise ParameterError(f"{label} has no triangle")
+            kinds = sorted({c.type for c in data.cells})
+            raise ParameterError(f"{label} has no triangle or quad face" + (
+                f" (its faces are {', '.join(kinds)}, which rollingdem does not read: triangulate them)" if kinds else
+                ""))
         points = np.asarray(data.points, dtype=np.float64) * scale
         if not np.isfinite(points).all():
             k = int(np.nonzero(~np.isfinite(points).all(axis=1))[0][0])

@@ -106,7 +106,12 @@ class Particles:
             r = r * self.coarse_graining_factors()[mats]
         periodic_box.check_in_box(sim.periodic, x, self.state.n)
         if not allow_overlap:
-            self.check_no_overlap(x, r, walls=not fixed)  # walls never touch a fixed particle
+            alphas = self.coarse_graining_factors()[mats]
+            k = int(np.argmax(alphas)) if m else 0
+            note = "" if parcels or not m or alphas[k] == 1.0 else (
+                f"; they are parcels of coarse_graining {alphas[k]:g}, of radius alpha r = {r[k]:.4g} m for r = "
+                f"{r[k] / alphas[k]:.4g} m: place them alpha times farther apart, or give a smaller coarse_graining")
+            self.check_no_overlap(x, r, walls=not fixed, note=note)  # walls never touch a fixed particle
         density = np.array([sim.materials.materials[k].density for k in mats])
         mass = sphere_mass(density, r)
         first = self.state.n
@@ -125,7 +130,7 @@ class Particles:
                                  "must be one material or one per sphere")
         return np.array([materials.index(mm) for mm in material], dtype=np.int32)
 
-    def check_no_overlap(self, x, r, tolerance=1e-12, walls=True, bodies=None):
+    def check_no_overlap(self, x, r, tolerance=1e-12, walls=True, bodies=None, note=""):
         """Refuse new spheres (``x``, ``r``) that overlap a sphere before them (or its periodic
         image) or, with ``walls``, a wall in place; ``bodies`` (one label per new sphere): new
         spheres of one label (a clump's members) may overlap each other."""
@@ -154,14 +159,14 @@ class Particles:
                 j = int(source[near[np.argmax(bad)]])
                 j = int(st.ids[j]) if j < first else j  # as the user numbers them
                 g = float(gap[np.argmax(bad)])
-                raise ParameterError(f"particles {min(i, j)} and {max(i, j)} overlap by {-g:.3g} m at insertion: "
+                raise ParameterError(f"particles {min(i, j)} and {max(i, j)} overlap by {-g:.3g} m at insertion{note}: "
                                      f"positions must not overlap ({sim.hints['allow_overlap']} to accept it)")
         for wl in sim.walls if walls else ():
             ov = wl.overlap(x, r)
             k = int(np.argmax(ov)) if len(ov) else 0
             if len(ov) and ov[k] > tolerance * r[k]:
                 raise ParameterError(f"particle {first + k} overlaps wall {sim.wall_set.label(wl)} by {ov[k]:.3g} m "
-                                     f"at insertion ({sim.hints['allow_overlap']} to accept it)")
+                                     f"at insertion{note} ({sim.hints['allow_overlap']} to accept it)")
 
     def insert(self, region, count, radius, material, seed=0, velocity=None, max_attempts=200, mass=None,
                fraction=None, clump=None) -> np.ndarray:

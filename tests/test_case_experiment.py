@@ -124,6 +124,11 @@ def test_the_shipped_case_files_are_listed_shown_and_valid(tmp_path):
     assert listed.exit_code == 0
     for name in (*shipped_cases(), "rotating-drum", "silo-discharge"):
         assert f"  {name} " in listed.output
+    for name, path in shipped_cases().items():  # each case file's first sentence, whole, across its lines
+        line = next(x for x in listed.output.splitlines() if x.startswith(f"  {name} ")).strip()[len(name):].lstrip()
+        comment = " ".join(" ".join(x.lstrip("#").strip() for x in path.read_text().splitlines()
+                                    if x.startswith("#")).split())
+        assert line.endswith(".") and comment.startswith(line) and comment[len(line):len(line) + 1] in ("", " ")
     for name, path in shipped_cases().items():
         shown = CliRunner().invoke(app, ["experiments", "show", name])
         assert shown.exit_code == 0 and shown.output == path.read_text()

@@ -119,6 +119,9 @@ def test_default_case_is_valid():
     assert lift.wall == "tube" and lift.velocity[2] * spec.stages[1].duration > 0.11  # above the pile's apex
     # the base reaches past the pile's foot (about 0.2 m from the axis; README): 0.3 m each way
     assert sim.positions[sim.fixed, 0].min() < -0.29 and sim.positions[sim.fixed, 0].max() > 0.29
+    checked = CliRunner().invoke(app, ["check", str(default_case_path())])
+    fixed = int(sim.fixed.sum())
+    assert f"valid; {4000 + fixed} particles (4000 free, {fixed} fixed), 2 walls" in checked.output, checked.output
 
 
 def test_a_case_reports_the_repose_angle_of_its_pile(tmp_path):

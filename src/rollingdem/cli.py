@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 from pathlib import Path
 from typing import Optional
@@ -72,7 +73,8 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
                                                          "angle-of-repose case."),
         out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default: "
                                            "rollingdem-output/<case name>, made fresh)."),
-        threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
+        threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads, fixed (default: all cores, "
+                                              "fewer while other processes keep cores busy)."),
         progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
         backend: Optional[str] = typer.Option(None, "--backend", help="cpu or cuda (an NVIDIA GPU, docs/gpu.md); "
                                               "default: the case file's backend key, else cpu."),
@@ -198,7 +200,8 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
                                               "150,000 single-particle, 2,000 dense-bed, rough-bed and clumps, 1,000 slab, "
                                               "300 scaling and collapse-scaling, 5,000 mesh-hopper, 12,000 of the real "
                                               "particles in coarse-graining)."),
-          threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads (default: all cores)."),
+          threads: Optional[int] = typer.Option(None, "--threads", "-t", help="Numba threads, fixed (default: all cores, "
+                                              "fewer while other processes keep cores busy)."),
           model: Optional[list[str]] = typer.Option(None, "--model", "-m", help="Rolling models and contact laws "
                                                     "(walton_braun, walton, sjkr, jkr) of dense-bed (repeatable; "
                                                     "default: none and every one)."),
@@ -457,8 +460,9 @@ def check(case: Path = typer.Argument(..., help="Case file to validate.")):
         check_output_folder(spec)  # where a run without --out writes
     except ParameterError as err:
         _refuse(err)
-    clumps = len(sim.clumps["mass"])
-    typer.echo(f"{case}: valid; {sim.n_particles} particles{f' ({clumps} clumps)' if clumps else ''}"
+    clumps, fixed = len(sim.clumps["mass"]), int(sim.fixed.sum())
+    split = f" ({sim.n_particles - fixed} free, {fixed} fixed)" if fixed else ""
+    typer.echo(f"{case}: valid; {sim.n_particles} particles{split}{f' ({clumps} clumps)' if clumps else ''}"
                f"{sim.particle_set.coarse_graining_note()}, "
                f"{len(sim.walls)} walls, {len(spec.stages)} stages, "
                f"dt = {sim.dt:.3g} s")
@@ -479,12 +483,22 @@ def experiments_list():
 
     typer.echo("case files (rollingdem experiments show NAME > my.yaml, then rollingdem run my.yaml):")
     for name, path in shipped_cases().items():
-        first = next((line.lstrip("# ").strip() for line in path.read_text().splitlines() if line.startswith("#")), "")
-        typer.echo(f"  {name:<18} {first}")
+        lines = path.read_text().splitlines()
+        head = [line.lstrip("#").strip() for line in lines[:next((k for k, x in enumerate(lines) if not x.startswith("#")),
+                                                                  len(lines))]]
+        typer.echo(f"  {name:<18} {_first_sentence(' '.join(head))}")
     typer.echo("built-in experiments (rollingdem validate / sweep / calibrate --experiment NAME):")
     for name, e in EXPERIMENTS.items():
         if not is_case_file(name):
-            typer.echo(f"  {name:<18} {e.description.splitlines()[0] if e.description else ''}")
+            typer.echo(f"  {name:<18} {_first_sentence(e.description or '')}")
+
+
+def _first_sentence(text: str) -> str:
+    """The first sentence of ``text``, its lines joined: up to the first full stop followed by a space
+    (not one inside a number or an abbreviation such as "e.g."), or all of it."""
+    words = " ".join(text.split())
+    end = re.search(r"(?<!e\.g)(?<!i\.e)(?<!\bcf)(?<!\bet al)\.(\s|$)", words)
+    return words[:end.start() + 1] if end else words
 
 
 @experiments_app.command("show")

@@ -297,6 +297,11 @@ CATALOGUE = [
      edit("    material: m\n", "    material: m\n  - {clump: {shape: dimer, radius: 0.002}, positions: [[0, 0, 0.1]], "
           "count: 3, material: m}\n"),
      "particles.1: count, mass and fraction go with insert: with positions each position is a clump"),
+    ("an outlet's refill region behind the floor",
+     edit("stages:", "outlets:\n  - {name: out, region: {type: box, lo: [0.5, 0.5, 0.0], hi: [1, 1, 1]}, refill: {type: box, "
+                     "lo: [0, 0, -0.2], hi: [0.1, 0.1, -0.1]}}\nstages:"),
+     "outlets: outlet out refill region BoxRegion(lo=[0.0, 0.0, -0.2], hi=[0.1, 0.1, -0.1]) is not allowed: the walls "
+     "leave no room in it for a sphere of radius 0.005 m (wall 'floor' covers all of it)"),
     ("a negative dt beside a periodic axis, named as dt", edit("walls:", "dt: -1.0e-5\nperiodic: {x: [-0.1, 0.1]}\nwalls:"),
      "error: dt = -1e-05 is not allowed: must be > 0 (s)"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),

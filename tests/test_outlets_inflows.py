@@ -5,6 +5,7 @@ continues bit for bit.
 
 import csv
 import math
+import re
 
 import numpy as np
 import pytest
@@ -292,6 +293,25 @@ def test_a_refill_region_over_its_outlet_is_refused(table1):
         sim.add_outlet(rd.BoxRegion((0, 0, -1), (1, 1, 0)), refill=rd.BoxRegion((0.5, 0.5, -0.5), (0.9, 0.9, 0.5)))
     with pytest.raises(ParameterError, match="outlet seed = -1 is not allowed"):
         sim.add_outlet(rd.BoxRegion((0, 0, -1), (1, 1, 0)), refill=rd.BoxRegion((0, 0, 0.5), (1, 1, 1)), seed=-1)
+
+
+@pytest.mark.parametrize("refill,words", [
+    (rd.BoxRegion((-0.1, -0.1, -0.3), (0.1, 0.1, -0.25)), "the walls leave no room in it for a sphere of radius 0.0015 m "
+                                                          "(wall 'floor' covers all of it)"),
+    (rd.BoxRegion((0, 0, 0.05), (0.002, 0.002, 0.06)), "a sphere of radius 0.0015 m does not fit in it"),
+])
+def test_an_outlet_refill_region_behind_a_wall_or_smaller_than_a_sphere_is_refused_before_the_run(table1, refill, words):
+    """A refill region the spheres taken out could never be put back in (behind the floor, or 2 mm
+    wide for spheres of 3 mm): refused in one line before a step, as an inflow's region is; the
+    silo would otherwise lose its head while the run goes on."""
+    sim = rd.Simulation(gravity=(0, 0, -G))
+    sim.add_material(table1())
+    sim.add_wall(rd.Plane((0, 0, -0.2), (0, 0, 1), material="m", name="floor"))
+    sim.add_particles([[0, 0, 0.01], [0, 0, 0.02]], RP, "m")
+    sim.add_outlet(rd.BoxRegion((-1, -1, -0.2), (1, 1, -0.1)), name="out", refill=refill)
+    with pytest.raises(ParameterError, match=rf"outlet out refill region .* is not allowed: {re.escape(words)}"):
+        sim.run(steps=1)
+    assert sim.step == 0
 
 
 def test_an_inflow_the_walls_leave_no_room_in_is_refused_before_the_run():

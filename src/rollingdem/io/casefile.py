@@ -1222,8 +1222,10 @@ def check_case(case: CaseSpec, sim=None):
     _check_first_time_step(sim, first_velocities)
     with _InCase("contact"):
         sim.time_step_policy.check_contact_reach()
-    with _InCase("inflows"):
+    try:
         sim.boundary_set.check_room()
+    except ParameterError as err:  # an inflow's region, or an outlet's refill region
+        raise ParameterError(f"{'outlets' if str(err).startswith('outlet') else 'inflows'}: {err}") from None
     return sim
 
 

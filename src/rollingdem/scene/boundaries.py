@@ -496,15 +496,24 @@ class Boundaries:
         return sim.schedule.add(inflow)
 
     def check_room(self) -> None:
-        """Refuse an inflow whose region the walls leave no room in (inside the floor, behind a
-        plane): of ``ROOM_SAMPLES`` centres drawn in it for its largest sphere, none clear of every
-        wall. Each inflow is checked once, before its first run."""
+        """Refuse an inflow's region, or an outlet's refill region, that cannot hold its largest sphere
+        (smaller than it) or that the walls leave no room in (inside the floor, behind a plane): of
+        ``ROOM_SAMPLES`` centres drawn in it for that sphere, none clear of every wall. Each is checked
+        once, before its first run."""
         rng = np.random.default_rng(0)
-        for inflow in self.inflows:
-            if getattr(inflow, "_room_checked", False):
+        st = self.sim._state
+        largest_free = float(st.radius[~st.is_fixed].max(initial=0.0))
+        places = [(inflow, "inflow region", inflow.region, inflow.radius.max_radius) for inflow in self.inflows]
+        places += [(outlet, f"outlet {outlet.name or ''} refill region".replace("  ", " "), outlet.refill, largest_free)
+                   for outlet in self.outlets if outlet.refill is not None and largest_free > 0.0]
+        for owner, what, region, radius in places:
+            if getattr(owner, "_room_checked", False):
                 continue
-            r = np.full(ROOM_SAMPLES, inflow.radius.max_radius)
-            x = inflow.region.sample(rng, r)
+            if not region.fits(radius):
+                raise ParameterError(f"{what} {region!r} is not allowed: a sphere of radius {radius:g} m does not fit "
+                                     "in it; make it larger")
+            r = np.full(ROOM_SAMPLES, radius)
+            x = region.sample(rng, r)
             clear = np.ones(len(x), dtype=bool)
             blocking = None
             for wall in self.sim.walls:
@@ -514,10 +523,10 @@ class Boundaries:
                 clear &= ~inside
             if not clear.any():
                 by = f" (wall {self.sim.wall_set.label(blocking)} covers all of it)" if blocking is not None else ""
-                raise ParameterError(f"inflow region {inflow.region!r} is not allowed: the walls leave no room in it for "
-                                     f"a sphere of radius {inflow.radius.max_radius:g} m{by}: it lies inside or behind "
+                raise ParameterError(f"{what} {region!r} is not allowed: the walls leave no room in it for "
+                                     f"a sphere of radius {radius:g} m{by}: it lies inside or behind "
                                      "them; move it into the open")
-            inflow._room_checked = True
+            owner._room_checked = True
 
     def _check_name(self, new) -> None:
         if new.name is not None and any(b.name == new.name for b in self.outlets + self.inflows if b.kind == new.kind):

@@ -445,3 +445,47 @@ def test_a_stage_with_two_conditions_ends_at_the_first_met(tmp_path, shape, ends
     assert stage["ended"].startswith(ends) and stage["end_time"] < 1.5
     count = summary["measurements"]["out"]["count"]["final"]
     assert count >= 10 if ends == "out.count" else count == 0
+
+
+@pytest.mark.parametrize("shape", ["cylinder", "prism", "cavity"])
+def test_a_probe_divides_by_the_exact_volume_of_a_cylinder_or_a_closed_mesh(shape):
+    """Spheres on a grid 4 mm apart (no contacts, no gravity), probed by a cylinder (pi R^2 h), a
+    64-sided prism mesh (N/2 R^2 sin(2 pi / N) h) and a closed box with a cube cavity (a^3 - b^3):
+    count = the centres inside by the shape's own test, bulk density = their mass / that volume, solid
+    fraction = their volume / it, and bulk density = solid fraction x rho for one material (to
+    round-off). A volume off by any factor, or the bounding box's taken instead, fails."""
+    from rollingdem.scene.mesh import SHAPES, MeshRegion, TriangleMesh
+
+    sim = rd.Simulation(gravity=(0, 0, 0))
+    sim.add_material(_material())
+    g = np.arange(-0.05, 0.1501, 0.004)
+    x = np.array([(a, b, c) for a in g for b in g for c in g])
+    x = x[np.linalg.norm(x - 0.05, axis=1) < 0.09] + 1e-4  # no centre on a surface
+    if shape == "cylinder":
+        region, volume = rd.CylinderRegion(0.04, 0.01, 0.07, center=(0.05, 0.05)), math.pi * 0.04 ** 2 * 0.06
+        inside = (np.hypot(x[:, 0] - 0.05, x[:, 1] - 0.05) <= 0.04) & (x[:, 2] >= 0.01) & (x[:, 2] <= 0.07)
+    elif shape == "prism":
+        mesh = SHAPES["drum"](radius=0.05, length=0.1, segments=64)
+        region = MeshRegion(TriangleMesh(mesh.vertices + [0.05, 0.05, 0.0], mesh.triangles))
+        volume = 0.5 * 64 * 0.05 ** 2 * math.sin(2 * math.pi / 64) * 0.1
+        phi = 2 * np.pi * (np.arange(64) + 0.5) / 64
+        d = (x[:, :2] - 0.05) @ np.array([np.cos(phi), np.sin(phi)])
+        inside = (d < 0.05 * np.cos(np.pi / 64)).all(axis=1) & (x[:, 2] > 0) & (x[:, 2] < 0.1)
+    else:
+        outer, inner = SHAPES["box"]((0.1, 0.1, 0.1)), SHAPES["box"]((0.04, 0.04, 0.04))
+        cavity = TriangleMesh(np.vstack([outer.vertices, inner.vertices + 0.03]),
+                              np.vstack([outer.triangles, inner.triangles[:, ::-1] + 8]))
+        region, volume = MeshRegion(cavity), 0.1 ** 3 - 0.04 ** 3
+        inside = ((x > 0) & (x < 0.1)).all(axis=1) & ~((x > 0.03) & (x < 0.07)).all(axis=1)
+    assert np.array_equal(region.contains(x, np.zeros(len(x))), inside)
+    sim.add_particles(x, RP, "m")
+    probe = rd.Probe(shape, region)
+    sim.run(steps=1, observers=[probe])
+    got = dict(zip(probe.QUANTITIES, probe.series().iloc[-1, 2:]))
+    n = int(inside.sum())
+    m = 1056.0 * 4 / 3 * math.pi * RP ** 3
+    assert region.volume() == pytest.approx(volume, rel=1e-12)
+    assert got["count"] == n and n > 100
+    assert got["bulk_density"] == pytest.approx(n * m / volume, rel=1e-12)
+    assert got["solid_fraction"] == pytest.approx(n * 4 / 3 * math.pi * RP ** 3 / volume, rel=1e-12)
+    assert got["bulk_density"] == pytest.approx(got["solid_fraction"] * 1056.0, rel=1e-12)

@@ -183,7 +183,13 @@ def _edge_counts(ax, ay, bx, by, px, py):
     """Whether p is inside, to the left of, the directed edge a -> b, ties broken by the half-open
     rule (an edge pointing up, or left along x, owns the points on it): a point on an edge that two
     triangles share, the same way round, is inside exactly one of them."""
-    e = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+    # the same product for a shared edge whichever way round a triangle takes it (from its lower
+    # end), so that it is exactly -e in the neighbour: a point beside the edge is in one of the two
+    flip = ax > bx or (ax == bx and ay > by)
+    if flip:
+        e = -((ax - bx) * (py - by) - (ay - by) * (px - bx))
+    else:
+        e = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
     if e != 0.0:
         return e > 0.0
     dy = by - ay

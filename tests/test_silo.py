@@ -160,3 +160,49 @@ def test_the_shipped_silo_case_is_what_the_validation_runs_at_its_quick_size():
     setup = SiloSetup(d0, max(2.5 * d0, d0 + quick["gap"]), quick["fill"], measured=quick["measured"])
     assert_same_case(silo_case("epsd", "none", PileMaterial.from_parameters(p), setup, dt=p["dt"]), "silo", 5e-3,
                      leave_out=("output.", ".window"))
+
+
+def _silo_table(c=0.6, k=2.0, exponent=2.5, half_fill_ratio=1.0, quick=False, noise=0.01):
+    """The validation's table for rates made by W = C rho_b sqrt(g) (D0 - k d)^exponent at its
+    orifices (the full size's 5 to 10 d, or the quick's 5 to 8 d), each known to ``noise`` (its 95 %
+    half-width over the sub-windows), and the smallest orifice again at half the fill height at
+    ``half_fill_ratio`` times its rate."""
+    import pandas as pd
+
+    from rollingdem.experiments.silo import SiloDischarge
+
+    sizes = SiloDischarge.sizes["quick" if quick else "full"]
+    d, rho_b = 0.004, 1500.0
+    rows = []
+    for d0, fill in [(x, sizes["fill"]) for x in sizes["orifices"]] + [(sizes["orifices"][0], 0.5 * sizes["fill"])]:
+        w = c * rho_b * math.sqrt(9.81) * ((d0 - k) * d) ** exponent
+        w *= half_fill_ratio if fill != sizes["fill"] else 1.0
+        rows.append({"orifice_diameters": d0, "fill_diameters": fill, "orifice": d0 * d, "flow_rate": w,
+                     "flow_rate_ci": noise * w, "bulk_density": rho_b})
+    return pd.DataFrame(rows), sizes, d
+
+
+@pytest.mark.parametrize("quick", [False, True])
+def test_the_silo_checks_pass_on_beverloo_rates_and_fail_when_each_is_moved_by_twice_its_tolerance(quick):
+    """Rates of C = 0.6, k = 2, exponent 5/2, the half-fill rate equal: every check passes. Each check
+    fails when its quantity is moved by twice its tolerance (C by 0.3, k by 2, the exponent to 4 at
+    the full size, where it is checked, and the half-fill ratio by 10 %), while the others still
+    pass."""
+    from rollingdem.experiments.silo import silo_checks
+
+    def verdicts(**kw):
+        table, sizes, d = _silo_table(quick=quick, **kw)
+        checks, fit = silo_checks(table, sizes, d, quick, "epsd")
+        return {c.quantity.split(" (")[0].split(",")[0].split(" at ")[0]: c.passed for c in checks}, fit
+
+    good, fit = verdicts()
+    assert all(good.values()) and len(good) == (3 if quick else 4), good
+    assert fit["c"] == pytest.approx(0.6, rel=1e-6) and fit["k"] == pytest.approx(2.0, rel=1e-6)
+    for moved, failing in [(dict(c=0.9), "Beverloo C"), (dict(k=4.0), "Beverloo k"),
+                           (dict(half_fill_ratio=1.1), "W(fill 10 d) / W(fill 20 d)" if not quick else
+                            "W(fill 6 d) / W(fill 12 d)")] + ([] if quick else [(dict(exponent=4.0), "exponent of")]):
+        got, _ = verdicts(**moved)
+        bad = [name for name, passed in got.items() if not passed]
+        assert any(name.startswith(failing) for name in bad), (moved, got)
+        if "exponent" not in moved:  # a larger exponent moves C and k too
+            assert len(bad) == 1, (moved, got)

@@ -164,6 +164,49 @@ def beverloo_exponent_interval(orifices, rates, errors, bulk_density, diameter, 
     return float(inside.min()), float(inside.max())
 
 
+def silo_checks(table, sizes: dict, diameter: float, quick: bool, model: str):
+    """The silo validation's checks on its table of runs (one row per orifice and fill height:
+    ``orifice_diameters``, ``fill_diameters``, ``orifice`` (m), ``flow_rate`` and its 95 % half-width
+    ``flow_rate_ci`` (kg/s), ``bulk_density``): Beverloo's C and k at the exponent 5/2 within the
+    measured ranges, at the full size 5/2 within the freely fitted exponent's 95 % interval, and the
+    rate at half the fill height equal to the full's. Returns (checks, the fit and the rows it used)."""
+    from scipy import stats
+
+    d = diameter
+    full = table[np.isclose(table["fill_diameters"], sizes["fill"])]
+    ok = full[np.isfinite(full["flow_rate"])]
+    rho_b = float(ok["bulk_density"].mean()) if len(ok) else math.nan
+    checks = []
+    # a rate's standard error: its 95 % half-width over the sub-windows / t(0.975, blocks - 1)
+    errors = ok["flow_rate_ci"] / stats.t.ppf(0.975, BLOCKS - 1)
+    if len(ok) >= 4 and np.all(errors > 0):
+        c, k, _ = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d, exponent=2.5, errors=errors)
+        _, _, n = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d, errors=errors)
+        n_lo, n_hi = beverloo_exponent_interval(ok["orifice"], ok["flow_rate"], errors, rho_b, d)
+    else:
+        c = k = n = n_lo = n_hi = math.nan
+    checks += [Check("silo-discharge", model, "Beverloo k (exponent 5/2)", k, 2.0, 1.0, relative=False,
+                     source="Beverloo et al. (1961), Nedderman (1992): k from 1 to 3"),
+               Check("silo-discharge", model, "Beverloo C (exponent 5/2)", c, 0.6, 0.15, relative=False,
+                     source="Beverloo et al. (1961), Nedderman (1992): C from 0.45 to 0.75")]
+    if not quick:  # over the quick size's 5-8 d the interval runs to the search's bound: reported, not checked
+        checks.append(Check("silo-discharge", model, f"exponent of (D0 - k d), fitted freely, 95 % interval "
+                            f"[{n_lo:.2f}, {n_hi:.2f}]", n, 2.5, (n - n_lo) if n > 2.5 else (n_hi - n),
+                            relative=False,
+                            source="Beverloo: W ~ (D0 - k d)^(5/2), dimensional analysis; tolerance: 5/2 within "
+                                   "the fitted exponent's 95 % interval"))
+    at = table[np.isclose(table["orifice_diameters"], sizes["orifices"][0])].set_index("fill_diameters")
+    high, low = at.loc[sizes["fill"]], at.loc[0.5 * sizes["fill"]]
+    ratio = low["flow_rate"] / high["flow_rate"]
+    spread = ratio * math.hypot(low["flow_rate_ci"] / low["flow_rate"], high["flow_rate_ci"] / high["flow_rate"])
+    checks.append(Check("silo-discharge", model, f"W(fill {0.5 * sizes['fill']:g} d) / W(fill {sizes['fill']:g} d) "
+                        f"at D0 = {sizes['orifices'][0]:g} d", ratio, 1.0,
+                        max(0.05, spread) if math.isfinite(spread) else 0.05,
+                        source="the flow rate does not depend on the fill height (Janssen); tolerance 5 % or "
+                               "the 95 % interval of the ratio, if wider"))
+    return checks, {"ok": ok, "rho_b": rho_b, "c": c, "k": k, "n": n, "n_lo": n_lo, "n_hi": n_hi, "low": low}
+
+
 SHIPPED = Path(__file__).parent / "cases" / "silo.yaml"
 """The silo's case file (``rollingdem experiments show silo``): what :func:`silo_case` sizes."""
 
@@ -351,8 +394,6 @@ class SiloDischarge(BedExperiment):
         search's bound of 6, so the exponent is reported, not checked); W at half the fill height
         equals W at the full within 5 % (or the 95 % interval of their ratio, if wider): it does not
         depend on the fill height."""
-        from scipy import stats
-
         tic = time.perf_counter()
         sizes = self.sizes["quick" if quick else "full"]
 
@@ -366,38 +407,9 @@ class SiloDischarge(BedExperiment):
         table = runs[["orifice_diameters", "silo_diameters", "fill_diameters", "orifice", "particles", "flow_rate",
                       "flow_rate_ci", "flow_rate_first", "flow_rate_second", "bulk_density", "orifice_density",
                       "clogged"]].copy()
-        full = table[np.isclose(table["fill_diameters"], sizes["fill"])]
-        ok = full[np.isfinite(full["flow_rate"])]
         d = 2 * self.by_name["radius"].default
-        rho_b = float(ok["bulk_density"].mean()) if len(ok) else math.nan
-        checks = []
-        # a rate's standard error: its 95 % half-width over the sub-windows / t(0.975, blocks - 1)
-        errors = ok["flow_rate_ci"] / stats.t.ppf(0.975, BLOCKS - 1)
-        if len(ok) >= 4 and np.all(errors > 0):
-            c, k, _ = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d, exponent=2.5, errors=errors)
-            _, _, n = beverloo_fit(ok["orifice"], ok["flow_rate"], rho_b, d, errors=errors)
-            n_lo, n_hi = beverloo_exponent_interval(ok["orifice"], ok["flow_rate"], errors, rho_b, d)
-        else:
-            c = k = n = n_lo = n_hi = math.nan
-        checks += [Check("silo-discharge", model, "Beverloo k (exponent 5/2)", k, 2.0, 1.0, relative=False,
-                         source="Beverloo et al. (1961), Nedderman (1992): k from 1 to 3"),
-                   Check("silo-discharge", model, "Beverloo C (exponent 5/2)", c, 0.6, 0.15, relative=False,
-                         source="Beverloo et al. (1961), Nedderman (1992): C from 0.45 to 0.75")]
-        if not quick:  # over the quick size's 5-8 d the interval runs to the search's bound: reported, not checked
-            checks.append(Check("silo-discharge", model, f"exponent of (D0 - k d), fitted freely, 95 % interval "
-                                f"[{n_lo:.2f}, {n_hi:.2f}]", n, 2.5, (n - n_lo) if n > 2.5 else (n_hi - n),
-                                relative=False,
-                                source="Beverloo: W ~ (D0 - k d)^(5/2), dimensional analysis; tolerance: 5/2 within "
-                                       "the fitted exponent's 95 % interval"))
-        at = table[np.isclose(table["orifice_diameters"], sizes["orifices"][0])].set_index("fill_diameters")
-        high, low = at.loc[sizes["fill"]], at.loc[0.5 * sizes["fill"]]
-        ratio = low["flow_rate"] / high["flow_rate"]
-        spread = ratio * math.hypot(low["flow_rate_ci"] / low["flow_rate"], high["flow_rate_ci"] / high["flow_rate"])
-        checks.append(Check("silo-discharge", model, f"W(fill {0.5 * sizes['fill']:g} d) / W(fill {sizes['fill']:g} d) "
-                            f"at D0 = {sizes['orifices'][0]:g} d", ratio, 1.0,
-                            max(0.05, spread) if math.isfinite(spread) else 0.05,
-                            source="the flow rate does not depend on the fill height (Janssen); tolerance 5 % or "
-                                   "the 95 % interval of the ratio, if wider"))
+        checks, fit = silo_checks(table, sizes, d, quick, model)
+        ok, rho_b, c, k, n, n_lo, n_hi, low = (fit[key] for key in ("ok", "rho_b", "c", "k", "n", "n_lo", "n_hi", "low"))
         result = ValidationResult("silo-discharge", f"Silo discharge ({model}{', quick' if quick else ''})", table, checks,
                             notes=[f"mu = {self.material['mu']}, mu_r = {self.material['mur']}; silos max(2.5 D0, D0 + "
                                    f"{sizes['gap']:g} d) wide, filled {sizes['fill']:g} d high and held there (the "

@@ -48,3 +48,33 @@ def test_every_run_writes_a_report_with_its_scene_measurements_and_energy(tmp_pa
     assert "measurement_bed.png" in page and "energy.png" in page
     assert "<td>fall</td><td>duration</td>" in page and "<td>bed</td><td>bulk_density</td>" in page
     assert "40 free particles; walls: floor, tube" in page and "contact: normal hertz" in page
+
+
+def test_the_report_header_says_what_ran_and_what_changed(tmp_path):
+    """The header describes the scene as the run started (40 spheres, the floor and the tube), and
+    adds a line for the end where it differs: the tube removed and the spheres an outlet took out
+    (those whose centres come below 4 mm: the bottom layer of the 2 mm spheres)."""
+    case = tmp_path / "case.yaml"
+    case.write_text(CASE.replace("stages:\n", "outlets:\n  - {name: low, region: {type: box, lo: [-1, -1, -1], hi: [1, 1, 0.004]}}"
+                             "\nstages:\n")
+                    .replace("  - {name: rest, duration: 0.01}", "  - {name: rest, duration: 0.01, remove_walls: [tube]}"))
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    page = (tmp_path / "o" / "report.html").read_text()
+    head = page[page.index("<p>") + 3:page.index("</p>")].split("<br>")
+    assert head[0].startswith("40 free particles; walls: floor, tube; dt = 1e-05 s"), head
+    end = [line for line in head if line.startswith("at the end: ")]
+    assert len(end) == 1 and "; walls: floor; dt" in end[0], head
+    left = int(end[0].removeprefix("at the end: ").split()[0])
+    assert 0 < left < 40  # the outlet took the lowest layer
+
+
+def test_the_pile_line_gives_the_estimators_range_in_degrees_to_a_tenth(tmp_path):
+    from rollingdem.io.report import write_report
+
+    summary = {"stages": [], "status": "ok", "repose_angle": {"angle": 30.52, "r_squared": 0.912, "slice_mean": 30.61,
+                                                              "slice_std": 1.49,
+                                                              "option_range": [28.900254832707315, 31.03394995087698]}}
+    page = write_report(tmp_path, summary, ["a header"], {}, None, "pile").read_text()
+    assert "repose angle 30.5° (cone fit R² 0.91); 28.9–31.0° over the estimator's options" in page
+    assert "28.900" not in page and "[" not in page.split("<h2>The pile</h2>")[1].split("</p>")[0]

@@ -216,6 +216,13 @@ def _fmt(v) -> str:
     return f"{v:.4g}" if isinstance(v, float) and math.isfinite(v) else "–" if isinstance(v, float) else str(v)
 
 
+def _span(bounds) -> str:
+    """"28.9–31.0°" for (low, high) in degrees; "–" without them."""
+    if not bounds or len(bounds) != 2 or not all(isinstance(b, (int, float)) and math.isfinite(b) for b in bounds):
+        return "–"
+    return f"{bounds[0]:.1f}–{bounds[1]:.1f}°"
+
+
 def write_report(outdir: Path, summary: dict, header: list[str], measurements: dict, pictures: ScenePictures | None,
                  case_name: str) -> Path:
     """``outdir/report.html`` and its figures (``outdir/report/``)."""
@@ -243,7 +250,7 @@ def write_report(outdir: Path, summary: dict, header: list[str], measurements: d
     pile = summary.get("repose_angle")
     if pile and pile.get("angle") is not None:
         parts.append(f"<h2>The pile</h2><p>repose angle {pile['angle']:.1f}° (cone fit R² {pile['r_squared']:.2f}); "
-                     f"{html.escape(str(pile.get('option_range')))} over the estimator's options; slices "
+                     f"{_span(pile.get('option_range'))} over the estimator's options; slices "
                      f"{pile['slice_mean']:.1f} ± {pile['slice_std']:.1f}°</p><img src='pile.png' width=700>")
     if pictures is not None and pictures.frames:
         parts.append("<h2>The scene</h2>")

@@ -150,7 +150,7 @@ class _Run:
         self.state = RunState(case=case, base=str(Path(case.base_directory).resolve()), observers=observers,
                               measurements=self.measurements,
                               summary={"case": case.name, "output": str(outdir), "particles": sim.n_particles,
-                                       "stages": []})
+                                       "header": header_lines(case, sim), "stages": []})
 
     @classmethod
     def resumed(cls, outdir: Path, progress: bool, echo, case: CaseSpec | None = None) -> "_Run":
@@ -270,7 +270,8 @@ class _Run:
                     from rollingdem.io.report import ScenePictures, write_report
 
                     pictures = next((o for o in st.observers if isinstance(o, ScenePictures)), None)
-                    write_report(self.outdir, summary, header_lines(self.case, sim), self.measurements, pictures,
+                    write_report(self.outdir, summary, run_header(summary, header_lines(self.case, sim)),
+                                 self.measurements, pictures,
                                  self.case.name)
                 except Exception as err:  # noqa: BLE001 - a failed report must not hide the run's own result
                     echo(f"  (report failed: {type(err).__name__}: {err})")
@@ -422,6 +423,13 @@ def run_prepared(case: CaseSpec, out: Path, cache: Path, keys: list[str], echo=p
     summary = run.go()
     summary["prepared"] = {"after_stage": case.stages[start].name, "seconds_saved": saved}
     return summary
+
+
+def run_header(summary: dict, end: list[str]) -> list[str]:
+    """The report's header: the scene as the run started (``header_lines`` then), and its first line
+    at the end where that differs (particles taken out or added, walls removed)."""
+    start = summary.get("header") or end
+    return start + ([f"at the end: {end[0]}"] if end[0] != start[0] else [])
 
 
 def header_lines(case: CaseSpec, sim) -> list[str]:

@@ -57,7 +57,8 @@ def test_the_report_header_says_what_ran_and_what_changed(tmp_path):
     case = tmp_path / "case.yaml"
     case.write_text(CASE.replace("stages:\n", "outlets:\n  - {name: low, region: {type: box, lo: [-1, -1, -1], hi: [1, 1, 0.004]}}"
                              "\nstages:\n")
-                    .replace("  - {name: rest, duration: 0.01}", "  - {name: rest, duration: 0.01, remove_walls: [tube]}"))
+                    .replace("  - {name: rest, duration: 0.01}", "  - {name: rest, duration: 0.01, remove_walls: [tube]}")
+                    .replace("measurements:\n", "measurements:\n  - {name: out, type: outlet, outlet: low}\n"))
     result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "--no-progress"])
     assert result.exit_code == 0, result.output
     page = (tmp_path / "o" / "report.html").read_text()
@@ -67,6 +68,11 @@ def test_the_report_header_says_what_ran_and_what_changed(tmp_path):
     assert len(end) == 1 and "; walls: floor; dt" in end[0], head
     left = int(end[0].removeprefix("at the end: ").split()[0])
     assert 0 < left < 40  # the outlet took the lowest layer
+    # the measurements lead with their headline lines; the table below gives a cumulative count's
+    # final value and no mean of the running sum
+    lines = page.split("<h2>Measurements</h2>")[1]
+    assert lines.index(f"out (") < lines.index("<details>") and f"count {40 - left} at the end" in lines
+    assert f"<td>out</td><td>count</td><td>{40 - left}</td><td>–</td><td>–</td>" in page
 
 
 def test_the_pile_line_gives_the_estimators_range_in_degrees_to_a_tenth(tmp_path):
@@ -78,3 +84,14 @@ def test_the_pile_line_gives_the_estimators_range_in_degrees_to_a_tenth(tmp_path
     page = write_report(tmp_path, summary, ["a header"], {}, None, "pile").read_text()
     assert "repose angle 30.5° (cone fit R² 0.91); 28.9–31.0° over the estimator's options" in page
     assert "28.900" not in page and "[" not in page.split("<h2>The pile</h2>")[1].split("</p>")[0]
+
+
+def test_a_coarse_grained_run_says_its_counts_are_of_parcels(tmp_path):
+    import rollingdem as rd
+    from rollingdem.io.report import write_report
+
+    probe = rd.Probe("bed", rd.BoxRegion((0, 0, 0), (1, 1, 1)))
+    for header, said in ((["1000 free particles; parcels of alpha 2, standing for 8000 particles"], True),
+                         (["1000 free particles"], False)):
+        page = write_report(tmp_path, {"stages": []}, header, {"bed": probe}, None, "cg").read_text()
+        assert ("Counts are of parcels, each standing for alpha³ real particles" in page) == said

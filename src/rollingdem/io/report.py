@@ -236,17 +236,24 @@ def write_report(outdir: Path, summary: dict, header: list[str], measurements: d
     parts.append(f"<p>status: {html.escape(str(status))}; {summary.get('steps', 0)} steps, simulated time "
                  f"{_fmt(summary.get('time', math.nan))} s, wall time {_fmt(summary.get('wall_seconds', math.nan))} s</p>")
     if measurements:
+        parts.append("<h2>Measurements</h2><p>" + "<br>".join(html.escape(m.summary_line())
+                                                               for m in measurements.values()) + "</p>")
+        if any("parcels of alpha" in line for line in header):
+            parts.append("<p>Counts are of parcels, each standing for alpha³ real particles; masses, densities "
+                         "and rates are the real material's.</p>")
         rows = [["measurement", "quantity", "final", "mean", "standard error", "unit", "window (s)"]]
         for name, m in measurements.items():
             s = m.summary()
             for q in m.QUANTITIES or ():
                 if q in s:
                     e = s[q]
-                    rows.append([name, q, _fmt(e["final"]), _fmt(e["mean"]), _fmt(e["standard_error"]), e["unit"],
+                    cumulative = q in m.CUMULATIVE  # its final value is the answer: no mean of a running sum
+                    rows.append([name, q, _fmt(e["final"]), "–" if cumulative else _fmt(e["mean"]),
+                                 "–" if cumulative else _fmt(e["standard_error"]), e["unit"],
                                  "–".join(_fmt(t) for t in s.get("window", []))])
-        parts.append("<h2>Measurements at the end</h2>" + _table(rows))
-        parts.append("<p>mean and standard error over the window (batch means); a rate: the least-squares slope "
-                     "of its cumulative quantity; count and mass through a sensor: their final value.</p>")
+        parts.append("<details><summary>every quantity at the end</summary>" + _table(rows)
+                     + "<p>mean and standard error over the window (batch means); a rate: the least-squares slope "
+                     "of its cumulative quantity; a cumulative count or mass: its final value.</p></details>")
     pile = summary.get("repose_angle")
     if pile and pile.get("angle") is not None:
         parts.append(f"<h2>The pile</h2><p>repose angle {pile['angle']:.1f}° (cone fit R² {pile['r_squared']:.2f}); "

@@ -302,6 +302,13 @@ CATALOGUE = [
                      "lo: [0, 0, -0.2], hi: [0.1, 0.1, -0.1]}}\nstages:"),
      "outlets: outlet out refill region BoxRegion(lo=[0.0, 0.0, -0.2], hi=[0.1, 0.1, -0.1]) is not allowed: the walls "
      "leave no room in it for a sphere of radius 0.005 m (wall 'floor' covers all of it)"),
+    ("a window after the run", edit("stages:", "measurements:\n  - {name: p, type: probe, region: {type: box, lo: [0, 0, 0], "
+                                               "hi: [0.02, 0.01, 0.01]}, window: [0.5, 0.6]}\nstages:"),
+     "measurements.0: window = [0.5, 0.6] is not allowed: it starts after the run, which lasts at most 0.0002 s"),
+    ("a window from a stage that is not there",
+     edit("stages:", "measurements:\n  - {name: p, type: probe, region: {type: box, lo: [0, 0, 0], hi: [0.02, 0.01, 0.01]}, "
+                     "window: {stage: drain, start: 0}}\nstages:"),
+     "measurements.0: window stage = 'drain' is not allowed: no stage has that name; the stages are 's'"),
     ("a negative dt beside a periodic axis, named as dt", edit("walls:", "dt: -1.0e-5\nperiodic: {x: [-0.1, 0.1]}\nwalls:"),
      "error: dt = -1e-05 is not allowed: must be > 0 (s)"),
     ("YAML syntax error", BASE + "  - [unclosed\n", "is not valid YAML: expected <block end>, but found '-' at line 15"),

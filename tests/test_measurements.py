@@ -186,6 +186,28 @@ def test_reaches_ends_a_discharge_at_the_count_and_empty_at_the_last_particle(ta
     assert sim.run(5.0, until=rd.Empty()).startswith("empty") and sim.n_particles == 0
 
 
+def test_a_rate_below_a_value_for_a_hold_ends_a_run_once_the_flow_has_stopped(table1):
+    """80 spheres in a column fall through an outlet, the first after about 0.11 s (nothing flows
+    before). ``Reaches(rate, below=1e-6, hold=0.2)``: the wait before the first arrival is shorter
+    than the hold, so the run goes on; it ends 0.2 s (to a check of 1 ms) after the last sphere is
+    out, not at the first check that reads no flow."""
+    sim = rd.Simulation(gravity=(0, 0, -G), dt=1e-5)
+    sim.add_material(table1(friction=0.3, rolling_friction=0.0))
+    x = np.column_stack([np.zeros(80), np.zeros(80), 0.011 * (1 + np.arange(80))])
+    sim.add_particles(x, 0.005, "m")
+    sim.add_outlet(rd.BoxRegion((-1, -1, -2), (1, 1, -0.05)), name="bin", interval=1e-3)
+    out = rd.OutletTotals("out", outlet="bin", interval=1e-3)
+    counts = []
+    until = rd.Reaches(out, "rate", below=1e-6, hold=0.2, every=1e-3)
+    ended = sim.run(5.0, observers=[out, rd.Callback(lambda s: counts.append((s.time, s.outlets[0].count)),
+                                                     interval=1e-3)], until=until)
+    assert "out.rate <= 1e-06 for 0.2 s" in ended
+    assert sim.outlets[0].count == 80
+    last = next(t for t, c in counts if c == 80)
+    assert 0.2 - 1e-3 <= sim.time - last <= 0.2 + 2e-3, (sim.time, last)
+    assert math.sqrt(2 * (0.011 + 0.05 - 0.005) / G) < last - 0.2  # the flow started later than the hold
+
+
 def test_conditions_and_measurements_refuse_bad_input():
     out = rd.OutletTotals("out", outlet="bin")
     with pytest.raises(ParameterError, match="give exactly one of above and below"):
@@ -194,6 +216,8 @@ def test_conditions_and_measurements_refuse_bad_input():
         rd.Reaches(out, "speed", above=1)
     with pytest.raises(ParameterError, match="settled hold = -1 is not allowed"):
         rd.Settled(hold=-1)
+    with pytest.raises(ParameterError, match="until hold = -1 is not allowed"):
+        rd.Reaches(out, "rate", below=0.0, hold=-1)
     with pytest.raises(ParameterError, match="until = 3 is not allowed"):
         rd.Simulation(dt=1e-5).run(1.0, until=3)
     with pytest.raises(ParameterError, match="measurement name = 'a b' is not allowed"):
@@ -445,6 +469,38 @@ def test_a_stage_with_two_conditions_ends_at_the_first_met(tmp_path, shape, ends
     assert stage["ended"].startswith(ends) and stage["end_time"] < 1.5
     count = summary["measurements"]["out"]["count"]["final"]
     assert count >= 10 if ends == "out.count" else count == 0
+
+
+SILO_STAGE_WINDOW = SMALL_SILO.replace("SHAPE", SILO_SHAPE.replace("ORIFICE", "0.008")).replace(
+    "walls:\n", "walls:\n  - {type: plane, name: gate, material: glass, point: [0, 0, 0], normal: [0, 0, 1]}\n") + """\
+measurements:
+  - {name: out, type: outlet, outlet: bin, interval: 0.002, window: {stage: drain, start: 0.05, duration: 0.1}}
+  - {name: early, type: outlet, outlet: bin, interval: 0.002, window: {stage: pour, start: 0.02}}
+stages:
+  - {name: pour, until: settled, max_duration: 1.5}
+  - {name: drain, duration: 0.2, remove_walls: [gate]}
+output: {plot: false, report: null, time_series: null}
+"""
+
+
+def test_a_window_from_a_stages_start_moves_with_the_stage_before_it(tmp_path):
+    """The pour ends when the bed settles, at a time no one can give beforehand; the outlet's window
+    starts 0.05 s after the drain starts and lasts 0.1 s, and the other's runs from 0.02 s after the
+    pour's start to the pour's longest end (1.5 s): each summary's window is that."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+
+    (tmp_path / "case.yaml").write_text(SILO_STAGE_WINDOW)
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "case.yaml"), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    poured = summary["stages"][0]["end_time"]
+    assert summary["stages"][0]["ended"].startswith("settled") and 0.1 < poured < 1.5
+    assert summary["measurements"]["out"]["window"] == pytest.approx([poured + 0.05, poured + 0.15], abs=1e-9)
+    assert summary["measurements"]["early"]["window"] == pytest.approx([0.02, 1.5], abs=1e-9)
 
 
 @pytest.mark.parametrize("shape", ["cylinder", "prism", "cavity"])

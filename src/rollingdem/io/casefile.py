@@ -437,10 +437,20 @@ class InflowSpec(_Strict):
     start: Optional[Number] = None
 
 
+class StageWindowSpec(_Strict):
+    """A measurement window that starts ``start`` seconds after the start of stage ``stage`` and
+    lasts ``duration`` seconds (default: to that stage's end): it moves with a stage before it that
+    ends on a condition."""
+    stage: str
+    start: Number = 0.0
+    duration: Optional[Number] = None
+
+
 class _MeasurementBase(_Strict):
     name: str
     interval: Optional[Number] = None  # the kind's own (INTERVAL)
-    window: Optional[tuple[Number, Number]] = None
+    # [t0, t1] (s) from the run's start, or a window from a stage's start
+    window: Optional[Union[tuple[Number, Number], StageWindowSpec]] = None
 
 
 class MassFlowSpec(_MeasurementBase):
@@ -575,21 +585,15 @@ class SettledSpec(_Strict):
     every: Number = 1e-3
 
 
-class ReachesSpec(_Strict):
-    """``rollingdem.Reaches``: the measurement's quantity (``name.quantity``) at or above ``above``,
-    or at or below ``below``."""
-    measurement: str
-    above: Optional[Number] = None
-    below: Optional[Number] = None
-    every: Number = 1e-3
-
-
 class UntilSpec(_Strict):
+    """What ends a stage early: ``settled``, ``empty``, or a ``measurement``'s quantity (``name.quantity``)
+    ``above`` or ``below`` a value, for ``hold`` seconds (0: at one check)."""
     settled: Optional[SettledSpec] = None
     empty: Optional[bool] = None
     measurement: Optional[str] = None
     above: Optional[Number] = None
     below: Optional[Number] = None
+    hold: Number = 0.0
     every: Number = 1e-3
 
 
@@ -1209,6 +1213,7 @@ def check_case(case: CaseSpec, sim=None):
                 if not (0 <= i < n and 0 <= j < n) or i == j:
                     raise ParameterError(f"{where}: bonds pairs = [{i}, {j}] is not allowed: must be two different "
                                          f"particles in [0, {n - 1}]")
+    check_windows(case)
     out = case.output
     for key in ("time_series", "snapshots", "checkpoint"):
         block = getattr(out, key)
@@ -1239,7 +1244,9 @@ def build_measurements(case: CaseSpec, sim) -> dict:
         with _InCase(f"measurements.{k}"):
             if m.name in made:
                 raise ParameterError(f"name = {m.name!r} is not allowed: it names two measurements; names must differ")
-            common = dict(name=m.name, interval=m.interval, window=m.window)
+            # a window from a stage's start is set when that stage starts (stage_window)
+            common = dict(name=m.name, interval=m.interval, window=None if isinstance(m.window, StageWindowSpec)
+                          else m.window)
             if m.type == "mass_flow":
                 made[m.name] = ms.MassFlow(point=m.point, normal=m.normal, radius=m.radius, **common)
             elif m.type == "probe":
@@ -1287,6 +1294,37 @@ def stage_duration(stage: StageSpec) -> float:
     return stage.max_duration
 
 
+def stage_window(spec: StageWindowSpec, stage: StageSpec, start_time: float) -> tuple[float, float]:
+    """The window (t0, t1) (s) of ``spec`` for ``stage`` starting at ``start_time``."""
+    length = spec.duration if spec.duration is not None else stage_duration(stage) - spec.start
+    return start_time + spec.start, start_time + spec.start + length
+
+
+def check_windows(case: CaseSpec) -> None:
+    """Refuse a measurement window that no run of the case reaches: an absolute one starting at or
+    after the longest the stages can last, a stage's one naming no stage, starting before it or at
+    or after its longest, or of no length."""
+    ends = np.cumsum([stage_duration(s) for s in case.stages])
+    lengths = {s.name: stage_duration(s) for s in case.stages}
+    for k, m in enumerate(case.measurements):
+        w, where = m.window, f"measurements.{k}: window"
+        if w is None:
+            continue
+        if isinstance(w, StageWindowSpec):
+            if w.stage not in lengths:
+                raise ParameterError(f"{where} stage = {w.stage!r} is not allowed: no stage has that name; the stages "
+                                     f"are {', '.join(repr(n) for n in lengths)}")
+            if not 0 <= w.start < lengths[w.stage]:
+                raise ParameterError(f"{where} start = {w.start:g} is not allowed: must be in [0, {lengths[w.stage]:g}) s, "
+                                     f"within stage {w.stage!r}")
+            if w.duration is not None and not w.duration > 0:
+                raise ParameterError(f"{where} duration = {w.duration:g} is not allowed: must be > 0 (s)")
+        elif len(ends) and w[0] >= ends[-1]:
+            raise ParameterError(f"{where} = [{w[0]:g}, {w[1]:g}] is not allowed: it starts after the run, which lasts "
+                                 f"at most {ends[-1]:g} s; give times within it, or a window from a stage's start "
+                                 "({stage: NAME, start: S, duration: D})")
+
+
 def stage_conditions(stage: StageSpec, measurements: dict) -> list:
     """The conditions (``rollingdem.scene.conditions``) that end ``stage`` early."""
     from rollingdem.scene.conditions import Empty, Settled
@@ -1325,7 +1363,7 @@ def _reaches(u: UntilSpec, measurements: dict):
     if not quantity:
         raise ParameterError(f"measurement = {u.measurement!r} is not allowed: name a quantity, "
                              f"{name}.QUANTITY, one of {', '.join(measurements[name].QUANTITIES)}")
-    return Reaches(measurements[name], quantity, above=u.above, below=u.below, every=u.every)
+    return Reaches(measurements[name], quantity, above=u.above, below=u.below, every=u.every, hold=u.hold)
 
 
 def _check_first_time_step(sim, sv) -> None:

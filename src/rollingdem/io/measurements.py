@@ -237,7 +237,7 @@ class MassFlow(Measurement):
         self._tags = None  # the particles' numbers, heights above the plane and unwrapped positions at the last sample
         self._height = None
         self._unwrapped = None
-        self._last = (0.0, 0.0)  # (time, mass) of the last row, for its rate
+        self._last = (0.0, 0.0, 0.0)  # (time, mass, rate) of the last row, for the rate
 
     def describe(self):
         where = f"disk r = {self.radius:g} m" if self.radius is not None else "plane"
@@ -276,7 +276,7 @@ class MassFlow(Measurement):
         super().start(sim)
         if self._tags is None:
             self.track(sim)
-            self._last = (sim.time, self.mass)
+            self._last = (sim.time, self.mass, 0.0)
 
     def values(self, sim):
         self.track(sim)
@@ -284,11 +284,12 @@ class MassFlow(Measurement):
 
     def observe(self, sim):
         super().observe(sim)
-        self._last = (sim.time, self.mass)
+        self._last = (sim.time, self.mass, self._rows[-1][2][2])
 
     def _rate(self, sim) -> float:
+        """Since the last sample; at the sample's own step, over the interval it closed."""
         dt = sim.time - self._last[0]
-        return (self.mass - self._last[1]) / dt if dt > 0 else 0.0
+        return (self.mass - self._last[1]) / dt if dt > 0 else self._last[2]
 
 
 def scene_bounds(sim) -> tuple[np.ndarray, np.ndarray]:
@@ -497,13 +498,14 @@ class OutletTotals(Measurement):
 
     def values(self, sim):
         o = self._find(sim)
-        t0, m0 = self._last if self._last is not None else (sim.time, o.mass)
-        rate = (o.mass - m0) / (sim.time - t0) if sim.time > t0 else 0.0
+        t0, m0, rate = self._last if self._last is not None else (sim.time, o.mass, 0.0)
+        # at the sample's own step (a condition checked there), the rate over the interval it closed
+        rate = (o.mass - m0) / (sim.time - t0) if sim.time > t0 else rate
         return [o.count, o.mass, rate]
 
     def observe(self, sim):
         super().observe(sim)
-        self._last = (sim.time, self._find(sim).mass)
+        self._last = (sim.time, self._find(sim).mass, self._rows[-1][2][2])
 
 
 class WallLoad(Measurement):

@@ -23,8 +23,8 @@ import numpy as np
 import yaml
 
 from rollingdem.errors import ParameterError
-from rollingdem.io.casefile import (CASE_HINTS, CaseSpec, ReposeOutputSpec, _motion, build_measurements, check_case,
-                                    stage_conditions, stage_duration)
+from rollingdem.io.casefile import (CASE_HINTS, CaseSpec, ReposeOutputSpec, StageWindowSpec, _motion, build_measurements,
+                                    check_case, stage_conditions, stage_duration, stage_window)
 from rollingdem.scene.schedule import Observer
 
 #: What a run writes into its folder (files and folders): what ``--overwrite`` removes.
@@ -307,6 +307,9 @@ class _Run:
             made = sim.add_bonds(stage.bonds.parallel_bond(), pairs=stage.bonds.pairs, gap=stage.bonds.gap)
             self.echo(f"  stage {stage.name!r}: {made} bonds")
         sim.choose_time_step()  # after the stage's changes: each stage starts at its own stable step
+        for spec in self.case.measurements:  # windows from this stage's start
+            if isinstance(spec.window, StageWindowSpec) and spec.window.stage == stage.name:
+                self.measurements[spec.name].window = stage_window(spec.window, stage, sim.time)
 
 
 def _relocate(state: RunState, outdir: Path) -> None:

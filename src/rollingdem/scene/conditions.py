@@ -105,11 +105,17 @@ class Settled(Condition):
 
 class Reaches(Condition):
     """A measurement's quantity reaches a value: ``value(sim, quantity) >= above`` or ``<= below``
-    (any object with that method: ``rollingdem.io.measurements``)."""
+    (any object with that method: ``rollingdem.io.measurements``), at every check for ``hold``
+    seconds (0: at one check). With a rate ``below`` a small value and a hold, "the flow has
+    stopped": a trickle that sends one sphere through within the hold keeps the stage going."""
 
     def __init__(self, measurement, quantity: str, above: float | None = None, below: float | None = None,
-                 every: float = 1e-3):
+                 every: float = 1e-3, hold: float = 0.0):
         super().__init__(every)
+        self.hold = check_finite("until hold", hold)
+        if self.hold < 0:
+            raise ParameterError(f"until hold = {hold:g} is not allowed: must be >= 0 (s)")
+        self._since = None
         if (above is None) == (below is None):
             raise ParameterError(f"until {getattr(measurement, 'name', measurement)}.{quantity}: above = {above!r}, "
                                  f"below = {below!r} is not allowed: give exactly one of above and below")
@@ -125,13 +131,23 @@ class Reaches(Condition):
         self.below = None if below is None else check_finite("until below", below)
         self.last = math.nan
 
+    def start(self, sim):
+        super().start(sim)
+        self._since = None
+
     def met(self, sim):
         self.last = v = self.measurement.value(sim, self.quantity)
-        return v >= self.above if self.above is not None else v <= self.below
+        if not (v >= self.above if self.above is not None else v <= self.below):
+            self._since = None
+            return False
+        if self._since is None:
+            self._since = sim.time
+        return sim.time - self._since >= self.hold - 0.5 * sim.dt
 
     def describe(self):
         how = f">= {self.above:g}" if self.above is not None else f"<= {self.below:g}"
-        return f"{self.measurement.name}.{self.quantity} {how} (it is {self.last:.6g})"
+        held = f" for {self.hold:g} s" if self.hold > 0 else ""
+        return f"{self.measurement.name}.{self.quantity} {how}{held} (it is {self.last:.6g})"
 
 
 class Empty(Condition):

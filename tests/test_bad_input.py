@@ -302,6 +302,10 @@ CATALOGUE = [
                      "lo: [0, 0, -0.2], hi: [0.1, 0.1, -0.1]}}\nstages:"),
      "outlets: outlet out refill region BoxRegion(lo=[0.0, 0.0, -0.2], hi=[0.1, 0.1, -0.1]) is not allowed: the walls "
      "leave no room in it for a sphere of radius 0.005 m (wall 'floor' covers all of it)"),
+    ("a stage turning a wall far past the time step it was given",
+     edit("name: tiny", "name: tiny\ndt: 1.0e-5", edit(STAGE, "  - {name: s, duration: 0.0002, wall_motion: [{wall: floor, "
+                                                         "rotate: {axis: [0, 0, 1], angular_velocity: 1.0e5}}]}")),
+     "stage 's': dt = 1e-05 s exceeds the stable limit"),
     ("a window after the run", edit("stages:", "measurements:\n  - {name: p, type: probe, region: {type: box, lo: [0, 0, 0], "
                                                "hi: [0.02, 0.01, 0.01]}, window: [0.5, 0.6]}\nstages:"),
      "measurements.0: window = [0.5, 0.6] is not allowed: it starts after the run, which lasts at most 0.0002 s"),
@@ -366,6 +370,30 @@ def test_valid_case_is_checked_valid_and_runs(tmp_path):
     ran = CliRunner().invoke(app, ["run", str(case), "--out", str(out), "--no-progress"])
     assert ran.exit_code == 0, ran.output
     assert json.loads((out / "summary.json").read_text())["status"] == "ok"
+
+
+def test_check_says_how_long_the_run_is_and_warns_of_runs_that_never_end(tmp_path):
+    """check prints each stage's steps at its dt and the run's wall time at the dense-bed rate (2
+    particles x 20 steps); it warns of a run estimated past a day (a duration of 1e9 s), of until:
+    empty without an outlet, and of a wall surface at 2,000 m/s (rad/s where rpm was meant)."""
+    from rollingdem.io.casefile import DENSE_BED_RATE
+
+    case = tmp_path / "case.yaml"
+    case.write_text(edit("name: tiny", "name: tiny\ndt: 1.0e-5"))
+    checked = CliRunner().invoke(app, ["check", str(case)])
+    assert checked.exit_code == 0 and "stage 's': up to 20 steps at dt = 1e-05 s" in checked.output, checked.output
+    assert f"in all up to 20 steps of 2 particles: about {2 * 20 / DENSE_BED_RATE:.0f} s on 2 cores" in checked.output
+    assert "warning" not in checked.output
+    case.write_text(edit(STAGE, "  - {name: s, duration: 1.0e9}\n  - {name: e, until: empty, max_duration: 0.001}\n"
+                                "  - {name: t, duration: 0.001, wall_motion: [{wall: floor, rotate: {axis: [0, 0, 1], "
+                                "angular_velocity: 1.0e5}}]}"))
+    checked = CliRunner().invoke(app, ["check", str(case)])
+    assert checked.exit_code == 0, checked.output
+    warned = [line for line in checked.output.splitlines() if line.startswith("warning: ")]
+    assert len(warned) == 3, checked.output
+    assert "stage 'e': until: empty is never met without an outlet" in warned[0]
+    assert "stage 't': a wall surface moves at 2e+03 m/s" in warned[1]
+    assert "days: check each stage's duration" in warned[2]
 
 
 def test_check_timestep_false_in_the_case_file_runs_anyway(tmp_path):

@@ -458,6 +458,7 @@ def check(case: Path = typer.Argument(..., help="Case file to validate.")):
         spec = casefile.load_case(case)
         sim = casefile.check_case(spec)  # what run refuses before its first step, refused here
         check_output_folder(spec)  # where a run without --out writes
+        length, warned = casefile.run_length(spec, sim)
     except ParameterError as err:
         _refuse(err)
     clumps, fixed = len(sim.clumps["mass"]), int(sim.fixed.sum())
@@ -466,8 +467,10 @@ def check(case: Path = typer.Argument(..., help="Case file to validate.")):
                f"{sim.particle_set.coarse_graining_note()}, "
                f"{len(sim.walls)} walls, {len(spec.stages)} stages, "
                f"dt = {sim.dt:.3g} s")
-    for line in casefile.mesh_lines(sim):
+    for line in casefile.mesh_lines(sim) + length:
         typer.echo(f"  {line}")
+    for line in warned:
+        typer.echo(f"warning: {line}")
 
 
 experiments_app = typer.Typer(help="The experiments: case files shipped with rollingdem to start from, and the "

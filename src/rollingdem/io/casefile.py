@@ -1214,6 +1214,7 @@ def check_case(case: CaseSpec, sim=None):
                     raise ParameterError(f"{where}: bonds pairs = [{i}, {j}] is not allowed: must be two different "
                                          f"particles in [0, {n - 1}]")
     check_windows(case)
+    stage_time_steps(case, sim)  # a given dt against each stage's wall motion
     out = case.output
     for key in ("time_series", "snapshots", "checkpoint"):
         block = getattr(out, key)
@@ -1382,6 +1383,96 @@ def _check_first_time_step(sim, sv) -> None:
         st.v[...] = saved[0]
         st.w[...] = saved[1]
         st.info[I_FORCES_VALID] = saved[2]
+
+
+#: particle-steps per second on 2 cores that ``check``'s wall-time estimate takes: the default case's
+#: dense bed (its settle, lift and rest stages: 10.5-11.9 M, docs/performance.md)
+DENSE_BED_RATE = 11e6
+#: a wall surface faster than this (m/s) is warned about: beyond a mixer blade's tip speed
+FAST_WALL = 100.0
+#: an estimate above this many seconds is warned about (a duration in ms given as s, or 1e9)
+LONG_RUN_S = 24 * 3600.0
+
+
+def stage_wall_speed(sim, stage: StageSpec, base: Path) -> float:
+    """The fastest a wall surface moves in ``stage`` (m/s) where a particle can meet it: each wall
+    motion's velocity, its turn at the farthest particle or mesh vertex from its axis, and its
+    program's peak; the walls that keep their motion count too."""
+    names = {m.wall for m in stage.wall_motion}
+    x = sim.positions
+    speed = max((w.peak_speed(x) for w in sim.walls if w.name not in names and w.name not in stage.remove_walls),
+                default=0.0)
+    for m in stage.wall_motion:
+        wall = next(w for w in sim.walls if w.name == m.wall)
+        motion = _motion(m, mesh=hasattr(wall, "mesh"), base=base)
+        omega = np.asarray(motion.get("angular_velocity", (0.0, 0.0, 0.0)), float)
+        points = np.vstack([x, wall.mesh.vertices]) if hasattr(wall, "mesh") else x
+        point = np.asarray(motion.get("point") if motion.get("point") is not None else wall.point, float)
+        d = points - point
+        if np.linalg.norm(omega) > 0:
+            axis = omega / np.linalg.norm(omega)
+            reach = float(np.linalg.norm(d - np.outer(d @ axis, axis), axis=1).max(initial=0.0))
+        else:
+            reach = float(np.linalg.norm(d, axis=1).max(initial=0.0))
+        program = motion.get("motion")
+        speed = max(speed, float(np.linalg.norm(motion.get("velocity") or (0.0, 0.0, 0.0)))
+                    + float(np.linalg.norm(omega)) * reach + (program.peak_speed(reach) if program is not None else 0.0))
+    return speed
+
+
+def stage_time_steps(case: CaseSpec, sim) -> list[float]:
+    """The dt each stage starts with: a dt the case gives, or the automatic one at the stable limit
+    with the stage's wall motion. A given dt above that limit is refused (``check_case``)."""
+    steps = []
+    for stage in case.stages:
+        dt = sim.dt
+        if stage.wall_motion:
+            label, limit = min(sim.time_step_policy.limits(wall_speed=stage_wall_speed(sim, stage, case.base_directory)),
+                               key=lambda lv: lv[1])
+            if sim.dt_automatic:
+                dt = limit
+            elif sim.check_timestep and sim.dt > limit * (1 + 1e-12):
+                raise ParameterError(f"stage {stage.name!r}: dt = {sim.dt:.4g} s exceeds the stable limit {limit:.4g} s "
+                                     f"with its wall motion ({label}): choose dt <= {limit:.4g} s, or check the wall's "
+                                     f"speed (rad/s where rpm was meant is 60 times too fast), or "
+                                     f"{sim.hints['check_timestep']}")
+        steps.append(dt)
+    return steps
+
+
+def run_length(case: CaseSpec, sim) -> tuple[list[str], list[str]]:
+    """(lines, warnings) for ``check``: each stage's longest run in steps at the dt it starts with
+    (``stage_time_steps``), the total and its wall time at ``DENSE_BED_RATE`` on 2 cores; a warning
+    for a run estimated past ``LONG_RUN_S`` and for ``until: empty`` with no outlet to empty the
+    scene."""
+    lines, warnings, total = [], [], 0
+    for stage, dt in zip(case.stages, stage_time_steps(case, sim)):
+        steps = int(round(stage_duration(stage) / dt))
+        total += steps
+        lines.append(f"stage {stage.name!r}: up to {steps:,} steps at dt = {dt:.3g} s")
+        if stage.wall_motion and (speed := stage_wall_speed(sim, stage, case.base_directory)) > FAST_WALL:
+            warnings.append(f"stage {stage.name!r}: a wall surface moves at {speed:.3g} m/s where particles can meet "
+                            f"it, faster than {FAST_WALL:g} m/s: is an angular_velocity (rad/s) an rpm?")
+        if stage.until is not None and stage.until.empty and not case.outlets:
+            warnings.append(f"stage {stage.name!r}: until: empty is never met without an outlet; it runs its "
+                            f"max_duration, {stage.max_duration:g} s")
+    seconds = sim.n_particles * total / DENSE_BED_RATE
+    lines.append(f"in all up to {total:,} steps of {sim.n_particles:,} particles: about {_duration(seconds)} on 2 cores "
+                 f"(at {DENSE_BED_RATE / 1e6:.0f} M particle-steps/s, a dense bed's rate)")
+    if seconds > LONG_RUN_S:
+        warnings.append(f"the run is estimated at {_duration(seconds)}: check each stage's duration (s)")
+    return lines, warnings
+
+
+def _duration(seconds: float) -> str:
+    """Seconds in words: "40 s", "12 min", "3.5 h", "2.1e+03 days"."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 172800:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.3g} days"
 
 
 def mesh_lines(sim) -> list[str]:

@@ -22,8 +22,9 @@ class TimeStepPolicy:
         self.sim = sim
         self.passed = None
 
-    def limits(self) -> list[tuple[str, float]]:
-        """``Simulation.time_step_limits``."""
+    def limits(self, wall_speed: float | None = None) -> list[tuple[str, float]]:
+        """``Simulation.time_step_limits``; with ``wall_speed`` (m/s), as if the fastest wall surface
+        moved that fast (a stage's wall motion before it is set)."""
         sim = self.sim
         st, contact, materials, inflows = sim._state, sim.contact, sim.materials, sim.inflows
         if st.n == 0 and not inflows:
@@ -31,7 +32,7 @@ class TimeStepPolicy:
         limits = []
         normal = contact.normal
         # a sphere meets a wall at its own speed plus the wall surface's there
-        walls = max((w.peak_speed(st.x) for w in sim.walls), default=0.0)
+        walls = max((w.peak_speed(st.x) for w in sim.walls), default=0.0) if wall_speed is None else wall_speed
         for k, mat in enumerate(materials.materials):
             sel = st.mat == k
             # the spheres an inflow will insert count as if they were there

@@ -188,11 +188,11 @@ def test_the_silo_checks_pass_on_beverloo_rates_and_fail_when_each_is_moved_by_t
     fails when its quantity is moved by twice its tolerance (C by 0.3, k by 2, the exponent to 4 at
     the full size, where it is checked, and the half-fill ratio by 10 %), while the others still
     pass."""
-    from rollingdem.experiments.silo import silo_checks
+    from rollingdem.experiments.silo import beverloo_checks
 
     def verdicts(**kw):
         table, sizes, d = _silo_table(quick=quick, **kw)
-        checks, fit = silo_checks(table, sizes, d, quick, "epsd")
+        checks, fit = beverloo_checks(table, sizes, d, quick, "epsd")
         return {c.quantity.split(" (")[0].split(",")[0].split(" at ")[0]: c.passed for c in checks}, fit
 
     good, fit = verdicts()

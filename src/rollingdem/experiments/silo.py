@@ -164,7 +164,7 @@ def beverloo_exponent_interval(orifices, rates, errors, bulk_density, diameter, 
     return float(inside.min()), float(inside.max())
 
 
-def silo_checks(table, sizes: dict, diameter: float, quick: bool, model: str):
+def beverloo_checks(table, sizes: dict, diameter: float, quick: bool, model: str):
     """The silo validation's checks on its table of runs (one row per orifice and fill height:
     ``orifice_diameters``, ``fill_diameters``, ``orifice`` (m), ``flow_rate`` and its 95 % half-width
     ``flow_rate_ci`` (kg/s), ``bulk_density``): Beverloo's C and k at the exponent 5/2 within the
@@ -408,7 +408,7 @@ class SiloDischarge(BedExperiment):
                       "flow_rate_ci", "flow_rate_first", "flow_rate_second", "bulk_density", "orifice_density",
                       "clogged"]].copy()
         d = 2 * self.by_name["radius"].default
-        checks, fit = silo_checks(table, sizes, d, quick, model)
+        checks, fit = beverloo_checks(table, sizes, d, quick, model)
         ok, rho_b, c, k, n, n_lo, n_hi, low = (fit[key] for key in ("ok", "rho_b", "c", "k", "n", "n_lo", "n_hi", "low"))
         result = ValidationResult("silo-discharge", f"Silo discharge ({model}{', quick' if quick else ''})", table, checks,
                             notes=[f"mu = {self.material['mu']}, mu_r = {self.material['mur']}; silos max(2.5 D0, D0 + "

@@ -337,9 +337,8 @@ class Simulation:
                                    doc="The bytes the backend held on its device at the last run (0 on the CPU).")
 
     def dissipated_energy(self) -> dict[str, float]:
-        """Energy (J) dissipated while ``track_energy`` was on, by normal damping, sliding, rolling
-        and twisting: a run-level account, so what particles dissipated before an outlet took them
-        out stays in it and each channel never decreases."""
+        """Energy (J) dissipated while ``track_energy`` was on, by normal damping, sliding, rolling and
+        twisting, over the run: what the particles an outlet took out had dissipated stays in it."""
         return self.particle_set.dissipated_energy()
 
     def number_of_contacts(self) -> int:
@@ -357,14 +356,6 @@ class Simulation:
 
     def stable_time_step(self) -> float:  # the largest dt all criteria allow (s)
         return self.time_step_policy.stable()
-
-    def choose_time_step(self) -> None:
-        """An automatic dt chosen again, the largest stable step of the state now: raised as well as
-        lowered, so a stage that starts from rest is not held to the step the fill's fall needed. A dt
-        the user gave stays."""
-        if self.dt_automatic and self.n_particles:
-            self.dt = self.stable_time_step()
-            self.dt_automatic = True
 
     def check_time_step(self) -> None:  # refuse a dt above a stable limit (unless check_timestep is off), as run does
         self.time_step_policy.check()

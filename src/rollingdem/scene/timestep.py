@@ -68,6 +68,15 @@ class TimeStepPolicy:
             raise ParameterError("dt cannot be chosen automatically before particles are added: give dt")
         return min(v for _, v in limits)
 
+    def choose(self) -> None:
+        """An automatic dt chosen again, the largest stable step of the
+        state now, raised as well as lowered, so a stage that starts from rest is not held to the step
+        the fill's fall needed. A dt the user gave stays."""
+        sim = self.sim
+        if sim.dt_automatic and sim.n_particles:
+            sim.dt = self.stable()
+            sim.dt_automatic = True
+
     def check(self) -> None:
         """Refuse a dt above a stable limit, unless the simulation's ``check_timestep`` is off."""
         sim = self.sim

@@ -279,10 +279,10 @@ def test_the_readme_measurements_snippet_completes_the_shipped_hopper(tmp_path):
 
 def test_the_hopper_example_reads_its_stl_in_mm_and_drains_into_its_bin(tmp_path):
     """examples/hopper/hopper.yaml at a tenth of its spheres (400) and a fill of 0.4 s: the STL drawn
-    in mm is read at scale 0.001 (its rim at 30 mm), the hopper drains until the flow stops and
-    what is left on its flat floor settles, every sphere that crossed the disk under the orifice is
-    in the bin (none is in flight when the bed has settled; this bed, two diameters deep, keeps most
-    of its spheres on the floor), and the probe over the orifice saw the bed before the gate opened
+    in mm is read at scale 0.001 (its rim at 30 mm), the hopper drains until the flow stops (no
+    sphere through the disk under the orifice for 0.25 s), every sphere that crossed that disk is in
+    the bin (none is still in flight 0.25 s later; this bed, two diameters deep, keeps most of its
+    spheres on the floor), and the probe over the orifice saw the bed before the gate opened
     and none of it once the flow stopped (what is left lies on the floor around the orifice)."""
     import json
     import shutil
@@ -295,12 +295,13 @@ def test_the_hopper_example_reads_its_stl_in_mm_and_drains_into_its_bin(tmp_path
         shutil.copy(ROOT / "examples" / "hopper" / name, tmp_path / name)
     case = tmp_path / "hopper.yaml"
     text = scaled(case.read_text(), {"count: 4000": "count: 400", "{name: fill, duration: 0.8}":
-                                     "{name: fill, duration: 0.4}", "window: [0.65, 0.8]": "window: [0.3, 0.4]"})
+                                     "{name: fill, duration: 0.4}", "window: {stage: fill, start: 0.65}":
+                                     "window: {stage: fill, start: 0.3}"})
     case.write_text(text)
     result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "--no-progress"])
     assert result.exit_code == 0, result.output
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert summary["stages"][1]["ended"].startswith("settled")
+    assert summary["stages"][1]["ended"].startswith("discharge.rate <= 1e-06 for 0.25 s")
     m = summary["measurements"]
     out = m["bin"]["count"]["final"]
     assert m["discharge"]["count"]["final"] == out and out + summary["particles_left"] == 400 and out > 50

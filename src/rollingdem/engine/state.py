@@ -472,7 +472,16 @@ class EngineState:
 
     def step_loop(self, module):
         """The engine module's step loop for this scene on its backend (``rollingdem.engine.backends``)."""
+        bonded_pairs, meshes, clumps = self.features()
+        if (bonded_pairs and not module.BONDED_PAIRS) or (meshes and not module.MESHES) or (clumps and not module.CLUMPS):
+            raise RuntimeError(f"engine module {module.__name__} has no pass for this scene's bonds, meshes or clumps "
+                               f"({bonded_pairs}, {meshes}, {clumps}): take it from Simulation.engine_module()")
         return self.backend.step_loop(self, module)
+
+    def features(self) -> tuple[bool, bool, bool]:
+        """(bonds, triangle meshes, clumps): whether the scene holds each, the passes its engine
+        module must have (``codegen.EngineModules``)."""
+        return bool(len(self.bond_pairs)), bool(self.meshes.n_triangles or self.meshes.n_meshes), bool(self.n_clumps)
 
     def _too_fast_message(self, dt, skin):
         bad = ~(np.isfinite(self.f).all(axis=1) & np.isfinite(self.t).all(axis=1))

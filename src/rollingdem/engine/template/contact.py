@@ -40,6 +40,9 @@ BONDED_PAIRS = 0  # @@BONDED_PAIRS
 # (``EngineState.advance`` checks)
 MESHES = 1  # @@MESHES
 CLUMPS = 1  # @@CLUMPS
+# whether a plane or cylinder follows a motion program (``engine.wall_motion``): without one the
+# step loop moves the walls at their velocity alone and compiles no program
+PROGRAMS = 1  # @@PROGRAMS
 ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
 N_PARAMS = 8  # @@N_PARAMS

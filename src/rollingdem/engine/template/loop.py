@@ -18,7 +18,19 @@ from rollingdem.engine.rigid_body import clump_pass_serial, clump_rows  # noqa: 
 from rollingdem.engine.mesh_passes import build_mesh_candidates, move_meshes
 from rollingdem.engine.template.pairs import pair_forces  # @@PART
 from rollingdem.engine.template.gather import bond_forces, gather  # @@PART
-from rollingdem.engine.template.contact import BONDED_PAIRS, CLUMPS, MESHES  # @@PART
+from rollingdem.engine.template.contact import BONDED_PAIRS, CLUMPS, MESHES, PROGRAMS  # @@PART
+
+
+@njit(cache=True, inline="always")
+def move_planes(dt, walls):
+    """``move_walls``; without a motion program (PROGRAMS = 0) its steady motion alone, the same
+    arithmetic, and no program compiled."""
+    if PROGRAMS:
+        move_walls(dt, walls)
+    else:
+        for wl in range(walls.geometry.shape[0]):
+            for d in range(3):
+                walls.geometry[wl, d] += dt * walls.velocity[wl, d]
 
 
 @njit(cache=True)
@@ -74,7 +86,7 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
             if CLUMPS and particles.clump_mass.shape[0] != 0:
                 exceed += clump_pass(dt, KICK_OPEN, gravity, particles, lists.box, half_skin)[0]
             info[I_NEED_REBUILD] += exceed
-            move_walls(dt, walls)
+            move_planes(dt, walls)
             if MESHES:
                 info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
             info[I_DRIFTED] = 1
@@ -103,7 +115,7 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
                     clump_undo(dt, particles, lists.box)
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
-            move_walls(dt, walls)  # with the next step's drift, made in the gather
+            move_planes(dt, walls)  # with the next step's drift, made in the gather
             if MESHES:
                 info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
             info[I_DRIFTED] = 1

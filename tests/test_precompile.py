@@ -23,7 +23,7 @@ def test_no_helper_for_a_cached_step_loop_or_when_switched_off(monkeypatch):
     sim.add_material(rd.Material("m", youngs_modulus=1e7, poisson_ratio=0.3, density=1000.0))
     sim.add_particles([[0, 0, 0.01]], 0.01, "m")
     sim.run(steps=1)  # one sphere: the serial step loop
-    kernel = engine_module(contact)
+    kernel = sim.engine_module()  # the module for what the scene holds (no meshes, clumps, bonds, programs)
     assert is_cached(kernel, "gather_serial") and is_cached(kernel, "advance_serial")
     monkeypatch.setattr(precompile, "_PREPARED", set())
     assert not prepare(kernel, True)

@@ -43,7 +43,8 @@ def kernel_cache_dir() -> Path:
         return fallback
 
 
-def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = False) -> str:
+def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = False, meshes: bool = True,
+                  clumps: bool = True, programs: bool = True) -> str:
     """The template's parts, in order, with ``contact``'s functions, layout and switches filled in
     and the imports between parts left out (the module defines their names itself)."""
     layout = contact.layout()
@@ -60,6 +61,12 @@ def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = Fals
                 line = f"TRACK_ENERGY = {int(bool(track_energy))}"
             elif tag == "BONDED_PAIRS":
                 line = f"BONDED_PAIRS = {int(bool(bonded_pairs))}"
+            elif tag == "MESHES":
+                line = f"MESHES = {int(bool(meshes))}"
+            elif tag == "CLUMPS":
+                line = f"CLUMPS = {int(bool(clumps))}"
+            elif tag == "PROGRAMS":
+                line = f"PROGRAMS = {int(bool(programs))}"
             elif tag == "ROLLING_MODES":
                 line = f"ROLLING_MODES = {tuple(int(m) for m in contact.rolling.kernel_modes())!r}"
             else:
@@ -82,20 +89,24 @@ def template_modules() -> set[str]:
     return {f"rollingdem.engine.template.{part}" for part in template.PARTS}
 
 
-def engine_module(contact, track_energy: bool = False, serial: bool | None = None, bonded_pairs: bool = False):
+def engine_module(contact, track_energy: bool = False, serial: bool | None = None, bonded_pairs: bool = False,
+                  meshes: bool = True, clumps: bool = True, programs: bool = True):
     """The compiled engine module for ``contact`` (generated and imported once per process); with
     ``track_energy`` the one that also sums the dissipated energies, with ``bonded_pairs`` the one
     that checks each contact for an intact bond (an exclusive one keeps the contact off, a parallel
-    one its rolling and twisting moments). With ``serial`` (the step loop
+    one its rolling and twisting moments) and has the bonds' passes; without ``meshes``, ``clumps``,
+    ``programs`` one whose step loop has no pass for triangle meshes, clumps, walls' motion
+    programs (a scene without them compiles less: docs/performance.md). With ``serial`` (the step loop
     the run takes: ``advance_serial`` if True, ``advance`` if False) a step loop not yet in the
     cache is compiled on two cores now (``rollingdem.engine.precompile``)."""
     # the generated code depends on the sub-model classes and the rolling model's compile-time
     # switches only, never on parameter values
     key = (tuple((type(sub), sub.compiled_function()) for sub in contact.submodels) + (bool(track_energy),)
-           + tuple(contact.rolling.kernel_modes()) + (bool(bonded_pairs),))
+           + tuple(contact.rolling.kernel_modes()) + (bool(bonded_pairs), bool(meshes), bool(clumps), bool(programs)))
     module = _BY_CLASSES.get(key)
     if module is None:
-        _BY_CLASSES[key] = module = _load(contact, bool(track_energy), bool(bonded_pairs))
+        _BY_CLASSES[key] = module = _load(contact, bool(track_energy), bool(bonded_pairs), bool(meshes),
+                                                     bool(clumps), bool(programs))
     if serial is not None:
         from rollingdem.engine.precompile import prepare
 
@@ -145,8 +156,9 @@ def _package_imports(names: set[str]) -> set[str]:
     return seen
 
 
-def _load(contact, track_energy: bool, bonded_pairs: bool = False):
-    source = engine_source(contact, track_energy, bonded_pairs)
+def _load(contact, track_energy: bool, bonded_pairs: bool = False, meshes: bool = True, clumps: bool = True,
+          programs: bool = True):
+    source = engine_source(contact, track_energy, bonded_pairs, meshes, clumps, programs)
     digest = _dependency_hash(contact, source)
     names = "_".join(sub.compiled_function()[1] for sub in contact.submodels)  # laws sharing a function share the file
     modname = f"rollingdem_kernel_{names}_{digest}"
@@ -181,17 +193,19 @@ def _serial_copies(lines: list[str]) -> list[str]:
 
 class EngineModules:
     """The engine modules one simulation steps with, made once each: by (contact law, whether
-    energy is tracked, the CPU step loop its backend compiles ahead, whether it has bonds)."""
+    energy is tracked, the CPU step loop its backend compiles ahead, whether it has bonds,
+    triangle meshes, clumps, walls' motion programs)."""
 
     def __init__(self):
         self.held = {}
 
     def module(self, contact, track_energy: bool, state):
-        bonded_pairs = bool(len(state.bond_pairs))
+        bonded_pairs, meshes, clumps, programs = state.features()
         serial = state.backend.serial_step_loop(state)  # the CPU step loop to compile ahead, if the backend runs one
-        key = (id(contact), track_energy, serial, bonded_pairs)
+        key = (id(contact), track_energy, serial, bonded_pairs, meshes, clumps, programs)
         held = self.held.get(key)
         if held is None or held[0] is not contact:
             held = self.held[key] = (contact, engine_module(contact, track_energy, serial=serial,
-                                                            bonded_pairs=bonded_pairs))
+                                                            bonded_pairs=bonded_pairs, meshes=meshes, clumps=clumps,
+                                                            programs=programs))
         return held[1]

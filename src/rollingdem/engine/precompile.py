@@ -26,9 +26,12 @@ _PREPARED: set[tuple[str, bool]] = set()
 def plans(serial: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """(the helper's functions, this process's functions), each list in the order compiled."""
     sfx = "_serial" if serial else ""
-    helper = ("contact", "gather_rows", "rebuild_neighbor_list")
-    # the drift before the pair pass: it needs nothing of the helper's, which is still starting
-    main = ("block_contacts", "kick_drift" + sfx, "undo_drift", "pair_forces" + sfx, "gather" + sfx)
+    # about half the work each (docs/performance.md): the neighbor rebuild and the drift passes,
+    # which the step loop alone calls, go to the helper, which has them done while this process
+    # compiles the pair pass and the gather
+    helper = ("contact", "gather_rows", "_rebuild", "kick_drift" + sfx, "undo_drift")
+    # the contact block first: it needs nothing of the helper's, which is still starting
+    main = ("block_contacts", "pair_forces" + sfx, "gather" + sfx)
     return helper, main
 
 
@@ -74,6 +77,7 @@ def signatures(module) -> dict:
         "contact": (lists.pool, 0, (0.0,) * N_INPUTS, pp[0, 0], dt),
         "block_contacts": (scratch.blocks[0], pp[0, 0], dt),
         "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.fixed, st.clump, st.image, st.x_ref, lists),
+        "_rebuild": (particles, walls, lists, skin, st.info),
         "pair_forces": (dt, pp, particles, lists, scratch), "pair_forces_serial": (dt, pp, particles, lists, scratch),
         "gather_rows": (0, 1, dt, kick, np.zeros(3), particles, walls, lists, pp, half_skin),
         "gather": gather, "gather_serial": gather,

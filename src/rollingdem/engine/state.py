@@ -12,7 +12,7 @@ from rollingdem.engine import layout  # SERIAL_BELOW read at the call: a test se
 from rollingdem.engine.backends import BACKENDS
 from rollingdem.errors import SimulationError
 from rollingdem.physics.records import ENERGY_CHANNELS, WALL_LOAD_SIZE
-from rollingdem.engine.layout import CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION as MO, MESH_MOTION_SIZE, MESH_SLOTS, MOTION_TABLE_ROW, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, Scratch, block_columns
+from rollingdem.engine.layout import CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_GRID, MESH_MOTION as MO, MESH_MOTION_SIZE, MESH_SLOTS, MOTION_STEADY, MOTION_TABLE_ROW, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, Scratch, block_columns
 from rollingdem.engine.schema import PARTICLE_RECORD, PER_BOND, PER_CLUMP, PER_PARTICLE, PER_PARTICLE_WALL, PER_WALL, SCHEMA
 from rollingdem.engine.neighbors import ContactList
 from rollingdem.engine.threads import ThreadGovernor
@@ -472,7 +472,17 @@ class EngineState:
 
     def step_loop(self, module):
         """The engine module's step loop for this scene on its backend (``rollingdem.engine.backends``)."""
+        have = self.features()
+        if any(h and not getattr(module, flag) for h, flag in zip(have, ("BONDED_PAIRS", "MESHES", "CLUMPS", "PROGRAMS"))):
+            raise RuntimeError(f"engine module {module.__name__} has no pass for this scene's bonds, meshes, clumps or "
+                               f"wall programs {have}: take it from Simulation.engine_module()")
         return self.backend.step_loop(self, module)
+
+    def features(self) -> tuple[bool, bool, bool, bool]:
+        """(bonds, triangle meshes, clumps, a plane or cylinder with a motion program): whether the
+        scene holds each, the passes its engine module must have (``codegen.EngineModules``)."""
+        return (bool(len(self.bond_pairs)), bool(self.meshes.n_triangles or self.meshes.n_meshes), bool(self.n_clumps),
+                bool((self.wall_program[:, MO.program] != MOTION_STEADY).any()))
 
     def _too_fast_message(self, dt, skin):
         bad = ~(np.isfinite(self.f).all(axis=1) & np.isfinite(self.t).all(axis=1))

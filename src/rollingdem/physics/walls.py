@@ -9,7 +9,10 @@ from numba import njit
 from rollingdem.physics.records import WALL_CYLINDER as CYLINDER, WALL_PLANE as PLANE
 
 
-@njit(cache=True, inline="always")
+# not inlined: the wall loops call it twice per wall (the bare test, then the contact), and its
+# cylinder branches (faces, rims) inlined at each call made the gather 2 s slower to compile. The
+# gather's floating-point flags, so that its arithmetic is the same as inlined
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom):
     """(overlap, n) of sphere i (radius ri) and wall wl, n from the wall to the sphere; overlap -1
     where the wall cannot touch it (past a cylinder's rims, or on its axis). Geometry rows:

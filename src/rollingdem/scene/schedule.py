@@ -197,6 +197,9 @@ class Schedule:
                 if elapsed > 0:
                     chunk = int(min(max(todo * 0.25 / elapsed, 1), 1_000_000))
                 self.update(sim, operations)
+                # an operation may have added what the module has no pass for (an inflow's first
+                # clumps): the module the scene now takes (the same one, nearly always)
+                module = sim.engine_module()
                 if bar:
                     bar.update(sim, todo, elapsed)
             for ob in observers:

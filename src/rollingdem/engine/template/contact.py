@@ -34,6 +34,15 @@ TRACK_ENERGY = 1  # @@TRACK_ENERGY
 # keeps its pair's contact off, a parallel one its rolling and twisting moments) costs the pair pass
 # of every other scene a third
 BONDED_PAIRS = 0  # @@BONDED_PAIRS
+# whether the scene holds triangle meshes, clumps: without them the step loop compiles none of their
+# passes (a module of its own, as for BONDED_PAIRS; the bond pass and the bond gather likewise
+# follow BONDED_PAIRS). A module made for a scene without them must not step one with them
+# (``EngineState.advance`` checks)
+MESHES = 1  # @@MESHES
+CLUMPS = 1  # @@CLUMPS
+# whether a plane or cylinder follows a motion program (``engine.wall_motion``): without one the
+# step loop moves the walls at their velocity alone and compiles no program
+PROGRAMS = 1  # @@PROGRAMS
 ROLLING_MODES = ()  # @@ROLLING_MODES
 HISTORY_SIZE = 6  # @@HISTORY_SIZE
 N_PARAMS = 8  # @@N_PARAMS

@@ -11,7 +11,7 @@ from rollingdem.engine.layout import PERIODIC_BOX as PB
 from rollingdem.engine.integrator import kick_drift_one, next_drift_bound
 from rollingdem.engine.neighbors import minimum_image
 from rollingdem.physics.bonds import BOND_INTACT, parallel_bond
-from rollingdem.engine.template.contact import GATHER_RUN, P_FORCE, P_TORQUE_J, TRACK_ENERGY  # @@PART
+from rollingdem.engine.template.contact import BONDED_PAIRS, GATHER_RUN, MESHES, P_FORCE, P_TORQUE_J, TRACK_ENERGY  # @@PART
 from rollingdem.engine.template.walls import mesh_contacts, wall_contacts  # @@PART
 
 
@@ -47,7 +47,7 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
         particles.energy[i, 3] += wres[9]
     particles.contacts[i] += wres[10]
     stop = False
-    if walls.triangles.shape[0] > 0:
+    if MESHES and walls.triangles.shape[0] > 0:
         mres = mesh_contacts(i, dt, particles, walls, pair_params, half_skin)
         fx += mres[0]
         fy += mres[1]
@@ -171,7 +171,7 @@ def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params,
         t[j, 0] += pool[r, P_TORQUE_J]
         t[j, 1] += pool[r, P_TORQUE_J + 1]
         t[j, 2] += pool[r, P_TORQUE_J + 2]
-    if particles.bond_start.shape[0] != 0:
+    if BONDED_PAIRS and particles.bond_start.shape[0] != 0:
         gather_bonds(lo, hi, particles)
     nexceed = 0
     nfast = 0

@@ -18,6 +18,19 @@ from rollingdem.engine.rigid_body import clump_pass_serial, clump_rows  # noqa: 
 from rollingdem.engine.mesh_passes import build_mesh_candidates, move_meshes
 from rollingdem.engine.template.pairs import pair_forces  # @@PART
 from rollingdem.engine.template.gather import bond_forces, gather  # @@PART
+from rollingdem.engine.template.contact import BONDED_PAIRS, CLUMPS, MESHES, PROGRAMS  # @@PART
+
+
+@njit(cache=True, inline="always")
+def move_planes(dt, walls):
+    """``move_walls``; without a motion program (PROGRAMS = 0) its steady motion alone, the same
+    arithmetic, and no program compiled."""
+    if PROGRAMS:
+        move_walls(dt, walls)
+    else:
+        for wl in range(walls.geometry.shape[0]):
+            for d in range(3):
+                walls.geometry[wl, d] += dt * walls.velocity[wl, d]
 
 
 @njit(cache=True)
@@ -28,7 +41,7 @@ def _rebuild(particles, walls, lists, skin, info):
         info[I_STATUS] = STATUS_CAPACITY
         info[I_NEEDED] = -total
         return False
-    short, needed = build_mesh_candidates(particles.x, particles.radius, skin, walls)
+    short, needed = build_mesh_candidates(particles.x, particles.radius, skin, walls) if MESHES else (0, 0)
     if short:
         info[I_STATUS] = STATUS_MESH_CAPACITY if short == 1 else STATUS_MESH_GRID_CAPACITY
         info[I_NEEDED] = needed
@@ -53,12 +66,12 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         # the pair pass and the gather are called here and in the loop, not through one function
         # of their own, which would compile the whole engine module once more (1 s of a cold compile)
         pair_forces(dt, pair_params, particles, lists, scratch)
-        if particles.bond_pairs.shape[0] != 0:
+        if BONDED_PAIRS and particles.bond_pairs.shape[0] != 0:
             # the bonds' load as it is: no motion in this evaluation to add (dt 0), so a fresh bond
             # starts unloaded and a run resumed after a change of the scene adds nothing twice
             bond_forces(0, particles.bond_pairs.shape[0], 0.0, particles, lists.box)
         exceed, fast = gather(dt, 0.0, gravity, pair_params, particles, walls, lists, half_skin)
-        if particles.clump_mass.shape[0] != 0:
+        if CLUMPS and particles.clump_mass.shape[0] != 0:
             fast += clump_pass(dt, 0.0, gravity, particles, lists.box, half_skin)[1]
         info[I_TOO_FAST] = fast
         info[I_NEED_REBUILD] = 0
@@ -70,11 +83,12 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
             exceed = kick_drift(dt, particles, half_skin)
-            if particles.clump_mass.shape[0] != 0:
+            if CLUMPS and particles.clump_mass.shape[0] != 0:
                 exceed += clump_pass(dt, KICK_OPEN, gravity, particles, lists.box, half_skin)[0]
             info[I_NEED_REBUILD] += exceed
-            move_walls(dt, walls)
-            info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
+            move_planes(dt, walls)
+            if MESHES:
+                info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
             info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
             if not _rebuild(particles, walls, lists, skin, info):
@@ -83,10 +97,10 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         drift = step + 1 < nsteps
         kick = 2.0 if drift else 1.0
         pair_forces(dt, pair_params, particles, lists, scratch)
-        if particles.bond_pairs.shape[0] != 0:
+        if BONDED_PAIRS and particles.bond_pairs.shape[0] != 0:
             bond_forces(0, particles.bond_pairs.shape[0], dt, particles, lists.box)
         exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin)
-        if particles.clump_mass.shape[0] != 0:
+        if CLUMPS and particles.clump_mass.shape[0] != 0:
             clump_exceed, clump_fast = clump_pass(dt, kick, gravity, particles, lists.box, half_skin)
             exceed += clump_exceed
             fast += clump_fast
@@ -97,10 +111,11 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         if drift:
             if info[I_TOO_FAST] > 0:
                 undo_drift(dt, particles)
-                if particles.clump_mass.shape[0] != 0:
+                if CLUMPS and particles.clump_mass.shape[0] != 0:
                     clump_undo(dt, particles, lists.box)
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
-            move_walls(dt, walls)  # with the next step's drift, made in the gather
-            info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
+            move_planes(dt, walls)  # with the next step's drift, made in the gather
+            if MESHES:
+                info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
             info[I_DRIFTED] = 1

@@ -100,3 +100,21 @@ def test_a_cold_kernel_compiles_on_two_processes_with_the_same_result(tmp_path):
     helper, main = precompile.plans(serial=False)
     assert set(helper) | set(main) | {"advance"} <= names
     assert "advance_serial" not in names and "gather_serial" not in names
+
+
+def test_a_second_process_waits_for_the_compile_in_progress_and_takes_over_a_dead_ones_marker(tmp_path):
+    """The marker of a compile in progress holds its process's id: another process does not take it
+    while that process lives, waits until it is gone (a test worker beside the one compiling loads
+    the result instead of compiling it again), and takes over a marker whose process has died."""
+    marker = tmp_path / "kernel.compiling0"
+    assert precompile._take(marker) and marker.read_text() == str(os.getpid())
+    assert not precompile._take(marker)  # held by a live process: this one
+    marker.write_text("999999999")  # no such process
+    assert precompile._take(marker) and marker.read_text() == str(os.getpid())
+    holder = subprocess.Popen([sys.executable, "-c", f"import os, time; time.sleep(1.0); os.unlink({str(marker)!r})"])
+    marker.write_text(str(holder.pid))
+    tic = time.monotonic()
+    precompile._wait_for(marker)
+    waited = time.monotonic() - tic
+    holder.wait()
+    assert not marker.exists() and 0.5 < waited < 10.0

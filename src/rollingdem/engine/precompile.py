@@ -102,6 +102,59 @@ def prepare(module, serial: bool) -> bool:
     _PREPARED.add((module.__name__, serial))
     if not env_switch("ROLLINGDEM_PRECOMPILE") or _cores() < 2 or is_cached(module, loop):
         return False
+    # held for the whole compile: a second process that needs the same loop (a test worker beside
+    # this one, a sweep's worker) waits for it and loads the result, instead of compiling it again
+    busy = Path(module.__file__).with_suffix(f".compiling{int(serial)}")
+    if not _take(busy):
+        _wait_for(busy)
+        return False
+    try:
+        return _prepare(module, serial)
+    finally:
+        busy.unlink(missing_ok=True)
+
+
+def _take(marker: Path) -> bool:
+    """Create ``marker`` holding this process's id; False where another live process holds it (one
+    whose process is gone, or older than ``LOCK_STALE_S``, is taken over) or the folder is read-only."""
+    for _ in range(2):
+        try:
+            fd = os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            if _holder_alive(marker):
+                return False
+            marker.unlink(missing_ok=True)
+            continue
+        except OSError:
+            return False
+        os.write(fd, str(os.getpid()).encode())
+        os.close(fd)
+        return True
+    return False
+
+
+def _holder_alive(marker: Path) -> bool:
+    try:
+        age = time.time() - marker.stat().st_mtime
+        text = marker.read_text()
+        if age > LOCK_STALE_S:
+            return False
+        if not text:  # made, its id not written yet
+            return age < 5.0
+        os.kill(int(text), 0)
+        return True
+    except (OSError, ValueError):  # gone, or no such process
+        return False
+
+
+def _wait_for(marker: Path) -> None:
+    """Until ``marker`` is gone or its holder has died, at most ``HELPER_WAIT_S``."""
+    deadline = time.monotonic() + HELPER_WAIT_S
+    while marker.exists() and _holder_alive(marker) and time.monotonic() < deadline:
+        time.sleep(0.2)
+
+
+def _prepare(module, serial: bool) -> bool:
     lock = Path(module.__file__).with_suffix(".precompile.lock")
     try:
         if lock.exists() and time.time() - lock.stat().st_mtime > LOCK_STALE_S:

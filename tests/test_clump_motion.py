@@ -270,8 +270,8 @@ def test_an_outlet_s_refill_puts_each_clump_back_whole_and_its_queue_survives_a_
     """An outlet with a refill region puts each clump it takes back whole, as insertion does: the
     scene keeps its 5 trimers and 15 members (bincount 3 each), each clump keeps its mass and its
     members' distances (2 r, to 1e-12 relative), and the ones put back were placed in the refill
-    region (their centres there right after, at most g t^2/2 below it). A refill too small for one
-    clump's bounding sphere keeps it waiting, and the queue survives the outlet's description (a
+    region (their centres there right after, at most g t^2/2 below it). A refill filled by a fixed
+    sphere keeps a clump waiting, and the queue survives the outlet's description (a
     checkpoint) with its members' offsets and radii."""
     from rollingdem.scene.boundaries import Outlet
 
@@ -297,12 +297,20 @@ def test_an_outlet_s_refill_puts_each_clump_back_whole_and_its_queue_survives_a_
     tiny = rd.Simulation(gravity=(0, 0, -G), dt=5e-6)
     glass(tiny)
     tiny.add_clumps(trimer, [[0, 0, 0.0], [0.05, 0, 0.0]], "g")
-    tiny.add_wall(rd.Plane(point=(0, 0, 0.09), normal=(0, 0, -1), material="g"))  # the refill lies behind it
+    # a fixed sphere fills the refill region: no trimer's bounding sphere (2.15 mm) finds room beside it
+    tiny.add_particles([[0.005, 0.005, 0.105]], 0.0049, "g", fixed=True)
     stuck = tiny.add_outlet(rd.BoxRegion((-0.01, -0.01, -0.01), (0.01, 0.01, 0.01)),
                             refill=rd.BoxRegion((0.0, 0.0, 0.1), (0.01, 0.01, 0.11)))
     with pytest.warns(RuntimeWarning, match="1 sphere\\(s\\) or clump\\(s\\) found no room"):
         tiny.run(0.001)
-    assert tiny.n_particles == 3 and len(stuck.waiting_clumps) == 1
+    assert tiny.n_particles == 4 and len(stuck.waiting_clumps) == 1
+    narrow = rd.Simulation(gravity=(0, 0, -G), dt=5e-6)  # 3 mm wide: room for a member, never for a trimer
+    glass(narrow)
+    narrow.add_clumps(trimer, [[0, 0, 0.0], [0.05, 0, 0.0]], "g")
+    narrow.add_outlet(rd.BoxRegion((-0.01, -0.01, -0.01), (0.01, 0.01, 0.01)),
+                      refill=rd.BoxRegion((0.0, 0.0, 0.1), (0.003, 0.003, 0.103)))
+    with pytest.raises(rd.ParameterError, match=r"a sphere of radius 0.00215\d* m does not fit in it"):
+        narrow.run(0.001)
     again = Outlet.from_description(stuck.describe())
     offsets, radii, material = again.waiting_clumps[0]
     assert np.array_equal(offsets, stuck.waiting_clumps[0][0]) and radii.tolist() == [0.001] * 3 and material == 0

@@ -503,6 +503,10 @@ class Boundaries:
         rng = np.random.default_rng(0)
         st = self.sim._state
         largest_free = float(st.radius[~st.is_fixed].max(initial=0.0))
+        if len(st.clump) and (st.clump >= 0).any():  # a clump is put back whole: its bounding sphere
+            member = st.clump >= 0
+            reach = np.linalg.norm(st.x[member] - st.clump_x[st.clump[member]], axis=1) + st.radius[member]
+            largest_free = max(largest_free, float(reach.max()))
         places = [(inflow, "inflow region", inflow.region, inflow.radius.max_radius) for inflow in self.inflows]
         places += [(outlet, f"outlet {outlet.name or ''} refill region".replace("  ", " "), outlet.refill, largest_free)
                    for outlet in self.outlets if outlet.refill is not None and largest_free > 0.0]

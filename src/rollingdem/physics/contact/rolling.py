@@ -165,7 +165,8 @@ def spring_rolling(hist, k, history_at, g, frame, normal, dt, p, params_at, mode
        below it M = M_s + C_r dw_r, uncapped (the onset spike of §11.5).
     Dissipation: the work of M minus the energy the spring stores (midpoint rule for the elastic
     trial step, so a purely elastic exchange dissipates only its O(k_r |dw_r|^2 dt^2) residual, never
-    less than zero).
+    less than zero below the cap; at the cap, with f C_r dw_r against the spring, M_k can store more
+    than the trial step gave it, and the step's dissipation is negative by that much).
     """
     nx, ny, nz, wix, wiy, wiz, wjx, wjy, wjz, lever_i, lever_j, r_eff, inertia_r = rolling_kinematics(g)
     force_elastic, force_total, kn, kt, _ = normal

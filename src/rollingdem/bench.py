@@ -225,19 +225,22 @@ def _force_pass_costs(sims: dict, rounds: int) -> dict:
     return costs
 
 
-def compile_time(contact, spheres: int = 2) -> float:
+def compile_time(contact, spheres: int = 2, mesh: bool = False) -> float:
     """Seconds to compile (cold cache) or load (warm cache) the engine module of ``contact`` in this
     process, for the step loop a scene of ``spheres`` spheres takes (``advance_serial`` below
     ``SERIAL_BELOW`` spheres or on one thread, ``advance`` on threads otherwise): one step of 2
     (or ``SERIAL_BELOW``) spheres on a plate, two of them stacked (a pair contact and a wall
-    contact)."""
-    from rollingdem import Material, Plane, Simulation
+    contact); with ``mesh``, a mesh disk below the plate too (the module with the mesh passes)."""
+    from rollingdem import Material, MeshWall, Plane, Simulation
+    from rollingdem.scene.mesh import SHAPES
     from rollingdem.engine.layout import SERIAL_BELOW
 
     tic = time.perf_counter()
     sim = Simulation(contact=contact, dt=DT, skin=SKIN)
     sim.add_material(Material("table1", **TABLE1))
     sim.add_wall(Plane(point=(0, 0, 0), normal=(0, 0, 1), material="table1"))
+    if mesh:
+        sim.add_wall(MeshWall(SHAPES["disk"](radius=0.1).moved(translation=(0, 0, -0.05)), material="table1"))
     spheres = 2 if spheres < SERIAL_BELOW else SERIAL_BELOW  # as many as the path needs
     row = np.arange(spheres - 2) + 1  # apart from the stack and each other, on the plate
     rest = np.column_stack([3 * RADIUS * (row % 64), 3 * RADIUS * (row // 64), np.full(len(row), RADIUS)])

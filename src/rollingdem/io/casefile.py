@@ -1386,8 +1386,8 @@ def _check_first_time_step(sim, sv) -> None:
 
 
 #: particle-steps per second on 2 cores that ``check``'s wall-time estimate takes: the default case's
-#: dense bed (its settle, lift and rest stages: 10.5-11.9 M, docs/performance.md)
-DENSE_BED_RATE = 11e6
+#: dense bed (its lift and rest stages: 15.0 and 14.4 M on 2 cores, docs/performance.md)
+DENSE_BED_RATE = 15e6
 #: a wall surface faster than this (m/s) is warned about: beyond a mixer blade's tip speed
 FAST_WALL = 100.0
 #: an estimate above this many seconds is warned about (a duration in ms given as s, or 1e9)

@@ -95,3 +95,17 @@ def test_a_coarse_grained_run_says_its_counts_are_of_parcels(tmp_path):
                          (["1000 free particles"], False)):
         page = write_report(tmp_path, {"stages": []}, header, {"bed": probe}, None, "cg").read_text()
         assert ("Counts are of parcels, each standing for alpha³ real particles" in page) == said
+
+
+def test_a_coarse_grained_run_prints_that_its_counts_are_of_parcels(tmp_path):
+    """The same run with its glass coarse-grained by 2: 40 particles stand as 5 parcels; the printed
+    measurement lines are followed by the line saying counts are of parcels, and the report says it."""
+    case = tmp_path / "case.yaml"
+    case.write_text(CASE.replace("density: 2500.0, friction: 0.5}", "density: 2500.0, friction: 0.5, coarse_graining: 2}"))
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    assert "parcels of alpha 2, standing for 40 particles" in result.output
+    lines = result.output.splitlines()
+    bed = next(k for k, line in enumerate(lines) if line.startswith("  bed ("))
+    assert lines[bed + 1].startswith("  (counts are of parcels, each standing for alpha^3 real particles")
+    assert "Counts are of parcels" in (tmp_path / "o" / "report.html").read_text()

@@ -242,6 +242,9 @@ class _Run:
                     self.on_stage_end(self)
             for m in self.measurements.values():
                 echo(f"  {m.summary_line()}")
+            if self.measurements and sim.particle_set.coarse_graining_note():
+                echo("  (counts are of parcels, each standing for alpha^3 real particles; masses, densities and rates "
+                     "are the real material's)")
             for inflow in sim.inflows:
                 echo(f"  {inflow.realised()}")
             if self.case.output.repose_angle is not None:

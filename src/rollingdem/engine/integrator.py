@@ -108,14 +108,20 @@ def undo_drift(dt, particles):
 
 
 @njit(cache=True, inline="always")
+def move_steady(dt, walls, wl):
+    """Move plane or cylinder ``wl`` by dt at its velocity."""
+    for d in range(3):
+        walls.geometry[wl, d] += dt * walls.velocity[wl, d]
+
+
+@njit(cache=True, inline="always")
 def move_walls(dt, walls):
     """Move the planes and cylinders by dt: at their velocity, or by their program
     (``engine.wall_motion``), whose step's mean velocity the contacts then see."""
     for wl in range(walls.geometry.shape[0]):
         mo = walls.program[wl]
         if mo[MO.program] == MOTION_STEADY:
-            for d in range(3):
-                walls.geometry[wl, d] += dt * walls.velocity[wl, d]
+            move_steady(dt, walls, wl)
             continue
         fx, fy, fz = plane_loads(walls, wl) if mo[MO.program] == MOTION_SERVO else (0.0, 0.0, 0.0)
         step_program(mo, walls.motion_table, dt, fx, fy, fz)

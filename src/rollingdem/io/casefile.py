@@ -20,6 +20,7 @@ from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Fie
 
 from rollingdem.errors import ParameterError
 from rollingdem.io.mapping_file import read_mapping
+from rollingdem.scene.walls import surface_speed
 
 
 def _whole(value):
@@ -1414,21 +1415,20 @@ def stage_wall_speed(sim, stage: StageSpec, base: Path) -> float:
             reach = float(np.linalg.norm(d - np.outer(d @ axis, axis), axis=1).max(initial=0.0))
         else:
             reach = float(np.linalg.norm(d, axis=1).max(initial=0.0))
-        program = motion.get("motion")
-        speed = max(speed, float(np.linalg.norm(motion.get("velocity") or (0.0, 0.0, 0.0)))
-                    + float(np.linalg.norm(omega)) * reach + (program.peak_speed(reach) if program is not None else 0.0))
+        speed = max(speed, surface_speed(motion.get("velocity") or (0.0, 0.0, 0.0), omega, motion.get("motion"), reach))
     return speed
 
 
-def stage_time_steps(case: CaseSpec, sim) -> list[float]:
-    """The dt each stage starts with: a dt the case gives, or the automatic one at the stable limit
-    with the stage's wall motion. A given dt above that limit is refused (``check_case``)."""
+def stage_time_steps(case: CaseSpec, sim) -> list[tuple[float, float]]:
+    """(the dt each stage starts with, its fastest wall surface (m/s), ``stage_wall_speed``, 0 without
+    a wall motion): a dt the case gives, or the automatic one at the stable limit with the stage's
+    wall motion. A given dt above that limit is refused (``check_case``)."""
     steps = []
     for stage in case.stages:
-        dt = sim.dt
+        dt, speed = sim.dt, 0.0
         if stage.wall_motion:
-            label, limit = min(sim.time_step_policy.limits(wall_speed=stage_wall_speed(sim, stage, case.base_directory)),
-                               key=lambda lv: lv[1])
+            speed = stage_wall_speed(sim, stage, case.base_directory)
+            label, limit = min(sim.time_step_policy.limits(wall_speed=speed), key=lambda lv: lv[1])
             if sim.dt_automatic:
                 dt = limit
             elif sim.check_timestep and sim.dt > limit * (1 + 1e-12):
@@ -1436,7 +1436,7 @@ def stage_time_steps(case: CaseSpec, sim) -> list[float]:
                                      f"with its wall motion ({label}): choose dt <= {limit:.4g} s, or check the wall's "
                                      f"speed (rad/s where rpm was meant is 60 times too fast), or "
                                      f"{sim.hints['check_timestep']}")
-        steps.append(dt)
+        steps.append((dt, speed))
     return steps
 
 
@@ -1446,11 +1446,11 @@ def run_length(case: CaseSpec, sim) -> tuple[list[str], list[str]]:
     for a run estimated past ``LONG_RUN_S`` and for ``until: empty`` with no outlet to empty the
     scene."""
     lines, warnings, total = [], [], 0
-    for stage, dt in zip(case.stages, stage_time_steps(case, sim)):
+    for stage, (dt, speed) in zip(case.stages, stage_time_steps(case, sim)):
         steps = int(round(stage_duration(stage) / dt))
         total += steps
         lines.append(f"stage {stage.name!r}: up to {steps:,} steps at dt = {dt:.3g} s")
-        if stage.wall_motion and (speed := stage_wall_speed(sim, stage, case.base_directory)) > FAST_WALL:
+        if speed > FAST_WALL:
             warnings.append(f"stage {stage.name!r}: a wall surface moves at {speed:.3g} m/s where particles can meet "
                             f"it, faster than {FAST_WALL:g} m/s: is an angular_velocity (rad/s) an rpm?")
         if stage.until is not None and stage.until.empty and not case.outlets:

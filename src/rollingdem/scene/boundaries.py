@@ -508,8 +508,8 @@ class Boundaries:
             reach = np.linalg.norm(st.x[member] - st.clump_x[st.clump[member]], axis=1) + st.radius[member]
             largest_free = max(largest_free, float(reach.max()))
         places = [(inflow, "inflow region", inflow.region, inflow.radius.max_radius) for inflow in self.inflows]
-        places += [(outlet, f"outlet {outlet.name or ''} refill region".replace("  ", " "), outlet.refill, largest_free)
-                   for outlet in self.outlets if outlet.refill is not None and largest_free > 0.0]
+        places += [(outlet, f"outlet {outlet.name} refill region" if outlet.name else "outlet refill region",
+                    outlet.refill, largest_free) for outlet in self.outlets if outlet.refill is not None and largest_free > 0.0]
         for owner, what, region, radius in places:
             if getattr(owner, "_room_checked", False):
                 continue

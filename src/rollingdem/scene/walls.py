@@ -18,6 +18,13 @@ from rollingdem.physics.records import WALL_CYLINDER as CYLINDER, WALL_GEOMETRY_
 from rollingdem.physics.records import WALL_PLANE as PLANE
 
 
+def surface_speed(velocity, angular_velocity, motion, reach: float) -> float:
+    """The fastest a wall surface moves ``reach`` (m) from its spin axis (m/s): |v| + |omega| reach
+    plus its program's peak there (``motion``: a program or None)."""
+    speed = float(np.linalg.norm(velocity)) + float(np.linalg.norm(angular_velocity)) * reach
+    return speed + (motion.peak_speed(reach) if motion is not None else 0.0)
+
+
 class Wall:
     """Base class of walls; see ``Plane`` and ``Cylinder``."""
 
@@ -57,9 +64,7 @@ class Wall:
     def peak_speed(self, x: np.ndarray) -> float:
         """The fastest the wall's surface can move where particles (centres ``x``) meet it (m/s): its
         velocity, its turn at the farthest reach, and its program's peak (the dt check's wall speed)."""
-        reach = self.reach(x)
-        speed = float(np.linalg.norm(self.velocity)) + float(np.linalg.norm(self.angular_velocity)) * reach
-        return speed + (self.motion.peak_speed(reach) if self.motion is not None else 0.0)
+        return surface_speed(self.velocity, self.angular_velocity, self.motion, self.reach(x))
 
     def present_velocity(self) -> tuple:
         """The velocity (m/s) and angular velocity (rad/s) of the wall's last step (a program's

@@ -8,7 +8,7 @@ A part of the step loop's template (``rollingdem.engine.template``).
 from numba import njit
 
 from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST
-from rollingdem.engine.integrator import kick_drift, move_walls, undo_drift
+from rollingdem.engine.integrator import kick_drift, move_steady, move_walls, undo_drift
 # the engine module's own names for its callers: the serial copy of the step loop calls
 # kick_drift_serial, the GPU's drift kernel kick_drift_range
 from rollingdem.engine.integrator import kick_drift_range, kick_drift_serial  # noqa: F401
@@ -29,8 +29,7 @@ def move_planes(dt, walls):
         move_walls(dt, walls)
     else:
         for wl in range(walls.geometry.shape[0]):
-            for d in range(3):
-                walls.geometry[wl, d] += dt * walls.velocity[wl, d]
+            move_steady(dt, walls, wl)
 
 
 @njit(cache=True)

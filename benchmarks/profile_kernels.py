@@ -1,7 +1,8 @@
-"""Where the compiled step spends its time: python benchmarks/profile_kernels.py [STEPS] [THREADS] [SKIP]
+"""Where the compiled step spends its time: [PROFILE_SCENE=dense-bed] python benchmarks/profile_kernels.py [STEPS] [THREADS] [SKIP]
 
 Samples the 20,000-sphere column collapse (``rollingdem bench``'s scene, from its cached settled
-state, cylinder lifted, SKIP steps in) with Linux ``perf record`` for STEPS steps, and prints the
+state, cylinder lifted, SKIP steps in; with PROFILE_SCENE=dense-bed the cylinder stays: ``bench --scene
+dense-bed``'s bed at rest, with the EPSD model of the column) with Linux ``perf record`` for STEPS steps, and prints the
 share of the samples in each compiled function (the parallel and serial drivers, ``contact``, the
 neighbor rebuild) and the hottest instruction offsets in each, for ``objdump -d`` of the object
 files it leaves in the output folder.
@@ -36,7 +37,8 @@ def sampled_run():
 
     numba.set_num_threads(THREADS)
     sim = Simulation.restore(os.environ["ROLLINGDEM_PROFILE_STATE"])
-    sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
+    if os.environ.get("PROFILE_SCENE", "column-collapse") == "column-collapse":
+        sim.remove_wall(next(w for w in sim.walls if w.name == "cylinder"))
     sim.run(steps=SKIP, progress=False)
     tic = time.perf_counter()
     sim.run(steps=STEPS, progress=False)

@@ -77,8 +77,8 @@ def test_the_records_hold_the_fields_in_the_step_loops_order():
     assert fields[-4:] == ("bond_start", "bond_ends", "clump_start", "clump_members")
     assert fields.index("bond_pairs") < fields.index("clump_x") < fields.index("bond_start")
     assert "tags" not in fields and "bond_pairs" in fields
-    assert st.records()[1]._fields[:9] == ("kind", "geometry", "velocity", "angular_velocity", "material", "program",
-                                           "history", "touching", "load")
+    assert st.records()[1]._fields[:12] == ("kind", "geometry", "velocity", "angular_velocity", "material", "program",
+                                            "geometry_built", "moved", "history", "touching", "near", "load")
 
 
 def test_a_simulation_reads_and_writes_a_field_in_the_particles_order():

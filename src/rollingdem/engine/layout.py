@@ -80,7 +80,8 @@ def block_columns(history_size: int) -> int:
 # called, not inlined, from a prange body may take records.
 ListArrays = collections.namedtuple("ListArrays", (  # rollingdem.engine.neighbors
     "start", "j", "i",          # CSR half list: row starts (n + 1), partner and row of each entry
-    "pool", "contact_row", "groups",  # contact pool: rows (history, F_ij, T_j), each entry's row, group heads
+    "pool", "pair_terms",       # contact pool: rows of history, and the same rows' F_ij and T_j of the step
+    "contact_row", "groups",    # each entry's pool row, the groups' free-list heads
     "tr_start", "tr_k",         # transposed index: entries where each particle is the second partner
     "cell_start", "cell_items", "cell_of", "counts",  # cell-list scratch of a rebuild
     "box",                      # (PERIODIC_BOX_SIZE,) the periodic box (PERIODIC_BOX); (0,) without one

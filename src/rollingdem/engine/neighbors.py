@@ -15,7 +15,7 @@ from numba import njit, prange, uint32, uint64
 from rollingdem.engine.layout import PERIODIC_BOX as PB, ListArrays
 
 POOL_GROUP = 256  # list rows per group of the contact pool (the pair pass's threads take whole groups)
-PAIR_TERMS = 6  # pool columns after the history: F_ij (force on i) and T_j (torque on j) of the step
+PAIR_TERMS = 6  # columns of an entry's pair terms: F_ij (force on i) and T_j (torque on j) of the step
 
 
 @njit(cache=True, inline="always")
@@ -283,7 +283,7 @@ def _compact_contacts(n, nl_start, nl_j, contact_row, pool, act_start, act_j, ta
     with ``target`` (one int per row; the list's ``nl_i``, which the rebuild makes anew) saying
     where each row goes. Every row in use lies below the list's length, as each group's rows lie
     among its own entries."""
-    width = pool.shape[1] - PAIR_TERMS
+    width = pool.shape[1]
     used = nl_start[n]
     for s in range(used):
         target[s] = -1
@@ -314,7 +314,7 @@ def _drop_lost_contacts(n, ids, nl_start, nl_j, pool, act_start, act_j):
     """Remove the compacted contacts whose pair is not in the new list (only after the positions
     were changed from outside: a contact of the last step is always within the cutoff plus skin).
     In place, moving rows down only."""
-    width = pool.shape[1] - PAIR_TERMS
+    width = pool.shape[1]
     out = 0
     for i in range(n):
         q = nl_start[i]
@@ -343,7 +343,7 @@ def _place_contacts(n, nl_start, nl_j, contact_row, pool, act_start, act_j, grou
     In place, from the last contact down: contact c goes to row p = (the group's first entry) +
     (its rank in the group) >= c, as a group's first entry is at least the number of contacts
     before it, so every row not yet read sits below p."""
-    width = pool.shape[1] - PAIR_TERMS
+    width = pool.shape[1]
     ngroups = (n + POOL_GROUP - 1) // POOL_GROUP
     for g in range(ngroups):
         groups[g, 0] = -1
@@ -470,7 +470,8 @@ class ContactList:
     capacity, and what Python does with them between calls of the step loop (the compiled half is above).
 
     ``rows`` list rows (one per particle); ``capacity`` entries, grown on demand. The pool's rows
-    hold ``history_size`` history columns, then the pair terms.
+    hold ``history_size`` history columns; the pair terms of a contact are the same row of
+    ``pair_terms``.
     """
 
     def __init__(self, history_size: int, rows: int = 0, capacity: int = 16):
@@ -508,7 +509,11 @@ class ContactList:
         self.j = np.zeros(capacity, dtype=np.int32)
         self.i = np.zeros(capacity, dtype=np.int32)  # the row of each entry (list_rows)
         # the rows in use lie below the list's length, so the first ``keep`` rows are all there is
-        self.pool = np.zeros((capacity, self.history_size + PAIR_TERMS))
+        # a free row keeps the next free row in its first column: one column at least
+        self.pool = np.zeros((capacity, max(self.history_size, 1)))
+        # apart from the history, which the pair pass reads and writes: the gather reads them alone,
+        # in the order of the second partners
+        self.pair_terms = np.zeros((capacity, PAIR_TERMS))
         self.contact_row = np.full(capacity, -1, dtype=np.int32)
         if keep and old[0] is not None:
             self.j[:keep] = old[0][:keep]
@@ -519,7 +524,8 @@ class ContactList:
 
     def arrays(self) -> ListArrays:
         """The step loop's record of the list (made anew: the arrays are replaced when they grow)."""
-        return ListArrays(self.start, self.j, self.i, self.pool, self.contact_row, self.groups, self.tr_start,
+        return ListArrays(self.start, self.j, self.i, self.pool, self.pair_terms, self.contact_row, self.groups,
+                          self.tr_start,
                           self.tr_k, self.cell_start, self.cell_items, self.cell_of, self.counts, self.box)
 
     @property

@@ -546,7 +546,8 @@ class EngineState:
         walls = len(arrays["wall_kind"])
         count = {PER_PARTICLE: n, PER_BOND: 0, PER_WALL: walls, PER_PARTICLE_WALL: n * walls, PER_CLUMP: 0}
         for field in SCHEMA.all():
-            if not field.saved:
+            if not field.saved:  # derived: a new row each (wtouch is made below)
+                setattr(st, field.name, field.rows(0 if field.lazy else count[field.per], history_size))
                 continue
             if field.name in arrays:  # an older checkpoint may lack a field: its rows are new ones
                 value = np.array(arrays[field.name], dtype=field.dtype)

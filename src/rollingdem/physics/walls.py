@@ -69,3 +69,31 @@ def wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom):
                         ny = (ds * uy + dr * qy / r) / d
                         nz = (ds * uz + dr * qz / r) / d
     return overlap, nx, ny, nz
+
+
+@njit(cache=True, inline="always")
+def wall_within(i, wl, x, reach, wall_kind, wall_geom):
+    """Whether a sphere of radius ``reach`` about x_i may overlap wall wl (a plane or a cylinder's
+    shell with its rims): never False where ``wall_contact_geometry`` finds an overlap for a radius
+    up to ``reach``. Conservative on a cylinder's ends and axis, which it does not resolve."""
+    kind = wall_kind[wl]
+    if kind == PLANE:
+        return ((x[i, 0] - wall_geom[wl, 0]) * wall_geom[wl, 3] + (x[i, 1] - wall_geom[wl, 1]) * wall_geom[wl, 4]
+                + (x[i, 2] - wall_geom[wl, 2]) * wall_geom[wl, 5]) < reach
+    if kind == CYLINDER:
+        ddx = x[i, 0] - wall_geom[wl, 0]
+        ddy = x[i, 1] - wall_geom[wl, 1]
+        ddz = x[i, 2] - wall_geom[wl, 2]
+        s = ddx * wall_geom[wl, 3] + ddy * wall_geom[wl, 4] + ddz * wall_geom[wl, 5]
+        lo = wall_geom[wl, 7]
+        hi = wall_geom[wl, 8]
+        ds = s - lo if s < lo else (s - hi if s > hi else 0.0)
+        if ds * ds >= reach * reach:
+            return False
+        if ds != 0.0:
+            return True  # near a rim
+        qx = ddx - s * wall_geom[wl, 3]
+        qy = ddy - s * wall_geom[wl, 4]
+        qz = ddz - s * wall_geom[wl, 5]
+        return abs(math.sqrt(qx * qx + qy * qy + qz * qz) - wall_geom[wl, 6]) < reach
+    return False

@@ -275,6 +275,9 @@ class CudaStepLoop:
         by_entry = lists._replace(pool=pool, contact_row=contact_row, groups=lists.groups[:0],
                                   cell_start=np.zeros(lists.cell_start.shape[0] + 1, dtype=lists.cell_start.dtype),
                                   tr_start=np.append(lists.tr_start, lists.tr_start[-1]))
+        # the device does not make the walls' candidates with its lists: every wall is near (and
+        # so it is on the host after the run, until the host builds its lists)
+        walls = walls._replace(near=np.ones_like(walls.near))
         dev = tuple(cuda_target.to_device(r, copy) for r in (particles, walls, by_entry, step))
         return dev, gpu_neighbors.DeviceRebuild(self.kernels, dev[0], dev[1], dev[2], history_size, len(touching))
 

@@ -50,9 +50,6 @@ N_PARAMS = 8  # @@N_PARAMS
 # Indices in the hot loops are unsigned (``uint64(k)``): Numba gives a signed index Python's
 # wraparound for negative values, a compare and a select per index (40 % of the candidate loop).
 
-# columns of a contact's pool row (``rollingdem.engine.neighbors``) after its history: F on i, T on j
-P_FORCE = HISTORY_SIZE
-P_TORQUE_J = HISTORY_SIZE + 3
 B_IN = HISTORY_SIZE  # block buffer columns: history, inputs, results, the scalar contact's results
 B_OUT = B_IN + N_INPUTS
 B_SCALAR = B_OUT + N_RESULTS

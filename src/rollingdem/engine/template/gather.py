@@ -10,8 +10,9 @@ from numba import njit, prange, uint32, uint64
 from rollingdem.engine.layout import PERIODIC_BOX as PB
 from rollingdem.engine.integrator import kick_drift_one, next_drift_bound
 from rollingdem.engine.neighbors import minimum_image
+from rollingdem.engine.wall_candidates import mark_moved_walls
 from rollingdem.physics.bonds import BOND_INTACT, parallel_bond
-from rollingdem.engine.template.contact import BONDED_PAIRS, GATHER_RUN, MESHES, P_FORCE, P_TORQUE_J, TRACK_ENERGY  # @@PART
+from rollingdem.engine.template.contact import BONDED_PAIRS, GATHER_RUN, MESHES, TRACK_ENERGY  # @@PART
 from rollingdem.engine.template.walls import mesh_contacts, wall_contacts  # @@PART
 
 
@@ -157,7 +158,8 @@ def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params,
     added to (T) its row sums in ascending entry order (one flat loop over their transposed
     entries), then ``gather_one``; returns the counts of its two flags. One function for both
     drivers: compiled once."""
-    f, t, pool, contact_row, nl_j, tr_k = particles.f, particles.t, lists.pool, lists.contact_row, lists.j, lists.tr_k
+    f, t, terms, contact_row, nl_j, tr_k = particles.f, particles.t, lists.pair_terms, lists.contact_row, lists.j, \
+        lists.tr_k
     for m in range(lists.tr_start[lo], lists.tr_start[hi]):
         k = uint32(tr_k[uint64(m)])
         row = contact_row[k]
@@ -165,12 +167,12 @@ def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params,
             continue
         r = uint64(row)
         j = uint32(nl_j[k])
-        f[j, 0] -= pool[r, P_FORCE]
-        f[j, 1] -= pool[r, P_FORCE + 1]
-        f[j, 2] -= pool[r, P_FORCE + 2]
-        t[j, 0] += pool[r, P_TORQUE_J]
-        t[j, 1] += pool[r, P_TORQUE_J + 1]
-        t[j, 2] += pool[r, P_TORQUE_J + 2]
+        f[j, 0] -= terms[r, 0]
+        f[j, 1] -= terms[r, 1]
+        f[j, 2] -= terms[r, 2]
+        t[j, 0] += terms[r, 3]
+        t[j, 1] += terms[r, 4]
+        t[j, 2] += terms[r, 5]
     if BONDED_PAIRS and particles.bond_start.shape[0] != 0:
         gather_bonds(lo, hi, particles)
     nexceed = 0
@@ -188,6 +190,7 @@ def gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin):
     n = particles.x.shape[0]
     nexceed = 0
     nfast = 0
+    mark_moved_walls(walls)
     for b in prange((n + GATHER_RUN - 1) // GATHER_RUN):
         exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, particles, walls,
                                    lists, pair_params, half_skin)
@@ -199,10 +202,15 @@ def gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin):
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather_serial(dt, kick, gravity, pair_params, particles, walls, lists, half_skin):
     """``gather`` on the calling thread."""
-    nexceed = nfast = 0
-    for b in range(1):  # lo = b, not a literal 0: see pair_forces_serial
-        nexceed, nfast = gather_rows(b, particles.x.shape[0], dt, kick, gravity, particles, walls, lists, pair_params,
-                                     half_skin)
+    n = particles.x.shape[0]
+    nexceed = 0
+    nfast = 0
+    mark_moved_walls(walls)
+    for b in range((n + GATHER_RUN - 1) // GATHER_RUN):
+        exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, particles, walls,
+                                   lists, pair_params, half_skin)
+        nexceed += exceed
+        nfast += fast
     return nexceed, nfast
 
 

@@ -16,6 +16,7 @@ from rollingdem.engine.neighbors import list_rows, rebuild_neighbor_list
 from rollingdem.engine.rigid_body import KICK_OPEN, clump_pass, clump_undo
 from rollingdem.engine.rigid_body import clump_pass_serial, clump_rows  # noqa: F401
 from rollingdem.engine.mesh_passes import build_mesh_candidates, move_meshes
+from rollingdem.engine.wall_candidates import build_wall_candidates
 from rollingdem.engine.template.pairs import pair_forces  # @@PART
 from rollingdem.engine.template.gather import bond_forces, gather  # @@PART
 from rollingdem.engine.template.contact import BONDED_PAIRS, CLUMPS, MESHES, PROGRAMS  # @@PART
@@ -46,6 +47,7 @@ def _rebuild(particles, walls, lists, skin, info):
         info[I_NEEDED] = needed
         return False
     list_rows(particles.x.shape[0], lists.start, lists.i)
+    build_wall_candidates(particles.x, particles.radius, 0.5 * skin, walls)
     info[I_REBUILDS] += 1
     return True
 

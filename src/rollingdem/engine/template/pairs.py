@@ -15,7 +15,7 @@ from rollingdem.engine.layout import BLOCK_SHIFT, CONTACT_BLOCK, LANE_HITS, PERI
 from rollingdem.engine.neighbors import POOL_GROUP, free_row, minimum_image, take_row
 from rollingdem.physics.bonds import BOND_INTACT
 from rollingdem.physics.contact.frame import SERIES_ANGLE, contact_frame_series, spin_angle, stored_normal
-from rollingdem.engine.template.contact import BLOCK_COLUMNS, BONDED_PAIRS, B_IN, B_OUT, B_SCALAR, CANDIDATE_SLACK, DETACH_AT, HISTORY_SIZE, INERTIA_R_FACTOR, P_FORCE, P_TORQUE_J, TRACK_ENERGY, bonded_contact, contact, contact_in_frame  # @@PART
+from rollingdem.engine.template.contact import BLOCK_COLUMNS, BONDED_PAIRS, B_IN, B_OUT, B_SCALAR, CANDIDATE_SLACK, DETACH_AT, HISTORY_SIZE, INERTIA_R_FACTOR, TRACK_ENERGY, bonded_contact, contact, contact_in_frame  # @@PART
 
 
 @njit(cache=True, inline="always")
@@ -48,10 +48,10 @@ def block_contacts(block, p, dt):
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
-def flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts):
+def flush_block(count, block, lanes, dt, f, t, p, pool, pair_terms, energy, contacts):
     """Compute a block of ``count`` contacts (material pair parameters ``p``) and scatter the results:
-    history back to each contact's pool row, F and T_j beside it, F and T added to row i in the
-    order of its entries (the order the scalar loop summed them in)."""
+    history back to each contact's pool row, F and T_j to the same row of ``pair_terms``, F and T
+    added to row i in the order of its entries (the order the scalar loop summed them in)."""
     block_contacts(block, p, dt)
     col = lane_columns(block)
     for n in range(count):
@@ -66,8 +66,8 @@ def flush_block(count, block, lanes, dt, f, t, p, pool, energy, contacts):
             force = col[un, out + d]
             f[i, d] += force
             t[i, d] += col[un, out + 3 + d]
-            pool[row, P_FORCE + d] = force
-            pool[row, P_TORQUE_J + d] = col[un, out + 6 + d]
+            pair_terms[row, d] = force
+            pair_terms[row, 3 + d] = col[un, out + 6 + d]
         if TRACK_ENERGY:
             for c in range(4):
                 energy[i, c] += col[un, out + 9 + c]
@@ -233,8 +233,8 @@ def pair_row(i, dt, particles, lists, pair_params):
         ty += res[4]
         tz += res[5]
         for d in range(3):
-            pool[row, P_FORCE + d] = res[d]
-            pool[row, P_TORQUE_J + d] = res[6 + d]
+            lists.pair_terms[row, d] = res[d]
+            lists.pair_terms[row, 3 + d] = res[6 + d]
         en += res[9]
         et += res[10]
         er += res[11]
@@ -296,7 +296,7 @@ def pair_rows(lo, hi, dt, particles, lists, pair_params, block, lanes):
             if not touching:
                 continue
             if count == CONTACT_BLOCK:
-                flush_block(count, block, lanes, dt, f, t, p, pool, particles.energy, contacts)
+                flush_block(count, block, lanes, dt, f, t, p, pool, lists.pair_terms, particles.energy, contacts)
                 count = 0
             n = count
             un = uint64(n)
@@ -320,7 +320,7 @@ def pair_rows(lo, hi, dt, particles, lists, pair_params, block, lanes):
                 for c in range(N_RESULTS):
                     col[un, B_SCALAR + c] = res[c]
     if count > 0:
-        flush_block(count, block, lanes, dt, f, t, p, pool, particles.energy, contacts)
+        flush_block(count, block, lanes, dt, f, t, p, pool, lists.pair_terms, particles.energy, contacts)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})

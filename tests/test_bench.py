@@ -128,6 +128,34 @@ def test_slab_dump_for_the_peers_is_the_slab(tmp_path):
     np.testing.assert_array_equal(sim.radii, bench.RADIUS)
 
 
+def test_a_rough_bed_dumped_for_the_peers_reads_back_as_the_same_bed(monkeypatch, tmp_path):
+    """The rough-bed state benchmarks/peers_dense.sh gives the peers (fixed spheres of type 2) reads back
+    with ``rough_bed_from_dump`` as the same bed, even from rows out of id order (as several
+    processes write them): the same spheres fixed, positions to the 10 digits written, the same box;
+    and one step on from both, the same contacts per sphere, the base's unmoved."""
+    monkeypatch.setattr(bench, "ROUGH_BED_SETTLE", 0.1)
+    monkeypatch.setattr(bench, "_cache_dir", lambda: tmp_path)
+    bed = bench.rough_bed_simulation(300, True, echo=lambda *a: None)
+    fixed = bed.fixed.astype(bool)
+    dump = bench.write_liggghts_dump(tmp_path / "r.dump", bed.positions, bed.velocities, bench.RADIUS, fixed=fixed)
+    lines = dump.read_text().splitlines()
+    head = next(k for k, line in enumerate(lines) if line.startswith("ITEM: ATOMS")) + 1
+    rows = np.array(lines[head:])[np.random.default_rng(1).permutation(len(lines) - head)]
+    dump.write_text("\n".join(lines[:head] + list(rows)) + "\n")
+    back = bench.rough_bed_from_dump(dump)
+    assert (~fixed).sum() == 300 and fixed.sum() > 100
+    np.testing.assert_array_equal(back.fixed.astype(bool), fixed)
+    np.testing.assert_allclose(back.positions, bed.positions, rtol=5e-10, atol=0)
+    np.testing.assert_allclose(back.velocities, bed.velocities, rtol=5e-10, atol=1e-300)
+    assert [(w.point, w.normal) for w in back.walls] == [(w.point, w.normal) for w in bed.walls]
+    base = back.positions[fixed]
+    for sim in (bed, back):
+        sim.run(steps=1, progress=False)
+    # settled 0.1 s, the free spheres rest on the base and on each other: ~3 contacts each
+    assert bench._contacts_per_particle(back)[0] == bench._contacts_per_particle(bed)[0] > 1.5
+    np.testing.assert_array_equal(back.positions[fixed], base)
+
+
 @pytest.mark.parametrize("args, words", [(["--scene", "nope"], ["scene = nope", "column-collapse"]),
                                          (["--particles", "0"], ["particles = 0", ">= 1"]),
                                          (["--scene", "dense-bed", "--model", "magic"], ["model = magic", "epsd"]),

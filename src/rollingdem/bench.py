@@ -163,6 +163,12 @@ def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=pr
 def column_from_dump(path, rolling: str = "epsd"):
     """The settled state written by the LIGGGHTS reference input (``write_dump ... custom id type x y z
     vx vy vz radius``), with the cylinder of the matching radius in place."""
+    data = _read_dump(path, ("x", "y", "z", "vx", "vy", "vz", "radius"))
+    return _column_from_state(rolling, data[:, 0:3], data[:, 6], data[:, 3:6])
+
+
+def _read_dump(path, names) -> np.ndarray:
+    """The columns ``names`` of a LIGGGHTS/LAMMPS custom text dump, one row per atom, in file order."""
     path = Path(path)
     if not path.exists():
         raise ParameterError(f"from_dump = {str(path)!r} does not exist: give the dump written by "
@@ -174,12 +180,33 @@ def column_from_dump(path, rolling: str = "epsd"):
         start = next(k for k, line in enumerate(lines) if line.startswith("ITEM: ATOMS"))
         cols = lines[start].split()[2:]
         data = np.loadtxt(lines[start + 1:], ndmin=2)
-        idx = {c: cols.index(c) for c in ("x", "y", "z", "vx", "vy", "vz", "radius")}
+        idx = [cols.index(c) for c in names]
     except (StopIteration, ValueError) as err:
         raise ParameterError(f"from_dump = {str(path)!r} is not a LIGGGHTS custom dump with columns "
-                             f"x y z vx vy vz radius ({err})") from None
-    return _column_from_state(rolling, data[:, [idx["x"], idx["y"], idx["z"]]], data[:, idx["radius"]],
-                              data[:, [idx["vx"], idx["vy"], idx["vz"]]])
+                             f"{' '.join(names)} ({err})") from None
+    return data[:, idx]
+
+
+def rough_bed_half_width(free: int) -> float:
+    """Half the side (m) of the rough-bed scene's square box for ``free`` free spheres."""
+    from rollingdem.scene.insertion import ROUGH_BASE_SPACING
+
+    return 0.5 * math.sqrt(0.5 * free * math.sqrt(3.0) / 2.0) * ROUGH_BASE_SPACING * RADIUS
+
+
+def rough_bed_from_dump(path):
+    """The rough-bed scene holding the spheres of a dump (``write_liggghts_dump`` with ``fixed``), as they
+    are: those of type 2 fixed, the others free, each kind in the order of its ids, the fixed ones
+    first (as ``rough_bed_simulation`` adds them); the box sized for the free count."""
+    data = _read_dump(path, ("id", "type", "x", "y", "z", "vx", "vy", "vz", "radius"))
+    data = data[np.argsort(data[:, 0], kind="stable")]
+    base = data[:, 1] == 2
+    sim = _box_simulation(rough_bed_half_width(int((~base).sum())))
+    for rows, fixed in ((data[base], True), (data[~base], False)):
+        if len(rows):
+            sim.add_particles(rows[:, 2:5], rows[:, 8], "table1", velocity=rows[:, 5:8], allow_overlap=True,
+                              fixed=fixed)
+    return sim
 
 
 def _column_from_state(rolling, positions, radii, velocities, angular_velocities=None):
@@ -452,17 +479,19 @@ def slab_state(particles: int) -> tuple[np.ndarray, np.ndarray]:
     return x, rng.uniform(-0.05, 0.05, x.shape)
 
 
-def write_liggghts_dump(path, positions, velocities, radius: float) -> Path:
+def write_liggghts_dump(path, positions, velocities, radius: float, fixed=None) -> Path:
     """A LIGGGHTS/LAMMPS text dump (timestep 0; columns id type x y z vx vy vz radius) that the
-    reference inputs read with ``read_dump``: the peers start from the identical state."""
+    reference inputs read with ``read_dump``: the peers start from the identical state. ``fixed`` (a
+    mask, optional): those spheres get type 2 (a rough base: ``rough_bed_from_dump``), the others 1."""
     path = Path(path)
     n = len(positions)
+    types = np.ones(n) if fixed is None else np.where(np.asarray(fixed, dtype=bool), 2.0, 1.0)
     lo, hi = positions.min(axis=0) - 2 * radius, positions.max(axis=0) + 2 * radius
     with open(path, "w") as fh:
         fh.write(f"ITEM: TIMESTEP\n0\nITEM: NUMBER OF ATOMS\n{n}\nITEM: BOX BOUNDS ff ff ff\n")
         fh.write("".join(f"{a:.10g} {b:.10g}\n" for a, b in zip(lo, hi)))
         fh.write("ITEM: ATOMS id type x y z vx vy vz radius\n")
-        np.savetxt(fh, np.column_stack([np.arange(1, n + 1), np.ones(n), positions, velocities, np.full(n, radius)]),
+        np.savetxt(fh, np.column_stack([np.arange(1, n + 1), types, positions, velocities, np.full(n, radius)]),
                    fmt=["%d", "%d"] + ["%.10g"] * 7)
     return path
 
@@ -530,15 +559,14 @@ def rough_bed_simulation(particles: int, rough: bool, seed: int = 1, echo=print)
     """``particles`` spheres settled for ``ROUGH_BED_SETTLE`` s in a square box on a rough base of
     particles / 2 fixed spheres (``rough``) or on the bare plate; from the disk cache or built now."""
     from rollingdem import BoxRegion, __version__, rough_base
-    from rollingdem.scene.insertion import ROUGH_BASE_SPACING
 
     path = _cache_dir() / f"roughbed_{particles}_{'rough' if rough else 'plate'}_seed{seed}_v{__version__}.npz"
     if path.exists():
         return _restored(path)
     echo(f"settling {particles} spheres on {'a rough base' if rough else 'the plate'} for {ROUGH_BED_SETTLE} s "
          f"(cached afterwards in {path.parent}) ...")
-    side = math.sqrt(0.5 * particles * math.sqrt(3.0) / 2.0) * ROUGH_BASE_SPACING * RADIUS
-    half = 0.5 * side
+    half = rough_bed_half_width(particles)
+    side = 2.0 * half
     sim = _box_simulation(half)
     floor = 0.0
     if rough:

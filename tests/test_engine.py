@@ -242,6 +242,48 @@ def test_same_result_for_any_thread_count(table1, monkeypatch):
     np.testing.assert_array_equal(results[1], again.positions)
 
 
+def test_the_threads_share_the_gather_by_free_spheres():
+    """``free_run_bound``: 1,000 fixed spheres then 1,000 free ones, in 8 runs of 256: runs 0-3 hold
+    24 free spheres (slots 1000-1023), each later run 256 more (280, 536, 792, 1000 behind runs 4-7).
+    Half the free spheres lie behind the first 6 runs, a quarter behind the first 5, all behind 8:
+    two threads split at run 6, not at run 4 as equal counts of runs would (one thread would gather
+    744 free spheres, the other 256)."""
+    from rollingdem.engine.template.gather import GATHER_RUN, free_run_bound
+
+    fixed = np.r_[np.ones(1000, np.uint8), np.zeros(1000, np.uint8)]
+    assert GATHER_RUN == 256
+    assert [free_run_bound(fixed, 8, share) for share in (0.0, 0.25, 0.5, 1.0)] == [0, 5, 6, 8]
+
+
+def test_same_result_for_any_thread_count_on_a_rough_base(table1, monkeypatch):
+    """A cube of spheres falling onto a rough base of fixed spheres (added first, so that the base
+    fills the first slots): the threads share the gather by free spheres, not by slots, and every
+    sphere is gathered once whichever thread takes it: the serial path and the parallel path give
+    the same bits, and the base stays where it was."""
+    import rollingdem.engine.layout as ek
+
+    results = []
+    for threads, serial_below in ((1, ek.SERIAL_BELOW), (numba.config.NUMBA_NUM_THREADS, 0)):
+        numba.set_num_threads(threads)
+        monkeypatch.setattr(ek, "SERIAL_BELOW", serial_below)
+        try:
+            sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=2e-6)
+            sim.add_material(table1())
+            base = rd.rough_base(R, ((-0.07, 0.07), (-0.07, 0.07)), seed=2)
+            sim.add_particles(base, R, "m", fixed=True)
+            g = np.arange(5) * 2.05 * R - 4 * R
+            x = np.stack(np.meshgrid(g, g, g + 8 * R, indexing="ij"), -1).reshape(-1, 3)
+            sim.add_particles(x, R, "m", velocity=(0, 0, -2.0))
+            assert len(base) > 100 and sim._state.serial() == (serial_below > 0)
+            sim.run(steps=2000)  # 4 ms: the cube's bottom layer strikes the base at 2.5 ms
+            results.append(sim.positions.copy())
+            np.testing.assert_array_equal(sim.positions[:len(base)], base)
+            assert sim.number_of_contacts() > 50
+        finally:
+            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    np.testing.assert_array_equal(results[0], results[1])
+
+
 def test_moving_and_removed_walls(table1):
     """A plate pushed up at constant speed lifts a resting sphere; removing it lets the sphere fall."""
     sim = rd.Simulation(contact=rd.ContactModel("hertz"), dt=5e-6)

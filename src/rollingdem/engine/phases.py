@@ -43,8 +43,9 @@ class Passes:
         no_walls = walls._make(a[:0] for a in walls)
 
         self.pair = lambda: pair_forces(dt, pp, particles, lists, scratch)
-        self.gather_walls = lambda: gather(dt, KICK_NONE, gravity, pp, particles, walls, lists, 0.5 * skin)
-        self.gather_plain = lambda: gather(dt, KICK_NONE, gravity, pp, particles, no_walls, lists, 0.5 * skin)
+        self.gather_walls = lambda: gather(dt, KICK_NONE, gravity, pp, particles, walls, lists, scratch, 0.5 * skin)
+        self.gather_plain = lambda: gather(dt, KICK_NONE, gravity, pp, particles, no_walls, lists, scratch,
+                                            0.5 * skin)
         self.kick = lambda: kick_drift(0.0, particles, 0.5 * skin)
         clump_pass = module.clump_pass_serial if serial else module.clump_pass
         self.clumps = lambda: clump_pass(dt, KICK_NONE, gravity, particles, lists.box, 0.5 * skin)

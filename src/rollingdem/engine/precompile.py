@@ -72,7 +72,7 @@ def signatures(module) -> dict:
     dt, kick, half_skin, skin = 1e-6, KICK_CLOSE, 1e-3, 2e-3
     pp = np.zeros((1, 1, module.N_PARAMS))
     particles, walls, lists, scratch = st.records()
-    gather = (dt, kick, np.zeros(3), pp, particles, walls, lists, half_skin)
+    gather = (dt, kick, np.zeros(3), pp, particles, walls, lists, scratch, half_skin)
     args = {
         "contact": (lists.pool, 0, (0.0,) * N_INPUTS, pp[0, 0], dt),
         "block_contacts": (scratch.blocks[0], pp[0, 0], dt),

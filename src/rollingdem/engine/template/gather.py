@@ -184,23 +184,53 @@ def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params,
     return nexceed, nfast
 
 
+@njit(cache=True, inline="always")
+def free_run_bound(fixed, nruns, share):
+    """The first run of ``GATHER_RUN`` particles after which at least ``share`` (a fraction) of the
+    free particles lie behind: a fixed particle costs the gather next to nothing (a rough base's
+    spheres come first, so equal counts of runs would leave one thread most of the free ones)."""
+    n = fixed.shape[0]
+    free = 0
+    for q in range(n):
+        free += fixed[q] == 0
+    target = share * free
+    behind = 0
+    for b in range(nruns):
+        if behind >= target:
+            return b
+        for q in range(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n)):
+            behind += fixed[q] == 0
+    return nruns
+
+
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin):
-    """``gather_rows`` on runs of ``GATHER_RUN`` particles, shared out among the threads."""
+def gather(dt, kick, gravity, pair_params, particles, walls, lists, scratch, half_skin):
+    """``gather_rows`` on runs of ``GATHER_RUN`` particles, each thread (``scratch`` has a block per
+    thread) a contiguous range of runs holding an equal share of the free particles."""
     n = particles.x.shape[0]
     nexceed = 0
     nfast = 0
     mark_moved_walls(walls)
-    for b in prange((n + GATHER_RUN - 1) // GATHER_RUN):
-        exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, particles, walls,
-                                   lists, pair_params, half_skin)
-        nexceed += exceed
-        nfast += fast
+    nruns = (n + GATHER_RUN - 1) // GATHER_RUN
+    nthreads = scratch.lanes.shape[0]
+    fixed = particles.fixed
+    for c in prange(nthreads):
+        if fixed.shape[0] == 0:
+            lo, hi = c * nruns // nthreads, (c + 1) * nruns // nthreads
+        else:
+            lo, hi = free_run_bound(fixed, nruns, c / nthreads), free_run_bound(fixed, nruns, (c + 1) / nthreads)
+            if c == nthreads - 1:
+                hi = nruns
+        for b in range(lo, hi):
+            exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, particles,
+                                       walls, lists, pair_params, half_skin)
+            nexceed += exceed
+            nfast += fast
     return nexceed, nfast
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def gather_serial(dt, kick, gravity, pair_params, particles, walls, lists, half_skin):
+def gather_serial(dt, kick, gravity, pair_params, particles, walls, lists, scratch, half_skin):
     """``gather`` on the calling thread."""
     n = particles.x.shape[0]
     nexceed = 0

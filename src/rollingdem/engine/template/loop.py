@@ -71,7 +71,7 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
             # the bonds' load as it is: no motion in this evaluation to add (dt 0), so a fresh bond
             # starts unloaded and a run resumed after a change of the scene adds nothing twice
             bond_forces(0, particles.bond_pairs.shape[0], 0.0, particles, lists.box)
-        exceed, fast = gather(dt, 0.0, gravity, pair_params, particles, walls, lists, half_skin)
+        exceed, fast = gather(dt, 0.0, gravity, pair_params, particles, walls, lists, scratch, half_skin)
         if CLUMPS and particles.clump_mass.shape[0] != 0:
             fast += clump_pass(dt, 0.0, gravity, particles, lists.box, half_skin)[1]
         info[I_TOO_FAST] = fast
@@ -100,7 +100,7 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
         pair_forces(dt, pair_params, particles, lists, scratch)
         if BONDED_PAIRS and particles.bond_pairs.shape[0] != 0:
             bond_forces(0, particles.bond_pairs.shape[0], dt, particles, lists.box)
-        exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, half_skin)
+        exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, scratch, half_skin)
         if CLUMPS and particles.clump_mass.shape[0] != 0:
             clump_exceed, clump_fast = clump_pass(dt, kick, gravity, particles, lists.box, half_skin)
             exceed += clump_exceed

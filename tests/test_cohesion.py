@@ -185,10 +185,11 @@ def test_cohesion_refusals():
 @pytest.mark.slow
 def test_a_cohesive_pile_stands_steeper():
     """The angle-of-repose case (600 spheres of R = 5 mm on a rough base, EPSD, mu = 0.5, mu_r =
-    0.1, tube lifted at 0.2 m/s), 4 seeds, dry and with SJKR cohesion at k_c = 7e4 J/m^3 (the
+    0.1, tube lifted at 0.2 m/s), 6 seeds, dry and with SJKR cohesion at k_c = 7e4 J/m^3 (the
     largest pair pull, (2/3) pi^3 k_c^3 R*^2 / E*^2, about 0.8 of a sphere's weight): the cohesive
     piles are steeper, seed by seed, by a mean larger than the 95 % Student-t half-width of the
-    differences (seeds 1-3 measured: 4.5 +- 3.7 degrees, on 21.8)."""
+    differences (measured: 7.7 +- 4.9 degrees, on 21.4 dry). Six seeds, as piles this small scatter
+    widely when dry (18.0-27.1 degrees, the cone fit's R^2 about 0.6)."""
     from rollingdem.experiments import EXPERIMENTS
     from rollingdem.analysis.intervals import confidence_interval
 
@@ -198,7 +199,7 @@ def test_a_cohesive_pile_stands_steeper():
                                                         lift_speed=0.2, rough_base=1,
                                                         cohesion="sjkr" if kc else "none",
                                                         cohesion_energy_density=kc))["angle"]
-                      for seed in (1, 2, 3, 4)]
+                      for seed in (1, 2, 3, 4, 5, 6)]
     mean, half = confidence_interval(np.array(angles[7e4]) - np.array(angles[0.0]))
     assert mean > half > 0, angles
 

@@ -252,7 +252,7 @@ def test_the_threads_share_the_gather_by_free_spheres():
 
     fixed = np.r_[np.ones(1000, np.uint8), np.zeros(1000, np.uint8)]
     assert GATHER_RUN == 256
-    assert [free_run_bound(fixed, 8, share) for share in (0.0, 0.25, 0.5, 1.0)] == [0, 5, 6, 8]
+    assert [free_run_bound(fixed, 8, share * 1000) for share in (0.0, 0.25, 0.5, 1.0)] == [0, 5, 6, 8]
 
 
 def test_same_result_for_any_thread_count_on_a_rough_base(table1, monkeypatch):

@@ -525,8 +525,8 @@ class ContactList:
     def arrays(self) -> ListArrays:
         """The step loop's record of the list (made anew: the arrays are replaced when they grow)."""
         return ListArrays(self.start, self.j, self.i, self.pool, self.pair_terms, self.contact_row, self.groups,
-                          self.tr_start,
-                          self.tr_k, self.cell_start, self.cell_items, self.cell_of, self.counts, self.box)
+                          self.tr_start, self.tr_k, self.cell_start, self.cell_items, self.cell_of, self.counts,
+                          self.box)
 
     @property
     def size(self) -> int:

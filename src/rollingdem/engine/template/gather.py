@@ -185,15 +185,11 @@ def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params,
 
 
 @njit(cache=True, inline="always")
-def free_run_bound(fixed, nruns, share):
-    """The first run of ``GATHER_RUN`` particles after which at least ``share`` (a fraction) of the
-    free particles lie behind: a fixed particle costs the gather next to nothing (a rough base's
-    spheres come first, so equal counts of runs would leave one thread most of the free ones)."""
+def free_run_bound(fixed, nruns, target):
+    """The first run of ``GATHER_RUN`` particles after which at least ``target`` free particles lie
+    behind: a fixed particle costs the gather next to nothing (a rough base's spheres come first, so
+    equal counts of runs would leave one thread most of the free ones)."""
     n = fixed.shape[0]
-    free = 0
-    for q in range(n):
-        free += fixed[q] == 0
-    target = share * free
     behind = 0
     for b in range(nruns):
         if behind >= target:
@@ -214,11 +210,15 @@ def gather(dt, kick, gravity, pair_params, particles, walls, lists, scratch, hal
     nruns = (n + GATHER_RUN - 1) // GATHER_RUN
     nthreads = scratch.lanes.shape[0]
     fixed = particles.fixed
+    free = 0
+    for q in range(fixed.shape[0]):
+        free += fixed[q] == 0
     for c in prange(nthreads):
         if fixed.shape[0] == 0:
             lo, hi = c * nruns // nthreads, (c + 1) * nruns // nthreads
         else:
-            lo, hi = free_run_bound(fixed, nruns, c / nthreads), free_run_bound(fixed, nruns, (c + 1) / nthreads)
+            lo = free_run_bound(fixed, nruns, c * free / nthreads)
+            hi = free_run_bound(fixed, nruns, (c + 1) * free / nthreads)
             if c == nthreads - 1:
                 hi = nruns
         for b in range(lo, hi):

@@ -512,8 +512,9 @@ class ContactList:
         # a free row keeps the next free row in its first column: one column at least
         self.pool = np.zeros((capacity, max(self.history_size, 1)))
         # apart from the history, which the pair pass reads and writes: the gather reads them alone,
-        # in the order of the second partners
-        self.pair_terms = np.zeros((capacity, PAIR_TERMS))
+        # in the order of the second partners; one row more, of zeros, that the gather reads for an
+        # entry without a contact (no branch)
+        self.pair_terms = np.zeros((capacity + 1, PAIR_TERMS))
         self.contact_row = np.full(capacity, -1, dtype=np.int32)
         if keep and old[0] is not None:
             self.j[:keep] = old[0][:keep]

@@ -5,6 +5,7 @@ A part of the step loop's template (``rollingdem.engine.template``).
 """
 
 import math
+import numpy as np
 from numba import njit, prange, uint32, uint64
 
 from rollingdem.engine.layout import PERIODIC_BOX as PB
@@ -160,19 +161,18 @@ def gather_rows(lo, hi, dt, kick, gravity, particles, walls, lists, pair_params,
     drivers: compiled once."""
     f, t, terms, contact_row, nl_j, tr_k = particles.f, particles.t, lists.pair_terms, lists.contact_row, lists.j, \
         lists.tr_k
+    none = np.int32(terms.shape[0] - 1)  # the row of zeros: x - 0.0 is x, -0.0 too
     for m in range(lists.tr_start[lo], lists.tr_start[hi]):
         k = uint32(tr_k[uint64(m)])
         row = contact_row[k]
-        if row < 0:
-            continue
-        r = uint64(row)
+        r = uint64(row if row >= 0 else none)
         j = uint32(nl_j[k])
         f[j, 0] -= terms[r, 0]
         f[j, 1] -= terms[r, 1]
         f[j, 2] -= terms[r, 2]
-        t[j, 0] += terms[r, 3]
-        t[j, 1] += terms[r, 4]
-        t[j, 2] += terms[r, 5]
+        t[j, 0] -= terms[r, 3]  # -T_j kept: t - (-T_j) is t + T_j to the bit
+        t[j, 1] -= terms[r, 4]
+        t[j, 2] -= terms[r, 5]
     if BONDED_PAIRS and particles.bond_start.shape[0] != 0:
         gather_bonds(lo, hi, particles)
     nexceed = 0

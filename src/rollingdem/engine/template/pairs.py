@@ -67,7 +67,7 @@ def flush_block(count, block, lanes, dt, f, t, p, pool, pair_terms, energy, cont
             f[i, d] += force
             t[i, d] += col[un, out + 3 + d]
             pair_terms[row, d] = force
-            pair_terms[row, 3 + d] = col[un, out + 6 + d]
+            pair_terms[row, 3 + d] = -col[un, out + 6 + d]
         if TRACK_ENERGY:
             for c in range(4):
                 energy[i, c] += col[un, out + 9 + c]
@@ -234,7 +234,7 @@ def pair_row(i, dt, particles, lists, pair_params):
         tz += res[5]
         for d in range(3):
             lists.pair_terms[row, d] = res[d]
-            lists.pair_terms[row, 3 + d] = res[6 + d]
+            lists.pair_terms[row, 3 + d] = -res[6 + d]
         en += res[9]
         et += res[10]
         er += res[11]

@@ -208,6 +208,71 @@ def test_a_rate_below_a_value_for_a_hold_ends_a_run_once_the_flow_has_stopped(ta
     assert math.sqrt(2 * (0.011 + 0.05 - 0.005) / G) < last - 0.2  # the flow started later than the hold
 
 
+def _half_width_95(values) -> float:
+    """The 95 % half-width of the mean of ``values`` by batch means, as docs/measurements.md defines
+    it: 10 consecutive batches of len // 10 samples (the rest left out), Student's t at 97.5 % with
+    9 degrees of freedom times the batch means' standard deviation over sqrt(10)."""
+    from scipy.stats import t
+
+    per = len(values) // 10
+    means = np.asarray(values[:10 * per]).reshape(10, per).mean(axis=1)
+    return float(t.ppf(0.975, 9) * means.std(ddof=1) / math.sqrt(10))
+
+
+def test_known_ends_a_run_at_the_first_sample_whose_mean_is_known_to_the_width_asked():
+    """A measurement of independent normal noise (sd 1, one value per sample) around 5: ``Known``
+    with ± 0.3 ends the run at the first sample, 20 or later, whose 95 % half-width reaches 0.3
+    (computed here from the recorded series). For independent samples the half-width is about
+    t sigma / sqrt(n), so n is near (2.262 / 0.3)^2 = 57; the batch estimate of sigma has 9 degrees
+    of freedom (relative scatter ~ 0.24), hence the bounds 0.4-2.5 times 57. The mean it reports is
+    within its own half-width of 5 (a 95 % statement, true for this seed)."""
+    sim = rd.Simulation(gravity=(0, 0, -G))
+    sim.add_material(_material())
+    sim.add_wall(rd.Plane((0, 0, 0), (0, 0, 1), material="m"))
+    sim.add_particles([[0, 0, RP]], RP, "m")
+    noise = iter(np.random.default_rng(7).normal(5.0, 1.0, size=100_000))
+    m = rd.Function("noise", lambda s: next(noise), interval=1e-3)
+    until = rd.Known(m, "value", 0.3, every=1e-3)
+    ended = sim.run(1.0, observers=[m], until=until)
+    assert ended.startswith("noise.value known to +- 0.3")
+    values = m.series()["value"].to_numpy()
+    n = len(values)
+    widths = [_half_width_95(values[:k]) for k in range(20, n + 1)]
+    assert widths[-1] <= 0.3 and all(w > 0.3 for w in widths[:-1])
+    assert 0.4 * 57 < n < 2.5 * 57
+    assert abs(until.mean - 5.0) < until.half_width and until.samples == n
+
+
+def test_known_within_is_a_case_file_stage_condition_and_what_has_no_mean_is_refused(tmp_path):
+    """A case file stage takes ``until: {measurement: NAME.QUANTITY, known_within: W}`` as ``Known``; beside above
+    or below, on a cumulative quantity, with W <= 0 or fewer than 20 samples it is refused in one line."""
+    from rollingdem.io.casefile import load_case, stage_conditions
+
+    case = load_case({"dt": 1e-5, "gravity": [0, 0, -9.81],
+                      "materials": [{"name": "m", "youngs_modulus": 4e7, "poisson_ratio": 0.49, "density": 1056,
+                                     "friction": 0.3, "rolling_friction": 0.1, "restitution": 0.5}],
+                      "walls": [{"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1], "material": "m"}],
+                      "particles": [{"positions": [[0, 0, 0.0015]], "radius": 0.0015, "material": "m"}],
+                      "measurements": [{"name": "out", "type": "probe", "region": {"type": "box", "lo": [-1, -1, -1],
+                                                                               "hi": [1, 1, 1]}, "interval": 1e-3}],
+                      "stages": [{"name": "rest", "until": {"measurement": "out.mass", "known_within": 1e-3},
+                                  "max_duration": 1.0}]})
+    measurements = {"out": rd.Probe("out", rd.BoxRegion((-1, -1, -1), (1, 1, 1)), interval=1e-3),
+                    "bin": rd.OutletTotals("bin", outlet="bin")}
+    (known,) = stage_conditions(case.stages[0], measurements)
+    assert isinstance(known, rd.Known) and known.within == 1e-3 and known.min_samples == 20
+    bad = {"above": 1.0, "known_within": 0.1}
+    with pytest.raises(ParameterError, match="known_within is not allowed beside above, below or hold"):
+        stage_conditions(case.stages[0].model_copy(update={"until": case.stages[0].until.model_copy(
+            update={"measurement": "out.mass", **bad})}), measurements)
+    with pytest.raises(ParameterError, match="bin.count known_within is not allowed: its value is the last sample's"):
+        rd.Known(measurements["bin"], "count", 1.0)
+    with pytest.raises(ParameterError, match="until known_within = 0 is not allowed"):
+        rd.Known(measurements["out"], "mass", 0.0)
+    with pytest.raises(ParameterError, match="until min_samples = 10 is not allowed: must be an integer >= 20"):
+        rd.Known(measurements["out"], "mass", 1.0, min_samples=10)
+
+
 def test_conditions_and_measurements_refuse_bad_input():
     out = rd.OutletTotals("out", outlet="bin")
     with pytest.raises(ParameterError, match="give exactly one of above and below"):

@@ -24,7 +24,7 @@ from rollingdem.scene.mesh import MeshRegion, MeshWall, TriangleMesh  # noqa: E4
 from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots  # noqa: E402
 from rollingdem.io.measurements import (DrumAngle, DrumFlow, Function, MassFlow, MeshFlow, OutletTotals, PileAngle, Probe,  # noqa: E402
                                          SurfaceProfile, WallLoad)
-from rollingdem.scene.conditions import Empty, Reaches, Settled  # noqa: E402
+from rollingdem.scene.conditions import Empty, Known, Reaches, Settled  # noqa: E402
 from rollingdem.scene.schedule import Callback, Observer  # noqa: E402
 from rollingdem.scene.simulation import Simulation, __version__  # noqa: E402
 from rollingdem.physics.timestep import hertz_contact_time, rayleigh_time_step  # noqa: E402
@@ -37,7 +37,7 @@ globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (r
 __all__ = [
     "convert", "Simulation", "ContactModel", "ParallelBond", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "Oscillation", "MotionTable", "Servo", "Clump", "equivalent_rolling_friction", "onset_angle", "random_orientations", "stand_in_rolling_friction", "MeshRegion", "TriangleMesh", "TimeSeries",
     "VTKSnapshots", "Checkpoints", "Callback", "Observer", "MassFlow", "MeshFlow", "Probe", "OutletTotals", "WallLoad",
-    "PileAngle", "DrumAngle", "DrumFlow", "SurfaceProfile", "Function", "Settled", "Reaches", "Empty", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "MassFractions", "SieveCurve", "Disk", "Rectangle", "MeshFace",
+    "PileAngle", "DrumAngle", "DrumFlow", "SurfaceProfile", "Function", "Settled", "Reaches", "Known", "Empty", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "MassFractions", "SieveCurve", "Disk", "Rectangle", "MeshFace",
     "Discrete", "rough_base", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
     *_contact.SUBMODELS,
 ]

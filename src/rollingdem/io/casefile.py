@@ -588,12 +588,15 @@ class SettledSpec(_Strict):
 
 class UntilSpec(_Strict):
     """What ends a stage early: ``settled``, ``empty``, or a ``measurement``'s quantity (``name.quantity``)
-    ``above`` or ``below`` a value, for ``hold`` seconds (0: at one check)."""
+    ``above`` or ``below`` a value, for ``hold`` seconds (0: at one check), or its mean over the
+    stage's samples ``known_within`` +- a value at 95 % (over ``min_samples`` samples at least)."""
     settled: Optional[SettledSpec] = None
     empty: Optional[bool] = None
     measurement: Optional[str] = None
     above: Optional[Number] = None
     below: Optional[Number] = None
+    known_within: Optional[Number] = None
+    min_samples: int = 20
     hold: Number = 0.0
     every: Number = 1e-3
 
@@ -1338,7 +1341,8 @@ def stage_conditions(stage: StageSpec, measurements: dict) -> list:
     given = [k for k in ("settled", "empty", "measurement") if getattr(u, k) is not None]
     if not given:
         raise ParameterError(f"{where} = {u.model_dump(exclude_none=True)} is not allowed: give settled, empty or "
-                             "measurement (with above or below); with several the first met ends the stage")
+                             "measurement (with above, below or known_within); with several the first met ends the "
+                             "stage")
     conditions = []
     try:
         if u.settled is not None:
@@ -1355,7 +1359,7 @@ def stage_conditions(stage: StageSpec, measurements: dict) -> list:
 
 
 def _reaches(u: UntilSpec, measurements: dict):
-    from rollingdem.scene.conditions import Reaches
+    from rollingdem.scene.conditions import Known, Reaches
 
     name, _, quantity = u.measurement.partition(".")
     if name not in measurements:
@@ -1365,6 +1369,12 @@ def _reaches(u: UntilSpec, measurements: dict):
     if not quantity:
         raise ParameterError(f"measurement = {u.measurement!r} is not allowed: name a quantity, "
                              f"{name}.QUANTITY, one of {', '.join(measurements[name].QUANTITIES)}")
+    if u.known_within is not None:
+        if u.above is not None or u.below is not None or u.hold:
+            raise ParameterError(f"measurement = {u.measurement!r} with known_within is not allowed beside above, below "
+                                 "or hold: known_within ends the stage when the mean is known, not when it reaches a "
+                                 "value")
+        return Known(measurements[name], quantity, u.known_within, every=u.every, min_samples=u.min_samples)
     return Reaches(measurements[name], quantity, above=u.above, below=u.below, every=u.every, hold=u.hold)
 
 

@@ -156,6 +156,29 @@ class Measurement(Observer):
                               "value": entry["final"] if q in self.CUMULATIVE else mean}
         return out
 
+    def estimate(self, quantity: str, since: float = -math.inf) -> tuple[float, float, int]:
+        """(the mean of ``quantity`` over the samples taken at or after ``since`` and inside the
+        window as far as it has come, its standard error, the samples): as ``summary`` computes
+        them (a rate: the slope of its cumulative quantity), on the samples so far."""
+        if quantity in self.CUMULATIVE:
+            raise ParameterError(f"{self.name}.{quantity} is not allowed here: its value is the last sample's (a "
+                                 "cumulative or end-state quantity), not a mean over samples")
+        names = list(self.QUANTITIES)
+        t = np.array([r[0] for r in self._rows])
+        keep = t >= since - 1e-12
+        if self.window is not None:
+            keep &= (t >= self.window[0] - 1e-12) & (t <= self.window[1] + 1e-12)
+        if not keep.any():
+            return math.nan, math.nan, 0
+        data = np.array([r[2] for r in self._rows], float).reshape(len(t), -1)[keep]
+        if quantity in self.RATES:
+            mean, err = slope_with_error(t[keep], data[:, names.index(self.RATES[quantity])])
+        else:
+            vals = data[:, names.index(quantity)]
+            mean = float(np.nanmean(vals)) if np.isfinite(vals).any() else math.nan
+            err = batch_standard_error(vals)
+        return mean, err, int(keep.sum())
+
     def _in_window(self):
         """(the samples' times, the summary's window (t0, t1), which samples lie in it); samples exist."""
         t = np.array([r[0] for r in self._rows])

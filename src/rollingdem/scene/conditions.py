@@ -150,6 +150,57 @@ class Reaches(Condition):
         return f"{self.measurement.name}.{self.quantity} {how}{held} (it is {self.last:.6g})"
 
 
+#: Student's t at 97.5 % for the batch means' degrees of freedom (``io.measurements.BATCHES`` - 1 = 9)
+T_975_BATCHES = 2.262157162798205
+
+
+class Known(Condition):
+    """A measurement's quantity known to within ``within`` (its unit): the 95 % interval of its mean
+    over the samples since the run (the stage) began and inside its window, from the batch means
+    of ``rollingdem.io.measurements`` (t with 9 degrees of freedom times the standard error), is
+    +- ``within`` or narrower, over ``min_samples`` samples at least (20 at the least: two per
+    batch). A rate's interval is that of its slope. What a calibration stops a run on, so that a
+    drum's angle is sampled until it is known, not for a fixed time."""
+
+    def __init__(self, measurement, quantity: str, within: float, every: float = 1e-3, min_samples: int = 20):
+        super().__init__(every)
+        self.within = check_positive("until known_within", within)
+        if isinstance(min_samples, bool) or not isinstance(min_samples, int) or min_samples < 20:
+            raise ParameterError(f"until min_samples = {min_samples!r} is not allowed: must be an integer >= 20 (two "
+                                 "samples in each of the 10 batches)")
+        self.min_samples = min_samples
+        if not hasattr(measurement, "estimate"):
+            raise ParameterError(f"until measurement = {measurement!r} is not allowed: must be a measurement "
+                                 "(rollingdem.io.measurements)")
+        self.measurement, self.quantity = measurement, quantity
+        self._check_quantity()  # a Function's quantities are known at its first sample: checked again at the start
+        self.mean = self.half_width = math.nan
+        self.samples = 0
+        self._since = 0.0
+
+    def _check_quantity(self):
+        m, q = self.measurement, self.quantity
+        if m.QUANTITIES is not None and q not in m.QUANTITIES:
+            raise ParameterError(f"until {m.name}.{q} is not allowed: {m.name!r} measures {', '.join(m.QUANTITIES)}")
+        if q in m.CUMULATIVE:
+            raise ParameterError(f"until {m.name}.{q} known_within is not allowed: its value is the last sample's (a "
+                                 "cumulative or end-state quantity), not a mean over samples")
+
+    def start(self, sim):
+        super().start(sim)
+        self._check_quantity()
+        self._since = sim.time
+
+    def met(self, sim):
+        mean, err, n = self.measurement.estimate(self.quantity, self._since)
+        self.mean, self.half_width, self.samples = mean, T_975_BATCHES * err, n
+        return n >= self.min_samples and self.half_width <= self.within
+
+    def describe(self):
+        return (f"{self.measurement.name}.{self.quantity} known to +- {self.within:g} (95 %): {self.mean:.6g} "
+                f"+- {self.half_width:.3g} over {self.samples} samples")
+
+
 class Empty(Condition):
     """No free particle is left (the outlets took them all)."""
 
@@ -167,9 +218,9 @@ def as_conditions(until) -> list[Condition]:
     items = [until] if isinstance(until, Condition) else list(until) if isinstance(until, (list, tuple)) else [until]
     for k, c in enumerate(items):
         if not isinstance(c, Condition):
-            raise ParameterError(f"until = {c!r} is not allowed: must be a condition (Settled, Reaches, Empty) or a "
+            raise ParameterError(f"until = {c!r} is not allowed: must be a condition (Settled, Reaches, Known, Empty) or a "
                                  "list of them")
     return items
 
 
-__all__ = ["Condition", "Empty", "Reaches", "Settled", "as_conditions"]
+__all__ = ["Condition", "Empty", "Known", "Reaches", "Settled", "as_conditions"]

@@ -6,6 +6,8 @@ import math
 import numpy as np
 import pytest
 
+import rollingdem as rd
+
 from rollingdem.analysis.drum import com_angle, flowing_depth, flowing_layer, rotation_ratios, surface_angle
 
 D = 0.01  # m, sphere diameter
@@ -133,6 +135,29 @@ def test_a_turning_drum_holds_its_angle_and_the_torque_balances_the_weight():
     assert abs(diff.mean()) < 3 * diff.std(ddof=1) / 2
     assert abs(r.angle.mean() - r.com_angle.mean()) < 3.0
     assert 1 * D < r.flowing_depth < 6 * D
+    assert r.measured_turn == pytest.approx(90.0, abs=90.0 / 20)  # the whole turn, to a sample's spacing
+
+
+def test_a_drum_measured_until_its_angle_is_known_ends_its_last_stage_on_that():
+    """``angle_within``: the measuring stage ends on ``rollingdem.Known`` of the surface angle at the
+    width asked, checked at every sample, and lasts at most the ``measure`` turn; the case file
+    reader takes it as such."""
+    from rollingdem.experiments.drum import DrumSetup, drum_case
+    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.io.casefile import load_case, stage_conditions
+
+    setup = DrumSetup(measure=180.0, samples=60, angle_within=0.5)
+    data = drum_case("epsd", "none", PileMaterial(), setup, dt=2.5e-5)
+    omega = data["stages"][1]["wall_motion"][0]["rotate"]["angular_velocity"]
+    measuring = data["stages"][2]
+    assert "duration" not in measuring and measuring["max_duration"] == pytest.approx(math.pi / omega)
+    assert measuring["until"] == {"measurement": "bed.angle", "known_within": 0.5,
+                                  "every": pytest.approx(math.pi / omega / 60)}
+    case = load_case(data)
+    bed = rd.DrumAngle("bed", center=(0, 0, 0), axis=(0, 0, 1))
+    (known,) = stage_conditions(case.stages[2], {"bed": bed})
+    assert isinstance(known, rd.Known) and known.within == 0.5
+    assert "until" not in drum_case("epsd", "none", PileMaterial(), DrumSetup(), dt=2.5e-5)["stages"][2]
 
 
 def _flowing_bed(angle=30.0, h=3 * D, speed=0.2, omega=0.5, drum_radius=15 * D, level=-3 * D):

@@ -40,7 +40,9 @@ class DrumSetup:
     ``wall_rolling_friction``, the sliding and rolling friction of the spheres on the drum's wall
     (high, so that the bed neither slides nor rolls on it, as on a drum lined with glued grains);
     ``spin_up`` degrees of turning before the first sample and ``measure`` degrees over
-    which ``samples`` samples are taken."""
+    which ``samples`` samples are taken; with ``angle_within`` > 0 (deg) the measuring turn ends as
+    soon as the mean surface angle is known to +- that at 95 % (``rollingdem.Known``), ``measure``
+    then the longest it may last."""
 
     drum_diameters: float = 15.0
     slice_diameters: float = 5.0
@@ -52,6 +54,7 @@ class DrumSetup:
     spin_up: float = 90.0
     measure: float = 90.0
     samples: int = 20
+    angle_within: float = 0.0
 
 
 @dataclass
@@ -70,6 +73,7 @@ class DrumRun:
     passive_speed_ratio: float
     wall_layer_speed_ratio: float
     wall_time: float = math.nan
+    measured_turn: float = math.nan  # deg turned from the window's start to the last sample
 
 
 SHIPPED = Path(__file__).parent / "cases" / "drum-slice.yaml"
@@ -126,6 +130,10 @@ def drum_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     flow["radius"] = big_r
     settling, turning, measuring = data["stages"]
     settling["duration"], turning["duration"], measuring["duration"] = settle, spin_up, measure
+    if setup.angle_within > 0:
+        del measuring["duration"]
+        measuring.update(until={"measurement": "bed.angle", "known_within": setup.angle_within, "every": measure
+                                / setup.samples}, max_duration=measure)
     turning["wall_motion"][0]["rotate"]["angular_velocity"] = omega
     return data
 
@@ -139,6 +147,7 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
 
     tic = time.perf_counter()
     data = drum_case(rolling, twisting, material, setup, radius, polydispersity, seed, dt)
+    omega = data["stages"][1]["wall_motion"][0]["rotate"]["angular_velocity"]
     summary, read = run_case_data(data, ("bed", "drive"), "drum")
     t0, t1 = data["measurements"][0]["window"]
     rows = {k: v[(v["time"] >= t0 - 1e-9) & (v["time"] <= t1 + 1e-9)] for k, v in read.items()}
@@ -149,7 +158,7 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
                    rows["bed"]["com_angle"].to_numpy(), -rows["drive"]["tz"].to_numpy() / length,
                    rows["bed"]["weight_moment"].to_numpy() / length, flow["flowing_depth"]["value"],
                    flow["passive_speed_ratio"]["value"], flow["wall_layer_speed_ratio"]["value"],
-                   time.perf_counter() - tic)
+                   time.perf_counter() - tic, math.degrees(omega * (float(rows["bed"]["time"].max()) - t0)))
 
 
 class RotatingDrum(BedExperiment):
@@ -172,7 +181,10 @@ class RotatingDrum(BedExperiment):
                      Parameter("spin_up", 90.0, "drum rotation before the first sample", "deg", low=0.0),
                      Parameter("measure", 90.0, "drum rotation over which the samples are taken", "deg", low=0.0,
                                low_open=True),
-                     Parameter("samples", 20, "samples of the bed", low=4, integer=True)))
+                     Parameter("samples", 20, "samples of the bed over the measuring turn", low=4, integer=True),
+                     Parameter("angle_within", 0.0, "end the measuring turn once the mean surface angle is known to "
+                                                    "+- this at 95 % (batch means; 0: measure the whole turn)", "deg",
+                               low=0.0)))
     observables = {
         "angle": "deg, dynamic angle of repose: line fit of the free surface's middle third (mean over samples)",
         "angle_ci": "deg, 95 % Student-t half-width over blocks of samples",
@@ -182,7 +194,8 @@ class RotatingDrum(BedExperiment):
         "flowing_depth": "m, depth at the chord's middle where the downslope speed falls to zero",
         "passive_speed_ratio": "speed of the passive zone over omega r (1: solid-body rotation)",
         "wall_layer_speed_ratio": "speed of the spheres touching the wall, below the flowing layer, over omega r",
-        "omega": "rad/s, the drum's angular velocity", "particles": "spheres in the slice"}
+        "omega": "rad/s, the drum's angular velocity", "particles": "spheres in the slice",
+        "measured_turn": "deg, drum rotation from the first sample's window to the last sample"}
     default_observable = "angle"
     targets = {"angle": (0.0, 90.0), "com_angle": (0.0, 90.0), "torque": UNBOUNDED, "flowing_depth": UNBOUNDED}
     #: what ``validate`` changes of the defaults: a quick run takes fewer samples over less rotation
@@ -194,7 +207,8 @@ class RotatingDrum(BedExperiment):
         setup = DrumSetup(drum_diameters=p["drum_diameters"], slice_diameters=p["slice_diameters"], fill=p["fill"],
                           froude=p["froude"], gravity=p["gravity"], wall_friction=p["wall_friction"],
                           wall_rolling_friction=p["wall_rolling_friction"],
-                          spin_up=p["spin_up"], measure=p["measure"], samples=p["samples"])
+                          spin_up=p["spin_up"], measure=p["measure"], samples=p["samples"],
+                          angle_within=p["angle_within"])
         return dict(rolling=resolve_rolling(p["model"]), twisting=p["twisting"],
                     material=PileMaterial.from_parameters(p), setup=setup, radius=p["radius"],
                     polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
@@ -211,7 +225,7 @@ class RotatingDrum(BedExperiment):
                 "com_angle": float(run.com_angle.mean()), "torque": float(run.torque.mean()),
                 "flowing_depth": run.flowing_depth, "passive_speed_ratio": run.passive_speed_ratio,
                 "wall_layer_speed_ratio": run.wall_layer_speed_ratio,
-                "omega": run.omega, "particles": run.particles}
+                "omega": run.omega, "particles": run.particles, "measured_turn": run.measured_turn}
 
     def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
         """The drum at mu_r = 0.05, 0.2, 0.4 (mu = 0.5) and mu = 0.3, 0.5, 0.8 (mu_r = 0.2), and at the

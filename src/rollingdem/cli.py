@@ -293,13 +293,20 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                                             "added per round."),
               rounds: Optional[int] = typer.Option(None, "--rounds", help="Refinement rounds (default 2 for one free "
                                                    "parameter and target, else 3)."),
+              fidelity: str = typer.Option("single", "--fidelity", help="One target and one free parameter: single "
+                                           "(every run full size) or multi (cheap runs explore the range, a few "
+                                           "full-size runs correct them: docs/studies.md)."),
+              cheap: Optional[list[str]] = typer.Option(None, "--cheap", help="With --fidelity multi: NAME=VALUE that "
+                                                        "makes a run cheap (repeatable; default: count at 40 % of "
+                                                        "the full run's), e.g. count=400 or coarse_graining=2."),
               out: Path = typer.Option(Path("rollingdem-calibration"), "--out", "-o", help="Output folder."),
               workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Worker processes."),
               scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address."),
               progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar.")):
     """Find the free parameters whose simulated observables match the measured targets, with their
-    95 % region. One numeric target and one free parameter: a monotone search; otherwise a
-    Gaussian-process surrogate with sequential design (docs/studies.md, "Calibration")."""
+    95 % region. One numeric target and one free parameter: a monotone search (with --fidelity
+    multi, on cheap runs corrected by full-size ones); otherwise a Gaussian-process surrogate with
+    sequential design (docs/studies.md, "Calibration")."""
     from rollingdem.studies.calibration import Execution, Search, calibrate as run_calibration, parse_assignments, parse_free
     from rollingdem.studies.joint_calibration import JointSearch, Target, calibrate_joint, parse_target
 
@@ -311,6 +318,11 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
         if cases and any(t.replace(" ", "").endswith("=min") for t in target):
             _minimum(cases, target, frees, fixed, seeds, coarse, refine, rounds, out, execution, progress)
             return
+        if fidelity not in ("single", "multi"):
+            raise ParameterError(f"--fidelity = {fidelity!r} is not allowed: single or multi")
+        if cheap and fidelity == "single":
+            raise ParameterError(f"--cheap = {cheap[0]!r} is not allowed with --fidelity single: the cheap runs are "
+                                 "those of --fidelity multi")
         if cases:
             targets = _case_targets(cases, target, experiment, observable, uncertainty)
             if len(targets) == 1 and len(frees) == 1:
@@ -318,7 +330,8 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                 result = run_calibration(t.experiment, t.value, t.uncertainty, fix=fixed, free=frees[0],
                                          observable=t.observable, seeds=seeds,
                                          search=Search(coarse=coarse, refine=refine, rounds=2 if rounds is None else rounds),
-                                         out=out, execution=execution, progress=progress, echo=typer.echo)
+                                         out=out, execution=execution, progress=progress, echo=typer.echo,
+                                         fidelity=_fidelity(fidelity, cheap, t.experiment, fixed))
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return
@@ -350,7 +363,8 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                 result = run_calibration(experiment, value, uncertainty, fix=fixed, free=frees[0], observable=observable,
                                          seeds=seeds, search=Search(coarse=coarse, refine=refine,
                                                                     rounds=2 if rounds is None else rounds),
-                                         out=out, execution=execution, progress=progress, echo=typer.echo)
+                                         out=out, execution=execution, progress=progress, echo=typer.echo,
+                                         fidelity=_fidelity(fidelity, cheap, experiment, fixed))
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return
@@ -367,6 +381,9 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                 raise ParameterError(f"--uncertainty = {uncertainty:g} is not allowed with EXPERIMENT.OBSERVABLE=VALUE "
                                      "targets: write each target's as VALUE±U")
             targets = [parse_target(t) for t in target]
+        if fidelity == "multi":
+            raise ParameterError(f"--fidelity multi is not allowed with {len(targets)} targets and {len(frees)} free "
+                                 "parameters: it takes one target and one free parameter")
         result = calibrate_joint(targets, {name: rng for name, rng in frees}, fix=fixed, seeds=seeds,
                                  search=JointSearch(initial=initial, rounds=3 if rounds is None else rounds,
                                                     per_round=per_round),
@@ -376,6 +393,19 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
     for f in result.figures:
         typer.echo(f"figure: {f}")
     typer.echo(f"result: {Path(out) / 'calibration.json'}")
+
+
+def _fidelity(fidelity: str, cheap, experiment: str, fixed: dict):
+    """The ``Fidelity`` of ``--fidelity multi`` (None for single): the ``--cheap`` parameters, or the
+    experiment's smaller scene."""
+    if fidelity == "single":
+        return None
+    from rollingdem.experiments import get_experiment
+    from rollingdem.studies.calibration import parse_assignments
+    from rollingdem.studies.multifidelity import Fidelity, cheap_default
+
+    given = parse_assignments(cheap, "cheap")
+    return Fidelity(cheap=given or cheap_default(get_experiment(experiment, observable=True), fixed))
 
 
 def _minimum(cases, targets, frees, fixed, seeds, coarse, refine, rounds, out, execution, progress):

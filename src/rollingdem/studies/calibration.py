@@ -57,10 +57,10 @@ class Calibration:
     wall_time: float
     figures: list = field(default_factory=list)
     table: pd.DataFrame | None = field(default=None, repr=False)
+    fidelity: dict | None = None  # a multi-fidelity search's runs of each kind, their cost and the offset
 
     def as_dict(self) -> dict:
-        d = asdict(self)
-        d.pop("table")
+        d = {k: v for k, v in asdict(self).items() if k != "table"}
         d["figures"] = [str(f) for f in self.figures]
         return d
 
@@ -136,12 +136,14 @@ def _direction(stats: pd.DataFrame) -> bool:
 
 def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dict | None = None, free="mur",
               observable: str | None = None, seeds=None, search: Search = Search(), out=None,
-              execution: Execution = Execution(), progress: bool = True, echo=None) -> Calibration:
+              execution: Execution = Execution(), progress: bool = True, echo=None, fidelity=None) -> Calibration:
     """Find the ``free`` parameter (a name, or (name, (low, high))) whose ``observable`` matches
     ``target`` +- ``uncertainty`` (one sigma) with the parameters ``fix`` held, ``seeds`` runs per
     point, searched as ``search`` says (the method: docs/studies.md, "Calibration"), the runs going
-    where ``execution`` says. Writes ``out/runs.csv``, ``calibration.json`` and ``calibration.png``;
-    ``echo`` (a print-like function) tells each round and the result."""
+    where ``execution`` says; with a ``fidelity`` (``rollingdem.studies.multifidelity.Fidelity``),
+    cheap runs explore the range and a few full-size runs correct them instead. Writes
+    ``out/runs.csv``, ``calibration.json`` and ``calibration.png``; ``echo`` (a print-like
+    function) tells each round and the result."""
     import tempfile
     import time
 
@@ -192,6 +194,14 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-calibrate-"))
     first = load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: lo}], "seeds": seeds})  # refuse bad input now
     say = echo or (lambda *_: None)
+    if fidelity is not None:
+        from rollingdem.studies.multifidelity import Fidelity, calibrate_multifidelity
+
+        if not isinstance(fidelity, Fidelity):
+            raise ParameterError(f"fidelity = {fidelity!r} is not allowed: must be a "
+                                 "rollingdem.studies.multifidelity.Fidelity")
+        return calibrate_multifidelity(experiment, target, uncertainty, fix, name, lo, hi, observable, seeds, fidelity,
+                                       out, execution, progress, say)
 
     def sweep(xs, m):
         spec = load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: float(x)} for x in xs], "seeds": seeds})
@@ -300,21 +310,27 @@ def _bootstrap(x, means, counts, std, increasing, target, uncertainty, n) -> tup
 
 
 def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) -> None:
-    from rollingdem.experiments.results import pyplot
-
-    plt = pyplot()
-    t = result.table
-    ok = t[t["status"] == "ok"]
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(ok[result.parameter], pd.to_numeric(ok[result.observable], errors="coerce"), ".", color="0.6",
-            label="runs")
     from rollingdem.analysis.intervals import confidence_interval
 
+    plt, fig, ax = _figure_axes(result)
+    t = result.table
+    ok = t[t["status"] == "ok"]
+    ax.plot(ok[result.parameter], pd.to_numeric(ok[result.observable], errors="coerce"), ".", color="0.6",
+            label="runs")
     ci = [confidence_interval(pd.to_numeric(ok[ok[result.parameter] == v][result.observable], errors="coerce"))[1]
           for v in stats["x"]]
     ax.errorbar(stats["x"], stats["mean"], yerr=np.nan_to_num(ci), fmt="o", ms=4, capsize=3, color="tab:blue",
                 label="mean over seeds, 95 % CI")
     ax.plot(stats["x"], g, "-", color="tab:green", label="monotone surrogate")
+    _save_figure(plt, fig, ax, result, out)
+
+
+def _figure_axes(result: Calibration):
+    """(pyplot, figure, axes) of a calibration's figure with its target band, labels and title."""
+    from rollingdem.experiments.results import pyplot
+
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.axhspan(result.target - 1.96 * result.uncertainty, result.target + 1.96 * result.uncertainty, color="tab:orange",
                alpha=0.15)
     ax.axhline(result.target, color="tab:orange", lw=1, label=f"target {result.target:g} ± 1.96 × {result.uncertainty:g}")
@@ -322,7 +338,7 @@ def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) 
     ax.set_ylabel(f"{result.observable} ({unit})")
     fixed = ", ".join(f"{k} = {v}" for k, v in result.fixed.items())
     ax.set_title(f"Calibration, {result.experiment}{': ' + fixed if fixed else ''}", fontsize=10)
-    _save_figure(plt, fig, ax, result, out)
+    return plt, fig, ax
 
 
 def _save_figure(plt, fig, ax, result: Calibration, out: Path) -> None:

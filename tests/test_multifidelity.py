@@ -1,0 +1,106 @@
+"""Multi-fidelity calibration (rollingdem.studies.multifidelity): the model's parts on inputs with a
+known answer, a known parameter given back through cheap runs that are biased, and the refusals."""
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rollingdem.errors import ParameterError
+from rollingdem.studies.calibration import Execution, calibrate
+from rollingdem.studies.multifidelity import Fidelity, cheap_default, corrected_model, posterior_on_grid
+
+
+def test_the_posterior_of_a_straight_line_is_the_gaussian_of_its_inverse():
+    """Model m(x) = 10 + 20 x with std 0.5 everywhere, target 20 (no uncertainty): the likelihood is
+    exp(-(20 x - 10)^2 / (2 0.5^2)), a Gaussian in x of mean 0.5 and sd 0.025, so its mode is 0.5
+    and its 2.5-97.5 % quantiles 0.5 -+ 1.96 x 0.025 (to the grid's 400 cells on [0, 1]: 0.0025)."""
+    from rollingdem.studies.multifidelity import _crossing, _quantiles
+
+    x, w, m = posterior_on_grid(lambda x: (10 + 20 * x, np.full(len(x), 0.5)), 20.0, 0.0, 0.0, 1.0)
+    assert _crossing(x, m, 20.0, float(x[np.argmax(w)])) == pytest.approx(0.5, abs=1e-9)
+    low, high = _quantiles(x, w, (0.025, 0.975))
+    assert low == pytest.approx(0.5 - 1.96 * 0.025, abs=0.0025) and high == pytest.approx(0.5 + 1.96 * 0.025, abs=0.0025)
+
+
+def test_the_corrected_model_adds_the_full_size_offset_to_the_cheap_curve():
+    """Cheap means on the line 10 + 20 x at 7 points, full-size means 2 above it at x = 0.4 and 0.5
+    (three seeds each, the same scatter 0.3 in both): near the full-size points the model reads
+    the full size's means, and far from them (x = 0 and 1) the cheap line plus the mean offset 2;
+    the discrepancy there is 2. Tolerance 0.05: the GP's noise is the means' variance, 0.3^2 / 3,
+    so it fits the points to within about a standard error (0.17) and the straight line between
+    them nearly exactly."""
+    x = np.linspace(0, 1, 7)
+    cheap = pd.DataFrame({"x": x, "mean": 10 + 20 * x, "std": 0.3, "count": 3})
+    full = pd.DataFrame({"x": [0.4, 0.5], "mean": [20.0, 22.0], "std": 0.3, "count": 3})
+    predict, delta = corrected_model(cheap, full, 0.0, 1.0)
+    m, s = predict(np.array([0.0, 0.4, 0.5, 1.0]))
+    assert m == pytest.approx([12.0, 20.0, 22.0, 32.0], abs=0.2)
+    d, _ = delta(np.array([0.0, 1.0]))
+    assert d == pytest.approx([2.0, 2.0], abs=0.05)
+    assert s[1] < s[0] and s[1] < s[3]  # surer where the full-size runs are
+
+
+def test_inclined_wall_through_coarse_bisections_gives_back_tan_beta(tmp_path):
+    """The inclined wall's critical angle for mu_r is atan(mu_r) (calibration's test); its cheap runs
+    bisect to 5 % (rel_tol 0.05) instead of 0.2 %, so they read off by up to 5 % of the angle (at
+    the answer 0.17 deg, 0.9 % in mu_r), and two rounds of two full-size points correct them.
+    Target beta = 20 deg +- 0.5: the answer is tan 20 deg within 0.2 %: full-size runs lie on both
+    sides of it less than 0.05 apart in mu_r (asserted), each bisected to 0.2 % (0.1 % from the
+    middle), and the cheap curve's shape between them errs by at most h^2 max|beta''| / 8 =
+    0.0025 x 37 deg / 8 = 0.012 deg (0.05 %). The interval holds the answer and is about the
+    target's, 1.96 x 0.5 deg / (dbeta/dmu_r) = +-0.019 (0.5-2x: the model's own uncertainty adds
+    to it)."""
+    exact = math.tan(math.radians(20.0))
+    res = calibrate("inclined-wall", 20.0, 0.5, fix={"model": "epsd"}, free=("mur", (0.02, 1.0)), out=tmp_path,
+                    execution=Execution(workers=2), progress=False,
+                    fidelity=Fidelity(cheap={"rel_tol": 0.05}, cheap_points=7, full_points=2, full_rounds=2))
+    assert res.value == pytest.approx(exact, rel=0.002)
+    full = np.array(res.fidelity["full_points"])
+    below, above = full[full < res.value].max(), full[full > res.value].min()
+    assert above - below < 0.05
+    assert res.low < exact < res.high
+    half = 0.5 * (res.high - res.low)
+    target_half = 1.96 * math.radians(0.5) * (1 + exact ** 2)
+    assert 0.5 * target_half < half < 2.0 * target_half
+    info = res.fidelity
+    assert info["cheap_runs"] == 7 and info["full_runs"] == 4 and res.runs == 11
+    saved = json.loads((tmp_path / "calibration.json").read_text())
+    assert saved["fidelity"]["full_runs"] == 4 and (tmp_path / "calibration.png").exists()
+
+
+def test_multifidelity_refuses_what_it_cannot_do(tmp_path):
+    from rollingdem.experiments import get_experiment
+
+    with pytest.raises(ParameterError, match="cheap = mur=0.1 is not allowed: mur is the free parameter"):
+        calibrate("inclined-wall", 20.0, 0.5, free=("mur", (0.02, 1.0)), out=tmp_path, progress=False,
+                  fidelity=Fidelity(cheap={"mur": 0.1}))
+    with pytest.raises(ParameterError, match="cheap = {'rel_tol': -1} is not allowed"):
+        calibrate("inclined-wall", 20.0, 0.5, free=("mur", (0.02, 1.0)), out=tmp_path, progress=False,
+                  fidelity=Fidelity(cheap={"rel_tol": -1}))
+    with pytest.raises(ParameterError, match="cheap_points = 2 is not allowed: must be an integer >= 3"):
+        calibrate("inclined-wall", 20.0, 0.5, free=("mur", (0.02, 1.0)), out=tmp_path, progress=False,
+                  fidelity=Fidelity(cheap={"rel_tol": 0.05}, cheap_points=2))
+    with pytest.raises(ParameterError, match="has no count to make smaller"):
+        cheap_default(get_experiment("inclined-wall", observable=True), {})
+    assert cheap_default(get_experiment("repose-rough-base", observable=True), {"count": 1000}) == {"count": 400}
+    assert not list(tmp_path.glob("runs.csv"))  # refused before any run
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--fidelity", "multi"], "fidelity = multi is not allowed for 'inclined-wall' without cheap runs"),
+    (["--cheap", "rel_tol=0.05"], "--cheap = 'rel_tol=0.05' is not allowed with --fidelity single"),
+    (["--fidelity", "several"], "--fidelity = 'several' is not allowed: single or multi"),
+    (["--fidelity", "multi", "--cheap", "mur=0.1"], "cheap = mur=0.1 is not allowed: mur is the free parameter"),
+])
+def test_the_command_refuses_a_fidelity_it_cannot_build_in_one_line(args, words, tmp_path):
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "rollingdem.cli", "calibrate", "--experiment", "inclined-wall",
+                          "--target", "20", "--free", "mur=0.02:1.0", "--out", str(tmp_path / "cal"), "--no-progress",
+                          *args], capture_output=True, text=True)
+    assert res.returncode == 2 and words in res.stderr and "Traceback" not in res.stderr, res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1

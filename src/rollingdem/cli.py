@@ -381,13 +381,11 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                 raise ParameterError(f"--uncertainty = {uncertainty:g} is not allowed with EXPERIMENT.OBSERVABLE=VALUE "
                                      "targets: write each target's as VALUE±U")
             targets = [parse_target(t) for t in target]
-        if fidelity == "multi":
-            raise ParameterError(f"--fidelity multi is not allowed with {len(targets)} targets and {len(frees)} free "
-                                 "parameters: it takes one target and one free parameter")
         result = calibrate_joint(targets, {name: rng for name, rng in frees}, fix=fixed, seeds=seeds,
                                  search=JointSearch(initial=initial, rounds=3 if rounds is None else rounds,
                                                     per_round=per_round),
-                                 out=out, execution=execution, progress=progress, echo=typer.echo)
+                                 out=out, execution=execution, progress=progress, echo=typer.echo,
+                                 fidelity=_joint_fidelity(fidelity, cheap, targets))
     except ParameterError as err:
         _refuse(err)
     for f in result.figures:
@@ -406,6 +404,39 @@ def _fidelity(fidelity: str, cheap, experiment: str, fixed: dict):
 
     given = parse_assignments(cheap, "cheap")
     return Fidelity(cheap=given or cheap_default(get_experiment(experiment, observable=True), fixed))
+
+
+def _joint_fidelity(fidelity: str, cheap, targets):
+    """The ``JointFidelity`` of ``--fidelity multi`` with several targets or free parameters (None for
+    single): each ``--cheap NAME=VALUE`` in every experiment that has it; without ``--cheap`` each
+    experiment's own cheap runs where it has them (the others run at full size throughout)."""
+    if fidelity == "single":
+        return None
+    from rollingdem.experiments import get_experiment
+    from rollingdem.studies.calibration import parse_assignments
+    from rollingdem.studies.multifidelity import JointFidelity, cheap_default
+
+    given = parse_assignments(cheap, "cheap")
+    experiments = {t.experiment: get_experiment(t.experiment, observable=True) for t in targets}
+    per = {}
+    for c, sc in experiments.items():
+        if given:
+            mine = {k: v for k, v in given.items() if k in sc.by_name}
+        else:
+            try:
+                mine = cheap_default(sc, {})
+            except ParameterError:
+                mine = {}
+        if mine:
+            per[c] = mine
+    unused = [k for k in given if not any(k in sc.by_name for sc in experiments.values())]
+    if unused:
+        raise ParameterError(f"--cheap = {unused[0]!r} is not a parameter of any experiment calibrated "
+                             f"({', '.join(experiments)})")
+    if not per:
+        raise ParameterError("--fidelity multi is not allowed here: no experiment of the targets has cheap runs; give "
+                             "--cheap NAME=VALUE")
+    return JointFidelity(cheap=per)
 
 
 def _minimum(cases, targets, frees, fixed, seeds, coarse, refine, rounds, out, execution, progress):

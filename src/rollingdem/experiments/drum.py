@@ -198,6 +198,9 @@ class RotatingDrum(BedExperiment):
         "measured_turn": "deg, drum rotation from the first sample's window to the last sample"}
     default_observable = "angle"
     targets = {"angle": (0.0, 90.0), "com_angle": (0.0, 90.0), "torque": UNBOUNDED, "flowing_depth": UNBOUNDED}
+    #: the cheap runs of a multi-fidelity calibration: a drum of 10 diameters instead of 15, with
+    #: (10/15)^2 of the spheres turning the same angles in (10/15)^0.5 of the time at the same Froude number
+    cheap = {"drum_diameters": 10.0}
     #: what ``validate`` changes of the defaults: a quick run takes fewer samples over less rotation
     sizes = {"quick": {"samples": 12, "spin_up": 60.0, "measure": 60.0}, "full": {}}
 

@@ -85,6 +85,7 @@ class JointCalibration:
     cells: np.ndarray | None = field(default=None, repr=False)  # grid points (parameter units)
     weights: np.ndarray | None = field(default=None, repr=False)  # posterior weight of each
     region: np.ndarray | None = field(default=None, repr=False)  # True in the 95 % region
+    fidelity: dict | None = None  # a multi-fidelity search's runs of each kind and their cost
 
     def in_region(self, point: dict) -> bool:
         """Whether the grid cell nearest ``point`` ({name: value}) lies in the 95 % region."""
@@ -281,13 +282,17 @@ def _next_points(cells, weights, stds, targets, existing, k) -> np.ndarray:
 
 
 def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = JointSearch(), out=None,
-                    execution: Execution = Execution(), progress: bool = True, echo=None) -> JointCalibration:
+                    execution: Execution = Execution(), progress: bool = True, echo=None,
+                    fidelity=None) -> JointCalibration:
     """Find the ``free`` parameters ({name: (low, high)} or names, for their default ranges) whose
     simulated observables match every one of ``targets`` (a list of :class:`Target`), with the
     parameters ``fix`` held (each in the experiments that have it); ``seeds`` runs per point (default 3
     for a random experiment, 1 for a deterministic one), searched as ``search`` says, the runs going
     where ``execution`` says. Writes ``out/EXPERIMENT/runs.csv`` per experiment, ``calibration.json``,
-    ``corner.png`` and ``observables.png``; ``echo`` tells each round and the result."""
+    ``corner.png`` and ``observables.png``; ``echo`` tells each round and the result. With a
+    ``fidelity`` (``rollingdem.studies.multifidelity.JointFidelity``) cheap runs make a surrogate per
+    target and the full-size runs a discrepancy added to it (docs/studies.md, "Multi-fidelity
+    calibration"); the rounds place full-size points."""
     import tempfile
 
     from scipy.stats import qmc
@@ -329,8 +334,14 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
                 say(f"{c}: {report}")
         return tables
 
+    info = None
     with execution.runner() as m:
-        for r in range(search.rounds + 1):
+        if fidelity is not None:
+            tables, surrogates, stats, info = _multifidelity(fidelity, targets, experiments, fixed, names, lows,
+                                                             highs, seed_count, search, out, m, progress, say)
+            cells, weights, means, stds = posterior_grid(surrogates, targets, d)
+            _check_reach(targets, means, stds, box, out)
+        for r in range(search.rounds + 1 if fidelity is None else 0):
             tables = run(m)
             surrogates, stats = _surrogates(tables, targets, names, lows, highs)
             cells, weights, means, stds = posterior_grid(surrogates, targets, d)
@@ -342,12 +353,112 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
             design += list(new)
     post = _Posterior(cells, weights, means, stds)
     result = _summarise(targets, box, fixed, post, names, lows, highs, stats, tables, seed_count, tic)
+    if info is not None:
+        result.fidelity, result.runs = info, info["cheap_runs"] + info["full_runs"]
     _figures(result, post, names, lows, highs, stats, out)
     (out / "calibration.json").write_text(json.dumps(result.as_dict(), indent=2, default=float))
     np.savez(out / "posterior.npz", names=np.array(names), cells=result.cells, weights=result.weights,
              region=result.region)
     say(result.message + f" ({result.runs} runs, {result.wall_time:.0f} s; {out})")
     return result
+
+
+def _matching(table: pd.DataFrame, values: dict) -> pd.DataFrame:
+    """The rows of a runs table whose parameters equal ``values``."""
+    keep = np.ones(len(table), bool)
+    for k, v in values.items():
+        if isinstance(v, str):
+            keep &= table[k].astype(str).to_numpy() == v
+        else:
+            keep &= np.isclose(pd.to_numeric(table[k], errors="coerce").to_numpy(float), float(v))
+    return table[keep]
+
+
+def _multifidelity(fidelity, targets, experiments, fixed, names, lows, highs, seed_count, search, out, m, progress,
+                   say):
+    """The multi-fidelity search: a Latin hypercube of cheap runs and a surrogate per target from
+    them, then full-size points where the posterior is high and the model unsure (first from the
+    cheap surrogates alone), each target's model the cheap surrogate plus a Gaussian process of
+    the full-size residuals (``multifidelity.with_discrepancy``). Returns (the full-size runs per
+    experiment, the surrogates, their point statistics, what ran of each kind)."""
+    from scipy.stats import qmc
+
+    from rollingdem.studies.multifidelity import JointFidelity, with_discrepancy
+    from rollingdem.studies.sweep import load_sweep, run_sweep
+
+    if not isinstance(fidelity, JointFidelity):
+        raise ParameterError(f"fidelity = {fidelity!r} is not allowed: must be a "
+                             "rollingdem.studies.multifidelity.JointFidelity")
+    d = len(names)
+    fidelity.check(d, experiments)
+    cheap_fix = {c: {**fixed[c], **fidelity.cheap.get(c, {})} for c in experiments}
+    full_of = {}  # the full-size value of each cheap parameter
+    for c in experiments:
+        sc = get_experiment(c, observable=True, what="experiment")
+        for k in fidelity.cheap.get(c, {}):
+            if k in names:
+                raise ParameterError(f"cheap = {k}=... is not allowed: {k} is a free parameter")
+            if k not in sc.by_name:
+                raise ParameterError(f"cheap = {k!r} is not a parameter of experiment {c!r}")
+        full_of[c] = {k: fixed[c].get(k, sc.by_name[k].default) for k in fidelity.cheap.get(c, {})}
+        try:
+            load_sweep({"experiment": c, "fixed": cheap_fix[c], "points": [dict(zip(names, map(float, lows)))],
+                        "seeds": seed_count[c]})
+        except ParameterError as err:
+            raise ParameterError(f"cheap = {fidelity.cheap.get(c)} is not allowed for {c!r}: {err}") from None
+    cheap_n = fidelity.cheap_initial if fidelity.cheap_initial is not None else 6 * d + 2
+    full_n = fidelity.full_initial if fidelity.full_initial is not None else d + 1
+
+    def sweep(design, which):
+        points = [dict(zip(names, map(float, lows + u * (highs - lows)))) for u in design]
+        tables = {}
+        for c in experiments:
+            spec = load_sweep({"experiment": c, "fixed": which[c], "points": points, "seeds": seed_count[c]})
+            table = run_sweep(spec, out / folder_of(c), mapper=m, progress=progress, summary=False).table
+            report = failure_report(table, out / folder_of(c) / TABLE)
+            if report:
+                say(f"{c}: {report}")
+            tables[c] = table
+        return tables
+
+    say(f"cheap runs: {cheap_n} points of a Latin hypercube ("
+        + "; ".join(f"{c}: {', '.join(f'{k} = {v}' for k, v in v_.items())}" for c, v_ in fidelity.cheap.items()) + ")")
+    cheap_design = list(qmc.LatinHypercube(d=d, seed=0).random(cheap_n))
+    tables = sweep(cheap_design, cheap_fix)
+    cheap_tables = {c: _matching(t, fidelity.cheap.get(c, {})) for c, t in tables.items()}
+    cheap_surrogates, _ = _surrogates(cheap_tables, targets, names, lows, highs)
+    surrogates = cheap_surrogates
+    full_design: list = []
+    for r in range(search.rounds + 1):
+        cells, weights, means, stds = posterior_grid(surrogates, targets, d)
+        new = _next_points(cells, weights, stds, targets, full_design, full_n if r == 0 else search.per_round)
+        say(f"full-size round {r + 1}: {len(new)} points where the posterior is high and the model unsure"
+            + (" (the cheap runs' posterior)" if r == 0 else ""))
+        full_design += list(new)
+        tables = sweep(full_design, fixed)
+        # an experiment without cheap settings ran its cheap points at full size: they join its full-size runs
+        full_tables = {c: _matching(t, full_of[c]) if c in fidelity.cheap else
+                       pd.concat([cheap_tables[c], t], ignore_index=True).drop_duplicates("run_id")
+                       for c, t in tables.items()}
+        full_surrogates, stats = _surrogates(full_tables, targets, names, lows, highs, fit=False)
+        surrogates = []
+        for t, g, st in zip(targets, cheap_surrogates, stats):
+            x = (st[names].to_numpy(float) - lows) / (highs - lows)
+            pooled = float(st["seed_sd"].iloc[0]) ** 2
+            surrogates.append(with_discrepancy(g, x, st["mean"].to_numpy(float),
+                                               pooled / st["count"].to_numpy(float) + 1e-12)[0])
+    cost = {}
+    for kind, tabs in (("cheap", [cheap_tables[c] for c in fidelity.cheap]), ("full", list(full_tables.values()))):
+        runs = pd.concat(tabs, ignore_index=True)
+        cost[kind] = (int(len(runs)), float(pd.to_numeric(runs["wall_time_s"], errors="coerce").sum()))
+    info = {"model": "each target: GP of the cheap runs + GP of the full-size residuals (Kennedy-O'Hagan, scale 1)",
+            "cheap": {c: dict(v) for c, v in fidelity.cheap.items()}, "cheap_points": cheap_n,
+            "full_points": len(full_design), "cheap_runs": cost["cheap"][0], "full_runs": cost["full"][0],
+            "cheap_run_seconds": cost["cheap"][1] / max(cost["cheap"][0], 1),
+            "full_run_seconds": cost["full"][1] / max(cost["full"][0], 1)}
+    say(f"{info['cheap_runs']} cheap runs ({info['cheap_run_seconds']:.1f} s each) and {info['full_runs']} full-size "
+        f"({info['full_run_seconds']:.1f} s each)")
+    return full_tables, surrogates, stats, info
 
 
 def folder_of(experiment: str) -> str:
@@ -369,9 +480,10 @@ def _check_reach(targets, means, stds, box, out) -> None:
                                  f"NAME=LOW:HIGH (runs kept in {out})")
 
 
-def _surrogates(tables, targets, names, lows, highs):
+def _surrogates(tables, targets, names, lows, highs, fit: bool = True):
     """One surrogate per target from its experiment's runs: the mean over seeds per point, its variance
-    from the seed scatter pooled over the points (a deterministic experiment: a tiny nugget)."""
+    from the seed scatter pooled over the points (a deterministic experiment: a tiny nugget).
+    Without ``fit``, the point statistics alone (the surrogates None)."""
     surrogates, stats = [], []
     for t in targets:
         table = tables[t.experiment]
@@ -388,7 +500,7 @@ def _surrogates(tables, targets, names, lows, highs):
         pooled = float(((grp.loc[multi, "count"] - 1) * grp.loc[multi, "var"]).sum() / dof) if dof > 0 else 0.0
         x = (grp[names].to_numpy(float) - lows) / (highs - lows)
         var = pooled / grp["count"].to_numpy(float) + 1e-10 * (grp["mean"].std() ** 2 + 1e-12)
-        surrogates.append(fit_surrogate(x, grp["mean"].to_numpy(float), var))
+        surrogates.append(fit_surrogate(x, grp["mean"].to_numpy(float), var) if fit else None)
         stats.append(grp.assign(seed_sd=math.sqrt(pooled)))
     return surrogates, stats
 

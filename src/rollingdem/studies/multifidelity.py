@@ -27,7 +27,7 @@ import pandas as pd
 from rollingdem.errors import ParameterError
 from rollingdem.studies.calibration import Calibration, _direction, _point_stats, _pooled_sd
 
-__all__ = ["Fidelity", "cheap_default", "corrected_model", "posterior_on_grid"]
+__all__ = ["Fidelity", "JointFidelity", "cheap_default", "corrected_model", "posterior_on_grid", "with_discrepancy"]
 
 
 @dataclass(frozen=True)
@@ -52,13 +52,41 @@ class Fidelity:
                 raise ParameterError(f"{k} = {v!r} is not allowed: must be an integer >= {n_min}")
 
 
+@dataclass(frozen=True)
+class JointFidelity:
+    """The cheap runs of a joint calibration: ``cheap`` = {experiment: {NAME: VALUE}} (an experiment
+    left out runs at full size for its cheap points too); ``cheap_initial`` Latin-hypercube points
+    of cheap runs (None: 6 per free parameter + 2); ``full_initial`` full-size points first (None: one
+    per free parameter + 1), where the cheap runs' posterior is high; then the search's rounds of
+    full-size points."""
+
+    cheap: dict = field(default_factory=dict)
+    cheap_initial: int | None = None
+    full_initial: int | None = None
+
+    def check(self, d: int, experiments) -> None:
+        if not isinstance(self.cheap, dict) or not self.cheap or not all(isinstance(v, dict) for v in self.cheap.values()):
+            raise ParameterError(f"cheap = {self.cheap!r} is not allowed: give {{experiment: {{NAME: VALUE}}}} for at "
+                                 "least one experiment")
+        unknown = [c for c in self.cheap if c not in experiments]
+        if unknown:
+            raise ParameterError(f"cheap = {unknown[0]!r} is not allowed: not an experiment of the targets "
+                                 f"({', '.join(experiments)})")
+        for k, v, n_min in (("cheap_initial", self.cheap_initial, d + 1), ("full_initial", self.full_initial, 1)):
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < n_min):
+                raise ParameterError(f"{k} = {v!r} is not allowed: must be an integer >= {n_min}")
+
+
 #: the cheap scene's share of the full one's particles, when the cheap runs are not given
 CHEAP_SHARE = 0.4
 
 
 def cheap_default(sc, fix: dict) -> dict:
-    """The cheap runs of an experiment when none are given: ``CHEAP_SHARE`` of its particles
-    (``count``), not fewer than the parameter allows; refused for an experiment without a count."""
+    """The cheap runs of an experiment when none are given: its own (``Experiment.cheap``, e.g. the
+    drum's smaller drum), else ``CHEAP_SHARE`` of its particles (``count``), not fewer than the
+    parameter allows; refused for an experiment with neither."""
+    if getattr(sc, "cheap", None):
+        return dict(sc.cheap)
     par = sc.by_name.get("count")
     if par is None:
         raise ParameterError(f"fidelity = multi is not allowed for {sc.name!r} without cheap runs: it has no count to "
@@ -88,19 +116,29 @@ def corrected_model(cheap: pd.DataFrame, full: pd.DataFrame | None, lo: float, h
     g = fit_surrogate(unit(cheap["x"]), cheap["mean"].to_numpy(float), noise(cheap))
     if full is None:
         return (lambda x: g(unit(x))), None
-    g_at, g_sd = g(unit(full["x"]))
-    residual_var = noise(full) + g_sd ** 2
-    fit = fit_surrogate(unit(full["x"]), full["mean"].to_numpy(float) - g_at, residual_var)
-    # the surrogate takes the residuals' mean as its known prior mean: its variance, that of a mean
-    # of the residuals, is added
+    predict, delta = with_discrepancy(g, unit(full["x"]), full["mean"].to_numpy(float), noise(full))
+    return (lambda x: predict(unit(x))), (lambda x: delta(unit(x)))
+
+
+def with_discrepancy(g, x_full: np.ndarray, full_mean: np.ndarray, full_var: np.ndarray):
+    """The full-size model g + delta over the unit box: delta a Gaussian process of the full-size
+    means' residuals from the cheap surrogate g (a function ``x_unit -> (mean, std)``) at
+    ``x_full``, each residual's noise its mean's variance plus g's there. The surrogate takes the
+    residuals' mean as its known prior mean: the variance of that mean is added to delta's.
+    Returns (``x_unit -> (mean, std)`` of g + delta, the same of delta)."""
+    from rollingdem.studies.joint_calibration import fit_surrogate
+
+    g_at, g_sd = g(x_full)
+    residual_var = np.asarray(full_var, float) + g_sd ** 2
+    fit = fit_surrogate(x_full, np.asarray(full_mean, float) - g_at, residual_var)
     mean_var = float(residual_var.sum()) / len(residual_var) ** 2
 
     def delta(x):
-        m, s = fit(unit(x))
+        m, s = fit(x)
         return m, np.sqrt(s ** 2 + mean_var)
 
     def predict(x):
-        m1, s1 = g(unit(x))
+        m1, s1 = g(x)
         m2, s2 = delta(x)
         return m1 + m2, np.sqrt(s1 ** 2 + s2 ** 2)
 

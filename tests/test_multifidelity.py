@@ -135,3 +135,34 @@ def test_a_wall_and_a_flat_roll_calibrated_jointly_through_cheap_bisections_give
     assert info["full_runs"] == 5 + 13  # the wall's full-size points, and every point of the flat roll
     assert res.runs == 8 + 18
     assert json.loads((tmp_path / "calibration.json").read_text())["fidelity"]["cheap_points"] == 8
+
+
+@pytest.mark.slow
+def test_the_readme_multifidelity_command_gives_back_a_known_mu_r(tmp_path):
+    """The README's multi-fidelity command on a synthetic target: the mean pile angle at mu_r = 0.2
+    (1,000 spheres) of 3 seeds the calibration does not use (101-103), its uncertainty their 95 %
+    half-width / 1.96 (docs/studies.md, "Joint calibration", says why). The 95 % interval holds
+    0.2; the runs of each kind are those the text names (21 cheap runs of 400 spheres, 12 full).
+    About 3 minutes on 2 cores."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from rollingdem.analysis.intervals import confidence_interval
+    from rollingdem.experiments import EXPERIMENTS
+
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    command = ("rollingdem calibrate --experiment repose-rough-base --target 25 --uncertainty 0.5 --fix count=1000 \\\n"
+               "                     --free mur=0:0.6 --fidelity multi")
+    assert command in readme
+    angles = [EXPERIMENTS["repose-rough-base"].observe({"count": 1000, "mur": 0.2, "seed": s})["angle"]
+              for s in (101, 102, 103)]
+    mean, half = confidence_interval(angles)
+    args = command.replace("\\\n", " ").split()[1:]
+    args[args.index("25")], args[args.index("0.5")] = f"{mean:.4f}", f"{half / 1.96:.4f}"
+    res = subprocess.run([sys.executable, "-m", "rollingdem.cli", *args, "--out", str(tmp_path / "cal"),
+                          "--no-progress"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    saved = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    assert saved["low"] <= 0.2 <= saved["high"], (saved["value"], saved["low"], saved["high"], angles)
+    assert saved["fidelity"]["cheap_runs"] == 21 and saved["fidelity"]["full_runs"] == 12

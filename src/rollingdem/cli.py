@@ -299,6 +299,10 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
               cheap: Optional[list[str]] = typer.Option(None, "--cheap", help="With --fidelity multi: NAME=VALUE that "
                                                         "makes a run cheap (repeatable; default: count at 40 % of "
                                                         "the full run's), e.g. count=400 or coarse_graining=2."),
+              share_settling: bool = typer.Option(False, "--share-settling", help="One target and one free "
+                                                  "parameter: settle each seed's bed once, with the free parameter "
+                                                  "at the middle of its range, and start every run from it "
+                                                  "(repose-rough-base)."),
               out: Path = typer.Option(Path("rollingdem-calibration"), "--out", "-o", help="Output folder."),
               workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Worker processes."),
               scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address."),
@@ -331,14 +335,19 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                                          observable=t.observable, seeds=seeds,
                                          search=Search(coarse=coarse, refine=refine, rounds=2 if rounds is None else rounds),
                                          out=out, execution=execution, progress=progress, echo=typer.echo,
-                                         fidelity=_fidelity(fidelity, cheap, t.experiment, fixed))
+                                         fidelity=_fidelity(fidelity, cheap, t.experiment, fixed),
+                                         share_settling=share_settling)
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return
+            if share_settling:
+                raise ParameterError(f"--share-settling is not allowed with {len(targets)} targets and {len(frees)} "
+                                     "free parameters: it takes one target and one free parameter")
             result = calibrate_joint(targets, {name: rng for name, rng in frees}, fix=fixed, seeds=seeds,
                                      search=JointSearch(initial=initial, rounds=3 if rounds is None else rounds,
                                                         per_round=per_round),
-                                     out=out, execution=execution, progress=progress, echo=typer.echo)
+                                     out=out, execution=execution, progress=progress, echo=typer.echo,
+                                     fidelity=_joint_fidelity(fidelity, cheap, targets, fixed))
             for f in result.figures:
                 typer.echo(f"figure: {f}")
             typer.echo(f"result: {Path(out) / 'calibration.json'}")
@@ -364,7 +373,8 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                                          seeds=seeds, search=Search(coarse=coarse, refine=refine,
                                                                     rounds=2 if rounds is None else rounds),
                                          out=out, execution=execution, progress=progress, echo=typer.echo,
-                                         fidelity=_fidelity(fidelity, cheap, experiment, fixed))
+                                         fidelity=_fidelity(fidelity, cheap, experiment, fixed),
+                                         share_settling=share_settling)
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return
@@ -381,11 +391,17 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                 raise ParameterError(f"--uncertainty = {uncertainty:g} is not allowed with EXPERIMENT.OBSERVABLE=VALUE "
                                      "targets: write each target's as VALUE±U")
             targets = [parse_target(t) for t in target]
+        if share_settling:
+            raise ParameterError(f"--share-settling is not allowed with {len(targets)} targets and {len(frees)} free "
+                                 "parameters: it takes one target and one free parameter")
+        if share_settling:
+            raise ParameterError(f"--share-settling is not allowed with {len(targets)} targets and {len(frees)} free "
+                                 "parameters: it takes one target and one free parameter")
         result = calibrate_joint(targets, {name: rng for name, rng in frees}, fix=fixed, seeds=seeds,
                                  search=JointSearch(initial=initial, rounds=3 if rounds is None else rounds,
                                                     per_round=per_round),
                                  out=out, execution=execution, progress=progress, echo=typer.echo,
-                                 fidelity=_joint_fidelity(fidelity, cheap, targets))
+                                 fidelity=_joint_fidelity(fidelity, cheap, targets, fixed))
     except ParameterError as err:
         _refuse(err)
     for f in result.figures:
@@ -406,7 +422,7 @@ def _fidelity(fidelity: str, cheap, experiment: str, fixed: dict):
     return Fidelity(cheap=given or cheap_default(get_experiment(experiment, observable=True), fixed))
 
 
-def _joint_fidelity(fidelity: str, cheap, targets):
+def _joint_fidelity(fidelity: str, cheap, targets, fixed: dict):
     """The ``JointFidelity`` of ``--fidelity multi`` with several targets or free parameters (None for
     single): each ``--cheap NAME=VALUE`` in every experiment that has it; without ``--cheap`` each
     experiment's own cheap runs where it has them (the others run at full size throughout)."""
@@ -424,7 +440,7 @@ def _joint_fidelity(fidelity: str, cheap, targets):
             mine = {k: v for k, v in given.items() if k in sc.by_name}
         else:
             try:
-                mine = cheap_default(sc, {})
+                mine = cheap_default(sc, {k: v for k, v in fixed.items() if k in sc.by_name})
             except ParameterError:
                 mine = {}
         if mine:

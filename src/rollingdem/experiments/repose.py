@@ -9,6 +9,7 @@ sweeps this pile over (mu, mu_r) is :mod:`rollingdem.studies.repose_study`.
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import asdict, dataclass, replace
@@ -62,6 +63,7 @@ class PileRun:
     angle_error: str = ""
     settled_at: float = math.nan
     wall_time: float = math.nan
+    settle_seconds_saved: float = 0.0  # wall time of a shared settling the run started from
 
 
 @dataclass(frozen=True)
@@ -289,9 +291,51 @@ class PileProgress:
                 f.unlink(missing_ok=True)
 
 
+def settled_column(data: dict, reference: dict | None, folder) -> tuple:
+    """(the simulation of the case ``data`` after its first stage, the wall-clock seconds a shared
+    settling saved). With ``reference`` (the case's data with the free parameters at reference
+    values) and a ``folder``, the first stage runs once per reference case, its end is kept in
+    ``folder``, and every run starts from it with its own materials (``Simulation.set_material``):
+    the column's packing is then the reference material's. Without, the stage runs here."""
+    import hashlib
+    import json
+
+    from rollingdem.io.casefile import build_simulation, load_case
+    from rollingdem.scene.simulation import Simulation, __version__
+
+    duration = data["stages"][0]["duration"]
+    if reference is None or folder is None:
+        sim = build_simulation(load_case(data))
+        sim.run(duration)
+        return sim, 0.0
+    key = hashlib.sha1(json.dumps({"version": __version__, "case": {k: v for k, v in reference.items() if k != "stages"},
+                                   "first": reference["stages"][0]}, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    folder = Path(folder)
+    path, meta = folder / f"settled-{key}.npz", folder / f"settled-{key}.json"
+    if path.exists() and meta.exists():
+        sim, saved = Simulation.restore(path), json.loads(meta.read_text())["wall_seconds"]
+    else:
+        tic = time.perf_counter()
+        sim = build_simulation(load_case(reference))
+        sim.run(duration)
+        folder.mkdir(parents=True, exist_ok=True)
+        tmp = folder / f".settled-{key}.{time.time_ns()}.npz"  # a concurrent worker may write it too
+        sim.checkpoint(tmp)
+        tmp.replace(path)
+        tmp = meta.with_name(f".{meta.name}.{time.time_ns()}")
+        tmp.write_text(json.dumps({"wall_seconds": time.perf_counter() - tic}))
+        tmp.replace(meta)
+        saved = 0.0
+    for m in data["materials"]:
+        sim.set_material(Material(**m))
+    for p in data.get("pairs") or []:
+        sim.set_pair(*p["materials"], **{k: v for k, v in p.items() if k != "materials"})
+    return sim, float(saved)
+
+
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
              collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT,
-             setup: PileSetup = PileSetup(), edit=None, checkpoint=None) -> PileRun:
+             setup: PileSetup = PileSetup(), edit=None, checkpoint=None, shared=None) -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
     Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
@@ -310,23 +354,28 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     the column, ``experiments.clump_stand_in``). With ``checkpoint`` (a path), the collapse is saved
     beside it every ``PILE_CHECKPOINT_SECONDS`` of wall time (``PileProgress``) and a run started
     again with the same path goes on from the last save, bit for bit; the saves are removed when
-    the run ends.
+    the run ends. With ``shared`` = (folder, reference ``PileMaterial``), the column settles once
+    per reference material and every run starts from it with its own (:func:`settled_column`).
     """
-    from rollingdem.io.casefile import build_simulation, load_case
-
     data = pile_case(rolling, twisting, count, seed, material, collapse, normal, polydispersity, dt, setup)
     if edit is not None:
         data = edit(data)
+    reference, folder = None, None
+    if shared is not None:
+        folder, ref_material = shared
+        reference = pile_case(rolling, twisting, count, seed, ref_material, collapse, normal, polydispersity, dt, setup)
+        if edit is not None:
+            reference = edit(reference)
     lift_speed, sample, max_collapse = collapse.lift_speed, collapse.sample, collapse.max_time
     tic = time.perf_counter()
-    settle, *rest = data["stages"]
+    rest = data["stages"][1:]
     lift_time = rest[0]["duration"] if lift_speed else 0.0
     progress = None if checkpoint is None else PileProgress(checkpoint)
     resumed = None if progress is None else progress.load()
+    saved = 0.0
     if resumed is None:
-        sim = build_simulation(load_case(data))
+        sim, saved = settled_column(data, reference, folder)
         tube = next(w for w in sim.walls if w.name == "tube")
-        sim.run(settle["duration"])
         if lift_speed:
             sim.set_wall_velocity(tube, velocity=(0.0, 0.0, lift_speed))
         else:
@@ -369,7 +418,7 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
         progress.remove()
     return PileRun(str(rolling), ke[:, 0], ke[:, 1], ke[:, 2], ke[:, 3], sim.positions[free].copy(),
                    sim.radii[free].copy(), sim.velocities[free].copy(), angle, error, settled_at,
-                   earlier + time.perf_counter() - tic)
+                   earlier + time.perf_counter() - tic, saved)
 
 
 QUICK_PILE, FULL_PILE = 1000, 10000  # spheres in case 3
@@ -576,10 +625,22 @@ class ReposeRoughBase(BedExperiment):
                                low=0.0, low_open=True),
                      coarse_graining_parameter())
                   + cohesion_parameters())
-    observables = pile_observables("the cylinder starts to lift")
+    observables = pile_observables("the cylinder starts to lift") | {
+        "settle_seconds_saved": "s, wall time of the shared settled column the run started from (share_settling)"}
     default_observable = "angle"
     targets = {"angle": (0.0, 90.0)}
     sizes = {"quick": {"count": 1000}, "full": {"count": 4000}}
+    shared = None  # (folder, the free parameters' reference values): share_settling
+
+    def share_settling(self, folder, reference: dict) -> "ReposeRoughBase":
+        """A copy of the experiment whose runs settle their column once per reference: with the
+        parameters in ``reference`` (a calibration's free ones) at those values and the rest as the
+        run's, kept in ``folder``; each run starts from it with its own material
+        (:func:`settled_column`), so that the column's packing is the reference material's."""
+        self.resolve(dict(reference))  # refuse an unknown name or a bad value now
+        other = copy.copy(self)
+        other.shared = (Path(folder), dict(reference))
+        return other
 
     def pile_arguments(self, params: dict) -> dict:
         """The arguments of :func:`pile_case` and :func:`pile_run` for ``params``."""
@@ -597,11 +658,16 @@ class ReposeRoughBase(BedExperiment):
         """The lifted-cylinder pile on a rough base of fixed spheres, every protocol choice a parameter:
         the shipped case file repose-rough-base, sized (:func:`pile_case`); resumable with
         ``checkpoint`` (:func:`pile_run`)."""
-        run = pile_run(**self.pile_arguments(params), checkpoint=checkpoint)
+        shared = None
+        if self.shared is not None:
+            folder, reference = self.shared
+            shared = (folder, PileMaterial.from_parameters(self.resolve({**params, **reference})))
+        run = pile_run(**self.pile_arguments(params), checkpoint=checkpoint, shared=shared)
         a = run.angle
         return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
                 "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,
-                "note": run.angle_error[:200], "wall_time": run.wall_time}
+                "note": run.angle_error[:200], "wall_time": run.wall_time,
+                "settle_seconds_saved": run.settle_seconds_saved}
 
     def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
         """The lifted-cylinder pile on a rough base at mu = 0.2 and 0.6 and mu_r = 0, 0.1, 0.3, over 3

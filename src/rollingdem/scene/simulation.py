@@ -153,6 +153,26 @@ class Simulation:
         self._scene_changed()
         return self.materials.add(material, self.contact)
 
+    def set_material(self, material: Material) -> None:
+        """Replace the material of the same name by ``material``, e.g. between the stages of a run:
+        its contact properties (stiffness, friction, rolling friction, restitution, cohesion) act
+        from the next step. Its density and coarse-graining factor stay, as the particles' masses
+        were made with them. Stored contact springs are capped by the new limits at their next step."""
+        if not isinstance(material, Material):
+            raise ParameterError(f"material = {material!r} is not allowed: must be a rollingdem.Material")
+        k = self.materials.index(material.name)
+        old = self.materials.materials[k]
+        for key in ("density", "coarse_graining"):
+            if getattr(material, key) != getattr(old, key):
+                raise ParameterError(f"material {material.name!r}: {key} = {getattr(material, key):g} is not allowed: "
+                                     f"it is {getattr(old, key):g}, and the particles' masses were made with it; only "
+                                     "its contact properties may change")
+        if material == old:
+            return
+        self.materials.materials[k] = material
+        self._scene_changed()
+        self._state.info[I_FORCES_VALID] = 0
+
     def set_pair(self, a, b, **coefficients) -> None:
         """Override pair coefficients (friction, rolling_friction, restitution, rolling_damping)."""
         self.materials.set_pair(a, b, **coefficients)

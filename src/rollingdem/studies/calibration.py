@@ -58,6 +58,7 @@ class Calibration:
     figures: list = field(default_factory=list)
     table: pd.DataFrame | None = field(default=None, repr=False)
     fidelity: dict | None = None  # a multi-fidelity search's runs of each kind, their cost and the offset
+    settle_seconds_saved: float = 0.0  # wall time the runs saved by starting from a shared settled bed
 
     def as_dict(self) -> dict:
         d = {k: v for k, v in asdict(self).items() if k != "table"}
@@ -136,14 +137,17 @@ def _direction(stats: pd.DataFrame) -> bool:
 
 def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dict | None = None, free="mur",
               observable: str | None = None, seeds=None, search: Search = Search(), out=None,
-              execution: Execution = Execution(), progress: bool = True, echo=None, fidelity=None) -> Calibration:
+              execution: Execution = Execution(), progress: bool = True, echo=None, fidelity=None,
+              share_settling: bool = False) -> Calibration:
     """Find the ``free`` parameter (a name, or (name, (low, high))) whose ``observable`` matches
     ``target`` +- ``uncertainty`` (one sigma) with the parameters ``fix`` held, ``seeds`` runs per
     point, searched as ``search`` says (the method: docs/studies.md, "Calibration"), the runs going
     where ``execution`` says; with a ``fidelity`` (``rollingdem.studies.multifidelity.Fidelity``),
-    cheap runs explore the range and a few full-size runs correct them instead. Writes
-    ``out/runs.csv``, ``calibration.json`` and ``calibration.png``; ``echo`` (a print-like
-    function) tells each round and the result."""
+    cheap runs explore the range and a few full-size runs correct them instead. With
+    ``share_settling`` each seed's bed settles once, with the free parameter at the middle of its
+    range, and every run starts from it (``run_sweep``). Writes ``out/runs.csv``,
+    ``calibration.json`` and ``calibration.png``; ``echo`` (a print-like function) tells each round
+    and the result."""
     import tempfile
     import time
 
@@ -194,6 +198,12 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-calibrate-"))
     first = load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: lo}], "seeds": seeds})  # refuse bad input now
     say = echo or (lambda *_: None)
+    shared = None
+    if share_settling:
+        if not hasattr(sc, "share_settling"):
+            raise ParameterError(f"share_settling is not allowed for experiment {experiment!r}: it has no settling "
+                                 "stage to share (repose-rough-base has)")
+        shared = {name: 0.5 * (lo + hi)}
     if fidelity is not None:
         from rollingdem.studies.multifidelity import Fidelity, calibrate_multifidelity
 
@@ -201,11 +211,11 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
             raise ParameterError(f"fidelity = {fidelity!r} is not allowed: must be a "
                                  "rollingdem.studies.multifidelity.Fidelity")
         return calibrate_multifidelity(experiment, target, uncertainty, fix, name, lo, hi, observable, seeds, fidelity,
-                                       out, execution, progress, say)
+                                       out, execution, progress, say, shared)
 
     def sweep(xs, m):
         spec = load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: float(x)} for x in xs], "seeds": seeds})
-        return run_sweep(spec, out, mapper=m, progress=progress, summary=False).table
+        return run_sweep(spec, out, mapper=m, progress=progress, summary=False, share_settling=shared).table
 
     with execution.runner() as m:
         xs = list(np.linspace(lo, hi, coarse))
@@ -244,12 +254,21 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     result = Calibration(experiment, name, observable, target, uncertainty, value, lo95, hi95, fix,
                          runs=int(len(table)), points=len(x), seeds=first.seed_list,
                          direction="increasing" if increasing else "decreasing", outside_fraction=outside,
-                         wall_time=time.perf_counter() - tic, table=table)
+                         wall_time=time.perf_counter() - tic, table=table, settle_seconds_saved=settle_saved(table))
     _figure(result, stats, g, out)
     (out / "calibration.json").write_text(json.dumps(result.as_dict(), indent=2, default=float))
+    shared_note = (f"; the shared settled beds saved {result.settle_seconds_saved:.0f} s of runs"
+                   if share_settling else "")
     say(f"{name} = {value:.5g}, 95 % interval [{lo95:.5g}, {hi95:.5g}] for {observable} = {target:g} ± "
-        f"{uncertainty:g} ({result.runs} runs, {result.wall_time:.0f} s; {out})")
+        f"{uncertainty:g} ({result.runs} runs, {result.wall_time:.0f} s{shared_note}; {out})")
     return result
+
+
+def settle_saved(table: pd.DataFrame) -> float:
+    """The wall-clock seconds a calibration's runs saved by starting from shared settled beds."""
+    if "settle_seconds_saved" not in table:
+        return 0.0
+    return float(pd.to_numeric(table["settle_seconds_saved"], errors="coerce").fillna(0.0).sum())
 
 
 def _usable(out: Path, sc, experiment: str, fix: dict, name: str, observable: str, need: int, what: str, say):

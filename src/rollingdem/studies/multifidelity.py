@@ -174,7 +174,7 @@ def _crossing(x, m, target: float, near: float) -> float:
 
 def calibrate_multifidelity(experiment: str, target: float, uncertainty: float, fix: dict, name: str, lo: float,
                             hi: float, observable: str, seeds: int, fidelity: Fidelity, out: Path, execution,
-                            progress: bool, say) -> Calibration:
+                            progress: bool, say, share_settling: dict | None = None) -> Calibration:
     """The multi-fidelity search (module docstring) of ``name`` in [lo, hi]; arguments checked by
     ``rollingdem.studies.calibration.calibrate``, which calls it."""
     from rollingdem.experiments import get_experiment
@@ -196,7 +196,7 @@ def calibrate_multifidelity(experiment: str, target: float, uncertainty: float, 
     def sweep(xs, fixed, m):
         spec = load_sweep({"experiment": experiment, "fixed": fixed, "points": [{name: float(v)} for v in xs],
                            "seeds": seeds})
-        run_sweep(spec, out, mapper=m, progress=progress, summary=False)
+        run_sweep(spec, out, mapper=m, progress=progress, summary=False, share_settling=share_settling)
 
     def stats_of(fixed, kind, need):
         table = _all_runs(out, sc, experiment, fixed, name)
@@ -249,13 +249,15 @@ def calibrate_multifidelity(experiment: str, target: float, uncertainty: float, 
             "offset": d, "offset_low": d - 1.96 * d_sd, "offset_high": d + 1.96 * d_sd,
             "full_points": sorted(float(v) for v in full_xs)}
     table = pd.concat([cheap_table.assign(fidelity="cheap"), full_table.assign(fidelity="full")], ignore_index=True)
+    from rollingdem.studies.calibration import settle_saved
+
     result = Calibration(experiment, name, observable, target, uncertainty, value, low, high, fix,
                          runs=int(len(table)), points=len(cheap) + len(full),
                          seeds=load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: lo}],
                                            "seeds": seeds}).seed_list,
                          direction="increasing" if increasing else "decreasing",
                          outside_fraction=float(w[[0, -1]].sum()), wall_time=time.perf_counter() - tic, table=table,
-                         fidelity=info)
+                         fidelity=info, settle_seconds_saved=settle_saved(table))
     plt, fig, ax = _figure_axes(result)
     ax.plot(cheap_table[name], pd.to_numeric(cheap_table[observable], errors="coerce"), "x", color="0.6",
             label=f"cheap runs ({what})")

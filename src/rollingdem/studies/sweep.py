@@ -262,14 +262,16 @@ def failure_report(table: pd.DataFrame, path: Path) -> str | None:
 
 def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = None, threads: int = 1,
               progress: bool = True, retry_failed: bool = False, mapper=None, summary: bool = True,
-              echo=None, on_run=None) -> SweepResult:
+              echo=None, on_run=None, share_settling: dict | None = None) -> SweepResult:
     """Run every run of ``spec`` not yet in ``out/runs.csv``; returns the whole table.
 
     ``workers`` x ``threads`` fill the cores by default (``threads`` Numba threads per run, cores //
     threads worker processes of a Dask LocalCluster); ``scheduler`` uses an existing cluster;
     ``mapper`` (a :class:`rollingdem.studies.parallel.Mapper` or ``map``) reuses one already open.
     ``retry_failed`` runs again the runs the table records as failed; ``on_run()`` is called after
-    each run is written.
+    each run is written. ``share_settling`` ({parameter: reference value}): an experiment that can
+    (``share_settling``) settles its bed once with those parameters at those values and starts
+    every run from it, kept in ``out/settled``.
     """
     from rollingdem.studies.parallel import check_workers, completed, runner
 
@@ -288,6 +290,11 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     runs = expand(spec)
     if hasattr(experiment, "prepare_in"):  # a case file: runs that share their first stages share them
         experiment.prepare_in(out / "prepared")
+    if share_settling:
+        if not hasattr(experiment, "share_settling"):
+            raise ParameterError(f"share_settling is not allowed for experiment {spec.experiment!r}: it has no "
+                                 "settling stage to share (repose-rough-base has)")
+        experiment = experiment.share_settling(out / "settled", share_settling)
     ids = [run_id(spec.experiment, p) for p in runs]
     done = set(table["run_id"])
     todo = [(i, p) for i, p in zip(ids, runs) if i not in done]

@@ -1,0 +1,76 @@
+"""A calibration's runs starting from one settled bed (``share_settling``): a material's contact
+properties changed between stages act at once, and a pile settled once serves every run."""
+
+import math
+
+import numpy as np
+import pytest
+
+import rollingdem as rd
+from rollingdem.errors import ParameterError
+
+G = 9.81
+
+
+def _material(**kw):
+    p = dict(youngs_modulus=5e6, poisson_ratio=0.3, density=1000.0, friction=0.8, rolling_friction=0.5,
+             restitution=0.5, rolling_damping=0.0)
+    p.update(kw)
+    return rd.Material("m", **p)
+
+
+def test_a_new_rolling_friction_frees_a_sphere_held_on_a_slope():
+    """A sphere on a slope of tan(beta) = 0.2 held by mu_r = 0.5 (EPSD: it rolls once tan(beta) > mu_r,
+    docs/models.md) rests; given mu_r = 0.05 (``set_material``) it rolls without sliding (mu = 0.8) at
+    the acceleration (5/7) g (sin beta - mu_r cos beta) of a sphere whose rolling resistance is at
+    its cap mu_r R F_n (the rolling-resistance torque on the rolling sphere, I = 2/5 m R^2 about the
+    centre, 7/5 m R^2 about the contact). After 0.1 s the speed is within 2 % of it (the spring's
+    first steps and the overlap's small change of the lever arm)."""
+    beta = math.atan(0.2)
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="epsd"), dt=1e-5,
+                        gravity=(G * math.sin(beta), 0.0, -G * math.cos(beta)))
+    sim.add_material(_material())
+    sim.add_wall(rd.Plane((0, 0, 0), (0, 0, 1), material="m"))
+    r = 0.005
+    sim.add_particles([[0.0, 0.0, r]], r, "m", allow_overlap=True)
+    sim.run(0.2)
+    assert abs(sim.velocities[0, 0]) < 1e-3  # held
+    sim.set_material(_material(rolling_friction=0.05))
+    v0 = sim.velocities[0, 0]
+    sim.run(0.1)
+    expected = 5.0 / 7.0 * G * (math.sin(beta) - 0.05 * math.cos(beta)) * 0.1
+    assert sim.velocities[0, 0] - v0 == pytest.approx(expected, rel=0.02)
+    with pytest.raises(ParameterError, match="material 'm': density = 2000 is not allowed: it is 1000"):
+        sim.set_material(_material(density=2000.0))
+    with pytest.raises(ParameterError, match="material = 'glass' is not known"):
+        sim.set_material(rd.Material("glass", 5e6, 0.3, 1000.0, friction=0.5))
+
+
+def test_a_pile_settled_once_serves_every_material_and_says_what_it_saved(tmp_path):
+    """``settled_column``: the first run with a reference settles the column and keeps it; a second
+    run with another material starts from the very same state (equal positions, bit for bit) with
+    its own material in force, and reports the wall time of the settling it did not repeat."""
+    from dataclasses import asdict
+
+    from rollingdem.experiments.repose import PileMaterial, PileSetup, pile_case, settled_column
+
+    def case(mur):
+        return pile_case(count=150, seed=3, material=PileMaterial(rolling_friction=mur), setup=PileSetup(base="rough"))
+
+    reference = case(0.3)
+    first, saved_first = settled_column(case(0.1), reference, tmp_path)
+    second, saved_second = settled_column(case(0.5), reference, tmp_path)
+    assert saved_first == 0.0 and saved_second > 0.0
+    assert np.array_equal(first.positions, second.positions)
+    assert first.materials["beads"].rolling_friction == 0.1 and second.materials["beads"].rolling_friction == 0.5
+    assert asdict(second.materials["beads"]) == {**asdict(first.materials["beads"]), "rolling_friction": 0.5}
+    alone, _ = settled_column(case(0.3), None, None)
+    assert np.array_equal(alone.positions, first.positions)  # the reference's own settling, as it runs alone
+
+
+def test_share_settling_is_refused_where_there_is_nothing_to_share(tmp_path):
+    from rollingdem.studies.calibration import calibrate
+
+    with pytest.raises(ParameterError, match="share_settling is not allowed for experiment 'inclined-wall'"):
+        calibrate("inclined-wall", 20.0, 0.5, free=("mur", (0.02, 1.0)), out=tmp_path, progress=False,
+                  share_settling=True)

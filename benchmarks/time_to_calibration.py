@@ -1,11 +1,11 @@
 """Time to a calibrated parameter, from empty caches, each calibration as a user runs it.
 
-    python benchmarks/time_to_calibration.py pile [--fidelity single multi] [--workers 2]
+    python benchmarks/time_to_calibration.py pile [--fidelity single multi] [--share-settling] [--workers 2]
     python benchmarks/time_to_calibration.py joint [--workers 2]
 
 - ``pile``: mu_r against one pile angle, the repose-rough-base experiment at its quick size (1,000
   spheres), target 25 +- 0.5 deg, mu_r in [0, 0.6]; single fidelity and multi-fidelity (cheap
-  runs of 400 spheres) in turn.
+  runs of 400 spheres) in turn; with ``--share-settling`` each seed's column settles once.
 - ``joint``: (mu, mu_r) in [0.3, 0.8] x [0.05, 0.35] against a pile angle (repose-rough-base, 1,000
   spheres, the cylinder removed at once) and a drum's angle (rotating-drum, 8 samples over 45
   degrees after 45), 2 seeds a point, 10 + 2 x 4 points: the slow test's calibration; multi-fidelity:
@@ -77,6 +77,8 @@ def run(name: str, args: list[str], work: Path, workers: int) -> dict:
         row.update(value=saved["value"], low=saved["low"], high=saved["high"])
     else:
         row.update(best=saved["best"], interval=saved["interval"])
+    if saved.get("settle_seconds_saved"):
+        row.update(settle_seconds_saved=round(saved["settle_seconds_saved"], 1))
     if saved.get("fidelity"):
         f = saved["fidelity"]
         row.update(cheap=f["cheap"], cheap_runs=f["cheap_runs"], full_runs=f["full_runs"],
@@ -92,13 +94,15 @@ def main() -> None:
     p.add_argument("which", choices=("pile", "joint"))
     p.add_argument("--fidelity", nargs="+", default=["single", "multi"], choices=("single", "multi"))
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--share-settling", action="store_true")
     p.add_argument("--work", type=Path, default=None)
     a = p.parse_args()
     work = a.work or Path(tempfile.mkdtemp(prefix="rollingdem-ttc-"))
     work.mkdir(parents=True, exist_ok=True)
     if a.which == "pile":
+        shared = ["--share-settling"] if a.share_settling else []
         for f in a.fidelity:
-            run(f"pile-{f}", PILE + ["--fidelity", f], work, a.workers)
+            run(f"pile-{f}{'-shared' if shared else ''}", PILE + ["--fidelity", f] + shared, work, a.workers)
     else:
         args = joint_arguments(work)
         for f in a.fidelity:  # multi: its full-size rounds of 2 points (3 + 2 x 2 full-size points in all)

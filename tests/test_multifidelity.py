@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from rollingdem.errors import ParameterError
-from rollingdem.studies.calibration import Execution, calibrate
+from rollingdem.studies.calibration import Execution, Search, calibrate
 from rollingdem.studies.multifidelity import Fidelity, cheap_default, corrected_model, posterior_on_grid
 
 
@@ -56,7 +56,7 @@ def test_inclined_wall_through_coarse_bisections_gives_back_tan_beta(tmp_path):
     exact = math.tan(math.radians(20.0))
     res = calibrate("inclined-wall", 20.0, 0.5, fix={"model": "epsd"}, free=("mur", (0.02, 1.0)), out=tmp_path,
                     execution=Execution(workers=2), progress=False,
-                    fidelity=Fidelity(cheap={"rel_tol": 0.05}, cheap_points=7, full_points=2, full_rounds=2))
+                    search=Search(fidelity=Fidelity(cheap={"rel_tol": 0.05}, cheap_points=7, full_points=2, full_rounds=2)))
     assert res.value == pytest.approx(exact, rel=0.002)
     full = np.array(res.fidelity["full_points"])
     below, above = full[full < res.value].max(), full[full > res.value].min()
@@ -76,13 +76,13 @@ def test_multifidelity_refuses_what_it_cannot_do(tmp_path):
 
     with pytest.raises(ParameterError, match="cheap = mur=0.1 is not allowed: mur is the free parameter"):
         calibrate("inclined-wall", 20.0, 0.5, free=("mur", (0.02, 1.0)), out=tmp_path, progress=False,
-                  fidelity=Fidelity(cheap={"mur": 0.1}))
+                  search=Search(fidelity=Fidelity(cheap={"mur": 0.1})))
     with pytest.raises(ParameterError, match="cheap = {'rel_tol': -1} is not allowed"):
         calibrate("inclined-wall", 20.0, 0.5, free=("mur", (0.02, 1.0)), out=tmp_path, progress=False,
-                  fidelity=Fidelity(cheap={"rel_tol": -1}))
+                  search=Search(fidelity=Fidelity(cheap={"rel_tol": -1})))
     with pytest.raises(ParameterError, match="cheap_points = 2 is not allowed: must be an integer >= 3"):
         calibrate("inclined-wall", 20.0, 0.5, free=("mur", (0.02, 1.0)), out=tmp_path, progress=False,
-                  fidelity=Fidelity(cheap={"rel_tol": 0.05}, cheap_points=2))
+                  search=Search(fidelity=Fidelity(cheap={"rel_tol": 0.05}, cheap_points=2)))
     with pytest.raises(ParameterError, match="has no count to make smaller"):
         cheap_default(get_experiment("inclined-wall", observable=True), {})
     assert cheap_default(get_experiment("repose-rough-base", observable=True), {"count": 1000}) == {"count": 400}
@@ -106,6 +106,7 @@ def test_the_command_refuses_a_fidelity_it_cannot_build_in_one_line(args, words,
     assert len(res.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_a_wall_and_a_flat_roll_calibrated_jointly_through_cheap_bisections_give_back_the_true_point(tmp_path):
     """Two targets, two free parameters: the inclined wall's critical angle (atan mu_r, 20 deg +- 0.1)
     and the rolling-flat stop distance at mu = 0.4, mu_r = tan 20 deg (analytic, +- 0.5 %; the

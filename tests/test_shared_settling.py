@@ -69,8 +69,8 @@ def test_a_pile_settled_once_serves_every_material_and_says_what_it_saved(tmp_pa
 
 
 def test_share_settling_is_refused_where_there_is_nothing_to_share(tmp_path):
-    from rollingdem.studies.calibration import calibrate
+    from rollingdem.studies.calibration import Search, calibrate
 
     with pytest.raises(ParameterError, match="share_settling is not allowed for experiment 'inclined-wall'"):
         calibrate("inclined-wall", 20.0, 0.5, free=("mur", (0.02, 1.0)), out=tmp_path, progress=False,
-                  share_settling=True)
+                  search=Search(share_settling=True))

@@ -333,10 +333,10 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                 t = targets[0]
                 result = run_calibration(t.experiment, t.value, t.uncertainty, fix=fixed, free=frees[0],
                                          observable=t.observable, seeds=seeds,
-                                         search=Search(coarse=coarse, refine=refine, rounds=2 if rounds is None else rounds),
-                                         out=out, execution=execution, progress=progress, echo=typer.echo,
-                                         fidelity=_fidelity(fidelity, cheap, t.experiment, fixed),
-                                         share_settling=share_settling)
+                                         search=Search(coarse=coarse, refine=refine, rounds=2 if rounds is None else rounds,
+                                                       fidelity=_fidelity(fidelity, cheap, t.experiment, fixed),
+                                                       share_settling=share_settling),
+                                         out=out, execution=execution, progress=progress, echo=typer.echo)
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return
@@ -371,10 +371,10 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
             if len(frees) == 1:
                 result = run_calibration(experiment, value, uncertainty, fix=fixed, free=frees[0], observable=observable,
                                          seeds=seeds, search=Search(coarse=coarse, refine=refine,
-                                                                    rounds=2 if rounds is None else rounds),
-                                         out=out, execution=execution, progress=progress, echo=typer.echo,
-                                         fidelity=_fidelity(fidelity, cheap, experiment, fixed),
-                                         share_settling=share_settling)
+                                                                    rounds=2 if rounds is None else rounds,
+                                                                    fidelity=_fidelity(fidelity, cheap, experiment, fixed),
+                                                                    share_settling=share_settling),
+                                         out=out, execution=execution, progress=progress, echo=typer.echo)
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return

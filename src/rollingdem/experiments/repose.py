@@ -136,7 +136,9 @@ class PileSetup:
     :func:`column_size`); the base spheres' ``base_radius`` (None: the mean radius), ``base_spacing``
     and ``base_jitter`` (None: ``rollingdem.rough_base``'s defaults); ``clearance``, how far (m;
     None: two mean radii) the tube's lower edge rises above the settled column's top before the
-    lifted tube is removed."""
+    lifted tube is removed. ``shared``: (a folder, a reference ``PileMaterial``): the column settles
+    once per reference material and is kept there, and each run starts from it with its own
+    (:func:`settled_column`); None: each run settles its own."""
 
     aspect: float = 1.0
     tube_segments: int | None = None
@@ -147,6 +149,7 @@ class PileSetup:
     base_spacing: float | None = None
     base_jitter: float | None = None
     clearance: float | None = None
+    shared: tuple | None = None
 
 
 def tube_clearing_time(floor: float, height: float, radius: float, clearance: float, lift_speed: float) -> float:
@@ -337,7 +340,7 @@ def settled_column(data: dict, reference: dict | None, folder) -> tuple:
 
 def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: PileMaterial = PileMaterial(),
              collapse: Collapse = Collapse(), normal="hertz", polydispersity=POLYDISPERSITY, dt=DT,
-             setup: PileSetup = PileSetup(), edit=None, checkpoint=None, shared=None) -> PileRun:
+             setup: PileSetup = PileSetup(), edit=None, checkpoint=None) -> PileRun:
     """The report's case 3 at ``count`` spheres (mean R = 5 mm, Table 1 material, dt = 1e-5 s).
 
     Spheres of radius uniform in R (1 +- ``polydispersity``) fall from a random insertion into a
@@ -356,15 +359,15 @@ def pile_run(rolling="epsd", twisting="none", count=3000, seed=1, material: Pile
     the column, ``experiments.clump_stand_in``). With ``checkpoint`` (a path), the collapse is saved
     beside it every ``PILE_CHECKPOINT_SECONDS`` of wall time (``PileProgress``) and a run started
     again with the same path goes on from the last save, bit for bit; the saves are removed when
-    the run ends. With ``shared`` = (folder, reference ``PileMaterial``), the column settles once
-    per reference material and every run starts from it with its own (:func:`settled_column`).
+    the run ends. With ``setup.shared`` = (folder, reference ``PileMaterial``), the column settles
+    once per reference material and every run starts from it with its own (:func:`settled_column`).
     """
     data = pile_case(rolling, twisting, count, seed, material, collapse, normal, polydispersity, dt, setup)
     if edit is not None:
         data = edit(data)
     reference, folder = None, None
-    if shared is not None:
-        folder, ref_material = shared
+    if setup.shared is not None:
+        folder, ref_material = setup.shared
         reference = pile_case(rolling, twisting, count, seed, ref_material, collapse, normal, polydispersity, dt, setup)
         if edit is not None:
             reference = edit(reference)
@@ -660,11 +663,12 @@ class ReposeRoughBase(BedExperiment):
         """The lifted-cylinder pile on a rough base of fixed spheres, every protocol choice a parameter:
         the shipped case file repose-rough-base, sized (:func:`pile_case`); resumable with
         ``checkpoint`` (:func:`pile_run`)."""
-        shared = None
+        arguments = self.pile_arguments(params)
         if self.shared is not None:
             folder, reference = self.shared
-            shared = (folder, PileMaterial.from_parameters(self.resolve({**params, **reference})))
-        run = pile_run(**self.pile_arguments(params), checkpoint=checkpoint, shared=shared)
+            arguments["setup"] = replace(arguments["setup"], shared=(
+                folder, PileMaterial.from_parameters(self.resolve({**params, **reference}))))
+        run = pile_run(**arguments, checkpoint=checkpoint)
         a = run.angle
         return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,
                 "r_squared": a.r_squared if a else math.nan, "settled_at": run.settled_at,

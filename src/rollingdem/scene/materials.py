@@ -143,6 +143,24 @@ class MaterialTable:
         self.materials.append(material)
         return len(self.materials) - 1
 
+    def replace(self, material: Material) -> bool:
+        """Replace the material of the same name by ``material`` (e.g. between the stages of a run):
+        its contact properties (stiffness, friction, rolling friction, restitution, cohesion) act
+        from the next step; its density and coarse-graining factor must stay, as the particles'
+        masses were made with them. Stored contact springs are capped by the new limits at their
+        next step. Returns whether anything changed."""
+        if not isinstance(material, Material):
+            raise ParameterError(f"material = {material!r} is not allowed: must be a rollingdem.Material")
+        k = self.index(material.name)
+        old = self.materials[k]
+        for key in ("density", "coarse_graining"):
+            if getattr(material, key) != getattr(old, key):
+                raise ParameterError(f"material {material.name!r}: {key} = {getattr(material, key):g} is not allowed: "
+                                     f"it is {getattr(old, key):g}, and the particles' masses were made with it; only "
+                                     "its contact properties may change")
+        self.materials[k] = material
+        return material != old
+
     def index(self, material: Material | str | int) -> int:
         if isinstance(material, Material):
             return self.add(material)

@@ -144,34 +144,17 @@ class Simulation:
 
     @property
     def skin(self) -> float:
-        if self._skin is not None:
-            return self._skin
-        radius = self.particle_set.largest_radius(self.inflows)
-        return 0.4 * radius if radius > 0 else 1e-3
+        radius = None if self._skin is not None else self.particle_set.largest_radius(self.inflows)
+        return self._skin if radius is None else 0.4 * radius if radius > 0 else 1e-3
 
     def add_material(self, material: Material) -> int:
         self._scene_changed()
         return self.materials.add(material, self.contact)
 
-    def set_material(self, material: Material) -> None:
-        """Replace the material of the same name by ``material``, e.g. between the stages of a run:
-        its contact properties (stiffness, friction, rolling friction, restitution, cohesion) act
-        from the next step. Its density and coarse-graining factor stay, as the particles' masses
-        were made with them. Stored contact springs are capped by the new limits at their next step."""
-        if not isinstance(material, Material):
-            raise ParameterError(f"material = {material!r} is not allowed: must be a rollingdem.Material")
-        k = self.materials.index(material.name)
-        old = self.materials.materials[k]
-        for key in ("density", "coarse_graining"):
-            if getattr(material, key) != getattr(old, key):
-                raise ParameterError(f"material {material.name!r}: {key} = {getattr(material, key):g} is not allowed: "
-                                     f"it is {getattr(old, key):g}, and the particles' masses were made with it; only "
-                                     "its contact properties may change")
-        if material == old:
-            return
-        self.materials.materials[k] = material
-        self._scene_changed()
-        self._state.info[I_FORCES_VALID] = 0
+    def set_material(self, material: Material) -> None:  # contact properties anew (MaterialTable.replace)
+        if self.materials.replace(material):
+            self._scene_changed()
+            self._state.info[I_FORCES_VALID] = 0
 
     def set_pair(self, a, b, **coefficients) -> None:
         """Override pair coefficients (friction, rolling_friction, restitution, rolling_damping)."""
@@ -189,14 +172,11 @@ class Simulation:
 
     def add_particles(self, positions, radius, material, velocity=None, angular_velocity=None,
                       allow_overlap: bool = False, fixed: bool = False) -> np.ndarray:
-        """Add spheres; returns their indices. ``radius`` is a number or one per sphere (m).
-
-        Spheres that overlap each other or a wall are refused unless ``allow_overlap``. ``fixed``
-        spheres never move (a rough base, an obstacle): they touch free spheres with their material
-        and radius, as a partner of infinite mass and inertia, and neither walls nor each other
-        (pairs of fixed spheres are left out of the neighbor list, so a base costs only its
-        contacts with free spheres); ``forces`` holds the load the free spheres put on them.
-        """
+        """Add spheres; returns their indices. ``radius`` is a number or one per sphere (m). Spheres that overlap each
+        other or a wall are refused unless ``allow_overlap``. ``fixed`` spheres never move (a rough base, an obstacle):
+        they touch free spheres with their material and radius, as a partner of infinite mass and inertia, and neither
+        walls nor each other (pairs of fixed spheres are left out of the neighbor list, so a base costs only its
+        contacts with free spheres); ``forces`` holds the load the free spheres put on them."""
         return self.particle_set.add(positions, radius, material, velocity, angular_velocity, allow_overlap, fixed)
 
     def insert(self, region, count: int | None = None, radius=None, material=None, seed: int = 0, velocity=None,
@@ -209,8 +189,8 @@ class Simulation:
 
     def add_clumps(self, clump, positions, material, orientations=None, velocity=None, angular_velocity=None,
                    fixed: bool = False, allow_overlap: bool = False) -> np.ndarray:
-        """Add rigid bodies of ``clump`` (``rd.Clump``), centres of mass at ``positions``, turned by ``orientations``
-        (unit quaternions w, x, y, z); returns their indices in ``clumps``. Members are particles (docs/models.md §17)."""
+        """Add rigid bodies of ``clump`` (``rd.Clump``) at ``positions`` (centres of mass), turned by ``orientations``
+        (unit quaternions w, x, y, z); returns their indices in ``clumps``; members are particles (models.md §17)."""
         return self.clump_set.add(clump, positions, material, orientations, velocity, angular_velocity, fixed,
                                   allow_overlap)
 
@@ -341,10 +321,9 @@ class Simulation:
         return self._modules.module(self.contact, self.track_energy, self._state)
 
     def phase_seconds(self, repeats: int = 20, rebuilds_per_step: float = 0.0) -> dict[str, float]:
-        """Seconds per step of each phase of a step on the present state and backend (contact
-        forces, walls, integration and gathering, neighbor search; a backend may add its own), each
-        timed on its own, the fastest of 5 blocks of ``repeats`` calls; the neighbor search counts
-        ``rebuilds_per_step`` times. The state is left as it was."""
+        """Seconds per step of each phase of a step on the present state and backend (contact forces, walls,
+        integration and gathering, neighbor search; a backend may add its own), each timed on its own, the fastest of
+        5 blocks of ``repeats`` calls; the neighbor search counts ``rebuilds_per_step`` times. The state stays."""
         st = self._state
         return st.backend.phase_seconds(st, self.engine_module(), (self.dt, self.gravity, self.skin,
                                                                    self.pair_parameters()), repeats, rebuilds_per_step)
@@ -357,8 +336,8 @@ class Simulation:
                                    doc="The bytes the backend held on its device at the last run (0 on the CPU).")
 
     def dissipated_energy(self) -> dict[str, float]:
-        """Energy (J) dissipated while ``track_energy`` was on, by normal damping, sliding, rolling and
-        twisting, over the run: what the particles an outlet took out had dissipated stays in it."""
+        """Energy (J) dissipated while ``track_energy`` was on (normal damping, sliding, rolling, twisting), over the
+        run: what the particles an outlet took out had dissipated stays in it."""
         return self.particle_set.dissipated_energy()
 
     def number_of_contacts(self) -> int:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -18,6 +19,7 @@ import pandas as pd
 from rollingdem.experiments import get_experiment
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_output_path
 from rollingdem.studies.parallel import Execution
+from rollingdem.studies.surrogates import pooled_sd as _pooled_sd
 
 __all__ = ["Calibration", "Execution", "Search", "calibrate", "calibrate_minimum", "monotone_inverse", "parabola_minimum"]
 
@@ -28,12 +30,16 @@ BOOTSTRAP = 4000
 class Search:
     """How the free parameter's range is searched (docs/studies.md, "Calibration"): ``coarse`` points
     first (>= 3), then ``rounds`` refinements (>= 0) of ``refine`` points each (>= 1), and
-    ``bootstrap`` replicates for the 95 % interval (>= 1)."""
+    ``bootstrap`` replicates for the 95 % interval (>= 1); or, with a ``fidelity``, cheap runs
+    corrected by full-size ones ("Multi-fidelity calibration"). ``share_settling``: each seed's bed
+    settles once and every run starts from it (``run_sweep``)."""
 
     coarse: int = 5
     refine: int = 4
     rounds: int = 2
     bootstrap: int = BOOTSTRAP
+    fidelity: object = None  # a rollingdem.studies.multifidelity.Fidelity: cheap runs corrected by full-size ones
+    share_settling: bool = False  # each seed's bed settled once, the free parameter at the middle of its range
 
 
 @dataclass
@@ -137,15 +143,14 @@ def _direction(stats: pd.DataFrame) -> bool:
 
 def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dict | None = None, free="mur",
               observable: str | None = None, seeds=None, search: Search = Search(), out=None,
-              execution: Execution = Execution(), progress: bool = True, echo=None, fidelity=None,
-              share_settling: bool = False) -> Calibration:
+              execution: Execution = Execution(), progress: bool = True, echo=None) -> Calibration:
     """Find the ``free`` parameter (a name, or (name, (low, high))) whose ``observable`` matches
     ``target`` +- ``uncertainty`` (one sigma) with the parameters ``fix`` held, ``seeds`` runs per
     point, searched as ``search`` says (the method: docs/studies.md, "Calibration"), the runs going
-    where ``execution`` says; with a ``fidelity`` (``rollingdem.studies.multifidelity.Fidelity``),
-    cheap runs explore the range and a few full-size runs correct them instead. With
-    ``share_settling`` each seed's bed settles once, with the free parameter at the middle of its
-    range, and every run starts from it (``run_sweep``). Writes ``out/runs.csv``,
+    where ``execution`` says; with ``search.fidelity`` (``rollingdem.studies.multifidelity.Fidelity``),
+    cheap runs explore the range and a few full-size runs correct them instead; with
+    ``search.share_settling`` each seed's bed settles once, with the free parameter at the middle of
+    its range, and every run starts from it (``run_sweep``). Writes ``out/runs.csv``,
     ``calibration.json`` and ``calibration.png``; ``echo`` (a print-like function) tells each round
     and the result."""
     import tempfile
@@ -198,6 +203,7 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-calibrate-"))
     first = load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: lo}], "seeds": seeds})  # refuse bad input now
     say = echo or (lambda *_: None)
+    fidelity, share_settling = search.fidelity, search.share_settling
     shared = None
     if share_settling:
         if not hasattr(sc, "share_settling"):
@@ -205,13 +211,13 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
                                  "stage to share (repose-rough-base has)")
         shared = {name: 0.5 * (lo + hi)}
     if fidelity is not None:
-        from rollingdem.studies.multifidelity import Fidelity, calibrate_multifidelity
+        from rollingdem.studies.multifidelity import Fidelity
 
         if not isinstance(fidelity, Fidelity):
             raise ParameterError(f"fidelity = {fidelity!r} is not allowed: must be a "
                                  "rollingdem.studies.multifidelity.Fidelity")
-        return calibrate_multifidelity(experiment, target, uncertainty, fix, name, lo, hi, observable, seeds, fidelity,
-                                       out, execution, progress, say, shared)
+        return _calibrate_multifidelity(_Problem(experiment, target, uncertainty, fix, name, lo, hi, observable, seeds,
+                                                 out), fidelity, execution, progress, say, shared)
 
     def sweep(xs, m):
         spec = load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: float(x)} for x in xs], "seeds": seeds})
@@ -298,14 +304,6 @@ def _all_runs(out: Path, sc, experiment: str, fix: dict, name: str) -> pd.DataFr
             table = table[table[k].astype(str) == str(v)] if isinstance(v, str) else table[
                 np.isclose(pd.to_numeric(table[k], errors="coerce"), v)]
     return table.reset_index(drop=True)
-
-
-def _pooled_sd(counts: np.ndarray, std: np.ndarray) -> tuple[float, float]:
-    """(the seeds' standard deviation pooled over the points with two or more seeds, its degrees of
-    freedom); (0, 0) without such a point (a deterministic experiment)."""
-    multi = counts >= 2
-    dof = float(np.sum(counts[multi] - 1))
-    return (math.sqrt(np.sum((counts[multi] - 1) * std[multi] ** 2) / dof) if dof > 0 else 0.0), dof
 
 
 def _bootstrap(x, means, counts, std, increasing, target, uncertainty, n) -> tuple[float, float, float]:
@@ -496,3 +494,122 @@ def _minimum_figure(result: Calibration, stats: pd.DataFrame, out: Path) -> None
         ax.plot(grid, np.polyval(np.polyfit(x, means, 2), grid), "-", color="tab:green", label="parabola near the minimum")
     ax.set_ylabel(result.observable)
     _save_figure(plt, fig, ax, result, out)
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """What a calibration of one free parameter seeks, as ``calibrate`` checked it."""
+
+    experiment: str
+    target: float
+    uncertainty: float
+    fix: dict
+    name: str
+    lo: float
+    hi: float
+    observable: str
+    seeds: object
+    out: Path
+
+
+def _calibrate_multifidelity(problem: _Problem, fidelity, execution, progress: bool, say,
+                             share_settling: dict | None) -> Calibration:
+    """The multi-fidelity search of ``problem`` (``rollingdem.studies.multifidelity``: cheap runs, a
+    few full-size runs at the quartiles of the posterior, Kennedy and O'Hagan's model)."""
+    from rollingdem.studies.multifidelity import _crossing, _quantiles, corrected_model, posterior_on_grid
+    from rollingdem.studies.sweep import TABLE, failure_report, load_sweep, run_sweep
+
+    experiment, target, uncertainty, fix, name, lo, hi, observable, seeds, out = (
+        getattr(problem, f) for f in ("experiment", "target", "uncertainty", "fix", "name", "lo", "hi", "observable",
+                                      "seeds", "out"))
+
+    tic = time.perf_counter()
+    sc = get_experiment(experiment, observable=True, what="experiment")
+    fidelity.check()
+    if name in fidelity.cheap:
+        raise ParameterError(f"cheap = {name}={fidelity.cheap[name]!r} is not allowed: {name} is the free parameter")
+    cheap_fix = {**fix, **fidelity.cheap}
+    try:  # a cheap run that cannot be built is refused before any run
+        load_sweep({"experiment": experiment, "fixed": cheap_fix, "points": [{name: lo}], "seeds": seeds})
+    except ParameterError as err:
+        raise ParameterError(f"cheap = {fidelity.cheap} is not allowed: {err}") from None
+    what = ", ".join(f"{k} = {v}" for k, v in fidelity.cheap.items())
+
+    def sweep(xs, fixed, m):
+        spec = load_sweep({"experiment": experiment, "fixed": fixed, "points": [{name: float(v)} for v in xs],
+                           "seeds": seeds})
+        run_sweep(spec, out, mapper=m, progress=progress, summary=False, share_settling=share_settling)
+
+    def stats_of(fixed, kind, need):
+        table = _all_runs(out, sc, experiment, fixed, name)
+        report = failure_report(table, out / TABLE)
+        if report:
+            say(report)
+        stats = _point_stats(table, name, observable)
+        if len(stats) < need:
+            raise ParameterError(f"multi-fidelity calibration needs at least {need} {kind} points with a finite "
+                                 f"{observable}, and has {len(stats)}" + (f" (cheap runs: {what}): make them larger, "
+                                                                          "or calibrate with --fidelity single"
+                                                                          if kind == "cheap" else ""))
+        return table, stats
+
+    with execution.runner() as m:
+        say(f"cheap runs ({what}): {name} at {fidelity.cheap_points} points in [{lo:g}, {hi:g}]")
+        sweep(np.linspace(lo, hi, fidelity.cheap_points), cheap_fix, m)
+        cheap_table, cheap = stats_of(cheap_fix, "cheap", 3)
+        increasing = _direction(cheap)
+        predict, _ = corrected_model(cheap, None, lo, hi)
+        spacing = (hi - lo) / (fidelity.cheap_points - 1)
+        full_xs: list[float] = []
+        for r in range(fidelity.full_rounds):
+            grid, w, _ = posterior_on_grid(predict, target, uncertainty, lo, hi)
+            k = max(fidelity.full_points, 2) if r == 0 else fidelity.full_points
+            qs = _quantiles(grid, w, np.linspace(0.25, 0.75, k) if k > 1 else [0.5])
+            if k > 1 and qs[-1] - qs[0] < 0.25 * spacing:  # a narrow posterior: points a quarter spacing apart
+                mid = 0.5 * (qs[0] + qs[-1])
+                qs = list(np.clip(mid + 0.25 * spacing * np.linspace(-1, 1, k) * (0.5 ** r), lo, hi))
+            new = [v for v in qs if not np.isclose(v, full_xs, atol=1e-3 * (hi - lo)).any()]
+            say(f"full-size round {r + 1}: {name} at {', '.join(f'{v:.4g}' for v in new)}, the quartiles of its "
+                f"posterior{' from the cheap runs alone' if r == 0 else ''}")
+            full_xs += new
+            sweep(full_xs, fix, m)
+            full_table, full = stats_of(fix, "full-size", 1)
+            predict, discrepancy = corrected_model(cheap, full, lo, hi)
+    grid, w, mean = posterior_on_grid(predict, target, uncertainty, lo, hi)
+    low, high = _quantiles(grid, w, (0.025, 0.975))
+    value = _crossing(grid, mean, target, float(grid[np.argmax(w)]))
+    if math.isnan(value):
+        raise ParameterError(f"target = {target:g} is outside what {name} in [{lo:g}, {hi:g}] gives: the full-size model "
+                             f"gives {observable} from {mean.min():.4g} to {mean.max():.4g}; widen the range with --free "
+                             f"{name}=LOW:HIGH (runs kept in {out})")
+    d, d_sd = (float(v[0]) for v in discrepancy(np.array([value])))
+    cost = {kind: pd.to_numeric(t["wall_time_s"], errors="coerce") for kind, t in (("cheap", cheap_table),
+                                                                                   ("full", full_table))}
+    info = {"model": "full size = GP of the cheap runs + GP of the full-size residuals (Kennedy-O'Hagan, scale 1)",
+            "cheap": dict(fidelity.cheap), "cheap_runs": int(len(cheap_table)), "full_runs": int(len(full_table)),
+            "cheap_run_seconds": float(cost["cheap"].mean()), "full_run_seconds": float(cost["full"].mean()),
+            "offset": d, "offset_low": d - 1.96 * d_sd, "offset_high": d + 1.96 * d_sd,
+            "full_points": sorted(float(v) for v in full_xs)}
+    table = pd.concat([cheap_table.assign(fidelity="cheap"), full_table.assign(fidelity="full")], ignore_index=True)
+    result = Calibration(experiment, name, observable, target, uncertainty, value, low, high, fix,
+                         runs=int(len(table)), points=len(cheap) + len(full),
+                         seeds=load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: lo}],
+                                           "seeds": seeds}).seed_list,
+                         direction="increasing" if increasing else "decreasing",
+                         outside_fraction=float(w[[0, -1]].sum()), wall_time=time.perf_counter() - tic, table=table,
+                         fidelity=info, settle_seconds_saved=settle_saved(table))
+    plt, fig, ax = _figure_axes(result)
+    ax.plot(cheap_table[name], pd.to_numeric(cheap_table[observable], errors="coerce"), "x", color="0.6",
+            label=f"cheap runs ({what})")
+    ax.plot(full_table[name], pd.to_numeric(full_table[observable], errors="coerce"), "o", ms=4, color="tab:blue",
+            label="full-size runs")
+    m_full, s_full = predict(grid)
+    ax.plot(grid, m_full, "-", color="tab:green", label="full-size model (cheap + discrepancy)")
+    ax.fill_between(grid, m_full - 1.96 * s_full, m_full + 1.96 * s_full, color="tab:green", alpha=0.15)
+    _save_figure(plt, fig, ax, result, out)
+    (out / "calibration.json").write_text(json.dumps(result.as_dict(), indent=2, default=float))
+    say(f"{name} = {value:.5g}, 95 % interval [{low:.5g}, {high:.5g}] for {observable} = {target:g} ± {uncertainty:g}: "
+        f"{info['cheap_runs']} cheap runs ({info['cheap_run_seconds']:.1f} s each) and {info['full_runs']} full-size "
+        f"({info['full_run_seconds']:.1f} s each); at {name} = {value:.4g} the full size reads {d:+.3g} against the "
+        f"cheap runs (95 %: {info['offset_low']:+.3g} to {info['offset_high']:+.3g}); {result.wall_time:.0f} s; {out}")
+    return result

@@ -26,6 +26,7 @@ import pandas as pd
 from rollingdem.experiments import get_experiment
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_output_path
 from rollingdem.studies.parallel import Execution
+from rollingdem.studies.surrogates import fit_surrogate
 from rollingdem.studies.sweep import TABLE, failure_report
 
 __all__ = ["Target", "JointSearch", "JointCalibration", "calibrate_joint", "parse_target", "posterior_grid",
@@ -190,32 +191,6 @@ def _check(targets, free, fix):
     return targets, box, per_experiment
 
 
-def fit_surrogate(x_unit: np.ndarray, mean: np.ndarray, var_of_mean: np.ndarray):
-    """A Gaussian process of the observable's mean over the unit box: constant x anisotropic RBF
-    kernel (scikit-learn), each point's noise its mean's variance (seed scatter / runs). Returns a
-    function ``x_unit -> (mean, std)`` of the latent mean."""
-    import warnings
-
-    from sklearn.exceptions import ConvergenceWarning
-    from sklearn.gaussian_process import GaussianProcessRegressor
-    from sklearn.gaussian_process.kernels import RBF, ConstantKernel
-
-    x_unit = np.atleast_2d(np.asarray(x_unit, float))
-    y = np.asarray(mean, float)
-    shift, scale = float(y.mean()), float(y.std()) or 1.0
-    kernel = ConstantKernel(1.0, (1e-3, 1e3)) * RBF(np.full(x_unit.shape[1], 0.3), (0.03, 100.0))
-    gp = GaussianProcessRegressor(kernel, alpha=np.maximum(np.asarray(var_of_mean, float) / scale ** 2, 1e-8),
-                                  n_restarts_optimizer=3, random_state=0, normalize_y=False)
-    with warnings.catch_warnings():  # a length scale at its bound: an observable nearly linear in a parameter
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        gp.fit(x_unit, (y - shift) / scale)
-
-    def predict(xq):
-        m, s = gp.predict(np.atleast_2d(xq), return_std=True)
-        return m * scale + shift, s * scale
-    return predict
-
-
 def _grid(d: int) -> np.ndarray:
     """Cell centres of the unit box: a regular grid for up to 3 parameters, a Sobol sample above."""
     if d in GRID:
@@ -337,8 +312,8 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
     info = None
     with execution.runner() as m:
         if fidelity is not None:
-            tables, surrogates, stats, info = _multifidelity(fidelity, targets, experiments, fixed, names, lows,
-                                                             highs, seed_count, search, out, m, progress, say)
+            tables, surrogates, stats, info = _multifidelity(fidelity, targets, experiments, fixed, (names, lows, highs),
+                                                             seed_count, search, out, m, progress, say)
             cells, weights, means, stds = posterior_grid(surrogates, targets, d)
             _check_reach(targets, means, stds, box, out)
         for r in range(search.rounds + 1 if fidelity is None else 0):
@@ -374,21 +349,23 @@ def _matching(table: pd.DataFrame, values: dict) -> pd.DataFrame:
     return table[keep]
 
 
-def _multifidelity(fidelity, targets, experiments, fixed, names, lows, highs, seed_count, search, out, m, progress,
-                   say):
+def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, search, out, m, progress, say):
     """The multi-fidelity search: a Latin hypercube of cheap runs and a surrogate per target from
     them, then full-size points where the posterior is high and the model unsure (first from the
     cheap surrogates alone), each target's model the cheap surrogate plus a Gaussian process of
     the full-size residuals (``multifidelity.with_discrepancy``). Returns (the full-size runs per
-    experiment, the surrogates, their point statistics, what ran of each kind)."""
+    experiment, the surrogates, their point statistics, what ran of each kind). ``box``: the free
+    parameters' (names, lows, highs)."""
     from scipy.stats import qmc
 
-    from rollingdem.studies.multifidelity import JointFidelity, with_discrepancy
+    from rollingdem.studies.multifidelity import JointFidelity
+    from rollingdem.studies.surrogates import with_discrepancy
     from rollingdem.studies.sweep import load_sweep, run_sweep
 
     if not isinstance(fidelity, JointFidelity):
         raise ParameterError(f"fidelity = {fidelity!r} is not allowed: must be a "
                              "rollingdem.studies.multifidelity.JointFidelity")
+    names, lows, highs = box
     d = len(names)
     fidelity.check(d, experiments)
     cheap_fix = {c: {**fixed[c], **fidelity.cheap.get(c, {})} for c in experiments}

@@ -15,19 +15,16 @@ the posterior's 2.5-97.5 percentiles. docs/studies.md, "Multi-fidelity calibrati
 
 from __future__ import annotations
 
-import json
 import math
-import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from rollingdem.errors import ParameterError
-from rollingdem.studies.calibration import Calibration, _direction, _point_stats, _pooled_sd
+from rollingdem.studies.surrogates import fit_surrogate, pooled_sd, with_discrepancy
 
-__all__ = ["Fidelity", "JointFidelity", "cheap_default", "corrected_model", "posterior_on_grid", "with_discrepancy"]
+__all__ = ["Fidelity", "JointFidelity", "cheap_default", "corrected_model", "posterior_on_grid"]
 
 
 @dataclass(frozen=True)
@@ -104,13 +101,11 @@ def corrected_model(cheap: pd.DataFrame, full: pd.DataFrame | None, lo: float, h
     (without full-size runs: g alone, and None).
     A point's noise is its mean's variance, the seeds' scatter pooled over the points of its
     fidelity divided by its runs; the residuals' adds the cheap model's variance there."""
-    from rollingdem.studies.joint_calibration import fit_surrogate
-
     def unit(x):
         return ((np.asarray(x, float) - lo) / (hi - lo))[:, None]
 
     def noise(stats):
-        pooled, _ = _pooled_sd(stats["count"].to_numpy(float), stats["std"].fillna(0.0).to_numpy())
+        pooled, _ = pooled_sd(stats["count"].to_numpy(float), stats["std"].fillna(0.0).to_numpy())
         return pooled ** 2 / stats["count"].to_numpy(float)
 
     g = fit_surrogate(unit(cheap["x"]), cheap["mean"].to_numpy(float), noise(cheap))
@@ -118,31 +113,6 @@ def corrected_model(cheap: pd.DataFrame, full: pd.DataFrame | None, lo: float, h
         return (lambda x: g(unit(x))), None
     predict, delta = with_discrepancy(g, unit(full["x"]), full["mean"].to_numpy(float), noise(full))
     return (lambda x: predict(unit(x))), (lambda x: delta(unit(x)))
-
-
-def with_discrepancy(g, x_full: np.ndarray, full_mean: np.ndarray, full_var: np.ndarray):
-    """The full-size model g + delta over the unit box: delta a Gaussian process of the full-size
-    means' residuals from the cheap surrogate g (a function ``x_unit -> (mean, std)``) at
-    ``x_full``, each residual's noise its mean's variance plus g's there. The surrogate takes the
-    residuals' mean as its known prior mean: the variance of that mean is added to delta's.
-    Returns (``x_unit -> (mean, std)`` of g + delta, the same of delta)."""
-    from rollingdem.studies.joint_calibration import fit_surrogate
-
-    g_at, g_sd = g(x_full)
-    residual_var = np.asarray(full_var, float) + g_sd ** 2
-    fit = fit_surrogate(x_full, np.asarray(full_mean, float) - g_at, residual_var)
-    mean_var = float(residual_var.sum()) / len(residual_var) ** 2
-
-    def delta(x):
-        m, s = fit(x)
-        return m, np.sqrt(s ** 2 + mean_var)
-
-    def predict(x):
-        m1, s1 = g(x)
-        m2, s2 = delta(x)
-        return m1 + m2, np.sqrt(s1 ** 2 + s2 ** 2)
-
-    return predict, delta
 
 
 def posterior_on_grid(predict, target: float, uncertainty: float, lo: float, hi: float, n: int = GRID):
@@ -170,106 +140,3 @@ def _crossing(x, m, target: float, near: float) -> float:
         return math.nan
     roots = x[k] + (x[k + 1] - x[k]) * d[k] / np.where(d[k] == d[k + 1], 1.0, d[k] - d[k + 1])
     return float(roots[np.argmin(abs(roots - near))])
-
-
-def calibrate_multifidelity(experiment: str, target: float, uncertainty: float, fix: dict, name: str, lo: float,
-                            hi: float, observable: str, seeds: int, fidelity: Fidelity, out: Path, execution,
-                            progress: bool, say, share_settling: dict | None = None) -> Calibration:
-    """The multi-fidelity search (module docstring) of ``name`` in [lo, hi]; arguments checked by
-    ``rollingdem.studies.calibration.calibrate``, which calls it."""
-    from rollingdem.experiments import get_experiment
-    from rollingdem.studies.calibration import _all_runs, _figure_axes, _save_figure
-    from rollingdem.studies.sweep import TABLE, failure_report, load_sweep, run_sweep
-
-    tic = time.perf_counter()
-    sc = get_experiment(experiment, observable=True, what="experiment")
-    fidelity.check()
-    if name in fidelity.cheap:
-        raise ParameterError(f"cheap = {name}={fidelity.cheap[name]!r} is not allowed: {name} is the free parameter")
-    cheap_fix = {**fix, **fidelity.cheap}
-    try:  # a cheap run that cannot be built is refused before any run
-        load_sweep({"experiment": experiment, "fixed": cheap_fix, "points": [{name: lo}], "seeds": seeds})
-    except ParameterError as err:
-        raise ParameterError(f"cheap = {fidelity.cheap} is not allowed: {err}") from None
-    what = ", ".join(f"{k} = {v}" for k, v in fidelity.cheap.items())
-
-    def sweep(xs, fixed, m):
-        spec = load_sweep({"experiment": experiment, "fixed": fixed, "points": [{name: float(v)} for v in xs],
-                           "seeds": seeds})
-        run_sweep(spec, out, mapper=m, progress=progress, summary=False, share_settling=share_settling)
-
-    def stats_of(fixed, kind, need):
-        table = _all_runs(out, sc, experiment, fixed, name)
-        report = failure_report(table, out / TABLE)
-        if report:
-            say(report)
-        stats = _point_stats(table, name, observable)
-        if len(stats) < need:
-            raise ParameterError(f"multi-fidelity calibration needs at least {need} {kind} points with a finite "
-                                 f"{observable}, and has {len(stats)}" + (f" (cheap runs: {what}): make them larger, "
-                                                                          "or calibrate with --fidelity single"
-                                                                          if kind == "cheap" else ""))
-        return table, stats
-
-    with execution.runner() as m:
-        say(f"cheap runs ({what}): {name} at {fidelity.cheap_points} points in [{lo:g}, {hi:g}]")
-        sweep(np.linspace(lo, hi, fidelity.cheap_points), cheap_fix, m)
-        cheap_table, cheap = stats_of(cheap_fix, "cheap", 3)
-        increasing = _direction(cheap)
-        predict, _ = corrected_model(cheap, None, lo, hi)
-        spacing = (hi - lo) / (fidelity.cheap_points - 1)
-        full_xs: list[float] = []
-        for r in range(fidelity.full_rounds):
-            grid, w, _ = posterior_on_grid(predict, target, uncertainty, lo, hi)
-            k = max(fidelity.full_points, 2) if r == 0 else fidelity.full_points
-            qs = _quantiles(grid, w, np.linspace(0.25, 0.75, k) if k > 1 else [0.5])
-            if k > 1 and qs[-1] - qs[0] < 0.25 * spacing:  # a narrow posterior: points a quarter spacing apart
-                mid = 0.5 * (qs[0] + qs[-1])
-                qs = list(np.clip(mid + 0.25 * spacing * np.linspace(-1, 1, k) * (0.5 ** r), lo, hi))
-            new = [v for v in qs if not np.isclose(v, full_xs, atol=1e-3 * (hi - lo)).any()]
-            say(f"full-size round {r + 1}: {name} at {', '.join(f'{v:.4g}' for v in new)}, the quartiles of its "
-                f"posterior{' from the cheap runs alone' if r == 0 else ''}")
-            full_xs += new
-            sweep(full_xs, fix, m)
-            full_table, full = stats_of(fix, "full-size", 1)
-            predict, discrepancy = corrected_model(cheap, full, lo, hi)
-    grid, w, mean = posterior_on_grid(predict, target, uncertainty, lo, hi)
-    low, high = _quantiles(grid, w, (0.025, 0.975))
-    value = _crossing(grid, mean, target, float(grid[np.argmax(w)]))
-    if math.isnan(value):
-        raise ParameterError(f"target = {target:g} is outside what {name} in [{lo:g}, {hi:g}] gives: the full-size model "
-                             f"gives {observable} from {mean.min():.4g} to {mean.max():.4g}; widen the range with --free "
-                             f"{name}=LOW:HIGH (runs kept in {out})")
-    d, d_sd = (float(v[0]) for v in discrepancy(np.array([value])))
-    cost = {kind: pd.to_numeric(t["wall_time_s"], errors="coerce") for kind, t in (("cheap", cheap_table),
-                                                                                   ("full", full_table))}
-    info = {"model": "full size = GP of the cheap runs + GP of the full-size residuals (Kennedy-O'Hagan, scale 1)",
-            "cheap": dict(fidelity.cheap), "cheap_runs": int(len(cheap_table)), "full_runs": int(len(full_table)),
-            "cheap_run_seconds": float(cost["cheap"].mean()), "full_run_seconds": float(cost["full"].mean()),
-            "offset": d, "offset_low": d - 1.96 * d_sd, "offset_high": d + 1.96 * d_sd,
-            "full_points": sorted(float(v) for v in full_xs)}
-    table = pd.concat([cheap_table.assign(fidelity="cheap"), full_table.assign(fidelity="full")], ignore_index=True)
-    from rollingdem.studies.calibration import settle_saved
-
-    result = Calibration(experiment, name, observable, target, uncertainty, value, low, high, fix,
-                         runs=int(len(table)), points=len(cheap) + len(full),
-                         seeds=load_sweep({"experiment": experiment, "fixed": fix, "points": [{name: lo}],
-                                           "seeds": seeds}).seed_list,
-                         direction="increasing" if increasing else "decreasing",
-                         outside_fraction=float(w[[0, -1]].sum()), wall_time=time.perf_counter() - tic, table=table,
-                         fidelity=info, settle_seconds_saved=settle_saved(table))
-    plt, fig, ax = _figure_axes(result)
-    ax.plot(cheap_table[name], pd.to_numeric(cheap_table[observable], errors="coerce"), "x", color="0.6",
-            label=f"cheap runs ({what})")
-    ax.plot(full_table[name], pd.to_numeric(full_table[observable], errors="coerce"), "o", ms=4, color="tab:blue",
-            label="full-size runs")
-    m_full, s_full = predict(grid)
-    ax.plot(grid, m_full, "-", color="tab:green", label="full-size model (cheap + discrepancy)")
-    ax.fill_between(grid, m_full - 1.96 * s_full, m_full + 1.96 * s_full, color="tab:green", alpha=0.15)
-    _save_figure(plt, fig, ax, result, out)
-    (out / "calibration.json").write_text(json.dumps(result.as_dict(), indent=2, default=float))
-    say(f"{name} = {value:.5g}, 95 % interval [{low:.5g}, {high:.5g}] for {observable} = {target:g} ± {uncertainty:g}: "
-        f"{info['cheap_runs']} cheap runs ({info['cheap_run_seconds']:.1f} s each) and {info['full_runs']} full-size "
-        f"({info['full_run_seconds']:.1f} s each); at {name} = {value:.4g} the full size reads {d:+.3g} against the "
-        f"cheap runs (95 %: {info['offset_low']:+.3g} to {info['offset_high']:+.3g}); {result.wall_time:.0f} s; {out}")
-    return result

@@ -5,7 +5,7 @@ The model is Kennedy and O'Hagan's autoregressive one (Biometrika 87, 2000) with
 at one: the full-size observable is y(x) = g(x) + delta(x), where g is a Gaussian process of the
 cheap runs' means over seeds and delta a Gaussian process of the full-size runs' residuals from
 g (each a constant times a squared-exponential kernel, each point's noise its mean's variance:
-``rollingdem.studies.joint_calibration.fit_surrogate``). Away from the full-size runs delta
+``rollingdem.studies.surrogates.fit_surrogate``). Away from the full-size runs delta
 reverts to their mean residual, the offset between the fidelities. The free parameter's
 posterior (uniform prior on its range, Gaussian likelihood with the target's uncertainty and the
 model's) is evaluated on a grid; full-size runs go to its quartiles, round after round. The
@@ -32,7 +32,7 @@ class Fidelity:
     """The cheap runs and how many of each kind: ``cheap`` are the parameters that make a run cheap
     (e.g. ``{"count": 400}``: a smaller scene, or ``{"coarse_graining": 2}``: parcels); ``cheap_points``
     points of them (>= 3) span the range; then ``full_rounds`` rounds (>= 1) of ``full_points``
-    full-size points (>= 1; >= 2 in the first round) where the corrected surrogate crosses the target."""
+    full-size points (>= 1; >= 2 in the first round) at the quartiles of the parameter's posterior."""
 
     cheap: dict = field(default_factory=dict)
     cheap_points: int = 7

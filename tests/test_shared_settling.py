@@ -9,14 +9,14 @@ import pytest
 import rollingdem as rd
 from rollingdem.errors import ParameterError
 
+from test_measurements import _material as measurements_material
+
 G = 9.81
 
 
 def _material(**kw):
-    p = dict(youngs_modulus=5e6, poisson_ratio=0.3, density=1000.0, friction=0.8, rolling_friction=0.5,
-             restitution=0.5, rolling_damping=0.0)
-    p.update(kw)
-    return rd.Material("m", **p)
+    """Table 1's spheres (test_measurements), stiff to sliding (mu = 0.8), held by mu_r = 0.5."""
+    return measurements_material(**{"friction": 0.8, "rolling_friction": 0.5, "rolling_damping": 0.0, **kw})
 
 
 def test_a_new_rolling_friction_frees_a_sphere_held_on_a_slope():
@@ -40,7 +40,7 @@ def test_a_new_rolling_friction_frees_a_sphere_held_on_a_slope():
     sim.run(0.1)
     expected = 5.0 / 7.0 * G * (math.sin(beta) - 0.05 * math.cos(beta)) * 0.1
     assert sim.velocities[0, 0] - v0 == pytest.approx(expected, rel=0.02)
-    with pytest.raises(ParameterError, match="material 'm': density = 2000 is not allowed: it is 1000"):
+    with pytest.raises(ParameterError, match="material 'm': density = 2000 is not allowed: it is 1056"):
         sim.set_material(_material(density=2000.0))
     with pytest.raises(ParameterError, match="material = 'glass' is not known"):
         sim.set_material(rd.Material("glass", 5e6, 0.3, 1000.0, friction=0.5))

@@ -143,15 +143,9 @@ class Measurement(Observer):
         t, (t0, t1), sel = self._in_window()
         data = np.array([r[2] for r in self._rows], float).reshape(len(t), -1)
         out = {"kind": self.kind, "what": self.describe(), "samples": int(sel.sum()), "window": [float(t0), float(t1)]}
-        names = list(self.QUANTITIES)
         for k, (q, unit) in enumerate(self.QUANTITIES.items()):
             entry = {"unit": unit, "final": float(data[-1, k])}
-            if q in self.RATES:
-                mean, err = slope_with_error(t[sel], data[sel, names.index(self.RATES[q])])
-            else:
-                vals = data[sel, k]
-                mean = float(np.nanmean(vals)) if np.isfinite(vals).any() else math.nan
-                err = batch_standard_error(vals)
+            mean, err = self._mean_and_error(q, t[sel], data[sel])
             out[q] = entry | {"mean": mean, "standard_error": err,
                               "value": entry["final"] if q in self.CUMULATIVE else mean}
         return out
@@ -163,7 +157,6 @@ class Measurement(Observer):
         if quantity in self.CUMULATIVE:
             raise ParameterError(f"{self.name}.{quantity} is not allowed here: its value is the last sample's (a "
                                  "cumulative or end-state quantity), not a mean over samples")
-        names = list(self.QUANTITIES)
         t = np.array([r[0] for r in self._rows])
         keep = t >= since - 1e-12
         if self.window is not None:
@@ -171,13 +164,16 @@ class Measurement(Observer):
         if not keep.any():
             return math.nan, math.nan, 0
         data = np.array([r[2] for r in self._rows], float).reshape(len(t), -1)[keep]
+        return (*self._mean_and_error(quantity, t[keep], data), int(keep.sum()))
+
+    def _mean_and_error(self, quantity: str, t: np.ndarray, data: np.ndarray) -> tuple[float, float]:
+        """(mean, standard error) of ``quantity`` over the samples at times ``t`` (rows of ``data``): a
+        rate's least-squares slope of its cumulative quantity, else the mean and its batch-means error."""
+        names = list(self.QUANTITIES)
         if quantity in self.RATES:
-            mean, err = slope_with_error(t[keep], data[:, names.index(self.RATES[quantity])])
-        else:
-            vals = data[:, names.index(quantity)]
-            mean = float(np.nanmean(vals)) if np.isfinite(vals).any() else math.nan
-            err = batch_standard_error(vals)
-        return mean, err, int(keep.sum())
+            return slope_with_error(t, data[:, names.index(self.RATES[quantity])])
+        vals = data[:, names.index(quantity)]
+        return (float(np.nanmean(vals)) if np.isfinite(vals).any() else math.nan), batch_standard_error(vals)
 
     def _in_window(self):
         """(the samples' times, the summary's window (t0, t1), which samples lie in it); samples exist."""

@@ -159,8 +159,8 @@ class Known(Condition):
     over the samples since the run (the stage) began and inside its window, from the batch means
     of ``rollingdem.io.measurements`` (t with 9 degrees of freedom times the standard error), is
     +- ``within`` or narrower, over ``min_samples`` samples at least (20 at the least: two per
-    batch). A rate's interval is that of its slope. What a calibration stops a run on, so that a
-    drum's angle is sampled until it is known, not for a fixed time."""
+    batch). A rate's interval is that of its slope. The rotating drum's ``angle_within`` ends its
+    measuring turn on it, so that the angle is sampled until it is known, not for a fixed turn."""
 
     def __init__(self, measurement, quantity: str, within: float, every: float = 1e-3, min_samples: int = 20):
         super().__init__(every)

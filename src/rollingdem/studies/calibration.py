@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, astuple, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -295,15 +295,11 @@ def _usable(out: Path, sc, experiment: str, fix: dict, name: str, observable: st
 
 def _all_runs(out: Path, sc, experiment: str, fix: dict, name: str) -> pd.DataFrame:
     """The runs of this calibration in the table (same experiment and fixed parameters)."""
-    from rollingdem.studies.sweep import TABLE, read_table
+    from rollingdem.studies.sweep import TABLE, read_table, rows_matching
 
-    table = read_table(out / TABLE, sc)
     resolved = sc.resolve({**fix, name: sc.by_name[name].default})
-    for k, v in resolved.items():
-        if k not in (name, "seed"):
-            table = table[table[k].astype(str) == str(v)] if isinstance(v, str) else table[
-                np.isclose(pd.to_numeric(table[k], errors="coerce"), v)]
-    return table.reset_index(drop=True)
+    return rows_matching(read_table(out / TABLE, sc),
+                         {k: v for k, v in resolved.items() if k not in (name, "seed")}).reset_index(drop=True)
 
 
 def _bootstrap(x, means, counts, std, increasing, target, uncertainty, n) -> tuple[float, float, float]:
@@ -519,9 +515,7 @@ def _calibrate_multifidelity(problem: _Problem, fidelity, execution, progress: b
     from rollingdem.studies.multifidelity import _crossing, _quantiles, corrected_model, posterior_on_grid
     from rollingdem.studies.sweep import TABLE, failure_report, load_sweep, run_sweep
 
-    experiment, target, uncertainty, fix, name, lo, hi, observable, seeds, out = (
-        getattr(problem, f) for f in ("experiment", "target", "uncertainty", "fix", "name", "lo", "hi", "observable",
-                                      "seeds", "out"))
+    experiment, target, uncertainty, fix, name, lo, hi, observable, seeds, out = astuple(problem)
 
     tic = time.perf_counter()
     sc = get_experiment(experiment, observable=True, what="experiment")

@@ -27,7 +27,7 @@ from rollingdem.experiments import get_experiment
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_output_path
 from rollingdem.studies.parallel import Execution
 from rollingdem.studies.surrogates import fit_surrogate
-from rollingdem.studies.sweep import TABLE, failure_report
+from rollingdem.studies.sweep import TABLE, failure_report, rows_matching
 
 __all__ = ["Target", "JointSearch", "JointCalibration", "calibrate_joint", "parse_target", "posterior_grid",
            "fit_surrogate"]
@@ -338,17 +338,6 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
     return result
 
 
-def _matching(table: pd.DataFrame, values: dict) -> pd.DataFrame:
-    """The rows of a runs table whose parameters equal ``values``."""
-    keep = np.ones(len(table), bool)
-    for k, v in values.items():
-        if isinstance(v, str):
-            keep &= table[k].astype(str).to_numpy() == v
-        else:
-            keep &= np.isclose(pd.to_numeric(table[k], errors="coerce").to_numpy(float), float(v))
-    return table[keep]
-
-
 def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, search, out, m, progress, say):
     """The multi-fidelity search: a Latin hypercube of cheap runs and a surrogate per target from
     them, then full-size points where the posterior is high and the model unsure (first from the
@@ -402,7 +391,7 @@ def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, searc
         + "; ".join(f"{c}: {', '.join(f'{k} = {v}' for k, v in v_.items())}" for c, v_ in fidelity.cheap.items()) + ")")
     cheap_design = list(qmc.LatinHypercube(d=d, seed=0).random(cheap_n))
     tables = sweep(cheap_design, cheap_fix)
-    cheap_tables = {c: _matching(t, fidelity.cheap.get(c, {})) for c, t in tables.items()}
+    cheap_tables = {c: rows_matching(t, fidelity.cheap.get(c, {})) for c, t in tables.items()}
     cheap_surrogates, _ = _surrogates(cheap_tables, targets, names, lows, highs)
     surrogates = cheap_surrogates
     full_design: list = []
@@ -414,7 +403,7 @@ def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, searc
         full_design += list(new)
         tables = sweep(full_design, fixed)
         # an experiment without cheap settings ran its cheap points at full size: they join its full-size runs
-        full_tables = {c: _matching(t, full_of[c]) if c in fidelity.cheap else
+        full_tables = {c: rows_matching(t, full_of[c]) if c in fidelity.cheap else
                        pd.concat([cheap_tables[c], t], ignore_index=True).drop_duplicates("run_id")
                        for c, t in tables.items()}
         full_surrogates, stats = _surrogates(full_tables, targets, names, lows, highs, fit=False)

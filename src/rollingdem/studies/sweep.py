@@ -27,7 +27,7 @@ from rollingdem.experiments import Experiment, get_experiment
 from rollingdem.errors import ParameterError, check_output_path
 from rollingdem.analysis.intervals import confidence_interval
 
-__all__ = ["SweepSpec", "SweepResult", "failure_report", "load_sweep", "expand", "run_sweep", "summarize"]
+__all__ = ["SweepSpec", "SweepResult", "failure_report", "load_sweep", "expand", "rows_matching", "run_sweep", "summarize"]
 
 TABLE = "runs.csv"
 BOOKKEEPING = ("run_id", "experiment", "status")
@@ -260,6 +260,17 @@ def failure_report(table: pd.DataFrame, path: Path) -> str | None:
             f"are in {path} (column error)")
 
 
+def rows_matching(table: pd.DataFrame, values: dict) -> pd.DataFrame:
+    """The rows of a runs table whose parameters equal ``values`` (numbers to round-off)."""
+    keep = np.ones(len(table), bool)
+    for k, v in values.items():
+        if isinstance(v, str):
+            keep &= table[k].astype(str).to_numpy() == v
+        else:
+            keep &= np.isclose(pd.to_numeric(table[k], errors="coerce").to_numpy(float), float(v))
+    return table[keep]
+
+
 def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = None, threads: int = 1,
               progress: bool = True, retry_failed: bool = False, mapper=None, summary: bool = True,
               echo=None, on_run=None, share_settling: dict | None = None) -> SweepResult:
@@ -278,6 +289,9 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     check_workers(workers, threads)
     spec = load_sweep(spec)
     experiment = get_experiment(spec.experiment, observable=True, what="experiment")
+    if share_settling and not hasattr(experiment, "share_settling"):
+        raise ParameterError(f"share_settling is not allowed for experiment {spec.experiment!r}: it has no settling "
+                             "stage to share (repose-rough-base has)")
     out = check_output_path("out", out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / TABLE
@@ -291,9 +305,6 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     if hasattr(experiment, "prepare_in"):  # a case file: runs that share their first stages share them
         experiment.prepare_in(out / "prepared")
     if share_settling:
-        if not hasattr(experiment, "share_settling"):
-            raise ParameterError(f"share_settling is not allowed for experiment {spec.experiment!r}: it has no "
-                                 "settling stage to share (repose-rough-base has)")
         experiment = experiment.share_settling(out / "settled", share_settling)
     ids = [run_id(spec.experiment, p) for p in runs]
     done = set(table["run_id"])

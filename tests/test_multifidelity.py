@@ -69,6 +69,13 @@ def test_inclined_wall_through_coarse_bisections_gives_back_tan_beta(tmp_path):
     assert info["cheap_runs"] == 7 and info["full_runs"] == 4 and res.runs == 11
     saved = json.loads((tmp_path / "calibration.json").read_text())
     assert saved["fidelity"]["full_runs"] == 4 and (tmp_path / "calibration.png").exists()
+    # the model as written, between the full-size points: atan(mu_r) within its 95 % band plus the
+    # full-size runs' bisection tolerance (0.2 % of 20 deg = 0.04 deg)
+    model = pd.read_csv(tmp_path / saved["fidelity"]["model_file"])
+    near = model[(model["mur"] >= below) & (model["mur"] <= above)]
+    assert len(near) >= 5
+    exact_there = np.degrees(np.arctan(near["mur"]))
+    assert (abs(near["critical_angle_mean"] - exact_there) <= 1.96 * near["critical_angle_std"] + 0.04).all()
 
 
 def test_multifidelity_refuses_what_it_cannot_do(tmp_path):

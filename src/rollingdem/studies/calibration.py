@@ -583,7 +583,12 @@ def _calibrate_multifidelity(problem: _Problem, fidelity, execution, progress: b
             "cheap": dict(fidelity.cheap), "cheap_runs": int(len(cheap_table)), "full_runs": int(len(full_table)),
             "cheap_run_seconds": float(cost["cheap"].mean()), "full_run_seconds": float(cost["full"].mean()),
             "offset": d, "offset_low": d - 1.96 * d_sd, "offset_high": d + 1.96 * d_sd,
-            "full_points": sorted(float(v) for v in full_xs)}
+            "full_points": sorted(float(v) for v in full_xs),
+            "full_seed_sd": _pooled_sd(full["count"].to_numpy(float), full["std"].fillna(0.0).to_numpy())[0],
+            "model_file": "model.csv"}
+    m_full, s_full = predict(grid)
+    pd.DataFrame({name: grid, f"{observable}_mean": m_full, f"{observable}_std": s_full}).to_csv(out / "model.csv",
+                                                                                                 index=False)
     table = pd.concat([cheap_table.assign(fidelity="cheap"), full_table.assign(fidelity="full")], ignore_index=True)
     result = Calibration(experiment, name, observable, target, uncertainty, value, low, high, fix,
                          runs=int(len(table)), points=len(cheap) + len(full),
@@ -597,7 +602,6 @@ def _calibrate_multifidelity(problem: _Problem, fidelity, execution, progress: b
             label=f"cheap runs ({what})")
     ax.plot(full_table[name], pd.to_numeric(full_table[observable], errors="coerce"), "o", ms=4, color="tab:blue",
             label="full-size runs")
-    m_full, s_full = predict(grid)
     ax.plot(grid, m_full, "-", color="tab:green", label="full-size model (cheap + discrepancy)")
     ax.fill_between(grid, m_full - 1.96 * s_full, m_full + 1.96 * s_full, color="tab:green", alpha=0.15)
     _save_figure(plt, fig, ax, result, out)

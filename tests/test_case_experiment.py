@@ -67,6 +67,19 @@ def test_a_case_files_parameters_and_observables(tmp_path):
         exp.resolve({"density": 1.0, "materials.glass.density": 2.0})
 
 
+def test_coarse_graining_is_a_short_name_of_the_one_material_written_or_not(tmp_path):
+    """A file that leaves coarse_graining out means 1 (no parcels); the short name sets the
+    material's, adding the key; a value the material refuses is refused as the file would be."""
+    case = tmp_path / "beads.yaml"
+    case.write_text(CASE)
+    exp = get_experiment(str(case), observable=True)
+    assert exp.by_name["coarse_graining"].default == 1.0
+    data = exp.case_data(exp.resolve({"coarse_graining": 2.0}))
+    assert data["materials"][0]["coarse_graining"] == 2.0
+    with pytest.raises(ParameterError, match="beads.yaml with coarse_graining = 0.5: .*coarse_graining"):
+        exp.resolve({"coarse_graining": 0.5})
+
+
 def test_a_sweep_of_a_case_file_measures_what_each_density_gives(tmp_path):
     """The probe's mass is 8 (4/3) pi r^3 rho: the sweep over rho through the short name gives it
     to round-off; the floor carries the spheres' weight (a 2 ms rest: within the 1 % their settling

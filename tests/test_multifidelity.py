@@ -113,6 +113,33 @@ def test_the_command_refuses_a_fidelity_it_cannot_build_in_one_line(args, words,
     assert len(res.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.parametrize("case_file", [False, True])
+def test_cheap_parcels_wider_than_the_silo_orifice_are_refused_before_any_run(case_file, tmp_path):
+    """Parcels of alpha = 6 of spheres 8-12 mm across are up to 72 mm wide; the silo's orifice is 60
+    mm (6 d): none could pass, so the cheap runs cannot be built. The built-in silo and its case
+    file (which does not write coarse_graining: the short name sets the one material's) are both
+    refused in one line, exit 2, before any run (no output folder)."""
+    import shutil
+    import subprocess
+    import sys
+
+    from rollingdem.experiments.case_file import shipped_cases
+
+    if case_file:
+        shutil.copy(shipped_cases()["silo"], tmp_path / "silo.yaml")
+        where = [str(tmp_path / "silo.yaml"), "--target", "discharge.rate=0.5±0.01"]
+        words = "silo: coarse_graining = 6 is not allowed with its opening"
+    else:
+        where = ["--experiment", "silo-discharge", "--target", "0.5", "--uncertainty", "0.01"]
+        words = "orifice_diameters = 6 is not allowed with coarse_graining = 6"
+    res = subprocess.run([sys.executable, "-m", "rollingdem.cli", "calibrate", *where, "--free", "mur=0:0.5",
+                          "--fidelity", "multi", "--cheap", "coarse_graining=6", "--out", str(tmp_path / "cal"),
+                          "--no-progress"], capture_output=True, text=True)
+    assert res.returncode == 2 and words in res.stderr and "Traceback" not in res.stderr, res.stderr
+    assert res.stderr.startswith("error: cheap = {'coarse_graining': 6} is not allowed")
+    assert len(res.stderr.strip().splitlines()) == 1 and not (tmp_path / "cal").exists()
+
+
 @pytest.mark.slow
 def test_a_wall_and_a_flat_roll_calibrated_jointly_through_cheap_bisections_give_back_the_true_point(tmp_path):
     """Two targets, two free parameters: the inclined wall's critical angle (atan mu_r, 20 deg +- 0.1)

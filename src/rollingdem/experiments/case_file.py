@@ -25,7 +25,9 @@ from rollingdem.experiments.registry import (CASE_FILE_SUFFIXES, EXPERIMENTS, FI
 
 #: Short names of a one-material file's coefficients, as the built-in experiments name them.
 ALIASES = {"mu": "friction", "mur": "rolling_friction", "e": "restitution", "eta_r": "rolling_damping",
-           "E": "youngs_modulus", "nu": "poisson_ratio", "density": "density"}
+           "E": "youngs_modulus", "nu": "poisson_ratio", "density": "density", "coarse_graining": "coarse_graining"}
+#: the short names a file may leave out, with the value it then means (the case file's default)
+UNWRITTEN = {"coarse_graining": 1.0}
 SUFFIXES = CASE_FILE_SUFFIXES
 PILE = ("angle", "r_squared", "slice_mean", "slice_std")
 
@@ -74,8 +76,16 @@ def _locate(data, path: str):
 
 
 def set_path(data, path: str, value) -> None:
-    """Set the number at ``path`` (``numeric_leaves``'s names) in ``data``, in place."""
-    holder, key = _locate(data, path)
+    """Set the number at ``path`` (``numeric_leaves``'s names) in ``data``, in place; a key a
+    mapping lacks is added."""
+    try:
+        holder, key = _locate(data, path)
+    except KeyError:
+        parent, _, key = path.rpartition(".")
+        outer, at = _locate(data, parent)
+        holder = outer[at]
+        if not isinstance(holder, dict):
+            raise
     holder[key] = value
 
 
@@ -100,7 +110,8 @@ class CaseExperiment(Experiment):
         if len(materials) == 1:
             m = _key_of(materials[0], 0)
             self.aliases = {short: f"materials.{m}.{long}" for short, long in ALIASES.items()
-                            if f"materials.{m}.{long}" in leaves}
+                            if f"materials.{m}.{long}" in leaves or short in UNWRITTEN}
+            leaves = {**{self.aliases[k]: v for k, v in UNWRITTEN.items()}, **leaves}
         seeded = self._seed_paths()
         self.stochastic = bool(seeded)
         params = [Parameter(short, leaves[long], f"{long} (the file's one material)", calibration_range=UNBOUNDED)
@@ -177,6 +188,17 @@ class CaseExperiment(Experiment):
                                  f"{str(err).replace('case file <dict>: ', '')}") from None
         return data
 
+    def check(self, params: dict) -> None:
+        """The file with ``params`` written in, built and checked as ``rollingdem check`` does."""
+        from rollingdem.io.casefile import check_case, load_case
+
+        case = load_case(self.case_data(self.resolve(params)))
+        case._base = self.base
+        try:
+            check_case(case)
+        except ParameterError as err:
+            raise ParameterError(f"{self.path.name} with {_changed(self.data, params, self.aliases)}: {err}") from None
+
     prepared = None  # the folder of the stage ends that runs share (prepare_in)
 
     def prepare_in(self, folder) -> None:
@@ -248,7 +270,13 @@ def run_case_data(data: dict, series: tuple[str, ...] = (), what: str = "case") 
 
 
 def _get(data, path: str) -> Any:
-    holder, key = _locate(data, path)
+    try:
+        holder, key = _locate(data, path)
+    except KeyError:
+        short = path.rpartition(".")[2]
+        if short in UNWRITTEN:
+            return UNWRITTEN[short]
+        raise
     return holder[key]
 
 

@@ -129,6 +129,11 @@ class Experiment:
         """One run at ``params`` (checked by ``resolve``): {observable: value}."""
         raise NotImplementedError
 
+    def check(self, params: dict) -> None:
+        """Refuse, without running, a point whose scene cannot be built (a ParameterError); an
+        experiment whose scene depends on its parameters in ways ``resolve`` cannot see overrides it
+        (the silo: parcels larger than its orifice)."""
+
     def validate(self, quick=False, outdir=None, progress=None, runner=map, **models):
         """Its runs over several points, checked against theory: a ``ValidationResult``."""
         raise NotImplementedError

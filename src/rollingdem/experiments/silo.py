@@ -368,15 +368,24 @@ class SiloDischarge(BedExperiment):
     #: glass beads and sand)
     material = {"mu": 0.5, "mur": 0.1}
 
-    def observe(self, params: dict) -> dict:
-        """A flat-bottomed silo discharging at a steady head: the mass flow rate and the rest."""
-        p = self.resolve(params)
-        material = PileMaterial.from_parameters(p)
+    @staticmethod
+    def _arguments(p: dict) -> tuple:
+        """:func:`silo_case`'s arguments for the resolved parameters ``p``."""
         setup = SiloSetup(orifice_diameters=p["orifice_diameters"], silo_diameters=p["silo_diameters"] or None,
                           fill_diameters=p["fill_diameters"] or None, gravity=p["gravity"], transient=p["transient"],
                           measured=p["measured"], max_time=p["max_time"], clog_time=p["clog_time"])
-        run = silo_run(resolve_rolling(p["model"]), p["twisting"], material, setup, radius=p["radius"],
-                       polydispersity=p["polydispersity"], seed=p["seed"], dt=p["dt"])
+        return (resolve_rolling(p["model"]), p["twisting"], PileMaterial.from_parameters(p), setup, p["radius"],
+                p["polydispersity"], p["seed"], p["dt"])
+
+    def check(self, params: dict) -> None:
+        """The silo of ``params`` built and checked as ``rollingdem check`` checks its case file."""
+        from rollingdem.io.casefile import check_case, load_case
+
+        check_case(load_case(silo_case(*self._arguments(self.resolve(params)))))
+
+    def observe(self, params: dict) -> dict:
+        """A flat-bottomed silo discharging at a steady head: the mass flow rate and the rest."""
+        run = silo_run(*self._arguments(self.resolve(params)))
         lo, hi = run.window
         w, half = discharge_rate(run.t, run.discharged, run.window, blocks=BLOCKS)
         return {"flow_rate": w, "flow_rate_ci": half,

@@ -525,6 +525,7 @@ def _calibrate_multifidelity(problem: _Problem, fidelity, execution, progress: b
     cheap_fix = {**fix, **fidelity.cheap}
     try:  # a cheap run that cannot be built is refused before any run
         load_sweep({"experiment": experiment, "fixed": cheap_fix, "points": [{name: lo}], "seeds": seeds})
+        sc.check({**cheap_fix, name: lo})  # its scene built once: a parcel wider than an opening, say
     except ParameterError as err:
         raise ParameterError(f"cheap = {fidelity.cheap} is not allowed: {err}") from None
     what = ", ".join(f"{k} = {v}" for k, v in fidelity.cheap.items())

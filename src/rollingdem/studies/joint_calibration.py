@@ -370,6 +370,8 @@ def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, searc
         try:
             load_sweep({"experiment": c, "fixed": cheap_fix[c], "points": [dict(zip(names, map(float, lows)))],
                         "seeds": seed_count[c]})
+            if c in fidelity.cheap:  # its scene built once: a parcel wider than an opening refused before any run
+                sc.check({**cheap_fix[c], **{n: float(v) for n, v in zip(names, lows) if n in sc.by_name}})
         except ParameterError as err:
             raise ParameterError(f"cheap = {fidelity.cheap.get(c)} is not allowed for {c!r}: {err}") from None
     cheap_n = fidelity.cheap_initial if fidelity.cheap_initial is not None else 6 * d + 2

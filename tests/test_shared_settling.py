@@ -74,3 +74,48 @@ def test_share_settling_is_refused_where_there_is_nothing_to_share(tmp_path):
     with pytest.raises(ParameterError, match="share_settling is not allowed for experiment 'inclined-wall'"):
         calibrate("inclined-wall", 20.0, 0.5, free=("mur", (0.02, 1.0)), out=tmp_path, progress=False,
                   search=Search(share_settling=True))
+
+
+def test_a_joint_calibration_settles_each_seed_once_at_the_middle_of_the_box(tmp_path):
+    """(mu, mu_r) in [0.3, 0.8] x [0.05, 0.35] against a pile of 400 spheres, 3 points, one seed:
+    the pile's column settles once, with mu = 0.55 and mu_r = 0.2 (the box's middle), kept as one
+    settled state; the runs that started from it say what they saved and the calibration sums it.
+    Targets that no experiment can share are refused before any run."""
+    import json
+
+    from rollingdem.scene.simulation import Simulation
+    from rollingdem.studies.calibration import Execution
+    from rollingdem.studies.joint_calibration import JointSearch, Target, calibrate_joint
+    from rollingdem.studies.sweep import read_table
+
+    free = {"mu": (0.3, 0.8), "mur": (0.05, 0.35)}
+    res = calibrate_joint([Target("repose-rough-base", "angle", 25.0, 1.0)], free,
+                          fix={"count": 400, "lift_speed": 0.0, "max_collapse": 1.0}, seeds=[1],
+                          search=JointSearch(initial=3, rounds=0, share_settling=True), out=tmp_path,
+                          execution=Execution(workers=1), progress=False)
+    settled = sorted((tmp_path / "repose-rough-base" / "settled").glob("settled-*.npz"))
+    assert len(settled) == 1
+    beads = Simulation.restore(settled[0]).materials["beads"]
+    assert (beads.friction, beads.rolling_friction) == (pytest.approx(0.55), pytest.approx(0.2))
+    table = read_table(tmp_path / "repose-rough-base" / "runs.csv")
+    saved = table["settle_seconds_saved"].astype(float)
+    assert len(table) == 3 and (saved > 0).sum() >= 2  # one run settled it; with one worker, the others not
+    assert res.settle_seconds_saved == pytest.approx(saved.sum())
+    assert json.loads((tmp_path / "calibration.json").read_text())["settle_seconds_saved"] == pytest.approx(saved.sum())
+    with pytest.raises(ParameterError, match="share_settling is not allowed for experiments 'inclined-wall'"):
+        calibrate_joint([Target("inclined-wall", "critical_angle", 20.0, 0.1)], {"mu": (0.3, 0.5), "mur": (0.3, 0.45)},
+                        search=JointSearch(share_settling=True), out=tmp_path / "wall", progress=False)
+    assert not (tmp_path / "wall" / "inclined-wall").exists()
+
+
+def test_the_command_refuses_sharing_where_no_target_can_share_in_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "rollingdem.cli", "calibrate", "--target",
+                          "inclined-wall.critical_angle=20±0.1", "--free", "mu=0.3:0.5", "--free", "mur=0.3:0.45",
+                          "--share-settling", "--out", str(tmp_path / "cal"), "--no-progress"],
+                         capture_output=True, text=True)
+    assert res.returncode == 2 and "Traceback" not in res.stderr, res.stderr
+    assert res.stderr.startswith("error: share_settling is not allowed for experiments 'inclined-wall'")
+    assert len(res.stderr.strip().splitlines()) == 1

@@ -299,10 +299,10 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
               cheap: Optional[list[str]] = typer.Option(None, "--cheap", help="With --fidelity multi: NAME=VALUE that "
                                                         "makes a run cheap (repeatable; default: count at 40 % of "
                                                         "the full run's), e.g. count=400 or coarse_graining=2."),
-              share_settling: bool = typer.Option(False, "--share-settling", help="One target and one free "
-                                                  "parameter: settle each seed's bed once, with the free parameter "
-                                                  "at the middle of its range, and start every run from it "
-                                                  "(repose-rough-base)."),
+              share_settling: bool = typer.Option(False, "--share-settling", help="Settle each seed's bed once, "
+                                                  "with the free parameters at the middle of their ranges, and "
+                                                  "start every run from it (repose-rough-base; other experiments "
+                                                  "settle their own)."),
               out: Path = typer.Option(Path("rollingdem-calibration"), "--out", "-o", help="Output folder."),
               workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Worker processes."),
               scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address."),
@@ -340,12 +340,9 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return
-            if share_settling:
-                raise ParameterError(f"--share-settling is not allowed with {len(targets)} targets and {len(frees)} "
-                                     "free parameters: it takes one target and one free parameter")
             result = calibrate_joint(targets, {name: rng for name, rng in frees}, fix=fixed, seeds=seeds,
                                      search=JointSearch(initial=initial, rounds=3 if rounds is None else rounds,
-                                                        per_round=per_round),
+                                                        per_round=per_round, share_settling=share_settling),
                                      out=out, execution=execution, progress=progress, echo=typer.echo,
                                      fidelity=_joint_fidelity(fidelity, cheap, targets, fixed))
             for f in result.figures:
@@ -391,15 +388,9 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                 raise ParameterError(f"--uncertainty = {uncertainty:g} is not allowed with EXPERIMENT.OBSERVABLE=VALUE "
                                      "targets: write each target's as VALUE±U")
             targets = [parse_target(t) for t in target]
-        if share_settling:
-            raise ParameterError(f"--share-settling is not allowed with {len(targets)} targets and {len(frees)} free "
-                                 "parameters: it takes one target and one free parameter")
-        if share_settling:
-            raise ParameterError(f"--share-settling is not allowed with {len(targets)} targets and {len(frees)} free "
-                                 "parameters: it takes one target and one free parameter")
         result = calibrate_joint(targets, {name: rng for name, rng in frees}, fix=fixed, seeds=seeds,
                                  search=JointSearch(initial=initial, rounds=3 if rounds is None else rounds,
-                                                    per_round=per_round),
+                                                    per_round=per_round, share_settling=share_settling),
                                  out=out, execution=execution, progress=progress, echo=typer.echo,
                                  fidelity=_joint_fidelity(fidelity, cheap, targets, fixed))
     except ParameterError as err:

@@ -53,11 +53,30 @@ class Target:
 @dataclass(frozen=True)
 class JointSearch:
     """How the box of the free parameters is searched: ``initial`` Latin-hypercube points (None:
-    4 per free parameter plus 2), then ``rounds`` rounds of ``per_round`` points each."""
+    4 per free parameter plus 2), then ``rounds`` rounds of ``per_round`` points each.
+    ``share_settling``: an experiment that can (repose-rough-base) settles each seed's bed once,
+    with the free parameters at the middle of their ranges, and starts every run from it."""
 
     initial: int | None = None
     rounds: int = 3
     per_round: int = 4
+    share_settling: bool = False
+
+
+def _shared_references(search: JointSearch, experiments, box: dict) -> dict:
+    """{experiment: the free parameters' reference values of its shared settling, or None}; refused
+    when ``search.share_settling`` asks it of targets none of whose experiments can share."""
+    if not search.share_settling:
+        return {c: None for c in experiments}
+    refs = {}
+    for c in experiments:
+        sc = get_experiment(c, observable=True, what="experiment")
+        refs[c] = ({n: 0.5 * (lo + hi) for n, (lo, hi) in box.items() if n in sc.by_name}
+                   if hasattr(sc, "share_settling") else None)
+    if not any(refs.values()):
+        raise ParameterError(f"share_settling is not allowed for experiments {', '.join(map(repr, experiments))}: none "
+                             "has a settling stage to share (repose-rough-base has)")
+    return refs
 
 
 @dataclass
@@ -87,6 +106,7 @@ class JointCalibration:
     weights: np.ndarray | None = field(default=None, repr=False)  # posterior weight of each
     region: np.ndarray | None = field(default=None, repr=False)  # True in the 95 % region
     fidelity: dict | None = None  # a multi-fidelity search's runs of each kind and their cost
+    settle_seconds_saved: float = 0.0  # wall time the runs saved by starting from shared settled beds
 
     def in_region(self, point: dict) -> bool:
         """Whether the grid cell nearest ``point`` ({name: value}) lies in the 95 % region."""
@@ -292,6 +312,7 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
     out = check_output_path("out", out) if out is not None else Path(tempfile.mkdtemp(prefix="rollingdem-joint-"))
     for c in experiments:  # refuse a bad seeds value before any run
         load_sweep({"experiment": c, "fixed": fixed[c], "points": [{n: box[n][0] for n in names}], "seeds": seed_count[c]})
+    shared = _shared_references(search, experiments, box)
     say = echo or (lambda *_: None)
     lows = np.array([box[n][0] for n in names])
     highs = np.array([box[n][1] for n in names])
@@ -303,7 +324,8 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
         tables = {}
         for c in experiments:
             spec = load_sweep({"experiment": c, "fixed": fixed[c], "points": points, "seeds": seed_count[c]})
-            tables[c] = run_sweep(spec, out / folder_of(c), mapper=m, progress=progress, summary=False).table
+            tables[c] = run_sweep(spec, out / folder_of(c), mapper=m, progress=progress, summary=False,
+                                  share_settling=shared[c]).table
             report = failure_report(tables[c], out / folder_of(c) / TABLE)
             if report:
                 say(f"{c}: {report}")
@@ -330,12 +352,25 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
     result = _summarise(targets, box, fixed, post, names, lows, highs, stats, tables, seed_count, tic)
     if info is not None:
         result.fidelity, result.runs = info, info["cheap_runs"] + info["full_runs"]
+    result.settle_seconds_saved = _settle_saved(out, experiments)
     _figures(result, post, names, lows, highs, stats, out)
     (out / "calibration.json").write_text(json.dumps(result.as_dict(), indent=2, default=float))
     np.savez(out / "posterior.npz", names=np.array(names), cells=result.cells, weights=result.weights,
              region=result.region)
-    say(result.message + f" ({result.runs} runs, {result.wall_time:.0f} s; {out})")
+    saved = (f"; the shared settled beds saved {result.settle_seconds_saved:.0f} s of runs"
+             if search.share_settling else "")
+    say(result.message + f" ({result.runs} runs, {result.wall_time:.0f} s{saved}; {out})")
     return result
+
+
+def _settle_saved(out: Path, experiments) -> float:
+    """The wall-clock seconds the runs of every experiment (cheap and full size) saved by starting
+    from shared settled beds."""
+    from rollingdem.studies.calibration import settle_saved
+    from rollingdem.studies.sweep import read_table
+
+    return sum(settle_saved(read_table(out / folder_of(c) / TABLE, get_experiment(c, observable=True)))
+               for c in experiments)
 
 
 def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, search, out, m, progress, say):
@@ -374,6 +409,7 @@ def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, searc
                 sc.check({**cheap_fix[c], **{n: float(v) for n, v in zip(names, lows) if n in sc.by_name}})
         except ParameterError as err:
             raise ParameterError(f"cheap = {fidelity.cheap.get(c)} is not allowed for {c!r}: {err}") from None
+    shared = _shared_references(search, experiments, dict(zip(names, zip(lows, highs))))
     cheap_n = fidelity.cheap_initial if fidelity.cheap_initial is not None else 6 * d + 2
     full_n = fidelity.full_initial if fidelity.full_initial is not None else d + 1
 
@@ -382,7 +418,8 @@ def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, searc
         tables = {}
         for c in experiments:
             spec = load_sweep({"experiment": c, "fixed": which[c], "points": points, "seeds": seed_count[c]})
-            table = run_sweep(spec, out / folder_of(c), mapper=m, progress=progress, summary=False).table
+            table = run_sweep(spec, out / folder_of(c), mapper=m, progress=progress, summary=False,
+                              share_settling=shared[c]).table
             report = failure_report(table, out / folder_of(c) / TABLE)
             if report:
                 say(f"{c}: {report}")
@@ -521,7 +558,7 @@ def _summarise(targets, box, fixed, post: _Posterior, names, lows, highs, stats,
     return JointCalibration(targets, {n: list(box[n]) for n in names}, fixed, best, maximum,
                             {n: list(v) for n, v in interval.items()}, fraction, identified, message, curve,
                             samples.round(6).tolist(), points=int(len(stats[0])), runs=runs,
-                            seeds=sorted(set(seed_count.values())), wall_time=time.perf_counter() - tic,
+                            seeds=sorted({s for v in seed_count.values() for s in (range(1, v + 1) if isinstance(v, int) else v)}), wall_time=time.perf_counter() - tic,
                             cells=x, weights=weights, region=region)
 
 

@@ -2,6 +2,7 @@
 properties changed between stages act at once, and a pile settled once serves every run."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -119,3 +120,43 @@ def test_the_command_refuses_sharing_where_no_target_can_share_in_one_line(tmp_p
     assert res.returncode == 2 and "Traceback" not in res.stderr, res.stderr
     assert res.stderr.startswith("error: share_settling is not allowed for experiments 'inclined-wall'")
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_a_case_run_from_a_reference_first_stage_goes_on_with_its_own_material(tmp_path):
+    """``run_prepared`` with a reference: the slope of the test above as a case file, a 0.2 s stage
+    that holds the sphere, then 0.1 s. The reference (mu_r = 0.5) holds it through the first stage,
+    made once and kept; a run with mu_r = 0.05 starts from that end and rolls at (5/7) g (sin beta -
+    mu_r cos beta) over the second stage only (2 %, as above): its own material through both
+    stages would give it 3 times that speed, the reference's none. A second run from the kept
+    stage says what it saved; the first made it and saved nothing."""
+    from rollingdem.experiments.case_file import stage_keys
+    from rollingdem.io.casefile import load_case
+    from rollingdem.io.runner import run_prepared
+    from rollingdem.scene.simulation import Simulation
+
+    beta = math.atan(0.2)
+    r = 0.005
+
+    def data(mur):
+        m = {"name": "m", "youngs_modulus": 40e6, "poisson_ratio": 0.49, "density": 1056.0, "friction": 0.8,
+             "rolling_friction": mur, "restitution": 0.5, "rolling_damping": 0.0}
+        return {"name": "slope", "dt": 1e-5, "gravity": [G * math.sin(beta), 0.0, -G * math.cos(beta)],
+                "contact": {"normal": "hertz", "rolling": "epsd"}, "materials": [m],
+                "walls": [{"type": "plane", "name": "floor", "material": "m"}],
+                "particles": [{"positions": [[0.0, 0.0, r]], "radius": r, "material": "m", "allow_overlap": True}],
+                "stages": [{"name": "hold", "duration": 0.2}, {"name": "roll", "duration": 0.1}],
+                "output": {"plot": False}}
+
+    reference = data(0.5)
+    keys = stage_keys(reference)
+    first = run_prepared(load_case(data(0.05)), tmp_path / "a", tmp_path / "cache", keys, echo=lambda *_: None,
+                         reference=load_case(reference))
+    second = run_prepared(load_case(data(0.1)), tmp_path / "b", tmp_path / "cache", keys, echo=lambda *_: None,
+                          reference=load_case(reference))
+    assert [p.name for p in (tmp_path / "cache").iterdir()] == [keys[0]]
+    assert first["prepared"]["seconds_saved"] == 0.0 and second["prepared"]["seconds_saved"] > 0.0
+    for summary, mur in ((first, 0.05), (second, 0.1)):
+        assert summary["status"] == "ok" and summary["prepared"]["after_stage"] == "hold"
+        end = Simulation.restore(Path(summary["output"]) / "final.npz")
+        expected = 5.0 / 7.0 * G * (math.sin(beta) - mur * math.cos(beta)) * 0.1
+        assert end.velocities[0, 0] == pytest.approx(expected, rel=0.02)

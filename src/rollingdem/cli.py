@@ -301,8 +301,8 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                                                         "the full run's), e.g. count=400 or coarse_graining=2."),
               share_settling: bool = typer.Option(False, "--share-settling", help="Settle each seed's bed once, "
                                                   "with the free parameters at the middle of their ranges, and "
-                                                  "start every run from it (repose-rough-base; other experiments "
-                                                  "settle their own)."),
+                                                  "start every run from it (repose-rough-base, rotating-drum; "
+                                                  "other experiments settle their own)."),
               out: Path = typer.Option(Path("rollingdem-calibration"), "--out", "-o", help="Output folder."),
               workers: Optional[int] = typer.Option(None, "--workers", "-w", help="Worker processes."),
               scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address."),

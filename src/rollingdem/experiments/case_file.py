@@ -207,20 +207,7 @@ class CaseExperiment(Experiment):
         self.prepared = Path(folder)
 
     def stage_keys(self, data: dict) -> list[str]:
-        """What decides the state at the end of each stage but the last: the file's data without its
-        name and the later stages, hashed."""
-        import hashlib
-        import json
-
-        from rollingdem.scene.simulation import __version__
-
-        keys = []
-        for k in range(1, len(data.get("stages") or [])):
-            head = {key: v for key, v in data.items() if key not in ("stages", "name")}
-            head["stages"] = data["stages"][:k]
-            text = json.dumps({"version": __version__, "case": head}, sort_keys=True, default=str)
-            keys.append(hashlib.sha1(text.encode()).hexdigest()[:16])
-        return keys
+        return stage_keys(data)
 
     def observe(self, params: dict) -> dict:
         """Run the case with ``params`` in a folder of its own, removed afterwards; its measurements'
@@ -252,17 +239,42 @@ class CaseExperiment(Experiment):
         return {o: out.get(o, math.nan) for o in self.observables}
 
 
-def run_case_data(data: dict, series: tuple[str, ...] = (), what: str = "case") -> tuple[dict, dict]:
+def stage_keys(data: dict) -> list[str]:
+    """What decides the state at the end of each stage but the last: a case file's data without
+    its name and the later stages, hashed."""
+    import hashlib
+    import json
+
+    from rollingdem.scene.simulation import __version__
+
+    keys = []
+    for k in range(1, len(data.get("stages") or [])):
+        head = {key: v for key, v in data.items() if key not in ("stages", "name")}
+        head["stages"] = data["stages"][:k]
+        text = json.dumps({"version": __version__, "case": head}, sort_keys=True, default=str)
+        keys.append(hashlib.sha1(text.encode()).hexdigest()[:16])
+    return keys
+
+
+def run_case_data(data: dict, series: tuple[str, ...] = (), what: str = "case",
+                  shared: tuple | None = None) -> tuple[dict, dict]:
     """Run the case file's ``data`` as ``rollingdem run`` does, in a folder removed afterwards:
     (its summary, the series of the measurements named in ``series`` as pandas DataFrames). A run
-    that fails raises a RuntimeError naming ``what`` and its reason."""
+    that fails raises a RuntimeError naming ``what`` and its reason. With ``shared`` = (a folder,
+    the reference's data: the case with other materials), the run starts from the reference's
+    first stage end, kept in the folder (``rollingdem.io.runner.run_prepared``)."""
     import pandas as pd
 
     from rollingdem.io.casefile import load_case
-    from rollingdem.io.runner import run_case
+    from rollingdem.io.runner import run_case, run_prepared
 
     with tempfile.TemporaryDirectory(prefix="rollingdem-case-") as folder:
-        summary = run_case(load_case(data), out=Path(folder) / "run", progress=False, echo=lambda *_: None)
+        if shared is None:
+            summary = run_case(load_case(data), out=Path(folder) / "run", progress=False, echo=lambda *_: None)
+        else:
+            cache, reference = shared
+            summary = run_prepared(load_case(data), Path(folder) / "run", Path(cache), stage_keys(reference),
+                                   echo=lambda *_: None, reference=load_case(reference))
         if summary.get("status") != "ok":
             raise RuntimeError(f"the {what}'s run failed: {summary.get('error', summary.get('status'))}")
         return summary, {name: pd.read_csv(Path(folder) / "run" / "measurements" / f"{name}.csv", comment="#")

@@ -15,6 +15,7 @@ runs it as ``rollingdem run`` does.
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import asdict, dataclass
@@ -74,6 +75,7 @@ class DrumRun:
     wall_layer_speed_ratio: float
     wall_time: float = math.nan
     measured_turn: float = math.nan  # deg turned from the window's start to the last sample
+    settle_seconds_saved: float = 0.0  # wall time of a shared settling the run started from
 
 
 SHIPPED = Path(__file__).parent / "cases" / "drum-slice.yaml"
@@ -139,16 +141,28 @@ def drum_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
 
 
 def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMaterial(), setup: DrumSetup = DrumSetup(),
-             radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None) -> DrumRun:
+             radius: float = RADIUS, polydispersity: float = 0.2, seed: int = 1, dt: float | None = None,
+             shared: tuple | None = None) -> DrumRun:
     """The case of :func:`drum_case`, run as ``rollingdem run`` runs it (in a folder removed
     afterwards), and read: each sample's angles, driving torque and weight moment per metre of
-    drum, and the flow pooled over the samples."""
+    drum, and the flow pooled over the samples. With ``shared`` = (a folder, a reference
+    ``PileMaterial``), the bed settles once per reference material, kept in the folder, and every
+    run starts turning it with its own material (``run_case_data``)."""
     from rollingdem.experiments.case_file import run_case_data
 
     tic = time.perf_counter()
-    data = drum_case(rolling, twisting, material, setup, radius, polydispersity, seed, dt)
+
+    def case(m: PileMaterial) -> dict:  # numbers, not pictures: a 10 d drum spent 9 s of 22 writing those
+        data = drum_case(rolling, twisting, m, setup, radius, polydispersity, seed, dt)
+        data["output"] = {**data["output"], "snapshots": None, "report": None, "plot": False}
+        return data
+
+    data = case(material)
     omega = data["stages"][1]["wall_motion"][0]["rotate"]["angular_velocity"]
-    summary, read = run_case_data(data, ("bed", "drive"), "drum")
+    if shared is not None:
+        folder, reference = shared
+        shared = (folder, case(reference))
+    summary, read = run_case_data(data, ("bed", "drive"), "drum", shared)
     t0, t1 = data["measurements"][0]["window"]
     rows = {k: v[(v["time"] >= t0 - 1e-9) & (v["time"] <= t1 + 1e-9)] for k, v in read.items()}
     length = data["periodic"]["z"][1]
@@ -158,7 +172,8 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
                    rows["bed"]["com_angle"].to_numpy(), -rows["drive"]["tz"].to_numpy() / length,
                    rows["bed"]["weight_moment"].to_numpy() / length, flow["flowing_depth"]["value"],
                    flow["passive_speed_ratio"]["value"], flow["wall_layer_speed_ratio"]["value"],
-                   time.perf_counter() - tic, math.degrees(omega * (float(rows["bed"]["time"].max()) - t0)))
+                   time.perf_counter() - tic, math.degrees(omega * (float(rows["bed"]["time"].max()) - t0)),
+                   (summary.get("prepared") or {}).get("seconds_saved", 0.0))
 
 
 class RotatingDrum(BedExperiment):
@@ -195,7 +210,8 @@ class RotatingDrum(BedExperiment):
         "passive_speed_ratio": "speed of the passive zone over omega r (1: solid-body rotation)",
         "wall_layer_speed_ratio": "speed of the spheres touching the wall, below the flowing layer, over omega r",
         "omega": "rad/s, the drum's angular velocity", "particles": "spheres in the slice",
-        "measured_turn": "deg, drum rotation from the first sample's window to the last sample"}
+        "measured_turn": "deg, drum rotation from the first sample's window to the last sample",
+        "settle_seconds_saved": "s, wall time of the shared settled bed the run started from (share_settling)"}
     default_observable = "angle"
     targets = {"angle": (0.0, 90.0), "com_angle": (0.0, 90.0), "torque": UNBOUNDED, "flowing_depth": UNBOUNDED}
     #: the cheap runs of a multi-fidelity calibration: a drum of 10 diameters instead of 15, with
@@ -203,6 +219,19 @@ class RotatingDrum(BedExperiment):
     cheap = {"drum_diameters": 10.0}
     #: what ``validate`` changes of the defaults: a quick run takes fewer samples over less rotation
     sizes = {"quick": {"samples": 12, "spin_up": 60.0, "measure": 60.0}, "full": {}}
+
+    shared = None  # (folder, the free parameters' reference values): share_settling
+
+    def share_settling(self, folder, reference: dict) -> "RotatingDrum":
+        """A copy of the experiment whose runs settle their bed once per reference: with the
+        parameters in ``reference`` (a calibration's free ones) at those values and the rest as the
+        run's, kept in ``folder``; each run turns it with its own material (:func:`drum_run`). The
+        spin-up's shear remakes the bed before the samples: the settled packing matters less than
+        in a pile."""
+        self.resolve(dict(reference))  # refuse an unknown name or a bad value now
+        other = copy.copy(self)
+        other.shared = (Path(folder), dict(reference))
+        return other
 
     def drum_arguments(self, params: dict) -> dict:
         """The arguments of :func:`drum_case` and :func:`drum_run` for ``params``."""
@@ -220,7 +249,11 @@ class RotatingDrum(BedExperiment):
         """A periodic slice of a drum turning in the rolling regime: its dynamic angle and the rest."""
         from rollingdem.analysis.intervals import confidence_interval
 
-        run = drum_run(**self.drum_arguments(params))
+        arguments = self.drum_arguments(params)
+        if self.shared is not None:
+            folder, reference = self.shared
+            arguments["shared"] = (folder, PileMaterial.from_parameters(self.resolve({**params, **reference})))
+        run = drum_run(**arguments)
         # successive samples are correlated: the 95 % interval is over the means of BLOCKS blocks
         blocks = [b.mean() for b in np.array_split(run.angle, min(BLOCKS, len(run.angle)))]
         return {"angle": float(run.angle.mean()), "angle_ci": confidence_interval(blocks)[1],
@@ -228,7 +261,8 @@ class RotatingDrum(BedExperiment):
                 "com_angle": float(run.com_angle.mean()), "torque": float(run.torque.mean()),
                 "flowing_depth": run.flowing_depth, "passive_speed_ratio": run.passive_speed_ratio,
                 "wall_layer_speed_ratio": run.wall_layer_speed_ratio,
-                "omega": run.omega, "particles": run.particles, "measured_turn": run.measured_turn}
+                "omega": run.omega, "particles": run.particles, "measured_turn": run.measured_turn,
+                "settle_seconds_saved": run.settle_seconds_saved}
 
     def validate(self, quick=False, outdir=None, progress=None, runner=map, model="epsd") -> ValidationResult:
         """The drum at mu_r = 0.05, 0.2, 0.4 (mu = 0.5) and mu = 0.3, 0.5, 0.8 (mu_r = 0.2), and at the

@@ -888,6 +888,20 @@ CASE_HINTS = {"check_timestep": "set check_timestep: false in the case file",
               "allow_overlap": "set allow_overlap: true in the particle block"}
 
 
+def take_materials(sim, case: CaseSpec) -> None:
+    """The case's materials and pairs put in force on ``sim``, whose materials have their names
+    (a run going on from another case's state: ``Simulation.set_material``)."""
+    from rollingdem.scene.materials import Material
+
+    for k, m in enumerate(case.materials):
+        with _InCase(f"materials.{k}"):
+            sim.set_material(Material(**m.model_dump()))
+    for k, p in enumerate(case.pairs):
+        with _InCase(f"pairs.{k}"):
+            sim.set_pair(p.materials[0], p.materials[1],
+                         **{c: v for c, v in p.model_dump(exclude={"materials"}).items() if v is not None})
+
+
 def build_simulation(case: CaseSpec):
     """The Simulation a case describes (materials, walls, particles), before any stage runs."""
     from rollingdem.physics.contact.model import ContactModel

@@ -24,7 +24,7 @@ import yaml
 
 from rollingdem.errors import ParameterError
 from rollingdem.io.casefile import (CASE_HINTS, CaseSpec, ReposeOutputSpec, StageWindowSpec, _motion, build_measurements,
-                                    check_case, stage_conditions, stage_duration, stage_window)
+                                    check_case, stage_conditions, stage_duration, stage_window, take_materials)
 from rollingdem.scene.schedule import Observer
 
 #: What a run writes into its folder (files and folders): what ``--overwrite`` removes.
@@ -390,14 +390,26 @@ def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = Tru
     return _Run(case, sim, outdir, progress, echo).go()
 
 
-def run_prepared(case: CaseSpec, out: Path, cache: Path, keys: list[str], echo=print) -> dict:
+def run_prepared(case: CaseSpec, out: Path, cache: Path, keys: list[str], echo=print,
+                 reference: CaseSpec | None = None) -> dict:
     """``run_case`` into ``out``, its preparation shared through ``cache``: ``keys[k]`` names the
     run's state at the end of its stage k (what decides it: the scene and the stages up to k). The
     latest stage end already in ``cache`` is copied into ``out`` and the run goes on from there
     (bit for bit as from scratch: ``resume_case``); each stage end not yet there is copied into it.
     ``summary["prepared"]`` names the stage it started after (None: from scratch) and the
-    wall-clock seconds that saved."""
+    wall-clock seconds that saved.
+
+    With a ``reference`` (the case with other materials and pairs: a calibration's reference
+    values; ``keys`` then name its stage ends), the run starts from the end of the reference's
+    first stage, made here when ``cache`` lacks it, and goes on with its own materials and pairs
+    (``take_materials``): its bed is then the reference material's."""
     out, cache = Path(out), Path(cache)
+    made_here = False
+    if reference is not None:
+        keys = keys[:1]
+        if not (cache / keys[0] / "checkpoints" / RUN_STATE).exists():
+            _first_stage(reference, cache, keys[0], echo)
+            made_here = True
     start = next((k for k in range(len(keys) - 1, -1, -1) if (cache / keys[k] / "checkpoints" / RUN_STATE).exists()),
                  None)
 
@@ -423,12 +435,45 @@ def run_prepared(case: CaseSpec, out: Path, cache: Path, keys: list[str], echo=p
         return summary
     shutil.copytree(cache / keys[start], out)
     with open(out / "checkpoints" / RUN_STATE, "rb") as fh:
-        saved = pickle.load(fh).seconds
+        saved = 0.0 if made_here else pickle.load(fh).seconds
     run = _Run.resumed(out, False, echo, case=case)
-    run.on_stage_end = keep
+    if reference is not None:
+        take_materials(run.sim, case)
+    else:
+        run.on_stage_end = keep
     summary = run.go()
     summary["prepared"] = {"after_stage": case.stages[start].name, "seconds_saved": saved}
     return summary
+
+
+class _FirstStageKept(Exception):
+    """Ends a run whose first stage's end is all that is wanted (``_first_stage``)."""
+
+
+def _first_stage(case: CaseSpec, cache: Path, key: str, echo) -> None:
+    """The end of ``case``'s first stage kept in ``cache / key`` (its stepping's wall time in the
+    run state: the engine module is loaded first)."""
+    sim = check_case(case)
+    sim.engine_module()
+    cache.mkdir(parents=True, exist_ok=True)
+    work = cache / f".{key}.{time.time_ns()}"
+    work.mkdir()
+    run = _Run(case, sim, work, False, echo)
+
+    def stop(_run) -> None:
+        raise _FirstStageKept
+
+    run.on_stage_end = stop  # called once the stage's end is written
+    try:
+        run.go()
+    except _FirstStageKept:
+        pass
+    for name in ("final.npz", "summary.json"):  # the stopped run's: the kept state goes on
+        (work / name).unlink(missing_ok=True)
+    try:
+        work.rename(cache / key)
+    except OSError:  # another worker kept it first
+        shutil.rmtree(work, ignore_errors=True)
 
 
 def run_header(summary: dict, end: list[str]) -> list[str]:

@@ -208,7 +208,7 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     if share_settling:
         if not hasattr(sc, "share_settling"):
             raise ParameterError(f"share_settling is not allowed for experiment {experiment!r}: it has no settling "
-                                 "stage to share (repose-rough-base has)")
+                                 "stage to share (repose-rough-base and rotating-drum have)")
         shared = {name: 0.5 * (lo + hi)}
     if fidelity is not None:
         from rollingdem.studies.multifidelity import Fidelity

@@ -54,7 +54,7 @@ class Target:
 class JointSearch:
     """How the box of the free parameters is searched: ``initial`` Latin-hypercube points (None:
     4 per free parameter plus 2), then ``rounds`` rounds of ``per_round`` points each.
-    ``share_settling``: an experiment that can (repose-rough-base) settles each seed's bed once,
+    ``share_settling``: an experiment that can (repose-rough-base, rotating-drum) settles each seed's bed once,
     with the free parameters at the middle of their ranges, and starts every run from it."""
 
     initial: int | None = None
@@ -75,7 +75,7 @@ def _shared_references(search: JointSearch, experiments, box: dict) -> dict:
                    if hasattr(sc, "share_settling") else None)
     if not any(refs.values()):
         raise ParameterError(f"share_settling is not allowed for experiments {', '.join(map(repr, experiments))}: none "
-                             "has a settling stage to share (repose-rough-base has)")
+                             "has a settling stage to share (repose-rough-base and rotating-drum have)")
     return refs
 
 

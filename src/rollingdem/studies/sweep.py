@@ -291,7 +291,7 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     experiment = get_experiment(spec.experiment, observable=True, what="experiment")
     if share_settling and not hasattr(experiment, "share_settling"):
         raise ParameterError(f"share_settling is not allowed for experiment {spec.experiment!r}: it has no settling "
-                             "stage to share (repose-rough-base has)")
+                             "stage to share (repose-rough-base and rotating-drum have)")
     out = check_output_path("out", out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / TABLE

@@ -166,6 +166,23 @@ def test_a_table_of_another_case_is_not_mixed_in(tmp_path):
         run_sweep({"case": "inclined-wall", "grid": {"mur": [0.3]}}, tmp_path, workers=1, progress=False)
 
 
+def test_a_table_from_before_an_observable_was_added_goes_on_with_it_empty(tmp_path):
+    """An older rolling-flat table without its stop_time column (an observable added since): its run
+    is kept, not run again, with stop_time empty; the table is written anew with today's columns,
+    and the new run's stop distance is the analytic one (1 %, the module's bound)."""
+    spec = dict(FLAT, grid={"mur": [0.2]}, fixed={"model": "cdt"})
+    run_sweep(spec, tmp_path, workers=1, progress=False)
+    path = tmp_path / "runs.csv"
+    pd.read_csv(path).drop(columns=["stop_time"]).to_csv(path, index=False)
+    again = run_sweep(dict(spec, grid={"mur": [0.2, 0.3]}), tmp_path, workers=1, progress=False)
+    assert again.ran == 1 and len(again.table) == 2
+    table = pd.read_csv(path).sort_values("mur")
+    assert list(table.columns) == list(read_table(path).columns) and "stop_time" in table.columns
+    assert math.isnan(table["stop_time"].iloc[0]) and table["stop_time"].iloc[1] > 0
+    exact = analytic_flat(1.0, 0.8, 0.3)[3]
+    assert table["distance"].iloc[1] == pytest.approx(exact, rel=0.01)
+
+
 def test_example_sweep_file_is_valid():
     from pathlib import Path
 

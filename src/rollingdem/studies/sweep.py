@@ -217,11 +217,15 @@ def _columns(experiment: Experiment) -> list[str]:
 
 def read_table(path: Path, experiment: Experiment | None = None) -> pd.DataFrame:
     """The runs table; a line cut short by a crash is dropped, the last row of a run id wins. An
-    older table's ``case`` column is read as ``experiment``."""
+    older table's ``case`` column is read as ``experiment``, and an observable it lacks (one an
+    experiment gained since) as empty."""
     if not path.exists() or path.stat().st_size == 0:
         return pd.DataFrame(columns=_columns(experiment) if experiment else list(BOOKKEEPING))
     table = pd.read_csv(path, dtype={"run_id": str, "status": str, "error": str, "note": str},
                         keep_default_na=True, on_bad_lines="skip", engine="python").rename(columns={"case": "experiment"})
+    if experiment is not None and set(table.columns) < set(_columns(experiment)) and \
+            set(_columns(experiment)) - set(table.columns) <= set(experiment.observables):
+        table = table.reindex(columns=_columns(experiment))
     if experiment is not None and list(table.columns) != _columns(experiment):
         other = table["experiment"].iloc[0] if "experiment" in table.columns and len(table) else "another experiment"
         raise ParameterError(f"{path} holds runs of {other!r} with other columns than experiment "
@@ -297,6 +301,8 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     path = out / TABLE
     columns = _columns(experiment)
     table = read_table(path, experiment)
+    if path.exists() and path.stat().st_size and list(pd.read_csv(path, nrows=0).columns) != columns:
+        table.to_csv(path, index=False, columns=columns)  # an older table: rows of today's columns follow
     if retry_failed and len(table) and (table["status"] == "failed").any():
         table = table[table["status"] == "ok"]
         table.to_csv(path, index=False, columns=columns)

@@ -661,7 +661,8 @@ def clump_bed_simulation(members: int, clumps: bool, seed: int = 1, echo=print):
 def clump_bed(members=20000, steps=2000, threads=None, echo=print) -> list[BenchResult]:
     """Tetrahedral clumps at rest in a box against as many spheres as they have members in the same
     box, timed in ``CLUMP_BED_CHUNKS`` chunks taken in turn: clump-steps per second, the cost of a
-    clump-step in sphere-steps (issue 46's target: no more than its members + 1, 5), the bytes a
+    clump-step in sphere-steps (its members' pair and wall work plus the rigid-body pass: at most
+    its members + 1, 5), the bytes a
     clump adds to its members' (its own fields, its members' clump index and offset, the index)."""
     import numba
 

@@ -1,5 +1,5 @@
 """``clump-stand-in``: a pile of clumps against a pile of spheres with the rolling friction that stands
-in for them (issue 46; docs/studies.md, "Clumps and the mu_r that stands in for them").
+in for them (docs/studies.md, "Clumps and the mu_r that stands in for them").
 
 The same lifted-cylinder pile on a rough base (``repose-rough-base``'s protocol, ``repose.pile_case``)
 twice: once of clumps of a named shape (spheres of ``radius``, no rolling resistance of their own:
@@ -107,7 +107,7 @@ def silo_with_clumps(clump, shape: str, member_radius: float):
 
 
 class ClumpStandIn(BedExperiment):
-    """A pile of clumps against a pile of equal-volume spheres with the stand-in mu_r (issue 46)."""
+    """A pile of clumps against a pile of equal-volume spheres with the stand-in mu_r."""
 
     name = "clump-stand-in"
     description = ("the lifted-cylinder pile on a rough base of clumps, and of as many equal-volume spheres with the "

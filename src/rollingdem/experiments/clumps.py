@@ -1,5 +1,5 @@
 """``rollingdem validate --experiment clumps``: clumps against rigid-body statics and dynamics, and the
-rolling friction that stands in for them (issue 46; docs/models.md §17).
+rolling friction that stands in for them (docs/models.md §17).
 
 Each check sets up a textbook situation and compares the measured number with its closed form:
 the tilt at which a ring prism of n spheres tips over on a slope, and a sphere with the rolling
@@ -282,7 +282,7 @@ def clumps(quick=False, outdir=None, progress=None) -> ValidationResult:
 
 
 class Clumps(Experiment):
-    """Clumps against rigid-body theory (issue 46)."""
+    """Clumps against rigid-body theory."""
 
     name = "clumps"
     description = "clumps: onset of tipping, torque-free rotation, mass properties, impact and static loads"

@@ -1,4 +1,4 @@
-"""``coarse-graining``: parcels against the real particles they stand for (issue 47; docs/models.md
+"""``coarse-graining``: parcels against the real particles they stand for (docs/models.md
 §18, docs/studies.md "Coarse graining").
 
 The same rig at coarse-graining factors alpha, each scene with the real particles' sizes and counts
@@ -58,7 +58,7 @@ def dt_of(alpha: float, dt: float) -> float:
 
 
 class CoarseGraining(BedExperiment):
-    """The lifted-cylinder pile of parcels against the pile of the real particles (issue 47)."""
+    """The lifted-cylinder pile of parcels against the pile of the real particles."""
 
     name = "coarse-graining"
     description = ("parcels against the real particles: the pile on a rough base, the rotating drum and the silo at "
@@ -315,7 +315,7 @@ def pile_checks(result: ValidationResult, runs: pd.DataFrame, model: str, size: 
                 if not quick and not convention:
                     result.checks.append(Check(CASE, model, f"pile angle, alpha {alpha:g} - alpha 1, mu_r {mur:g} (deg)",
                                                diff, 0.0, ANGLE_TOLERANCE, relative=False,
-                                               source="issue 47: the rule keeps the angle within 1 deg"))
+                                               source="the scaling rule keeps the pile angle of the real particles (docs/models.md §18): within 1 deg"))
 
 
 def drum_checks(result: ValidationResult, runs: pd.DataFrame, model: str, quick: bool) -> None:
@@ -335,7 +335,7 @@ def drum_checks(result: ValidationResult, runs: pd.DataFrame, model: str, quick:
                             f"{mean:.2f} deg, difference {diff:+.2f} +- {half:.2f} deg (95 %, Welch)")
         if not quick and alpha == 2.0:
             result.checks.append(Check(CASE, model, "drum angle, alpha 2 - alpha 1 (deg)", diff, 0.0, ANGLE_TOLERANCE,
-                                       relative=False, source="issue 47: the same drum at the same Froude number"))
+                                       relative=False, source="the same drum at the same Froude number turns the same bed (docs/models.md §18)"))
     result.notes.append("drum, particles represented per second of wall time (the whole run, settling included): "
                         + ", ".join(f"alpha {a:g}: {v:.4g} ({v / speed[1.0]:.3g} x alpha 1)" for a, v in speed.items()))
     for _, r in drums.iterrows():
@@ -359,7 +359,7 @@ def silo_checks(result: ValidationResult, runs: pd.DataFrame, model: str, quick:
         within = "within" if abs(diff) <= FLOW_TOLERANCE * base else "not within"
         result.notes.append(f"silo, orifice 12 d: real particles {base:.4g} kg/s; parcels of alpha {alpha:g} {mean:.4g} "
                             f"kg/s, {100 * diff / base:+.1f} +- {100 * half / base:.1f} % (95 %, Welch): {within} the "
-                            f"{100 * FLOW_TOLERANCE:g} % issue 47 asked for; Beverloo's (D0 - {BEVERLOO_K:g} d)^2.5 at "
+                            f"{100 * FLOW_TOLERANCE:g} % a flow rate must keep; Beverloo's (D0 - {BEVERLOO_K:g} d)^2.5 at "
                             f"the parcels' d expects {100 * (expected - 1):+.1f} %, and the parcels flow at "
                             f"{mean / base / expected:.3f} of that")
         if not quick:

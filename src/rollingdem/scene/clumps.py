@@ -11,8 +11,8 @@ rigid body. Its mass properties are those of the union of its spheres at a unifo
   (``QUADRATURE_CELLS`` cells along its longest side), whose accuracy is stated in
   ``QUADRATURE_ACCURACY`` and tested against the exact answer (tests/test_clumps.py).
 
-The named shapes are those of issue 46: a dimer, a trimer, a tetrahedron of four, a ring prism of n
-touching spheres, a rod of n.
+The named shapes: a dimer, a trimer, a tetrahedron of four, a ring prism of n touching spheres, a
+rod of n.
 """
 
 from __future__ import annotations
@@ -146,7 +146,7 @@ class Clump:
     def ring_prism(cls, n, radius, distance=None, name=None) -> "Clump":
         """``n`` spheres around the z axis, neighbours ``distance`` apart (default 2 R: touching): their
         centres on a circle of radius distance / (2 sin(pi / n)) in the xy plane (a prism of n sides
-        rolls about its axis on a slope, issue 46)."""
+        rolls about its axis on a slope)."""
         n = check_integer("ring_prism n", n, low=3)
         r = check_positive("ring_prism radius", radius, "m")
         d = 2.0 * r if distance is None else check_positive("ring_prism distance", distance, "m")

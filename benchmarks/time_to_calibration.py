@@ -1,7 +1,7 @@
 """Time to a calibrated parameter, from empty caches, each calibration as a user runs it.
 
     python benchmarks/time_to_calibration.py pile [--fidelity single multi] [--share-settling] [--workers 2]
-    python benchmarks/time_to_calibration.py joint [--workers 2]
+    python benchmarks/time_to_calibration.py joint [--fidelity single multi] [--share-settling] [--workers 2]
 
 - ``pile``: mu_r against one pile angle, the repose-rough-base experiment at its quick size (1,000
   spheres), target 25 +- 0.5 deg, mu_r in [0, 0.6]; single fidelity and multi-fidelity (cheap
@@ -13,7 +13,7 @@
   points. Its targets
   are made at mu = 0.5, mu_r = 0.15, each the mean of 3 seeds the calibration does not use, with
   its 95 % half-width / 1.96 as the uncertainty; made once, before the timing, and kept in
-  WORK/targets.json.
+  WORK/targets.json. With ``--share-settling`` each seed's pile column and drum bed settle once.
 
 Each calibration runs ``rollingdem calibrate`` in a fresh process with its own empty engine-module
 cache (so the compile counts), into a folder of its own under WORK (default a temporary folder),
@@ -105,9 +105,10 @@ def main() -> None:
             run(f"pile-{f}{'-shared' if shared else ''}", PILE + ["--fidelity", f] + shared, work, a.workers)
     else:
         args = joint_arguments(work)
+        shared = ["--share-settling"] if a.share_settling else []
         for f in a.fidelity:  # multi: its full-size rounds of 2 points (3 + 2 x 2 full-size points in all)
-            run(f"joint-{f}", args + ["--fidelity", f] + (["--per-round", "2"] if f == "multi" else []), work,
-                a.workers)
+            run(f"joint-{f}{'-shared' if shared else ''}",
+                args + ["--fidelity", f] + (["--per-round", "2"] if f == "multi" else []) + shared, work, a.workers)
 
 
 if __name__ == "__main__":

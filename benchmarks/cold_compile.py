@@ -14,7 +14,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 
 mesh = "--mesh" in sys.argv
 args = [a for a in sys.argv[1:] if "=" not in a and a != "--mesh"]

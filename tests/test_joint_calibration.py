@@ -2,7 +2,6 @@
 posterior of known surrogates, and a run through the sweep machinery."""
 
 import json
-import math
 
 import numpy as np
 import pytest

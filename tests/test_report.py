@@ -71,7 +71,7 @@ def test_the_report_header_says_what_ran_and_what_changed(tmp_path):
     # the measurements lead with their headline lines; the table below gives a cumulative count's
     # final value and no mean of the running sum
     lines = page.split("<h2>Measurements</h2>")[1]
-    assert lines.index(f"out (") < lines.index("<details>") and f"count {40 - left} at the end" in lines
+    assert lines.index("out (") < lines.index("<details>") and f"count {40 - left} at the end" in lines
     assert f"<td>out</td><td>count</td><td>{40 - left}</td><td>–</td><td>–</td>" in page
 
 

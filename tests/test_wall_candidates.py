@@ -2,7 +2,6 @@
 sphere only where it lay within R + skin/2 of the sphere when the lists were built, or moved since,
 or touched it at the last step. Skipping a wall must never miss a contact."""
 
-import math
 
 import numpy as np
 

@@ -2,7 +2,6 @@
 Mindlin's loading curve and the Masing unloading curve it gives after a turn at full slip (WB-4),
 and in a run on top of Walton-Braun's normal law."""
 
-import math
 
 import numpy as np
 import pytest

@@ -15,7 +15,6 @@ runs it as ``rollingdem run`` does.
 
 from __future__ import annotations
 
-import copy
 import math
 import time
 from dataclasses import asdict, dataclass
@@ -24,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from rollingdem.errors import ParameterError
-from rollingdem.experiments.repose import PileMaterial
+from rollingdem.experiments.repose import PileMaterial, SharedSettling
 from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
 from rollingdem.experiments.registry import UNBOUNDED, BedExperiment, Parameter, granular_parameters, resolve_rolling
 from rollingdem.experiments.single_sphere import RADIUS
@@ -176,7 +175,7 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
                    (summary.get("prepared") or {}).get("seconds_saved", 0.0))
 
 
-class RotatingDrum(BedExperiment):
+class RotatingDrum(SharedSettling, BedExperiment):
     """A periodic slice of a drum turning in the rolling regime (docs/studies.md, "The rotating drum")."""
 
     name = "rotating-drum"
@@ -220,19 +219,6 @@ class RotatingDrum(BedExperiment):
     #: what ``validate`` changes of the defaults: a quick run takes fewer samples over less rotation
     sizes = {"quick": {"samples": 12, "spin_up": 60.0, "measure": 60.0}, "full": {}}
 
-    shared = None  # (folder, the free parameters' reference values): share_settling
-
-    def share_settling(self, folder, reference: dict) -> "RotatingDrum":
-        """A copy of the experiment whose runs settle their bed once per reference: with the
-        parameters in ``reference`` (a calibration's free ones) at those values and the rest as the
-        run's, kept in ``folder``; each run turns it with its own material (:func:`drum_run`). The
-        spin-up's shear remakes the bed before the samples: the settled packing matters less than
-        in a pile."""
-        self.resolve(dict(reference))  # refuse an unknown name or a bad value now
-        other = copy.copy(self)
-        other.shared = (Path(folder), dict(reference))
-        return other
-
     def drum_arguments(self, params: dict) -> dict:
         """The arguments of :func:`drum_case` and :func:`drum_run` for ``params``."""
         p = self.resolve(params)
@@ -249,11 +235,7 @@ class RotatingDrum(BedExperiment):
         """A periodic slice of a drum turning in the rolling regime: its dynamic angle and the rest."""
         from rollingdem.analysis.intervals import confidence_interval
 
-        arguments = self.drum_arguments(params)
-        if self.shared is not None:
-            folder, reference = self.shared
-            arguments["shared"] = (folder, PileMaterial.from_parameters(self.resolve({**params, **reference})))
-        run = drum_run(**arguments)
+        run = drum_run(**self.drum_arguments(params), shared=self.reference_material(params))
         # successive samples are correlated: the 95 % interval is over the means of BLOCKS blocks
         blocks = [b.mean() for b in np.array_split(run.angle, min(BLOCKS, len(run.angle)))]
         return {"angle": float(run.angle.mean()), "angle_ci": confidence_interval(blocks)[1],

@@ -299,21 +299,20 @@ def settled_column(data: dict, reference: dict | None, folder) -> tuple:
     settling saved). With ``reference`` (the case's data with the free parameters at reference
     values) and a ``folder``, the first stage runs once per reference case, its end is kept in
     ``folder`` with the wall time of its stepping, and every run starts from it with its own
-    materials (``Simulation.set_material``): the column's packing is then the reference
-    material's. Without, the stage runs here."""
-    import hashlib
+    materials (``take_materials``): the column's packing is then the reference material's.
+    Without, the stage runs here."""
     import json
 
-    from rollingdem.io.casefile import build_simulation, load_case
-    from rollingdem.scene.simulation import Simulation, __version__
+    from rollingdem.experiments.case_file import stage_keys
+    from rollingdem.io.casefile import build_simulation, load_case, take_materials
+    from rollingdem.scene.simulation import Simulation
 
     duration = data["stages"][0]["duration"]
     if reference is None or folder is None:
         sim = build_simulation(load_case(data))
         sim.run(duration)
         return sim, 0.0
-    key = hashlib.sha1(json.dumps({"version": __version__, "case": {k: v for k, v in reference.items() if k != "stages"},
-                                   "first": reference["stages"][0]}, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    key = stage_keys(reference)[0]
     folder = Path(folder)
     path, meta = folder / f"settled-{key}.npz", folder / f"settled-{key}.json"
     if path.exists() and meta.exists():
@@ -331,10 +330,7 @@ def settled_column(data: dict, reference: dict | None, folder) -> tuple:
         tmp.write_text(json.dumps({"wall_seconds": time.perf_counter() - tic}))
         tmp.replace(meta)
         saved = 0.0
-    for m in data["materials"]:
-        sim.set_material(Material(**m))
-    for p in data.get("pairs") or []:
-        sim.set_pair(*p["materials"], **{k: v for k, v in p.items() if k != "materials"})
+    take_materials(sim, load_case(data))
     return sim, float(saved)
 
 
@@ -602,7 +598,31 @@ class AngleOfRepose(Experiment):
         return angle_of_repose(quick=quick, outdir=outdir, progress=progress, models=models, runner=runner)
 
 
-class ReposeRoughBase(BedExperiment):
+class SharedSettling:
+    """An experiment whose runs can start from one settled bed per reference (``share_settling``):
+    its ``observe`` passes ``reference_material(params)`` to its run."""
+
+    shared = None  # (folder, the free parameters' reference values): share_settling
+
+    def share_settling(self, folder, reference: dict):
+        """A copy of the experiment whose runs settle their bed once per reference: with the
+        parameters in ``reference`` (a calibration's free ones) at those values and the rest as the
+        run's, kept in ``folder``; each run goes on from it with its own material, so that the bed's
+        packing is the reference material's."""
+        self.resolve(dict(reference))  # refuse an unknown name or a bad value now
+        other = copy.copy(self)
+        other.shared = (Path(folder), dict(reference))
+        return other
+
+    def reference_material(self, params: dict) -> tuple | None:
+        """(the folder, the reference ``PileMaterial`` for ``params``), or None without sharing."""
+        if self.shared is None:
+            return None
+        folder, reference = self.shared
+        return folder, PileMaterial.from_parameters(self.resolve({**params, **reference}))
+
+
+class ReposeRoughBase(SharedSettling, BedExperiment):
     """The lifted-cylinder pile on a rough base of fixed spheres (the PFC and LIGGGHTS protocol)."""
 
     name = "repose-rough-base"
@@ -635,18 +655,6 @@ class ReposeRoughBase(BedExperiment):
     default_observable = "angle"
     targets = {"angle": (0.0, 90.0)}
     sizes = {"quick": {"count": 1000}, "full": {"count": 4000}}
-    shared = None  # (folder, the free parameters' reference values): share_settling
-
-    def share_settling(self, folder, reference: dict) -> "ReposeRoughBase":
-        """A copy of the experiment whose runs settle their column once per reference: with the
-        parameters in ``reference`` (a calibration's free ones) at those values and the rest as the
-        run's, kept in ``folder``; each run starts from it with its own material
-        (:func:`settled_column`), so that the column's packing is the reference material's."""
-        self.resolve(dict(reference))  # refuse an unknown name or a bad value now
-        other = copy.copy(self)
-        other.shared = (Path(folder), dict(reference))
-        return other
-
     def pile_arguments(self, params: dict) -> dict:
         """The arguments of :func:`pile_case` and :func:`pile_run` for ``params``."""
         p = self.resolve(params)
@@ -664,10 +672,7 @@ class ReposeRoughBase(BedExperiment):
         the shipped case file repose-rough-base, sized (:func:`pile_case`); resumable with
         ``checkpoint`` (:func:`pile_run`)."""
         arguments = self.pile_arguments(params)
-        if self.shared is not None:
-            folder, reference = self.shared
-            arguments["setup"] = replace(arguments["setup"], shared=(
-                folder, PileMaterial.from_parameters(self.resolve({**params, **reference}))))
+        arguments["setup"] = replace(arguments["setup"], shared=self.reference_material(params))
         run = pile_run(**arguments, checkpoint=checkpoint)
         a = run.angle
         return {"angle": a.angle if a else math.nan, "slice_std": a.slice_std if a else math.nan,

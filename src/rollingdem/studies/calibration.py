@@ -154,7 +154,6 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     ``calibration.json`` and ``calibration.png``; ``echo`` (a print-like function) tells each round
     and the result."""
     import tempfile
-    import time
 
     from rollingdem.studies.sweep import load_sweep, run_sweep
 
@@ -417,7 +416,6 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
     parametric bootstrap of the seed means (the spread of the seeds about each mean), each draw's
     minimum found around its own lowest point (:func:`minimum_interval`)."""
     import tempfile
-    import time
 
     from rollingdem.studies.sweep import load_sweep, run_sweep
 

@@ -7,16 +7,15 @@ A part of the step loop's template (``rollingdem.engine.template``).
 
 from numba import njit
 
-from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_REBUILDS, I_STATUS, I_STEPS_DONE, I_TOO_FAST, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST
+from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST, STATUS_TOO_FAST
 from rollingdem.engine.integrator import kick_drift, move_steady, move_walls, undo_drift
 # the engine module's own names for its callers: the serial copy of the step loop calls
 # kick_drift_serial, the GPU's drift kernel kick_drift_range
 from rollingdem.engine.integrator import kick_drift_range, kick_drift_serial  # noqa: F401
-from rollingdem.engine.neighbors import list_rows, rebuild_neighbor_list
+from rollingdem.engine.list_rebuild import rebuild_lists, rebuild_lists_without_meshes
 from rollingdem.engine.rigid_body import KICK_OPEN, clump_pass, clump_undo
 from rollingdem.engine.rigid_body import clump_pass_serial, clump_rows  # noqa: F401
-from rollingdem.engine.mesh_passes import build_mesh_candidates, move_meshes
-from rollingdem.engine.wall_candidates import build_wall_candidates
+from rollingdem.engine.mesh_passes import move_meshes
 from rollingdem.engine.template.pairs import pair_forces  # @@PART
 from rollingdem.engine.template.gather import bond_forces, gather  # @@PART
 from rollingdem.engine.template.contact import BONDED_PAIRS, CLUMPS, MESHES, PROGRAMS  # @@PART
@@ -33,23 +32,8 @@ def move_planes(dt, walls):
             move_steady(dt, walls, wl)
 
 
-@njit(cache=True)
-def _rebuild(particles, walls, lists, skin, info):
-    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.fixed, particles.clump, particles.image,
-                                  particles.x_ref, lists)
-    if total < 0:
-        info[I_STATUS] = STATUS_CAPACITY
-        info[I_NEEDED] = -total
-        return False
-    short, needed = build_mesh_candidates(particles.x, particles.radius, skin, walls) if MESHES else (0, 0)
-    if short:
-        info[I_STATUS] = STATUS_MESH_CAPACITY if short == 1 else STATUS_MESH_GRID_CAPACITY
-        info[I_NEEDED] = needed
-        return False
-    list_rows(particles.x.shape[0], lists.start, lists.i)
-    build_wall_candidates(particles.x, particles.radius, 0.5 * skin, walls)
-    info[I_REBUILDS] += 1
-    return True
+# compiled once for every law, in a package module (a copy in each engine module cost its cold compile 2 s)
+_rebuild = rebuild_lists if MESHES else rebuild_lists_without_meshes
 
 
 @njit(cache=True)  # @@SERIAL_COPY

@@ -10,7 +10,9 @@ from scipy.spatial import cKDTree
 import rollingdem as rd
 from rollingdem.scene import insertion
 from rollingdem.errors import ParameterError
-from rollingdem.scene.insertion import BoxRegion, CylinderRegion, Discrete, Normal, Uniform, fill_region
+from rollingdem.scene.insertion import fill_region
+from rollingdem.scene.regions import BoxRegion, CylinderRegion
+from rollingdem.scene.size_distributions import Discrete, Normal, Uniform
 
 # Gaps are computed in float64 from coordinates of order 0.1 m: rounding is ~1e-17 m, so a gap
 # below -1e-12 m is a real overlap, not rounding.

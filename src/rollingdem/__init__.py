@@ -17,8 +17,9 @@ from rollingdem.scene import convert  # noqa: E402
 from rollingdem.scene.bonds import ParallelBond  # noqa: E402
 from rollingdem.physics.contact import ContactModel  # noqa: E402
 from rollingdem.errors import ParameterError, SimulationError  # noqa: E402
-from rollingdem.scene.insertion import (BoxRegion, CylinderRegion, Discrete, Disk, MassFractions, MeshFace,  # noqa: E402
-                                       Normal, Rectangle, SieveCurve, Uniform, rough_base)  # noqa: E402
+from rollingdem.scene.insertion import rough_base  # noqa: E402
+from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, MeshFace, Rectangle  # noqa: E402
+from rollingdem.scene.size_distributions import Discrete, MassFractions, Normal, SieveCurve, Uniform  # noqa: E402
 from rollingdem.scene.materials import Material, MaterialTable  # noqa: E402
 from rollingdem.scene.mesh import MeshRegion, MeshWall, TriangleMesh  # noqa: E402
 from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots  # noqa: E402

@@ -21,9 +21,9 @@ from rollingdem.errors import ParameterError, check_integer, check_non_negative,
 from rollingdem.scene import periodic as periodic_box
 from rollingdem.scene.particles import sphere_mass
 from rollingdem.scene.schedule import INSERT, REMOVE, Operation
-from rollingdem.scene.insertion import (BoxRegion, Constant, CylinderRegion, Discrete, Disk, Face, FacePrism,
-                                       MassFractions, MeshFace, Normal, Rectangle, Region, SieveCurve, Uniform,
-                                       Parcels, as_distribution, fractions_line, parcels_of)
+from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Face, FacePrism, MeshFace, Rectangle, Region
+from rollingdem.scene.size_distributions import (Constant, Discrete, MassFractions, Normal, Parcels, SieveCurve,
+                                                 Uniform, as_distribution, fractions_line, parcels_of)
 
 DEFAULT_INTERVAL = 1e-3
 """Seconds between two actions of an outlet or inflow, unless given: a sphere falling at 1 m/s goes

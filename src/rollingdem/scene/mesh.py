@@ -12,7 +12,7 @@ import numpy as np
 from rollingdem.errors import ParameterError, check_integer, check_non_negative, check_positive, check_vector
 from rollingdem.physics.mesh import closest_points
 from rollingdem.physics.records import WALL_MESH
-from rollingdem.scene.insertion import Region
+from rollingdem.scene.regions import Region
 from rollingdem.scene.walls import Wall
 
 #: relative area below which a triangle is degenerate: |(b - a) x (c - a)| / 2 < this x (longest edge)^2

@@ -172,7 +172,8 @@ class Particles:
                fraction=None, clump=None) -> np.ndarray:
         """``Simulation.insert``."""
         from rollingdem.engine.neighbors import spatial_order
-        from rollingdem.scene.insertion import MAX_PACKING_FRACTION, check_count, fill_region, parcels_of, realised_line
+        from rollingdem.scene.insertion import MAX_PACKING_FRACTION, check_count, fill_region
+        from rollingdem.scene.size_distributions import parcels_of, realised_line
 
         sim = self.sim
         if clump is not None:

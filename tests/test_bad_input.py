@@ -405,7 +405,8 @@ def test_check_timestep_false_in_the_case_file_runs_anyway(tmp_path):
 
 
 def test_case_file_messages_name_the_case_file_key(tmp_path):
-    from rollingdem.io.casefile import check_case, load_case
+    from rollingdem.io.case_check import check_case
+    from rollingdem.io.casefile import load_case
 
     case = tmp_path / "case.yaml"
     case.write_text(edit("name: tiny", "name: tiny\ndt: 1.0e-2"))

@@ -241,7 +241,8 @@ def test_the_measurements_doc_case_file_snippet_is_a_valid_case(tmp_path):
     silo, a gate and an outlet, passes ``rollingdem check``."""
     import yaml
 
-    from rollingdem.io.casefile import check_case, load_case
+    from rollingdem.io.case_check import check_case
+    from rollingdem.io.casefile import load_case
 
     text = (ROOT / "docs" / "measurements.md").read_text()
     snippet = text[text.index("is in them."):].split("```yaml\n", 1)[1].split("```", 1)[0]
@@ -264,7 +265,8 @@ def test_the_readme_measurements_snippet_completes_the_shipped_hopper(tmp_path):
     import yaml
 
     from rollingdem.experiments.case_file import shipped_cases
-    from rollingdem.io.casefile import check_case, load_case
+    from rollingdem.io.case_check import check_case
+    from rollingdem.io.casefile import load_case
 
     text = (ROOT / "README.md").read_text()
     snippet = yaml.safe_load(text[text.index("Measurements and stage conditions"):].split("```yaml\n", 1)[1]
@@ -349,7 +351,8 @@ def test_the_readme_case_file_programs_build_what_they_say(tmp_path):
 
     import yaml
 
-    from rollingdem.io.casefile import MotionSpec, PlaneSpec, _program
+    from rollingdem.io.case_schema import MotionSpec, PlaneSpec
+    from rollingdem.io.casefile import _program
 
     text = (ROOT / "README.md").read_text()
     start = text.index("In a case file the programs are")
@@ -376,7 +379,8 @@ def test_the_readme_clumps_example_pours_tetrahedra_onto_the_floor(capsys):
     import yaml
 
     import rollingdem as rd
-    from rollingdem.io.casefile import _add_clumps, ClumpSpec
+    from rollingdem.io.case_schema import ClumpSpec
+    from rollingdem.io.casefile import _add_clumps
 
     exec(compile(python_block(ROOT / "README.md", "Clumps (multispheres)"), "README.md", "exec"), scope := {})
     printed = capsys.readouterr().out.splitlines()

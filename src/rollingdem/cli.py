@@ -511,7 +511,7 @@ def schema():
     """Print the case file's JSON Schema (for an editor's completion and checks)."""
     import json
 
-    from rollingdem.io.casefile import CaseSpec
+    from rollingdem.io.case_schema import CaseSpec
 
     typer.echo(json.dumps(CaseSpec.model_json_schema(), indent=1))
 
@@ -519,12 +519,12 @@ def schema():
 @app.command()
 def check(case: Path = typer.Argument(..., help="Case file to validate.")):
     """Validate a case file without running it."""
-    from rollingdem.io import casefile
+    from rollingdem.io import case_check, casefile
     from rollingdem.io.runner import check_output_folder
 
     try:
         spec = casefile.load_case(case)
-        sim = casefile.check_case(spec)  # what run refuses before its first step, refused here
+        sim = case_check.check_case(spec)  # what run refuses before its first step, refused here
         check_output_folder(spec)  # where a run without --out writes
         length, warned = casefile.run_length(spec, sim)
     except ParameterError as err:

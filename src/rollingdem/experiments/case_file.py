@@ -190,7 +190,8 @@ class CaseExperiment(Experiment):
 
     def check(self, params: dict) -> None:
         """The file with ``params`` written in, built and checked as ``rollingdem check`` does."""
-        from rollingdem.io.casefile import check_case, load_case
+        from rollingdem.io.case_check import check_case
+        from rollingdem.io.casefile import load_case
 
         case = load_case(self.case_data(self.resolve(params)))
         case._base = self.base

@@ -379,7 +379,8 @@ class SiloDischarge(BedExperiment):
 
     def check(self, params: dict) -> None:
         """The silo of ``params`` built and checked as ``rollingdem check`` checks its case file."""
-        from rollingdem.io.casefile import check_case, load_case
+        from rollingdem.io.case_check import check_case
+        from rollingdem.io.casefile import load_case
 
         check_case(load_case(silo_case(*self._arguments(self.resolve(params)))))
 

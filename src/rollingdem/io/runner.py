@@ -23,8 +23,10 @@ import numpy as np
 import yaml
 
 from rollingdem.errors import ParameterError
-from rollingdem.io.casefile import (CASE_HINTS, CaseSpec, ReposeOutputSpec, StageWindowSpec, _motion, build_measurements,
-                                    check_case, stage_conditions, stage_duration, stage_window, take_materials)
+from rollingdem.io.case_check import check_case
+from rollingdem.io.case_schema import CaseSpec, ReposeOutputSpec, StageWindowSpec
+from rollingdem.io.casefile import (CASE_HINTS, build_measurements, motion_of, stage_conditions, stage_duration,
+                                    stage_window, take_materials)
 from rollingdem.scene.schedule import Observer
 
 #: What a run writes into its folder (files and folders): what ``--overwrite`` removes.
@@ -297,7 +299,7 @@ class _Run:
             sim.remove_wall(walls.pop(name))
         meshes = {w.name for w in self.case.walls if w.type == "mesh"}
         for m in stage.wall_motion:
-            motion = _motion(m, mesh=m.wall in meshes, base=self.case.base_directory)
+            motion = motion_of(m, mesh=m.wall in meshes, base=self.case.base_directory)
             sim.set_wall_motion(m.wall, None)  # the old program may not suit the new velocity
             sim.set_wall_velocity(m.wall, motion["velocity"], motion.get("angular_velocity", (0.0, 0.0, 0.0)),
                                   point=motion.get("point"))

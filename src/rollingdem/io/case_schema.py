@@ -1,0 +1,628 @@
+"""The case file's schema: one pydantic model per block (``CaseSpec`` at the top), strict (an
+unknown or misspelled key is an error), a material's fields taken from ``Material`` itself.
+``rollingdem schema`` prints it as JSON Schema; reading and building: ``rollingdem.io.casefile``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Literal, Optional, Union, get_type_hints
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PrivateAttr, Strict, Tag, create_model
+
+
+
+def _whole(value):
+    """An integer key: a bool (YAML ``yes``/``true``) is no count or index."""
+    if isinstance(value, bool):
+        raise ValueError("must be a whole number")
+    return value
+
+
+#: A number in a case file: an int or a float, never a bool or a string ("1e4" is read as a number
+#: by the loader of :mod:`rollingdem.io.mapping_file`; ``true`` is not 1).
+Number = Annotated[float, Strict()]
+Whole = Annotated[int, BeforeValidator(_whole)]
+Vector = tuple[Number, Number, Number]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+def _material_spec():
+    """The schema of a material entry, taken from ``Material`` itself (one list of fields and defaults)."""
+    from dataclasses import MISSING, fields
+
+    from rollingdem.scene.materials import Material
+
+    hints = get_type_hints(Material)
+    strict = {float: Number, Optional[float]: Optional[Number]}
+    spec = {f.name: (strict.get(hints[f.name], hints[f.name]), ... if f.default is MISSING else f.default)
+            for f in fields(Material)}
+    return create_model("MaterialSpec", __base__=_Strict, **spec)
+
+
+MaterialSpec = _material_spec()
+
+
+class PairSpec(_Strict):
+    materials: tuple[str, str]
+    friction: Optional[Number] = None
+    rolling_friction: Optional[Number] = None
+    restitution: Optional[Number] = None
+    rolling_damping: Optional[Number] = None
+    surface_energy: Optional[Number] = None
+    cohesion_energy_density: Optional[Number] = None
+
+
+class ContactSpec(_Strict):
+    # a model name or {model: name, parameter: value, ...}; make_submodel checks both
+    normal: Any = "hertz"
+    tangential: Any = "history"
+    rolling: Any = "none"
+    twisting: Any = "none"
+    cohesion: Any = "none"
+
+
+class OscillateSpec(_Strict):
+    """``rollingdem.Oscillation``: ``frequency`` (Hz), ``amplitude`` (m, a vector), ``angle`` (degrees)
+    about ``axis`` (a mesh wall only), ``phase`` (degrees)."""
+    frequency: Number
+    amplitude: Vector = (0.0, 0.0, 0.0)
+    angle: Number = 0.0
+    axis: Optional[Vector] = None
+    phase: Number = 0.0
+
+
+class TableSpec(_Strict):
+    """``rollingdem.MotionTable``: ``times`` (s) with ``displacements`` (m) and/or ``angles`` (degrees,
+    about ``axis``; a mesh wall only), or a CSV ``file`` whose header names the columns t, dx, dy,
+    dz and angle (each but t optional); ``repeat`` starts it again at its end."""
+    file: Optional[str] = None
+    times: Optional[list[Number]] = None
+    displacements: Optional[list[Vector]] = None
+    angles: Optional[list[Number]] = None
+    axis: Optional[Vector] = None
+    repeat: bool = False
+
+
+class ServoSpec(_Strict):
+    """``rollingdem.Servo``: moves along ``direction`` within ``max_speed`` (m/s) to hold ``force`` (N)
+    or ``pressure`` (Pa) on ``area`` (m^2); ``gain`` (m/s per N)."""
+    direction: Vector
+    max_speed: Number
+    force: Optional[Number] = None
+    pressure: Optional[Number] = None
+    area: Optional[Number] = None
+    gain: Optional[Number] = None
+
+
+class PlaneSpec(_Strict):
+    type: Literal["plane"]
+    name: Optional[str] = None
+    material: str
+    point: Vector = (0.0, 0.0, 0.0)
+    normal: Vector = (0.0, 0.0, 1.0)
+    velocity: Vector = (0.0, 0.0, 0.0)
+    angular_velocity: Vector = (0.0, 0.0, 0.0)
+    oscillate: Optional[OscillateSpec] = None  # a motion program: at most one of the three
+    table: Optional[TableSpec] = None
+    servo: Optional[ServoSpec] = None
+
+
+class CylinderSpec(_Strict):
+    type: Literal["cylinder"]
+    name: Optional[str] = None
+    material: str
+    radius: Number
+    point: Vector = (0.0, 0.0, 0.0)
+    axis: Vector = (0.0, 0.0, 1.0)
+    extent: Optional[tuple[Number, Number]] = None
+    velocity: Vector = (0.0, 0.0, 0.0)
+    angular_velocity: Vector = (0.0, 0.0, 0.0)
+    oscillate: Optional[OscillateSpec] = None  # a motion program: at most one of the three
+    table: Optional[TableSpec] = None
+    servo: Optional[ServoSpec] = None
+
+
+class RotateSpec(_Strict):
+    """A turn about the axis through ``point``: at ``angular_velocity`` (rad/s) or ``rpm``
+    (revolutions per minute) in a motion, by ``angle`` (degrees) in a placement. ``point``: a mesh
+    wall's (default the origin); a plane or cylinder turns about its own point and takes none."""
+    axis: Vector
+    point: Optional[Vector] = None
+    angular_velocity: Optional[Number] = None
+    rpm: Optional[Number] = None
+    angle: Optional[Number] = None
+
+
+class MotionSpec(_Strict):
+    velocity: Vector = (0.0, 0.0, 0.0)
+    rotate: Optional[RotateSpec] = None
+    oscillate: Optional[OscillateSpec] = None  # a motion program: at most one of the three
+    table: Optional[TableSpec] = None
+    servo: Optional[ServoSpec] = None
+
+
+class PlaceSpec(_Strict):
+    rotate: Optional[RotateSpec] = None
+    translate: Vector = (0.0, 0.0, 0.0)
+
+
+class MeshSpec(_Strict):
+    """A triangle-mesh wall: ``file`` (STL or OBJ, relative to the case file; ``scale`` 0.001 for mm;
+    vertices within ``weld`` m merged) or a ready-made ``shape`` with its ``size`` (its dimensions by
+    name), placed by ``place`` (turned, then moved), moving by ``motion``; ``check_size: false``
+    accepts a mesh implausibly large against the particles."""
+    type: Literal["mesh"]
+    name: Optional[str] = None
+    material: str
+    file: Optional[str] = None
+    scale: Number = 1.0
+    weld: Optional[Number] = None
+    check_size: bool = True
+    shape: Optional[str] = None
+    size: dict[str, Any] = {}
+    place: Optional[PlaceSpec] = None
+    motion: Optional[MotionSpec] = None
+
+
+WallSpec = Annotated[Union[PlaneSpec, CylinderSpec, MeshSpec], Field(discriminator="type")]
+
+
+class BoxRegionSpec(_Strict):
+    type: Literal["box"]
+    lo: Vector
+    hi: Vector
+
+
+class CylinderRegionSpec(_Strict):
+    type: Literal["cylinder"]
+    radius: Number
+    z_min: Number
+    z_max: Number
+    center: tuple[Number, Number] = (0.0, 0.0)
+
+
+class _SensorMeshSpec(_Strict):
+    """A sensor's mesh, given as a mesh wall is: ``file`` with ``scale``, or ``shape`` with ``size``; ``place``."""
+    file: Optional[str] = None
+    scale: Number = 1.0
+    shape: Optional[str] = None
+    size: dict[str, Any] = {}
+    place: Optional[PlaceSpec] = None
+
+
+class MeshRegionSpec(_SensorMeshSpec):
+    """``rollingdem.MeshRegion``: the volume a closed mesh encloses, given as a mesh wall is, or the
+    mesh of the ``wall`` named so (a region to fill)."""
+    type: Literal["mesh"]
+    wall: Optional[str] = None
+
+
+RegionSpec = Annotated[Union[BoxRegionSpec, CylinderRegionSpec, MeshRegionSpec], Field(discriminator="type")]
+
+
+class UniformSpec(_Strict):
+    distribution: Literal["uniform"]
+    low: Number
+    high: Number
+
+
+class NormalSpec(_Strict):
+    distribution: Literal["normal"]
+    mean: Number
+    std: Number
+    low: Optional[Number] = None
+    high: Optional[Number] = None
+
+
+class DiscreteSpec(_Strict):
+    distribution: Literal["discrete"]
+    values: list[Number]
+    weights: Optional[list[Number]] = None
+
+
+class MassFractionsSpec(_Strict):
+    """``rollingdem.MassFractions``: the ``radii`` (m) and the fraction of the mass each makes up."""
+    distribution: Literal["mass_fractions"]
+    radii: list[Number]
+    fractions: list[Number]
+
+
+class SieveSpec(_Strict):
+    """``rollingdem.SieveCurve``: the mass fraction ``passing`` each sieve of ``diameters`` (m)."""
+    distribution: Literal["sieve"]
+    diameters: list[Number]
+    passing: list[Number]
+
+
+def _radius_kind(value):
+    """The tag of a radius: a number, or the distribution of a mapping (or of a parsed distribution)."""
+    if isinstance(value, dict):
+        return value.get("distribution")
+    return getattr(value, "distribution", "number")
+
+
+RadiusSpec = Annotated[Union[Annotated[Number, Tag("number")], Annotated[UniformSpec, Tag("uniform")],
+                             Annotated[NormalSpec, Tag("normal")], Annotated[DiscreteSpec, Tag("discrete")],
+                             Annotated[MassFractionsSpec, Tag("mass_fractions")], Annotated[SieveSpec, Tag("sieve")]],
+                       Discriminator(_radius_kind, custom_error_type="radius_kind",
+                                     custom_error_message="must be a number or a distribution {distribution: uniform "
+                                                          "| normal | discrete | mass_fractions | sieve, ...}")]
+
+
+class InsertSpec(_Strict):
+    """Spheres inserted in a region: ``count`` of them, or ``mass`` (kg), or a ``fraction`` of the
+    region's volume."""
+    insert: RegionSpec
+    count: Optional[Whole] = None
+    mass: Optional[Number] = None
+    fraction: Optional[Number] = None
+    radius: RadiusSpec
+    material: str
+    seed: Whole = 0
+    velocity: Optional[Vector] = None
+
+
+class ListSpec(_Strict):
+    positions: list[Vector]
+    radius: Union[Number, list[Number]]
+    material: str
+    velocity: Optional[Union[Vector, list[Vector]]] = None
+    angular_velocity: Optional[Union[Vector, list[Vector]]] = None
+    allow_overlap: bool = False
+    fixed: bool = False
+
+
+class RoughBaseShape(_Strict):
+    radius: Number
+    extent: tuple[tuple[Number, Number], tuple[Number, Number]]
+    spacing: Optional[Number] = None
+    jitter: Optional[Number] = None
+    seed: Whole = 0
+    z: Number = 0.0
+
+
+class RoughBaseSpec(_Strict):
+    """Fixed spheres in a jittered hexagonal layer (``rd.rough_base``)."""
+    rough_base: RoughBaseShape
+    material: str
+
+
+class ClumpShapeSpec(_Strict):
+    """A clump template (``rd.Clump``): a named ``shape`` (dimer, trimer, tetrahedron, ring_prism,
+    rod) with its members' ``radius``, their centres' ``distance`` (a rod's spacing; default 2 R,
+    touching) and ``n`` (ring_prism, rod); or its ``spheres`` as rows x, y, z, r (m)."""
+    shape: Optional[Literal["dimer", "trimer", "tetrahedron", "ring_prism", "rod"]] = None
+    radius: Optional[Number] = None
+    distance: Optional[Number] = None
+    n: Optional[Whole] = None
+    spheres: Optional[list[tuple[Number, Number, Number, Number]]] = None
+    connected: bool = True
+
+
+class ClumpSpec(_Strict):
+    """Clumps of one template: inserted in a region (``insert`` with ``count``, ``mass`` or
+    ``fraction``, at random orientations from ``seed``) or placed at ``positions`` (their centres of
+    mass) turned by ``orientations`` (unit quaternions w, x, y, z; default the template's frame)."""
+    clump: ClumpShapeSpec
+    material: str
+    insert: Optional[RegionSpec] = None
+    count: Optional[Whole] = None
+    mass: Optional[Number] = None
+    fraction: Optional[Number] = None
+    seed: Whole = 0
+    positions: Optional[list[Vector]] = None
+    orientations: Optional[list[tuple[Number, Number, Number, Number]]] = None
+    velocity: Optional[Vector] = None
+    angular_velocity: Optional[Vector] = None
+    allow_overlap: bool = False
+    fixed: bool = False
+
+
+def particle_kind(value):
+    """A particle block with a ``clump`` key adds clumps, one with ``insert`` fills a region, one
+    with ``rough_base`` lays a fixed base; any other lists its spheres."""
+    if isinstance(value, dict):
+        return ("clump" if "clump" in value else "insert" if "insert" in value else
+                "rough_base" if "rough_base" in value else "list")
+    return {InsertSpec: "insert", RoughBaseSpec: "rough_base", ListSpec: "list", ClumpSpec: "clump"}.get(type(value))
+
+
+ParticleSpec = Annotated[Union[Annotated[InsertSpec, Tag("insert")], Annotated[RoughBaseSpec, Tag("rough_base")],
+                               Annotated[ListSpec, Tag("list")], Annotated[ClumpSpec, Tag("clump")]],
+                         Discriminator(particle_kind)]
+
+
+class OutletSpec(_Strict):
+    """``Simulation.add_outlet``; with ``refill`` each sphere taken out is put back there."""
+    region: RegionSpec
+    name: Optional[str] = None
+    interval: Optional[Number] = None
+    refill: Optional[RegionSpec] = None
+    seed: Whole = 0
+
+
+class DiskFaceSpec(_Strict):
+    """``rollingdem.Disk``: a face of ``radius`` about ``center``, particles going along ``normal``."""
+    type: Literal["disk"]
+    center: Vector
+    normal: Vector
+    radius: Number
+
+
+class RectangleFaceSpec(_Strict):
+    """``rollingdem.Rectangle``: a face of ``size`` (width, height) about ``center``, its width along ``axis``."""
+    type: Literal["rectangle"]
+    center: Vector
+    normal: Vector
+    size: tuple[Number, Number]
+    axis: Optional[Vector] = None
+
+
+class MeshFaceSpec(_SensorMeshSpec):
+    """``rollingdem.MeshFace``: a flat mesh (given as a mesh wall is, or the ``wall`` named so) as a face."""
+    type: Literal["mesh_face"]
+    wall: Optional[str] = None
+    normal: Optional[Vector] = None
+
+
+class InflowSpec(_Strict):
+    """Particles inserted during the run into ``region``, or through a face (``disk``, ``rectangle``,
+    ``mesh_face``) at ``velocity``."""
+    region: Annotated[Union[BoxRegionSpec, CylinderRegionSpec, MeshRegionSpec, DiskFaceSpec, RectangleFaceSpec,
+                            MeshFaceSpec], Field(discriminator="type")]
+    radius: RadiusSpec
+    material: str
+    rate: Optional[Number] = None
+    mass_rate: Optional[Number] = None
+    velocity: Optional[Vector] = None
+    seed: Whole = 0
+    name: Optional[str] = None
+    interval: Optional[Number] = None
+    start: Optional[Number] = None
+
+
+class StageWindowSpec(_Strict):
+    """A measurement window that starts ``start`` seconds after the start of stage ``stage`` and
+    lasts ``duration`` seconds (default: to that stage's end): it moves with a stage before it that
+    ends on a condition."""
+    stage: str
+    start: Number = 0.0
+    duration: Optional[Number] = None
+
+
+class _MeasurementBase(_Strict):
+    name: str
+    interval: Optional[Number] = None  # the kind's own (INTERVAL)
+    # [t0, t1] (s) from the run's start, or a window from a stage's start
+    window: Optional[Union[tuple[Number, Number], StageWindowSpec]] = None
+
+
+class MassFlowSpec(_MeasurementBase):
+    """``rollingdem.MassFlow``: through the plane at ``point`` along ``normal`` (a disk with ``radius``)."""
+    type: Literal["mass_flow"]
+    point: Vector
+    normal: Vector
+    radius: Optional[Number] = None
+
+
+class ProbeSpec(_MeasurementBase):
+    """``rollingdem.Probe``: the particles in ``region`` (a box, a cylinder or a closed mesh)."""
+    type: Literal["probe"]
+    region: Annotated[Union[BoxRegionSpec, CylinderRegionSpec, MeshRegionSpec], Field(discriminator="type")]
+
+
+class OutletMeasurementSpec(_MeasurementBase):
+    """``rollingdem.OutletTotals``: what the outlet named ``outlet`` took out."""
+    type: Literal["outlet"]
+    outlet: str
+
+
+class WallMeasurementSpec(_MeasurementBase):
+    """``rollingdem.WallLoad``: force, torque and power of the wall named ``wall``."""
+    type: Literal["wall"]
+    wall: str
+
+
+class ReposeMeasurementSpec(_MeasurementBase):
+    """``rollingdem.PileAngle``: the pile's angle of repose (docs/analysis.md)."""
+    type: Literal["repose_angle"]
+    floor: Optional[Number] = None
+    n_slices: Whole = 8
+    exclude_apex: Number = 0.15
+    exclude_toe: Number = 0.15
+
+
+class DrumMeasurementSpec(_MeasurementBase):
+    """``rollingdem.DrumAngle``: the bed's angle about the drum's axis, in the window ``extent``."""
+    type: Literal["drum_angle"]
+    center: Vector
+    axis: Vector
+    extent: Optional[tuple[Number, Number]] = None
+
+
+class DrumFlowSpec(_MeasurementBase):
+    """``rollingdem.DrumFlow``: the flowing layer's depth and the bed's turn with the drum, whose
+    ``radius`` (m) and turning ``wall`` are given."""
+    type: Literal["drum_flow"]
+    center: Vector
+    axis: Vector
+    radius: Number
+    wall: str
+    extent: Optional[tuple[Number, Number]] = None
+
+
+class MeshFlowSpec(_MeasurementBase, _SensorMeshSpec):
+    """``rollingdem.MeshFlow``: through a triangle mesh surface, counted along its triangles' normals."""
+    type: Literal["mesh_flow"]
+
+
+class ProfileSpec(_MeasurementBase):
+    """``rollingdem.SurfaceProfile``: the free surface against the measured profile in ``file`` (a CSV
+    of two columns, m, named from the case file): a heap's (r, h) or a drum's (x, y)."""
+    type: Literal["profile"]
+    file: str
+    shape: Literal["heap", "drum"] = "heap"
+    center: Optional[list[Number]] = None
+    axis: Vector = (0.0, 0.0, 1.0)
+    floor: Optional[Number] = None
+
+
+MeasurementSpec = Annotated[Union[MassFlowSpec, ProbeSpec, OutletMeasurementSpec, WallMeasurementSpec,
+                                  ReposeMeasurementSpec, DrumMeasurementSpec, DrumFlowSpec, ProfileSpec,
+                                  MeshFlowSpec],
+                            Field(discriminator="type")]
+
+
+class PeriodicSpec(_Strict):
+    x: Optional[tuple[Number, Number]] = None
+    y: Optional[tuple[Number, Number]] = None
+    z: Optional[tuple[Number, Number]] = None
+
+
+class SetVelocitySpec(_Strict):
+    particles: Union[Literal["all"], list[Whole]] = "all"
+    velocity: Optional[Vector] = None
+    angular_velocity: Optional[Vector] = None
+
+
+class WallMotionSpec(MotionSpec):
+    """A wall's motion from this stage on (``velocity``, ``rotate``: for a plane or cylinder the
+    rotation moves its surface, about its own point)."""
+    wall: str
+
+
+class _BondBase(_Strict):
+    """Bonds made when the stage starts (``Simulation.add_bonds``, docs/models.md §1.7): between the
+    ``pairs`` given or every pair at most ``gap`` (m) apart, with ``rollingdem.ParallelBond``'s
+    parameters (the other keys)."""
+    gap: Optional[Number] = None
+    pairs: Optional[list[tuple[Whole, Whole]]] = None
+
+    def parallel_bond(self):
+        from rollingdem.scene.bonds import ParallelBond
+
+        return ParallelBond(**self.model_dump(exclude={"gap", "pairs"}))
+
+
+def _bond_spec():
+    """The schema of a stage's bonds: gap or pairs, and ``ParallelBond``'s parameters as its
+    constructor declares them (one list of names and defaults)."""
+    import inspect
+
+    from rollingdem.scene.bonds import ParallelBond
+
+    kinds = {"float": Number, "str": str}
+    spec = {name: (kinds[p.annotation], ... if p.default is p.empty else p.default)
+            for name, p in inspect.signature(ParallelBond).parameters.items()}
+    return create_model("BondSpec", __base__=_BondBase, **spec)
+
+
+BondSpec = _bond_spec()
+
+
+class SettledSpec(_Strict):
+    """``rollingdem.Settled``: translational kinetic energy per free particle below ``kinetic_energy``
+    (J; default 1e-6 m g d) for ``hold`` seconds (``rotation``: count the rotational energy too)."""
+    kinetic_energy: Optional[Number] = None
+    hold: Number = 0.05
+    rotation: bool = False
+    every: Number = 1e-3
+
+
+class UntilSpec(_Strict):
+    """What ends a stage early: ``settled``, ``empty``, or a ``measurement``'s quantity (``name.quantity``)
+    ``above`` or ``below`` a value, for ``hold`` seconds (0: at one check), or its mean over the
+    stage's samples ``known_within`` +- a value at 95 % (over ``min_samples`` samples at least)."""
+    settled: Optional[SettledSpec] = None
+    empty: Optional[bool] = None
+    measurement: Optional[str] = None
+    above: Optional[Number] = None
+    below: Optional[Number] = None
+    known_within: Optional[Number] = None
+    min_samples: int = 20
+    hold: Number = 0.0
+    every: Number = 1e-3
+
+
+def _until(value):
+    """``until: settled`` / ``until: empty`` as the mappings they stand for."""
+    if value == "settled":
+        return {"settled": {}}
+    if value == "empty":
+        return {"empty": True}
+    return value
+
+
+class StageSpec(_Strict):
+    name: str = "run"
+    duration: Optional[Number] = None
+    until: Optional[Annotated[UntilSpec, BeforeValidator(_until, json_schema_input_type=Union[
+        Literal["settled", "empty"], UntilSpec])]] = None
+    max_duration: Optional[Number] = None
+    gravity: Optional[Vector] = None
+    remove_walls: list[str] = []
+    wall_motion: list[WallMotionSpec] = []
+    set_velocity: Optional[SetVelocitySpec] = None
+    bonds: Optional[BondSpec] = None
+
+
+class SeriesSpec(_Strict):
+    interval: Number = 1e-3
+    particles: list[Whole] = []
+
+
+class IntervalSpec(_Strict):
+    interval: Number
+
+
+class ReposeOutputSpec(_Strict):
+    """Measure the pile at the end (``rollingdem.analysis.repose.repose_angle``) on a floor at ``floor``
+    (m; default the top of the highest fixed sphere, else 0), with the estimator's options."""
+    floor: Optional[Number] = None
+    n_slices: Whole = 8
+    exclude_apex: Number = 0.15
+    exclude_toe: Number = 0.15
+
+
+class ReportSpec(_Strict):
+    """``report.html``: pictures of the scene at each stage's start and end and at ``pictures``
+    (times, s)."""
+    pictures: list[Number] = []
+
+
+class OutputSpec(_Strict):
+    directory: Optional[str] = None
+    report: Optional[ReportSpec] = ReportSpec()
+    repose_angle: Optional[ReposeOutputSpec] = None
+    time_series: Optional[SeriesSpec] = SeriesSpec()
+    snapshots: Optional[IntervalSpec] = None
+    checkpoint: Optional[IntervalSpec] = None
+    plot: bool = True
+
+
+class CaseSpec(_Strict):
+    name: str = "case"
+    dt: Optional[Number] = None
+    skin: Optional[Number] = None
+    check_timestep: bool = True
+    backend: Optional[str] = None
+    gravity: Vector = (0.0, 0.0, -9.81)
+    materials: list[MaterialSpec] = Field(min_length=1)
+    pairs: list[PairSpec] = []
+    contact: ContactSpec = ContactSpec()
+    periodic: Optional[PeriodicSpec] = None
+    walls: list[WallSpec] = []
+    particles: list[ParticleSpec] = []  # none: an inflow fills the scene
+    outlets: list[OutletSpec] = []
+    inflows: list[InflowSpec] = []
+    measurements: list[MeasurementSpec] = []
+    stages: list[StageSpec] = Field(min_length=1)
+    output: OutputSpec = OutputSpec()
+    _base: Path = PrivateAttr(default=Path("."))  # the case file's folder (load_case): mesh files are named from it
+
+    @property
+    def base_directory(self) -> Path:
+        return self._base

@@ -11,6 +11,8 @@ y`` to ``y`` when that is a module and to the package otherwise).
 import ast
 from pathlib import Path
 
+import rollingdem as rd
+
 PACKAGE = "rollingdem"
 SOURCE = Path(__file__).parents[1] / "src" / PACKAGE
 
@@ -498,6 +500,38 @@ def test_the_simulation_is_a_facade():
     loops = [getattr(node, "lineno", getattr(getattr(node, "target", None), "lineno", 0)) for node in ast.walk(tree)
              if isinstance(node, (ast.For, ast.While, ast.comprehension))]
     assert not loops, f"loops in scene/simulation.py at lines {loops}: they belong in a collection"
+
+
+def foreign_reads(source: str, attribute: str) -> list[int]:
+    """Lines of ``source`` that read ``attribute`` of an object other than ``self`` or ``cls``."""
+    return sorted(node.lineno for node in ast.walk(ast.parse(source))
+                  if isinstance(node, ast.Attribute) and node.attr == attribute
+                  and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")))
+
+
+def test_the_foreign_read_finder_sees_a_read_through_another_object():
+    source = "def f(sim):\n    st = sim._state\n    return st\nclass A:\n    def g(self):\n        return self._state\n"
+    assert foreign_reads(source, "_state") == [2]
+
+
+def test_only_the_simulation_reads_its_engine_state():
+    """The collections get the engine state in their constructors (it is the same object for the
+    simulation's life: a restored checkpoint is loaded into it); no module but scene/simulation.py
+    reaches for ``sim._state``."""
+    found = {name: lines for name, path in module_files().items() if not path.match("scene/simulation.py")
+             for lines in [foreign_reads(path.read_text(), "_state")] if lines}
+    assert not found, f"sim._state read outside scene/simulation.py: {found}"
+
+
+def test_the_spheres_clumps_and_bonds_are_not_given_the_simulation():
+    """Particles, ClumpSet and BondSet get the engine state and narrow handles in their
+    constructors (docs/architecture.md, The scene), not the simulation: none keeps one, and a
+    restore loads into the objects they were given."""
+    sim = rd.Simulation()
+    for collection in (sim.particle_set, sim.clump_set, sim.bond_set):
+        held = [v for v in vars(collection).values() if isinstance(v, rd.Simulation)]
+        assert not held, f"{type(collection).__name__} holds the Simulation"
+        assert collection.state is sim.particle_set.state
 
 
 #: the layers in the order they stand, bottom first (docs/architecture.md, Layers)

@@ -673,7 +673,7 @@ def clump_bed(members=20000, steps=2000, threads=None, echo=print) -> list[Bench
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), members)
     sims = [clump_bed_simulation(members, True, echo=echo), clump_bed_simulation(members, False, echo=echo)]
     walls, rebuilds = _in_turn(sims, steps, CLUMP_BED_CHUNKS)
-    st = sims[0]._state
+    st = sims[0].particle_set.state
     n_clumps = st.n_clumps
     extra = sum(getattr(st, f.name).nbytes for f in SCHEMA.of(PER_CLUMP)) + sum(
         getattr(st, name).nbytes for name in ("clump", "body_offset", "clump_start", "clump_members"))

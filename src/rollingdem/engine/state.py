@@ -539,6 +539,14 @@ class EngineState:
         out["tr_k"] = cl.tr_k[:total]
         return out
 
+    def take_over(self, other: "EngineState") -> None:
+        """Hold ``other``'s arrays and counters from now on (a restored checkpoint), keeping this
+        object and its backend: whoever was given this state at construction sees the new one."""
+        backend = self.backend
+        self.__dict__.clear()
+        self.__dict__.update(other.__dict__)
+        self.backend = backend
+
     @classmethod
     def from_arrays(cls, arrays: dict, history_size: int) -> "EngineState":
         st = cls(history_size)

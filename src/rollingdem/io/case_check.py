@@ -137,7 +137,7 @@ def check_windows(case: CaseSpec) -> None:
 def _check_first_time_step(sim, sv) -> None:
     """dt against the stable limit as the first stage's run will see it (after its set_velocity);
     the velocities are put back afterwards."""
-    st = sim._state
+    st = sim.particle_set.state
     saved = (st.v.copy(), st.w.copy(), int(st.info[I_FORCES_VALID]))
     try:
         if sv is not None:

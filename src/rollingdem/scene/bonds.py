@@ -88,14 +88,12 @@ class ParallelBond:
 
 
 class BondSet:
-    """The bonds of ``sim``: pairs of engine slots with a parameter row and a state row each."""
+    """The bonds of a simulation: pairs of engine slots with a parameter row and a state row each;
+    ``particles`` (its ``Particles``) numbers the spheres as the user does."""
 
-    def __init__(self, sim):
-        self.sim = sim
-
-    @property
-    def state(self):
-        return self.sim._state
+    def __init__(self, state, particles):
+        self.state = state  # the engine state, the same object for the simulation's life
+        self.particles = particles
 
     def add(self, bond, pairs=None, gap=None) -> int:
         """``Simulation.add_bonds``."""
@@ -129,7 +127,7 @@ class BondSet:
         """Every pair (as the user numbers particles) whose surface gap is at most ``gap``."""
         from scipy.spatial import cKDTree
 
-        x, r = self.sim.positions, self.sim.radii
+        x, r = self.particles.by_id("x"), self.particles.by_id("radius")
         reach = 2.0 * float(r.max(initial=0.0)) + gap
         found = np.array(sorted(cKDTree(x).query_pairs(reach)) if len(x) > 1 and reach > 0 else [],
                          dtype=np.int64).reshape(-1, 2)

@@ -167,7 +167,7 @@ class Outlet(Boundary):
 
     def update(self, sim) -> None:
         """Take out the free particles inside, if due, and put back what a refill holds."""
-        st = sim._state
+        st = sim.particle_set.state
         if not self.due(sim.step, sim.dt) or st.n == 0:
             return
         gone = st.whole_clumps(self.inside(st.x) & ~st.is_fixed)
@@ -401,7 +401,7 @@ ROOM_SAMPLES = 1000
 def free_places(sim, region, radii: np.ndarray, largest: float, rng) -> np.ndarray:
     """``place_spheres`` in ``region`` of ``sim``: among its walls as they are now and its particles
     with their periodic images, for spheres of radius at most ``largest`` (m)."""
-    st = sim._state
+    st = sim.particle_set.state
     walls = sim.walls
     sim.wall_set.refresh()
     reach = 2.0 * float(max(st.radius.max(initial=0.0), largest))
@@ -453,8 +453,9 @@ def place_spheres(region, radii: np.ndarray, existing_x, existing_r, walls, rng)
 class Boundaries:
     """The outlets and inflows of ``sim``, kept in its schedule."""
 
-    def __init__(self, sim):
+    def __init__(self, sim, state):
         self.sim = sim
+        self.state = state
 
     @property
     def outlets(self) -> list:
@@ -466,7 +467,7 @@ class Boundaries:
 
     def add_outlet(self, region, name=None, interval=None, refill=None, seed=0) -> Outlet:
         """``Simulation.add_outlet``."""
-        st = self.sim._state
+        st = self.state
         outlet = Outlet(region, name, interval, refill, seed)
         self._check_name(outlet)
         free = ~st.is_fixed
@@ -501,7 +502,7 @@ class Boundaries:
         ``ROOM_SAMPLES`` centres drawn in it for that sphere, none clear of every wall. Each is checked
         once, before its first run."""
         rng = np.random.default_rng(0)
-        st = self.sim._state
+        st = self.state
         largest_free = float(st.radius[~st.is_fixed].max(initial=0.0))
         if len(st.clump) and (st.clump >= 0).any():  # a clump is put back whole: its bounding sphere
             member = st.clump >= 0

@@ -16,7 +16,6 @@ import numpy as np
 from rollingdem.engine.state import EngineState
 from rollingdem.errors import ParameterError
 from rollingdem.physics.contact.model import ContactModel
-from rollingdem.scene.materials import MaterialTable
 
 VERSION = "0.1.0"
 """The package version a checkpoint records."""
@@ -28,7 +27,7 @@ lacks gets its new rows) and refuses a later one. 1: checkpoints that record no 
 WHAT = "must be a checkpoint .npz file written by Simulation.checkpoint"
 
 
-def write(sim, path) -> Path:
+def write(sim, path, state) -> Path:
     """``Simulation.checkpoint``: written to a temporary file first, so a kill leaves the last
     whole checkpoint in place."""
     path = Path(path)
@@ -50,7 +49,7 @@ def write(sim, path) -> Path:
         "periodic": {axis: list(ends) for axis, ends in sim.periodic.items()},
         **sim.boundary_set.describe(),
     }
-    arrays = sim._state.to_arrays()
+    arrays = state.to_arrays()
     tmp = path.with_name(path.name + ".tmp.npz")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -99,14 +98,12 @@ def restore(simulation_class, path, backend: str | None = None):
     sim = simulation_class(contact=contact, gravity=meta["gravity"], dt=meta["dt"], skin=meta["skin"],
                            check_timestep=meta["check_timestep"], track_energy=meta.get("track_energy", True),
                            periodic=meta.get("periodic"), backend=backend)
-    sim.materials = MaterialTable.from_dict(meta["materials"])
-    chosen = sim.backend
+    sim.materials.load(meta["materials"])
     try:
-        sim._state = EngineState.from_arrays(arrays, contact.history_size)
+        sim.particle_set.state.take_over(EngineState.from_arrays(arrays, contact.history_size))
     except KeyError as err:
         raise ParameterError(f"checkpoint = {str(path)!r} is not allowed: its array {err.args[0]!r} is missing "
                              f"(the file was cut or edited); {WHAT}") from None
-    sim.backend = chosen
     sim.wall_set.restore(meta["walls"])
     sim.boundary_set.restore(meta)
     sim.step = int(meta["step"])

@@ -213,7 +213,14 @@ class MaterialTable:
 
     @classmethod
     def from_dict(cls, data: dict) -> "MaterialTable":
-        table = cls([Material(**m) for m in data["materials"]])
-        for i, j, v in data["overrides"]:
-            table.overrides[(int(i), int(j))] = dict(v)
+        table = cls()
+        table.load(data)
         return table
+
+    def load(self, data: dict) -> None:
+        """The materials and overrides of ``data`` (``to_dict``) in place of this table's (a restored
+        checkpoint: the scene's collections keep this table)."""
+        self.materials[:] = [Material(**m) for m in data["materials"]]
+        self.overrides.clear()
+        for i, j, v in data["overrides"]:
+            self.overrides[(int(i), int(j))] = dict(v)

@@ -55,16 +55,16 @@ def vectors_of(name: str, value, m: int) -> np.ndarray:
 
 
 class Particles:
-    """The spheres of ``sim``: its engine state holds them, sorted in space; this collection
-    numbers them as the user added them (``by_id``) and checks what goes in."""
+    """The spheres of a simulation: its engine state holds them, sorted in space; this collection
+    numbers them as the user added them (``by_id``) and checks what goes in: against ``materials``
+    (its table), ``periodic`` (its box) and ``walls`` (its ``WallSet``), refusals naming ``hints``
+    (how to turn a check off); ``on_change`` is called when the scene changes."""
 
-    def __init__(self, sim):
-        self.sim = sim
+    def __init__(self, state, materials, periodic: dict, hints: dict, walls, on_change):
+        self.state = state  # the engine state, the same object for the simulation's life
+        self.materials, self.periodic, self.hints, self.walls = materials, periodic, hints, walls
+        self.on_change = on_change
         self.fills: list[str] = []  # each insert's count, region and realised size distribution, in words
-
-    @property
-    def state(self):
-        return self.sim._state
 
     def by_id(self, name: str) -> np.ndarray:
         """A per-particle array of the state in the order the particles were added."""
@@ -75,7 +75,6 @@ class Particles:
         """``Simulation.add_particles``: ``radius`` the real particles', which a coarse-grained material
         turns into its parcels' (times alpha, docs/models.md §18); ``parcels``: the radii are the
         parcels' already (an inflow's, an outlet's refill)."""
-        sim = self.sim
         try:
             x = np.array(positions, dtype=np.float64, ndmin=2)
         except (TypeError, ValueError):
@@ -104,7 +103,7 @@ class Particles:
         mats = self.material_indices(material, m)
         if not parcels:
             r = r * self.coarse_graining_factors()[mats]
-        periodic_box.check_in_box(sim.periodic, x, self.state.n)
+        periodic_box.check_in_box(self.periodic, x, self.state.n)
         if not allow_overlap:
             alphas = self.coarse_graining_factors()[mats]
             k = int(np.argmax(alphas)) if m else 0
@@ -112,17 +111,17 @@ class Particles:
                 f"; they are parcels of coarse_graining {alphas[k]:g}, of radius alpha r = {r[k]:.4g} m for r = "
                 f"{r[k] / alphas[k]:.4g} m: place them alpha times farther apart, or give a smaller coarse_graining")
             self.check_no_overlap(x, r, walls=not fixed, note=note)  # walls never touch a fixed particle
-        density = np.array([sim.materials.materials[k].density for k in mats])
+        density = np.array([self.materials.materials[k].density for k in mats])
         mass = sphere_mass(density, r)
         first = self.state.n
         self.state.append_particles(x=x, v=v, w=w, radius=r, mass=mass, inertia=SOLID_SPHERE * mass * r ** 2,
                                     mat=mats, fixed=np.full(m, bool(fixed), dtype=np.uint8))
-        sim._scene_changed()
+        self.on_change()
         return np.arange(first, first + m)
 
     def material_indices(self, material, m: int) -> np.ndarray:
         """One material index per sphere from one material (name or index) or m of them."""
-        materials = self.sim.materials
+        materials = self.materials
         if not isinstance(material, (list, tuple, np.ndarray)):
             return np.full(m, materials.index(material), dtype=np.int32)
         if len(material) != m:
@@ -136,11 +135,11 @@ class Particles:
         spheres of one label (a clump's members) may overlap each other."""
         from scipy.spatial import cKDTree
 
-        sim, st = self.sim, self.state
+        st = self.state
         first = st.n
         allx = np.concatenate([st.x, x])
         allr = np.concatenate([st.radius, r])
-        imgx, imgr, source = periodic_box.with_images(sim.periodic, allx, allr, 2.0 * float(allr.max()))
+        imgx, imgr, source = periodic_box.with_images(self.periodic, allx, allr, 2.0 * float(allr.max()))
         tree = cKDTree(imgx)
         # each new sphere against every sphere (or periodic image) before it within its radius plus
         # the largest radius
@@ -160,27 +159,21 @@ class Particles:
                 j = int(st.ids[j]) if j < first else j  # as the user numbers them
                 g = float(gap[np.argmax(bad)])
                 raise ParameterError(f"particles {min(i, j)} and {max(i, j)} overlap by {-g:.3g} m at insertion{note}: "
-                                     f"positions must not overlap ({sim.hints['allow_overlap']} to accept it)")
-        for wl in sim.walls if walls else ():
+                                     f"positions must not overlap ({self.hints['allow_overlap']} to accept it)")
+        for wl in self.walls.in_place() if walls else ():
             ov = wl.overlap(x, r)
             k = int(np.argmax(ov)) if len(ov) else 0
             if len(ov) and ov[k] > tolerance * r[k]:
-                raise ParameterError(f"particle {first + k} overlaps wall {sim.wall_set.label(wl)} by {ov[k]:.3g} m "
-                                     f"at insertion{note} ({sim.hints['allow_overlap']} to accept it)")
+                raise ParameterError(f"particle {first + k} overlaps wall {self.walls.label(wl)} by {ov[k]:.3g} m "
+                                     f"at insertion{note} ({self.hints['allow_overlap']} to accept it)")
 
     def insert(self, region, count, radius, material, seed=0, velocity=None, max_attempts=200, mass=None,
-               fraction=None, clump=None) -> np.ndarray:
+               fraction=None) -> np.ndarray:
         """``Simulation.insert``."""
         from rollingdem.engine.neighbors import spatial_order
         from rollingdem.scene.insertion import MAX_PACKING_FRACTION, check_count, fill_region
         from rollingdem.scene.size_distributions import parcels_of, realised_line
 
-        sim = self.sim
-        if clump is not None:
-            if radius is not None:
-                raise ParameterError(f"radius = {short_repr(radius)} is not allowed with a clump: its members' radii "
-                                     "are the clump's; leave radius out")
-            return sim.clump_set.insert(region, count, clump, material, seed, velocity, max_attempts, mass, fraction)
         if radius is None or material is None:
             raise ParameterError(f"{'radius' if radius is None else 'material'} = None is not allowed: give the "
                                  "spheres' radius (m, or a size distribution) and material")
@@ -197,7 +190,7 @@ class Particles:
                 raise ParameterError(f"material = {short_repr(material)} is not allowed with {given[0][0]}: give one "
                                      "material (its density turns the mass into a volume)")
             if mass is not None:
-                volume = check_positive("mass", mass, "kg") / sim.materials[material].density
+                volume = check_positive("mass", mass, "kg") / self.materials[material].density
             else:
                 fraction = check_finite("fraction", fraction)
                 if not 0.0 < fraction <= MAX_PACKING_FRACTION:
@@ -212,7 +205,7 @@ class Particles:
         if count is not None and alpha != 1.0:  # the real particles to stand for, alpha^3 in a parcel
             count = max(1, int(round(check_count("count", count) / alpha ** 3)))
         x, r = fill_region(region, count, placed, seed=seed, existing_positions=self.state.x,
-                           existing_radii=self.state.radius, walls=sim.walls, max_attempts=max_attempts,
+                           existing_radii=self.state.radius, walls=self.walls.in_place(), max_attempts=max_attempts,
                            volume=volume)
         what = "spheres" if alpha == 1.0 else f"parcels (alpha {alpha:g}, {len(r) * alpha ** 3:.4g} particles)"
         self.fills.append(f"{len(r)} {what} in {region!r}: {realised_line(placed, r)}")
@@ -222,7 +215,7 @@ class Particles:
     def coarse_graining(self, material) -> float:
         """The coarse-graining factor alpha of ``material`` (a name, an index, or one per sphere, all of
         one alpha)."""
-        materials = self.sim.materials
+        materials = self.materials
         given = material if isinstance(material, (list, tuple, np.ndarray)) else [material]
         alphas = sorted({materials[mat].coarse_graining for mat in given})
         if len(alphas) > 1:
@@ -307,20 +300,20 @@ class Particles:
                                  f"of the {len(idx)} particles") from None
         st.info[I_FORCES_VALID] = 0
 
-    def kinetic_energy(self) -> tuple[float, float]:
+    def kinetic_energy(self, bodies) -> tuple[float, float]:
         """(translational, rotational) kinetic energy (J): 1/2 sum m v^2, 1/2 sum I w^2 over the
-        spheres, and over the clumps as bodies (``ClumpSet.kinetic_energy``), not their members."""
+        spheres, and over the clumps as bodies (``bodies``, the ``ClumpSet``), not their members."""
         st = self.state
         free = st.clump < 0 if len(st.clump) else slice(None)
         trans = 0.5 * float(np.dot(st.mass[free], np.einsum("ij,ij->i", st.v[free], st.v[free])))
         rot = 0.5 * float(np.dot(st.inertia[free], np.einsum("ij,ij->i", st.w[free], st.w[free])))
-        clump_trans, clump_rot = self.sim.clump_set.kinetic_energy()
+        clump_trans, clump_rot = bodies.kinetic_energy()
         return trans + clump_trans, rot + clump_rot
 
-    def dissipated_energy(self) -> dict[str, float]:
+    def dissipated_energy(self, track_energy: bool) -> dict[str, float]:
         """``Simulation.dissipated_energy``."""
         st = self.state
-        if not self.sim.track_energy and not st.energy.any() and not st.energy_removed.any():
+        if not track_energy and not st.energy.any() and not st.energy_removed.any():
             raise ParameterError("dissipated_energy: track_energy = False, so no dissipated energy was summed; "
                                  "create the Simulation with track_energy=True (or set sim.track_energy = True "
                                  "before the run)")
@@ -334,11 +327,11 @@ class Particles:
 
     def coarse_graining_factors(self) -> np.ndarray:
         """alpha of each material, by material index."""
-        return np.array([m.coarse_graining for m in self.sim.materials.materials] or [1.0])
+        return np.array([m.coarse_graining for m in self.materials.materials] or [1.0])
 
     def coarse_graining_note(self) -> str:
         """"; parcels of alpha A, standing for N particles" when a material is coarse-grained, else ""."""
-        alphas = sorted({m.coarse_graining for m in self.sim.materials.materials} - {1.0})
+        alphas = sorted({m.coarse_graining for m in self.materials.materials} - {1.0})
         if not alphas:
             return ""
         return f"; parcels of alpha {alphas[0]:g}, standing for {self.represented():.6g} particles"

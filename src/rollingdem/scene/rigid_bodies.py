@@ -69,19 +69,19 @@ def refuse_coarse_graining(material) -> None:
 
 
 class ClumpSet:
-    """The clumps of ``sim``, in its engine state's per-clump fields."""
+    """The clumps of a simulation, in its engine state's per-clump fields: ``materials`` its table,
+    ``periodic`` its box, ``particles`` and ``walls`` its ``Particles`` and ``WallSet`` (a clump's
+    members go in clear of both), ``on_change`` called when the scene changes."""
 
-    def __init__(self, sim):
-        self.sim = sim
-
-    @property
-    def state(self):
-        return self.sim._state
+    def __init__(self, state, materials, periodic: dict, particles, walls, on_change):
+        self.state = state  # the engine state, the same object for the simulation's life
+        self.materials, self.periodic, self.particles, self.walls = materials, periodic, particles, walls
+        self.on_change = on_change
 
     def add(self, clump, positions, material, orientations=None, velocity=None, angular_velocity=None,
             fixed=False, allow_overlap=False) -> np.ndarray:
         """``Simulation.add_clumps``."""
-        sim, st = self.sim, self.state
+        st = self.state
         if not isinstance(clump, Clump):
             raise ParameterError(f"clump = {short_repr(clump)} is not allowed: must be a rollingdem.Clump")
         try:
@@ -103,11 +103,11 @@ class ClumpSet:
         if isinstance(material, (list, tuple, np.ndarray)):
             raise ParameterError(f"material = {short_repr(material)} is not allowed: a clump's members are of one "
                                  "material; add clumps of different materials in separate calls")
-        mat = sim.materials.index(material)
-        refuse_coarse_graining(sim.materials[mat])
-        periodic_box.check_in_box(sim.periodic, X, st.n)
+        mat = self.materials.index(material)
+        refuse_coarse_graining(self.materials[mat])
+        periodic_box.check_in_box(self.periodic, X, st.n)
         self.check_periodic_reach(clump)
-        props = clump.mass_properties(sim.materials.materials[mat].density)
+        props = clump.mass_properties(self.materials.materials[mat].density)
         axes = props.principal_axes  # columns: the principal axes in the template's frame
         body = (clump.centres - props.centre) @ axes  # the members in the principal frame
         q_body = quaternion_product(q_user, np.broadcast_to(matrix_quaternion(axes), (m, 4)))
@@ -117,7 +117,7 @@ class ClumpSet:
         radius = np.tile(clump.radii, m)
         labels = np.repeat(np.arange(m), k)
         if not allow_overlap:
-            sim.particle_set.check_no_overlap(x, radius, walls=not fixed, bodies=labels)
+            self.particles.check_no_overlap(x, radius, walls=not fixed, bodies=labels)
         volumes = clump.radii ** 3
         share = np.tile(props.mass * volumes / volumes.sum(), m)
         # L = R diag(I) R^T omega
@@ -130,11 +130,11 @@ class ClumpSet:
                             fixed=np.full(m * k, bool(fixed), dtype=np.uint8))
         st.add_clumps(labels, np.tile(body, (m, 1)), clump_x=X, clump_v=V, clump_q=q_body, clump_L=L,
                       clump_mass=np.full(m, props.mass), clump_moments=np.tile(props.principal_moments, (m, 1)))
-        sim._scene_changed()
+        self.on_change()
         return np.arange(first, first + m)
 
     def insert(self, region, count, clump, material, seed=0, velocity=None, max_attempts=200, mass=None,
-               fraction=None) -> np.ndarray:
+               fraction=None, radius=None) -> np.ndarray:
         """``Simulation.insert`` with a clump: each clump's bounding sphere (its ``reach`` about its
         centre of mass) placed as the spheres are (wholly inside ``region``, clear of the particles and
         walls there), the clump in it at a random orientation (``random_orientations``, from ``seed``),
@@ -144,19 +144,21 @@ class ClumpSet:
         from rollingdem.scene.insertion import MAX_PACKING_FRACTION, fill_region
         from rollingdem.scene.clumps import random_orientations
 
-        sim = self.sim
         if not isinstance(clump, Clump):
             raise ParameterError(f"clump = {short_repr(clump)} is not allowed: must be a rollingdem.Clump")
+        if radius is not None:
+            raise ParameterError(f"radius = {short_repr(radius)} is not allowed with a clump: its members' radii "
+                                 "are the clump's; leave radius out")
         if material is None or isinstance(material, (list, tuple, np.ndarray)):
             raise ParameterError(f"material = {short_repr(material)} is not allowed: give the clumps' one material")
-        refuse_coarse_graining(sim.materials[material])
+        refuse_coarse_graining(self.materials[material])
         given = [(k, v) for k, v in (("count", count), ("mass", mass), ("fraction", fraction)) if v is not None]
         if len(given) != 1:
             raise ParameterError(f"{', '.join(f'{k} = {v!r}' for k, v in given) or 'count = None'} is not allowed: "
                                  "give exactly one of count, mass (kg) and fraction (of the region's volume)")
         volume = clump.mass_properties(1.0).volume
         if mass is not None:
-            count = max(1, round(check_positive("mass", mass, "kg") / (sim.materials[material].density * volume)))
+            count = max(1, round(check_positive("mass", mass, "kg") / (self.materials[material].density * volume)))
         elif fraction is not None:
             fraction = check_finite("fraction", fraction)
             if not 0.0 < fraction <= MAX_PACKING_FRACTION:
@@ -164,7 +166,7 @@ class ClumpSet:
             count = max(1, round(fraction * region.volume() / volume))
         try:
             centres, _ = fill_region(region, count, clump.reach(), seed=seed, existing_positions=self.state.x,
-                                     existing_radii=self.state.radius, walls=sim.walls, max_attempts=max_attempts)
+                                     existing_radii=self.state.radius, walls=self.walls.in_place(), max_attempts=max_attempts)
         except ParameterError as err:  # it placed the clumps' bounding spheres: say so
             raise ParameterError(str(err).replace(" spheres in ", " clumps (their bounding spheres, radius "
                                                   f"{clump.reach():.3g} m) in ", 1)) from None
@@ -198,7 +200,7 @@ class ClumpSet:
 
     def check_periodic_reach(self, clump: Clump) -> None:
         """Refuse a clump that spans half a periodic length: its members would meet its own image."""
-        for axis, (lo, hi) in self.sim.periodic.items():
+        for axis, (lo, hi) in self.periodic.items():
             if 4.0 * clump.reach() > hi - lo:
                 raise ParameterError(f"clump {clump!r} of reach {clump.reach():.3g} m is not allowed in a box periodic "
                                      f"along {axis} of length {hi - lo:.3g} m: a clump must span less than half "

@@ -123,7 +123,8 @@ class Schedule:
     """The operations of a simulation, kept for good (outlets, inflows), and those of one run
     (``during``: its observers); ``run`` alternates calls of the step loop with them."""
 
-    def __init__(self):
+    def __init__(self, state):
+        self.state = state  # the engine state the step loop advances
         self.operations: list[Operation] = []
 
     def add(self, operation: Operation) -> Operation:
@@ -186,7 +187,7 @@ class Schedule:
                 due = self.next_step(sim, operations)
                 todo = max(min(end, sim.step + chunk, *(() if due is None else (due,))) - sim.step, 1)
                 tic = _time.perf_counter()
-                done, problem = sim._state.advance(module, todo, sim.dt, sim._gravity, sim.skin, sim.pair_parameters())
+                done, problem = self.state.advance(module, todo, sim.dt, sim._gravity, sim.skin, sim.pair_parameters())
                 elapsed = _time.perf_counter() - tic
                 sim._stepped.add(id(module))
                 sim.step += done
@@ -215,10 +216,9 @@ class Schedule:
                 bar.close()
         return ended
 
-    @staticmethod
-    def check_finite_state(sim) -> None:
+    def check_finite_state(self, sim) -> None:
         """Stop with ``SimulationError`` naming the first particle whose state is not finite."""
-        st = sim._state
+        st = self.state
         # the sum of the state is finite when every value is (a finite sum that overflows only leads
         # to the exact test): one pass, no temporaries, after every call of the step loop
         if math.isfinite(float(st.x.sum()) + float(st.v.sum()) + float(st.w.sum())):

@@ -84,21 +84,20 @@ class Simulation:
         self.backend = default_backend() if backend is None else backend
         self.periodic = periodic_box_checks.check_periodic(periodic)
         self._state.contact_list.box = periodic_box(self.periodic)
-        self.particle_set, self.wall_set, self.bond_set = Particles(self), WallSet(self), BondSet(self)
-        self.clump_set = ClumpSet(self)
-        self.schedule = Schedule()
-        self.boundary_set = Boundaries(self)
-        self.time_step_policy = TimeStepPolicy(self)
-        self.step = 0
-        self.time = 0.0
-        # (time, step) where dt took over: time = t0 + (step - s0) dt, however the steps were cut
-        self._time_origin = (0.0, 0)
-        self._pair_params = None
-        self._modules = EngineModules()
-        self._stepped = set()  # ids of the engine modules this simulation has stepped with (compiled)
         # how a user turns a check off, as the refusal tells it; a case file names its own keys
         self.hints = {"check_timestep": "pass check_timestep=False to the Simulation",
                       "allow_overlap": "pass allow_overlap=True"}
+        state, changed = self._state, self._scene_changed  # each collection gets what it needs (docs/architecture.md)
+        self.wall_set, self.schedule = WallSet(self, state), Schedule(state)
+        self.particle_set = Particles(state, self.materials, self.periodic, self.hints, self.wall_set, changed)
+        self.clump_set = ClumpSet(state, self.materials, self.periodic, self.particle_set, self.wall_set, changed)
+        self.bond_set, self.boundary_set = BondSet(state, self.particle_set), Boundaries(self, state)
+        self.time_step_policy = TimeStepPolicy(self, state)
+        self.step, self.time = 0, 0.0
+        # (time, step) where dt took over: time = t0 + (step - s0) dt, however the steps were cut
+        self._time_origin = (0.0, 0)
+        self._pair_params, self._modules = None, EngineModules()
+        self._stepped = set()  # ids of the engine modules this simulation has stepped with (compiled)
 
     def _scene_changed(self) -> None:  # particles, walls or coefficients changed: a new pair table
         self._pair_params = None
@@ -185,7 +184,9 @@ class Simulation:
         or of ``mass`` (kg) or a ``fraction`` of its volume; ``radius``: a number or a distribution (``rd.Uniform``,
         ``Normal``, ``Discrete``, ``MassFractions``, ``SieveCurve``); with ``clump`` (``rd.Clump``) clumps at random
         orientations. Reproducible from ``seed``. Returns the new spheres' (in Morton order) or clumps' indices."""
-        return self.particle_set.insert(region, count, radius, material, seed, velocity, max_attempts, mass, fraction, clump)
+        if clump is not None:
+            return self.clump_set.insert(region, count, clump, material, seed, velocity, max_attempts, mass, fraction, radius)
+        return self.particle_set.insert(region, count, radius, material, seed, velocity, max_attempts, mass, fraction)
 
     def add_clumps(self, clump, positions, material, orientations=None, velocity=None, angular_velocity=None,
                    fixed: bool = False, allow_overlap: bool = False) -> np.ndarray:
@@ -232,7 +233,7 @@ class Simulation:
         self.clump_set.set_velocities(indices, velocity, angular_velocity)
 
     def kinetic_energy(self) -> tuple[float, float]:  # (translational, rotational) kinetic energy (J)
-        return self.particle_set.kinetic_energy()
+        return self.particle_set.kinetic_energy(self.clump_set)
 
     # --- outlets and inflows ---------------------------------------------------------------------
     def add_outlet(self, region, name: str | None = None, interval: float | None = None, refill=None, seed: int = 0):
@@ -338,7 +339,7 @@ class Simulation:
     def dissipated_energy(self) -> dict[str, float]:
         """Energy (J) dissipated while ``track_energy`` was on (normal damping, sliding, rolling, twisting), over the
         run: what the particles an outlet took out had dissipated stays in it."""
-        return self.particle_set.dissipated_energy()
+        return self.particle_set.dissipated_energy(self.track_energy)
 
     def number_of_contacts(self) -> int:
         return int(self._state.contacts.sum())
@@ -389,7 +390,7 @@ class Simulation:
     # --- checkpoint ------------------------------------------------------------------------------
     def checkpoint(self, path):
         """Write the complete state; ``Simulation.restore(path)`` continues bit for bit."""
-        return checkpoint.write(self, path)
+        return checkpoint.write(self, path, self._state)
 
     @classmethod
     def restore(cls, path, backend: str | None = None) -> "Simulation":

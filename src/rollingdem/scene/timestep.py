@@ -18,15 +18,16 @@ class TimeStepPolicy:
     """The time step of ``sim``: its limits, the largest stable step, and the run's checks.
     ``passed``: (scene key, fastest speeds) when dt last passed ``check``."""
 
-    def __init__(self, sim):
+    def __init__(self, sim, state):
         self.sim = sim
+        self.state = state
         self.passed = None
 
     def limits(self, wall_speed: float | None = None) -> list[tuple[str, float]]:
         """``Simulation.time_step_limits``; with ``wall_speed`` (m/s), as if the fastest wall surface
         moved that fast (a stage's wall motion before it is set)."""
         sim = self.sim
-        st, contact, materials, inflows = sim._state, sim.contact, sim.materials, sim.inflows
+        st, contact, materials, inflows = self.state, sim.contact, sim.materials, sim.inflows
         if st.n == 0 and not inflows:
             return []
         limits = []
@@ -113,7 +114,7 @@ class TimeStepPolicy:
         law whose parameter is 0 for every material pair is refused too: it would do nothing."""
         sim = self.sim
         cohesion = sim.contact.cohesion
-        st = sim._state
+        st = self.state
         n = len(sim.materials.materials)
         if cohesion.name != "none" and n and not any(
                 any(v != 0.0 for v in cohesion.pair_values(sim.materials.pair(a, b))) for a in range(n) for b in range(n)):
@@ -133,7 +134,7 @@ class TimeStepPolicy:
 
     def fastest_per_material(self) -> np.ndarray:
         """Each material's largest finite particle speed squared (0 without particles of it)."""
-        st = self.sim._state
+        st = self.state
         out = np.zeros(len(self.sim.materials.materials))
         if st.n and len(out):
             speed2 = np.einsum("ij,ij->i", st.v, st.v)

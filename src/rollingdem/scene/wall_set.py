@@ -59,7 +59,7 @@ def check_openings(wall, sim) -> None:
     the parcels standing for them do not: narrower than the largest parcel and wider than the
     smallest real particle, of those in the scene and its inflows. The material would flow
     through it; its parcels would jam."""
-    st = sim._state
+    st = sim.particle_set.state
     alpha = sim.particle_set.coarse_graining_factors()
     inflows = [i.radius for i in sim.boundary_set.inflows if getattr(i.radius, "alpha", 1.0) != 1.0]
     coarse = alpha[st.mat[:st.n]] != 1.0
@@ -84,14 +84,11 @@ class WallSet:
     step. ``in_engine``: the planes and cylinders in place, in the engine's order (meshes are in
     ``state.meshes.names``)."""
 
-    def __init__(self, sim):
+    def __init__(self, sim, state):
         self.sim = sim
+        self.state = state  # the engine state, the same object for the simulation's life
         self.slots: list[Wall] = []
         self.in_engine: list[Wall] = []
-
-    @property
-    def state(self):
-        return self.sim._state
 
     def in_place(self) -> list[Wall]:
         return [w for w in self.slots if w.kind != INACTIVE]

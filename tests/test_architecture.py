@@ -523,12 +523,12 @@ def test_only_the_simulation_reads_its_engine_state():
     assert not found, f"sim._state read outside scene/simulation.py: {found}"
 
 
-def test_the_spheres_clumps_and_bonds_are_not_given_the_simulation():
-    """Particles, ClumpSet and BondSet get the engine state and narrow handles in their
-    constructors (docs/architecture.md, The scene), not the simulation: none keeps one, and a
+def test_the_collections_are_not_given_the_simulation():
+    """The spheres, clumps, bonds, walls and boundaries get the engine state and narrow handles in
+    their constructors (docs/architecture.md, The scene), not the simulation: none keeps one, and a
     restore loads into the objects they were given."""
     sim = rd.Simulation()
-    for collection in (sim.particle_set, sim.clump_set, sim.bond_set):
+    for collection in (sim.particle_set, sim.clump_set, sim.bond_set, sim.wall_set, sim.boundary_set):
         held = [v for v in vars(collection).values() if isinstance(v, rd.Simulation)]
         assert not held, f"{type(collection).__name__} holds the Simulation"
         assert collection.state is sim.particle_set.state

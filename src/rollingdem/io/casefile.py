@@ -195,7 +195,7 @@ def build_simulation(case: CaseSpec):
     for k, wall in enumerate(sim.walls):  # against the parcels in place and the inflows' parcels
         if wall.kind == WALL_MESH:
             with where(f"walls.{k}"):
-                check_openings(wall, sim)
+                check_openings(wall, sim.particle_set.state, sim.materials, sim.inflows)
     return sim
 
 

@@ -115,6 +115,7 @@ class Boundary(Operation):
         self.name = _check_name(self.kind, name)
         self.interval = DEFAULT_INTERVAL if interval is None else check_positive(f"{self.kind} interval", interval,
                                                                                  "s")
+        self.room_checked = False  # its region checked for room (``Boundaries.check_room``), once
 
     def every(self, dt: float) -> int:
         """Steps between two actions."""
@@ -451,19 +452,20 @@ def place_spheres(region, radii: np.ndarray, existing_x, existing_r, walls, rng)
 
 
 class Boundaries:
-    """The outlets and inflows of ``sim``, kept in its schedule."""
+    """The outlets and inflows of a simulation, kept in its ``schedule``; checked against its
+    ``materials``, ``periodic`` box and ``walls`` (its ``WallSet``)."""
 
-    def __init__(self, sim, state):
-        self.sim = sim
-        self.state = state
+    def __init__(self, state, schedule, materials, periodic: dict, walls):
+        self.state = state  # the engine state, the same object for the simulation's life
+        self.schedule, self.materials, self.periodic, self.walls = schedule, materials, periodic, walls
 
     @property
     def outlets(self) -> list:
-        return self.sim.schedule.of(Outlet)
+        return self.schedule.of(Outlet)
 
     @property
     def inflows(self) -> list:
-        return self.sim.schedule.of(Inflow)
+        return self.schedule.of(Inflow)
 
     def add_outlet(self, region, name=None, interval=None, refill=None, seed=0) -> Outlet:
         """``Simulation.add_outlet``."""
@@ -477,24 +479,23 @@ class Boundaries:
         for inflow in self.inflows:
             check_outlet_inflow(outlet, inflow)
         if outlet.refill is not None:
-            periodic_box.check_region_inside(self.sim.periodic, "outlet refill", outlet.refill)
+            periodic_box.check_region_inside(self.periodic, "outlet refill", outlet.refill)
             check_outlet_refill(outlet)
-        return self.sim.schedule.add(outlet)
+        return self.schedule.add(outlet)
 
     def add_inflow(self, region, radius, material, rate=None, mass_rate=None, velocity=None, seed=0, name=None,
                    interval=None, start=None) -> Inflow:
-        """``Simulation.add_inflow``."""
-        sim = self.sim
-        alpha = sim.materials[material].coarse_graining
+        """``Simulation.add_inflow`` (``start``: given, the façade's clock when not)."""
+        alpha = self.materials[material].coarse_graining
         if rate is not None and alpha != 1.0:  # particles represented per second: alpha^3 in a parcel
             rate = check_positive("inflow rate", rate, "particles/s") / alpha ** 3
         inflow = Inflow(region, parcels_of(radius, alpha), material, rate=rate, mass_rate=mass_rate, velocity=velocity,
-                        seed=seed, name=name, interval=interval, start=sim.time if start is None else start)
+                        seed=seed, name=name, interval=interval, start=start)
         self._check_name(inflow)
-        periodic_box.check_region_inside(sim.periodic, "inflow", inflow.region)
+        periodic_box.check_region_inside(self.periodic, "inflow", inflow.region)
         for outlet in self.outlets:
             check_outlet_inflow(outlet, inflow)
-        return sim.schedule.add(inflow)
+        return self.schedule.add(inflow)
 
     def check_room(self) -> None:
         """Refuse an inflow's region, or an outlet's refill region, that cannot hold its largest sphere
@@ -512,7 +513,7 @@ class Boundaries:
         places += [(outlet, f"outlet {outlet.name} refill region" if outlet.name else "outlet refill region",
                     outlet.refill, largest_free) for outlet in self.outlets if outlet.refill is not None and largest_free > 0.0]
         for owner, what, region, radius in places:
-            if getattr(owner, "_room_checked", False):
+            if owner.room_checked:
                 continue
             if not region.fits(radius):
                 raise ParameterError(f"{what} {region!r} is not allowed: a sphere of radius {radius:g} m does not fit "
@@ -521,17 +522,17 @@ class Boundaries:
             x = region.sample(rng, r)
             clear = np.ones(len(x), dtype=bool)
             blocking = None
-            for wall in self.sim.walls:
+            for wall in self.walls.in_place():
                 inside = wall.overlap(x, r) > 0.0
                 if inside.all():
                     blocking = wall
                 clear &= ~inside
             if not clear.any():
-                by = f" (wall {self.sim.wall_set.label(blocking)} covers all of it)" if blocking is not None else ""
+                by = f" (wall {self.walls.label(blocking)} covers all of it)" if blocking is not None else ""
                 raise ParameterError(f"{what} {region!r} is not allowed: the walls leave no room in it for "
                                      f"a sphere of radius {radius:g} m{by}: it lies inside or behind "
                                      "them; move it into the open")
-            owner._room_checked = True
+            owner.room_checked = True
 
     def _check_name(self, new) -> None:
         if new.name is not None and any(b.name == new.name for b in self.outlets + self.inflows if b.kind == new.kind):
@@ -553,9 +554,9 @@ class Boundaries:
     def restore(self, meta: dict) -> None:
         """The outlets and inflows a checkpoint kept (``describe``)."""
         for d in meta.get("outlets", []):
-            self.sim.schedule.add(Outlet.from_description(d))
+            self.schedule.add(Outlet.from_description(d))
         for d in meta.get("inflows", []):
-            self.sim.schedule.add(Inflow.from_description(d))
+            self.schedule.add(Inflow.from_description(d))
 
 
 def check_outlet_refill(outlet) -> None:

@@ -6,6 +6,8 @@ damping, surface energy, cohesion energy density): the mean of the two materials
 
 from __future__ import annotations
 
+import numpy as np
+
 from dataclasses import dataclass, field, fields, replace
 
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_positive, check_range
@@ -216,6 +218,10 @@ class MaterialTable:
         table = cls()
         table.load(data)
         return table
+
+    def coarse_graining_factors(self) -> np.ndarray:
+        """alpha of each material, by material index."""
+        return np.array([m.coarse_graining for m in self.materials] or [1.0])
 
     def load(self, data: dict) -> None:
         """The materials and overrides of ``data`` (``to_dict``) in place of this table's (a restored

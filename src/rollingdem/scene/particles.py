@@ -102,10 +102,10 @@ class Particles:
                                  "never moves; leave them out (or add the particles with fixed=False)")
         mats = self.material_indices(material, m)
         if not parcels:
-            r = r * self.coarse_graining_factors()[mats]
+            r = r * self.materials.coarse_graining_factors()[mats]
         periodic_box.check_in_box(self.periodic, x, self.state.n)
         if not allow_overlap:
-            alphas = self.coarse_graining_factors()[mats]
+            alphas = self.materials.coarse_graining_factors()[mats]
             k = int(np.argmax(alphas)) if m else 0
             note = "" if parcels or not m or alphas[k] == 1.0 else (
                 f"; they are parcels of coarse_graining {alphas[k]:g}, of radius alpha r = {r[k]:.4g} m for r = "
@@ -323,11 +323,7 @@ class Particles:
     def represented(self) -> float:
         """The real particles the spheres stand for: alpha^3 for a parcel of a material coarse-grained by
         alpha, 1 for any other sphere (docs/models.md §18)."""
-        return float(np.sum(self.coarse_graining_factors()[self.state.mat[:self.state.n]] ** 3))
-
-    def coarse_graining_factors(self) -> np.ndarray:
-        """alpha of each material, by material index."""
-        return np.array([m.coarse_graining for m in self.materials.materials] or [1.0])
+        return float(np.sum(self.materials.coarse_graining_factors()[self.state.mat[:self.state.n]] ** 3))
 
     def coarse_graining_note(self) -> str:
         """"; parcels of alpha A, standing for N particles" when a material is coarse-grained, else ""."""

@@ -88,15 +88,16 @@ class Simulation:
         self.hints = {"check_timestep": "pass check_timestep=False to the Simulation",
                       "allow_overlap": "pass allow_overlap=True"}
         state, changed = self._state, self._scene_changed  # each collection gets what it needs (docs/architecture.md)
-        self.wall_set, self.schedule = WallSet(self, state), Schedule(state)
+        self.schedule = Schedule(state)
+        self.wall_set = WallSet(state, self.materials, self.schedule, changed)
         self.particle_set = Particles(state, self.materials, self.periodic, self.hints, self.wall_set, changed)
         self.clump_set = ClumpSet(state, self.materials, self.periodic, self.particle_set, self.wall_set, changed)
-        self.bond_set, self.boundary_set = BondSet(state, self.particle_set), Boundaries(self, state)
+        self.bond_set = BondSet(state, self.particle_set)
+        self.boundary_set = Boundaries(state, self.schedule, self.materials, self.periodic, self.wall_set)
         self.time_step_policy = TimeStepPolicy(self, state)
         self.step, self.time = 0, 0.0
         # (time, step) where dt took over: time = t0 + (step - s0) dt, however the steps were cut
-        self._time_origin = (0.0, 0)
-        self._pair_params, self._modules = None, EngineModules()
+        self._time_origin, self._pair_params, self._modules = (0.0, 0), None, EngineModules()
         self._stepped = set()  # ids of the engine modules this simulation has stepped with (compiled)
 
     def _scene_changed(self) -> None:  # particles, walls or coefficients changed: a new pair table
@@ -254,7 +255,7 @@ class Simulation:
         waits for the next interval; a warning says so once, and the time series' ``inflow_{name}
         _shortfall`` counts it. Returns the ``Inflow``."""
         return self.boundary_set.add_inflow(region, radius, material, rate, mass_rate, velocity, seed, name,
-                                            interval, start)
+                                            interval, self.time if start is None else start)
 
     outlets = property(lambda self: self.boundary_set.outlets, doc="The outlets (``Outlet``), in the order added.")
     inflows = property(lambda self: self.boundary_set.inflows, doc="The inflows (``Inflow``), in the order added.")
@@ -350,8 +351,7 @@ class Simulation:
         return self._state.statistics()
 
     # --- time step -------------------------------------------------------------------------------
-    def time_step_limits(self) -> list[tuple[str, float]]:
-        """Each criterion of docs/models.md §2 that applies: (description, largest allowed dt)."""
+    def time_step_limits(self) -> list[tuple[str, float]]:  # each criterion of models.md §2 that applies: (what, dt)
         return self.time_step_policy.limits()
 
     def stable_time_step(self) -> float:  # the largest dt all criteria allow (s)
@@ -362,10 +362,10 @@ class Simulation:
 
     # --- running ---------------------------------------------------------------------------------
     def check_before_run(self) -> None:
-        """What ``run`` refuses before its first step: a non-finite state (first: the dt check's message would be
-        a riddle), a mesh smaller than a particle, an inflow walled in, dt, a cohesion law's reach, periodic lengths."""
+        """What ``run`` refuses first: a non-finite state, mesh walls, inflows' room, dt, cohesion reach, periodic box."""
         self.schedule.check_finite_state(self)
         self.wall_set.check_scene()
+        self.boundary_set.check_room()
         self.time_step_policy.check()
         self.time_step_policy.check_contact_reach()
         periodic_box_checks.check_scene(self)

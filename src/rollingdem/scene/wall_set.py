@@ -13,6 +13,7 @@ import numpy as np
 from rollingdem.engine.layout import MESH_MOTION as MO, MOTION_TABLE_ROW
 from rollingdem.errors import ParameterError, check_vector, short_repr
 from rollingdem.physics.records import WALL_MESH
+from rollingdem.scene.boundaries import Inflow
 from rollingdem.scene.mesh import MeshWall, TriangleMesh
 from rollingdem.scene.motion import check_program, motion_row
 from rollingdem.scene.walls import INACTIVE, Wall, wall_from_dict
@@ -54,14 +55,15 @@ def check_mesh_size(wall, radius) -> None:
                              "scale (0.001 for a file in mm), or check_size: false to accept it")
 
 
-def check_openings(wall, sim) -> None:
+def check_openings(wall, state, materials, inflows) -> None:
     """Refuse a mesh with an opening (``TriangleMesh.openings``) that the real particles pass and
     the parcels standing for them do not: narrower than the largest parcel and wider than the
     smallest real particle, of those in the scene and its inflows. The material would flow
-    through it; its parcels would jam."""
-    st = sim.particle_set.state
-    alpha = sim.particle_set.coarse_graining_factors()
-    inflows = [i.radius for i in sim.boundary_set.inflows if getattr(i.radius, "alpha", 1.0) != 1.0]
+    through it; its parcels would jam. ``state``: the engine state, ``materials``: the material
+    table, ``inflows``: the scene's."""
+    st = state
+    alpha = materials.coarse_graining_factors()
+    inflows = [i.radius for i in inflows if getattr(i.radius, "alpha", 1.0) != 1.0]
     coarse = alpha[st.mat[:st.n]] != 1.0
     if not coarse.any() and not inflows:
         return
@@ -84,9 +86,9 @@ class WallSet:
     step. ``in_engine``: the planes and cylinders in place, in the engine's order (meshes are in
     ``state.meshes.names``)."""
 
-    def __init__(self, sim, state):
-        self.sim = sim
+    def __init__(self, state, materials, schedule, on_change):
         self.state = state  # the engine state, the same object for the simulation's life
+        self.materials, self.schedule, self.on_change = materials, schedule, on_change
         self.slots: list[Wall] = []
         self.in_engine: list[Wall] = []
 
@@ -95,7 +97,7 @@ class WallSet:
 
     def add(self, wall: Wall) -> Wall:
         """``Simulation.add_wall``."""
-        materials = self.sim.materials
+        materials = self.materials
         if not isinstance(wall, Wall) or isinstance(wall, Removed):
             raise ParameterError(f"wall = {wall!r} is not allowed: must be a rollingdem.Plane, Cylinder or MeshWall")
         if any(w is wall for w in self.slots):
@@ -107,19 +109,18 @@ class WallSet:
         materials.index(wall.material)
         if wall.kind == WALL_MESH:
             check_mesh_size(wall, self.state.radius)
-            check_openings(wall, self.sim)
+            check_openings(wall, self.state, self.materials, self.schedule.of(Inflow))
         self.slots.append(wall)
         self.hand_over()
         return wall
 
     def check_scene(self) -> None:
         """``check_mesh_size`` and ``check_openings`` of each mesh wall in place against the particles
-        now in the scene, and each inflow's region against the walls (``Boundaries.check_room``)."""
+        now in the scene."""
         for wall in self.in_place():
             if wall.kind == WALL_MESH:
                 check_mesh_size(wall, self.state.radius)
-                check_openings(wall, self.sim)
-        self.sim.boundary_set.check_room()
+                check_openings(wall, self.state, self.materials, self.schedule.of(Inflow))
 
     def remove(self, wall: Wall | str) -> None:
         """``Simulation.remove_wall``."""
@@ -162,7 +163,7 @@ class WallSet:
                 raise ParameterError(f"point = {point!r} is not allowed for wall {self.label(wall)}: a plane or "
                                      "cylinder turns about its own point; only a mesh wall takes a rotation point")
             wall.point = check_vector("mesh point", point)
-        wall._restart_motion = True
+        wall.restart_motion = True
         if wall.motion is not None:
             check_program(wall, wall.motion, self.label(wall))
         self.hand_over()
@@ -192,7 +193,7 @@ class WallSet:
         """Give the engine the walls in place, each keeping its contact history (and its motion, unless
         that changed: a changed motion starts again from where the wall is now)."""
         self.refresh()
-        st, materials = self.state, self.sim.materials
+        st, materials = self.state, self.materials
         active = [wl for wl in self.in_place() if wl.kind != WALL_MESH]
         meshes = [wl for wl in self.in_place() if wl.kind == WALL_MESH]
         rows, table = self._motion_rows(active + meshes)
@@ -206,13 +207,13 @@ class WallSet:
         described = []
         for wl, row in zip(meshes, rows[len(active):]):
             described.append({**wl.engine_mesh(materials.index(wl.material)), "motion": row})
-            if wl.motion is not None and not wl._restart_motion and wl._motion_reference is not None:
-                described[-1]["reference"] = wl._motion_reference
+            if wl.motion is not None and not wl.restart_motion and wl.engine_motion_reference is not None:
+                described[-1]["reference"] = wl.engine_motion_reference
         st.meshes.motion_table = table
         st.set_meshes(described, carry, meshes)
         for wl in active + meshes:
-            wl._restart_motion = False
-        self.sim._scene_changed()
+            wl.restart_motion = False
+        self.on_change()
 
     @staticmethod
     def _motion_rows(walls) -> tuple:
@@ -220,8 +221,8 @@ class WallSet:
         carry) and the walls' motion tables in one array, each row pointing at its own."""
         rows, tables, start = [], [], 0
         for wl in walls:
-            if wl.motion is not None and not wl._restart_motion and wl._motion_row is not None:
-                row = wl._motion_row.copy()
+            if wl.motion is not None and not wl.restart_motion and wl.engine_motion_row is not None:
+                row = wl.engine_motion_row.copy()
             else:
                 row = motion_row(wl, wl.point)
             part = wl.motion.table_rows() if wl.motion is not None else None
@@ -238,13 +239,13 @@ class WallSet:
         st = self.state
         for k, (wl, g) in enumerate(zip(self.in_engine, st.wall_geom)):
             wl.update_from_geometry(g)
-            wl._motion_row = st.wall_program[k].copy()
+            wl.engine_motion_row = st.wall_program[k].copy()
         ms = st.meshes
         for m, wl in enumerate(ms.names):
             v0, v1 = ms.vertex_start[m], ms.vertex_start[m + 1]
             mo = ms.motion[m]
             wl.update_from_engine(ms.vertices[v0:v1], mo[[MO.ox, MO.oy, MO.oz]])
-            wl._motion_row, wl._motion_reference = mo.copy(), ms.reference[v0:v1].copy()
+            wl.engine_motion_row, wl.engine_motion_reference = mo.copy(), ms.reference[v0:v1].copy()
 
     def loads(self, point=None) -> dict:
         """``Simulation.wall_loads``."""
@@ -276,7 +277,7 @@ class WallSet:
 
     def describe(self) -> list:
         """Each slot for a checkpoint: None for a removed wall (a mesh's triangles go in the arrays)."""
-        materials = self.sim.materials
+        materials = self.materials
         return [None if wl.kind == INACTIVE else {**wl.describe(), "name": wl.name,
                                                     "material": materials[wl.material].name}
                 for wl in self.slots]
@@ -310,4 +311,4 @@ class WallSet:
         ms.names = [wl for wl in self.in_place() if wl.kind == WALL_MESH]
         self.refresh()
         for wl in self.in_place():  # the programs go on from the checkpoint's rows
-            wl._restart_motion = False
+            wl.restart_motion = False

@@ -38,8 +38,8 @@ class Wall:
         self.motion = None
         # the engine's motion row (and a mesh's vertices where it began) at the last refresh, carried
         # to the engine again unless the motion changed since (``WallSet.hand_over``)
-        self._motion_row = self._motion_reference = None
-        self._restart_motion = True
+        self.engine_motion_row = self.engine_motion_reference = None
+        self.restart_motion = True
 
     def set_motion(self, motion) -> None:
         """Set the wall's program (``rollingdem.scene.motion``: ``Oscillation``, ``MotionTable``,
@@ -51,7 +51,7 @@ class Wall:
             motion = program_from_dict(motion)
         check_program(self, motion, repr(self.name) if self.name else f"({type(self).__name__.lower()})")
         self.motion = motion
-        self._restart_motion = True
+        self.restart_motion = True
 
     def reach(self, x: np.ndarray) -> float:
         """The farthest a point of ``x`` (m, particle centres) lies from the wall's spin axis (m)."""
@@ -71,7 +71,7 @@ class Wall:
         included), as the engine moved it; the steady ones before it has moved."""
         from rollingdem.engine.layout import MESH_MOTION as MO
 
-        row = self._motion_row
+        row = self.engine_motion_row
         if self.motion is None or row is None:
             return np.asarray(self.velocity, float), np.asarray(self.angular_velocity, float)
         return row[[MO.tvx, MO.tvy, MO.tvz]], row[[MO.twx, MO.twy, MO.twz]]

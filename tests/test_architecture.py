@@ -523,6 +523,40 @@ def test_only_the_simulation_reads_its_engine_state():
     assert not found, f"sim._state read outside scene/simulation.py: {found}"
 
 
+#: a namedtuple's own API (its methods and fields start with an underscore so as not to clash with a field)
+NAMEDTUPLE_API = {"_fields", "_make", "_replace", "_asdict"}
+#: private reads that stay, and why: each an object of the reading class itself, or a library's
+ALLOWED_PRIVATE_READS = {
+    ("scene/mesh.py", "part._clip"),  # a MeshRegion clipping a copy of itself
+    ("engine/state.py", "st._slots"),  # EngineState.from_arrays building an EngineState
+    ("engine/precompile.py", "FunctionCache(getattr(module, function).py_func)._cache_file"),  # Numba has no
+    ("engine/precompile.py", "FunctionCache(getattr(module, function).py_func)._cache_file._index_path"),  # public path
+}
+
+
+def private_reads(source: str) -> list[str]:
+    """``object._name`` read in ``source`` on an object other than ``self`` or ``cls`` (dunders and a
+    namedtuple's API aside), as written."""
+    return [ast.unparse(node) for node in ast.walk(ast.parse(source))
+            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
+            and node.attr not in NAMEDTUPLE_API
+            and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))]
+
+
+def test_the_private_read_finder_sees_another_objects_private_attribute():
+    source = "def f(wl, row):\n    a = wl._motion\n    b = self._own\n    c = row._replace(x=1)\n    return wl.__class__\n"
+    assert private_reads(source) == ["wl._motion"]
+
+
+def test_no_object_reads_another_objects_private_attributes():
+    """An object reads and writes another only through what that one makes public (the walls'
+    carried engine rows, an observer's position, a case's folder); the exceptions are listed
+    with their reason (``ALLOWED_PRIVATE_READS``)."""
+    found = sorted((str(path.relative_to(SOURCE)), read) for path in module_files().values()
+                   for read in private_reads(path.read_text()))
+    assert [f for f in found if f not in ALLOWED_PRIVATE_READS] == []
+
+
 def test_the_collections_are_not_given_the_simulation():
     """The spheres, clumps, bonds, walls and boundaries get the engine state and narrow handles in
     their constructors (docs/architecture.md, The scene), not the simulation: none keeps one, and a

@@ -194,7 +194,7 @@ class CaseExperiment(Experiment):
         from rollingdem.io.casefile import load_case
 
         case = load_case(self.case_data(self.resolve(params)))
-        case._base = self.base
+        case.base_directory = self.base
         try:
             check_case(case)
         except ParameterError as err:
@@ -221,7 +221,7 @@ class CaseExperiment(Experiment):
         data.setdefault("output", {})["snapshots"] = None  # a sweep keeps numbers, not pictures
         data["output"]["report"] = None
         case = load_case(data)
-        case._base = self.base
+        case.base_directory = self.base
         with tempfile.TemporaryDirectory(prefix="rollingdem-case-") as folder:
             if self.prepared is not None and len(case.stages) > 1:
                 summary = run_prepared(case, Path(folder) / "run", self.prepared, self.stage_keys(data),

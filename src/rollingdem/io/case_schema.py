@@ -626,3 +626,7 @@ class CaseSpec(_Strict):
     @property
     def base_directory(self) -> Path:
         return self._base
+
+    @base_directory.setter
+    def base_directory(self, folder) -> None:  # where a case made from a mapping names its files from
+        self._base = Path(folder)

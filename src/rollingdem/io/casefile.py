@@ -33,7 +33,7 @@ def load_case(path_or_dict) -> CaseSpec:
     except ValidationError as err:
         raise ParameterError(format_validation_error(err, source, data)) from None
     if isinstance(path_or_dict, (str, Path)):
-        case._base = Path(path_or_dict).parent
+        case.base_directory = Path(path_or_dict).parent
     return case
 
 

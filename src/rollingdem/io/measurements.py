@@ -545,18 +545,18 @@ class WallLoad(Measurement):
     def describe(self):
         return f"load on wall {self.wall!r}"
 
-    def _wall(self, sim):
+    def measured_wall(self, sim):
         return next((w for w in sim.walls if sim.wall_set.key(w) == self.wall), None)
 
     def check(self, sim):
-        if self._wall(sim) is None:
+        if self.measured_wall(sim) is None:
             keys = [sim.wall_set.key(w) for w in sim.walls]
             raise ParameterError(f"measurement {self.name!r}: wall = {self.wall!r} is not allowed: no wall in place has "
                                  f"that name; walls are {', '.join(map(repr, keys)) or 'none'}")
 
     def values(self, sim):
         load = sim.wall_loads().get(self.wall)
-        wall = self._wall(sim)
+        wall = self.measured_wall(sim)
         if load is None or wall is None:  # removed by an earlier stage
             return [math.nan] * len(self.QUANTITIES)
         f, t = np.array(load["force"]), np.array(load["torque"])
@@ -717,7 +717,7 @@ class DrumFlow(Measurement):
         return (f"drum bed's flow about the axis {tuple(self.axis.tolist())} through {tuple(self.center.tolist())}, "
                 f"drum radius {self.radius:g} m turned by wall {self.wall!r}")
 
-    _wall = WallLoad._wall
+    measured_wall = WallLoad.measured_wall
 
     def check(self, sim):
         DrumAngle.check(self, sim)
@@ -733,7 +733,7 @@ class DrumFlow(Measurement):
             s = rel @ self.axis
             keep &= (s >= self.extent[0]) & (s <= self.extent[1])
         basis = np.column_stack([across, up, self.axis])  # a turn: distances kept
-        wall = self._wall(sim)
+        wall = self.measured_wall(sim)
         omega = float(np.asarray(wall.angular_velocity, float) @ self.axis) if wall is not None else math.nan
         r = sim.radii[keep]
         return rel[keep] @ basis, sim.velocities[keep] @ basis, r, 2.0 * float(r.mean()), omega

@@ -199,6 +199,17 @@ class VTKSnapshots(Observer):
             return {}
         return {"clump": sim.particle_field("clump").astype(np.int64)}
 
+    def cut_after(self, step: int) -> None:
+        """Remove the snapshot files written after ``step`` (a run resumed from there writes them
+        again) and write the collections (``.pvd``) of those kept."""
+        for f in self.directory.glob("*.vtu"):
+            stem = f.stem.rsplit("_", 1)
+            if len(stem) == 2 and stem[1].isdigit() and int(stem[1]) > step:
+                f.unlink()
+        self._write_pvd(self.prefix, self._entries)
+        for name, entries in self._mesh_entries.items():
+            self._write_pvd(name, entries)
+
     def _write_pvd(self, stem, entries):
         lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
                  "  <Collection>"]

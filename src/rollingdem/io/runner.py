@@ -181,7 +181,7 @@ class _Run:
         if case is not None:
             state.case, state.base = case, str(Path(case.base_directory).resolve())
             _relocate(state, outdir)
-        state.case._base = Path(state.base)
+        state.case.base_directory = Path(state.base)
         sim = Simulation.restore(folder / RUN_CHECKPOINT, backend=state.case.backend)
         if sim.step != state.step:
             raise ParameterError(f"--resume = {str(outdir)!r} is not allowed: its checkpoint is at step {sim.step} "
@@ -359,13 +359,7 @@ def _cut_outputs(outdir: Path, state: RunState) -> None:
         tmp.replace(path)
     for ob in state.observers:
         if isinstance(ob, VTKSnapshots) and ob.directory.exists():
-            for f in ob.directory.glob("*.vtu"):
-                stem = f.stem.rsplit("_", 1)
-                if len(stem) == 2 and stem[1].isdigit() and int(stem[1]) > step:
-                    f.unlink()
-            ob._write_pvd(ob.prefix, ob._entries)
-            for name, entries in ob._mesh_entries.items():
-                ob._write_pvd(name, entries)
+            ob.cut_after(step)
 
 
 def run_case(case: CaseSpec, out: str | Path | None = None, progress: bool = True, echo=print,

@@ -39,12 +39,12 @@ def write(sim, path, state) -> Path:
         "gravity": list(sim.gravity),
         "dt": sim.dt,
         "dt_automatic": sim.dt_automatic,
-        "skin": sim._skin,
+        "skin": sim.given_skin,
         "check_timestep": sim.check_timestep,
         "track_energy": sim.track_energy,
         "step": sim.step,
         "time": sim.time,
-        "time_origin": list(sim._time_origin),
+        "time_origin": list(sim.time_origin),
         "walls": sim.wall_set.describe(),
         "periodic": {axis: list(ends) for axis, ends in sim.periodic.items()},
         **sim.boundary_set.describe(),
@@ -109,6 +109,6 @@ def restore(simulation_class, path, backend: str | None = None):
     sim.step = int(meta["step"])
     sim.time = float(meta["time"])
     origin = meta.get("time_origin", (sim.time, sim.step))  # absent in older checkpoints
-    sim._time_origin = (float(origin[0]), int(origin[1]))
+    sim.time_origin = (float(origin[0]), int(origin[1]))
     sim.dt_automatic = bool(meta.get("dt_automatic", False))
     return sim

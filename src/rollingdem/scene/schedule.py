@@ -45,6 +45,7 @@ class Observer(Operation):
         self.interval = check_positive("observer interval", interval, "s")
         self._every = None
         self._next = None
+        self._last_step = None
 
     def check(self, sim) -> None:
         """Refuse what ``start`` would refuse for ``sim``, without writing anything (default: nothing)."""
@@ -55,6 +56,14 @@ class Observer(Operation):
 
     def next_step(self, sim) -> int:
         return self._next
+
+    def position(self) -> tuple:
+        """Where the observer stands: (the next step it observes at, the last step it observed)."""
+        return self._next, getattr(self, "_last_step", None)
+
+    def resume_at(self, position: tuple) -> None:
+        """Go on from ``position`` (``position``), as if the run had not stopped."""
+        self._next, self._last_step = position
 
     def update(self, sim) -> None:
         self.maybe_observe(sim)
@@ -125,6 +134,7 @@ class Schedule:
 
     def __init__(self, state):
         self.state = state  # the engine state the step loop advances
+        self.stepped: set[int] = set()  # ids of the engine modules it has stepped with (compiled)
         self.operations: list[Operation] = []
 
     def add(self, operation: Operation) -> Operation:
@@ -165,10 +175,10 @@ class Schedule:
             ob.check(sim)  # all refusals before any observer writes
         bar, end, failure = None, sim.step + steps, None
         for ob in observers:
-            kept = (ob._next, getattr(ob, "_last_step", None)) if continuing else None
+            kept = ob.position() if continuing else None
             ob.start(sim)
             if kept:
-                ob._next, ob._last_step = kept
+                ob.resume_at(kept)
         for c in () if continuing else conditions:
             c.start(sim)
         operations = self.during([*observers, *conditions])
@@ -176,7 +186,7 @@ class Schedule:
         try:
             module = sim.engine_module()  # after the observers start: a TimeSeries turns on track_energy
             if progress:
-                bar = Progress(sim, steps, label, warm=id(module) in sim._stepped)
+                bar = Progress(sim, steps, label, warm=id(module) in self.stepped)
             for ob in () if continuing else observers:
                 ob.maybe_observe(sim, force=True)
             chunk = 64
@@ -187,11 +197,12 @@ class Schedule:
                 due = self.next_step(sim, operations)
                 todo = max(min(end, sim.step + chunk, *(() if due is None else (due,))) - sim.step, 1)
                 tic = _time.perf_counter()
-                done, problem = self.state.advance(module, todo, sim.dt, sim._gravity, sim.skin, sim.pair_parameters())
+                gravity = np.asarray(sim.gravity, dtype=np.float64)
+                done, problem = self.state.advance(module, todo, sim.dt, gravity, sim.skin, sim.pair_parameters())
                 elapsed = _time.perf_counter() - tic
-                sim._stepped.add(id(module))
+                self.stepped.add(id(module))
                 sim.step += done
-                sim.time = sim._time_origin[0] + (sim.step - sim._time_origin[1]) * sim.dt
+                sim.time = sim.time_origin[0] + (sim.step - sim.time_origin[1]) * sim.dt
                 self.check_finite_state(sim)
                 if problem:
                     raise SimulationError(f"at t = {sim.time:.6g} s (step {sim.step}): {problem}")

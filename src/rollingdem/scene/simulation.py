@@ -77,7 +77,7 @@ class Simulation:
         self.gravity = gravity
         self._dt = None if dt is None else check_positive("dt", dt, "s")
         self.dt_automatic = dt is None  # chosen by the checks, and lowered by them when a run's speeds need it
-        self._skin = None if skin is None else check_positive("skin", skin, "m")
+        self.given_skin = None if skin is None else check_positive("skin", skin, "m")  # None: from the radii
         self.check_timestep = bool(check_timestep)
         self.track_energy = bool(track_energy)
         self._state = EngineState(self._contact.history_size)
@@ -97,8 +97,7 @@ class Simulation:
         self.time_step_policy = TimeStepPolicy(self, state)
         self.step, self.time = 0, 0.0
         # (time, step) where dt took over: time = t0 + (step - s0) dt, however the steps were cut
-        self._time_origin, self._pair_params, self._modules = (0.0, 0), None, EngineModules()
-        self._stepped = set()  # ids of the engine modules this simulation has stepped with (compiled)
+        self.time_origin, self._pair_params, self._modules = (0.0, 0), None, EngineModules()
 
     def _scene_changed(self) -> None:  # particles, walls or coefficients changed: a new pair table
         self._pair_params = None
@@ -140,12 +139,12 @@ class Simulation:
     @dt.setter
     def dt(self, value):
         self._dt = check_positive("dt", value, "s")
-        self._time_origin, self.dt_automatic = (self.time, self.step), False
+        self.time_origin, self.dt_automatic = (self.time, self.step), False
 
     @property
     def skin(self) -> float:
-        radius = None if self._skin is not None else self.particle_set.largest_radius(self.inflows)
-        return self._skin if radius is None else 0.4 * radius if radius > 0 else 1e-3
+        radius = None if self.given_skin is not None else self.particle_set.largest_radius(self.inflows)
+        return self.given_skin if radius is None else 0.4 * radius if radius > 0 else 1e-3
 
     def add_material(self, material: Material) -> int:
         self._scene_changed()

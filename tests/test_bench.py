@@ -79,7 +79,10 @@ def test_time_split_leaves_the_state_as_it_was(table1):
     a, b = _bed(table1), _bed(table1)
     a.run(steps=2000)
     split = a.phase_seconds(repeats=3, rebuilds_per_step=1.0)
-    assert all(split[p] > 0 for p in ("contact forces", "walls", "integration and gathering", "neighbor search"))
+    # the passes timed on their own take time; the walls are a difference of two gathers (with and
+    # without them), clipped at 0, which on a loaded machine may come out 0 for one plane
+    assert all(split[p] > 0 for p in ("contact forces", "integration and gathering", "neighbor search"))
+    assert split["walls"] >= 0
     a.run(steps=2000)
     b.run(steps=4000)
     assert a.number_of_contacts() > 0

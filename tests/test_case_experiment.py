@@ -265,7 +265,7 @@ def test_a_measured_profile_calibrates_the_size_that_matches_it(tmp_path):
     mm and the parabola through five points of a V stays within one spacing of its tip)."""
     import numpy as np
 
-    from rollingdem.io.measurements import SurfaceProfile, read_profile
+    from rollingdem.io.rig_measurements import SurfaceProfile, read_profile
 
     g = np.arange(-0.026, 0.0261, 0.0065)
     xy = np.array([(a, b) for a in g for b in g])
@@ -308,7 +308,7 @@ def test_a_heap_profile_is_read_at_its_end_state_and_a_drum_profile_over_its_win
     import numpy as np
 
     from rollingdem.experiments.case_file import CaseExperiment
-    from rollingdem.io.measurements import SurfaceProfile
+    from rollingdem.io.rig_measurements import SurfaceProfile
 
     g = np.arange(-0.026, 0.0261, 0.0065)
     positions = [[float(a), float(b), 0.0031] for a in g for b in g]

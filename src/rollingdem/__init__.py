@@ -23,8 +23,8 @@ from rollingdem.scene.size_distributions import Discrete, MassFractions, Normal,
 from rollingdem.scene.materials import Material, MaterialTable  # noqa: E402
 from rollingdem.scene.mesh import MeshRegion, MeshWall, TriangleMesh  # noqa: E402
 from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots  # noqa: E402
-from rollingdem.io.measurements import (DrumAngle, DrumFlow, Function, MassFlow, MeshFlow, OutletTotals, PileAngle, Probe,  # noqa: E402
-                                         SurfaceProfile, WallLoad)
+from rollingdem.io.measurements import Function, MassFlow, MeshFlow, OutletTotals, Probe, WallLoad  # noqa: E402
+from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle, SurfaceProfile  # noqa: E402
 from rollingdem.scene.conditions import Empty, Known, Reaches, Settled  # noqa: E402
 from rollingdem.scene.schedule import Callback, Observer  # noqa: E402
 from rollingdem.scene.simulation import Simulation, __version__  # noqa: E402

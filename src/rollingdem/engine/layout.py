@@ -96,3 +96,8 @@ Scratch = collections.namedtuple("Scratch", (
     "blocks",  # (threads, BLOCK columns x CONTACT_BLOCK) float64 block buffers of the pair pass
     "lanes",   # (threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK) int64 their lane indices
 ))
+
+# list capacity = entries needed x this (16 bytes per entry and a pool row of 8 (history + 6) bytes,
+# 136 with EPSD): growing costs a reallocation and one more counting pass of the neighbor search,
+# so a small margin is cheap
+LIST_MARGIN = 1.15

@@ -355,7 +355,7 @@ def _mesh_wall(w: MeshSpec, base: Path):
 def build_measurements(case: CaseSpec, sim) -> dict:
     """The case's measurements by name (``rollingdem.io.measurements``), each checked against the
     scene (its wall or outlet named, its sensor inside the scene)."""
-    from rollingdem.io import measurements as ms
+    from rollingdem.io import measurements as ms, rig_measurements as rig
 
     made = {}
     for k, m in enumerate(case.measurements):
@@ -374,18 +374,18 @@ def build_measurements(case: CaseSpec, sim) -> dict:
             elif m.type == "wall":
                 made[m.name] = ms.WallLoad(wall=m.wall, **common)
             elif m.type == "repose_angle":
-                made[m.name] = ms.PileAngle(floor=m.floor, n_slices=m.n_slices, exclude_apex=m.exclude_apex,
+                made[m.name] = rig.PileAngle(floor=m.floor, n_slices=m.n_slices, exclude_apex=m.exclude_apex,
                                             exclude_toe=m.exclude_toe, **common)
             elif m.type == "mesh_flow":
                 made[m.name] = ms.MeshFlow(mesh=_sensor_mesh(m, case.base_directory), **common)
             elif m.type == "drum_angle":
-                made[m.name] = ms.DrumAngle(center=m.center, axis=m.axis, extent=m.extent, **common)
+                made[m.name] = rig.DrumAngle(center=m.center, axis=m.axis, extent=m.extent, **common)
             elif m.type == "drum_flow":
-                made[m.name] = ms.DrumFlow(center=m.center, axis=m.axis, radius=m.radius, wall=m.wall, extent=m.extent,
+                made[m.name] = rig.DrumFlow(center=m.center, axis=m.axis, radius=m.radius, wall=m.wall, extent=m.extent,
                                            **common)
             else:
                 path = Path(m.file) if Path(m.file).is_absolute() else case.base_directory / m.file
-                made[m.name] = ms.SurfaceProfile(points=ms.read_profile(path), shape=m.shape, center=m.center,
+                made[m.name] = rig.SurfaceProfile(points=rig.read_profile(path), shape=m.shape, center=m.center,
                                                  axis=m.axis, floor=m.floor, **common)
             made[m.name].check(sim)
     return made

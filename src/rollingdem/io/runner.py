@@ -518,7 +518,7 @@ def _measure_pile(sim, spec: ReposeOutputSpec, outdir: Path, echo) -> dict:
     from itertools import product
 
     from rollingdem.analysis.repose import plot_pile
-    from rollingdem.io.measurements import PileAngle
+    from rollingdem.io.rig_measurements import PileAngle
 
     pile = PileAngle(floor=spec.floor, n_slices=spec.n_slices, exclude_apex=spec.exclude_apex,
                      exclude_toe=spec.exclude_toe)

@@ -2,7 +2,7 @@
 
 When the step loop a run takes is not yet in Numba's cache, a helper process compiles part of its
 passes into the cache while this process compiles the rest (``prepare``, from
-``kernels.engine_module``). The plan, its fallbacks and when the helper starts:
+``codegen.engine_module``). The plan, its fallbacks and when the helper starts:
 docs/architecture.md, "Compiling an engine module"; the time it saves: docs/performance.md."""
 
 from __future__ import annotations

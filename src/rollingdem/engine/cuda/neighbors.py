@@ -58,7 +58,7 @@ def scan_chunk() -> int:
 
 
 def kernel_bodies(module) -> dict:
-    """The rebuild's CUDA kernel bodies for an engine module, by name (``gpu_engine.kernel_bodies``
+    """The rebuild's CUDA kernel bodies for an engine module, by name (``step_loop.kernel_bodies``
     adds them to the step's)."""
     global cuda
     cuda = cuda_target.cuda_module()

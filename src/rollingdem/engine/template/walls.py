@@ -103,7 +103,7 @@ def wall_load(load, k, res, cx, cy, cz):
 @njit(cache=True, inline="always")
 def mesh_contacts(i, dt, particles, walls, pair_params, half_skin):
     """All triangle-mesh contacts of particle i, one per touched surface feature, each in its
-    contact slot (``mesh_kernel.match_mesh_contacts``): total force and torque on i, energies,
+    contact slot (``mesh_passes.match_mesh_contacts``): total force and torque on i, energies,
     contact count. A mesh is a wall: R* = R_i, m* = m_i, its surface velocity at the contact point
     v + omega x (c - o). A sphere with no contact at the last step skips its candidates when it
     cannot reach any: its gap to them at the build exceeds how far it has moved since (and a

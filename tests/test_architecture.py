@@ -529,8 +529,9 @@ NAMEDTUPLE_API = {"_fields", "_make", "_replace", "_asdict"}
 ALLOWED_PRIVATE_READS = {
     ("scene/mesh.py", "part._clip"),  # a MeshRegion clipping a copy of itself
     ("engine/state.py", "st._slots"),  # EngineState.from_arrays building an EngineState
-    ("engine/precompile.py", "FunctionCache(getattr(module, function).py_func)._cache_file"),  # Numba has no
-    ("engine/precompile.py", "FunctionCache(getattr(module, function).py_func)._cache_file._index_path"),  # public path
+    # Numba gives no public path to a function's cache index
+    ("engine/precompile.py", "FunctionCache(getattr(module, function).py_func)._cache_file"),
+    ("engine/precompile.py", "FunctionCache(getattr(module, function).py_func)._cache_file._index_path"),
 }
 
 

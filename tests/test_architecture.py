@@ -11,6 +11,7 @@ y`` to ``y`` when that is a module and to the package otherwise).
 import ast
 from pathlib import Path
 
+import pytest
 import rollingdem as rd
 
 PACKAGE = "rollingdem"
@@ -195,11 +196,11 @@ def test_every_module_has_a_docstring():
     assert not missing, f"modules without a docstring saying what they are for: {', '.join(missing)}"
 
 
-def worked_example(title: str = "### Worked example: a rolling law") -> str:
-    """The first Python block of the docs/architecture.md section ``title``."""
+def worked_example(title: str = "### Worked example: a rolling law", block: int = 0) -> str:
+    """The Python block number ``block`` (from 0) of the docs/architecture.md section ``title``."""
     text = (SOURCE.parents[1] / "docs" / "architecture.md").read_text()
     section = text[text.index(title):]
-    return section.split("```python\n", 1)[1].split("```", 1)[0]
+    return section.split("```python\n")[block + 1].split("```", 1)[0]
 
 
 def test_worked_example_adds_a_backend():
@@ -330,36 +331,68 @@ def test_worked_example_adds_a_per_particle_field(tmp_path):
 
 
 def test_worked_example_adds_a_rolling_law_without_editing_the_package(tmp_path, monkeypatch):
-    """docs/architecture.md's toy law, one class and one function in a module of its own, runs on
-    the rolling-flat case (validation case 1) and stops the sphere when theory says.
+    """docs/architecture.md's toy law, one class and one function in a module of its own, and the
+    material property it declares beside it, run on the rolling-flat case (validation case 1) and
+    stop the sphere when theory says.
 
     M0 = mu_r' R m g with mu_r' = 0.1 makes it CDT's moment at rest for mu_r' (the material's own
     mu_r is 0.2: a law reading that instead stops twice as early), so the analytic case-1 solution
     with mu_r' gives the stop, 1.02 s. Tolerance 0.5 %: the stop is detected at 1 mm/s, 1.4 ms
     (0.14 %) before rest, sampled every 0.1 ms; the wall contact's lever R - delta/2 differs from
-    R by 1e-4 relative."""
+    R by 1e-4 relative. The sphere and the plate are one material, so the run cannot see the
+    mixing rule: materials of 4 and 1 uN m check it (geometric mean 2, arithmetic 2.5, min 1)."""
     import math
     import sys
 
+    import rollingdem as rd
+    from rollingdem.errors import ParameterError
     from rollingdem.experiments.single_sphere import G, RADIUS, TABLE1, analytic_flat, rolling_flat_run, stop_time
+    from rollingdem.io.casefile import build_simulation, load_case
     from rollingdem.physics.contact import ROLLING_MODELS
     from rollingdem.physics.contact.model import ContactModel
+    from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES
 
     (tmp_path / "my_rolling_law.py").write_text(worked_example())
     monkeypatch.syspath_prepend(str(tmp_path))
     try:
         import my_rolling_law
 
-        mass = TABLE1["density"] * 4.0 / 3.0 * math.pi * RADIUS ** 3
-        moment = 0.1 * RADIUS * mass * G
-        contact = ContactModel("hertz", rolling={"model": "constant_moment", "moment": moment})
+        usage = worked_example("### Worked example: a rolling law", block=1)
+        scope = {}
+        exec(compile(usage, "architecture.md", "exec"), scope)
+        assert scope["sim"].materials["glass"].rolling_moment == 2.7e-6
+
+        contact = ContactModel("hertz", rolling="constant_moment")
         assert isinstance(contact.rolling, my_rolling_law.ConstantMoment)
         assert contact.layout()["N_PARAMS"] == contact.layout()["ROLLING_PARAMS"] + 1  # its declared parameter
-        traj = rolling_flat_run(contact.rolling, duration=1.2)
+
+        a = rd.Material("a", **TABLE1, rolling_moment=4e-6)
+        b = rd.Material("b", **TABLE1, rolling_moment=1e-6)
+        table = rd.MaterialTable()
+        table.add(a), table.add(b)
+        assert math.isclose(table.pair(0, 1).rolling_moment, 2e-6, rel_tol=1e-12)
+        row = contact.pair_table(table.pairs())[0, 1]
+        assert math.isclose(row[contact.layout()["ROLLING_PARAMS"]], 2e-6, rel_tol=1e-12)
+        table.set_pair("a", "b", rolling_moment=3e-6)
+        assert table.pair(1, 0).rolling_moment == 3e-6
+        with pytest.raises(ParameterError, match=r"material 'c': rolling_moment = -1 is not allowed: must be >= 0 "
+                                                 r"\(N m\)"):
+            rd.Material("c", **TABLE1, rolling_moment=-1.0)
+
+        case = load_case({"materials": [{"name": "glass", "youngs_modulus": 63e9, "poisson_ratio": 0.25,
+                                         "density": 2500.0, "rolling_moment": 2.7e-6}],
+                          "particles": [{"positions": [[0.0, 0.0, 0.01]], "radius": 0.005, "material": "glass"}],
+                          "contact": {"rolling": "constant_moment"}, "stages": [{"duration": 1e-5}]})
+        assert build_simulation(case).materials["glass"].rolling_moment == 2.7e-6
+
+        mass = TABLE1["density"] * 4.0 / 3.0 * math.pi * RADIUS ** 3
+        moment = 0.1 * RADIUS * mass * G
+        traj = rolling_flat_run(contact.rolling, duration=1.2, material={"rolling_moment": moment})
         expected = analytic_flat(mu_r=0.1)[2]
         assert abs(stop_time(traj) - expected) <= 5e-3 * expected, (stop_time(traj), expected)
     finally:
         ROLLING_MODELS.pop("constant_moment", None)
+        MATERIAL_PROPERTIES.pop("rolling_moment", None)
         sys.modules.pop("my_rolling_law", None)
 
 

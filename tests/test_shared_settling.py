@@ -51,7 +51,6 @@ def test_a_pile_settled_once_serves_every_material_and_says_what_it_saved(tmp_pa
     """``settled_column``: the first run with a reference settles the column and keeps it; a second
     run with another material starts from the very same state (equal positions, bit for bit) with
     its own material in force, and reports the wall time of the settling it did not repeat."""
-    from dataclasses import asdict
 
     from rollingdem.experiments.repose import PileMaterial, PileSetup, pile_case, settled_column
 
@@ -64,7 +63,7 @@ def test_a_pile_settled_once_serves_every_material_and_says_what_it_saved(tmp_pa
     assert saved_first == 0.0 and saved_second > 0.0
     assert np.array_equal(first.positions, second.positions)
     assert first.materials["beads"].rolling_friction == 0.1 and second.materials["beads"].rolling_friction == 0.5
-    assert asdict(second.materials["beads"]) == {**asdict(first.materials["beads"]), "rolling_friction": 0.5}
+    assert second.materials["beads"].to_dict() == {**first.materials["beads"].to_dict(), "rolling_friction": 0.5}
     alone, _ = settled_column(case(0.3), None, None)
     assert np.array_equal(alone.positions, first.positions)  # the reference's own settling, as it runs alone
 

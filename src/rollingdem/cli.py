@@ -511,8 +511,9 @@ def schema():
     """Print the case file's JSON Schema (for an editor's completion and checks)."""
     import json
 
-    from rollingdem.io.case_schema import CaseSpec
+    from rollingdem.io.case_schema import CaseSpec, material_specs
 
+    material_specs()
     typer.echo(json.dumps(CaseSpec.model_json_schema(), indent=1))
 
 

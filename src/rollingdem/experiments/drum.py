@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -109,7 +109,7 @@ def drum_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     data, _ = read_mapping(SHIPPED)
     data["dt"] = dt
     data["gravity"] = [0.0, -g, 0.0]
-    data["materials"] = [asdict(material.as_material("beads")), asdict(material.wall_material("lining"))]
+    data["materials"] = [material.as_material("beads").to_dict(), material.wall_material("lining").to_dict()]
     data["pairs"] = [{"materials": ["beads", "lining"], "friction": setup.wall_friction,
                       "rolling_friction": setup.wall_rolling_friction}]
     if material.cohesion != "none":  # cohesive spheres, not cohesive to the drum

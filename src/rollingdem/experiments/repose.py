@@ -12,7 +12,7 @@ from __future__ import annotations
 import copy
 import math
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -184,12 +184,12 @@ def pile_case(rolling="epsd", twisting="none", count=3000, seed=1, material: Pil
         tube_radius, height = setup.tube_radius, height * (tube_radius / setup.tube_radius) ** 2
     data, _ = read_mapping(SHIPPED)
     data["dt"] = dt
-    data["materials"] = [asdict(material.as_material("beads"))]
+    data["materials"] = [material.as_material("beads").to_dict()]
     walls = "beads"
     data["pairs"] = []
     if material.cohesion != "none":  # cohesive spheres, not cohesive to the plate and the tube
         walls = "wall"
-        data["materials"].append(asdict(material.wall_material("wall")))
+        data["materials"].append(material.wall_material("wall").to_dict())
         data["pairs"] = [{"materials": ["beads", "wall"], "surface_energy": 0.0, "cohesion_energy_density": 0.0}]
     data["contact"] = {"normal": normal, "rolling": rolling, "twisting": twisting, "cohesion": material.cohesion}
     plate = {"type": "plane", "name": "plate", "material": walls, "point": [0, 0, 0], "normal": [0, 0, 1]}

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -253,12 +253,12 @@ def silo_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     data, _ = read_mapping(SHIPPED)
     data["dt"] = dt
     data["gravity"] = [0.0, 0.0, -g]
-    data["materials"] = [asdict(material.as_material("beads"))]
+    data["materials"] = [material.as_material("beads").to_dict()]
     data["contact"] = {"normal": "hertz", "rolling": rolling, "twisting": twisting, "cohesion": material.cohesion}
     walls = "beads"
     if material.cohesion != "none":  # cohesive spheres, not cohesive to the silo
         walls = "wall"
-        data["materials"].append(asdict(material.wall_material("wall")))
+        data["materials"].append(material.wall_material("wall").to_dict())
         data["pairs"] = [{"materials": ["beads", "wall"], "surface_energy": 0.0, "cohesion_energy_density": 0.0}]
     silo, gate = data["walls"]
     silo.update(material=walls, size={"radius": 0.5 * ds, "height": top, "orifice_radius": 0.5 * d0,

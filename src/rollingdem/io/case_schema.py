@@ -1,13 +1,17 @@
 """The case file's schema: one pydantic model per block (``CaseSpec`` at the top), strict (an
-unknown or misspelled key is an error), a material's fields taken from ``Material`` itself.
+unknown or misspelled key is an error), a material's and a pair's fields taken from the
+declarations ``Material`` checks against (``material_specs`` brings them up to date).
 ``rollingdem schema`` prints it as JSON Schema; reading and building: ``rollingdem.io.casefile``."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union, get_type_hints
+from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PrivateAttr, Strict, Tag, create_model
+
+from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES
+from rollingdem.scene.materials import OWN_PROPERTIES
 
 
 
@@ -29,30 +33,35 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
+def _documented(prop, default):
+    """A field of a material property: its declared description, unit and bounds in the JSON Schema
+    (the bounds are checked by ``Material``, whose refusal names the material)."""
+    extra = {"unit": prop.unit}
+    for key, bound, is_open in (("minimum", prop.low, prop.low_open), ("maximum", prop.high, prop.high_open)):
+        if bound is not None:
+            extra[("exclusiveM" + key[1:]) if is_open else key] = bound
+    return Field(default, description=prop.description, json_schema_extra=extra)
+
+
 def _material_spec():
-    """The schema of a material entry, taken from ``Material`` itself (one list of fields and defaults)."""
-    from dataclasses import MISSING, fields
+    """The schema of a material entry, from the declarations ``Material`` checks against: its own
+    values and the properties the registered contact laws declare."""
+    own = {key: (Number, _documented(prop, ... if prop.default is None else prop.default))
+           for key, prop in OWN_PROPERTIES.items()}
+    laws = {key: (Number, _documented(prop, prop.default)) for key, prop in MATERIAL_PROPERTIES.items()}
+    return create_model("MaterialSpec", __base__=_Strict, name=(str, Field(description="label the other blocks "
+                                                                           "use to refer to the material")),
+                        **own, **laws)
 
-    from rollingdem.scene.materials import Material
 
-    hints = get_type_hints(Material)
-    strict = {float: Number, Optional[float]: Optional[Number]}
-    spec = {f.name: (strict.get(hints[f.name], hints[f.name]), ... if f.default is MISSING else f.default)
-            for f in fields(Material)}
-    return create_model("MaterialSpec", __base__=_Strict, **spec)
+def _pair_spec():
+    """The schema of a pair entry: any declared property, in place of its mixed value."""
+    return create_model("PairSpec", __base__=_Strict, materials=(tuple[str, str], ...),
+                        **{key: (Optional[Number], _documented(prop, None)) for key, prop in MATERIAL_PROPERTIES.items()})
 
 
 MaterialSpec = _material_spec()
-
-
-class PairSpec(_Strict):
-    materials: tuple[str, str]
-    friction: Optional[Number] = None
-    rolling_friction: Optional[Number] = None
-    restitution: Optional[Number] = None
-    rolling_damping: Optional[Number] = None
-    surface_energy: Optional[Number] = None
-    cohesion_energy_density: Optional[Number] = None
+PairSpec = _pair_spec()
 
 
 class ContactSpec(_Strict):
@@ -630,3 +639,18 @@ class CaseSpec(_Strict):
     @base_directory.setter
     def base_directory(self, folder) -> None:  # where a case made from a mapping names its files from
         self._base = Path(folder)
+
+
+_SPECS_OF = tuple(MATERIAL_PROPERTIES)
+
+
+def material_specs() -> None:
+    """Bring the material and pair entries up to date with the declared material properties (a
+    user's contact law defined after this module was imported declares its own)."""
+    global MaterialSpec, PairSpec, _SPECS_OF
+    if tuple(MATERIAL_PROPERTIES) == _SPECS_OF:
+        return
+    MaterialSpec, PairSpec, _SPECS_OF = _material_spec(), _pair_spec(), tuple(MATERIAL_PROPERTIES)
+    CaseSpec.model_fields["materials"].annotation = list[MaterialSpec]
+    CaseSpec.model_fields["pairs"].annotation = list[PairSpec]
+    CaseSpec.model_rebuild(force=True)

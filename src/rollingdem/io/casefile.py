@@ -18,6 +18,7 @@ from pydantic import ValidationError
 
 from rollingdem.errors import ParameterError
 from rollingdem.io.case_errors import InCase, format_validation_error
+from rollingdem.io import case_schema
 from rollingdem.io.case_schema import (CaseSpec, ClumpShapeSpec, ClumpSpec, InsertSpec, MassFractionsSpec, MeshSpec,
                                        NormalSpec, RoughBaseSpec, SieveSpec, StageSpec, StageWindowSpec, UniformSpec,
                                        UntilSpec)
@@ -28,6 +29,7 @@ from rollingdem.scene.walls import surface_speed
 def load_case(path_or_dict) -> CaseSpec:
     """Read and validate a case file (YAML, or TOML by extension) or a mapping."""
     data, source = read_mapping(path_or_dict)
+    case_schema.material_specs()  # a user's law may declare material properties of its own
     try:
         case = CaseSpec.model_validate(data)
     except ValidationError as err:

@@ -1,24 +1,46 @@
 """Materials and the pair mixing rules of docs/models.md §1.1.
 
-:class:`Material`; :class:`MaterialTable`, the materials of a scene with the effective moduli E*
-and G* of each pair and its coefficients (friction, rolling friction, restitution, rolling
-damping, surface energy, cohesion energy density): the mean of the two materials' values unless set for the pair (``set_pair``)."""
+:class:`Material`: the elastic constants and density of docs/models.md §1.1, and the material
+properties the contact laws declare (``physics.contact.properties``: friction, rolling friction,
+restitution, ...); :class:`MaterialTable`, the materials of a scene with the effective moduli E*
+and G* of each pair and each declared property mixed by its declared rule (the mean for the
+built-in ones) unless set for the pair (``set_pair``)."""
 
 from __future__ import annotations
 
+import warnings
+from dataclasses import dataclass, field
+
 import numpy as np
 
-from dataclasses import dataclass, field, fields, replace
-
-from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_positive, check_range
+from rollingdem.errors import ParameterError, check_finite
+from rollingdem.physics.contact import SubModel  # noqa: F401 (importing the laws registers what they read)
+from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES, MaterialProperty, PairProperties
 
 
 #: Young's modulus (Pa) below which a material is taken for a unit mistake and warned of: soft
 #: hydrogel beads, the softest granular particles simulated, are some kPa and up
 SOFTEST_MODULUS = 1e3
 
+#: the material's own values: mixed into E* and G* (docs/models.md §1.1), not by a declared rule,
+#: or not mixed at all; declared as the laws' properties are, for the checks and the schema
+YOUNGS_MODULUS = MaterialProperty("youngs_modulus", "Pa", None, "Young's modulus E", low_open=True)
+POISSON_RATIO = MaterialProperty("poisson_ratio", "-", None, "Poisson's ratio nu", low=-1.0, high=0.5,
+                                 low_open=True, high_open=True)
+DENSITY = MaterialProperty("density", "kg/m^3", None, "density rho of the solid", low_open=True)
+COARSE_GRAINING = MaterialProperty(
+    "coarse_graining", "-", 1.0, "coarse-graining factor alpha: each sphere is a parcel alpha times the radius "
+    "given, with the mass of alpha^3 real particles (docs/models.md §18); 1 is none", low=1.0)
+OWN_PROPERTIES = {p.name: p for p in (YOUNGS_MODULUS, POISSON_RATIO, DENSITY, COARSE_GRAINING)}
+OWN_FIELDS = ("name", *OWN_PROPERTIES)
 
-@dataclass(frozen=True)
+
+def _unknown_property(owner: str, key: str) -> ParameterError:
+    known = ", ".join(OWN_FIELDS[1:] + tuple(MATERIAL_PROPERTIES))
+    return ParameterError(f"{owner}{key} is not a material property: allowed are {known} (a contact law declares "
+                          "the properties it reads)")
+
+
 class Material:
     """A particle or wall material.
 
@@ -28,60 +50,85 @@ class Material:
     youngs_modulus: E (Pa), > 0.
     poisson_ratio: nu, in (-1, 0.5).
     density: rho (kg/m^3), > 0.
-    friction: sliding friction coefficient mu (-), >= 0.
-    rolling_friction: rolling friction coefficient mu_r (-), >= 0; mu_r = tan(beta), beta the
-        steepest slope on which a sphere rests (seed report eq. 1).
-    restitution: coefficient of restitution e, in (0, 1].
-    rolling_damping: rolling viscous damping ratio eta_r (-), >= 0 (seed report eq. 10).
-    surface_energy: w (J/m^2), >= 0: the work of adhesion per unit area that the ``jkr`` cohesion
-        law takes (pull-off force 3/2 pi w R*; LAMMPS's ``jkr`` gamma is w / 2).
-    cohesion_energy_density: k_c (J/m^3), >= 0: the ``sjkr`` cohesion law's F = k_c A (LIGGGHTS's
-        ``cohesionEnergyDensity``).
     coarse_graining: alpha (-), >= 1 (default 1: none): each sphere of this material is a parcel of
         alpha times the radius given, with the mass of alpha^3 real particles, and the contact laws'
         dimensional parameters scaled so that the bulk behaves as the real material
         (docs/models.md §18). Every other value stays the real material's.
+    **properties: the material properties the contact laws read, by keyword, each within its
+        declared bounds, unset ones at their declared default (``rollingdem schema`` lists them):
+        friction mu (-, default 0.5), rolling_friction mu_r = tan(beta) (-, 0; beta the steepest
+        slope on which a sphere rests, seed report eq. 1), restitution e (in (0, 1], 0.5),
+        rolling_damping eta_r (-, 0; seed report eq. 10), surface_energy w (J/m^2, 0; the ``jkr``
+        law's work of adhesion, pull-off force 3/2 pi w R*), cohesion_energy_density k_c (J/m^3,
+        0; the ``sjkr`` law's F = k_c A), and any a user's law declares.
+
+    Immutable; ``replace`` gives a copy with values changed.
     """
 
-    name: str
-    youngs_modulus: float
-    poisson_ratio: float
-    density: float
-    friction: float = 0.5
-    rolling_friction: float = 0.0
-    restitution: float = 0.5
-    rolling_damping: float = 0.0
-    surface_energy: float = 0.0
-    cohesion_energy_density: float = 0.0
-    coarse_graining: float = 1.0
+    __slots__ = ("name", "youngs_modulus", "poisson_ratio", "density", "coarse_graining", "properties")
 
-    def __post_init__(self):
-        if not isinstance(self.name, str) or not self.name:
-            raise ParameterError(f"material name = {self.name!r} is not allowed: must be a non-empty string")
-        p = f"material {self.name!r}: "
-        object.__setattr__(self, "youngs_modulus", check_positive(p + "youngs_modulus", self.youngs_modulus, "Pa"))
-        if self.youngs_modulus < SOFTEST_MODULUS:
-            import warnings
-
-            warnings.warn(f"{p}youngs_modulus = {self.youngs_modulus:g} Pa is below {SOFTEST_MODULUS:g} Pa, softer than "
-                          "soft hydrogel beads: a value meant in MPa? The run goes on with it (and a time step to "
-                          "match)", RuntimeWarning, stacklevel=3)
-        object.__setattr__(self, "poisson_ratio", check_range(p + "poisson_ratio", self.poisson_ratio, -1.0, 0.5,
-                                                              low_open=True, high_open=True))
-        object.__setattr__(self, "density", check_positive(p + "density", self.density, "kg/m^3"))
-        object.__setattr__(self, "friction", check_non_negative(p + "friction", self.friction))
-        object.__setattr__(self, "rolling_friction", check_non_negative(p + "rolling_friction", self.rolling_friction))
-        object.__setattr__(self, "restitution", check_range(p + "restitution", self.restitution, 0.0, 1.0,
-                                                            low_open=True))
-        object.__setattr__(self, "rolling_damping", check_non_negative(p + "rolling_damping", self.rolling_damping))
-        object.__setattr__(self, "surface_energy", check_non_negative(p + "surface_energy", self.surface_energy, "J/m^2"))
-        object.__setattr__(self, "cohesion_energy_density",
-                           check_non_negative(p + "cohesion_energy_density", self.cohesion_energy_density, "J/m^3"))
-        alpha = check_finite(p + "coarse_graining", self.coarse_graining)
+    def __init__(self, name: str, youngs_modulus: float, poisson_ratio: float, density: float, *,
+                 coarse_graining: float = 1.0, **properties: float):
+        if not isinstance(name, str) or not name:
+            raise ParameterError(f"material name = {name!r} is not allowed: must be a non-empty string")
+        p = f"material {name!r}: "
+        own = {"name": name, "youngs_modulus": YOUNGS_MODULUS.check(youngs_modulus, p)}
+        if own["youngs_modulus"] < SOFTEST_MODULUS:
+            warnings.warn(f"{p}youngs_modulus = {own['youngs_modulus']:g} Pa is below {SOFTEST_MODULUS:g} Pa, softer "
+                          "than soft hydrogel beads: a value meant in MPa? The run goes on with it (and a time step "
+                          "to match)", RuntimeWarning, stacklevel=2)
+        own["poisson_ratio"] = POISSON_RATIO.check(poisson_ratio, p)
+        own["density"] = DENSITY.check(density, p)
+        for key in properties:
+            if key not in MATERIAL_PROPERTIES:
+                raise _unknown_property(p, key)
+        values = {key: prop.check(properties[key], p) if key in properties else prop.default
+                  for key, prop in MATERIAL_PROPERTIES.items()}
+        alpha = check_finite(p + "coarse_graining", coarse_graining)
         if alpha < 1.0:
             raise ParameterError(f"{p}coarse_graining = {alpha:g} is not allowed: must be >= 1 (a parcel is alpha times "
                                  "the real particle's radius; 1 is no coarse graining)")
-        object.__setattr__(self, "coarse_graining", alpha)
+        own["coarse_graining"] = alpha
+        for key, value in own.items():
+            object.__setattr__(self, key, value)
+        object.__setattr__(self, "properties", values)
+
+    def __getattr__(self, key):
+        # a declared property by name (material.friction); only reached when no slot has the name
+        if key != "properties":
+            try:
+                return self.properties[key]
+            except KeyError:
+                pass
+        raise AttributeError(f"Material has no property {key!r}")
+
+    def __setattr__(self, key, value):
+        raise AttributeError(f"Material is immutable: use material.replace({key}=...)")
+
+    def to_dict(self) -> dict:
+        """Every value by keyword: ``Material(**m.to_dict())`` is ``m``."""
+        own = {key: getattr(self, key) for key in OWN_FIELDS}
+        alpha = own.pop("coarse_graining")
+        return {**own, **self.properties, "coarse_graining": alpha}
+
+    def replace(self, **changes) -> "Material":
+        """A copy with ``changes`` (checked as a new material's)."""
+        for key in changes:
+            if key not in OWN_FIELDS and key not in MATERIAL_PROPERTIES:
+                raise _unknown_property(f"material {self.name!r}: ", key)
+        return Material(**{**self.to_dict(), **changes})
+
+    def __eq__(self, other):
+        return type(other) is Material and self.to_dict() == other.to_dict()
+
+    def __hash__(self):
+        return hash(tuple(self.to_dict().items()))
+
+    def __repr__(self):
+        return "Material(" + ", ".join(f"{k}={v!r}" for k, v in self.to_dict().items()) + ")"
+
+    def __reduce__(self):
+        return _material_from_dict, (self.to_dict(),)
 
     @property
     def shear_modulus(self) -> float:
@@ -89,23 +136,8 @@ class Material:
         return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
 
 
-PAIR_COEFFICIENTS = ("friction", "rolling_friction", "restitution", "rolling_damping", "surface_energy",
-                     "cohesion_energy_density")
-
-
-@dataclass(frozen=True)
-class PairProperties:
-    """Mixed properties of one material pair, as the contact sub-models see them."""
-
-    effective_youngs_modulus: float  # E* (Pa)
-    effective_shear_modulus: float   # G* (Pa)
-    friction: float
-    rolling_friction: float
-    restitution: float
-    rolling_damping: float
-    surface_energy: float = 0.0
-    cohesion_energy_density: float = 0.0
-    coarse_graining: float = 1.0     # alpha of the parcels in contact (docs/models.md §18)
+def _material_from_dict(values: dict) -> Material:
+    return Material(**values)
 
 
 def effective_youngs_modulus(a: Material, b: Material) -> float:
@@ -187,19 +219,21 @@ class MaterialTable:
         ia, ib = self.index(a), self.index(b)
         checked = {}
         for key, value in coefficients.items():
-            if key not in PAIR_COEFFICIENTS:
-                raise ParameterError(f"pair coefficient {key!r} is not known: allowed are {', '.join(PAIR_COEFFICIENTS)}")
-            probe = replace(self.materials[ia], **{key: value})  # reuses the Material checks
-            checked[key] = getattr(probe, key)
+            if key not in MATERIAL_PROPERTIES:
+                raise ParameterError(f"pair coefficient {key!r} is not known: allowed are {', '.join(MATERIAL_PROPERTIES)}")
+            checked[key] = MATERIAL_PROPERTIES[key].check(value, f"pair ({self.materials[ia].name!r}, "
+                                                                 f"{self.materials[ib].name!r}): ")
         key = (min(ia, ib), max(ia, ib))
         self.overrides.setdefault(key, {}).update(checked)
 
     def pair(self, i: int, j: int) -> PairProperties:
         a, b = self.materials[i], self.materials[j]
-        coeffs = {c: 0.5 * (getattr(a, c) + getattr(b, c)) for c in PAIR_COEFFICIENTS}
-        coeffs.update(self.overrides.get((min(i, j), max(i, j)), {}))
+        # a material made before a law declared a property has its default
+        mixed = {key: prop.mix(a.properties.get(key, prop.default), b.properties.get(key, prop.default))
+                 for key, prop in MATERIAL_PROPERTIES.items()}
+        mixed.update(self.overrides.get((min(i, j), max(i, j)), {}))
         # a parcel meets a wall, or a real sphere, as a parcel: the pair takes the larger factor
-        return PairProperties(effective_youngs_modulus(a, b), effective_shear_modulus(a, b), **coeffs,
+        return PairProperties(effective_youngs_modulus(a, b), effective_shear_modulus(a, b), mixed,
                               coarse_graining=max(a.coarse_graining, b.coarse_graining))
 
     def pairs(self) -> list[list[PairProperties]]:
@@ -209,7 +243,7 @@ class MaterialTable:
 
     def to_dict(self) -> dict:
         return {
-            "materials": [{f.name: getattr(m, f.name) for f in fields(m)} for m in self.materials],
+            "materials": [m.to_dict() for m in self.materials],
             "overrides": [[i, j, dict(v)] for (i, j), v in self.overrides.items()],
         }
 

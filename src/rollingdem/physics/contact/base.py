@@ -13,6 +13,7 @@ import inspect
 from typing import ClassVar
 
 from rollingdem.errors import ParameterError, check_choice
+from rollingdem.physics.contact.properties import declare
 from rollingdem.physics.records import slots
 
 # Common pair-parameter slots, shared by every sub-model.
@@ -42,7 +43,8 @@ class SubModel:
     Class attributes: ``slot`` ("normal", "tangential", "rolling", "twisting", "cohesion"), ``name`` (as
     case files give it), ``parameters`` and ``history`` (``slots``: the per-pair floats after the
     common ones, and the per-contact history), ``function`` (the compiled law, as a
-    ``staticmethod``). ``history_size`` and ``n_parameters`` follow from the declarations.
+    ``staticmethod``), ``material_properties`` (what it reads of the materials, each with its
+    pair-mixing rule). ``history_size`` and ``n_parameters`` follow from the declarations.
     """
 
     slot: ClassVar[str] = ""
@@ -50,6 +52,9 @@ class SubModel:
     parameters: ClassVar[tuple] = NO_SLOTS
     history: ClassVar[tuple] = NO_SLOTS
     function: ClassVar = None
+    #: the material properties the law reads (``properties.MaterialProperty``); defining the class
+    #: registers them, so ``Material`` takes them and the material table mixes them per pair
+    material_properties: ClassVar[tuple] = ()
     #: label -> constructor arguments of the variants the validation experiments run (rolling
     #: models; ``experiments.single_sphere.validation_models``); by default the model with its defaults
     validation_presets: ClassVar[dict | None] = None
@@ -60,6 +65,7 @@ class SubModel:
         super().__init_subclass__(**kwargs)
         cls.history_size = len(cls.history)
         cls.n_parameters = len(cls.parameters)
+        declare(cls.__name__, cls.material_properties)
         if cls.name and "validation_presets" not in cls.__dict__:
             cls.validation_presets = {cls.name: {}}
         if cls.slot and cls.name:

@@ -19,6 +19,7 @@ from numba import njit
 from rollingdem.errors import ParameterError
 from rollingdem.physics.records import CONTACT_INPUTS as IN, NORMAL_RESULT as NR
 from rollingdem.physics.contact.base import P_YOUNG, SubModel, nothing_to_scale, slots
+from rollingdem.physics.contact.properties import COHESION_ENERGY_DENSITY, SURFACE_ENERGY
 
 
 @njit(cache=True, inline="always")
@@ -90,6 +91,7 @@ class SJKR(Cohesion):
     No parameters of its own."""
 
     name = "sjkr"
+    material_properties = (COHESION_ENERGY_DENSITY,)
     parameters = SJKR_PARAMETERS
     function = staticmethod(sjkr_cohesion)
 
@@ -189,6 +191,7 @@ class JKR(Cohesion):
     unless set for the pair). Needs ``normal: hertz``. No parameters of its own."""
 
     name = "jkr"
+    material_properties = (SURFACE_ENERGY,)
     parameters = JKR_PARAMETERS
     history = JKR_HISTORY
     function = staticmethod(jkr_cohesion)

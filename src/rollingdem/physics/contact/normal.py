@@ -21,6 +21,7 @@ from numba import njit
 from rollingdem.errors import ParameterError, check_choice, check_non_negative, check_positive
 from rollingdem.physics.timestep import HERTZ_FRACTION, RAYLEIGH_FRACTION, SPRING_FRACTION, hertz_contact_time, rayleigh_time_step, spring_period
 from rollingdem.physics.contact.base import P_SHEAR, P_YOUNG, SubModel, slots
+from rollingdem.physics.contact.properties import RESTITUTION
 
 
 def restitution_beta(e: float) -> float:
@@ -168,6 +169,7 @@ class NormalModel(SubModel):
     of the smallest spheres (R* = R_min / 2, m* = m_min / 2) is the stiffest."""
 
     slot = "normal"
+    material_properties = (RESTITUTION,)
 
     def reference_stiffness(self, pair, r_eff, m_eff, r_min) -> tuple[float, float, float]:
         """(k_n, k_t, overlap): the law's stiffnesses at a representative large overlap, at which

@@ -16,6 +16,7 @@ from rollingdem.errors import ParameterError, check_non_negative, check_positive
 from rollingdem.physics.records import CONTACT_INPUTS as IN
 from rollingdem.physics.contact.base import P_ROLLING_DAMPING, P_ROLLING_FRICTION, SubModel, nothing_to_scale, slots
 from rollingdem.physics.contact.frame import carry_with_frame, project_onto_plane
+from rollingdem.physics.contact.properties import ROLLING_DAMPING, ROLLING_FRICTION
 
 
 @njit(cache=True, inline="always")
@@ -114,6 +115,7 @@ class CDT(SubModel):
 
     slot = "rolling"
     name = "cdt"
+    material_properties = (ROLLING_FRICTION,)
     parameters = CDT_PARAMETERS
     function = staticmethod(constant_directional_torque)
     validation_presets = {"cdt": {}, "cdt (liggghts)": {"parity": "liggghts"}, "cdt (limiter 0.08)": {"limiter": 0.08}}
@@ -277,6 +279,7 @@ class _SpringRolling(SubModel):
     slot = "rolling"
     parameters = SPRING_PARAMETERS
     history = SPRING_HISTORY
+    material_properties = (ROLLING_FRICTION, ROLLING_DAMPING)
     function = staticmethod(spring_rolling)
     parities: tuple = (None,)
     stiffness_mode = STIFFNESS_NORMAL
@@ -484,6 +487,7 @@ class ForceProportional(SubModel):
 
     slot = "rolling"
     name = "force_proportional"
+    material_properties = (ROLLING_FRICTION,)
     function = staticmethod(force_proportional_moment)
     coarse_graining_exponents = nothing_to_scale
 

@@ -16,6 +16,7 @@ from rollingdem.errors import check_positive
 from rollingdem.physics.records import NORMAL_RESULT as NR
 from rollingdem.physics.contact.base import P_FRICTION, SubModel, nothing_to_scale, slots
 from rollingdem.physics.contact.frame import carry_with_frame
+from rollingdem.physics.contact.properties import FRICTION
 
 
 @njit(cache=True, inline="always")
@@ -78,6 +79,7 @@ class HistorySpring(SubModel):
     """Tangential history spring with Coulomb limit and dashpot (docs/models.md §1.2)."""
 
     slot = "tangential"
+    material_properties = (FRICTION,)
     name = "history"
     history = slots("spring_x", "spring_y", "spring_z")  # xi (m), carried with the contact frame
     function = staticmethod(history_spring)
@@ -200,6 +202,7 @@ class WaltonTangential(SubModel):
     """
 
     slot = "tangential"
+    material_properties = (FRICTION,)
     name = "walton"
     parameters = WALTON_TANGENTIAL_PARAMETERS
     history = WALTON_TANGENTIAL_HISTORY  # T (N, carried with the frame), T*, N before, loading direction

@@ -17,6 +17,7 @@ from numba import njit
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_positive
 from rollingdem.physics.records import CONTACT_INPUTS as IN, NORMAL_RESULT as NR
 from rollingdem.physics.contact.base import P_FRICTION, SubModel, nothing_to_scale, slots
+from rollingdem.physics.contact.properties import FRICTION
 
 
 @njit(cache=True, inline="always")
@@ -79,6 +80,7 @@ class Marshall(SubModel):
 
     slot = "twisting"
     name = "marshall"
+    material_properties = (FRICTION,)
     parameters = TWISTING_PARAMETERS
     history = TWISTING_HISTORY
     function = staticmethod(spring_twisting)
@@ -108,6 +110,7 @@ class TwistingSDS(SubModel):
 
     slot = "twisting"
     name = "sds"
+    material_properties = (FRICTION,)
     parameters = TWISTING_PARAMETERS
     history = TWISTING_HISTORY
     function = staticmethod(spring_twisting)

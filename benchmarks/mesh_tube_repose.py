@@ -1,7 +1,7 @@
 """Issue 27's acceptance figures: the tube the analytic cylinder and an open mesh tube of 96 flat
 sides, for several seeds, each seed's pair run in turn: the built-in default case's settled column
 height (its spheres settle 0.6 s in the tube on a plate; mean top of the highest 50 spheres), and
-the 1,000-sphere pile of the seed report's case 3 (``cases.repose.pile_run``: the column 1 diameter
+the 1,000-sphere pile of the seed report's case 3 (``experiments.pile.pile_run``: the column 1 diameter
 high, the tube removed, the angle by rollingdem.analysis.repose.repose_angle).
 
 usage: python benchmarks/mesh_tube_repose.py [SEEDS]   (default 4)
@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 
-from rollingdem.experiments.repose import PileSetup, pile_run
+from rollingdem.experiments.pile import PileSetup, pile_run
 from rollingdem.io.casefile import build_simulation, default_case_path, load_case
 from rollingdem.io.mapping_file import read_mapping
 

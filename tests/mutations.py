@@ -179,7 +179,7 @@ MUTATIONS = [
     M("repose case: the angle check compares EPSD2 with itself", "src/rollingdem/experiments/repose.py",
       'for m in ("epsd2", "epsd")]', 'for m in ("epsd2", "epsd2")]',
       ("tests/test_pile_cases.py::test_angle_check_of_case_3_on_stand_in_piles",)),
-    M("repose column 10 % too narrow", "src/rollingdem/experiments/repose.py",
+    M("repose column 10 % too narrow", "src/rollingdem/experiments/pile.py",
       "tube = (solid / (PACKING * math.pi * 2.0 * aspect)) ** (1.0 / 3.0)",
       "tube = 0.9 * (solid / (PACKING * math.pi * 2.0 * aspect)) ** (1.0 / 3.0)",
       ("tests/test_parallel.py::test_column_size_holds_the_spheres",)),

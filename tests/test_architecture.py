@@ -9,6 +9,7 @@ y`` to ``y`` when that is a module and to the package otherwise).
 """
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -684,3 +685,59 @@ def test_every_registered_experiment_has_its_own_validate():
 
     missing = [name for name, e in EXPERIMENTS.items() if type(e).validate is Experiment.validate]
     assert not missing
+
+
+#: The longest a module may be without a reason given in docs/architecture.md ("Module sizes").
+MAX_MODULE_LINES = 700
+
+
+def _doc_section(title: str) -> str:
+    text = (SOURCE.parents[1] / "docs" / "architecture.md").read_text()
+    return text[text.index(title) + len(title):].split("\n#", 1)[0]
+
+
+def _table_modules(section: str) -> list[str]:
+    """The modules the first column of a docs table names, relative to the package: a name without
+    a folder is in the folder of the name before it in its row (`experiments/repose`, `drum`)."""
+    named = []
+    for row in section.splitlines():
+        if not row.startswith("| `"):
+            continue
+        folder = ""
+        for name in re.findall(r"`([^`]+)`", row.split("|")[1]):
+            if "/" in name.rstrip("/"):
+                folder = name.rstrip("/").rsplit("/", 1)[0] + "/"
+                named.append(name)
+            else:
+                named.append(folder + name)
+    return named
+
+
+def _package_modules() -> dict[str, int]:
+    """Every module of the package but ``__init__``, relative to it without suffix: its lines."""
+    return {f.relative_to(SOURCE).with_suffix("").as_posix(): len(f.read_text().splitlines())
+            for f in SOURCE.rglob("*.py") if f.stem != "__init__"}
+
+
+def test_module_map_names_every_module_and_only_modules_that_exist():
+    named = _table_modules(_doc_section("### Module map"))
+    modules = _package_modules()
+    folders = [n for n in named if n.endswith("/")]
+    unmapped = sorted(m for m in modules if m not in named and not any(m.startswith(f) for f in folders))
+    absent = [n for n in named if n not in modules and not (n.endswith("/") and (SOURCE / n).is_dir())]
+    assert not unmapped, f"modules docs/architecture.md's module map does not name: {unmapped}"
+    assert not absent, f"the module map names modules that do not exist: {absent}"
+
+
+def test_modules_over_the_size_limit_are_those_with_a_stated_reason():
+    long = sorted(m for m, n in _package_modules().items() if n > MAX_MODULE_LINES)
+    stated = sorted(_table_modules(_doc_section("### Module sizes")))
+    assert long == stated, (f"modules over {MAX_MODULE_LINES} lines: {long}; docs/architecture.md, 'Module sizes', "
+                            f"gives a reason for {stated}")
+
+
+def test_the_table_readers_find_what_a_table_names():
+    """The readers of the two tests above, on a made-up table: a module, a sibling named without its
+    folder, a folder."""
+    table = "| module | owns |\n|---|---|\n| `io/a`, `b` | x |\n| `engine/template/` | y |\n| `cli` | z |\n"
+    assert _table_modules(table) == ["io/a", "io/b", "engine/template/", "cli"]

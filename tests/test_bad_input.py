@@ -693,7 +693,7 @@ def test_sweep_refuses_a_twisting_model_that_needs_parameters():
 def test_pile_run_refuses_settings_that_are_not_its_dataclasses():
     """pile_run's grouped settings come as PileMaterial and Collapse; anything else (a dict of the
     old keywords, say) is refused by name before a sphere is made."""
-    from rollingdem.experiments.repose import pile_run
+    from rollingdem.experiments.pile import pile_run
 
     with pytest.raises(rd.ParameterError, match=r"^material = \{'friction': 0.5\} is not allowed: .*PileMaterial"):
         pile_run(material={"friction": 0.5})

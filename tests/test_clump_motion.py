@@ -589,7 +589,7 @@ def test_a_small_silo_of_clumps_flows_as_beverloo_says():
     particles instead of kg, the members counted four times over, or a refill that put clumps back
     apart is off by far more)."""
     from rollingdem.experiments.clump_stand_in import ClumpStandIn, clump_template, equal_volume_radius, silo_flow
-    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.pile import PileMaterial
 
     experiment = ClumpStandIn()
     p = experiment.resolve({"silo_diameters": 16.0, "fill_diameters": 4.0, "measured": 100})

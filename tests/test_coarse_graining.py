@@ -463,7 +463,7 @@ def test_the_smaller_scene_is_the_parcels_scene_scaled_by_one_over_alpha(monkeyp
 
 def test_a_silo_orifice_narrower_than_a_parcel_is_refused():
     """An orifice of 5 real diameters with parcels of alpha 6 (7.2 d with the 20 % spread): one line."""
-    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.pile import PileMaterial
     from rollingdem.experiments.silo import SiloSetup, silo_case
 
     with pytest.raises(rd.ParameterError, match=r"orifice_diameters = 5 is not allowed with coarse_graining = 6: "
@@ -660,7 +660,8 @@ def test_the_pile_of_parcels_stands_on_its_taller_base_and_lifts_clear_of_it():
     2 (alpha - 1) R at 0.1 m/s, 0.1 s at alpha 2 for R = 5 mm, longer than the real pile's); the
     material is the parcels', the walls' keeps alpha 1."""
     from rollingdem.experiments.coarse_graining import lift_time
-    from rollingdem.experiments.repose import ReposeRoughBase, pile_case
+    from rollingdem.experiments.pile import pile_case
+    from rollingdem.experiments.repose import ReposeRoughBase
 
     args = {alpha: ReposeRoughBase().pile_arguments({"coarse_graining": alpha, "count": 4000, "clearance": 1.0})
             for alpha in (1.0, 2.0)}
@@ -677,7 +678,7 @@ def test_the_silo_of_parcels_counts_real_particles_out_and_refills_a_layer_of_pa
     """``silo-discharge`` of parcels of alpha 2: the discharge ends at (200 + 1000) / 8 = 150 parcels
     out, the outlet lies two parcel radii below the floor and the refill layer is 2 parcel
     diameters thick from 1.5 above the fill."""
-    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.pile import PileMaterial
     from rollingdem.experiments.silo import SiloSetup, silo_case
 
     d, r_max = 0.01, 0.006

@@ -208,7 +208,7 @@ def test_the_experiments_take_a_cohesion_law():
     """The granular cases take the law and its parameters (so that calibrate can fit them), refuse
     an unknown law or a negative energy by name, and keep the walls free of cohesion."""
     from rollingdem.experiments import EXPERIMENTS
-    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.pile import PileMaterial
 
     for case in ("angle-of-repose", "repose-rough-base", "rotating-drum", "silo-discharge"):
         p = EXPERIMENTS[case].resolve({"cohesion": "sjkr", "cohesion_energy_density": 2e4})

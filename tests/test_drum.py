@@ -127,7 +127,7 @@ def test_a_turning_drum_holds_its_angle_and_the_torque_balances_the_weight():
     to the fit's scatter (sample-to-sample 2-3 degrees); the flowing layer is one to six diameters
     deep."""
     from rollingdem.experiments.drum import DrumSetup, drum_run
-    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.pile import PileMaterial
 
     r = drum_run("epsd", material=PileMaterial(friction=0.5, rolling_friction=0.2, youngs_modulus=5e6), dt=2.5e-5,
                  setup=DrumSetup())
@@ -143,7 +143,7 @@ def test_a_drum_measured_until_its_angle_is_known_ends_its_last_stage_on_that():
     width asked, checked at every sample, and lasts at most the ``measure`` turn; the case file
     reader takes it as such."""
     from rollingdem.experiments.drum import DrumSetup, drum_case
-    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.pile import PileMaterial
     from rollingdem.io.casefile import load_case, stage_conditions
 
     setup = DrumSetup(measure=180.0, samples=60, angle_within=0.5)
@@ -219,7 +219,7 @@ def test_the_shipped_drum_slice_is_what_the_validation_runs_at_its_base_point():
     them with (rel. 1e-4: omega 0.571839 rad/s is written 0.5718). The output aside."""
     from rollingdem.experiments import EXPERIMENTS
     from rollingdem.experiments.drum import DrumSetup, drum_case
-    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.pile import PileMaterial
     from test_silo import assert_same_case
 
     p = EXPERIMENTS["rotating-drum"].resolve({"mu": 0.5, "mur": 0.2})

@@ -152,7 +152,7 @@ def test_the_lifted_tube_clears_the_column_on_whatever_floor(floor):
     2 base radii; 0 on the plate) and reaches 2 radii above its nominal height. At the clearing
     time the tube's edge is the clearance above that top, whatever the floor: without the floor
     term a rough base of radius R would leave the edge level with the top at the default clearance."""
-    from rollingdem.experiments.repose import column_size, tube_clearing_time
+    from rollingdem.experiments.pile import column_size, tube_clearing_time
 
     _, height = column_size(1000, R, 0.2, 1.0)
     speed, clearance = 0.1, 2 * R

@@ -47,7 +47,7 @@ def test_column_size_holds_the_spheres(table1):
     import numpy as np
     from scipy.spatial import cKDTree
 
-    from rollingdem.experiments.repose import INSERT_PACKING, PACKING, POLYDISPERSITY, column_size
+    from rollingdem.experiments.pile import INSERT_PACKING, PACKING, POLYDISPERSITY, column_size
     from rollingdem.experiments.single_sphere import RADIUS
 
     n = 1000

@@ -33,7 +33,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from rollingdem.experiments import repose
+from rollingdem.experiments import pile, repose
 from rollingdem.experiments.repose import REPOSE_ANGLE_TOLERANCE, angle_of_repose
 from rollingdem.studies.repose_study import repose_sweep
 
@@ -123,7 +123,7 @@ def test_the_shipped_repose_rough_base_is_what_the_validation_runs_at_its_base_p
     completes it, equals the shipped file's, numbers to the 6 figures the file writes them with
     (rel. 1e-5). The output aside."""
     from rollingdem.experiments import EXPERIMENTS
-    from rollingdem.experiments.repose import pile_case
+    from rollingdem.experiments.pile import pile_case
     from test_silo import assert_same_case
 
     assert_same_case(pile_case(**EXPERIMENTS["repose-rough-base"].pile_arguments({})), "repose-rough-base", 1e-5)
@@ -136,13 +136,13 @@ def test_a_pile_stopped_mid_collapse_goes_on_from_its_last_save_bit_for_bit(tmp_
     does one stopped after the tube left whose newest save was cut short (its JSON written, its
     checkpoint not: the older slot is read). The saves are gone once the pile ends."""
     from rollingdem.experiments import repose
-    from rollingdem.experiments.repose import Collapse, PileMaterial, PileSetup, pile_run
+    from rollingdem.experiments.pile import Collapse, PileMaterial, PileSetup, pile_run
 
     kw = dict(count=150, seed=2, material=PileMaterial(youngs_modulus=5e6), dt=2.5e-5, setup=PileSetup(base="rough"),
               collapse=Collapse(min_time=0.2, max_time=0.25, sample=0.01, lift_speed=0.5))
     whole = pile_run(**kw)
-    monkeypatch.setattr(repose, "PILE_CHECKPOINT_SECONDS", 0.0)
-    real_save = repose.PileProgress.save
+    monkeypatch.setattr(pile, "PILE_CHECKPOINT_SECONDS", 0.0)
+    real_save = pile.PileProgress.save
 
     def stopping(at):
         calls = []
@@ -156,13 +156,13 @@ def test_a_pile_stopped_mid_collapse_goes_on_from_its_last_save_bit_for_bit(tmp_
 
     for name, at, cut in (("stopped", 6, False), ("cut short", 22, True)):  # the tube leaves at 0.18 s
         path = tmp_path / name
-        monkeypatch.setattr(repose.PileProgress, "save", stopping(at))
+        monkeypatch.setattr(pile.PileProgress, "save", stopping(at))
         with pytest.raises(KeyboardInterrupt):
             pile_run(**kw, checkpoint=path)
         if cut:  # the newest slot's JSON names a step its checkpoint does not hold: the other slot's
             newest, older = sorted(tmp_path.glob(f"{name}.?.npz"), key=lambda f: f.stat().st_mtime_ns)[::-1]
             newest.write_bytes(older.read_bytes())
-        monkeypatch.setattr(repose.PileProgress, "save", real_save)
+        monkeypatch.setattr(pile.PileProgress, "save", real_save)
         again = pile_run(**kw, checkpoint=path)
         np.testing.assert_array_equal(again.positions, whole.positions)
         np.testing.assert_array_equal(again.velocities, whole.velocities)

@@ -52,7 +52,7 @@ def test_a_pile_settled_once_serves_every_material_and_says_what_it_saved(tmp_pa
     run with another material starts from the very same state (equal positions, bit for bit) with
     its own material in force, and reports the wall time of the settling it did not repeat."""
 
-    from rollingdem.experiments.repose import PileMaterial, PileSetup, pile_case, settled_column
+    from rollingdem.experiments.pile import PileMaterial, PileSetup, pile_case, settled_column
 
     def case(mur):
         return pile_case(count=150, seed=3, material=PileMaterial(rolling_friction=mur), setup=PileSetup(base="rough"))

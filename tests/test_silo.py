@@ -89,7 +89,7 @@ def test_a_silo_at_a_steady_head_flows_at_a_beverloo_rate():
     bounds it). The settled bed poured at random packs between random loose and random close
     (solid fraction 0.55 to 0.66)."""
     from rollingdem.experiments import EXPERIMENTS
-    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.pile import PileMaterial
     from rollingdem.experiments.silo import SiloSetup, silo_run
 
     p = EXPERIMENTS["silo-discharge"].resolve({"mu": 0.5, "mur": 0.1})
@@ -150,7 +150,7 @@ def test_the_shipped_silo_case_is_what_the_validation_runs_at_its_quick_size():
     to the 3 figures the file writes them with (rel. 5e-3: the settling time 0.6812 s is written
     0.68). Left aside: the output, and the measurement windows, which ``silo_run`` sets from the run."""
     from rollingdem.experiments import EXPERIMENTS
-    from rollingdem.experiments.repose import PileMaterial
+    from rollingdem.experiments.pile import PileMaterial
     from rollingdem.experiments.silo import SiloSetup, silo_case
 
     exp = EXPERIMENTS["silo-discharge"]

@@ -1,7 +1,7 @@
 """``clump-stand-in``: a pile of clumps against a pile of spheres with the rolling friction that stands
 in for them (docs/studies.md, "Clumps and the mu_r that stands in for them").
 
-The same lifted-cylinder pile on a rough base (``repose-rough-base``'s protocol, ``repose.pile_case``)
+The same lifted-cylinder pile on a rough base (``repose-rough-base``'s protocol, ``pile.pile_case``)
 twice: once of clumps of a named shape (spheres of ``radius``, no rolling resistance of their own:
 their shape resists), once of as many spheres of the clump's volume with the rolling friction
 ``rd.stand_in_rolling_friction`` gives for that shape (the mean over the directions a resting face
@@ -23,7 +23,7 @@ import pandas as pd
 
 from rollingdem.errors import check_choice
 from rollingdem.experiments.registry import BedExperiment, Parameter
-from rollingdem.experiments.repose import Collapse, PileMaterial, PileSetup, column_size, pile_run
+from rollingdem.experiments.pile import Collapse, PileMaterial, PileSetup, column_size, pile_run
 from rollingdem.analysis.intervals import confidence_interval
 from rollingdem.experiments.results import LAWS_REVISION, Check, ValidationResult, kept_run, pyplot
 from rollingdem.experiments.silo import BLOCKS, SiloSetup, discharge_rate, silo_run

@@ -95,7 +95,7 @@ class CoarseGraining(BedExperiment):
 
     def observe(self, params: dict, checkpoint=None) -> dict:
         """The pile of ``repose-rough-base`` at ``count`` real particles made parcels of ``alpha``;
-        resumable with ``checkpoint`` (``repose.pile_run``)."""
+        resumable with ``checkpoint`` (``pile.pile_run``)."""
         from rollingdem.experiments.repose import ReposeRoughBase
 
         p = self.resolve(params)
@@ -115,9 +115,9 @@ class CoarseGraining(BedExperiment):
 
 def lift_time(count: int, alpha: float) -> float:
     """s: how long ``repose-rough-base``'s tube takes to rise clear of a column of ``count`` real
-    particles on a base of parcels of ``alpha`` (``repose.tube_clearing_time``, clearance one real
+    particles on a base of parcels of ``alpha`` (``pile.tube_clearing_time``, clearance one real
     diameter): the pile's collapse may last that long and ``REST`` more."""
-    from rollingdem.experiments.repose import column_size, tube_clearing_time
+    from rollingdem.experiments.pile import column_size, tube_clearing_time
 
     _, height = column_size(count, PILE_RADIUS, 0.2)
     return tube_clearing_time(2.0 * alpha * PILE_RADIUS, height, PILE_RADIUS, 2.0 * PILE_RADIUS, LIFT_SPEED)
@@ -215,7 +215,7 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
     real particles' (module docstring); with ``outdir``, each run's observables are kept in
     ``outdir/coarse-graining-runs`` as it ends, and a study run again there takes them from it (a
     study stopped goes on where it was; a pile stopped goes on from its last save there,
-    ``repose.pile_run``). Checks: each parcels' mean pile angle within 1 deg of the
+    ``pile.pile_run``). Checks: each parcels' mean pile angle within 1 deg of the
     real particles' at each mu_r, the drum's angle within 1 deg, the silo's flow rate within 5 %
     (full size: the quick one runs too few seeds to tell, and says so in its notes, with every pile
     forming and every silo draining as its checks); a parcel's critical mu_r within 0.5 % of

@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from rollingdem.errors import ParameterError
-from rollingdem.experiments.repose import PileMaterial, SharedSettling
+from rollingdem.experiments.pile import PileMaterial
+from rollingdem.experiments.repose import SharedSettling
 from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
 from rollingdem.experiments.registry import UNBOUNDED, BedExperiment, Parameter, granular_parameters, resolve_rolling
 from rollingdem.experiments.single_sphere import RADIUS

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from rollingdem.errors import ParameterError, check_integer
-from rollingdem.experiments.repose import PileMaterial
+from rollingdem.experiments.pile import PileMaterial
 from rollingdem.experiments.results import ValidationResult, Check, pyplot, run_points
 from rollingdem.experiments.registry import UNBOUNDED, BedExperiment, Parameter, granular_parameters, resolve_rolling
 from rollingdem.experiments.single_sphere import RADIUS

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rollingdem.experiments.repose import POLYDISPERSITY
+from rollingdem.experiments.pile import POLYDISPERSITY
 from rollingdem.experiments.results import ValidationResult, Check, pyplot
 from rollingdem.analysis.intervals import confidence_interval
 from rollingdem.studies.sweep import SweepSpec, run_sweep

@@ -1,7 +1,7 @@
 """The figures of issue 45's closing note (wall motion, mesh fills, inflows), measured on the test scenes:
 python benchmarks/geometry_figures.py (about a minute on 2 cores)."""
 import math, time, numpy as np, sys
-sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1] / "tests"))
+sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1] / "tests" / "scene"))
 import rollingdem as rd
 import test_wall_motion as W
 # servo

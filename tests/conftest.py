@@ -10,7 +10,7 @@ G = 9.81
 
 
 def pytest_collection_finish(session):
-    """Start the GPU backend's child processes (tests/test_cuda.py) that the selected tests of that
+    """Start the GPU backend's child processes (tests/engine/test_cuda.py) that the selected tests of that
     module take, so that they run beside the rest of the suite instead of before its own tests. Not in
     a pytest-xdist worker: each collects every test, and the one that gets the module starts them."""
     if hasattr(session.config, "workerinput"):

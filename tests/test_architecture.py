@@ -741,3 +741,22 @@ def test_the_table_readers_find_what_a_table_names():
     folder, a folder."""
     table = "| module | owns |\n|---|---|\n| `io/a`, `b` | x |\n| `engine/template/` | y |\n| `cli` | z |\n"
     assert _table_modules(table) == ["io/a", "io/b", "engine/template/", "cli"]
+
+
+TESTS = SOURCE.parents[1] / "tests"
+
+
+def test_tests_mirror_the_source_folders_and_import_no_other_test_file():
+    """A test file lives in the folder of the layer it tests (tests/engine/ for src/rollingdem/engine/);
+    at the top only the front ends' tests; shared helpers come from ``helpers`` or ``conftest``, never
+    from another test file (which pytest may not have on its path)."""
+    folders = {p.name for p in TESTS.iterdir() if p.is_dir() and not p.name.startswith((".", "__"))}
+    assert folders <= set(LAYER_IMPORTS), f"test folders with no source folder: {sorted(folders - set(LAYER_IMPORTS))}"
+    found = []
+    for path in sorted(TESTS.rglob("test_*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            found += [f"{path.relative_to(TESTS)} (line {node.lineno}) imports {n}" for n in names
+                      if n.split(".")[0].startswith("test_")]
+    assert not found, "test files importing another test file:\n" + "\n".join(found)

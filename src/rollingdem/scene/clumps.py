@@ -9,7 +9,7 @@ rigid body. Its mass properties are those of the union of its spheres at a unifo
   (``cap_moments``);
 - otherwise by a quadrature: the midpoint rule on a grid over the clump's box
   (``QUADRATURE_CELLS`` cells along its longest side), whose accuracy is stated in
-  ``QUADRATURE_ACCURACY`` and tested against the exact answer (tests/test_clumps.py).
+  ``QUADRATURE_ACCURACY`` and tested against the exact answer (tests/scene/test_clumps.py).
 
 The named shapes: a dimer, a trimer, a tetrahedron of four, a ring prism of n touching spheres, a
 rod of n.

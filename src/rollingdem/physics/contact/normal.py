@@ -44,7 +44,7 @@ def hertz_damping_factor(e: float) -> float:
 
     With this dashpot the impact, in units delta0 = (m* v0^2 / k)^(2/5), t0 = delta0 / v0
     (k = 4/3 E* sqrt(R*)), obeys x'' = -x^(3/2) - sqrt(3/2) c x^(1/4) x' whatever v0 is, so e
-    depends on c only. Integrating that equation (tests/test_hertz_damping.py) returns e to 1e-9
+    depends on c only. Integrating that equation (tests/physics/test_hertz_damping.py) returns e to 1e-9
     for e in [0.1, 0.99]: the closed form is the exact restitution of this model, not an
     approximation of it.
     """

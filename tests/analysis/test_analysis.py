@@ -33,23 +33,14 @@ import pytest
 
 from rollingdem.analysis.repose import ReposeAngle, default_max_speed, plot_pile, repose_angle, settled
 from rollingdem.errors import ParameterError, SimulationError
+from helpers import D, RADIUS, column_lattice, ideal_pile
 
 matplotlib.use("Agg")
 
-RADIUS = 2e-3  # m
-D = 2 * RADIUS
 N_BASE = 40  # pile base radius in diameters
 TOL_ANGLE = 0.5  # degrees: the issue's requirement
 
 
-def column_lattice(rng, half_width, d):
-    """Column positions on a square lattice of spacing d, from -half_width d to half_width d each
-    way, jittered by +-0.1 d in x and y: (x, y, distance from the axis)."""
-    g = np.arange(-half_width, half_width + 1) * d
-    gx, gy = np.meshgrid(g, g, indexing="ij")
-    cx = gx.ravel() + rng.uniform(-0.1, 0.1, gx.size) * d
-    cy = gy.ravel() + rng.uniform(-0.1, 0.1, gy.size) * d
-    return cx, cy, np.hypot(cx, cy)
 
 
 def make_pile(alpha_deg, *, radius=RADIUS, n_base=N_BASE, noise=0.0, rough=0.0, bumps=0.0,
@@ -164,7 +155,6 @@ def test_spread_monolayer_and_runaway_spheres_are_not_the_pile(alpha):
 # more than the test's tolerance (mutations checked by hand, see the report of issue 25).
 # --------------------------------------------------------------------------------------------
 
-GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 #: Tolerance on an exact pile (every surface top on the cone, so no discretisation error at all):
 #: what is left is the least-squares convergence (scipy's default xtol = ftol = 1e-8, relative),
 #: ~1e-6 degree; 0.01 degree is 1/28 of a 1.5 % bias of tan(alpha) at 20 degrees (0.28 degree:
@@ -172,44 +162,6 @@ GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 TOL_EXACT = 0.01
 
 
-def ideal_pile(alpha_deg, *, n_base=30, envelope="exact", stacks=0.0, stack_height=3, foot_layers=0,
-               foot_width=10, center=(0.0, 0.0), seed=0):
-    """Spheres of radius 2 mm in columns on a square lattice of spacing d (jittered by +-0.1 d in x, y),
-    standing on a first layer on the floor (z = a); the cone of tops has angle alpha_deg and base
-    radius n_base d. Returns positions (N, 3) in m; the radius is RADIUS.
-
-    envelope "exact": the top sphere of every column has its top exactly on the cone (t = h - tan(alpha)
-    rho): the surface has no discretisation error. "even": the top sphere lies a depth delta in [0, d)
-    below, delta taken from the golden-ratio sequence in order of rho, so every radial window holds
-    evenly spread depths (the envelope of a random packing, without the seed scatter of a random one).
-    stacks: that fraction of the columns in the outer half carries a stack of stack_height spheres
-    on its top (bumps). foot_layers: layers 0.82 d apart (a sphere in the dimples of the layer below)
-    on the first layer, out to foot_width diameters beyond the cone, wherever the cone is lower (the
-    flat foot a collapse leaves around its heap)."""
-    rng = np.random.default_rng(seed)
-    d = D
-    big_r = n_base * d
-    tan_a = math.tan(math.radians(alpha_deg))
-    cx, cy, rho = column_lattice(rng, n_base + 12, d)
-    depth = np.zeros(rho.size)
-    if envelope == "even":
-        order = np.argsort(rho)
-        depth[order] = (np.arange(rho.size) * GOLDEN + rng.uniform()) % 1.0 * d
-    top_z = RADIUS + (big_r - rho) * tan_a - depth  # centre of each column's top sphere
-    nz = np.where(top_z >= RADIUS + d, np.floor((top_z - RADIUS) / d).astype(int), 0)  # above the first layer
-    col = np.repeat(np.arange(rho.size), nz)
-    lev = np.arange(col.size) - np.repeat(np.cumsum(nz) - nz, nz)  # 0: the top sphere
-    first = rho < big_r + foot_width * d
-    parts = [np.column_stack([cx[first], cy[first], np.full(first.sum(), RADIUS)]),
-             np.column_stack([cx[col], cy[col], top_z[col] - lev * d])]
-    for k in range(1, foot_layers + 1):
-        zc = RADIUS + k * 0.82 * d
-        m = first & (top_z < zc)
-        parts.append(np.column_stack([cx[m], cy[m], np.full(m.sum(), zc)]))
-    if stacks:
-        on = (nz > 0) & (rho > 0.5 * big_r) & (rng.random(rho.size) < stacks)
-        parts += [np.column_stack([cx[on], cy[on], top_z[on] + k * d]) for k in range(1, stack_height + 1)]
-    return np.vstack(parts) + [center[0], center[1], 0.0]
 
 
 def envelope_tolerance(pos, res, alpha):

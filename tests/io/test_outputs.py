@@ -127,12 +127,12 @@ def test_default_case_is_valid():
 def test_a_case_reports_the_repose_angle_of_its_pile(tmp_path):
     """``output: {repose_angle: {}}`` measures the free spheres' pile at the end: printed, in
     summary.json and drawn in pile.png. The spheres stand as an exact 30-degree pile (every surface
-    top on the cone, tests/test_analysis.py's ideal_pile, on which the fit is exact to 0.01 degree)
+    top on the cone, tests/analysis/test_analysis.py's ideal_pile, on which the fit is exact to 0.01 degree)
     and the run is of no steps (the measurement is what is tested, not the run), so the printed
     angle must be 30 to the fit's 0.01 degree.
     A fixed sphere below the floor would pull the floor down if it were measured with the pile:
     the floor is the top of the highest fixed sphere."""
-    from test_analysis import RADIUS, ideal_pile
+    from helpers import RADIUS, ideal_pile
 
     pos = ideal_pile(30.0, n_base=8, foot_width=1, seed=3)  # 462 spheres: the small scenes' serial kernel
     case = tmp_path / "pile.yaml"
@@ -285,8 +285,9 @@ def test_planes_and_cylinders_are_in_the_snapshots_once_while_they_stand_still(t
 
 def test_the_schema_command_prints_a_json_schema_the_shipped_cases_meet():
     """``rollingdem schema`` prints the case file's JSON Schema: every shipped case file meets it
-    (jsonschema), and a case with an unknown top-level key or a mesh wall without its material
-    does not."""
+    (jsonschema), and a case with an unknown top-level key, a mesh wall without its material or a
+    restitution of 0 (outside the declared (0, 1]) does not; a material's properties carry the
+    unit, bounds and description the contact laws declare."""
     import jsonschema
 
     from rollingdem.experiments.case_file import shipped_cases
@@ -300,9 +301,17 @@ def test_the_schema_command_prints_a_json_schema_the_shipped_cases_meet():
     data = read_mapping(shipped_cases()["drum"])[0]
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate({**data, "colour": "red"}, schema)
+    bad = json.loads(json.dumps(data))
+    bad["materials"][0]["restitution"] = 0.0
+    with pytest.raises(jsonschema.ValidationError, match="exclusive minimum"):
+        jsonschema.validate(bad, schema)
     data["walls"][0] = {k: v for k, v in data["walls"][0].items() if k != "material"}
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate(data, schema)
+    material = schema["$defs"]["MaterialSpec"]["properties"]
+    assert material["surface_energy"]["unit"] == "J/m^2" and material["surface_energy"]["minimum"] == 0.0
+    assert material["poisson_ratio"]["exclusiveMaximum"] == 0.5
+    assert "rolling friction" in material["rolling_friction"]["description"]
 
 
 def test_no_command_shows_a_type_for_a_flag():

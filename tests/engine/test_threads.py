@@ -8,7 +8,7 @@ import pytest
 
 import rollingdem.engine.layout as ek
 import rollingdem.engine.threads as th
-from test_engine import cluster
+from helpers import cluster
 
 
 class FakeMachine:

@@ -220,7 +220,7 @@ def test_the_shipped_drum_slice_is_what_the_validation_runs_at_its_base_point():
     from rollingdem.experiments import EXPERIMENTS
     from rollingdem.experiments.drum import DrumSetup, drum_case
     from rollingdem.experiments.pile import PileMaterial
-    from test_silo import assert_same_case
+    from helpers import assert_same_case
 
     p = EXPERIMENTS["rotating-drum"].resolve({"mu": 0.5, "mur": 0.2})
     assert_same_case(drum_case("epsd", "none", PileMaterial.from_parameters(p), DrumSetup(), dt=p["dt"]), "drum-slice",

@@ -204,7 +204,7 @@ def test_rolling_resistance_on_walton_braun(table1, kn_source):
     the residual normal oscillation along the k2 line, damped by the dashpot, and the spin-up of
     the contact's rotational spring are far below that. kn_source does not change it (CDT has no
     spring). The tangential law is Walton's (no slip here, so it does not matter; the sliding
-    test of tests/test_walton_tangential.py runs the same kernel: one compile fewer)."""
+    test of tests/physics/test_walton_tangential.py runs the same kernel: one compile fewer)."""
     mu_r, v0, g = 0.2, 0.3, 9.81
     sim = rd.Simulation(contact=rd.ContactModel(
         normal=rd.WaltonBraun(loading_stiffness=K1, damping_ratio=0.5, kn_source=kn_source), tangential="walton",

@@ -604,7 +604,7 @@ def test_the_full_study_s_kept_runs_give_the_figures_the_studies_doc_states(tmp_
 
     import rollingdem.experiments.coarse_graining as cg
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     runs = tmp_path / "coarse-graining-runs"
     runs.mkdir()
     for f in (root / "benchmarks" / "coarse_graining_runs").glob("*.json"):

@@ -141,7 +141,7 @@ def test_a_sphere_sliding_on_a_plane_decelerates_at_mu_g(table1):
     rolls at 5/7 v0 within 1 %."""
     mu, v0, g = 0.3, 0.5, 9.81
     # CDT with mu_r = 0 does nothing here; it makes this the kernel of the rolling test in
-    # tests/test_walton_braun.py (one compile fewer)
+    # tests/physics/test_walton_braun.py (one compile fewer)
     sim = rd.Simulation(contact=rd.ContactModel(normal=rd.WaltonBraun(loading_stiffness=1e5, damping_ratio=0.5),
                                                 tangential=rd.WaltonTangential(), rolling="cdt"), dt=2e-6)
     sim.add_material(table1(restitution=0.5, friction=mu, rolling_friction=0.0))

@@ -11,24 +11,9 @@ from rollingdem.engine.state import EngineState
 from rollingdem.engine.layout import I_REBUILDS
 from rollingdem.engine.neighbors import POOL_GROUP, brute_force_pairs
 from conftest import R
+from helpers import cluster
 
 
-def cluster(table1, n_side=5, rolling="cdt", seed=1, gravity=(0, 0, 0), speed=0.3, spacing=2.05, fast_spin=0.0):
-    """A cube of n_side^3 spheres with random velocities and spins, close enough to collide; every
-    third sphere spins at ``fast_spin`` (rad/s) if it is given."""
-    rng = np.random.default_rng(seed)
-    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling=rolling), gravity=gravity, dt=2e-6,
-                        track_energy=True)
-    sim.add_material(table1())
-    g = np.arange(n_side) * spacing * R
-    x = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
-    x += rng.uniform(-0.01 * R, 0.01 * R, x.shape)
-    radii = R * rng.uniform(0.97, 1.0, len(x))
-    spin = rng.normal(0, speed / R, x.shape)
-    if fast_spin:
-        spin[::3] *= fast_spin / np.linalg.norm(spin[::3], axis=1)[:, None]
-    sim.add_particles(x, radii, "m", velocity=rng.normal(0, speed, x.shape), angular_velocity=spin)
-    return sim
 
 
 def momenta(sim):

@@ -186,9 +186,9 @@ def test_a_table_from_before_an_observable_was_added_goes_on_with_it_empty(tmp_p
 def test_example_sweep_file_is_valid():
     from pathlib import Path
 
-    spec = load_sweep(Path(__file__).parents[1] / "examples" / "sweep_rolling_flat.yaml")
+    spec = load_sweep(Path(__file__).parents[2] / "examples" / "sweep_rolling_flat.yaml")
     assert len(expand(spec)) >= 4
-    assert len(expand(load_sweep(Path(__file__).parents[1] / "examples" / "sweep_repose.yaml"))) == 12
+    assert len(expand(load_sweep(Path(__file__).parents[2] / "examples" / "sweep_repose.yaml"))) == 12
 
 
 def test_validation_repose_sweep_runs_through_the_sweep_table(tmp_path):

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import assert_same_case
 
 from rollingdem.experiments.silo import (beverloo_exponent_interval, beverloo_fit, cylinder_points, discharge_rate,
                                    solid_fraction)
@@ -118,29 +119,8 @@ def test_silo_refuses_a_count_of_spheres_that_cannot_be(field, value, words):
         silo_run(setup=SiloSetup(**{field: value}))
 
 
-def _flat(data, prefix=""):
-    if isinstance(data, dict):
-        return {k: v for key, value in data.items() for k, v in _flat(value, f"{prefix}{key}.").items()}
-    if isinstance(data, (list, tuple)):
-        return {k: v for i, value in enumerate(data) for k, v in _flat(value, f"{prefix}{i}.").items()}
-    return {prefix.rstrip("."): data}
 
 
-def assert_same_case(data: dict, name: str, rel: float, leave_out=("output.",)) -> None:
-    """The case file data ``data`` and the shipped case file ``name``, as the case file reader
-    completes them, hold the same entries, numbers equal within ``rel`` (the figures the file
-    writes), the entries whose path has one of ``leave_out`` aside."""
-    from rollingdem.experiments.case_file import shipped_cases
-    from rollingdem.io.casefile import load_case
-
-    ours, shipped = (_flat(load_case(d).model_dump()) for d in (data, shipped_cases()[name]))
-    keep = sorted(k for k in ours if not any(part in k for part in leave_out))
-    assert keep == sorted(k for k in shipped if not any(part in k for part in leave_out))
-    for k in keep:
-        if isinstance(ours[k], float):
-            assert ours[k] == pytest.approx(shipped[k], rel=rel, abs=1e-12), k
-        else:
-            assert ours[k] == shipped[k], k
 
 
 def test_the_shipped_silo_case_is_what_the_validation_runs_at_its_quick_size():

@@ -58,7 +58,7 @@ def test_a_free_clump_keeps_its_shape_energy_and_angular_momentum():
     """No gravity, no walls: a spinning asymmetric clump's angular momentum is constant in space and
     its kinetic energy 1/2 L . omega is kept by the splitting to O(dt^2) without drift: over 10^5
     steps at |omega| dt = 1.1e-4 rad the issue's 1e-6 (the free rotor on its own keeps it to 6e-9,
-    tests/test_rigid_body.py). L has no torque to change it: equal bit for bit. The members stay
+    tests/scene/test_rigid_body.py). L has no torque to change it: equal bit for bit. The members stay
     where the body puts them: their distances from one another equal the template's to 1e-12
     relative (rounding of the placement, each step anew from the body's centre and orientation).
     A member's velocity is the body's at its centre, V + omega x r: it equals the central
@@ -125,7 +125,7 @@ def test_a_dimer_dropped_flat_rebounds_with_its_restitution(restitution):
     turn. Each member carries half the clump's mass in its contact (its share, by its sphere's
     volume): the rebound equals the lone sphere's to 1e-9 (the two runs differ only in rounding),
     and that is the restitution asked for to 1e-3 (the Hertz damping factor's closed form, within
-    the 5e-5 to which the discrete impact ends at dt = 2e-7; tests/test_hertz_damping.py)."""
+    the 5e-5 to which the discrete impact ends at dt = 2e-7; tests/physics/test_hertz_damping.py)."""
     dimer, sphere = _drop("dimer", restitution), _drop("sphere", restitution)
     rebound = dimer.clumps["velocity"][0]
     assert rebound[2] == pytest.approx(sphere.velocities[0, 2], rel=1e-9)
@@ -675,7 +675,7 @@ def test_the_stand_in_study_s_kept_full_runs_give_the_table_the_studies_doc_stat
 
     from rollingdem.experiments import clump_stand_in as csi
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     (tmp_path / "clump-stand-in-runs").mkdir()
     for f in (root / "benchmarks" / "clump_stand_in_runs").glob("*.json"):
         shutil.copy(f, tmp_path / "clump-stand-in-runs")

@@ -124,7 +124,7 @@ def test_the_shipped_repose_rough_base_is_what_the_validation_runs_at_its_base_p
     (rel. 1e-5). The output aside."""
     from rollingdem.experiments import EXPERIMENTS
     from rollingdem.experiments.pile import pile_case
-    from test_silo import assert_same_case
+    from helpers import assert_same_case
 
     assert_same_case(pile_case(**EXPERIMENTS["repose-rough-base"].pile_arguments({})), "repose-rough-base", 1e-5)
 
@@ -135,7 +135,6 @@ def test_a_pile_stopped_mid_collapse_goes_on_from_its_last_save_bit_for_bit(tmp_
     positions, velocities and kinetic-energy record of the pile run in one go, bit for bit; so
     does one stopped after the tube left whose newest save was cut short (its JSON written, its
     checkpoint not: the older slot is read). The saves are gone once the pile ends."""
-    from rollingdem.experiments import repose
     from rollingdem.experiments.pile import Collapse, PileMaterial, PileSetup, pile_run
 
     kw = dict(count=150, seed=2, material=PileMaterial(youngs_modulus=5e6), dt=2.5e-5, setup=PileSetup(base="rough"),

@@ -186,7 +186,7 @@ def test_the_readme_multifidelity_command_gives_back_a_known_mu_r(tmp_path):
     from rollingdem.analysis.intervals import confidence_interval
     from rollingdem.experiments import EXPERIMENTS
 
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    readme = (Path(__file__).parents[2] / "README.md").read_text()
     command = ("rollingdem calibrate --experiment repose-rough-base --target 25 --uncertainty 0.5 --fix count=1000 \\\n"
                "                     --free mur=0:0.6 --fidelity multi")
     assert command in readme

@@ -10,7 +10,7 @@ import pytest
 import rollingdem as rd
 from rollingdem.errors import ParameterError
 
-from test_measurements import _material as measurements_material
+from helpers import measurement_material as measurements_material
 
 G = 9.81
 

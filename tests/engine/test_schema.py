@@ -1,6 +1,6 @@
 """The engine state's schema (``rollingdem.engine.schema``): a per-particle field declared once is
 made, grown, re-sorted, taken out with its particles, saved and restored, and handed to the step
-loop, with no other edit. (That it reaches the GPU is checked on the simulator, tests/test_cuda.py.)"""
+loop, with no other edit. (That it reaches the GPU is checked on the simulator, tests/engine/test_cuda.py.)"""
 
 import numpy as np
 import pytest

@@ -12,15 +12,11 @@ from rollingdem.errors import ParameterError
 from rollingdem.io.measurements import batch_standard_error, slope_with_error
 
 from conftest import G
+from helpers import measurement_material as _material
 
 RP = 0.0015  # m
 
 
-def _material(**kw):
-    params = dict(youngs_modulus=40e6, poisson_ratio=0.49, density=1056.0, friction=0.3, rolling_friction=0.1,
-                  restitution=0.5, rolling_damping=0.3)
-    params.update(kw)
-    return rd.Material("m", **params)
 
 
 def test_mass_through_a_plane_equals_the_mass_balance_of_its_two_sides():

@@ -760,3 +760,47 @@ def test_tests_mirror_the_source_folders_and_import_no_other_test_file():
             found += [f"{path.relative_to(TESTS)} (line {node.lineno}) imports {n}" for n in names
                       if n.split(".")[0].startswith("test_")]
     assert not found, "test files importing another test file:\n" + "\n".join(found)
+
+
+def function_level_imports(source: str) -> list[tuple[int, str, bool]]:
+    """(line, import, whether a comment on its lines says why) of every import inside a function."""
+    lines = source.splitlines()
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for sub in ast.walk(node):
+                if isinstance(sub, (ast.Import, ast.ImportFrom)):
+                    said = any("#" in lines[k] for k in range(sub.lineno - 1, sub.end_lineno))
+                    found.append((sub.lineno, ast.unparse(sub), said))
+    return found
+
+
+def test_imports_are_at_the_top_unless_a_comment_says_why():
+    """An import inside a function is a slow-to-load or optional dependency (matplotlib, pandas,
+    scipy's subpackages, scikit-learn, CUDA) or a command's machinery, and its line says so."""
+    silent = [f"{path.relative_to(SOURCE)} (line {line}): {text}"
+              for path in sorted(SOURCE.rglob("*.py"))
+              for line, text, said in function_level_imports(path.read_text()) if not said]
+    assert not silent, "imports inside functions without a reason:\n" + "\n".join(silent)
+
+
+def test_the_import_finder_sees_imports_in_functions_and_their_comments():
+    source = ("import os\n\ndef f():\n    import json  # deferred: why\n    from a import (\n        b,\n    )\n"
+              "    if x:\n        import c\n")
+    assert function_level_imports(source) == [(4, "import json", True), (5, "from a import b", False),
+                                              (9, "import c", False)]
+
+
+def test_wall_objects_follow_the_engine_at_its_sync_points_only():
+    """docs/architecture.md, "No copies": the ``Wall`` objects are refreshed from the engine after
+    every call of the step loop (``Schedule.run``, and once more as a run ends) and when a
+    checkpoint is restored (``WallSet.restore``), nowhere else."""
+    calls = []
+    for path in sorted(SOURCE.rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        for func in ast.walk(tree):
+            if isinstance(func, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                calls += [f"{path.relative_to(SOURCE).as_posix()}:{func.name}" for node in ast.walk(func)
+                          if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                          and node.func.attr == "refresh" and func.name != "refresh"]
+    assert sorted(calls) == ["scene/schedule.py:run", "scene/schedule.py:run", "scene/wall_set.py:restore"], calls

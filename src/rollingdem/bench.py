@@ -9,15 +9,41 @@ from __future__ import annotations
 
 import json
 import math
+import platform
 import resource
 import time
 import weakref
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import numba
 import numpy as np
 
+from rollingdem import (
+    BoxRegion,
+    Clump,
+    ContactModel,
+    Cylinder,
+    CylinderRegion,
+    Material,
+    MeshWall,
+    Plane,
+    Simulation,
+    __version__,
+    rough_base,
+)
+from rollingdem.engine.backends import BACKENDS
+from rollingdem.engine.backends import backend as find_backend
+from rollingdem.engine.codegen import kernel_cache_dir
+from rollingdem.engine.layout import SERIAL_BELOW
+from rollingdem.engine.schema import PER_CLUMP, SCHEMA
 from rollingdem.errors import ParameterError, check_output_path
+from rollingdem.experiments.coarse_graining import CoarseGraining, drum_parameters
+from rollingdem.experiments.drum import RotatingDrum, drum_case
+from rollingdem.experiments.single_sphere import sphere_on_wall, validation_models
+from rollingdem.io.casefile import build_simulation, load_case
+from rollingdem.scene.insertion import ROUGH_BASE_SPACING
+from rollingdem.scene.mesh import SHAPES, hopper
 
 SCENES = ("column-collapse", "single-particle", "dense-bed", "slab", "scaling", "collapse-scaling", "mesh-hopper",
           "rough-bed", "clumps", "coarse-graining")
@@ -94,24 +120,18 @@ class BenchResult:
 
 
 def _cache_dir() -> Path:
-    from rollingdem.engine.codegen import kernel_cache_dir
-
     return kernel_cache_dir().parent / "bench"
 
 
 def bench_contact(rolling="epsd"):
     """The contact model of a bench label: a rolling model (or spec) on Hertz-history, or one of
     ``CONTACT_LAW_VARIANTS``."""
-    from rollingdem import ContactModel
-
     if isinstance(rolling, str) and rolling in CONTACT_LAW_VARIANTS:
         return ContactModel(**{"normal": "hertz", **CONTACT_LAW_VARIANTS[rolling]})
     return ContactModel("hertz", rolling=rolling)
 
 
 def _column_simulation(rolling: str = "epsd"):
-    from rollingdem import Material, Plane, Simulation
-
     sim = Simulation(contact=bench_contact(rolling), dt=DT, skin=SKIN)
     cohesive = isinstance(rolling, str) and rolling in CONTACT_LAW_VARIANTS
     sim.add_material(Material("table1", **TABLE1, **(VARIANT_COHESION if cohesive else {})))
@@ -128,8 +148,6 @@ def settled_column(particles: int, seed: int = 1, rolling: str = "epsd", echo=pr
     """The settled column (cylinder still in place), from the disk cache or built now, settling on
     ``backend``, and cached; a settle in progress is checkpointed every ``checkpoint_every``
     seconds of simulated time (``SETTLE_CHECKPOINT`` by default; none if ``SETTLE`` or more)."""
-    from rollingdem import Cylinder, CylinderRegion, Simulation, __version__
-
     path = _cache_dir() / f"column_{particles}_seed{seed}_{rolling}_v{__version__}.npz"
     if path.exists():
         sim = Simulation.restore(path)
@@ -189,8 +207,6 @@ def _read_dump(path, names) -> np.ndarray:
 
 def rough_bed_half_width(free: int) -> float:
     """Half the side (m) of the rough-bed scene's square box for ``free`` free spheres."""
-    from rollingdem.scene.insertion import ROUGH_BASE_SPACING
-
     return 0.5 * math.sqrt(0.5 * free * math.sqrt(3.0) / 2.0) * ROUGH_BASE_SPACING * RADIUS
 
 
@@ -211,8 +227,6 @@ def rough_bed_from_dump(path):
 
 def _column_from_state(rolling, positions, radii, velocities, angular_velocities=None):
     """A column scene (plate, cylinder scaled to the count) holding the given spheres as they are."""
-    from rollingdem import Cylinder
-
     sim = _column_simulation(rolling)
     sim.add_wall(Cylinder(column_radius(len(positions)), material="table1", name="cylinder"))
     sim.add_particles(positions, radii, "table1", velocity=velocities, angular_velocity=angular_velocities,
@@ -258,10 +272,6 @@ def compile_time(contact, spheres: int = 2, mesh: bool = False) -> float:
     ``SERIAL_BELOW`` spheres or on one thread, ``advance`` on threads otherwise): one step of 2
     (or ``SERIAL_BELOW``) spheres on a plate, two of them stacked (a pair contact and a wall
     contact); with ``mesh``, a mesh disk below the plate too (the module with the mesh passes)."""
-    from rollingdem import Material, MeshWall, Plane, Simulation
-    from rollingdem.scene.mesh import SHAPES
-    from rollingdem.engine.layout import SERIAL_BELOW
-
     tic = time.perf_counter()
     sim = Simulation(contact=contact, dt=DT, skin=SKIN)
     sim.add_material(Material("table1", **TABLE1))
@@ -347,8 +357,6 @@ def _result(scene, model, sim, steps, compile_s, wall, rebuilds, threads, note="
 def _timed_on(sim, backend: str, steps: int, particles: int) -> tuple[float, float, int]:
     """(compile or load seconds, timed seconds, rebuilds) of ``steps`` steps of ``sim`` on
     ``backend``: on the GPU the kernels compile at the untimed first step, which is timed apart."""
-    from rollingdem import ContactModel
-
     sim.backend = backend
     if sim.backend_info.on_host:
         compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
@@ -361,8 +369,6 @@ def _timed_on(sim, backend: str, steps: int, particles: int) -> tuple[float, flo
 
 def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, echo=print,
                     backend="cpu") -> BenchResult:
-    import numba
-
     threads = threads or numba.get_num_threads()
     sim = _collapse(column_from_dump(from_dump) if from_dump else settled_column(particles, echo=echo,
                                                                                  backend=backend))
@@ -374,9 +380,6 @@ def column_collapse(particles=20000, steps=10000, threads=None, from_dump=None, 
 def hopper_simulation(particles: int, seed: int = 1, echo=print):
     """The mesh-hopper scene ``HOPPER_FILL`` s after the drop, from the disk cache or run now and
     cached; the hopper's STL is written beside it (for the LIGGGHTS input)."""
-    from rollingdem import ContactModel, CylinderRegion, Material, MeshWall, Simulation, __version__
-    from rollingdem.scene.mesh import hopper
-
     path = _cache_dir() / f"hopper_{particles}_seed{seed}_v{__version__}.npz"
     if path.exists():
         sim = Simulation.restore(path)
@@ -397,10 +400,6 @@ def hopper_simulation(particles: int, seed: int = 1, echo=print):
 
 def mesh_hopper(particles=20000, steps=5000, threads=None, echo=print) -> BenchResult:
     """20,000 spheres discharging from a 10,000-triangle STL hopper (``HOPPER``)."""
-    import numba
-
-    from rollingdem import ContactModel
-
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
     sim = hopper_simulation(particles, echo=echo)
@@ -411,11 +410,6 @@ def mesh_hopper(particles=20000, steps=5000, threads=None, echo=print) -> BenchR
 
 
 def single_particle(steps=150000, threads=None, echo=print) -> BenchResult:
-    import numba
-
-    from rollingdem import ContactModel
-    from rollingdem.experiments.single_sphere import sphere_on_wall, validation_models
-
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling=validation_models()["epsd"]))
     sim = sphere_on_wall(validation_models()["epsd"])
@@ -435,10 +429,6 @@ def dense_bed(particles=20000, steps=2000, threads=None, models=DENSE_BED_MODELS
     taking turns call by call (``_force_pass_costs``, ``FORCE_PASS_ROUNDS`` rounds). The timed run
     that follows gives the particle-steps per second.
     """
-    import numba
-
-    from rollingdem.experiments.single_sphere import validation_models
-
     threads = threads or numba.get_num_threads()
     base = settled_column(particles, echo=echo)
     specs = validation_models()  # the models with the parameters the validation runs use (sds: k_roll)
@@ -497,8 +487,6 @@ def write_liggghts_dump(path, positions, velocities, radius: float, fixed=None) 
 
 
 def slab(particles=20000, steps=1000, threads=None, echo=print, backend="cpu") -> BenchResult:
-    import numba
-
     threads = threads or numba.get_num_threads()
     sim = _slab_simulation(particles)
     compile_s, wall, rebuilds = _timed_on(sim, backend, steps, particles)
@@ -525,10 +513,6 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene=
     both sizes) at ``SCALING_SMALL`` and at ``particles`` spheres, each timed over ``steps`` steps
     in ``SCALING_CHUNKS`` chunks taken in turn; the note of the second gives its cost per
     particle-step against the first, over the whole run and chunk by chunk."""
-    import numba
-
-    from rollingdem import ContactModel
-
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
     if scene == "slab":
@@ -558,8 +542,6 @@ def scaling(particles=SCALING_LARGE, steps=300, threads=None, echo=print, scene=
 def rough_bed_simulation(particles: int, rough: bool, seed: int = 1, echo=print):
     """``particles`` spheres settled for ``ROUGH_BED_SETTLE`` s in a square box on a rough base of
     particles / 2 fixed spheres (``rough``) or on the bare plate; from the disk cache or built now."""
-    from rollingdem import BoxRegion, __version__, rough_base
-
     path = _cache_dir() / f"roughbed_{particles}_{'rough' if rough else 'plate'}_seed{seed}_v{__version__}.npz"
     if path.exists():
         return _restored(path)
@@ -579,8 +561,6 @@ def rough_bed_simulation(particles: int, rough: bool, seed: int = 1, echo=print)
 
 def _box_simulation(half: float):
     """The column's simulation (plate, Table 1) with four side planes at x, y = +-``half``."""
-    from rollingdem import Plane
-
     sim = _column_simulation()
     for axis in (0, 1):
         for sign in (-1.0, 1.0):
@@ -592,8 +572,6 @@ def _box_simulation(half: float):
 
 def _restored(path):
     """A cached scene, as the bench times it (without the energy sums)."""
-    from rollingdem import Simulation
-
     sim = Simulation.restore(path)
     sim.track_energy = False
     return sim
@@ -611,10 +589,6 @@ def rough_bed(particles=20000, steps=2000, threads=None, echo=print) -> list[Ben
     """``particles`` free spheres at rest on ``particles`` / 2 fixed ones, against the same number on
     the bare plate: timed in ``ROUGH_BED_CHUNKS`` chunks taken in turn; the note of the first gives
     its cost per free particle-step against the second."""
-    import numba
-
-    from rollingdem import ContactModel
-
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), particles)
     sims = [rough_bed_simulation(particles, True, echo=echo), rough_bed_simulation(particles, False, echo=echo)]
@@ -636,8 +610,6 @@ def clump_bed_simulation(members: int, clumps: bool, seed: int = 1, echo=print):
     """``members`` // 4 tetrahedra of spheres of radius ``RADIUS`` (``clumps``), or as many spheres as
     they have members, poured into a square box and settled for ``CLUMP_BED_SETTLE`` s; from the disk
     cache or built now."""
-    from rollingdem import BoxRegion, Clump, __version__
-
     count = members // 4 if clumps else members // 4 * 4
     path = _cache_dir() / f"clumpbed_{count}_{'tetrahedra' if clumps else 'spheres'}_seed{seed}_v{__version__}.npz"
     if path.exists():
@@ -664,11 +636,6 @@ def clump_bed(members=20000, steps=2000, threads=None, echo=print) -> list[Bench
     clump-step in sphere-steps (its members' pair and wall work plus the rigid-body pass: at most
     its members + 1, 5), the bytes a
     clump adds to its members' (its own fields, its members' clump index and offset, the index)."""
-    import numba
-
-    from rollingdem import ContactModel
-    from rollingdem.engine.schema import PER_CLUMP, SCHEMA
-
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(ContactModel("hertz", rolling="epsd"), members)
     sims = [clump_bed_simulation(members, True, echo=echo), clump_bed_simulation(members, False, echo=echo)]
@@ -697,11 +664,6 @@ def coarse_graining_drum(alpha: float, seed: int = 1, echo=print, drum_diameters
     radius in real diameters with ``drum_diameters``) of parcels of ``alpha``, settled (its case's
     settling stage) and turned ``CG_SPIN_UP`` s at the case's angular velocity; from the disk cache
     or built now."""
-    from rollingdem import __version__
-    from rollingdem.experiments.coarse_graining import CoarseGraining, drum_parameters
-    from rollingdem.experiments.drum import RotatingDrum, drum_case
-    from rollingdem.io.casefile import build_simulation, load_case
-
     size = CoarseGraining().sizes["full"]["drum"]
     if drum_diameters is not None:
         size = {**size, "drum_diameters": drum_diameters}
@@ -726,8 +688,6 @@ def coarse_graining_bench(steps=12000, threads=None, echo=print, drum_diameters:
     ``steps`` steps of the real particles and as many of the parcels as take the same simulated time
     (their dt is alpha times longer), in ``CG_CHUNKS`` chunks taken in turn; the particles represented
     times the simulated time per second of wall time, and its ratio."""
-    import numba
-
     threads = threads or numba.get_num_threads()
     compile_s = compile_time(bench_contact("epsd"), 10000)
     sims = [coarse_graining_drum(a, echo=echo, drum_diameters=drum_diameters) for a in (1.0, CG_ALPHA)]
@@ -756,7 +716,6 @@ def run_bench(scenes=SCENES, particles=None, steps=None, threads=None, from_dump
     unknown = [s for s in scenes if s not in SCENES]
     if unknown:
         raise ParameterError(f"scene = {', '.join(unknown)} is not known: allowed are {', '.join(SCENES)}")
-    from rollingdem.engine.backends import BACKENDS, backend as find_backend
 
     other = [s for s in scenes if s not in GPU_SCENES]
     if backend in BACKENDS and not BACKENDS[backend].on_host and other:
@@ -813,10 +772,6 @@ def format_row(r: BenchResult) -> str:
 
 
 def write_json(results: list[BenchResult], path) -> Path:
-    import platform
-
-    from rollingdem import __version__
-
     path = check_output_path("json", path, folder=False)
     path.parent.mkdir(parents=True, exist_ok=True)
     load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []

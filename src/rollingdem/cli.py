@@ -56,7 +56,7 @@ def _check_in_file(path, option: str) -> None:
 
 def _version(value: bool):
     if value:
-        from rollingdem import __version__
+        from rollingdem import __version__  # deferred: commands load what they run
 
         typer.echo(f"rollingdem {__version__}")
         raise typer.Exit()
@@ -83,7 +83,7 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
         resume: Optional[Path] = typer.Option(None, "--resume", help="Continue the killed run in this folder from "
                                               "its last checkpoint.")):
     """Run a case file, or the built-in default case; or continue a killed run (--resume DIR)."""
-    from rollingdem.io import casefile, runner
+    from rollingdem.io import casefile, runner  # deferred: commands load what they run
 
     _set_threads(threads)
     _check_out(out)
@@ -98,7 +98,7 @@ def run(case: Optional[Path] = typer.Argument(None, help="Case file (YAML or TOM
             return
         spec = casefile.load_case(case if case is not None else casefile.default_case_path())
         if backend is not None:
-            from rollingdem.engine.backends import check_backend
+            from rollingdem.engine.backends import check_backend  # deferred: commands load what they run
 
             spec.backend = check_backend(backend, "--backend")
         runner.run_case(spec, out=out, progress=progress, echo=typer.echo, overwrite=overwrite)
@@ -114,9 +114,9 @@ def _set_backend(backend):
     environment): refused at once if unknown or if it has no device."""
     if backend is None:
         return
-    import os
+    import os  # deferred: commands load what they run
 
-    from rollingdem.engine.backends import check_backend
+    from rollingdem.engine.backends import check_backend  # deferred: commands load what they run
 
     try:
         os.environ["ROLLINGDEM_BACKEND"] = check_backend(backend, "--backend")
@@ -127,11 +127,11 @@ def _set_backend(backend):
 def _set_threads(threads):
     if threads is None:
         return
-    import numba
+    import numba  # deferred: commands load what they run
 
     if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
         _refuse(f"--threads = {threads} is not allowed: must be in [1, {numba.config.NUMBA_NUM_THREADS}]")
-    from rollingdem.engine.threads import fix_threads
+    from rollingdem.engine.threads import fix_threads  # deferred: commands load what they run
 
     fix_threads(threads)  # what the user asked for, whatever the machine's load
 
@@ -158,7 +158,7 @@ def validate(out: Path = typer.Option(Path("rollingdem-validation"), "--out", "-
     checks) and the repose-angle study; write report.md/.html and results.json.
 
     Exit status 1 when any check fails its tolerance."""
-    from rollingdem.validate import run_validation
+    from rollingdem.validate import run_validation  # deferred: commands load what they run
 
     _check_out(out)
     _set_backend(backend)
@@ -211,7 +211,7 @@ def bench(scene: Optional[list[str]] = typer.Option(None, "--scene", "-s", help=
           backend: str = typer.Option("cpu", "--backend", help="cpu, or cuda (an NVIDIA GPU, docs/gpu.md: "
                                       "column-collapse and slab).")):
     """Time standard scenes: particle-steps per second, where the time goes, memory, compile time."""
-    from rollingdem import bench as bench_mod
+    from rollingdem import bench as bench_mod  # deferred: commands load what they run
 
     _set_threads(threads)
     _check_in_file(from_dump, "--from-dump")
@@ -244,7 +244,7 @@ def sweep(sweep_file: Path = typer.Argument(..., help="Sweep file (YAML or TOML)
     """Run an experiment over a grid, list or Latin-hypercube sample of parameters and seeds, on Dask.
 
     Exit status 1 when any run failed (its error is in runs.csv; the others still ran)."""
-    from rollingdem.studies.sweep import run_sweep
+    from rollingdem.studies.sweep import run_sweep  # deferred: commands load what they run
 
     _check_in_file(sweep_file, "sweep file")
     _check_out(out)
@@ -311,8 +311,19 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
     95 % region. One numeric target and one free parameter: a monotone search (with --fidelity
     multi, on cheap runs corrected by full-size ones); otherwise a Gaussian-process surrogate with
     sequential design (docs/studies.md, "Calibration")."""
-    from rollingdem.studies.calibration import Execution, Search, calibrate as run_calibration, parse_assignments, parse_free
-    from rollingdem.studies.joint_calibration import JointSearch, Target, calibrate_joint, parse_target
+    from rollingdem.studies.calibration import (  # deferred: commands load what they run
+        Execution,
+        Search,
+        parse_assignments,
+        parse_free,
+    )
+    from rollingdem.studies.calibration import calibrate as run_calibration  # deferred: commands load what they run
+    from rollingdem.studies.joint_calibration import (  # deferred: commands load what they run
+        JointSearch,
+        Target,
+        calibrate_joint,
+        parse_target,
+    )
 
     _check_out(out)
     try:
@@ -375,7 +386,7 @@ def calibrate(cases: Optional[list[Path]] = typer.Argument(None, help="Case file
                 typer.echo(f"figure: {result.figures[0]}")
                 typer.echo(f"result: {Path(out) / 'calibration.json'}")
                 return
-            from rollingdem.experiments import get_experiment
+            from rollingdem.experiments import get_experiment  # deferred: commands load what they run
 
             default = get_experiment(experiment, observable=True, what="experiment").default_observable
             targets = [Target(experiment, observable or default, value, uncertainty)]
@@ -405,9 +416,9 @@ def _fidelity(fidelity: str, cheap, experiment: str, fixed: dict):
     experiment's smaller scene."""
     if fidelity == "single":
         return None
-    from rollingdem.experiments import get_experiment
-    from rollingdem.studies.calibration import parse_assignments
-    from rollingdem.studies.multifidelity import Fidelity, cheap_default
+    from rollingdem.experiments import get_experiment  # deferred: commands load what they run
+    from rollingdem.studies.calibration import parse_assignments  # deferred: commands load what they run
+    from rollingdem.studies.multifidelity import Fidelity, cheap_default  # deferred: commands load what they run
 
     given = parse_assignments(cheap, "cheap")
     return Fidelity(cheap=given or cheap_default(get_experiment(experiment, observable=True), fixed))
@@ -419,9 +430,9 @@ def _joint_fidelity(fidelity: str, cheap, targets, fixed: dict):
     experiment's own cheap runs where it has them (the others run at full size throughout)."""
     if fidelity == "single":
         return None
-    from rollingdem.experiments import get_experiment
-    from rollingdem.studies.calibration import parse_assignments
-    from rollingdem.studies.multifidelity import JointFidelity, cheap_default
+    from rollingdem.experiments import get_experiment  # deferred: commands load what they run
+    from rollingdem.studies.calibration import parse_assignments  # deferred: commands load what they run
+    from rollingdem.studies.multifidelity import JointFidelity, cheap_default  # deferred: commands load what they run
 
     given = parse_assignments(cheap, "cheap")
     experiments = {t.experiment: get_experiment(t.experiment, observable=True) for t in targets}
@@ -448,7 +459,7 @@ def _joint_fidelity(fidelity: str, cheap, targets, fixed: dict):
 
 def _minimum(cases, targets, frees, fixed, seeds, coarse, refine, rounds, out, execution, progress):
     """``--target MEASUREMENT.QUANTITY=min``: the free parameter where a misfit is lowest."""
-    from rollingdem.studies.calibration import Search, calibrate_minimum
+    from rollingdem.studies.calibration import Search, calibrate_minimum  # deferred: commands load what they run
 
     if len(targets) > 1 or len(frees) > 1 or len(cases) > 1:
         raise ParameterError(f"target = {targets[0]!r} is not allowed with other targets, free parameters or case "
@@ -468,8 +479,8 @@ def _minimum(cases, targets, frees, fixed, seeds, coarse, refine, rounds, out, e
 def _case_targets(cases, targets, experiment, observable, uncertainty):
     """The targets of a calibration against case files: MEASUREMENT.QUANTITY=VALUE±U (one file),
     FILE:MEASUREMENT.QUANTITY=VALUE±U (several), or a number with --observable (one file)."""
-    from rollingdem.experiments import get_experiment
-    from rollingdem.studies.joint_calibration import Target, parse_value
+    from rollingdem.experiments import get_experiment  # deferred: commands load what they run
+    from rollingdem.studies.joint_calibration import Target, parse_value  # deferred: commands load what they run
 
     if experiment is not None:
         raise ParameterError(f"--experiment = {experiment!r} is not allowed with case files: the case files are the "
@@ -509,9 +520,9 @@ def _case_targets(cases, targets, experiment, observable, uncertainty):
 @app.command()
 def schema():
     """Print the case file's JSON Schema (for an editor's completion and checks)."""
-    import json
+    import json  # deferred: commands load what they run
 
-    from rollingdem.io.case_schema import CaseSpec, material_specs
+    from rollingdem.io.case_schema import CaseSpec, material_specs  # deferred: commands load what they run
 
     material_specs()
     typer.echo(json.dumps(CaseSpec.model_json_schema(), indent=1))
@@ -520,8 +531,8 @@ def schema():
 @app.command()
 def check(case: Path = typer.Argument(..., help="Case file to validate.")):
     """Validate a case file without running it."""
-    from rollingdem.io import case_check, casefile
-    from rollingdem.io.runner import check_output_folder
+    from rollingdem.io import case_check, casefile  # deferred: commands load what they run
+    from rollingdem.io.runner import check_output_folder  # deferred: commands load what they run
 
     try:
         spec = casefile.load_case(case)
@@ -550,8 +561,8 @@ app.add_typer(experiments_app, name="experiments")
 @experiments_app.command("list")
 def experiments_list():
     """List the shipped case files and the built-in experiments."""
-    from rollingdem.experiments import EXPERIMENTS
-    from rollingdem.experiments.case_file import is_case_file, shipped_cases
+    from rollingdem.experiments import EXPERIMENTS  # deferred: commands load what they run
+    from rollingdem.experiments.case_file import is_case_file, shipped_cases  # deferred: commands load what they run
 
     typer.echo("case files (rollingdem experiments show NAME > my.yaml, then rollingdem run my.yaml):")
     for name, path in shipped_cases().items():
@@ -578,8 +589,8 @@ def experiments_show(name: str = typer.Argument(..., help="A shipped case file's
                                                           "(rollingdem experiments list).")):
     """Print a shipped case file, to save and edit (rollingdem experiments show drum > my_drum.yaml); or a
     built-in experiment's parameters (name, default, allowed range, unit) and observables."""
-    from rollingdem.experiments import EXPERIMENTS
-    from rollingdem.experiments.case_file import is_case_file, shipped_cases
+    from rollingdem.experiments import EXPERIMENTS  # deferred: commands load what they run
+    from rollingdem.experiments.case_file import is_case_file, shipped_cases  # deferred: commands load what they run
 
     cases = shipped_cases()
     if name in cases:
@@ -611,9 +622,9 @@ def experiments_show(name: str = typer.Argument(..., help="A shipped case file's
 def shapes():
     """List the ready-made mesh shapes (a mesh wall's or a region's shape: and size:) with their dimensions
     and defaults, in m."""
-    import inspect
+    import inspect  # deferred: commands load what they run
 
-    from rollingdem.scene.mesh import SHAPES
+    from rollingdem.scene.mesh import SHAPES  # deferred: commands load what they run
 
     for name, make in SHAPES.items():
         dims = [f"{k}" if p.default is inspect.Parameter.empty else f"{k}={p.default!r}"
@@ -627,7 +638,7 @@ def shapes():
 def _reflow_help(typer_app) -> None:
     """Each command's help from its docstring with the lines of a paragraph joined: the terminal
     wraps them, and no line breaks mid-sentence where the source did."""
-    import inspect
+    import inspect  # deferred: commands load what they run
 
     for info in typer_app.registered_commands:
         if info.help is None and info.callback is not None and info.callback.__doc__:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 from typing import Any
 
 
@@ -132,8 +133,6 @@ def check_output_path(name: str, path, *, folder: bool = True):
     """Refuse, before anything runs, an output path that could not be written: one that is (or lies
     under) a file, a folder where a file is wanted, or under a folder without write permission.
     Returns the path as a ``Path``."""
-    from pathlib import Path
-
     path = Path(path)
     if path.exists():
         if folder and not path.is_dir():

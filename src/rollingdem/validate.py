@@ -17,9 +17,14 @@ import traceback
 from pathlib import Path
 
 import pandas as pd
+from tqdm import tqdm
 
-from rollingdem.experiments.results import ValidationResult, Check
 from rollingdem.errors import ParameterError
+from rollingdem.experiments import EXPERIMENTS
+from rollingdem.experiments.registry import rolling_models
+from rollingdem.experiments.results import Check, ValidationResult
+from rollingdem.studies.parallel import check_workers, runner
+from rollingdem.studies.repose_study import repose_sweep
 
 
 def available_experiments() -> dict:
@@ -27,9 +32,6 @@ def available_experiments() -> dict:
     (``rollingdem.experiments.EXPERIMENTS``, its ``validate``) and the PFC repose-angle study
     (``repose-sweep``); each a function(quick=False, outdir=None, progress=None, runner=map,
     [models= or model=]) -> ValidationResult."""
-    from rollingdem.experiments import EXPERIMENTS
-    from rollingdem.studies.repose_study import repose_sweep
-
     found = {}
     for name, experiment in EXPERIMENTS.items():
         found[name] = experiment.validate
@@ -42,9 +44,6 @@ def experiment_models() -> dict[str, tuple[str, list[str]]]:
     """Name -> (its keyword, the model names it takes) for what takes ``--model``: each
     experiment's ``model_keyword`` and ``models()`` ("models": a list, "model": one), and
     repose-sweep, which sweeps one rolling model."""
-    from rollingdem.experiments import EXPERIMENTS
-    from rollingdem.experiments.registry import rolling_models
-
     table = {name: (e.model_keyword, e.models()) for name, e in EXPERIMENTS.items() if e.model_keyword}
     table["repose-sweep"] = ("model", rolling_models())
     return table
@@ -98,8 +97,6 @@ def run_validation(outdir, experiments=None, quick=False, progress=True, models=
     ``models`` limits every experiment to those of its models (see ``_model_arguments``; one left
     out for it is announced through ``echo``). Bad arguments are refused before anything is written.
     """
-    from rollingdem.studies.parallel import check_workers, runner
-
     available = available_experiments()
     names = list(available) if not experiments else list(experiments)
     unknown = [c for c in names if c not in available]
@@ -161,7 +158,6 @@ def _run_counter(bar):
 def _bar(progress, total):
     if not progress:
         return None
-    from tqdm import tqdm
     return tqdm(total=total, unit="experiment")
 
 
@@ -229,7 +225,7 @@ def write_report(out: Path, results: list[ValidationResult], quick: bool) -> Non
             md.append("")
     text = "\n".join(md)
     (out / "report.md").write_text(text)
-    from markdown_it import MarkdownIt
+    from markdown_it import MarkdownIt  # deferred: the report only
 
     body = MarkdownIt("commonmark").enable("table").render(text)
     style = ("body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"

@@ -403,3 +403,18 @@ def test_each_stage_of_a_case_starts_at_its_own_stable_time_step(tmp_path):
 def test_a_bad_program_is_refused_in_one_line(make, match):
     with pytest.raises(rd.ParameterError, match=match):
         make()
+
+
+def test_observers_mid_run_see_each_wall_where_the_engine_has_it():
+    """A floor moving sideways at 0.1 m/s, read by an observer every 1 ms during one run of 20 ms:
+    its object is where the engine has moved it at each observation, p = p0 + v (t - t0), as the
+    objects follow the engine after every call of the step loop. Tolerance 1e-12 m: the position is
+    summed step by step (4,000 steps of 5e-7 m); a stale object would lag by at least a call's
+    steps (1e-4 m at the observer's interval)."""
+    sim, floor = sphere_on_floor()
+    sim.set_wall_velocity(floor, velocity=(0.1, 0.0, 0.0))
+    t0, x0, seen = sim.time, floor.point[0], []
+    sim.run(0.02, observers=[rd.Callback(lambda s: seen.append((s.time, floor.point[0])), 1e-3)])
+    assert len(seen) >= 20
+    for t, x in seen:
+        assert abs(x - (x0 + 0.1 * (t - t0))) < 1e-12, (t, x)

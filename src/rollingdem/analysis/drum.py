@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from rollingdem.analysis.repose import touching
 from rollingdem.errors import ParameterError
 
 __all__ = ["com_angle", "flowing_depth", "flowing_layer", "rotation_ratios", "surface_angle"]
@@ -22,8 +23,6 @@ def surface_angle(positions, radii, diameter: float) -> tuple[float, float, floa
     line through the column tops of its middle third gives the angle, atan(slope), positive when
     the surface rises towards +x. Returns (angle, slope, x, y) with (x, y) the line's point at the
     chord's middle."""
-    from rollingdem.analysis.repose import touching
-
     x = np.asarray(positions, float)
     r = np.broadcast_to(np.asarray(radii, float), (len(x),))
     on = touching(x, r)

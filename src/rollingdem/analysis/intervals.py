@@ -6,7 +6,6 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 __all__ = ["confidence_interval", "difference_interval"]
 
@@ -20,6 +19,8 @@ def confidence_interval(values: Any, level: float = 0.95) -> tuple[float, float]
         return math.nan, math.nan
     if len(v) < 2:
         return float(v.mean()), math.nan
+    from scipy import stats  # deferred: slow to load, used here only
+
     half = stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v))
     return float(v.mean()), float(half)
 
@@ -40,4 +41,6 @@ def difference_interval(a: Any, b: Any, level: float = 0.95) -> tuple[float, flo
     if va + vb == 0.0:
         return diff, math.nan
     nu = (va + vb) ** 2 / (va ** 2 / (len(x) - 1) + vb ** 2 / (len(y) - 1))
+    from scipy import stats  # deferred: slow to load, used here only
+
     return diff, float(stats.t.ppf(0.5 + level / 2, nu) * math.sqrt(va + vb))

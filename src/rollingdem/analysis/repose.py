@@ -12,9 +12,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
-from rollingdem.errors import ParameterError, SimulationError, check_finite, check_non_negative, check_positive, check_range
+from rollingdem.errors import (
+    ParameterError,
+    SimulationError,
+    check_finite,
+    check_non_negative,
+    check_positive,
+    check_range,
+)
 
 __all__ = ["ReposeAngle", "default_max_speed", "plot_pile", "repose_angle", "settled", "touching"]
 
@@ -196,7 +202,7 @@ def touching(positions: Any, radii: Any, gap: float = 0.05) -> np.ndarray:
     it does not change the pile, so :func:`settled` may be asked of the others only. Uses a
     k-d tree (:class:`scipy.spatial.cKDTree`), O(N log N).
     """
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
     x = _as_positions(positions, min_particles=0)
     a = _as_radii(radii, x.shape[0])
@@ -275,6 +281,8 @@ def _fit_cone(x: np.ndarray, top: np.ndarray, p0: np.ndarray, center: tuple[floa
         lower, upper, q0 = [-np.inf, 0.0], [np.inf, np.inf], p0[:2]
     q0 = np.array(q0, dtype=np.float64)
     q0[1] = max(q0[1], 1e-6)  # start strictly inside the bound tan(alpha) >= 0
+    from scipy.optimize import least_squares  # deferred: slow to load, used here only
+
     sol = least_squares(res, q0, bounds=(lower, upper), loss="soft_l1", f_scale=scale, x_scale="jac")
     if center is None:
         return sol.x
@@ -452,9 +460,9 @@ def plot_pile(positions: Any, radii: Any, result: ReposeAngle, path: Any = None,
     Saves a PNG at ``path`` if given. Draws into ``ax`` if given, else into a new
     :class:`matplotlib.figure.Figure` (no pyplot state, works headless).
     """
-    import matplotlib
-    from matplotlib.collections import EllipseCollection
-    from matplotlib.figure import Figure
+    import matplotlib  # deferred: slow to load, figures only
+    from matplotlib.collections import EllipseCollection  # deferred: slow to load, figures only
+    from matplotlib.figure import Figure  # deferred: slow to load, figures only
 
     x = _as_positions(positions)
     a = _as_radii(radii, x.shape[0])

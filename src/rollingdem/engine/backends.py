@@ -11,6 +11,9 @@ for it. ``BACKENDS`` holds them by name; ``backend(name)`` checks a name and thi
 
 from __future__ import annotations
 
+import os
+
+from rollingdem.engine.phases import Passes, cpu_phase_seconds
 from rollingdem.errors import ParameterError
 
 
@@ -61,8 +64,6 @@ class CpuBackend(Backend):
         return state.serial()
 
     def phase_seconds(self, state, module, step_inputs, repeats, rebuilds_per_step):
-        from rollingdem.engine.phases import Passes, cpu_phase_seconds
-
         return cpu_phase_seconds(Passes(state, module, *step_inputs), repeats, rebuilds_per_step)
 
 
@@ -72,7 +73,7 @@ class CudaBackend(Backend):
     on_host = False
 
     def check(self) -> None:
-        from rollingdem.engine.cuda.target import require
+        from rollingdem.engine.cuda.target import require  # optional: the GPU backend only
 
         require()
 
@@ -82,7 +83,7 @@ class CudaBackend(Backend):
         loops = state.backend_data.setdefault(self.name, {})
         loop = loops.get(module.__name__)
         if loop is None:
-            from rollingdem.engine.cuda.step_loop import CudaStepLoop
+            from rollingdem.engine.cuda.step_loop import CudaStepLoop  # optional: the GPU backend only
 
             loop = loops[module.__name__] = CudaStepLoop(module)
         return loop
@@ -141,6 +142,4 @@ def check_backend(value, name: str = "backend") -> str:
 def default_backend() -> str:
     """The backend of a Simulation not told one: ``ROLLINGDEM_BACKEND``, else ``"cpu"`` (how
     ``rollingdem validate --backend`` reaches the simulations of every experiment and worker)."""
-    import os
-
     return check_backend(os.environ.get("ROLLINGDEM_BACKEND", "") or "cpu", "ROLLINGDEM_BACKEND")

@@ -8,6 +8,7 @@ hash of its sources, with a serial copy of the step loop (``advance_serial``): d
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib
 import importlib.util
@@ -17,6 +18,11 @@ import re
 import sys
 import tempfile
 from pathlib import Path
+
+import numba
+
+from rollingdem.engine import template
+from rollingdem.engine.precompile import prepare
 
 SERIAL_PASSES = ("advance", "pair_forces", "gather", "kick_drift", "clump_pass")  # name -> name_serial
 _SERIAL_NAME = re.compile(r"\b(" + "|".join(SERIAL_PASSES) + r")\(")
@@ -77,15 +83,11 @@ def engine_source(contact, track_energy: bool = False, bonded_pairs: bool = Fals
 
 def template_files() -> list[Path]:
     """The files of the step loop's template, in the order the engine module takes them."""
-    from rollingdem.engine import template
-
     return [Path(template.__file__).with_name(f"{part}.py") for part in template.PARTS]
 
 
 def template_modules() -> set[str]:
     """The template's parts as module names."""
-    from rollingdem.engine import template
-
     return {f"rollingdem.engine.template.{part}" for part in template.PARTS}
 
 
@@ -108,8 +110,6 @@ def engine_module(contact, track_energy: bool = False, serial: bool | None = Non
         _BY_CLASSES[key] = module = _load(contact, bool(track_energy), bool(bonded_pairs), bool(meshes),
                                                      bool(clumps), bool(programs))
     if serial is not None:
-        from rollingdem.engine.precompile import prepare
-
         prepare(module, bool(serial))
     return module
 
@@ -118,8 +118,6 @@ def _dependency_hash(contact, source: str) -> str:
     """A hash of the generated source, the sources of every package module it compiles in (the
     template's imports and theirs, the laws' modules and theirs) and Numba's version: Numba's own
     cache checks only the generated file, so a change in any module it inlines must rename it."""
-    import numba
-
     h = hashlib.sha256(source.encode())
     names = {sub.compiled_function()[0] for sub in contact.submodels} | template_modules()
     for name in sorted(_package_imports(names)):
@@ -131,8 +129,6 @@ def _dependency_hash(contact, source: str) -> str:
 
 def _package_imports(names: set[str]) -> set[str]:
     """``names`` and the package modules they import, transitively (from their source)."""
-    import ast
-
     seen, todo = set(), list(names)
     while todo:
         name = todo.pop()

@@ -9,6 +9,8 @@ import time
 import numpy as np
 
 from rollingdem.engine.layout import KICK_NONE
+from rollingdem.engine.mesh_passes import build_mesh_candidates
+from rollingdem.engine.neighbors import rebuild_neighbor_list
 
 #: the phases of a step, as every backend names them
 PHASES = ("contact forces", "walls", "integration and gathering", "neighbor search")
@@ -20,9 +22,6 @@ class Passes:
     The paths are those the engine takes for this state (serial or threaded)."""
 
     def __init__(self, state, module, dt, gravity, skin, pair_params):
-        from rollingdem.engine.mesh_passes import build_mesh_candidates
-        from rollingdem.engine.neighbors import rebuild_neighbor_list
-
         st = self.state = state
         st.energy_for(module)
         gravity = np.asarray(gravity, dtype=np.float64)

@@ -7,6 +7,7 @@ docs/architecture.md, "Compiling an engine module"; the time it saves: docs/perf
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import selectors
 import subprocess
@@ -14,9 +15,14 @@ import sys
 import time
 from pathlib import Path
 
+import numba
 import numpy as np
+from numba.core.caching import FunctionCache
 
+from rollingdem.engine.layout import KICK_CLOSE
+from rollingdem.engine.state import EngineState
 from rollingdem.errors import env_switch
+from rollingdem.physics.records import N_INPUTS, WALL_GEOMETRY_SIZE, WALL_PLANE
 
 LOCK_STALE_S = 600.0
 HELPER_WAIT_S = 600.0  # the longest this process waits for the helper before compiling alone
@@ -50,20 +56,12 @@ def _cores() -> int:
 def is_cached(module, function: str = "gather") -> bool:
     """Whether Numba's cache holds ``module.function`` (its index file exists where Numba looks:
     the function may live in another module, as the neighbor search does)."""
-    from numba.core.caching import FunctionCache
-
     return Path(FunctionCache(getattr(module, function).py_func)._cache_file._index_path).exists()
 
 
 def signatures(module) -> dict:
     """Argument types of every function the plans name, as the engine calls them (taken from an
     engine state of one sphere on a plate: types do not depend on sizes or values)."""
-    import numba
-
-    from rollingdem.engine.state import EngineState
-    from rollingdem.engine.layout import KICK_CLOSE
-    from rollingdem.physics.records import N_INPUTS, WALL_GEOMETRY_SIZE, WALL_PLANE
-
     st = EngineState(module.HISTORY_SIZE)
     st.set_walls([-1], wall_kind=[WALL_PLANE], wall_geom=[np.zeros(WALL_GEOMETRY_SIZE)])
     st.append_particles(x=np.array([[0.0, 0.0, 0.01]]), radius=np.array([0.01]), mass=np.array([1e-3]),
@@ -215,8 +213,6 @@ class _Progress:
 def _helper(path: str, serial: bool) -> None:
     """The helper's part of the plan for the generated engine module at ``path``, each name printed
     when it is in the cache."""
-    import importlib.util
-
     name = Path(path).stem
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)

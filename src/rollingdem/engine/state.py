@@ -6,17 +6,49 @@ index the user knows). docs/architecture.md, "The engine state"."""
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from rollingdem.engine import layout  # SERIAL_BELOW read at the call: a test sets it
 from rollingdem.engine.backends import BACKENDS
+from rollingdem.engine.layout import (
+    CONTACT_BLOCK,
+    I_FORCES_VALID,
+    I_NEED_REBUILD,
+    I_NEEDED,
+    I_REBUILDS,
+    I_STATUS,
+    I_STEPS_DONE,
+    INFO_SIZE,
+    LANE_HITS,
+    LIST_MARGIN,
+    MESH_SLOTS,
+    MOTION_STEADY,
+    PERIODIC_BOX_SIZE,
+    STATUS_CAPACITY,
+    STATUS_MESH_CAPACITY,
+    STATUS_MESH_GRID_CAPACITY,
+    STATUS_TOO_FAST,
+    TILE_ROWS,
+    Scratch,
+    block_columns,
+)
+from rollingdem.engine.layout import MESH_MOTION as MO
+from rollingdem.engine.mesh_state import MeshState
+from rollingdem.engine.neighbors import ContactList, spatial_order
+from rollingdem.engine.schema import (
+    PARTICLE_RECORD,
+    PER_BOND,
+    PER_CLUMP,
+    PER_PARTICLE,
+    PER_PARTICLE_WALL,
+    PER_WALL,
+    SCHEMA,
+)
+from rollingdem.engine.threads import ThreadGovernor
 from rollingdem.errors import SimulationError
 from rollingdem.physics.records import ENERGY_CHANNELS, WALL_LOAD_SIZE
-from rollingdem.engine.layout import LIST_MARGIN, CONTACT_BLOCK, I_FORCES_VALID, I_NEED_REBUILD, I_NEEDED, I_STATUS, I_STEPS_DONE, INFO_SIZE, LANE_HITS, MESH_MOTION as MO, MESH_SLOTS, MOTION_STEADY, PERIODIC_BOX_SIZE, STATUS_CAPACITY, STATUS_MESH_CAPACITY, STATUS_MESH_GRID_CAPACITY, STATUS_TOO_FAST, TILE_ROWS, Scratch, block_columns
-from rollingdem.engine.schema import PARTICLE_RECORD, PER_BOND, PER_CLUMP, PER_PARTICLE, PER_PARTICLE_WALL, PER_WALL, SCHEMA
-from rollingdem.engine.mesh_state import MeshState
-from rollingdem.engine.neighbors import ContactList
-from rollingdem.engine.threads import ThreadGovernor
+
 MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start, tr_k and contact_row are int32
 # Re-sorting the slots in space pays once the state no longer fits in the cache; below that it
 # costs (the threads' halves of the slots carry unequal work): the figures, docs/performance.md.
@@ -253,8 +285,6 @@ class EngineState:
     def sort(self, cell_size: float) -> None:
         """Re-sort the slots in Morton order of the positions; the neighbor list, its history and
         every per-particle array follow, so the next step computes exactly the same contacts."""
-        from rollingdem.engine.neighbors import spatial_order
-
         n = self.n
         perm = spatial_order(self.x, cell_size)  # new slot s holds the particle of old slot perm[s]
         if np.array_equal(perm, np.arange(n)):
@@ -351,8 +381,6 @@ class EngineState:
         made again when the number of Numba threads changes. Scratch space, never part of the state.
         Empty (0 columns) when the spheres are not all of one material: the pair pass then computes
         one contact at a time."""
-        import numba
-
         threads = numba.get_num_threads()
         if self._one_material is None or self._one_material[0] is not self.mat:  # the array is replaced when it changes
             self._one_material = (self.mat, self.n == 0 or bool((self.mat[:self.n] == self.mat[0]).all()))
@@ -392,7 +420,6 @@ class EngineState:
             self._evaluate_forces(module, dt, gravity, skin, pair_params)
         if self.n >= SORT_ABOVE and self.steps_since_sort >= SORT_EVERY:
             self.sort(2.0 * float(self.radius.max()) + skin)
-        import numba
 
         remaining = nsteps
         step_loop = self.step_loop(module)
@@ -441,8 +468,6 @@ class EngineState:
         state's arrays (with the contact list's and the meshes'), the pair contacts (spheres whose
         centres are nearer than the sum of their radii), the wall contacts and the pairs in the
         neighbor list."""
-        from rollingdem.engine.layout import I_REBUILDS
-
         n, cl = self.n, self.contact_list
         rows = np.repeat(np.arange(n), np.diff(cl.start[: n + 1])) if n else np.zeros(0, dtype=np.int64)
         j = cl.j[: cl.size] if n else np.zeros(0, dtype=np.int64)
@@ -463,8 +488,6 @@ class EngineState:
 
     def serial(self) -> bool:
         """Whether the step loop runs on the calling thread (a small scene, or one Numba thread)."""
-        import numba
-
         return self.n < layout.SERIAL_BELOW or numba.get_num_threads() == 1
 
     def step_loop(self, module):

@@ -10,6 +10,8 @@ from __future__ import annotations
 import os
 import time
 
+import numba
+
 from rollingdem.errors import env_switch
 
 SEGMENT_S = 0.5  # seconds per segment: a call of the step loop costs ~0.1 ms
@@ -20,8 +22,6 @@ _fixed = not env_switch("ROLLINGDEM_ADAPTIVE_THREADS")
 
 def fix_threads(threads: int) -> None:
     """Step on exactly ``threads`` Numba threads from now on, whatever the load (``--threads``)."""
-    import numba
-
     global _fixed
     numba.set_num_threads(threads)
     _fixed = True
@@ -85,7 +85,6 @@ class ThreadGovernor:
         """Steps of the next call of the step loop (all that remain unless active); its thread count is set."""
         if not self.active:
             return remaining
-        import numba
 
         numba.set_num_threads(self.threads)
         self._start = self.clock()
@@ -118,6 +117,4 @@ class ThreadGovernor:
     def close(self) -> None:
         """The call ends: the Numba thread count is the user's again."""
         if self.active:
-            import numba
-
             numba.set_num_threads(self.given)

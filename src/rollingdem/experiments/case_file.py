@@ -14,14 +14,28 @@ window; a cumulative quantity's final value; a rate's least-squares slope) and, 
 from __future__ import annotations
 
 import copy
+import hashlib
+import json
 import math
 import tempfile
 from pathlib import Path
 from typing import Any
 
 from rollingdem.errors import ParameterError
-from rollingdem.experiments.registry import (CASE_FILE_SUFFIXES, EXPERIMENTS, FILE_EXPERIMENT, UNBOUNDED, Experiment,
-                                             Parameter)
+from rollingdem.experiments.registry import (
+    CASE_FILE_SUFFIXES,
+    EXPERIMENTS,
+    FILE_EXPERIMENT,
+    UNBOUNDED,
+    Experiment,
+    Parameter,
+)
+from rollingdem.io.case_check import check_case
+from rollingdem.io.casefile import build_measurements, build_simulation, load_case
+from rollingdem.io.mapping_file import read_mapping
+from rollingdem.io.runner import run_case, run_prepared
+from rollingdem.scene.materials import Material
+from rollingdem.scene.simulation import __version__
 
 #: Short names of a one-material file's coefficients, as the built-in experiments name them.
 ALIASES = {"mu": "friction", "mur": "rolling_friction", "e": "restitution", "eta_r": "rolling_damping",
@@ -95,9 +109,6 @@ class CaseExperiment(Experiment):
     model_keyword = None
 
     def __init__(self, path):
-        from rollingdem.io.casefile import load_case
-        from rollingdem.io.mapping_file import read_mapping
-
         self.path = Path(path)
         self.data, _ = read_mapping(self.path)
         case = load_case(self.path)  # refuse a bad file now, with its own messages
@@ -134,8 +145,6 @@ class CaseExperiment(Experiment):
 
     @staticmethod
     def _observables(case) -> dict[str, str]:
-        from rollingdem.io.casefile import build_measurements, build_simulation
-
         out = {}
         for name, m in build_measurements(case, build_simulation(case)).items():
             for q, unit in (m.QUANTITIES or {}).items():
@@ -162,8 +171,6 @@ class CaseExperiment(Experiment):
 
     def case_data(self, params: dict) -> dict:
         """The file's data with ``params`` written in, checked as a case file."""
-        from rollingdem.io.casefile import load_case
-
         data = copy.deepcopy(self.data)
         for name, value in params.items():
             if name == "seed":
@@ -176,7 +183,6 @@ class CaseExperiment(Experiment):
                 set_path(data, long, params[short])
         try:
             case = load_case(data)
-            from rollingdem.scene.materials import Material
 
             for k, m in enumerate(case.materials):  # cheap, and where most bad values show
                 try:
@@ -190,9 +196,6 @@ class CaseExperiment(Experiment):
 
     def check(self, params: dict) -> None:
         """The file with ``params`` written in, built and checked as ``rollingdem check`` does."""
-        from rollingdem.io.case_check import check_case
-        from rollingdem.io.casefile import load_case
-
         case = load_case(self.case_data(self.resolve(params)))
         case.base_directory = self.base
         try:
@@ -214,9 +217,6 @@ class CaseExperiment(Experiment):
         """Run the case with ``params`` in a folder of its own, removed afterwards; its measurements'
         summaries are the observables. With ``prepare_in``, from the latest stage end it shares
         with an earlier run (``prepared.seconds_saved``: the wall-clock seconds that saved)."""
-        from rollingdem.io.casefile import load_case
-        from rollingdem.io.runner import run_case, run_prepared
-
         data = self.case_data(params)
         data.setdefault("output", {})["snapshots"] = None  # a sweep keeps numbers, not pictures
         data["output"]["report"] = None
@@ -243,11 +243,6 @@ class CaseExperiment(Experiment):
 def stage_keys(data: dict) -> list[str]:
     """What decides the state at the end of each stage but the last: a case file's data without
     its name and the later stages, hashed."""
-    import hashlib
-    import json
-
-    from rollingdem.scene.simulation import __version__
-
     keys = []
     for k in range(1, len(data.get("stages") or [])):
         head = {key: v for key, v in data.items() if key not in ("stages", "name")}
@@ -264,10 +259,7 @@ def run_case_data(data: dict, series: tuple[str, ...] = (), what: str = "case",
     that fails raises a RuntimeError naming ``what`` and its reason. With ``shared`` = (a folder,
     the reference's data: the case with other materials), the run starts from the reference's
     first stage end, kept in the folder (``rollingdem.io.runner.run_prepared``)."""
-    import pandas as pd
-
-    from rollingdem.io.casefile import load_case
-    from rollingdem.io.runner import run_case, run_prepared
+    import pandas as pd  # deferred: slow to load, tables only
 
     with tempfile.TemporaryDirectory(prefix="rollingdem-case-") as folder:
         if shared is None:

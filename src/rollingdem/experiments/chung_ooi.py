@@ -35,7 +35,12 @@ import pandas as pd
 from scipy.special import beta as beta_function
 
 from rollingdem.experiments.registry import Experiment
-from rollingdem.experiments.results import Check, ValidationResult
+from rollingdem.experiments.results import Check, ValidationResult, pyplot
+from rollingdem.physics.contact.model import ContactModel
+from rollingdem.physics.contact.normal import Hooke, Linear, WaltonBraun, equivalent_stiffness, hertz_damping_factor
+from rollingdem.scene.materials import Material
+from rollingdem.scene.simulation import Simulation
+from rollingdem.scene.walls import Plane
 
 CASE = "chung-ooi"
 RIGID = 1e6  # the plane's Young's modulus over the sphere's: E* within 1e-6 of the rigid plane's
@@ -113,9 +118,6 @@ def contact_model(law: str, tangential: str = "history", e_star: float = 0.0, r_
     Hooke and Walton-Braun take the Hertz-equivalent spring at the impact's closing ``speed``
     (characteristic velocity V_c = speed), and ``linear`` the same spring given as k_n = k_s, so that
     each peaks at Hertz's overlap."""
-    from rollingdem.physics.contact.model import ContactModel
-    from rollingdem.physics.contact.normal import Hooke, Linear, WaltonBraun, equivalent_stiffness
-
     if law == "hertz":
         normal = "hertz"
     elif law == "hooke":
@@ -155,10 +157,6 @@ class Body:
 def scene(bodies: list[Body], model, friction: float, restitution: float, dt: float, plane: bool = False):
     """The spheres ``bodies`` (and, with ``plane``, the rigid plane z = 0 under them), gravity off,
     every pair at ``friction`` and ``restitution``."""
-    from rollingdem.scene.materials import Material
-    from rollingdem.scene.simulation import Simulation
-    from rollingdem.scene.walls import Plane
-
     sim = Simulation(contact=model, gravity=(0.0, 0.0, 0.0))
     for solid in {b.solid.name: b.solid for b in bodies}.values():
         sim.add_material(Material(solid.name, youngs_modulus=solid.youngs_modulus, poisson_ratio=solid.poisson_ratio,
@@ -285,9 +283,7 @@ def hertz_impulses(restitution: float) -> dict:
     (1 + e), of its positive part (the history spring's Coulomb cap takes max(F_n, 0): larger
     than 1 + e where the dashpot pulls before parting) and of the elastic force (Walton's cap takes
     it: 1 + e too, the dashpot's impulse int gamma(x) dx vanishing over a contact)."""
-    from scipy.integrate import solve_ivp
-
-    from rollingdem.physics.contact.normal import hertz_damping_factor
+    from scipy.integrate import solve_ivp  # deferred: slow to load, used here only
 
     c = math.sqrt(1.5) * hertz_damping_factor(restitution)
 
@@ -509,7 +505,7 @@ def stick_restitution(poisson_ratio: float) -> float:
     incremental spring and the total-form spring k_t xi give the same beta here: k_t(t) is symmetric
     about the middle of an elastic contact, and the two are the cosine- and sine-like solutions of
     the same Hill equation."""
-    from scipy.integrate import solve_ivp
+    from scipy.integrate import solve_ivp  # deferred: slow to load, used here only
 
     ratio = 2 * (1 - poisson_ratio) / (2 - poisson_ratio)
 
@@ -526,9 +522,7 @@ def stick_restitution(poisson_ratio: float) -> float:
 
 def figures(result: ValidationResult, outdir, curves: dict, rows: pd.DataFrame, table: pd.DataFrame) -> None:
     """A figure per test, as the paper draws it, with the closed form."""
-    from scipy.integrate import solve_ivp
-
-    from rollingdem.experiments.results import pyplot
+    from scipy.integrate import solve_ivp  # deferred: slow to load, used here only
 
     plt = pyplot()
     for test in (1, 2):

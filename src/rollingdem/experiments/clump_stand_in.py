@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rollingdem.errors import check_choice
-from rollingdem.experiments.registry import BedExperiment, Parameter
-from rollingdem.experiments.pile import Collapse, PileMaterial, PileSetup, column_size, pile_run
 from rollingdem.analysis.intervals import confidence_interval
+from rollingdem.errors import check_choice
+from rollingdem.experiments.pile import Collapse, PileMaterial, PileSetup, column_size, pile_run
+from rollingdem.experiments.registry import BedExperiment, Parameter, resolve_rolling
 from rollingdem.experiments.results import LAWS_REVISION, Check, ValidationResult, kept_run, pyplot
 from rollingdem.experiments.silo import BLOCKS, SiloSetup, discharge_rate, silo_run
 from rollingdem.scene.clumps import Clump, stand_in_rolling_friction
@@ -143,8 +143,6 @@ class ClumpStandIn(BedExperiment):
     def observe(self, params: dict) -> dict:
         """Both piles and both silos at ``params`` (one seed): their angles, flow rates and the
         stand-in mu_r."""
-        from rollingdem.experiments.registry import resolve_rolling
-
         p = self.resolve(params)
         clump = clump_template(p["members"], p["radius"])
         r_eq = equal_volume_radius(clump)
@@ -175,8 +173,6 @@ def silo_flow(p: dict, material, r_eq: float, clump, what: str) -> tuple[float, 
     stand-in spheres (``what``), at a steady head (each one out put back on top), over ``measured``
     out after the first 200 (counted in the outlet's particles: a clump's members each); NaN and
     why where it clogged."""
-    from rollingdem.experiments.registry import resolve_rolling
-
     k = len(clump.radii) if what == "clumps" else 1
     setup = SiloSetup(orifice_diameters=p["orifice_diameters"], silo_diameters=p["silo_diameters"],
                       fill_diameters=p["fill_diameters"], transient=200 * k, measured=p["measured"] * k,

@@ -19,9 +19,11 @@ import pandas as pd
 
 from rollingdem.experiments.registry import Experiment
 from rollingdem.experiments.results import Check, ValidationResult, pyplot
+from rollingdem.experiments.single_sphere import rolling_threshold_speed, speed_down_incline
 from rollingdem.physics.contact.model import ContactModel
 from rollingdem.scene.clumps import Clump, onset_angle
 from rollingdem.scene.materials import Material
+from rollingdem.scene.rigid_bodies import matrix_quaternion
 from rollingdem.scene.simulation import Simulation
 from rollingdem.scene.walls import Plane
 
@@ -44,7 +46,7 @@ def material(sim, friction=1.0, restitution=0.2, **kw):
 def prism_pose(n: int):
     """A ring prism of n touching spheres of ``RADIUS`` and the rotation that stands it on two
     neighbours with its axis along y (the contour lines of a slope falling along x)."""
-    from scipy.spatial.transform import Rotation
+    from scipy.spatial.transform import Rotation  # deferred: slow to load, used here only
 
     turn = Rotation.from_euler("x", 90, degrees=True) * Rotation.from_euler("z", -90 + 180.0 / n, degrees=True)
     return Clump.ring_prism(n, RADIUS), turn
@@ -90,8 +92,6 @@ def sphere_rolls(model: str, mu_r: float, tilt_deg: float) -> bool:
     """Whether a Table-1 sphere with rolling friction ``mu_r`` rolls down a wall tilted slowly to
     ``tilt_deg`` (the seed report's case 0, ``single_sphere.speed_down_incline``): its mean speed
     over the last 0.1 s above the threshold for a margin of 0.1 % in tan theta."""
-    from rollingdem.experiments.single_sphere import rolling_threshold_speed, speed_down_incline
-
     return speed_down_incline(model, mu_r, tilt_deg) > rolling_threshold_speed(tilt_deg, 1e-3)
 
 
@@ -115,7 +115,7 @@ def flip_theory(moments, omega_body) -> float:
     sn(tau, k), tau = t sqrt((I_3 - I_2)(L^2 - 2 E I_1) / (I_1 I_2 I_3)), k^2 = (I_2 - I_1)(2 E I_3
     - L^2) / ((I_3 - I_2)(L^2 - 2 E I_1)), period 4 K(k) in tau; for L^2 < 2 E I_2 axes 1 and 3
     exchange their parts."""
-    from scipy.special import ellipk
+    from scipy.special import ellipk  # deferred: slow to load, used here only
 
     i1, i2, i3 = moments
     w = np.asarray(omega_body, float)
@@ -153,7 +153,6 @@ def intermediate_axis_flip(periods: int = 3):
     body = np.array([1.0, 100.0, 2.0])
     # the principal frame turned into the template's frame gives the template orientation whose
     # principal frame is the space frame: the body's omega is then the space one
-    from rollingdem.scene.rigid_bodies import matrix_quaternion
 
     q_axes = matrix_quaternion(props.principal_axes)
     q = np.array([q_axes[0], -q_axes[1], -q_axes[2], -q_axes[3]])

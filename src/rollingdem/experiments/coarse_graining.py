@@ -32,8 +32,13 @@ import numpy as np
 import pandas as pd
 
 from rollingdem.analysis.intervals import difference_interval
+from rollingdem.experiments.drum import RotatingDrum
+from rollingdem.experiments.pile import column_size, tube_clearing_time
 from rollingdem.experiments.registry import BedExperiment, Parameter, resolve_rolling
+from rollingdem.experiments.repose import ReposeRoughBase
 from rollingdem.experiments.results import LAWS_REVISION, Check, ValidationResult, kept_run, pyplot
+from rollingdem.experiments.silo import SiloDischarge
+from rollingdem.experiments.single_sphere import NO_THRESHOLD, critical_rolling_friction, validation_models
 
 CASE = "coarse-graining"
 #: deg: the issue's bound on the parcels' pile and drum angles against the real particles'
@@ -96,8 +101,6 @@ class CoarseGraining(BedExperiment):
     def observe(self, params: dict, checkpoint=None) -> dict:
         """The pile of ``repose-rough-base`` at ``count`` real particles made parcels of ``alpha``;
         resumable with ``checkpoint`` (``pile.pile_run``)."""
-        from rollingdem.experiments.repose import ReposeRoughBase
-
         p = self.resolve(params)
         mur = p["mur"] / p["alpha"] if p["length_convention"] else p["mur"]
         res = ReposeRoughBase().observe({"model": p["model"], "mu": p["mu"], "mur": mur, "count": p["count"],
@@ -117,8 +120,6 @@ def lift_time(count: int, alpha: float) -> float:
     """s: how long ``repose-rough-base``'s tube takes to rise clear of a column of ``count`` real
     particles on a base of parcels of ``alpha`` (``pile.tube_clearing_time``, clearance one real
     diameter): the pile's collapse may last that long and ``REST`` more."""
-    from rollingdem.experiments.pile import column_size, tube_clearing_time
-
     _, height = column_size(count, PILE_RADIUS, 0.2)
     return tube_clearing_time(2.0 * alpha * PILE_RADIUS, height, PILE_RADIUS, 2.0 * PILE_RADIUS, LIFT_SPEED)
 
@@ -135,8 +136,6 @@ def drum_point(model: str, alpha: float, seed: int, size: dict) -> dict:
     """The rotating drum (``drum_diameters`` d in radius, a slice 10 d long: a parcel of alpha = 3 fits
     the periodic length) of parcels of ``alpha``, at the real particles' Froude number: its angle and
     the real particles it moves per second of wall time."""
-    from rollingdem.experiments.drum import RotatingDrum
-
     tic = time.perf_counter()
     res = RotatingDrum().observe(drum_parameters(model, alpha, seed, size))
     wall = time.perf_counter() - tic
@@ -151,8 +150,6 @@ def scaled_pile_point(model: str, alpha: float, mur: float, seed: int, count: in
     Froude number) and Young's modulus E / alpha (the bed's weight is alpha times smaller: the same
     strain), at the real particles' time step. The parcels' pile obeys the same equations as this
     one made alpha times larger (docs/models.md §18)."""
-    from rollingdem.experiments.repose import ReposeRoughBase
-
     experiment = ReposeRoughBase()
     small = int(round(count / alpha ** 3))
     params = {"model": model, "mu": CoarseGraining().resolve({})["mu"], "mur": mur, "count": small, "seed": seed,
@@ -169,8 +166,6 @@ def scaled_drum_point(model: str, alpha: float, seed: int, size: dict) -> dict:
     drum and a slice alpha times fewer real diameters across (as many particles as parcels), at the
     same Froude number (``rotating-drum`` keeps it), Young's modulus E / alpha, the real particles'
     time step (``scaled_pile_point``)."""
-    from rollingdem.experiments.drum import RotatingDrum
-
     experiment = RotatingDrum()
     real = drum_parameters(model, 1.0, seed, size)
     params = dict(real, drum_diameters=real["drum_diameters"] / alpha, slice_diameters=real["slice_diameters"] / alpha,
@@ -183,8 +178,6 @@ def scaled_drum_point(model: str, alpha: float, seed: int, size: dict) -> dict:
 
 def silo_point(model: str, alpha: float, seed: int, size: dict) -> dict:
     """The silo (orifice 12 d: 6 parcel diameters at alpha = 2) of parcels of ``alpha``: its flow rate."""
-    from rollingdem.experiments.silo import SiloDischarge
-
     res = SiloDischarge().observe({"model": model, **SiloDischarge.material, "seed": seed, "coarse_graining": alpha,
                                    "orifice_diameters": 12.0, "silo_diameters": size["silo_diameters"],
                                    "fill_diameters": size["fill_diameters"], "measured": size["measured"],
@@ -198,8 +191,6 @@ def slope_point(model: str, alpha: float, beta: float) -> dict:
     report case 0, ``single_sphere.critical_rolling_friction``), tilted and held alpha times as long
     as the real sphere: its rolling spring's period is alpha times longer, and the tilt must stay as
     slow beside it (docs/models.md §18)."""
-    from rollingdem.experiments.single_sphere import critical_rolling_friction
-
     return {"mur_critical": critical_rolling_friction(resolve_rolling(model), beta, rel_tol=1e-3,
                                                       material={"coarse_graining": alpha}, time_scale=alpha)}
 
@@ -220,8 +211,6 @@ def coarse_graining_study(model="epsd", quick=False, outdir=None, progress=None,
     (full size: the quick one runs too few seeds to tell, and says so in its notes, with every pile
     forming and every silo draining as its checks); a parcel's critical mu_r within 0.5 % of
     tan(beta) on every slope."""
-    from rollingdem.experiments.single_sphere import NO_THRESHOLD, validation_models
-
     tic = time.perf_counter()
     experiment = CoarseGraining()
     key = "quick" if quick else "full"

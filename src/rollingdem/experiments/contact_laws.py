@@ -19,7 +19,23 @@ import numpy as np
 import pandas as pd
 
 from rollingdem.experiments.registry import Experiment
-from rollingdem.experiments.results import ValidationResult, Check
+from rollingdem.experiments.results import Check, ValidationResult, pyplot
+from rollingdem.physics.bonds import BOND_INPUTS, BOND_INTACT, parallel_bond
+from rollingdem.physics.contact.cohesion import JKR_HISTORY, jkr_cohesion
+from rollingdem.physics.contact.frame import contact_frame
+from rollingdem.physics.contact.model import ContactModel
+from rollingdem.physics.contact.normal import (
+    WALTON_BRAUN_HISTORY,
+    WALTON_BRAUN_PARAMETERS,
+    WaltonBraun,
+    walton_braun_normal,
+)
+from rollingdem.physics.contact.tangential import WALTON_TANGENTIAL_HISTORY, walton_tangential
+from rollingdem.physics.records import BOND_PARAMETERS, BOND_STATE, contact_inputs
+from rollingdem.scene.bonds import ParallelBond
+from rollingdem.scene.materials import Material
+from rollingdem.scene.simulation import Simulation
+from rollingdem.scene.walls import Plane
 
 CASE = "contact-laws"
 K1 = 1e5  # N/m, WB-1
@@ -29,11 +45,6 @@ RESTITUTIONS = (0.1, 0.3, 0.5, 0.7, 0.9)
 def _wb_pair(e: float, speed: float):
     """Two spheres of 2 kg each (m* = 1 kg) meeting head on at ``speed`` (relative), k1 = 1e5 N/m,
     no gravity, no friction, dt = T2 / 200 with T2 = 2 pi sqrt(m* / k2)."""
-    from rollingdem.physics.contact.model import ContactModel
-    from rollingdem.physics.contact.normal import WaltonBraun
-    from rollingdem.scene.materials import Material
-    from rollingdem.scene.simulation import Simulation
-
     radius = 0.05
     density = 2.0 / (4.0 / 3.0 * math.pi * radius ** 3)
     sim = Simulation(contact=ContactModel(normal=WaltonBraun(loading_stiffness=K1)), gravity=(0, 0, 0))
@@ -74,8 +85,6 @@ def wb_impact(e: float, speed: float) -> dict:
 def wb_path() -> dict:
     """WB-2: the law stepped along the benchmark's overlap path (docs/studies.md) (k1 = 1e5 N/m, e = 0.5): the forces at its
     turning points, and the energy the first loop (0 -> 1 mm -> 0.75 mm) dissipates."""
-    from rollingdem.physics.contact.normal import WALTON_BRAUN_HISTORY, WALTON_BRAUN_PARAMETERS, walton_braun_normal
-
     p = np.zeros(len(WALTON_BRAUN_PARAMETERS))
     P = WALTON_BRAUN_PARAMETERS
     p[[P.loading_stiffness, P.unloading_ratio, P.tangential_stiffness_ratio, P.reported_stiffness_ratio]] = (
@@ -96,12 +105,6 @@ def wb_path() -> dict:
 def wb_drop() -> float:
     """WB-3: R = 5 mm, rho = 2500 kg/m^3, k1 = 1e4 N/m, e = 0.5, dropped from 0.1 m onto a plane: the
     rebound over the impact speed, both where the centre passes z = R (interpolated in the step)."""
-    from rollingdem.physics.contact.model import ContactModel
-    from rollingdem.physics.contact.normal import WaltonBraun
-    from rollingdem.scene.materials import Material
-    from rollingdem.scene.simulation import Simulation
-    from rollingdem.scene.walls import Plane
-
     radius = 0.005
     sim = Simulation(contact=ContactModel(normal=WaltonBraun(loading_stiffness=1e4)), dt=1e-6)
     sim.add_material(Material("m", youngs_modulus=1e9, poisson_ratio=0.3, density=2500.0, friction=0.5,
@@ -127,10 +130,6 @@ def wb_drop() -> float:
 def wb_tangential() -> dict:
     """WB-4: Walton's law at N = 10 N, mu = 0.5, K_T0 = 1e5 N/m driven in steps of s*/2000: T at
     s*/2, and after a turn at full slip, T at s*/2 back (Masing: mu N - 2 mu N [1 - (3/4)^(3/2)])."""
-    from rollingdem.physics.contact.frame import contact_frame
-    from rollingdem.physics.contact.tangential import WALTON_TANGENTIAL_HISTORY, walton_tangential
-    from rollingdem.physics.records import contact_inputs
-
     n, mu, k0 = 10.0, 0.5, 1e5
     s_star = 3 * mu * n / (2 * k0)
     ds = s_star / 2000
@@ -158,9 +157,6 @@ def _jkr_constants():
 def jkr_curve() -> dict:
     """The pull-off (least force along the curve, sampled every 1/4000 of [delta_c, 2 |delta_c|]), the
     force at the zero-load overlap, the separation the law keeps in its history."""
-    from rollingdem.physics.contact.cohesion import JKR_HISTORY, jkr_cohesion
-    from rollingdem.physics.records import contact_inputs
-
     e_star, r_eff, _, w = _jkr_constants()
     p = np.array([e_star, 0, 0, 0, 0, 0, w])
 
@@ -181,10 +177,6 @@ def jkr_curve() -> dict:
 def jkr_sticks(speed: float) -> bool:
     """Two spheres meeting head on at ``speed`` (relative), no dashpot, dt = T / 400 (T the
     zero-load oscillation period): in contact after 40 periods."""
-    from rollingdem.physics.contact.model import ContactModel
-    from rollingdem.scene.materials import Material
-    from rollingdem.scene.simulation import Simulation
-
     s = JKR_SET
     sim = Simulation(contact=ContactModel(cohesion="jkr"), gravity=(0, 0, 0))
     sim.add_material(Material("m", youngs_modulus=s["youngs_modulus"], poisson_ratio=s["poisson_ratio"],
@@ -201,7 +193,7 @@ def jkr_sticks(speed: float) -> bool:
 def jkr_sticking_velocity(quick: bool) -> tuple[float, float]:
     """(measured, analytic) sticking velocity: bisection on the impact speed to 1 % (quick: 2 %),
     and sqrt(2 W / m*) with W = int_delta_c^0 |F| d(delta) by quadrature over the contact radius."""
-    from scipy.integrate import quad
+    from scipy.integrate import quad  # deferred: slow to load, used here only
 
     e_star, r_eff, m_eff, w = _jkr_constants()
 
@@ -230,16 +222,11 @@ BOND_R, BOND_RHO, BOND_GAP = 0.01, 2500.0, 1e-4
 
 
 def _b1(strength=1e6):
-    from rollingdem.scene.bonds import ParallelBond
-
     return ParallelBond(youngs_modulus=1e8, stiffness_ratio=2.5, tensile_strength=strength, cohesion=strength)
 
 
 def bonded_pair(velocity, angular_velocity, dt, strength=1e6):
     """Two B1 spheres 0.1 mm apart (their contact out of the way), bonded: the first at -x."""
-    from rollingdem.scene.materials import Material
-    from rollingdem.scene.simulation import Simulation
-
     r = BOND_R
     sim = Simulation(gravity=(0, 0, 0), dt=dt)
     sim.add_material(Material("m", youngs_modulus=1e8, poisson_ratio=0.3, density=BOND_RHO, restitution=0.5))
@@ -252,8 +239,6 @@ def bonded_pair(velocity, angular_velocity, dt, strength=1e6):
 def bond_mode_period(mode: str) -> tuple[float, float]:
     """BP-1: (measured, expected) period of one of a B1 pair's modes, each started alone, over
     about ten cycles at dt = 1e-6 s (upward crossings of the mean, interpolated)."""
-    from rollingdem.physics.records import BOND_PARAMETERS
-
     r = BOND_R
     mass = BOND_RHO * 4 / 3 * math.pi * r ** 3
     inertia = 0.4 * mass * r ** 2
@@ -295,9 +280,6 @@ def bond_energy_drift(dt: float) -> float:
 def bond_break_loads() -> dict:
     """BP-2: B1 driven in each pure mode through the bond law (1/2000 of the break per step): the
     load at the break."""
-    from rollingdem.physics.bonds import BOND_INPUTS, BOND_INTACT, parallel_bond
-    from rollingdem.physics.records import BOND_STATE
-
     r = BOND_R
     p = np.array(_b1().parameter_row(r, r))
     out = {}
@@ -320,11 +302,6 @@ def bonded_chain(gravity, bonds: int = 10):
     """BP-3: a chain of ``bonds`` B1 bonds (spheres 0.1 mm apart along x, the first fixed, exclusive
     bonds with dashpots zeta = 0.7) loaded by its own weight for 16 s: (the free end's mean
     displacement over the last 2 s, the bond's parameters by name, L_b the spacing)."""
-    from rollingdem.scene.bonds import ParallelBond
-    from rollingdem.physics.records import BOND_PARAMETERS
-    from rollingdem.scene.materials import Material
-    from rollingdem.scene.simulation import Simulation
-
     r = BOND_R
     lb = 2 * r + BOND_GAP
     sim = Simulation(gravity=gravity)
@@ -348,10 +325,6 @@ def twisting_chain_period(bonds: int = 10) -> tuple[float, float]:
     torsion springs K_t and inertias I = 2/5 m R^2; sphere n starts spinning at sin(n q),
     q = pi/(2N + 1), the mode shape, and the mode's omega = 2 sqrt(K_t/I) sin(q/2) (the static
     twist under a tip torque T, N T/K_t, is the same springs in series)."""
-    from rollingdem.physics.records import BOND_PARAMETERS
-    from rollingdem.scene.materials import Material
-    from rollingdem.scene.simulation import Simulation
-
     r = BOND_R
     lb = 2 * r + BOND_GAP
     q = math.pi / (2 * bonds + 1)
@@ -399,12 +372,6 @@ def agglomerate_breakage(speed: float, cells: int = 4) -> dict:
     0.5, EPSD mu_r = 0.1) on a simple cubic lattice (spacing 2.002 R) cut to a ball of ``cells``
     spacings (257 spheres for 4), every touching pair bonded (E = 100 MPa, sigma_c = c = 0.2 MPa),
     launched at the plate at ``speed`` from 1 mm above it and run 20 ms: the share of bonds broken."""
-    from rollingdem.physics.contact.model import ContactModel
-    from rollingdem.scene.bonds import ParallelBond
-    from rollingdem.scene.materials import Material
-    from rollingdem.scene.simulation import Simulation
-    from rollingdem.scene.walls import Plane
-
     r = 0.002
     sim = Simulation(contact=ContactModel(rolling="epsd"))
     sim.add_material(Material("m", youngs_modulus=1e8, poisson_ratio=0.3, density=2500.0, restitution=0.5,
@@ -509,8 +476,6 @@ def contact_laws(models=None, quick=False, outdir=None, progress=None, runner=ma
     result.notes.append("Agglomerate (" + f"{breakage[1.0]['spheres']} spheres, {breakage[1.0]['bonds']} bonds): "
                         + ", ".join(f"{v:g} m/s {100 * b['broken']:.0f} % broken" for v, b in breakage.items()))
     if outdir is not None:
-        from rollingdem.experiments.results import pyplot
-
         plt = pyplot()
         fig, ax = plt.subplots(figsize=(5, 3.5))
         ax.plot(AGGLOMERATE_SPEEDS, [100 * b["broken"] for b in breakage.values()], "o-", label="all")

@@ -22,12 +22,15 @@ from pathlib import Path
 
 import numpy as np
 
+from rollingdem.analysis.intervals import confidence_interval
 from rollingdem.errors import ParameterError
+from rollingdem.experiments.case_file import run_case_data
 from rollingdem.experiments.pile import PileMaterial
-from rollingdem.experiments.repose import SharedSettling
-from rollingdem.experiments.results import ValidationResult, Check, mean_ci, pyplot, rises, run_points
 from rollingdem.experiments.registry import UNBOUNDED, BedExperiment, Parameter, granular_parameters, resolve_rolling
+from rollingdem.experiments.repose import SharedSettling
+from rollingdem.experiments.results import Check, ValidationResult, mean_ci, pyplot, rises, run_points
 from rollingdem.experiments.single_sphere import RADIUS
+from rollingdem.io.mapping_file import read_mapping
 
 BLOCKS = 4  # the samples' blocks whose means give the 95 % intervals
 
@@ -92,8 +95,6 @@ def drum_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     long again, plus 0.2 s. The drum turns about +z (its bottom moves towards +x); after
     ``setup.spin_up`` degrees its measurements take ``setup.samples`` samples over ``setup.measure``
     degrees."""
-    from rollingdem.io.mapping_file import read_mapping
-
     for what, value, kind in (("material", material, PileMaterial), ("setup", setup, DrumSetup)):
         if not isinstance(value, kind):
             raise ParameterError(f"{what} = {value!r} is not allowed: must be a rollingdem.experiments.drum.{kind.__name__}")
@@ -148,8 +149,6 @@ def drum_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     drum, and the flow pooled over the samples. With ``shared`` = (a folder, a reference
     ``PileMaterial``), the bed settles once per reference material, kept in the folder, and every
     run starts turning it with its own material (``run_case_data``)."""
-    from rollingdem.experiments.case_file import run_case_data
-
     tic = time.perf_counter()
 
     def case(m: PileMaterial) -> dict:  # numbers, not pictures: a 10 d drum spent 9 s of 22 writing those
@@ -234,8 +233,6 @@ class RotatingDrum(SharedSettling, BedExperiment):
 
     def observe(self, params: dict) -> dict:
         """A periodic slice of a drum turning in the rolling regime: its dynamic angle and the rest."""
-        from rollingdem.analysis.intervals import confidence_interval
-
         run = drum_run(**self.drum_arguments(params), shared=self.reference_material(params))
         # successive samples are correlated: the 95 % interval is over the means of BLOCKS blocks
         blocks = [b.mean() for b in np.array_split(run.angle, min(BLOCKS, len(run.angle)))]

@@ -9,6 +9,7 @@ on it: :mod:`rollingdem.experiments.repose`.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from dataclasses import dataclass, replace
@@ -18,8 +19,13 @@ import numpy as np
 
 from rollingdem.analysis.repose import ReposeAngle, default_max_speed, repose_angle, touching
 from rollingdem.errors import ParameterError, check_choice
+from rollingdem.experiments.case_file import stage_keys
+from rollingdem.experiments.single_sphere import DT, RADIUS, TABLE1, G
+from rollingdem.io.casefile import build_simulation, load_case, take_materials
+from rollingdem.io.mapping_file import read_mapping
+from rollingdem.scene.checkpoint import read
 from rollingdem.scene.materials import Material
-from rollingdem.experiments.single_sphere import DT, G, RADIUS, TABLE1
+from rollingdem.scene.simulation import Simulation
 
 POLYDISPERSITY = 0.2  # radii uniform in R (1 +- 0.2)
 MOVING_FRACTION = 0.005  # of the spheres: a pile with fewer still moving counts as settled
@@ -164,8 +170,6 @@ def pile_case(rolling="epsd", twisting="none", count=3000, seed=1, material: Pil
     """The pile of :func:`pile_run` as a case file's data (the shipped ``repose-rough-base`` file,
     sized): the scene, and as stages the settling, the lift (or the tube's removal) and the
     collapse until settled, which ``rollingdem run`` runs with its kinetic-energy criterion."""
-    from rollingdem.io.mapping_file import read_mapping
-
     for what, value, kind in (("material", material, PileMaterial), ("collapse", collapse, Collapse),
                               ("setup", setup, PileSetup)):
         if not isinstance(value, kind):
@@ -249,11 +253,6 @@ class PileProgress:
 
     def load(self):
         """(simulation, t, kinetic energies, wall time so far) of the latest whole slot, or None."""
-        import json
-
-        from rollingdem.scene.checkpoint import read
-        from rollingdem.scene.simulation import Simulation
-
         best = None
         for slot in (0, 1):
             npz, meta = self._files(slot)
@@ -271,8 +270,6 @@ class PileProgress:
 
     def save(self, sim, t: float, ke: list, wall_time: float, force: bool = False) -> None:
         """Write the next slot if ``every`` s of wall time have passed since the last (or ``force``)."""
-        import json
-
         if not force and time.perf_counter() - self.saved_at < self.every:
             return
         npz, meta = self._files(self.slot)
@@ -295,12 +292,6 @@ def settled_column(data: dict, reference: dict | None, folder) -> tuple:
     ``folder`` with the wall time of its stepping, and every run starts from it with its own
     materials (``take_materials``): the column's packing is then the reference material's.
     Without, the stage runs here."""
-    import json
-
-    from rollingdem.experiments.case_file import stage_keys
-    from rollingdem.io.casefile import build_simulation, load_case, take_materials
-    from rollingdem.scene.simulation import Simulation
-
     duration = data["stages"][0]["duration"]
     if reference is None or folder is None:
         sim = build_simulation(load_case(data))

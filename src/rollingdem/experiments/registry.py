@@ -16,6 +16,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from rollingdem.errors import ParameterError, check_choice, check_finite
+from rollingdem.experiments.single_sphere import validation_models
+from rollingdem.physics.contact import ROLLING_MODELS
+from rollingdem.physics.contact.base import _REGISTRIES, make_submodel
 
 EXPERIMENTS: dict[str, "Experiment"] = {}
 """Every experiment by name, in the order they were defined."""
@@ -50,8 +53,6 @@ class Parameter:
             if self.choice == "rolling":
                 resolve_rolling(value, self.name)
             else:
-                from rollingdem.physics.contact.base import _REGISTRIES, make_submodel
-
                 check_choice(self.name, value, _REGISTRIES[self.choice])
                 try:
                     make_submodel(self.choice, value)
@@ -175,9 +176,6 @@ def get_experiment(name: str, observable: bool = False, what: str = "experiment"
 def resolve_rolling(name: str, what: str = "model"):
     """A rolling model by name: a key of ``rollingdem.physics.contact.ROLLING_MODELS`` ("epsd", "cdt", ...)
     or a label of the validation tables ("epsd (liggghts)", "cdt (limiter 0.08)", ...)."""
-    from rollingdem.physics.contact import ROLLING_MODELS
-    from rollingdem.experiments.single_sphere import validation_models
-
     labels = validation_models()
     if name in labels:
         return labels[name]
@@ -188,9 +186,6 @@ def resolve_rolling(name: str, what: str = "model"):
 def rolling_models() -> list[str]:
     """Every rolling model name and validation label: what ``--model`` may give an experiment that
     runs one rolling model."""
-    from rollingdem.physics.contact import ROLLING_MODELS
-    from rollingdem.experiments.single_sphere import validation_models
-
     labels = list(validation_models())
     return sorted(ROLLING_MODELS) + [m for m in labels if m not in ROLLING_MODELS]
 

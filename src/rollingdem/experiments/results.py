@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from rollingdem.analysis.intervals import confidence_interval
 
 
 @dataclass
@@ -64,7 +68,7 @@ class ValidationResult:
 
     def add_figure(self, fig, outdir, name: str) -> Path:
         """Save ``fig`` as ``outdir/name`` (PNG, 120 dpi), close it and list it in the report."""
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # deferred: slow to load, figures only
 
         path = Path(outdir) / name
         fig.tight_layout()
@@ -84,9 +88,6 @@ def kept_run(folder: Path | None, key: list, compute, record: dict) -> dict:
     key and the result) once it returns, and read from there instead of computed when it exists:
     a long study stopped goes on from the runs it has. ``compute`` takes the path a run in progress
     may save itself to (``folder/<name>.partial``; None without ``folder``)."""
-    import hashlib
-    import json
-
     if folder is None:
         return compute(None)
     folder = Path(folder)
@@ -103,9 +104,9 @@ def kept_run(folder: Path | None, key: list, compute, record: dict) -> dict:
 def pyplot():
     """matplotlib.pyplot on the Agg backend (no display needed), with a 20-colour cycle so that
     the twelve models of a figure stay distinguishable."""
-    import matplotlib
+    import matplotlib  # deferred: slow to load, figures only
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: slow to load, figures only
     plt.rcParams["axes.prop_cycle"] = plt.cycler(color=plt.get_cmap("tab20").colors)
     return plt
 
@@ -127,7 +128,6 @@ def mean_ci(runs: pd.DataFrame, keys: list[str], value: str, within: str | None 
     """Mean of ``value`` over seeds per point with its 95 % Student-t half-width; with one seed,
     the run's own interval ``within`` (if given)."""
     rows = []
-    from rollingdem.analysis.intervals import confidence_interval
 
     for point, grp in runs.groupby(keys, sort=True):
         point = point if isinstance(point, tuple) else (point,)

@@ -19,10 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from rollingdem.errors import ParameterError, check_integer
+from rollingdem.experiments.case_file import run_case_data
 from rollingdem.experiments.pile import PileMaterial
-from rollingdem.experiments.results import ValidationResult, Check, pyplot, run_points
 from rollingdem.experiments.registry import UNBOUNDED, BedExperiment, Parameter, granular_parameters, resolve_rolling
+from rollingdem.experiments.results import Check, ValidationResult, pyplot, run_points
 from rollingdem.experiments.single_sphere import RADIUS
+from rollingdem.io.case_check import check_case
+from rollingdem.io.casefile import load_case
+from rollingdem.io.mapping_file import read_mapping
 
 BLOCKS = 5  # sub-windows whose rates give the 95 % interval of W
 SEGMENTS = 96  # polygon sides of the silo and its orifice: the orifice's area is 0.07 % short of the circle's
@@ -74,7 +78,7 @@ class SiloRun:
 
 def solid_fraction(positions, radii, points) -> float:
     """The share of ``points`` inside a sphere: the solid fraction of the region they fill evenly."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
     x = np.asarray(positions, float)
     if not len(x):
@@ -99,7 +103,7 @@ def discharge_rate(t, discharged, window, blocks=1) -> tuple[float, float]:
     (kg; least squares over the samples within), and with ``blocks`` > 1 the 95 % Student-t
     half-width over the slopes of that many equal sub-windows; NaN where the discharge did not
     reach the window's end."""
-    from scipy import stats
+    from scipy import stats  # deferred: slow to load, used here only
 
     t, m = np.asarray(t, float), np.asarray(discharged, float)
     lo, hi = window
@@ -135,7 +139,7 @@ def beverloo_fit(orifices, rates, bulk_density, diameter, gravity=9.81, exponent
     a given n, and n by the least sum of squares in W; with ``errors`` (the rates' standard errors,
     kg/s) both weighted by them, so that a rate known to 1 % counts as much as it should beside one
     known to 10 %."""
-    from scipy.optimize import minimize_scalar
+    from scipy.optimize import minimize_scalar  # deferred: slow to load, used here only
 
     d0, w = np.asarray(orifices, float), np.asarray(rates, float)
     sigma = np.ones_like(w) if errors is None else np.asarray(errors, float)
@@ -170,7 +174,7 @@ def beverloo_checks(table, sizes: dict, diameter: float, quick: bool, model: str
     ``flow_rate_ci`` (kg/s), ``bulk_density``): Beverloo's C and k at the exponent 5/2 within the
     measured ranges, at the full size 5/2 within the freely fitted exponent's 95 % interval, and the
     rate at half the fill height equal to the full's. Returns (checks, the fit and the rows it used)."""
-    from scipy import stats
+    from scipy import stats  # deferred: slow to load, used here only
 
     d = diameter
     full = table[np.isclose(table["fill_diameters"], sizes["fill"])]
@@ -224,8 +228,6 @@ def silo_case(rolling="epsd", twisting="none", material: PileMaterial = PileMate
     fill height stays. The discharge ends once ``setup.transient + setup.measured`` spheres are out,
     or when the bed has settled for ``setup.clog_time`` s (a clogged orifice), or after
     ``setup.max_time`` s."""
-    from rollingdem.io.mapping_file import read_mapping
-
     for what, value, kind in (("material", material, PileMaterial), ("setup", setup, SiloSetup)):
         if not isinstance(value, kind):
             raise ParameterError(f"{what} = {value!r} is not allowed: must be a rollingdem.experiments.silo.{kind.__name__}")
@@ -304,8 +306,6 @@ def silo_run(rolling="epsd", twisting="none", material: PileMaterial = PileMater
     ``edit``, a function of the case's data, may change it before it runs (the clumps' study fills
     the silo with clumps, ``experiments.clump_stand_in``); the counts of ``setup`` are of the
     outlet's particles (a clump's members each)."""
-    from rollingdem.experiments.case_file import run_case_data
-
     tic = time.perf_counter()
     data = silo_case(rolling, twisting, material, setup, radius, polydispersity, seed, dt)
     if edit is not None:
@@ -379,9 +379,6 @@ class SiloDischarge(BedExperiment):
 
     def check(self, params: dict) -> None:
         """The silo of ``params`` built and checked as ``rollingdem check`` checks its case file."""
-        from rollingdem.io.case_check import check_case
-        from rollingdem.io.casefile import load_case
-
         check_case(load_case(silo_case(*self._arguments(self.resolve(params)))))
 
     def observe(self, params: dict) -> dict:

@@ -11,10 +11,11 @@ import functools
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
-from rollingdem.physics.contact.model import ContactModel
 from rollingdem.physics.contact import ROLLING_MODELS
+from rollingdem.physics.contact.model import ContactModel
 from rollingdem.scene.materials import Material
 from rollingdem.scene.schedule import Callback
 from rollingdem.scene.simulation import Simulation
@@ -35,8 +36,6 @@ def single_thread(func):
     (150k steps: 0.64 s on one thread, 1.81 s on two)."""
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
-        import numba
-
         before = numba.get_num_threads()
         numba.set_num_threads(1)
         try:

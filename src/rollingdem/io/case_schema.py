@@ -5,14 +5,25 @@ declarations ``Material`` checks against (``material_specs`` brings them up to d
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PrivateAttr, Strict, Tag, create_model
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    Field,
+    PrivateAttr,
+    Strict,
+    Tag,
+    create_model,
+)
 
 from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES
+from rollingdem.scene.bonds import ParallelBond
 from rollingdem.scene.materials import OWN_PROPERTIES
-
 
 
 def _whole(value):
@@ -511,18 +522,12 @@ class _BondBase(_Strict):
     pairs: Optional[list[tuple[Whole, Whole]]] = None
 
     def parallel_bond(self):
-        from rollingdem.scene.bonds import ParallelBond
-
         return ParallelBond(**self.model_dump(exclude={"gap", "pairs"}))
 
 
 def _bond_spec():
     """The schema of a stage's bonds: gap or pairs, and ``ParallelBond``'s parameters as its
     constructor declares them (one list of names and defaults)."""
-    import inspect
-
-    from rollingdem.scene.bonds import ParallelBond
-
     kinds = {"float": Number, "str": str}
     spec = {name: (kinds[p.annotation], ... if p.default is p.empty else p.default)
             for name, p in inspect.signature(ParallelBond).parameters.items()}

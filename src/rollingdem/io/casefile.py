@@ -16,14 +16,40 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
-from rollingdem.errors import ParameterError
-from rollingdem.io.case_errors import InCase, format_validation_error
+from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector
 from rollingdem.io import case_schema
-from rollingdem.io.case_schema import (CaseSpec, ClumpShapeSpec, ClumpSpec, InsertSpec, MassFractionsSpec, MeshSpec,
-                                       NormalSpec, RoughBaseSpec, SieveSpec, StageSpec, StageWindowSpec, UniformSpec,
-                                       UntilSpec)
+from rollingdem.io import measurements as ms
+from rollingdem.io import rig_measurements as rig
+from rollingdem.io.case_errors import InCase, format_validation_error
+from rollingdem.io.case_schema import (
+    CaseSpec,
+    ClumpShapeSpec,
+    ClumpSpec,
+    InsertSpec,
+    MassFractionsSpec,
+    MeshSpec,
+    NormalSpec,
+    RoughBaseSpec,
+    SieveSpec,
+    StageSpec,
+    StageWindowSpec,
+    UniformSpec,
+    UntilSpec,
+)
 from rollingdem.io.mapping_file import read_mapping
-from rollingdem.scene.walls import surface_speed
+from rollingdem.physics.contact.model import ContactModel
+from rollingdem.physics.records import WALL_MESH
+from rollingdem.scene.clumps import Clump
+from rollingdem.scene.conditions import Empty, Known, Reaches, Settled
+from rollingdem.scene.insertion import rough_base
+from rollingdem.scene.materials import Material
+from rollingdem.scene.mesh import MeshRegion, MeshWall
+from rollingdem.scene.motion import MotionTable, Oscillation, Servo
+from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, MeshFace, Rectangle
+from rollingdem.scene.simulation import Simulation
+from rollingdem.scene.size_distributions import Discrete, MassFractions, Normal, SieveCurve, Uniform
+from rollingdem.scene.wall_set import check_mesh_size, check_openings
+from rollingdem.scene.walls import Cylinder, Plane, surface_speed
 
 
 def load_case(path_or_dict) -> CaseSpec:
@@ -41,8 +67,6 @@ def load_case(path_or_dict) -> CaseSpec:
 
 def _clump(spec: ClumpShapeSpec):
     """The ``rd.Clump`` of a case file's clump block."""
-    from rollingdem.scene.clumps import Clump
-
     if (spec.shape is None) == (spec.spheres is None):
         raise ParameterError("clump: give exactly one of shape (dimer, trimer, tetrahedron, ring_prism, rod) and "
                              "spheres (rows x, y, z, r)")
@@ -82,8 +106,6 @@ def _add_clumps(sim, p: ClumpSpec, base: Path) -> None:
 
 
 def _radius(spec):
-    from rollingdem.scene.size_distributions import Discrete, MassFractions, Normal, SieveCurve, Uniform
-
     if isinstance(spec, (int, float)):
         return float(spec)
     if isinstance(spec, UniformSpec):
@@ -105,8 +127,6 @@ CASE_HINTS = {"check_timestep": "set check_timestep: false in the case file",
 def take_materials(sim, case: CaseSpec) -> None:
     """The case's materials and pairs put in force on ``sim``, whose materials have their names
     (a run going on from another case's state: ``Simulation.set_material``)."""
-    from rollingdem.scene.materials import Material
-
     for k, m in enumerate(case.materials):
         with InCase(f"materials.{k}"):
             sim.set_material(Material(**m.model_dump()))
@@ -118,13 +138,6 @@ def take_materials(sim, case: CaseSpec) -> None:
 
 def build_simulation(case: CaseSpec):
     """The Simulation a case describes (materials, walls, particles), before any stage runs."""
-    from rollingdem.physics.contact.model import ContactModel
-    from rollingdem.scene.materials import Material
-    from rollingdem.scene.simulation import Simulation
-    from rollingdem.scene.walls import Cylinder, Plane
-    from rollingdem.scene.insertion import rough_base
-    from rollingdem.errors import check_positive
-
     def where(key):
         return InCase(key)
 
@@ -178,8 +191,6 @@ def build_simulation(case: CaseSpec):
             else:
                 sim.add_particles(p.positions, p.radius, p.material, velocity=p.velocity,
                                   angular_velocity=p.angular_velocity, allow_overlap=p.allow_overlap, fixed=p.fixed)
-    from rollingdem.physics.records import WALL_MESH
-    from rollingdem.scene.wall_set import check_mesh_size, check_openings
 
     for k, wall in enumerate(sim.walls):  # against the particles now in place: a unit mistake
         if wall.kind == WALL_MESH:
@@ -203,19 +214,11 @@ def build_simulation(case: CaseSpec):
 
 def _region(r, base: Path | None = None, sim=None):
     """The region of a case block; a mesh region's mesh given as a mesh wall is, or a wall's of ``sim``."""
-    from rollingdem.scene.regions import BoxRegion, CylinderRegion
-
     if r.type == "disk":
-        from rollingdem.scene.regions import Disk
-
         return Disk(r.center, r.normal, r.radius)
     if r.type == "rectangle":
-        from rollingdem.scene.regions import Rectangle
-
         return Rectangle(r.center, r.normal, r.size, r.axis)
     if r.type in ("mesh", "mesh_face"):
-        from rollingdem.scene.regions import MeshFace
-        from rollingdem.scene.mesh import MeshRegion
 
         made = MeshRegion if r.type == "mesh" else (lambda mesh: MeshFace(mesh, r.normal))
         if r.wall is not None:
@@ -242,9 +245,6 @@ def _sensor_mesh(spec, base: Path):
 def _program(spec, base: Path):
     """The motion program (``rollingdem.scene.motion``) of a block's ``oscillate``, ``table`` or
     ``servo`` key, or None; angles in degrees."""
-    from rollingdem.errors import check_finite
-    from rollingdem.scene.motion import MotionTable, Oscillation, Servo
-
     given = [key for key in ("oscillate", "table", "servo") if getattr(spec, key) is not None]
     if len(given) > 1:
         raise ParameterError(f"{' and '.join(given)} are not allowed together: a wall follows one motion program")
@@ -275,7 +275,7 @@ def _program(spec, base: Path):
 
 def _table_file(path: Path) -> tuple:
     """times, displacements (or None) and angles (degrees, or None) of a motion table's CSV file."""
-    import pandas as pd
+    import pandas as pd  # deferred: slow to load, tables only
 
     try:
         frame = pd.read_csv(path, skipinitialspace=True)
@@ -303,8 +303,6 @@ def motion_of(spec, mesh: bool = False, base: Path = Path(".")) -> dict:
     """Keyword arguments of a wall's motion (velocity, angular_velocity, point, motion) from a
     MotionSpec; a ``mesh`` turns about the origin unless its point is given, a plane or cylinder
     about its own."""
-    from rollingdem.errors import check_finite, check_vector
-
     if spec is None:
         return {}
     out = {"velocity": spec.velocity, "motion": _program(spec, base)}
@@ -324,9 +322,6 @@ def motion_of(spec, mesh: bool = False, base: Path = Path(".")) -> dict:
 
 def _mesh_wall(w: MeshSpec, base: Path):
     """The MeshWall of a case's mesh block."""
-    from rollingdem.errors import check_finite, check_vector
-    from rollingdem.scene.mesh import MeshWall
-
     if (w.file is None) == (w.shape is None):
         raise ParameterError(f"file = {w.file!r}, shape = {w.shape!r} is not allowed: give exactly one of file "
                              "(an STL or OBJ file) and shape (drum, silo, hopper, disk, box, chute)")
@@ -336,7 +331,7 @@ def _mesh_wall(w: MeshSpec, base: Path):
     else:
         wall = MeshWall.shape(w.shape, material=w.material, name=w.name, **w.size)
     if w.place is not None:
-        from scipy.spatial.transform import Rotation
+        from scipy.spatial.transform import Rotation  # deferred: slow to load, used here only
 
         matrix, about = np.eye(3), np.zeros(3)
         if w.place.rotate is not None:
@@ -357,8 +352,6 @@ def _mesh_wall(w: MeshSpec, base: Path):
 def build_measurements(case: CaseSpec, sim) -> dict:
     """The case's measurements by name (``rollingdem.io.measurements``), each checked against the
     scene (its wall or outlet named, its sensor inside the scene)."""
-    from rollingdem.io import measurements as ms, rig_measurements as rig
-
     made = {}
     for k, m in enumerate(case.measurements):
         with InCase(f"measurements.{k}"):
@@ -422,8 +415,6 @@ def stage_window(spec: StageWindowSpec, stage: StageSpec, start_time: float) -> 
 
 def stage_conditions(stage: StageSpec, measurements: dict) -> list:
     """The conditions (``rollingdem.scene.conditions``) that end ``stage`` early."""
-    from rollingdem.scene.conditions import Empty, Settled
-
     u = stage.until
     if u is None:
         return []
@@ -449,8 +440,6 @@ def stage_conditions(stage: StageSpec, measurements: dict) -> list:
 
 
 def _reaches(u: UntilSpec, measurements: dict):
-    from rollingdem.scene.conditions import Known, Reaches
-
     name, _, quantity = u.measurement.partition(".")
     if name not in measurements:
         known = ", ".join(f"{n}.{q}" for n, m in measurements.items() for q in (m.QUANTITIES or ())) or "none"
@@ -561,8 +550,6 @@ def mesh_lines(sim) -> list[str]:
     """Each mesh wall in one line (``TriangleMesh.report_line``): its size, triangles, free edges,
     what reading its file merged and dropped; then each insert's spheres and the size distribution
     they realise."""
-    from rollingdem.physics.records import WALL_MESH
-
     return ([f"wall {w.name or '(unnamed)'!r}, {w.mesh.report_line()}" for w in sim.walls if w.kind == WALL_MESH]
             + [f"inserted {line}" for line in sim.particle_set.fills])
 

@@ -12,6 +12,11 @@ import yaml
 
 from rollingdem.errors import ParameterError
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: tomli is the same parser, before it joined the library
+    import tomli as tomllib
+
 __all__ = ["read_mapping"]
 
 
@@ -50,8 +55,6 @@ def read_mapping(path_or_dict, what: str = "case file") -> tuple[dict, str]:
     except OSError as err:
         raise ParameterError(f"{what} {source} cannot be read: {err.strerror or err}") from None
     if path.suffix.lower() == ".toml":
-        import tomllib
-
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as err:

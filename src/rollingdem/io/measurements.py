@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector
+from rollingdem.scene.periodic import with_images
 from rollingdem.scene.schedule import Observer
 
 #: Batches of the batch-means standard error.
@@ -127,7 +128,7 @@ class Measurement(Observer):
 
     def series(self):
         """The rows so far as a pandas DataFrame: time, step and each quantity."""
-        import pandas as pd
+        import pandas as pd  # deferred: slow to load, tables only
 
         return pd.DataFrame([[t, s, *row] for t, s, row in self._rows], columns=["time", "step", *self.QUANTITIES])
 
@@ -469,9 +470,7 @@ class Probe(Measurement):
 def coordination(sim, which) -> float:
     """The mean number of particles (free or fixed) that each particle of ``which`` (a mask)
     touches, centres nearer than the sum of the radii, across periodic boundaries too; NaN for none."""
-    from scipy.spatial import cKDTree
-
-    from rollingdem.scene.periodic import with_images
+    from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
     if not which.any():
         return math.nan
@@ -559,7 +558,6 @@ class WallLoad(Measurement):
         if load is None or wall is None:  # removed by an earlier stage
             return [math.nan] * len(self.QUANTITIES)
         f, t = np.array(load["force"]), np.array(load["torque"])
-        sim.wall_set.refresh()  # where the engine has moved it in this run so far
         velocity, angular_velocity = wall.present_velocity()
         power = -(f @ velocity + t @ angular_velocity)
         return [*f, *t, float(power), *wall.point]

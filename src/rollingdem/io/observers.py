@@ -8,7 +8,9 @@ are written, so a run that fails leaves what it had written readable.
 
 from __future__ import annotations
 
+import base64
 import csv
+import hashlib
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -16,6 +18,7 @@ import numpy as np
 
 from rollingdem.errors import ParameterError, check_integer
 from rollingdem.scene.schedule import Observer
+from rollingdem.scene.walls import INACTIVE
 
 
 class TimeSeries(Observer):
@@ -163,7 +166,7 @@ class VTKSnapshots(Observer):
             self._write_pvd("clumps", entries)
         bonds = sim.bonds()
         if len(bonds):
-            import meshio
+            import meshio  # deferred: mesh files only
 
             bond_name = f"bonds_{sim.step:09d}.vtu"
             status = bonds["status"].map({"intact": 0, "tension": 1, "shear": 2}).to_numpy(np.int32)
@@ -177,13 +180,11 @@ class VTKSnapshots(Observer):
             self._write_pvd("bonds", entries)
         written = self.__dict__.setdefault("_written", {})
         for label, (vertices, triangles) in wall_surfaces(sim).items():
-            import hashlib
-
             key = hashlib.sha1(vertices.tobytes() + triangles.tobytes()).hexdigest()
             if written.get(label) == key:
                 continue  # where it was at its last file: ParaView holds that one
             written[label] = key
-            import meshio
+            import meshio  # deferred: mesh files only
 
             stem = f"wall_{label}"
             mesh_name = f"{stem}_{sim.step:09d}.vtu"
@@ -238,8 +239,6 @@ def wall_surfaces(sim) -> dict:
     infinite one over the particles' span along its axis, two largest diameters beyond). The
     patch's half side and an infinite tube's ends are rounded out to powers of two, so that they
     change only when the particles spread past them."""
-    from rollingdem.scene.walls import INACTIVE
-
     x = sim.positions
     margin = 4.0 * float(sim.radii.max()) if len(x) else 0.0
     meshes = sim.mesh_walls()
@@ -294,8 +293,6 @@ def _field_data(sim) -> dict:
 def write_vtu(path, points: np.ndarray, point_data: dict, field_data: dict | None = None) -> None:
     """Write points and their point data (and whole-grid field data) as a VTU unstructured grid of
     vertex cells (base64 binary)."""
-    import base64
-
     n = points.shape[0]
 
     def data_array(name, arr):

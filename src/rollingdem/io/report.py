@@ -19,10 +19,10 @@ from rollingdem.scene.schedule import Observer
 
 
 def _pyplot():
-    import matplotlib
+    import matplotlib  # deferred: slow to load, figures only
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: slow to load, figures only
 
     return plt
 
@@ -81,7 +81,7 @@ class ScenePictures(Observer):
 
 def draw_frame(frame: dict, path: Path, title: str = "") -> Path:
     """The scene of one frame, from the side and from above, as a PNG."""
-    from matplotlib.collections import EllipseCollection, LineCollection
+    from matplotlib.collections import EllipseCollection, LineCollection  # deferred: slow to load, figures only
 
     plt = _pyplot()
     across, along, up = _views(frame["gravity"])
@@ -177,7 +177,7 @@ def plot_measurement(m, path: Path) -> Path:
 def plot_energy(series_csv: Path, path: Path) -> Path | None:
     """Kinetic energy (translational, rotational) and the energy the contacts dissipated
     (cumulative, by channel) over time."""
-    import pandas as pd
+    import pandas as pd  # deferred: slow to load, tables only
 
     if not Path(series_csv).exists():
         return None

@@ -12,6 +12,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rollingdem.analysis.drum import com_angle, flowing_depth, flowing_layer, rotation_ratios, surface_angle
+from rollingdem.analysis.repose import _check_exclusion, _check_n_slices, repose_angle, touching
 from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector
 from rollingdem.io.measurements import Measurement, WallLoad, drum_frame, fixed_top, window_of
 
@@ -31,7 +33,6 @@ class PileAngle(Measurement):
     def __init__(self, name: str = "repose_angle", floor: float | None = None, n_slices: int = 8,
                  exclude_apex: float = 0.15, exclude_toe: float = 0.15, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
-        from rollingdem.analysis.repose import _check_exclusion, _check_n_slices
 
         self.floor = None if floor is None else check_finite("repose_angle floor", floor)
         self.n_slices = _check_n_slices(n_slices)
@@ -48,8 +49,6 @@ class PileAngle(Measurement):
         return self.floor if self.floor is not None else fixed_top(sim)
 
     def values(self, sim):
-        from rollingdem.analysis.repose import repose_angle
-
         free = ~sim.fixed
         try:
             a = repose_angle(sim.positions[free], sim.radii[free], floor=self.floor_of(sim), n_slices=self.n_slices,
@@ -94,8 +93,6 @@ class DrumAngle(Measurement):
                                  "along gravity; a drum's axis must be across it")
 
     def values(self, sim):
-        from rollingdem.analysis.drum import com_angle, surface_angle
-
         across, up = drum_frame(sim, self.axis)
         rel = sim.positions - self.center
         s = rel @ self.axis
@@ -186,8 +183,6 @@ class DrumFlow(Measurement):
         return rel[keep] @ basis, sim.velocities[keep] @ basis, r, 2.0 * float(r.mean()), omega
 
     def observe(self, sim) -> None:
-        from rollingdem.analysis.drum import flowing_depth, flowing_layer, rotation_ratios, surface_angle
-
         x, v, r, d, omega = self._frame(sim)
         try:
             _, slope, xm, ym = surface_angle(x, r, d)
@@ -204,8 +199,6 @@ class DrumFlow(Measurement):
 
     def pooled(self) -> tuple[float, float, float]:
         """(flowing depth, passive and wall layer speed ratios) over the summary's window's samples."""
-        from rollingdem.analysis.drum import flowing_depth, rotation_ratios
-
         if not self._rows:
             return math.nan, math.nan, math.nan
         _, (t0, t1), _ = self._inwindow_of()
@@ -350,7 +343,6 @@ class SurfaceProfile(Measurement):
                 tops = [top[near & (sector == s)].max() for s in range(8) if (near & (sector == s)).any()]
                 out[k] = float(np.median(tops)) if tops else 0.0
             return out
-        from rollingdem.analysis.repose import touching
 
         across, up = drum_frame(sim, self.axis)
         rel = x - (self.center if self.center is not None else np.zeros(3))

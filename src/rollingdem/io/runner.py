@@ -17,17 +17,31 @@ import pickle
 import shutil
 import time
 from dataclasses import dataclass, field
+from itertools import product
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from rollingdem.errors import ParameterError
+from rollingdem.analysis.repose import plot_pile
+from rollingdem.errors import ParameterError, check_output_path
 from rollingdem.io.case_check import check_case
 from rollingdem.io.case_schema import CaseSpec, ReposeOutputSpec, StageWindowSpec
-from rollingdem.io.casefile import (CASE_HINTS, build_measurements, motion_of, stage_conditions, stage_duration,
-                                    stage_window, take_materials)
+from rollingdem.io.casefile import (
+    CASE_HINTS,
+    build_measurements,
+    mesh_lines,
+    motion_of,
+    stage_conditions,
+    stage_duration,
+    stage_window,
+    take_materials,
+)
+from rollingdem.io.observers import TimeSeries, VTKSnapshots
+from rollingdem.io.report import ScenePictures, write_report
+from rollingdem.io.rig_measurements import PileAngle
 from rollingdem.scene.schedule import Observer
+from rollingdem.scene.simulation import Simulation
 
 #: What a run writes into its folder (files and folders): what ``--overwrite`` removes.
 RUN_FILES = ("case.yaml", "summary.json", "final.npz", "series.csv", "kinetic_energy.png", "pile.png",
@@ -59,8 +73,6 @@ def check_output_folder(case: CaseSpec, out=None) -> Path:
     """The folder a run of ``case`` would write into (``out``, else the case's output.directory or
     rollingdem-output/NAME, with a time stamp when that exists), refused when it could not be
     written (``rollingdem check`` asks too)."""
-    from rollingdem.errors import check_output_path
-
     base = Path(out or case.output.directory or Path("rollingdem-output") / case.name)
     outdir = _fresh_directory(base) if out is None else base
     key = "output folder" if out is not None or not case.output.directory else "output.directory"
@@ -129,8 +141,6 @@ class _Run:
     """One run of a case into ``outdir``: its stages, observers and measurements."""
 
     def __init__(self, case: CaseSpec, sim, outdir: Path, progress: bool, echo):
-        from rollingdem.io.observers import TimeSeries, VTKSnapshots
-
         self.case, self.sim, self.outdir, self.progress, self.echo = case, sim, outdir, progress, echo
         self.tic = time.perf_counter()
         out = case.output
@@ -142,8 +152,6 @@ class _Run:
             observers.append(VTKSnapshots(outdir / "snapshots", out.snapshots.interval))
         observers += [m.write_to(outdir / "measurements") for m in self.measurements.values()]
         if out.report is not None:
-            from rollingdem.io.report import ScenePictures
-
             observers.append(ScenePictures(out.report.pictures))
         longest = sum(stage_duration(s) for s in case.stages)
         interval = out.checkpoint.interval if out.checkpoint is not None else (
@@ -158,8 +166,6 @@ class _Run:
     def resumed(cls, outdir: Path, progress: bool, echo, case: CaseSpec | None = None) -> "_Run":
         """The run in ``outdir`` from its last checkpoint; with ``case``, a run of that case that
         takes over a prepared run's folder at a stage's end (``run_prepared``)."""
-        from rollingdem.scene.simulation import Simulation
-
         folder = outdir / "checkpoints"
         if not (folder / RUN_STATE).exists() or not (folder / RUN_CHECKPOINT).exists():
             raise ParameterError(f"--resume = {str(outdir)!r} is not allowed: it holds no run checkpoint "
@@ -272,8 +278,6 @@ class _Run:
             (self.outdir / "summary.json").write_text(json.dumps(summary, indent=2))
             if self.case.output.report is not None:
                 try:
-                    from rollingdem.io.report import ScenePictures, write_report
-
                     pictures = next((o for o in st.observers if isinstance(o, ScenePictures)), None)
                     write_report(self.outdir, summary, run_header(summary, header_lines(self.case, sim)),
                                  self.measurements, pictures,
@@ -334,8 +338,6 @@ def _relocate(state: RunState, outdir: Path) -> None:
 def _cut_outputs(outdir: Path, state: RunState) -> None:
     """Cut what the killed run wrote after its checkpoint: CSV rows of later steps, later snapshot
     files; the snapshots' collections are written again from what the checkpoint holds."""
-    from rollingdem.io.observers import VTKSnapshots
-
     step = state.step
     csvs = [outdir / "series.csv", *sorted((outdir / "measurements").glob("*.csv"))]
     for path in csvs:
@@ -483,7 +485,6 @@ def header_lines(case: CaseSpec, sim) -> list[str]:
     """What a run is, in words: particles by kind, walls, dt, the contact law."""
     fixed = int(sim.fixed.sum())
     walls = ", ".join(w.name or type(w).__name__.lower() for w in sim.walls) or "none"
-    from rollingdem.io.casefile import mesh_lines
 
     clumps = len(sim.clumps["mass"])
     return [f"{sim.n_particles - fixed} free particles" + (f" and {fixed} fixed" if fixed else "")
@@ -515,11 +516,6 @@ def _measure_pile(sim, spec: ReposeOutputSpec, outdir: Path, echo) -> dict:
     """The repose angle of the free spheres at the end of the run, printed, in ``pile.png`` and
     returned for summary.json, with its spread over the estimator's options (``OPTION_GRID``); a
     pile the cone fit refuses (too flat, too small) is said, not raised."""
-    from itertools import product
-
-    from rollingdem.analysis.repose import plot_pile
-    from rollingdem.io.rig_measurements import PileAngle
-
     pile = PileAngle(floor=spec.floor, n_slices=spec.n_slices, exclude_apex=spec.exclude_apex,
                      exclude_toe=spec.exclude_toe)
     pile.values(sim)
@@ -549,11 +545,11 @@ def _measure_pile(sim, spec: ReposeOutputSpec, outdir: Path, echo) -> dict:
 
 def plot_kinetic_energy(series_csv, png, title=""):
     """Total, translational and rotational kinetic energy over time, log scale (the report's Figure 4)."""
-    import matplotlib
+    import matplotlib  # deferred: slow to load, figures only
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import pandas as pd
+    import matplotlib.pyplot as plt  # deferred: slow to load, figures only
+    import pandas as pd  # deferred: slow to load, tables only
 
     df = pd.read_csv(series_csv)
     fig, ax = plt.subplots(figsize=(7, 4.2))

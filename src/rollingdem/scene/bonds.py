@@ -8,10 +8,19 @@ parameter row (``records.BOND_PARAMETERS``); ``BondSet`` makes a simulation's bo
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_choice, check_finite, check_non_negative, check_positive, check_range
+from rollingdem.errors import (
+    ParameterError,
+    check_choice,
+    check_finite,
+    check_non_negative,
+    check_positive,
+    check_range,
+)
+from rollingdem.physics.bonds import bond_energy
 from rollingdem.physics.records import BOND_PARAMETERS, BOND_STATE
 from rollingdem.physics.timestep import SPRING_FRACTION
 
@@ -105,8 +114,6 @@ class BondSet:
                                  "(particle index pairs) and gap (m)")
         ids = self._pairs_within(check_finite("gap", gap)) if pairs is None else self._pairs_given(pairs)
         if pairs is None and not len(ids) and st.n > 1:
-            import warnings
-
             warnings.warn(f"bonds: gap = {gap:g} m made no bond: no two particles' surfaces are that close (a "
                           "negative gap asks for spheres overlapping by at least -gap); the run goes on unbonded",
                           RuntimeWarning, stacklevel=3)
@@ -125,7 +132,7 @@ class BondSet:
 
     def _pairs_within(self, gap: float) -> np.ndarray:
         """Every pair (as the user numbers particles) whose surface gap is at most ``gap``."""
-        from scipy.spatial import cKDTree
+        from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
         x, r = self.particles.by_id("x"), self.particles.by_id("radius")
         reach = 2.0 * float(r.max(initial=0.0)) + gap
@@ -158,7 +165,7 @@ class BondSet:
 
     def table(self):
         """``Simulation.bonds``."""
-        import pandas as pd
+        import pandas as pd  # deferred: slow to load, tables only
 
         st = self.state
         ids = st.ids  # slot -> id
@@ -183,8 +190,6 @@ class BondSet:
 
     def energy(self) -> float:
         """``Simulation.bond_energy``."""
-        from rollingdem.physics.bonds import bond_energy
-
         st = self.state
         return float(sum(bond_energy(st.bond_state, b, st.bond_parameters[b]) for b in range(len(st.bond_pairs))
                          if st.bond_status[b] == 0))

@@ -19,11 +19,23 @@ import numpy as np
 
 from rollingdem.errors import ParameterError, check_integer, check_non_negative, check_positive, check_vector
 from rollingdem.scene import periodic as periodic_box
+from rollingdem.scene.clumps import Clump, random_orientations
+from rollingdem.scene.mesh import MeshRegion, TriangleMesh
 from rollingdem.scene.particles import sphere_mass
-from rollingdem.scene.schedule import INSERT, REMOVE, Operation
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Face, FacePrism, MeshFace, Rectangle, Region
-from rollingdem.scene.size_distributions import (Constant, Discrete, MassFractions, Normal, Parcels, SieveCurve,
-                                                 Uniform, as_distribution, fractions_line, parcels_of)
+from rollingdem.scene.schedule import INSERT, REMOVE, Operation
+from rollingdem.scene.size_distributions import (
+    Constant,
+    Discrete,
+    MassFractions,
+    Normal,
+    Parcels,
+    SieveCurve,
+    Uniform,
+    as_distribution,
+    fractions_line,
+    parcels_of,
+)
 
 DEFAULT_INTERVAL = 1e-3
 """Seconds between two actions of an outlet or inflow, unless given: a sphere falling at 1 m/s goes
@@ -49,8 +61,6 @@ def region_from_dict(d: dict) -> Region:
     if d["type"] == "face":
         return FacePrism(face_from_dict(d["face"]), d["depth"])
     if d["type"] == "mesh":
-        from rollingdem.scene.mesh import MeshRegion, TriangleMesh
-
         return MeshRegion(TriangleMesh(d["vertices"], d["triangles"], label=d["label"]))
     return CylinderRegion(d["radius"], d["z_min"], d["z_max"], center=d["center"])
 
@@ -59,8 +69,6 @@ def face_from_dict(d: dict) -> Face:
     d = dict(d)
     kind = d.pop("type")
     if kind == "mesh_face":
-        from rollingdem.scene.mesh import TriangleMesh
-
         return MeshFace(TriangleMesh(d["vertices"], d["triangles"], label=d["label"]), d["normal"])
     return {"disk": Disk, "rectangle": Rectangle}[kind](**d)
 
@@ -194,8 +202,6 @@ class Outlet(Boundary):
                                             int(st.mat[members[0]])))
 
     def put_back(self, sim) -> None:
-        from rollingdem.scene.clumps import Clump, random_orientations
-
         templates = [Clump(centres, radii, connected=False) for centres, radii, _ in self.waiting_clumps]
         radii = np.concatenate([self.waiting_radius, [t.reach() for t in templates]])
         x = free_places(sim, self.refill, radii, float(radii.max()), np.random.default_rng([self.seed, self.actions, 2]))
@@ -404,7 +410,6 @@ def free_places(sim, region, radii: np.ndarray, largest: float, rng) -> np.ndarr
     with their periodic images, for spheres of radius at most ``largest`` (m)."""
     st = sim.particle_set.state
     walls = sim.walls
-    sim.wall_set.refresh()
     reach = 2.0 * float(max(st.radius.max(initial=0.0), largest))
     near_x, near_r, _ = periodic_box.with_images(sim.periodic, st.x, st.radius, reach)
     return place_spheres(region, radii, near_x, near_r, walls, rng)
@@ -414,7 +419,7 @@ def place_spheres(region, radii: np.ndarray, existing_x, existing_r, walls, rng)
     """Centres in ``region`` for as many of ``radii`` as find room (in order; the rest NaN): each
     sphere takes the first of ``PLACEMENT_ATTEMPTS`` random candidates that overlaps no wall, no
     particle of ``existing_x`` and no sphere placed before it."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
     n = len(radii)
     out = np.full((n, 3), np.nan)

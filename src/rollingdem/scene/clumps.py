@@ -20,10 +20,11 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_integer, check_positive
+from rollingdem.errors import ParameterError, check_integer, check_positive, check_vector
 
 #: cells along the longest side of a clump's box for the quadrature of its mass properties
 QUADRATURE_CELLS = 200
@@ -310,9 +311,7 @@ def onset_angle(clump: Clump, rotation=None, downhill=(1.0, 0.0, 0.0)) -> float:
     c_z the centre's height (the statics of a rigid body on a slope). A clump standing on one point,
     or on a line across the slope, tips at once (0). A pose whose centre of mass is not over its
     support is refused: it does not rest."""
-    from scipy.spatial import ConvexHull
-
-    from rollingdem.errors import check_vector
+    from scipy.spatial import ConvexHull  # deferred: slow to load, used here only
 
     turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
     if turn.shape != (3, 3) or not np.allclose(turn @ turn.T, np.eye(3), atol=1e-9):
@@ -368,9 +367,7 @@ def resting_rotations(clump: Clump) -> list[np.ndarray]:
     members with every member on one side (a facet of the members' convex hull), n . c_m + r_m = h
     for the three, turned so that its outward normal n points down. Members in a line or fewer
     than three have none."""
-    from itertools import combinations
-
-    from scipy.spatial.transform import Rotation
+    from scipy.spatial.transform import Rotation  # deferred: slow to load, used here only
 
     c, r = clump.centres, clump.radii
     size = float(np.ptp(c, axis=0).max() + 2.0 * r.max())

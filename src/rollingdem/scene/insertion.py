@@ -161,7 +161,7 @@ class _FreeCells:
 
         Returns False (and does nothing) when there are too many cells or they are small already.
         """
-        from scipy.spatial import cKDTree
+        from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
         left = self._left()
         if left.size > self.MAX_SPLIT or self.h < 2.0 * self.MIN_CELL * self.rho0:
@@ -367,7 +367,7 @@ def _fill(region: Region, r_all: np.ndarray, rng, ex: np.ndarray, er: np.ndarray
     """Random sequential addition of spheres of radii ``r_all`` into ``region`` (see ``fill_region``).
     Returns (positions in the order of ``r_all``, spheres placed, None), or (None, spheres placed,
     why) when one ran out of attempts."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
     # Only existing particles that can touch a sphere in the region matter.
     rmax = float(r_all.max())

@@ -4,13 +4,15 @@ topology, and ready-made shapes. The contact geometry is ``rollingdem.physics.me
 
 from __future__ import annotations
 
+import copy
+import inspect
 import math
 from pathlib import Path
 
 import numpy as np
 
 from rollingdem.errors import ParameterError, check_integer, check_non_negative, check_positive, check_vector
-from rollingdem.physics.mesh import closest_points
+from rollingdem.physics.mesh import closest_points, inside_closed_mesh
 from rollingdem.physics.records import WALL_MESH
 from rollingdem.scene.regions import Region
 from rollingdem.scene.walls import Wall
@@ -26,9 +28,9 @@ WELD_FRACTION = 1e-6
 def weld_vertices(points, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
     """(the merged vertices, the index of each point's): points within ``tolerance`` (m) of each
     other, directly or through a chain of such neighbours, become one vertex at their mean."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
+    from scipy.sparse import coo_matrix  # deferred: slow to load, used here only
+    from scipy.sparse.csgraph import connected_components  # deferred: slow to load, used here only
+    from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
     points = np.asarray(points, dtype=np.float64)
     unique, inverse = np.unique(points, axis=0, return_inverse=True)
@@ -193,7 +195,7 @@ class TriangleMesh:
         written with rounded coordinates (STL stores each triangle's own corners) is one edge; the
         triangles this collapses, and those already degenerate, are dropped. ``welded`` and
         ``dropped`` count them."""
-        import meshio
+        import meshio  # deferred: mesh files only
 
         path = Path(path)
         label = f"mesh file {str(path)!r}"
@@ -272,8 +274,8 @@ class TriangleMesh:
         of its edges' midpoints, weighted by length) lies off the mesh, farther from it than half its
         distance to the loop (a sheet's outer rim has its centre on the sheet). The width is twice
         the distance from the centre to the loop's nearest edge: a circle's diameter, a slot's width."""
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
+        from scipy.sparse import coo_matrix  # deferred: slow to load, used here only
+        from scipy.sparse.csgraph import connected_components  # deferred: slow to load, used here only
 
         k, e = np.nonzero(self.edge_neighbors < 0)
         if not len(k):
@@ -294,7 +296,7 @@ class TriangleMesh:
 
     def write(self, path) -> Path:
         """Write the mesh as STL (or any format meshio names by the suffix), to look at in ParaView."""
-        import meshio
+        import meshio  # deferred: mesh files only
 
         path = Path(path)
         meshio.write(path, meshio.Mesh(self.vertices, [("triangle", self.triangles)]))
@@ -350,7 +352,6 @@ class MeshWall(Wall):
         height=0.1, segments=96)``."""
         if shape not in SHAPES:
             raise ParameterError(f"mesh shape = {shape!r} is not known: allowed are {', '.join(map(repr, SHAPES))}")
-        import inspect
 
         allowed = list(inspect.signature(SHAPES[shape]).parameters)
         for key in dimensions:
@@ -422,7 +423,7 @@ def _with_vertices(mesh: TriangleMesh, vertices) -> TriangleMesh:
 def sphere_overlap(mesh: TriangleMesh, x, r) -> np.ndarray:
     """Overlap (m) of spheres (centres ``x``, radii ``r``) with ``mesh``: the radius minus the
     distance to the mesh's nearest point (-inf beyond a triangle's reach)."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
     x = np.asarray(x, dtype=float).reshape(-1, 3)
     r = np.asarray(r, dtype=float).reshape(-1)
@@ -498,8 +499,6 @@ class MeshRegion(Region):
 
     def inside(self, x) -> np.ndarray:
         """Whether each point of ``x`` (n, 3) lies inside the mesh (the parity of a ray's crossings)."""
-        from rollingdem.physics.mesh import inside_closed_mesh
-
         x = np.ascontiguousarray(np.asarray(x, dtype=float).reshape(-1, 3))
         out = np.zeros(len(x), dtype=np.bool_)
         inside_closed_mesh(x, self.mesh.vertices, self.mesh.triangles, *self._grid, out)
@@ -554,8 +553,6 @@ class MeshRegion(Region):
 
     def clipped(self, lo, hi) -> "MeshRegion":
         """The part of the region inside the box [lo, hi] (a slab of a large fill, ``insertion._slab_plan``)."""
-        import copy
-
         part = copy.copy(self)
         part._clip = (np.asarray(lo, dtype=float), np.asarray(hi, dtype=float))
         return part

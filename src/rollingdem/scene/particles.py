@@ -8,10 +8,13 @@ import math
 import numpy as np
 
 from rollingdem.engine.layout import I_FORCES_VALID
+from rollingdem.engine.neighbors import spatial_order
 from rollingdem.engine.schema import PER_PARTICLE, SCHEMA
-from rollingdem.physics.records import ENERGY_CHANNELS
 from rollingdem.errors import ParameterError, check_finite, check_positive, short_repr
+from rollingdem.physics.records import ENERGY_CHANNELS
 from rollingdem.scene import periodic as periodic_box
+from rollingdem.scene.insertion import MAX_PACKING_FRACTION, check_count, fill_region
+from rollingdem.scene.size_distributions import parcels_of, realised_line
 
 SOLID_SPHERE = 0.4
 """A solid sphere's moment of inertia over m R^2: I = 2/5 m R^2."""
@@ -133,7 +136,7 @@ class Particles:
         """Refuse new spheres (``x``, ``r``) that overlap a sphere before them (or its periodic
         image) or, with ``walls``, a wall in place; ``bodies`` (one label per new sphere): new
         spheres of one label (a clump's members) may overlap each other."""
-        from scipy.spatial import cKDTree
+        from scipy.spatial import cKDTree  # deferred: slow to load, used here only
 
         st = self.state
         first = st.n
@@ -170,10 +173,6 @@ class Particles:
     def insert(self, region, count, radius, material, seed=0, velocity=None, max_attempts=200, mass=None,
                fraction=None) -> np.ndarray:
         """``Simulation.insert``."""
-        from rollingdem.engine.neighbors import spatial_order
-        from rollingdem.scene.insertion import MAX_PACKING_FRACTION, check_count, fill_region
-        from rollingdem.scene.size_distributions import parcels_of, realised_line
-
         if radius is None or material is None:
             raise ParameterError(f"{'radius' if radius is None else 'material'} = None is not allowed: give the "
                                  "spheres' radius (m, or a size distribution) and material")

@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from rollingdem.errors import ParameterError, short_repr
+from rollingdem.physics.records import WALL_PLANE
 
 
 def check_periodic(periodic) -> dict:
@@ -48,8 +49,6 @@ def check_scene(sim) -> None:
     """``check_length`` for a simulation, with its largest particle (or inflow particle) and skin;
     and no plane across a periodic axis (a particle leaving through one end would come back on the
     wrong side of it: the wall is not periodic)."""
-    from rollingdem.physics.records import WALL_PLANE
-
     if sim.periodic and sim.n_particles:
         check_length(sim.periodic, sim.particle_set.largest_radius(sim.inflows), sim.skin)
     for wall in sim.walls:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+from tqdm import tqdm
+
 
 def clock(seconds: float) -> str:
     """``m:ss`` or ``h:mm:ss``."""
@@ -19,8 +21,6 @@ class Progress:
     has run before, so the first chunk counts too and nothing is said of compiling."""
 
     def __init__(self, sim, steps, label, warm=False):
-        from tqdm import tqdm
-
         self.total_time = steps * sim.dt
         self.label = label
         self.bar = tqdm(total=round(self.total_time, 12), desc=label if warm else f"{label} (compiling)", unit="s(sim)",

@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, short_repr
+from rollingdem.engine.layout import I_FORCES_VALID
+from rollingdem.errors import ParameterError, check_finite, check_positive, short_repr
 from rollingdem.scene import periodic as periodic_box
-from rollingdem.scene.clumps import Clump
+from rollingdem.scene.clumps import Clump, random_orientations
+from rollingdem.scene.insertion import MAX_PACKING_FRACTION, fill_region
 from rollingdem.scene.particles import SOLID_SPHERE, vectors_of
 
 
@@ -35,7 +37,7 @@ def rotation_matrices(q: np.ndarray) -> np.ndarray:
 
 def matrix_quaternion(a: np.ndarray) -> np.ndarray:
     """The unit quaternion (w, x, y, z) of a rotation matrix (scipy's, reordered)."""
-    from scipy.spatial.transform import Rotation
+    from scipy.spatial.transform import Rotation  # deferred: slow to load, used here only
 
     x, y, z, w = Rotation.from_matrix(a).as_quat()
     return np.array([w, x, y, z])
@@ -140,10 +142,6 @@ class ClumpSet:
         walls there), the clump in it at a random orientation (``random_orientations``, from ``seed``),
         as LIGGGHTS inserts its multispheres. ``mass`` or ``fraction`` of the region's volume give the
         count of clumps nearest them."""
-        from rollingdem.errors import check_finite, check_positive
-        from rollingdem.scene.insertion import MAX_PACKING_FRACTION, fill_region
-        from rollingdem.scene.clumps import random_orientations
-
         if not isinstance(clump, Clump):
             raise ParameterError(f"clump = {short_repr(clump)} is not allowed: must be a rollingdem.Clump")
         if radius is not None:
@@ -176,8 +174,6 @@ class ClumpSet:
     def set_velocities(self, indices, velocity=None, angular_velocity=None) -> None:
         """``Simulation.set_clump_velocities``: the centre's velocity (m/s) and the angular velocity
         (rad/s, space frame) of some clumps; their members follow at the next step."""
-        from rollingdem.engine.layout import I_FORCES_VALID
-
         st = self.state
         arr = np.atleast_1d(np.asarray(indices))
         if arr.dtype.kind not in "iu" or arr.ndim != 1 or ((arr < 0) | (arr >= st.n_clumps)).any():

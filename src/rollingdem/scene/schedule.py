@@ -16,6 +16,7 @@ import time as _time
 import numpy as np
 
 from rollingdem.errors import ParameterError, SimulationError, check_finite, check_integer, check_positive
+from rollingdem.scene.progress import Progress
 
 REMOVE, INSERT, OBSERVE = 0, 1, 2
 """The order operations act in at one step: what takes particles out, what puts them in, what
@@ -169,8 +170,6 @@ class Schedule:
         run that goes unstable stops with ``SimulationError`` after the observers have written
         what they had. ``continuing``: the observers and conditions go on from where a restored
         run left them (``rollingdem.io.runner.resume_case``), as if it had never stopped."""
-        from rollingdem.scene.progress import Progress
-
         for ob in observers:
             ob.check(sim)  # all refusals before any observer writes
         bar, end, failure = None, sim.step + steps, None
@@ -199,6 +198,7 @@ class Schedule:
                 tic = _time.perf_counter()
                 gravity = np.asarray(sim.gravity, dtype=np.float64)
                 done, problem = self.state.advance(module, todo, sim.dt, gravity, sim.skin, sim.pair_parameters())
+                sim.wall_set.refresh()  # the one place the engine moves walls: their objects follow at once
                 elapsed = _time.perf_counter() - tic
                 self.stepped.add(id(module))
                 sim.step += done
@@ -220,7 +220,7 @@ class Schedule:
             failure = err
             raise
         finally:
-            sim.wall_set.refresh()
+            sim.wall_set.refresh()  # a run stopped by an interrupt between a call and its refresh
             for ob in observers:
                 ob.finish(sim, failure)
             if bar:

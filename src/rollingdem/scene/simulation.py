@@ -20,6 +20,7 @@ import numpy as np
 from rollingdem.engine.backends import backend as find_backend, default_backend
 from rollingdem.engine.codegen import EngineModules
 from rollingdem.engine.layout import I_FORCES_VALID
+from rollingdem.engine.phases import Passes
 from rollingdem.engine.state import EngineState, periodic_box
 from rollingdem.errors import ParameterError, check_positive, check_vector
 from rollingdem.physics.contact.model import ContactModel
@@ -27,10 +28,10 @@ from rollingdem.scene import checkpoint, periodic as periodic_box_checks
 from rollingdem.scene.bonds import BondSet
 from rollingdem.scene.boundaries import Boundaries
 from rollingdem.scene.checkpoint import VERSION as __version__  # noqa: F401
+from rollingdem.scene.conditions import as_conditions
 from rollingdem.scene.materials import Material, MaterialTable
 from rollingdem.scene.particles import Particles
 from rollingdem.scene.rigid_bodies import ClumpSet
-from rollingdem.scene.conditions import as_conditions
 from rollingdem.scene.schedule import Schedule, as_observers, steps_of
 from rollingdem.scene.timestep import TimeStepPolicy
 from rollingdem.scene.wall_set import WallSet
@@ -330,7 +331,6 @@ class Simulation:
                                                                    self.pair_parameters()), repeats, rebuilds_per_step)
 
     def passes(self):  # each pass of the step as a call on the present state (engine.phases.Passes, CPU), to time
-        from rollingdem.engine.phases import Passes
         return Passes(self._state, self.engine_module(), self.dt, self.gravity, self.skin, self.pair_parameters())
 
     device_memory_bytes = property(lambda self: self._state.backend.device_bytes(self._state),

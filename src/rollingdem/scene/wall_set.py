@@ -1,16 +1,20 @@
 """The walls of a scene: adding, removing, moving and naming them, and handing them to the engine.
 
 The engine owns wall motion: it moves planes, cylinders and meshes with their prescribed velocities
-and programs (``engine.wall_motion``) at every step (``rollingdem.engine.integrator.move_walls``, the
-mesh passes). The ``Wall`` objects a user holds are refreshed from it (``WallSet.refresh``) at the
-end of each run and before anything reads or changes where a wall is; a changed wall goes back to
-the engine (``WallSet.hand_over``), a program that did not change with its row."""
+and programs (``engine.wall_motion``) at every step (``rollingdem.engine.integrator.move_walls``,
+the mesh passes). The ``Wall`` objects a user holds follow it at two sync points, each one call of
+``WallSet.refresh``: after every call of the step loop (``Schedule.run``, the only code that moves
+walls, and once more as a run ends), and when a checkpoint's state is restored
+(``WallSet.restore``); so between runs, and between the calls of the step loop where operations and
+observers act, every object is where the engine has its wall. A changed wall goes back to the engine
+(``WallSet.hand_over``), a program that did not change with its row."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from rollingdem.engine.layout import MESH_MOTION as MO, MOTION_TABLE_ROW
+from rollingdem.engine.layout import MESH_MOTION as MO
+from rollingdem.engine.layout import MOTION_TABLE_ROW
 from rollingdem.errors import ParameterError, check_vector, short_repr
 from rollingdem.physics.records import WALL_MESH
 from rollingdem.scene.boundaries import Inflow
@@ -153,7 +157,6 @@ class WallSet:
     def set_velocity(self, wall: Wall | str, velocity=None, angular_velocity=None, point=None) -> None:
         """``Simulation.set_wall_velocity``."""
         wall = self.own(wall)
-        self.refresh()
         if velocity is not None:
             wall.velocity = check_vector("wall velocity", velocity)
         if angular_velocity is not None:
@@ -171,7 +174,6 @@ class WallSet:
     def set_motion(self, wall: Wall | str, motion) -> None:
         """``Simulation.set_wall_motion``."""
         wall = self.own(wall)
-        self.refresh()
         wall.set_motion(motion)
         self.hand_over()
 
@@ -192,7 +194,6 @@ class WallSet:
     def hand_over(self) -> None:
         """Give the engine the walls in place, each keeping its contact history (and its motion, unless
         that changed: a changed motion starts again from where the wall is now)."""
-        self.refresh()
         st, materials = self.state, self.materials
         active = [wl for wl in self.in_place() if wl.kind != WALL_MESH]
         meshes = [wl for wl in self.in_place() if wl.kind == WALL_MESH]
@@ -267,7 +268,6 @@ class WallSet:
 
     def meshes(self) -> dict:
         """``Simulation.mesh_walls``."""
-        self.refresh()
         out = {}
         for k, wl in enumerate(self.slots):
             if wl.kind == WALL_MESH:

@@ -13,9 +13,13 @@ import math
 
 import numpy as np
 
+from rollingdem.engine.layout import MESH_MOTION as MO
 from rollingdem.errors import ParameterError, check_positive, check_vector
-from rollingdem.physics.records import WALL_CYLINDER as CYLINDER, WALL_GEOMETRY_SIZE as GEOMETRY_SIZE, WALL_INACTIVE as INACTIVE
+from rollingdem.physics.records import WALL_CYLINDER as CYLINDER
+from rollingdem.physics.records import WALL_GEOMETRY_SIZE as GEOMETRY_SIZE
+from rollingdem.physics.records import WALL_INACTIVE as INACTIVE
 from rollingdem.physics.records import WALL_PLANE as PLANE
+from rollingdem.scene.motion import check_program, program_from_dict
 
 
 def surface_speed(velocity, angular_velocity, motion, reach: float) -> float:
@@ -45,8 +49,6 @@ class Wall:
         """Set the wall's program (``rollingdem.scene.motion``: ``Oscillation``, ``MotionTable``,
         ``Servo``; None for none), added to its steady motion; it starts from where the wall is when
         it goes to the engine."""
-        from rollingdem.scene.motion import check_program, program_from_dict
-
         if isinstance(motion, dict):
             motion = program_from_dict(motion)
         check_program(self, motion, repr(self.name) if self.name else f"({type(self).__name__.lower()})")
@@ -69,8 +71,6 @@ class Wall:
     def present_velocity(self) -> tuple:
         """The velocity (m/s) and angular velocity (rad/s) of the wall's last step (a program's
         included), as the engine moved it; the steady ones before it has moved."""
-        from rollingdem.engine.layout import MESH_MOTION as MO
-
         row = self.engine_motion_row
         if self.motion is None or row is None:
             return np.asarray(self.velocity, float), np.asarray(self.angular_velocity, float)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import tempfile
 import time
 from dataclasses import asdict, astuple, dataclass, field
 from pathlib import Path
@@ -16,10 +17,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rollingdem.experiments import get_experiment
+from rollingdem.analysis.intervals import confidence_interval
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_output_path
+from rollingdem.experiments import get_experiment
+from rollingdem.experiments.results import pyplot
+from rollingdem.studies.multifidelity import Fidelity, _crossing, _quantiles, corrected_model, posterior_on_grid
 from rollingdem.studies.parallel import Execution
 from rollingdem.studies.surrogates import pooled_sd as _pooled_sd
+from rollingdem.studies.sweep import TABLE, failure_report, load_sweep, read_table, rows_matching, run_sweep
 
 __all__ = ["Calibration", "Execution", "Search", "calibrate", "calibrate_minimum", "monotone_inverse", "parabola_minimum"]
 
@@ -107,7 +112,7 @@ def _point_stats(table: pd.DataFrame, parameter: str, observable: str) -> pd.Dat
 
 
 def _monotone(means: np.ndarray, weights: np.ndarray, increasing: bool) -> np.ndarray:
-    from scipy.optimize import isotonic_regression
+    from scipy.optimize import isotonic_regression  # deferred: slow to load, used here only
 
     return isotonic_regression(means, weights=weights, increasing=increasing).x
 
@@ -130,7 +135,7 @@ def monotone_inverse(x: np.ndarray, g: np.ndarray, target: float) -> float:
 
 def _direction(stats: pd.DataFrame) -> bool:
     """True when the observable grows with the parameter (Spearman over the point means)."""
-    from scipy.stats import spearmanr
+    from scipy.stats import spearmanr  # deferred: slow to load, used here only
 
     if len(stats) < 2:
         raise ParameterError("calibration needs at least two points with a finite observable")
@@ -153,10 +158,6 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
     its range, and every run starts from it (``run_sweep``). Writes ``out/runs.csv``,
     ``calibration.json`` and ``calibration.png``; ``echo`` (a print-like function) tells each round
     and the result."""
-    import tempfile
-
-    from rollingdem.studies.sweep import load_sweep, run_sweep
-
     tic = time.perf_counter()
     sc = get_experiment(experiment, observable=True, what="experiment")
     if isinstance(free, str):
@@ -210,8 +211,6 @@ def calibrate(experiment: str, target: float, uncertainty: float = 0.0, fix: dic
                                  "stage to share (repose-rough-base and rotating-drum have)")
         shared = {name: 0.5 * (lo + hi)}
     if fidelity is not None:
-        from rollingdem.studies.multifidelity import Fidelity
-
         if not isinstance(fidelity, Fidelity):
             raise ParameterError(f"fidelity = {fidelity!r} is not allowed: must be a "
                                  "rollingdem.studies.multifidelity.Fidelity")
@@ -279,8 +278,6 @@ def settle_saved(table: pd.DataFrame) -> float:
 def _usable(out: Path, sc, experiment: str, fix: dict, name: str, observable: str, need: int, what: str, say):
     """(this calibration's runs, their means per point); the failures said, and refused in one line
     when fewer than ``need`` points are left."""
-    from rollingdem.studies.sweep import TABLE, failure_report
-
     table = _all_runs(out, sc, experiment, fix, name)
     stats = _point_stats(table, name, observable)
     report = failure_report(table, out / TABLE)
@@ -294,8 +291,6 @@ def _usable(out: Path, sc, experiment: str, fix: dict, name: str, observable: st
 
 def _all_runs(out: Path, sc, experiment: str, fix: dict, name: str) -> pd.DataFrame:
     """The runs of this calibration in the table (same experiment and fixed parameters)."""
-    from rollingdem.studies.sweep import TABLE, read_table, rows_matching
-
     resolved = sc.resolve({**fix, name: sc.by_name[name].default})
     return rows_matching(read_table(out / TABLE, sc),
                          {k: v for k, v in resolved.items() if k not in (name, "seed")}).reset_index(drop=True)
@@ -322,8 +317,6 @@ def _bootstrap(x, means, counts, std, increasing, target, uncertainty, n) -> tup
 
 
 def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) -> None:
-    from rollingdem.analysis.intervals import confidence_interval
-
     plt, fig, ax = _figure_axes(result)
     t = result.table
     ok = t[t["status"] == "ok"]
@@ -339,8 +332,6 @@ def _figure(result: Calibration, stats: pd.DataFrame, g: np.ndarray, out: Path) 
 
 def _figure_axes(result: Calibration):
     """(pyplot, figure, axes) of a calibration's figure with its target band, labels and title."""
-    from rollingdem.experiments.results import pyplot
-
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.axhspan(result.target - 1.96 * result.uncertainty, result.target + 1.96 * result.uncertainty, color="tab:orange",
@@ -415,10 +406,6 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
     least-squares parabola through the five points around it; its 95 % interval from a
     parametric bootstrap of the seed means (the spread of the seeds about each mean), each draw's
     minimum found around its own lowest point (:func:`minimum_interval`)."""
-    import tempfile
-
-    from rollingdem.studies.sweep import load_sweep, run_sweep
-
     tic = time.perf_counter()
     sc = get_experiment(experiment, observable=True, what="experiment")
     if not (isinstance(free, (list, tuple)) and len(free) == 2 and not isinstance(free[1], str) and free[1]):
@@ -475,8 +462,6 @@ def calibrate_minimum(experiment: str, observable: str, free, fix: dict | None =
 def _minimum_figure(result: Calibration, stats: pd.DataFrame, out: Path) -> None:
     """The misfit's mean over seeds at each point, the parabola through the five around the lowest,
     and the minimum with its 95 % interval."""
-    from rollingdem.experiments.results import pyplot
-
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.errorbar(stats["x"], stats["mean"], yerr=stats["std"].fillna(0.0), fmt="o", ms=4, capsize=3,
@@ -510,9 +495,6 @@ def _calibrate_multifidelity(problem: _Problem, fidelity, execution, progress: b
                              share_settling: dict | None) -> Calibration:
     """The multi-fidelity search of ``problem`` (``rollingdem.studies.multifidelity``: cheap runs, a
     few full-size runs at the quartiles of the posterior, Kennedy and O'Hagan's model)."""
-    from rollingdem.studies.multifidelity import _crossing, _quantiles, corrected_model, posterior_on_grid
-    from rollingdem.studies.sweep import TABLE, failure_report, load_sweep, run_sweep
-
     experiment, target, uncertainty, fix, name, lo, hi, observable, seeds, out = astuple(problem)
 
     tic = time.perf_counter()

@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import tempfile
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -23,11 +24,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rollingdem.experiments import get_experiment
 from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_output_path
+from rollingdem.experiments import get_experiment
+from rollingdem.experiments.case_file import is_case_file
+from rollingdem.experiments.results import pyplot
+from rollingdem.studies.calibration import settle_saved
+from rollingdem.studies.multifidelity import JointFidelity
 from rollingdem.studies.parallel import Execution
-from rollingdem.studies.surrogates import fit_surrogate
-from rollingdem.studies.sweep import TABLE, failure_report, rows_matching
+from rollingdem.studies.surrogates import fit_surrogate, with_discrepancy
+from rollingdem.studies.sweep import TABLE, failure_report, load_sweep, read_table, rows_matching, run_sweep
 
 __all__ = ["Target", "JointSearch", "JointCalibration", "calibrate_joint", "parse_target", "posterior_grid",
            "fit_surrogate"]
@@ -217,7 +222,7 @@ def _grid(d: int) -> np.ndarray:
         n = GRID[d]
         axes = [(np.arange(n) + 0.5) / n] * d
         return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, d)
-    from scipy.stats import qmc
+    from scipy.stats import qmc  # deferred: slow to load, used here only
 
     return qmc.Sobol(d, seed=0).random(2 ** 15)
 
@@ -288,11 +293,7 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
     ``fidelity`` (``rollingdem.studies.multifidelity.JointFidelity``) cheap runs make a surrogate per
     target and the full-size runs a discrepancy added to it (docs/studies.md, "Multi-fidelity
     calibration"); the rounds place full-size points."""
-    import tempfile
-
-    from scipy.stats import qmc
-
-    from rollingdem.studies.sweep import load_sweep, run_sweep
+    from scipy.stats import qmc  # deferred: slow to load, used here only
 
     tic = time.perf_counter()
     targets, box, fixed = _check(targets, free, fix)
@@ -366,9 +367,6 @@ def calibrate_joint(targets, free, fix=None, seeds=None, search: JointSearch = J
 def _settle_saved(out: Path, experiments) -> float:
     """The wall-clock seconds the runs of every experiment (cheap and full size) saved by starting
     from shared settled beds."""
-    from rollingdem.studies.calibration import settle_saved
-    from rollingdem.studies.sweep import read_table
-
     return sum(settle_saved(read_table(out / folder_of(c) / TABLE, get_experiment(c, observable=True)))
                for c in experiments)
 
@@ -380,11 +378,7 @@ def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, searc
     the full-size residuals (``multifidelity.with_discrepancy``). Returns (the full-size runs per
     experiment, the surrogates, their point statistics, what ran of each kind). ``box``: the free
     parameters' (names, lows, highs)."""
-    from scipy.stats import qmc
-
-    from rollingdem.studies.multifidelity import JointFidelity
-    from rollingdem.studies.surrogates import with_discrepancy
-    from rollingdem.studies.sweep import load_sweep, run_sweep
+    from scipy.stats import qmc  # deferred: slow to load, used here only
 
     if not isinstance(fidelity, JointFidelity):
         raise ParameterError(f"fidelity = {fidelity!r} is not allowed: must be a "
@@ -468,8 +462,6 @@ def _multifidelity(fidelity, targets, experiments, fixed, box, seed_count, searc
 
 def folder_of(experiment: str) -> str:
     """The folder of an experiment's runs in the calibration's folder: its name, a case file's stem."""
-    from rollingdem.experiments.case_file import is_case_file
-
     return Path(experiment).stem if is_case_file(experiment) else experiment
 
 
@@ -563,8 +555,6 @@ def _summarise(targets, box, fixed, post: _Posterior, names, lows, highs, stats,
 
 
 def _figures(result, post: _Posterior, names, lows, highs, stats, out: Path) -> None:
-    from rollingdem.experiments.results import pyplot
-
     cells, weights, means, stds = post.cells, post.weights, post.means, post.stds
     plt = pyplot()
     d = len(names)

@@ -12,6 +12,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Iterator
 
+import numba
+
 from rollingdem.errors import ParameterError
 
 __all__ = ["Execution", "Mapper", "completed", "default_workers", "runner"]
@@ -33,8 +35,6 @@ class _Task:
         self.threads = threads
 
     def __call__(self, item):
-        import numba
-
         numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
         return self.func(item)
 
@@ -70,7 +70,7 @@ class Mapper:
             for i, item in enumerate(items):
                 yield i, task(item)
             return
-        from dask.distributed import as_completed
+        from dask.distributed import as_completed  # deferred: runs side by side only
 
         futures = self.client.map(task, items, pure=False)
         index = {fut.key: i for i, fut in enumerate(futures)}
@@ -106,12 +106,12 @@ def runner(workers: int | None = None, scheduler: str | None = None, threads: in
         yield Mapper(None, threads)
         return
     try:
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client, LocalCluster  # deferred: runs side by side only
     except ImportError as err:  # pragma: no cover - dask is a dependency
         raise ParameterError("parallel runs need dask.distributed: pip install 'dask[distributed]'") from err
     cluster = None
     if scheduler is None:
-        import dask
+        import dask  # deferred: runs side by side only
 
         # a worker that goes quiet for minutes (a laptop asleep, a stopped job) is not dead: the
         # default 5-minute time-to-live would restart its run from the beginning; a dead worker

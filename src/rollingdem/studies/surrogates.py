@@ -5,6 +5,7 @@ and the multi-fidelity model built from two of them (docs/studies.md, "Joint cal
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -23,11 +24,9 @@ def fit_surrogate(x_unit: np.ndarray, mean: np.ndarray, var_of_mean: np.ndarray)
     """A Gaussian process of the observable's mean over the unit box: constant x anisotropic RBF
     kernel (scikit-learn), each point's noise its mean's variance (seed scatter / runs). Returns a
     function ``x_unit -> (mean, std)`` of the latent mean."""
-    import warnings
-
-    from sklearn.exceptions import ConvergenceWarning
-    from sklearn.gaussian_process import GaussianProcessRegressor
-    from sklearn.gaussian_process.kernels import RBF, ConstantKernel
+    from sklearn.exceptions import ConvergenceWarning  # deferred: slow to load, surrogates only
+    from sklearn.gaussian_process import GaussianProcessRegressor  # deferred: slow to load, surrogates only
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel  # deferred: slow to load, surrogates only
 
     x_unit = np.atleast_2d(np.asarray(x_unit, float))
     y = np.asarray(mean, float)

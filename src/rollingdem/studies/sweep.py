@@ -22,10 +22,16 @@ from typing import Any, Optional, Union
 import numpy as np
 import pandas as pd
 from pydantic import AliasChoices, BaseModel, ConfigDict, Field, ValidationError, model_validator
+from tqdm import tqdm
 
-from rollingdem.experiments import Experiment, get_experiment
-from rollingdem.errors import ParameterError, check_output_path
 from rollingdem.analysis.intervals import confidence_interval
+from rollingdem.errors import ParameterError, check_output_path
+from rollingdem.experiments import Experiment, get_experiment
+from rollingdem.experiments.case_file import is_case_file
+from rollingdem.experiments.results import pyplot
+from rollingdem.io.mapping_file import read_mapping
+from rollingdem.scene.simulation import __version__
+from rollingdem.studies.parallel import check_workers, completed, runner
 
 __all__ = ["SweepSpec", "SweepResult", "failure_report", "load_sweep", "expand", "rows_matching", "run_sweep", "summarize"]
 
@@ -91,7 +97,6 @@ def load_sweep(source) -> SweepSpec:
     """Read and check a sweep file (YAML, TOML by extension) or a mapping; ParameterError on bad input."""
     if isinstance(source, SweepSpec):
         return source
-    from rollingdem.io.mapping_file import read_mapping
 
     data, name = read_mapping(source, "sweep file")
     try:
@@ -108,7 +113,6 @@ def load_sweep(source) -> SweepSpec:
                 lines.append(f"  {loc + ': ' if loc else ''}{e['msg'].removeprefix('Value error, ')}"
                              f"{'' if loc == '' else ' (got ' + json.dumps(e.get('input'), default=str)[:80] + ')'}")
         raise ParameterError("\n".join(lines)) from None
-    from rollingdem.experiments.case_file import is_case_file
 
     if is_case_file(spec.experiment) and isinstance(source, (str, Path)) and not Path(spec.experiment).is_absolute():
         spec.experiment = str(Path(source).parent / spec.experiment)  # a case file named from the sweep file
@@ -137,7 +141,7 @@ def expand(spec: SweepSpec) -> list[dict]:
     elif spec.points is not None:
         design = [dict(p) for p in spec.points]
     else:
-        from scipy.stats import qmc
+        from scipy.stats import qmc  # deferred: slow to load, used here only
 
         for name in spec.sample.ranges:
             par = experiment.by_name.get(name)
@@ -182,8 +186,6 @@ class _Execute:
         self.experiment = experiment
 
     def __call__(self, params: dict) -> dict:
-        from rollingdem.scene.simulation import __version__
-
         tic = time.perf_counter()
         try:
             observables, status, error = self.experiment.observe(dict(params)), "ok", ""
@@ -288,8 +290,6 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     (``share_settling``) settles its bed once with those parameters at those values and starts
     every run from it, kept in ``out/settled``.
     """
-    from rollingdem.studies.parallel import check_workers, completed, runner
-
     check_workers(workers, threads)
     spec = load_sweep(spec)
     experiment = get_experiment(spec.experiment, observable=True, what="experiment")
@@ -319,8 +319,6 @@ def run_sweep(spec, out, workers: int | None = None, scheduler: str | None = Non
     tic = time.perf_counter()
     bar = None
     if progress:
-        from tqdm import tqdm
-
         bar = tqdm(total=len(set(ids)), initial=len(set(ids)) - len(todo), unit="run", desc=spec.experiment)
     failed = 0
     if todo:
@@ -394,8 +392,6 @@ def summarize(table: pd.DataFrame, experiment: Experiment, swept: list[str], out
         return summary
     summary.to_csv(Path(out) / "summary.csv", index=False)
     if keys and numeric:
-        from rollingdem.experiments.results import pyplot
-
         plt = pyplot()
         x, others = keys[0], keys[1:]
         scattered = bool(others) and summary.groupby(others).size().max() == 1  # a sample: no two points share a line

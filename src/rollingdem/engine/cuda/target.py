@@ -35,7 +35,7 @@ def cuda_module():
     """``numba.cuda`` as numba-cuda provides it; a ParameterError naming what is missing."""
     try:
         import numba_cuda  # noqa: F401  (numba-cuda, not Numba's deprecated built-in target)
-        from numba import cuda
+        from numba import cuda  # optional: the GPU backend only
     except ImportError as error:
         if simulated():
             from numba import cuda  # the simulator needs no numba-cuda
@@ -131,8 +131,8 @@ def compile_ptx(function, argument_types, cc) -> str:
     device for the capability of each device function it compiles, and NVRTC for the capabilities
     it may target; here it is told ``cc`` for both, for the duration."""
     import numba_cuda  # noqa: F401
-    from numba.cuda import compile_ptx as compile_function
-    from numba.cuda import config, dispatcher
+    from numba.cuda import compile_ptx as compile_function  # optional: the GPU backend only
+    from numba.cuda import config, dispatcher  # optional: the GPU backend only
 
     class _Device:
         compute_capability = tuple(cc)

@@ -10,6 +10,7 @@ docstrings of ``normal``, ``tangential``, ``rolling``, ``twisting``). Subclasses
 from __future__ import annotations
 
 import inspect
+from numbers import Real
 from typing import ClassVar
 
 from rollingdem.errors import ParameterError, check_choice
@@ -158,8 +159,6 @@ def _describe_parameters(params) -> str:
 def _check_parameter_type(slot: str, name: str, key: str, value, default) -> None:
     """Refuse a value whose type cannot be that of the parameter's default (a number for a number,
     a name for a name): the sub-model's own checks then see only values of the right kind."""
-    from numbers import Real
-
     if default is None or default is inspect.Parameter.empty:
         return  # no default to go by: the sub-model's own check names what is allowed
     if isinstance(default, bool):

@@ -1,4 +1,4 @@
-"""Error types and parameter checks shared by the whole package.
+"""Error types, parameter checks and parameter declarations shared by the whole package.
 
 Every check names the parameter, the value it got and what is allowed, so a bad input is
 refused at the door rather than crashing deep in the compiled step loop.
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,24 @@ class ParameterError(ValueError):
 
 class SimulationError(RuntimeError):
     """A run could not go on (instability, non-finite state, ...)."""
+
+
+@dataclass(frozen=True)
+class Declared:
+    """What a constructor's parameter is, written once, in the class's ``declared`` beside its
+    constructor: a description, the SI unit ("-" for a ratio, "" for a name or a switch), the kind
+    of value ("number", "vector", "text", "flag", "numbers", "vectors", "pair") and the allowed
+    interval (None: unbounded; each end closed unless ``low_open``/``high_open``). The case file's
+    schema is made from it (``rollingdem schema`` carries the description, unit and bounds); the
+    constructor's own checks refuse what lies outside, in one line."""
+
+    description: str
+    unit: str = ""
+    kind: str = "number"
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
 
 
 def env_switch(name: str, default: bool = True) -> bool:

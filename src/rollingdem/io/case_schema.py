@@ -24,6 +24,8 @@ from pydantic import (
 from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES
 from rollingdem.scene.bonds import ParallelBond
 from rollingdem.scene.materials import OWN_PROPERTIES
+from rollingdem.scene.motion import MotionTable, Oscillation, Servo
+from rollingdem.scene.walls import Cylinder, Plane
 
 
 def _whole(value):
@@ -44,10 +46,11 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
-def _documented(prop, default):
-    """A field of a material property: its declared description, unit and bounds in the JSON Schema
-    (the bounds are checked by ``Material``, whose refusal names the material)."""
-    extra = {"unit": prop.unit}
+def _documented(prop, default, unit=None):
+    """A field from a declaration (a material property, a constructor's ``Declared`` parameter):
+    its description, unit (``unit``: the case file's, where it differs) and bounds in the JSON
+    Schema; the bounds are checked by the object the field makes, whose refusal names it."""
+    extra = {"unit": prop.unit if unit is None else unit} if (prop.unit or unit) else {}
     for key, bound, is_open in (("minimum", prop.low, prop.low_open), ("maximum", prop.high, prop.high_open)):
         if bound is not None:
             extra[("exclusiveM" + key[1:]) if is_open else key] = bound
@@ -75,6 +78,34 @@ MaterialSpec = _material_spec()
 PairSpec = _pair_spec()
 
 
+#: a declared kind of value (``errors.Declared.kind``) as a case file writes it
+_KINDS = {"number": Number, "vector": Vector, "text": str, "flag": bool, "numbers": list[Number],
+          "vectors": list[Vector], "pair": tuple[Number, Number]}
+
+
+def spec_from(cls, name: str, doc: str, *, first=None, exclude=(), required=(), optional=(), units=None, last=None):
+    """The schema (``name``, described by ``doc``) of the case-file block that makes a ``cls``: a
+    field per parameter of its constructor, with the constructor's default and what ``cls.declared``
+    says of it (kind, description, unit, bounds), so that a parameter is written once, beside the
+    constructor. ``first``, ``last``: the block's own fields ({key: (type, default)}) before and
+    after; ``exclude``: parameters the block gives otherwise; ``required``, ``optional``: parameters
+    the block requires or may leave out where the constructor does not; ``units``: where the case
+    file takes another unit than the constructor (degrees for radians), converted where it is
+    built."""
+    fields = dict(first or {})
+    for key, parameter in inspect.signature(cls.__init__).parameters.items():
+        if key == "self" or key in exclude:
+            continue
+        declared = cls.declared[key]
+        kind = _KINDS[declared.kind]
+        default = ... if key in required or (parameter.default is parameter.empty and key not in optional) else (
+            None if parameter.default is parameter.empty else parameter.default)
+        fields[key] = (Optional[kind] if default is None else kind,
+                       _documented(declared, default, (units or {}).get(key)))
+    fields.update(last or {})
+    return create_model(name, __base__=_Strict, __doc__=doc, **fields)
+
+
 class ContactSpec(_Strict):
     # a model name or {model: name, parameter: value, ...}; make_submodel checks both
     normal: Any = "hertz"
@@ -84,65 +115,24 @@ class ContactSpec(_Strict):
     cohesion: Any = "none"
 
 
-class OscillateSpec(_Strict):
-    """``rollingdem.Oscillation``: ``frequency`` (Hz), ``amplitude`` (m, a vector), ``angle`` (degrees)
-    about ``axis`` (a mesh wall only), ``phase`` (degrees)."""
-    frequency: Number
-    amplitude: Vector = (0.0, 0.0, 0.0)
-    angle: Number = 0.0
-    axis: Optional[Vector] = None
-    phase: Number = 0.0
-
-
-class TableSpec(_Strict):
-    """``rollingdem.MotionTable``: ``times`` (s) with ``displacements`` (m) and/or ``angles`` (degrees,
-    about ``axis``; a mesh wall only), or a CSV ``file`` whose header names the columns t, dx, dy,
-    dz and angle (each but t optional); ``repeat`` starts it again at its end."""
-    file: Optional[str] = None
-    times: Optional[list[Number]] = None
-    displacements: Optional[list[Vector]] = None
-    angles: Optional[list[Number]] = None
-    axis: Optional[Vector] = None
-    repeat: bool = False
-
-
-class ServoSpec(_Strict):
-    """``rollingdem.Servo``: moves along ``direction`` within ``max_speed`` (m/s) to hold ``force`` (N)
-    or ``pressure`` (Pa) on ``area`` (m^2); ``gain`` (m/s per N)."""
-    direction: Vector
-    max_speed: Number
-    force: Optional[Number] = None
-    pressure: Optional[Number] = None
-    area: Optional[Number] = None
-    gain: Optional[Number] = None
-
-
-class PlaneSpec(_Strict):
-    type: Literal["plane"]
-    name: Optional[str] = None
-    material: str
-    point: Vector = (0.0, 0.0, 0.0)
-    normal: Vector = (0.0, 0.0, 1.0)
-    velocity: Vector = (0.0, 0.0, 0.0)
-    angular_velocity: Vector = (0.0, 0.0, 0.0)
-    oscillate: Optional[OscillateSpec] = None  # a motion program: at most one of the three
-    table: Optional[TableSpec] = None
-    servo: Optional[ServoSpec] = None
-
-
-class CylinderSpec(_Strict):
-    type: Literal["cylinder"]
-    name: Optional[str] = None
-    material: str
-    radius: Number
-    point: Vector = (0.0, 0.0, 0.0)
-    axis: Vector = (0.0, 0.0, 1.0)
-    extent: Optional[tuple[Number, Number]] = None
-    velocity: Vector = (0.0, 0.0, 0.0)
-    angular_velocity: Vector = (0.0, 0.0, 0.0)
-    oscillate: Optional[OscillateSpec] = None  # a motion program: at most one of the three
-    table: Optional[TableSpec] = None
-    servo: Optional[ServoSpec] = None
+OscillateSpec = spec_from(Oscillation, "OscillateSpec", "rollingdem.Oscillation, its angles in degrees",
+                          units={"angle": "deg", "phase": "deg"})
+TableSpec = spec_from(MotionTable, "TableSpec", "rollingdem.MotionTable (rows given or from a CSV file), its angles in "
+                      "degrees", optional=("times",), units={"angles": "deg"},
+                      first={"file": (Optional[str], Field(None, description="a CSV file of the table, relative to "
+                                                           "the case file: columns t, dx, dy, dz, angle (each but t "
+                                                           "optional)"))})
+ServoSpec = spec_from(Servo, "ServoSpec", "rollingdem.Servo")
+#: a wall block's motion program: one of three keys
+_PROGRAMS = {"oscillate": (Optional[OscillateSpec], Field(None, description="an oscillation (one program at most)")),
+             "table": (Optional[TableSpec], Field(None, description="a table of times (one program at most)")),
+             "servo": (Optional[ServoSpec], Field(None, description="a servo (one program at most)"))}
+PlaneSpec = spec_from(Plane, "PlaneSpec", "rollingdem.Plane, its material by name, and a motion program",
+                      first={"type": (Literal["plane"], ...)}, exclude=("motion",), required=("material",),
+                      last=_PROGRAMS)
+CylinderSpec = spec_from(Cylinder, "CylinderSpec", "rollingdem.Cylinder, its material by name, and a motion program",
+                         first={"type": (Literal["cylinder"], ...)}, exclude=("motion",), required=("material",),
+                         last=_PROGRAMS)
 
 
 class RotateSpec(_Strict):

@@ -15,7 +15,7 @@ import numpy as np
 
 from rollingdem.engine.layout import MESH_MOTION as MO, MESH_MOTION_SIZE, MOTION_OSCILLATION, MOTION_SERVO, \
     MOTION_TABLE
-from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector, short_repr
+from rollingdem.errors import Declared, ParameterError, check_finite, check_positive, check_vector, short_repr
 
 
 class Oscillation:
@@ -26,6 +26,11 @@ class Oscillation:
     ``phase`` phi (rad)."""
 
     kind = MOTION_OSCILLATION
+    declared = {"frequency": Declared("frequency f", "Hz", low=0.0, low_open=True),
+                "amplitude": Declared("amplitude A of the displacement", "m", "vector"),
+                "angle": Declared("amplitude alpha of the turn about axis (a mesh wall only)", "rad"),
+                "axis": Declared("axis of the turn, through the wall's point (made unit length)", "-", "vector"),
+                "phase": Declared("phase phi", "rad")}
 
     def __init__(self, frequency, amplitude=(0.0, 0.0, 0.0), angle=0.0, axis=None, phase=0.0):
         self.frequency = check_positive("oscillation frequency", frequency, "Hz")
@@ -79,6 +84,13 @@ class MotionTable:
     again (its last row must then equal its first)."""
 
     kind = MOTION_TABLE
+    declared = {"times": Declared("times of the rows, increasing; the program's time counts from the first", "s",
+                                  "numbers"),
+                "displacements": Declared("displacement at each time", "m", "vectors"),
+                "angles": Declared("angle about axis at each time (a mesh wall only)", "rad", "numbers"),
+                "axis": Declared("axis of the turn, through the wall's point (made unit length)", "-", "vector"),
+                "repeat": Declared("start the table again at its end (its last row must equal its first)",
+                                   kind="flag")}
 
     def __init__(self, times, displacements=None, angles=None, axis=None, repeat: bool = False):
         try:
@@ -159,6 +171,14 @@ class Servo:
 
     kind = MOTION_SERVO
     turns = False
+    declared = {"direction": Declared("direction the wall moves along, against the particles' force (made unit "
+                                      "length)", "-", "vector"),
+                "max_speed": Declared("the fastest the wall moves", "m/s", low=0.0, low_open=True),
+                "force": Declared("target force F* (or pressure with area)", "N", low=0.0, low_open=True),
+                "pressure": Declared("target pressure, with area", "Pa", low=0.0, low_open=True),
+                "area": Declared("area the pressure acts on", "m^2", low=0.0, low_open=True),
+                "gain": Declared("gain G (default max_speed / F*: full speed with no load)", "m/s per N", low=0.0,
+                                 low_open=True)}
 
     def __init__(self, direction, max_speed, force=None, pressure=None, area=None, gain=None):
         self.direction = check_vector("servo direction", direction, unit=True)

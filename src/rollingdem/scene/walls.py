@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from rollingdem.engine.layout import MESH_MOTION as MO
-from rollingdem.errors import ParameterError, check_positive, check_vector
+from rollingdem.errors import Declared, ParameterError, check_positive, check_vector
 from rollingdem.physics.records import WALL_CYLINDER as CYLINDER
 from rollingdem.physics.records import WALL_GEOMETRY_SIZE as GEOMETRY_SIZE
 from rollingdem.physics.records import WALL_INACTIVE as INACTIVE
@@ -121,6 +121,17 @@ class Wall:
         return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in args.items())})"
 
 
+#: what the walls' common constructor parameters are (``Declared``)
+WALL_DECLARED = {
+    "material": Declared("the wall's material (a name, or a Material)", kind="text"),
+    "velocity": Declared("steady velocity of the wall", "m/s", "vector"),
+    "angular_velocity": Declared("steady angular velocity of the wall's surface about its own point and axis", "rad/s",
+                                 "vector"),
+    "name": Declared("label of the wall in loads and outputs", kind="text"),
+    "motion": Declared("a motion program added to the steady motion (Oscillation, MotionTable, Servo)", kind="program"),
+}
+
+
 class Plane(Wall):
     """Infinite plane through ``point`` with unit ``normal`` pointing to the particles' side.
 
@@ -130,6 +141,9 @@ class Plane(Wall):
 
     kind = PLANE
     spin_axis_name = "normal"
+    declared = {"point": Declared("a point of the plane", "m", "vector"),
+                "normal": Declared("normal towards the particles' side (made unit length)", "-", "vector"),
+                **WALL_DECLARED}
 
     def __init__(self, point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), material=None, velocity=(0.0, 0.0, 0.0),
                  angular_velocity=(0.0, 0.0, 0.0), name=None, motion=None):
@@ -165,6 +179,12 @@ class Cylinder(Wall):
 
     kind = CYLINDER
     spin_axis_name = "axis"
+    declared = {"radius": Declared("radius of the shell", "m", low=0.0, low_open=True),
+                "point": Declared("a point of the axis, where s = 0", "m", "vector"),
+                "axis": Declared("direction of the axis (made unit length)", "-", "vector"),
+                "extent": Declared("(s_min, s_max): where the shell ends along the axis, s = (x - point) . axis; "
+                                   "none: infinite", "m", "pair"),
+                **WALL_DECLARED}
 
     def __init__(self, radius, point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), extent=None, material=None,
                  velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), name=None, motion=None):

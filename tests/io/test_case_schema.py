@@ -1,0 +1,76 @@
+"""The case file's schema made from the objects' own declarations (``errors.Declared`` beside a
+constructor, ``io.case_schema.spec_from``): a block takes the constructor's parameters, defaults
+and declared description, unit and bounds, and nothing is written twice."""
+
+import inspect
+import json
+
+import pytest
+from pydantic import ValidationError
+from typer.testing import CliRunner
+
+from rollingdem.cli import app
+from rollingdem.errors import Declared
+from rollingdem.io.case_schema import spec_from
+from rollingdem.scene.motion import MotionTable, Oscillation, Servo
+from rollingdem.scene.walls import Cylinder, Plane
+
+#: the classes whose case-file blocks are made from their declarations, and those blocks
+DECLARED_BLOCKS = {Plane: "PlaneSpec", Cylinder: "CylinderSpec", Oscillation: "OscillateSpec", MotionTable: "TableSpec",
+                   Servo: "ServoSpec"}
+
+
+class Nozzle:
+    """A made-up object: one required number, a vector, a name, a switch and an angle."""
+
+    declared = {"radius": Declared("radius of the nozzle", "m", low=0.0, low_open=True),
+                "point": Declared("centre of the nozzle", "m", "vector"),
+                "label": Declared("its name", kind="text"),
+                "open": Declared("whether it lets spheres through", kind="flag"),
+                "tilt": Declared("tilt of the nozzle", "rad", high=1.5)}
+
+    def __init__(self, radius, point=(0.0, 0.0, 0.0), label=None, open=True, tilt=0.0):
+        pass
+
+
+def test_a_block_made_from_a_constructor_takes_its_parameters_defaults_and_declarations():
+    spec = spec_from(Nozzle, "NozzleSpec", "a nozzle", units={"tilt": "deg"}, exclude=("open",))
+    assert list(spec.model_fields) == ["radius", "point", "label", "tilt"]
+    block = spec.model_validate({"radius": 0.01})
+    assert (block.radius, block.point, block.label, block.tilt) == (0.01, (0.0, 0.0, 0.0), None, 0.0)
+    for bad in ({}, {"radius": "0.01"}, {"radius": True}, {"radius": 0.01, "point": [0, 0]},
+                {"radius": 0.01, "open": False}):  # required, strict numbers, a vector of three, excluded
+        with pytest.raises(ValidationError):
+            spec.model_validate(bad)
+    schema = spec.model_json_schema()
+    assert schema["description"] == "a nozzle" and schema["required"] == ["radius"]
+    radius, tilt = schema["properties"]["radius"], schema["properties"]["tilt"]
+    assert (radius["description"], radius["unit"], radius["exclusiveMinimum"]) == ("radius of the nozzle", "m", 0.0)
+    assert (tilt["unit"], tilt["maximum"]) == ("deg", 1.5)  # the case file's unit where it differs
+    assert "unit" not in schema["properties"]["label"]  # a name has none
+    required = spec_from(Nozzle, "NozzleSpec", "", required=("label",), optional=("radius",))
+    assert required.model_json_schema()["required"] == ["label"]
+
+
+@pytest.mark.parametrize("cls", list(DECLARED_BLOCKS))
+def test_every_constructor_parameter_is_declared_once_and_every_declaration_is_a_parameter(cls):
+    parameters = [k for k in inspect.signature(cls.__init__).parameters if k != "self"]
+    assert sorted(cls.declared) == sorted(parameters)
+
+
+def test_the_declared_blocks_of_the_schema_carry_descriptions_and_units():
+    """``rollingdem schema``: every key of a wall and a motion program says what it is, and every
+    number its unit."""
+    result = CliRunner().invoke(app, ["schema"])
+    assert result.exit_code == 0
+    defs = json.loads(result.output)["$defs"]
+    for block in DECLARED_BLOCKS.values():
+        for key, prop in defs[block]["properties"].items():
+            if key == "type":
+                continue
+            assert prop.get("description"), (block, key)
+            kinds = {prop.get("type")} | {p.get("type") for p in prop.get("anyOf", [])}
+            if {"number", "array"} & kinds:
+                assert prop.get("unit"), (block, key)
+    assert defs["OscillateSpec"]["properties"]["phase"]["unit"] == "deg"  # the case file takes degrees
+    assert defs["CylinderSpec"]["properties"]["radius"]["exclusiveMinimum"] == 0.0

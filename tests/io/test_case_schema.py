@@ -12,12 +12,20 @@ from typer.testing import CliRunner
 from rollingdem.cli import app
 from rollingdem.errors import Declared
 from rollingdem.io.case_schema import spec_from
+from rollingdem.io.measurements import MassFlow, OutletTotals, WallLoad
+from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
+from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Rectangle
+from rollingdem.scene.size_distributions import Discrete, MassFractions, Normal, SieveCurve, Uniform
 from rollingdem.scene.walls import Cylinder, Plane
 
 #: the classes whose case-file blocks are made from their declarations, and those blocks
 DECLARED_BLOCKS = {Plane: "PlaneSpec", Cylinder: "CylinderSpec", Oscillation: "OscillateSpec", MotionTable: "TableSpec",
-                   Servo: "ServoSpec"}
+                   Servo: "ServoSpec", BoxRegion: "BoxRegionSpec", CylinderRegion: "CylinderRegionSpec",
+                   Disk: "DiskFaceSpec", Rectangle: "RectangleFaceSpec", Uniform: "UniformSpec", Normal: "NormalSpec",
+                   Discrete: "DiscreteSpec", MassFractions: "MassFractionsSpec", SieveCurve: "SieveSpec",
+                   MassFlow: "MassFlowSpec", OutletTotals: "OutletMeasurementSpec", WallLoad: "WallMeasurementSpec",
+                   PileAngle: "ReposeMeasurementSpec", DrumAngle: "DrumMeasurementSpec", DrumFlow: "DrumFlowSpec"}
 
 
 class Nozzle:
@@ -59,14 +67,14 @@ def test_every_constructor_parameter_is_declared_once_and_every_declaration_is_a
 
 
 def test_the_declared_blocks_of_the_schema_carry_descriptions_and_units():
-    """``rollingdem schema``: every key of a wall and a motion program says what it is, and every
-    number its unit."""
+    """``rollingdem schema``: every key of a declared block (walls, motion programs, regions, inflow
+    faces, size distributions, measurements) says what it is, and every number its unit."""
     result = CliRunner().invoke(app, ["schema"])
     assert result.exit_code == 0
     defs = json.loads(result.output)["$defs"]
     for block in DECLARED_BLOCKS.values():
         for key, prop in defs[block]["properties"].items():
-            if key == "type":
+            if key in ("type", "distribution"):
                 continue
             assert prop.get("description"), (block, key)
             kinds = {prop.get("type")} | {p.get("type") for p in prop.get("anyOf", [])}

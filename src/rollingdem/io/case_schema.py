@@ -24,7 +24,11 @@ from pydantic import (
 from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES
 from rollingdem.scene.bonds import ParallelBond
 from rollingdem.scene.materials import OWN_PROPERTIES
+from rollingdem.io.measurements import MassFlow, OutletTotals, WallLoad
+from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
+from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Rectangle
+from rollingdem.scene.size_distributions import Discrete, MassFractions, Normal, SieveCurve, Uniform
 from rollingdem.scene.walls import Cylinder, Plane
 
 
@@ -79,11 +83,12 @@ PairSpec = _pair_spec()
 
 
 #: a declared kind of value (``errors.Declared.kind``) as a case file writes it
-_KINDS = {"number": Number, "vector": Vector, "text": str, "flag": bool, "numbers": list[Number],
+_KINDS = {"number": Number, "whole": Whole, "vector": Vector, "text": str, "flag": bool, "numbers": list[Number],
           "vectors": list[Vector], "pair": tuple[Number, Number]}
 
 
-def spec_from(cls, name: str, doc: str, *, first=None, exclude=(), required=(), optional=(), units=None, last=None):
+def spec_from(cls, name: str, doc: str, *, first=None, exclude=(), required=(), optional=(), units=None, last=None,
+              kinds=None):
     """The schema (``name``, described by ``doc``) of the case-file block that makes a ``cls``: a
     field per parameter of its constructor, with the constructor's default and what ``cls.declared``
     says of it (kind, description, unit, bounds), so that a parameter is written once, beside the
@@ -91,13 +96,13 @@ def spec_from(cls, name: str, doc: str, *, first=None, exclude=(), required=(), 
     after; ``exclude``: parameters the block gives otherwise; ``required``, ``optional``: parameters
     the block requires or may leave out where the constructor does not; ``units``: where the case
     file takes another unit than the constructor (degrees for radians), converted where it is
-    built."""
+    built; ``kinds``: the case-file type of a kind of value of the block's own."""
     fields = dict(first or {})
     for key, parameter in inspect.signature(cls.__init__).parameters.items():
         if key == "self" or key in exclude:
             continue
         declared = cls.declared[key]
-        kind = _KINDS[declared.kind]
+        kind = {**_KINDS, **(kinds or {})}[declared.kind]
         default = ... if key in required or (parameter.default is parameter.empty and key not in optional) else (
             None if parameter.default is parameter.empty else parameter.default)
         fields[key] = (Optional[kind] if default is None else kind,
@@ -180,18 +185,9 @@ class MeshSpec(_Strict):
 WallSpec = Annotated[Union[PlaneSpec, CylinderSpec, MeshSpec], Field(discriminator="type")]
 
 
-class BoxRegionSpec(_Strict):
-    type: Literal["box"]
-    lo: Vector
-    hi: Vector
-
-
-class CylinderRegionSpec(_Strict):
-    type: Literal["cylinder"]
-    radius: Number
-    z_min: Number
-    z_max: Number
-    center: tuple[Number, Number] = (0.0, 0.0)
+BoxRegionSpec = spec_from(BoxRegion, "BoxRegionSpec", "rollingdem.BoxRegion", first={"type": (Literal["box"], ...)})
+CylinderRegionSpec = spec_from(CylinderRegion, "CylinderRegionSpec", "rollingdem.CylinderRegion (its axis along z)",
+                               first={"type": (Literal["cylinder"], ...)})
 
 
 class _SensorMeshSpec(_Strict):
@@ -213,38 +209,24 @@ class MeshRegionSpec(_SensorMeshSpec):
 RegionSpec = Annotated[Union[BoxRegionSpec, CylinderRegionSpec, MeshRegionSpec], Field(discriminator="type")]
 
 
-class UniformSpec(_Strict):
-    distribution: Literal["uniform"]
-    low: Number
-    high: Number
+UniformSpec = spec_from(Uniform, "UniformSpec", "rollingdem.Uniform: radii uniform in [low, high]",
+                        first={"distribution": (Literal["uniform"], ...)})
 
 
-class NormalSpec(_Strict):
-    distribution: Literal["normal"]
-    mean: Number
-    std: Number
-    low: Optional[Number] = None
-    high: Optional[Number] = None
+NormalSpec = spec_from(Normal, "NormalSpec", "rollingdem.Normal: a normal radius distribution, truncated",
+                       first={"distribution": (Literal["normal"], ...)})
 
 
-class DiscreteSpec(_Strict):
-    distribution: Literal["discrete"]
-    values: list[Number]
-    weights: Optional[list[Number]] = None
+DiscreteSpec = spec_from(Discrete, "DiscreteSpec", "rollingdem.Discrete: radii drawn from values",
+                         first={"distribution": (Literal["discrete"], ...)})
 
 
-class MassFractionsSpec(_Strict):
-    """``rollingdem.MassFractions``: the ``radii`` (m) and the fraction of the mass each makes up."""
-    distribution: Literal["mass_fractions"]
-    radii: list[Number]
-    fractions: list[Number]
+MassFractionsSpec = spec_from(MassFractions, "MassFractionsSpec", "rollingdem.MassFractions: size classes by mass",
+                              first={"distribution": (Literal["mass_fractions"], ...)})
 
 
-class SieveSpec(_Strict):
-    """``rollingdem.SieveCurve``: the mass fraction ``passing`` each sieve of ``diameters`` (m)."""
-    distribution: Literal["sieve"]
-    diameters: list[Number]
-    passing: list[Number]
+SieveSpec = spec_from(SieveCurve, "SieveSpec", "rollingdem.SieveCurve: a grading curve",
+                      first={"distribution": (Literal["sieve"], ...)})
 
 
 def _radius_kind(value):
@@ -354,21 +336,10 @@ class OutletSpec(_Strict):
     seed: Whole = 0
 
 
-class DiskFaceSpec(_Strict):
-    """``rollingdem.Disk``: a face of ``radius`` about ``center``, particles going along ``normal``."""
-    type: Literal["disk"]
-    center: Vector
-    normal: Vector
-    radius: Number
-
-
-class RectangleFaceSpec(_Strict):
-    """``rollingdem.Rectangle``: a face of ``size`` (width, height) about ``center``, its width along ``axis``."""
-    type: Literal["rectangle"]
-    center: Vector
-    normal: Vector
-    size: tuple[Number, Number]
-    axis: Optional[Vector] = None
+DiskFaceSpec = spec_from(Disk, "DiskFaceSpec", "rollingdem.Disk: a face particles enter through",
+                         first={"type": (Literal["disk"], ...)})
+RectangleFaceSpec = spec_from(Rectangle, "RectangleFaceSpec", "rollingdem.Rectangle: a face particles enter through",
+                              first={"type": (Literal["rectangle"], ...)})
 
 
 class MeshFaceSpec(_SensorMeshSpec):
@@ -410,12 +381,17 @@ class _MeasurementBase(_Strict):
     window: Optional[Union[tuple[Number, Number], StageWindowSpec]] = None
 
 
-class MassFlowSpec(_MeasurementBase):
-    """``rollingdem.MassFlow``: through the plane at ``point`` along ``normal`` (a disk with ``radius``)."""
-    type: Literal["mass_flow"]
-    point: Vector
-    normal: Vector
-    radius: Optional[Number] = None
+#: a measurement's window: [t0, t1] from the run's start, or a window from a stage's start
+_WINDOW = {"window": Union[tuple[Number, Number], StageWindowSpec]}
+
+
+def _measurement(cls, name, kind, doc, **options):
+    """A measurement's block, its ``type`` the measurement's kind, from its declarations."""
+    return spec_from(cls, name, doc, first={"type": (Literal[kind], ...)}, required=("name",), kinds=_WINDOW,
+                     **options)
+
+
+MassFlowSpec = _measurement(MassFlow, "MassFlowSpec", "mass_flow", "rollingdem.MassFlow: through a plane or a disk")
 
 
 class ProbeSpec(_MeasurementBase):
@@ -424,44 +400,24 @@ class ProbeSpec(_MeasurementBase):
     region: Annotated[Union[BoxRegionSpec, CylinderRegionSpec, MeshRegionSpec], Field(discriminator="type")]
 
 
-class OutletMeasurementSpec(_MeasurementBase):
-    """``rollingdem.OutletTotals``: what the outlet named ``outlet`` took out."""
-    type: Literal["outlet"]
-    outlet: str
+OutletMeasurementSpec = _measurement(OutletTotals, "OutletMeasurementSpec", "outlet",
+                                     "rollingdem.OutletTotals: what an outlet took out")
 
 
-class WallMeasurementSpec(_MeasurementBase):
-    """``rollingdem.WallLoad``: force, torque and power of the wall named ``wall``."""
-    type: Literal["wall"]
-    wall: str
+WallMeasurementSpec = _measurement(WallLoad, "WallMeasurementSpec", "wall",
+                                   "rollingdem.WallLoad: force, torque, power and place of a wall")
 
 
-class ReposeMeasurementSpec(_MeasurementBase):
-    """``rollingdem.PileAngle``: the pile's angle of repose (docs/analysis.md)."""
-    type: Literal["repose_angle"]
-    floor: Optional[Number] = None
-    n_slices: Whole = 8
-    exclude_apex: Number = 0.15
-    exclude_toe: Number = 0.15
+ReposeMeasurementSpec = _measurement(PileAngle, "ReposeMeasurementSpec", "repose_angle",
+                                     "rollingdem.PileAngle: the pile's angle of repose (docs/analysis.md)")
 
 
-class DrumMeasurementSpec(_MeasurementBase):
-    """``rollingdem.DrumAngle``: the bed's angle about the drum's axis, in the window ``extent``."""
-    type: Literal["drum_angle"]
-    center: Vector
-    axis: Vector
-    extent: Optional[tuple[Number, Number]] = None
+DrumMeasurementSpec = _measurement(DrumAngle, "DrumMeasurementSpec", "drum_angle",
+                                   "rollingdem.DrumAngle: the bed's angle about the drum's axis")
 
 
-class DrumFlowSpec(_MeasurementBase):
-    """``rollingdem.DrumFlow``: the flowing layer's depth and the bed's turn with the drum, whose
-    ``radius`` (m) and turning ``wall`` are given."""
-    type: Literal["drum_flow"]
-    center: Vector
-    axis: Vector
-    radius: Number
-    wall: str
-    extent: Optional[tuple[Number, Number]] = None
+DrumFlowSpec = _measurement(DrumFlow, "DrumFlowSpec", "drum_flow",
+                            "rollingdem.DrumFlow: the flowing layer's depth and the bed's turn with the drum")
 
 
 class MeshFlowSpec(_MeasurementBase, _SensorMeshSpec):

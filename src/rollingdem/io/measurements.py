@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector
+from rollingdem.errors import Declared, ParameterError, check_finite, check_positive, check_vector
 from rollingdem.scene.periodic import with_images
 from rollingdem.scene.schedule import Observer
 
@@ -68,6 +68,12 @@ class Measurement(Observer):
     RATES: dict[str, str] = {}
     #: Cumulative quantities: the summary line shows their final value.
     CUMULATIVE: tuple[str, ...] = ()
+    #: what the constructor's parameters are; each kind adds its own
+    declared = {"name": Declared("the measurement's name: its file and summary key (letters, digits, - or _)",
+                                 kind="text"),
+                "interval": Declared("time between samples (default the kind's own)", "s", low=0.0, low_open=True),
+                "window": Declared("[t0, t1] from the run's start, or a window from a stage's start, over which "
+                                   "the summary averages (default the second half of the samples)", "s", "window")}
 
     def __init__(self, name: str, interval: float | None = None, window=None):
         super().__init__(self.INTERVAL if interval is None else interval)
@@ -246,6 +252,11 @@ class MassFlow(Measurement):
     QUANTITIES = {"count": "1", "mass": "kg", "rate": "kg/s"}
     RATES = {"rate": "mass"}
     CUMULATIVE = ("count", "mass")
+
+    declared = {**Measurement.declared, "point": Declared("a point of the counting plane", "m", "vector"),
+                "normal": Declared("the direction counted positive (made unit length)", "-", "vector"),
+                "radius": Declared("radius of the counting disk about point (none: the whole plane)", "m", low=0.0,
+                                   low_open=True)}
 
     def __init__(self, name: str, point, normal, radius: float | None = None, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
@@ -494,6 +505,8 @@ class OutletTotals(Measurement):
     RATES = {"rate": "mass"}
     CUMULATIVE = ("count", "mass")
 
+    declared = {**Measurement.declared, "outlet": Declared("name of the outlet", kind="text")}
+
     def __init__(self, name: str, outlet: str, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
         self.outlet = outlet
@@ -535,6 +548,8 @@ class WallLoad(Measurement):
     kind = "wall"
     QUANTITIES = {"fx": "N", "fy": "N", "fz": "N", "tx": "N m", "ty": "N m", "tz": "N m", "power": "W",
                   "x": "m", "y": "m", "z": "m"}
+
+    declared = {**Measurement.declared, "wall": Declared("name of the wall", kind="text")}
 
     def __init__(self, name: str, wall: str, interval: float | None = None, window=None):
         super().__init__(name, interval, window)

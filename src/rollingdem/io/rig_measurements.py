@@ -14,7 +14,7 @@ import numpy as np
 
 from rollingdem.analysis.drum import com_angle, flowing_depth, flowing_layer, rotation_ratios, surface_angle
 from rollingdem.analysis.repose import _check_exclusion, _check_n_slices, repose_angle, touching
-from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector
+from rollingdem.errors import Declared, ParameterError, check_finite, check_positive, check_vector
 from rollingdem.io.measurements import Measurement, WallLoad, drum_frame, fixed_top, window_of
 
 
@@ -29,6 +29,15 @@ class PileAngle(Measurement):
     INTERVAL = 0.1
     QUANTITIES = {"angle": "deg", "r_squared": "1", "slice_mean": "deg", "slice_std": "deg"}
     CUMULATIVE = ("angle", "r_squared", "slice_mean", "slice_std")  # the end state's, not a mean
+
+    declared = {**Measurement.declared,
+                "floor": Declared("height of the floor the pile stands on (default the top of the fixed spheres)",
+                                  "m"),
+                "n_slices": Declared("azimuthal slices whose angles give the spread", kind="whole", low=1),
+                "exclude_apex": Declared("fraction of the pile's radius left out about the apex", "-", low=0.0,
+                                         high=0.5, high_open=True),
+                "exclude_toe": Declared("fraction of the pile's radius left out at the toe", "-", low=0.0, high=0.5,
+                                        high_open=True)}
 
     def __init__(self, name: str = "repose_angle", floor: float | None = None, n_slices: int = 8,
                  exclude_apex: float = 0.15, exclude_toe: float = 0.15, interval: float | None = None, window=None):
@@ -75,6 +84,11 @@ class DrumAngle(Measurement):
     kind = "drum_angle"
     INTERVAL = 0.01
     QUANTITIES = {"angle": "deg", "com_angle": "deg", "weight_moment": "N m"}
+
+    declared = {**Measurement.declared, "center": Declared("a point of the drum's axis", "m", "vector"),
+                "axis": Declared("the drum's axis (made unit length)", "-", "vector"),
+                "extent": Declared("[s0, s1]: the slice along the axis measured, from center (none: all)", "m",
+                                   "pair")}
 
     def __init__(self, name: str, center, axis, extent=None, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
@@ -146,6 +160,13 @@ class DrumFlow(Measurement):
     kind = "drum_flow"
     INTERVAL = 0.05
     QUANTITIES = {"flowing_depth": "m", "passive_speed_ratio": "1", "wall_layer_speed_ratio": "1"}
+
+    declared = {**Measurement.declared, "center": Declared("a point of the drum's axis", "m", "vector"),
+                "axis": Declared("the drum's axis (made unit length)", "-", "vector"),
+                "extent": Declared("[s0, s1]: the slice along the axis measured, from center (none: all)", "m",
+                                   "pair"),
+                "radius": Declared("the drum's inner radius", "m", low=0.0, low_open=True),
+                "wall": Declared("name of the wall that turns the drum", kind="text")}
 
     def __init__(self, name: str, center, axis, radius: float, wall: str, extent=None, interval: float | None = None,
                  window=None):

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_finite, check_positive, check_vector
+from rollingdem.errors import Declared, ParameterError, check_finite, check_positive, check_vector
 
 
 def _fmt(x: float) -> str:
@@ -45,6 +45,9 @@ class Region:
 class BoxRegion(Region):
     """Axis-aligned box from corner ``lo`` to corner ``hi`` (m)."""
 
+    declared = {"lo": Declared("the corner of smallest x, y, z", "m", "vector"),
+                "hi": Declared("the corner of largest x, y, z", "m", "vector")}
+
     def __init__(self, lo, hi):
         self.lo = np.array(check_vector("BoxRegion lo", lo))
         self.hi = np.array(check_vector("BoxRegion hi", hi))
@@ -76,6 +79,10 @@ class BoxRegion(Region):
 
 class CylinderRegion(Region):
     """Vertical cylinder (axis along z) of ``radius`` (m) about (center[0], center[1]), from z_min to z_max."""
+
+    declared = {"radius": Declared("radius", "m", low=0.0, low_open=True),
+                "z_min": Declared("bottom", "m"), "z_max": Declared("top", "m"),
+                "center": Declared("(x, y) of the axis", "m", "pair")}
 
     def __init__(self, radius, z_min, z_max, center=(0.0, 0.0)):
         self.radius = check_positive("CylinderRegion radius", radius, "m")
@@ -152,6 +159,10 @@ class Face:
 class Disk(Face):
     """A disk of ``radius`` (m) about ``center``, facing along ``normal``."""
 
+    declared = {"center": Declared("centre of the disk", "m", "vector"),
+                "normal": Declared("direction the particles go in (made unit length)", "-", "vector"),
+                "radius": Declared("radius of the disk", "m", low=0.0, low_open=True)}
+
     def __init__(self, center, normal, radius):
         self.center = np.array(check_vector("disk center", center))
         self.e1, self.e2, self.normal = _frame(check_vector("disk normal", normal, unit=True))
@@ -183,6 +194,12 @@ class Disk(Face):
 class Rectangle(Face):
     """A rectangle of ``size`` (width, height; m) about ``center``, facing along ``normal``, its width
     along ``axis`` (projected into it; default the coordinate axis least along the normal)."""
+
+    declared = {"center": Declared("centre of the rectangle", "m", "vector"),
+                "normal": Declared("direction the particles go in (made unit length)", "-", "vector"),
+                "size": Declared("(width, height)", "m", "pair"),
+                "axis": Declared("direction of the width, projected into the face (default the coordinate axis "
+                                 "least along the normal)", "-", "vector")}
 
     def __init__(self, center, normal, size, axis=None):
         self.center = np.array(check_vector("rectangle center", center))

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_non_negative, check_positive
+from rollingdem.errors import Declared, ParameterError, check_non_negative, check_positive
 
 
 def _fmt(x: float) -> str:
@@ -46,6 +46,9 @@ class Constant(SizeDistribution):
 class Uniform(SizeDistribution):
     """Radius uniform in [low, high] (m)."""
 
+    declared = {"low": Declared("smallest radius", "m", low=0.0, low_open=True),
+                "high": Declared("largest radius", "m", low=0.0, low_open=True)}
+
     def __init__(self, low, high):
         self.low = check_positive("Uniform low", low, "m")
         self.high = check_positive("Uniform high", high, "m")
@@ -67,6 +70,11 @@ class Normal(SizeDistribution):
 
     ``low`` defaults to max(mean - 3 std, 0) and ``high`` to mean + 3 std; radii are always > 0.
     """
+
+    declared = {"mean": Declared("mean radius", "m", low=0.0, low_open=True),
+                "std": Declared("standard deviation of the radius", "m", low=0.0),
+                "low": Declared("smallest radius (default max(mean - 3 std, 0))", "m", low=0.0, low_open=True),
+                "high": Declared("largest radius (default mean + 3 std)", "m", low=0.0, low_open=True)}
 
     def __init__(self, mean, std, low=None, high=None):
         self.mean = check_positive("Normal mean", mean, "m")
@@ -112,6 +120,9 @@ class Normal(SizeDistribution):
 class Discrete(SizeDistribution):
     """Radii drawn from ``values`` (m) with relative ``weights`` (default: equal)."""
 
+    declared = {"values": Declared("the radii", "m", "numbers"),
+                "weights": Declared("relative weight of each radius in number (default: equal)", "-", "numbers")}
+
     def __init__(self, values, weights=None):
         try:
             vals = [float(v) for v in values]
@@ -152,6 +163,9 @@ class MassFractions(Discrete):
     each drawn with the number weight f_k / r_k^3 (so N_k m_k is in proportion to f_k). The realised
     mass fractions are ``realised(radii)``."""
 
+    declared = {"radii": Declared("the radius of each size class", "m", "numbers"),
+                "fractions": Declared("the fraction of the mass each class makes up", "-", "numbers")}
+
     def __init__(self, radii, fractions):
         super().__init__(radii, fractions)
         self.fractions = self.weights.copy()
@@ -183,6 +197,10 @@ class SieveCurve(SizeDistribution):
     number density c / d^3, drawn by inverting its distribution; the class takes the number share
     (P_k+1 - P_k) / (d_k+1 - d_k) (d_k^-2 - d_k+1^-2) / 2 (up to a common factor), which gives it
     the mass share P_k+1 - P_k. ``realised(radii)``: the mass fraction in each class."""
+
+    declared = {"diameters": Declared("the sieves' openings, increasing", "m", "numbers"),
+                "passing": Declared("the mass fraction passing each sieve, from 0 to 1, not decreasing", "-",
+                                    "numbers")}
 
     def __init__(self, diameters, passing):
         try:

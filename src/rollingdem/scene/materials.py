@@ -15,7 +15,8 @@ import numpy as np
 
 from rollingdem.errors import ParameterError, check_finite
 from rollingdem.physics.contact import SubModel  # noqa: F401 (importing the laws registers what they read)
-from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES, MaterialProperty, PairProperties
+from rollingdem.physics.contact.properties import (MATERIAL_PROPERTIES, MaterialProperty, PairProperties,
+                                                   PropertiesByName)
 
 
 #: Young's modulus (Pa) below which a material is taken for a unit mistake and warned of: soft
@@ -41,7 +42,7 @@ def _unknown_property(owner: str, key: str) -> ParameterError:
                           "the properties it reads)")
 
 
-class Material:
+class Material(PropertiesByName):
     """A particle or wall material.
 
     Parameters
@@ -92,15 +93,6 @@ class Material:
         for key, value in own.items():
             object.__setattr__(self, key, value)
         object.__setattr__(self, "properties", values)
-
-    def __getattr__(self, key):
-        # a declared property by name (material.friction); only reached when no slot has the name
-        if key != "properties":
-            try:
-                return self.properties[key]
-            except KeyError:
-                pass
-        raise AttributeError(f"Material has no property {key!r}")
 
     def __setattr__(self, key, value):
         raise AttributeError(f"Material is immutable: use material.replace({key}=...)")

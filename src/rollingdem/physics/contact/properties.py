@@ -88,7 +88,22 @@ class MaterialProperty:
         return MIXING_RULES[self.mixing](a, b)
 
 
-class PairProperties:
+class PropertiesByName:
+    """Read the values of ``self.properties`` as attributes (``pair.friction``); reached only for a
+    name that is no slot of the class."""
+
+    __slots__ = ()
+
+    def __getattr__(self, key):
+        if key != "properties":
+            try:
+                return self.properties[key]
+            except KeyError:
+                pass
+        raise AttributeError(f"{type(self).__name__} has no property {key!r}")
+
+
+class PairProperties(PropertiesByName):
     """The mixed properties of one material pair, as the contact sub-models see them: E* and G*
     (Pa), the coarse-graining factor alpha of the parcels in contact (docs/models.md §18), and
     each declared material property by name (``pair.friction``)."""
@@ -101,14 +116,6 @@ class PairProperties:
         self.effective_shear_modulus = effective_shear_modulus
         self.coarse_graining = coarse_graining
         self.properties = dict(properties)
-
-    def __getattr__(self, key):
-        if key != "properties":
-            try:
-                return self.properties[key]
-            except KeyError:
-                pass
-        raise AttributeError(f"a material pair has no property {key!r}")
 
     def __repr__(self):
         return (f"PairProperties(E*={self.effective_youngs_modulus:g}, G*={self.effective_shear_modulus:g}, "

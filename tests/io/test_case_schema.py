@@ -14,6 +14,7 @@ from rollingdem.errors import Declared
 from rollingdem.io.case_schema import spec_from
 from rollingdem.io.measurements import MassFlow, OutletTotals, WallLoad
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
+from rollingdem.scene.boundaries import Outlet
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Rectangle
 from rollingdem.scene.size_distributions import Discrete, MassFractions, Normal, SieveCurve, Uniform
@@ -25,7 +26,8 @@ DECLARED_BLOCKS = {Plane: "PlaneSpec", Cylinder: "CylinderSpec", Oscillation: "O
                    Disk: "DiskFaceSpec", Rectangle: "RectangleFaceSpec", Uniform: "UniformSpec", Normal: "NormalSpec",
                    Discrete: "DiscreteSpec", MassFractions: "MassFractionsSpec", SieveCurve: "SieveSpec",
                    MassFlow: "MassFlowSpec", OutletTotals: "OutletMeasurementSpec", WallLoad: "WallMeasurementSpec",
-                   PileAngle: "ReposeMeasurementSpec", DrumAngle: "DrumMeasurementSpec", DrumFlow: "DrumFlowSpec"}
+                   PileAngle: "ReposeMeasurementSpec", DrumAngle: "DrumMeasurementSpec", DrumFlow: "DrumFlowSpec",
+                   Outlet: "OutletSpec"}
 
 
 class Nozzle:

@@ -23,6 +23,7 @@ from pydantic import (
 
 from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES
 from rollingdem.scene.bonds import ParallelBond
+from rollingdem.scene.boundaries import Outlet
 from rollingdem.scene.materials import OWN_PROPERTIES
 from rollingdem.io.measurements import MassFlow, OutletTotals, WallLoad
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
@@ -327,13 +328,8 @@ ParticleSpec = Annotated[Union[Annotated[InsertSpec, Tag("insert")], Annotated[R
                          Discriminator(particle_kind)]
 
 
-class OutletSpec(_Strict):
-    """``Simulation.add_outlet``; with ``refill`` each sphere taken out is put back there."""
-    region: RegionSpec
-    name: Optional[str] = None
-    interval: Optional[Number] = None
-    refill: Optional[RegionSpec] = None
-    seed: Whole = 0
+OutletSpec = spec_from(Outlet, "OutletSpec", "Simulation.add_outlet (rollingdem.scene.boundaries.Outlet)",
+                       kinds={"region": RegionSpec})
 
 
 DiskFaceSpec = spec_from(Disk, "DiskFaceSpec", "rollingdem.Disk: a face particles enter through",

@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_integer, check_non_negative, check_positive, check_vector
+from rollingdem.errors import Declared, ParameterError, check_integer, check_non_negative, check_positive, check_vector
 from rollingdem.scene import periodic as periodic_box
 from rollingdem.scene.clumps import Clump, random_orientations
 from rollingdem.scene.mesh import MeshRegion, TriangleMesh
@@ -158,6 +158,12 @@ class Outlet(Boundary):
     kind = "outlet"
     order = REMOVE
     COLUMNS = ("count", "mass")
+    declared = {"region": Declared("the region the particles are taken out of", kind="region"),
+                "name": Declared("label of the outlet in outputs and measurements", kind="text"),
+                "interval": Declared("time between its actions (default 1 ms)", "s", low=0.0, low_open=True),
+                "refill": Declared("the region each sphere taken out is put back in (none: not put back)",
+                                   kind="region"),
+                "seed": Declared("seed of the places drawn for the spheres put back", kind="whole", low=0)}
 
     def __init__(self, region, name=None, interval=None, refill=None, seed=0):
         super().__init__(region, name, interval)

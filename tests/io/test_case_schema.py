@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from rollingdem.cli import app
 from rollingdem.errors import Declared
 from rollingdem.io.case_schema import spec_from
-from rollingdem.io.measurements import MassFlow, OutletTotals, WallLoad
+from rollingdem.io.measurements import MassFlow, OutletTotals, Probe, WallLoad
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
 from rollingdem.scene.boundaries import Outlet
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
@@ -27,7 +27,7 @@ DECLARED_BLOCKS = {Plane: "PlaneSpec", Cylinder: "CylinderSpec", Oscillation: "O
                    Discrete: "DiscreteSpec", MassFractions: "MassFractionsSpec", SieveCurve: "SieveSpec",
                    MassFlow: "MassFlowSpec", OutletTotals: "OutletMeasurementSpec", WallLoad: "WallMeasurementSpec",
                    PileAngle: "ReposeMeasurementSpec", DrumAngle: "DrumMeasurementSpec", DrumFlow: "DrumFlowSpec",
-                   Outlet: "OutletSpec"}
+                   Outlet: "OutletSpec", Probe: "ProbeSpec"}
 
 
 class Nozzle:

@@ -25,7 +25,7 @@ from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES
 from rollingdem.scene.bonds import ParallelBond
 from rollingdem.scene.boundaries import Outlet
 from rollingdem.scene.materials import OWN_PROPERTIES
-from rollingdem.io.measurements import MassFlow, OutletTotals, WallLoad
+from rollingdem.io.measurements import MassFlow, OutletTotals, Probe, WallLoad
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Rectangle
@@ -381,19 +381,17 @@ class _MeasurementBase(_Strict):
 _WINDOW = {"window": Union[tuple[Number, Number], StageWindowSpec]}
 
 
-def _measurement(cls, name, kind, doc, **options):
+def _measurement(cls, name, kind, doc, kinds=None):
     """A measurement's block, its ``type`` the measurement's kind, from its declarations."""
-    return spec_from(cls, name, doc, first={"type": (Literal[kind], ...)}, required=("name",), kinds=_WINDOW,
-                     **options)
+    return spec_from(cls, name, doc, first={"type": (Literal[kind], ...)}, required=("name",),
+                     kinds={**_WINDOW, **(kinds or {})})
 
 
 MassFlowSpec = _measurement(MassFlow, "MassFlowSpec", "mass_flow", "rollingdem.MassFlow: through a plane or a disk")
 
 
-class ProbeSpec(_MeasurementBase):
-    """``rollingdem.Probe``: the particles in ``region`` (a box, a cylinder or a closed mesh)."""
-    type: Literal["probe"]
-    region: Annotated[Union[BoxRegionSpec, CylinderRegionSpec, MeshRegionSpec], Field(discriminator="type")]
+ProbeSpec = _measurement(Probe, "ProbeSpec", "probe", "rollingdem.Probe: the particles in a region",
+                         kinds={"region": RegionSpec})
 
 
 OutletMeasurementSpec = _measurement(OutletTotals, "OutletMeasurementSpec", "outlet",

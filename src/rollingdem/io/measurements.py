@@ -435,6 +435,9 @@ class Probe(Measurement):
     QUANTITIES = {"count": "1", "mass": "kg", "bulk_density": "kg/m^3", "solid_fraction": "1", "vx": "m/s",
                   "vy": "m/s", "vz": "m/s", "kinetic_energy": "J", "coordination": "1"}
 
+    declared = {**Measurement.declared, "region": Declared("the region whose particles are measured (a box, a "
+                                                           "cylinder or a closed mesh)", kind="region")}
+
     def __init__(self, name: str, region, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
         if not hasattr(region, "contains") or not hasattr(region, "volume"):

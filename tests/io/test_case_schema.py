@@ -15,6 +15,7 @@ from rollingdem.io.case_schema import spec_from
 from rollingdem.io.measurements import MassFlow, OutletTotals, Probe, WallLoad
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
 from rollingdem.scene.boundaries import Outlet
+from rollingdem.scene.conditions import Settled
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Rectangle
 from rollingdem.scene.size_distributions import Discrete, MassFractions, Normal, SieveCurve, Uniform
@@ -27,7 +28,7 @@ DECLARED_BLOCKS = {Plane: "PlaneSpec", Cylinder: "CylinderSpec", Oscillation: "O
                    Discrete: "DiscreteSpec", MassFractions: "MassFractionsSpec", SieveCurve: "SieveSpec",
                    MassFlow: "MassFlowSpec", OutletTotals: "OutletMeasurementSpec", WallLoad: "WallMeasurementSpec",
                    PileAngle: "ReposeMeasurementSpec", DrumAngle: "DrumMeasurementSpec", DrumFlow: "DrumFlowSpec",
-                   Outlet: "OutletSpec", Probe: "ProbeSpec"}
+                   Outlet: "OutletSpec", Probe: "ProbeSpec", Settled: "SettledSpec"}
 
 
 class Nozzle:

@@ -24,6 +24,7 @@ from pydantic import (
 from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES
 from rollingdem.scene.bonds import ParallelBond
 from rollingdem.scene.boundaries import Outlet
+from rollingdem.scene.conditions import Settled
 from rollingdem.scene.materials import OWN_PROPERTIES
 from rollingdem.io.measurements import MassFlow, OutletTotals, Probe, WallLoad
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
@@ -477,13 +478,7 @@ def _bond_spec():
 BondSpec = _bond_spec()
 
 
-class SettledSpec(_Strict):
-    """``rollingdem.Settled``: translational kinetic energy per free particle below ``kinetic_energy``
-    (J; default 1e-6 m g d) for ``hold`` seconds (``rotation``: count the rotational energy too)."""
-    kinetic_energy: Optional[Number] = None
-    hold: Number = 0.05
-    rotation: bool = False
-    every: Number = 1e-3
+SettledSpec = spec_from(Settled, "SettledSpec", "rollingdem.Settled: the bed at rest")
 
 
 class UntilSpec(_Strict):

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_finite, check_positive
+from rollingdem.errors import Declared, ParameterError, check_finite, check_positive
 from rollingdem.scene.schedule import OBSERVE, Operation
 
 
@@ -56,6 +56,13 @@ class Settled(Condition):
     1.4e-3 sqrt(g d)). With ``rotation``, the rotational energy counts too; it is left out by
     default because a sphere spinning about its contact normal, undamped without a twisting law,
     keeps its energy in a bed that no longer moves."""
+
+    declared = {"kinetic_energy": Declared("threshold of the translational kinetic energy per free particle "
+                                           "(default 1e-6 m g d, m and d the free particles' mean mass and "
+                                           "diameter)", "J", low=0.0, low_open=True),
+                "hold": Declared("how long the energy must stay below the threshold", "s", low=0.0),
+                "every": Declared("time between checks", "s", low=0.0, low_open=True),
+                "rotation": Declared("count the rotational kinetic energy too", kind="flag")}
 
     def __init__(self, kinetic_energy: float | None = None, hold: float = 0.05, every: float = 1e-3,
                  rotation: bool = False):

@@ -18,6 +18,13 @@ from rollingdem.errors import Declared, ParameterError, check_finite, check_posi
 from rollingdem.io.measurements import Measurement, WallLoad, drum_frame, fixed_top, window_of
 
 
+#: the drum measurements' common parameters (``Declared``)
+DRUM_DECLARED = {"center": Declared("a point of the drum's axis", "m", "vector"),
+                 "axis": Declared("the drum's axis (made unit length)", "-", "vector"),
+                 "extent": Declared("[s0, s1]: the slice along the axis measured, from center (none: all)", "m",
+                                    "pair")}
+
+
 class PileAngle(Measurement):
     """The angle of repose of the free particles' pile (``rollingdem.analysis.repose.repose_angle``,
     docs/analysis.md): ``angle`` (deg, the cone fit), ``r_squared`` (the fit's), ``slice_mean`` and
@@ -85,10 +92,7 @@ class DrumAngle(Measurement):
     INTERVAL = 0.01
     QUANTITIES = {"angle": "deg", "com_angle": "deg", "weight_moment": "N m"}
 
-    declared = {**Measurement.declared, "center": Declared("a point of the drum's axis", "m", "vector"),
-                "axis": Declared("the drum's axis (made unit length)", "-", "vector"),
-                "extent": Declared("[s0, s1]: the slice along the axis measured, from center (none: all)", "m",
-                                   "pair")}
+    declared = {**Measurement.declared, **DRUM_DECLARED}
 
     def __init__(self, name: str, center, axis, extent=None, interval: float | None = None, window=None):
         super().__init__(name, interval, window)
@@ -161,10 +165,7 @@ class DrumFlow(Measurement):
     INTERVAL = 0.05
     QUANTITIES = {"flowing_depth": "m", "passive_speed_ratio": "1", "wall_layer_speed_ratio": "1"}
 
-    declared = {**Measurement.declared, "center": Declared("a point of the drum's axis", "m", "vector"),
-                "axis": Declared("the drum's axis (made unit length)", "-", "vector"),
-                "extent": Declared("[s0, s1]: the slice along the axis measured, from center (none: all)", "m",
-                                   "pair"),
+    declared = {**Measurement.declared, **DRUM_DECLARED,
                 "radius": Declared("the drum's inner radius", "m", low=0.0, low_open=True),
                 "wall": Declared("name of the wall that turns the drum", kind="text")}
 

@@ -105,9 +105,6 @@ class Material(PropertiesByName):
 
     def replace(self, **changes) -> "Material":
         """A copy with ``changes`` (checked as a new material's)."""
-        for key in changes:
-            if key not in OWN_FIELDS and key not in MATERIAL_PROPERTIES:
-                raise _unknown_property(f"material {self.name!r}: ", key)
         return Material(**{**self.to_dict(), **changes})
 
     def __eq__(self, other):

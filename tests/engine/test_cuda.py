@@ -538,3 +538,19 @@ def test_a_missing_gpu_is_one_clear_line():
         pass
     with pytest.raises(ParameterError, match=r"backend 'cuda' (has no GPU|found no usable CUDA driver|needs numba-cuda)"):
         rd.Simulation(backend="cuda")
+
+
+@pytest.mark.parametrize("features", [{}, dict(bonded_pairs=True, meshes=True, clumps=True, programs=True)])
+def test_the_gpu_binds_every_phase_of_the_cpus_step_control(features):
+    """The GPU's step loop runs the engine module's ``advance`` as Python on the host: every
+    function its body calls is one the GPU binds to launches on the device (a pass called there
+    directly would run on the host's records, not the device's). Checked on the module with no
+    feature switch and with all of them (the generated module is read, not compiled)."""
+    import rollingdem as rd
+    from rollingdem.engine.codegen import engine_module
+    from rollingdem.engine.cuda.step_loop import PHASES
+
+    module = engine_module(rd.ContactModel(rolling="epsd"), **features)
+    code = module.advance.py_func.__code__
+    called = {name for name in code.co_names if hasattr(getattr(module, name, None), "py_func")}
+    assert called == set(PHASES)

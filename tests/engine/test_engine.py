@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import rollingdem as rd
+from rollingdem.engine import backends
 from rollingdem.engine.state import EngineState
 from rollingdem.engine.layout import I_REBUILDS
 from rollingdem.engine.neighbors import POOL_GROUP, brute_force_pairs
@@ -493,7 +494,7 @@ def test_pool_rows_packed_in_list_order_after_a_rebuild(table1):
         sim.run(steps=500)
         st = sim._state
         particles, walls, lists, _ = st.records()
-        kernel._rebuild(particles, walls, lists, sim.skin, st.info)
+        kernel.rebuild(particles, walls, lists, sim.skin, st.info)
         for rows, free, first in pool_rows(st):
             np.testing.assert_array_equal(rows, first + np.arange(len(rows)))
             assert free == []
@@ -629,3 +630,52 @@ def test_clock_does_not_depend_on_how_the_steps_are_cut(table1):
     one.dt = 2e-5
     one.run(steps=10)
     assert one.time == 1024 * 1e-5 + 10 * 2e-5
+
+
+class PythonControl(backends.CpuBackend):
+    """The CPU's step loop with its control run as Python: ``advance``'s body calling the compiled
+    phases, as the GPU runs it (``engine/cuda/step_loop.py``)."""
+    name = "python-control"
+
+    def step_loop(self, state, module):
+        return super().step_loop(state, module).py_func
+
+
+def falling_onto_a_rising_floor(table1, backend):
+    """The cube of ``cluster`` falling onto a floor that rises at 0.05 m/s, with a skin of 0.1 mm: the list
+    is rebuilt every few tens of steps."""
+    sim = rd.Simulation(contact=rd.ContactModel("hertz", rolling="cdt"), gravity=(0, 0, -9.81), dt=2e-6, skin=1e-4, backend=backend)
+    sim.add_material(table1())
+    source = cluster(table1, n_side=3)
+    sim.add_particles(source.positions, source.radii, "m", velocity=source.velocities,
+                      angular_velocity=source.angular_velocities)
+    sim.add_wall(rd.Plane(point=(0, 0, -1.02 * R), normal=(0, 0, 1), velocity=(0, 0, 0.05)))
+    return sim
+
+
+def test_the_step_control_run_as_python_steps_as_the_compiled_loop(table1, monkeypatch):
+    """The step's control is written once (``advance``); the GPU runs its Python body with the
+    phases bound to kernel launches. Run here with the CPU's compiled phases, it gives the compiled
+    loop's bits: spheres colliding and falling onto a moving floor, in calls of 37 steps (each ends
+    after the closing kick, the next opens the step), with neighbor-list rebuilds; and a free fall
+    with a skin so small that a sphere becomes too fast: the same step refused, the same drift taken
+    back."""
+    monkeypatch.setitem(backends.BACKENDS, PythonControl.name, PythonControl())
+    runs = {}
+    for backend in ("cpu", PythonControl.name):
+        sim = falling_onto_a_rising_floor(table1, backend)
+        for _ in range(8):
+            sim.run(steps=37)
+        fall = rd.Simulation(contact=rd.ContactModel("hertz", rolling="cdt"), gravity=(0, 0, -9.81), dt=1e-4,
+                             skin=2e-6, backend=backend, check_timestep=False)
+        fall.add_material(table1())
+        fall.add_particles([[0, 0, 0]], R, "m")
+        with pytest.raises(rd.SimulationError, match="more than half the neighbor skin") as refused:
+            fall.run(steps=100)
+        runs[backend] = (sim.positions, sim.velocities, sim.angular_velocities, sim.engine_statistics()["neighbor_rebuilds"],
+                         sim.number_of_contacts(), fall.positions, fall.velocities, fall.step, str(refused.value))
+    compiled, python = runs.values()
+    assert compiled[3] > 1 and compiled[4] > 0  # the lists were rebuilt, the spheres touch
+    assert 0 < compiled[7] < 100  # the fall was refused part way
+    for a, b in zip(compiled, python):
+        np.testing.assert_array_equal(a, b)

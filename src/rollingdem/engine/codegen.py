@@ -24,7 +24,7 @@ import numba
 from rollingdem.engine import template
 from rollingdem.engine.precompile import prepare
 
-SERIAL_PASSES = ("advance", "pair_forces", "gather", "kick_drift", "clump_pass")  # name -> name_serial
+SERIAL_PASSES = ("advance", "open_step", "close_step", "pair_forces", "gather", "kick_drift", "clump_pass")  # name -> name_serial
 _SERIAL_NAME = re.compile(r"\b(" + "|".join(SERIAL_PASSES) + r")\(")
 _ALIASES = {"NORMAL": "normal_force", "TANGENTIAL": "tangential_force", "ROLLING": "rolling_moment",
             "TWISTING": "twisting_moment", "COHESION": "cohesion_force"}

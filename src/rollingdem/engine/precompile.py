@@ -35,7 +35,7 @@ def plans(serial: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
     # about half the work each (docs/performance.md): the neighbor rebuild and the drift passes,
     # which the step loop alone calls, go to the helper, which has them done while this process
     # compiles the pair pass and the gather
-    helper = ("contact", "gather_rows", "_rebuild", "kick_drift" + sfx, "undo_drift")
+    helper = ("contact", "gather_rows", "rebuild", "kick_drift" + sfx, "undo_drift")
     # the contact block first: it needs nothing of the helper's, which is still starting
     main = ("block_contacts", "pair_forces" + sfx, "gather" + sfx)
     return helper, main
@@ -75,7 +75,7 @@ def signatures(module) -> dict:
         "contact": (lists.pool, 0, (0.0,) * N_INPUTS, pp[0, 0], dt),
         "block_contacts": (scratch.blocks[0], pp[0, 0], dt),
         "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.fixed, st.clump, st.image, st.x_ref, lists),
-        "_rebuild": (particles, walls, lists, skin, st.info),
+        "rebuild": (particles, walls, lists, skin, st.info),
         "pair_forces": (dt, pp, particles, lists, scratch), "pair_forces_serial": (dt, pp, particles, lists, scratch),
         "gather_rows": (0, 1, dt, kick, np.zeros(3), particles, walls, lists, pp, half_skin),
         "gather": gather, "gather_serial": gather,

@@ -1,9 +1,10 @@
 """The step loop on a CUDA GPU (``Simulation(backend="cuda")``, docs/gpu.md).
 
-The same step as the CPU engine's ``advance`` (``rollingdem.engine.template.loop``), with its passes as
-CUDA kernels around the very functions the CPU compiles from the same generated module: the contact
-laws, the pair row, the gather, the walls, the bonds, the integrator. One physics source; only the
-driving differs:
+The CPU engine's own step control: the host runs the engine module's ``advance``
+(``rollingdem.engine.template.loop``) as Python, its phases (``rebuild``, ``open_step``,
+``close_step``, ``take_back_drift``) bound to launches of CUDA kernels around the very functions
+the CPU compiles from the same generated module: the contact laws, the pair row, the gather, the
+walls, the bonds, the integrator. One physics source and one control; only the driving differs:
 
 - pair pass: one thread per list row, through the scalar ``pair_row`` (``pair_rows_scalar``); the
   list goes to the device without pool groups, which makes entry k's contact keep pool row k (the
@@ -27,18 +28,21 @@ from __future__ import annotations
 import collections
 import math
 import time
+import types
 
 import numpy as np
 
 from rollingdem.engine.cuda import target as cuda_target
 from rollingdem.engine.cuda import neighbors as gpu_neighbors
-from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST, KICK_CLOSE, KICK_CLOSE_AND_DRIFT, KICK_NONE, STATUS_TOO_FAST
+from rollingdem.engine.layout import KICK_CLOSE_AND_DRIFT
 from rollingdem.engine.neighbors import index_list, put_entry_history
 from rollingdem.engine.rigid_body import KICK_OPEN
 
 #: what a kernel needs besides the records; the flags count particles past skin/2 and too fast
 StepInputs = collections.namedtuple("StepInputs", ("gravity", "pair_params", "flags"))
 EXCEED, FAST = 0, 1
+#: the engine module's functions that its ``advance`` calls, each bound to launches on the device
+PHASES = ("rebuild", "open_step", "close_step", "take_back_drift")
 
 _KERNELS = {}
 # ``numba.cuda``, from ``cuda_target`` when the first kernels are made: a global of this module, as
@@ -126,73 +130,46 @@ class CudaStepLoop:
     def __call__(self, nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info):
         m, k = self.module, self.kernels
         n = particles.x.shape[0]
-        half_skin = 0.5 * skin
         host = self._host(gravity, pair_params, particles, walls, lists)
-        info[I_STATUS] = 0
-        info[I_STEPS_DONE] = 0
         n_bonds, n_clumps = particles.bond_pairs.shape[0], particles.clump_mass.shape[0]
         dev, rebuild = self._upload(host, m.HISTORY_SIZE)
         self._counted = 0  # particles past skin/2 counted on the device so far (``_flags``)
         self.device_bytes = sum(a.nbytes for record in (*dev[:3], rebuild.arrays) for a in record) + \
             sum(a.nbytes for a in (*rebuild.sums, *rebuild.sums64))
+        on_host = []  # the records came back before the call's end (a drift taken back)
 
-        def forces(dt_bonds, kick, move_walls):
-            """Pairs, bonds, the gather (with the kicks and the drift), then the walls' motion:
-            the flag counts."""
+        def rebuild_lists(particles, walls, lists, skin, info):
+            return rebuild(skin, dev[0], dev[1], dev[2], info)
+
+        def open_step(dt, gravity, particles, walls, lists, half_skin):
+            return self._flags(dev, lambda: (
+                cuda_target.launch(k["drift"], n, dt, half_skin, dev[0], dev[3]),
+                cuda_target.launch(k["clumps"], n_clumps, dt, KICK_OPEN, half_skin, dev[0], dev[2], dev[3]),
+                cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3], False)))[0]
+
+        def close_step(dt, dt_bonds, kick, gravity, pair_params, particles, walls, lists, scratch, half_skin):
+            """One synchronisation: the walls' move that goes with the next drift is launched
+            with the rest, and the device skips it when a particle is too fast."""
             def launches():
                 cuda_target.launch(k["pairs"], n, dt, dev[0], dev[2], dev[3])
                 cuda_target.launch(k["bonds"], n_bonds, dt_bonds, dev[0], dev[2])  # none without bonds
                 cuda_target.launch(k["gather"], n, dt, kick, half_skin, *dev)
                 cuda_target.launch(k["clumps"], n_clumps, dt, kick, half_skin, dev[0], dev[2], dev[3])  # none without
-                if move_walls:
+                if kick == KICK_CLOSE_AND_DRIFT:
                     cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3], True)
             return self._flags(dev, launches)
 
+        def take_back_drift(dt, particles, lists):
+            self._download(dev, host, m.HISTORY_SIZE)
+            on_host.append(True)
+            m.take_back_drift(dt, particles, lists)
+
+        bound = dict(zip(PHASES, (rebuild_lists, open_step, close_step, take_back_drift)))
+        control = types.FunctionType(m.advance.py_func.__code__, {**vars(m), **bound})
         try:
-            if info[I_FORCES_VALID] == 0:
-                info[I_DRIFTED] = 0
-                if not rebuild(skin, dev[0], dev[1], dev[2], info):
-                    return
-                # as in ``advance``: a fresh bond adds no increment in this evaluation (dt 0)
-                _, fast = forces(0.0, KICK_NONE, False)
-                info[I_TOO_FAST] = fast
-                info[I_NEED_REBUILD] = 0
-                info[I_FORCES_VALID] = 1
-            for step in range(nsteps):
-                if info[I_DRIFTED] == 0:
-                    if info[I_TOO_FAST] > 0:
-                        info[I_STATUS] = STATUS_TOO_FAST
-                        return
-                    exceed, _ = self._flags(dev, lambda: (
-                        cuda_target.launch(k["drift"], n, dt, half_skin, dev[0], dev[3]),
-                        cuda_target.launch(k["clumps"], n_clumps, dt, KICK_OPEN, half_skin, dev[0], dev[2], dev[3]),
-                        cuda_target.launch(k["walls_move"], 1, dt, half_skin, dev[1], dev[3], False)))
-                    info[I_NEED_REBUILD] += exceed
-                    info[I_DRIFTED] = 1
-                if info[I_NEED_REBUILD] > 0:
-                    if not rebuild(skin, dev[0], dev[1], dev[2], info):
-                        return  # drifted: the call after the arrays grow goes on from here
-                    info[I_NEED_REBUILD] = 0
-                drift = step + 1 < nsteps
-                # with the next step's drift (in the gather) the walls move, unless a particle was
-                # too fast: then the host undoes the drift, as ``advance`` does
-                exceed, fast = forces(dt, KICK_CLOSE_AND_DRIFT if drift else KICK_CLOSE, drift)
-                info[I_NEED_REBUILD] = exceed
-                info[I_TOO_FAST] = fast
-                info[I_STEPS_DONE] = step + 1
-                info[I_DRIFTED] = 0
-                if drift:
-                    if fast > 0:
-                        self._download(dev, host, m.HISTORY_SIZE)
-                        dev = None
-                        m.undo_drift(dt, particles)
-                        if n_clumps:
-                            m.clump_undo(dt, particles, lists.box)
-                        info[I_STATUS] = STATUS_TOO_FAST
-                        return
-                    info[I_DRIFTED] = 1
+            control(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info)
         finally:
-            if dev is not None:
+            if not on_host:
                 self._download(dev, host, m.HISTORY_SIZE)
 
     def _flags(self, dev, launch):

@@ -141,3 +141,26 @@ def contact_in_frame(hist, k, frame, g, p, dt, moments):
             e_r if TRACK_ENERGY else 0.0, e_tw if TRACK_ENERGY else 0.0)
 
 
+#: the sums of no contact: force and torque on i, the four dissipated energies, the count
+NO_CONTACT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0)
+
+
+@njit(cache=True, inline="always")
+def add_contact(sums, res):
+    """``sums`` (as ``NO_CONTACT``) with one contact's ``CONTACT_RESULTS`` added: its force and
+    torque on i, its dissipated energies, one contact more."""
+    return (sums[0] + res[0], sums[1] + res[1], sums[2] + res[2], sums[3] + res[3], sums[4] + res[4],
+            sums[5] + res[5], sums[6] + res[9], sums[7] + res[10], sums[8] + res[11], sums[9] + res[12],
+            sums[10] + 1)
+
+
+@njit(cache=True, inline="always")
+def add_energies_and_count(i, particles, sums):
+    """Particle i's dissipated energies and contact count with those of ``sums`` (as
+    ``NO_CONTACT``) added."""
+    if TRACK_ENERGY:
+        particles.energy[i, 0] += sums[6]
+        particles.energy[i, 1] += sums[7]
+        particles.energy[i, 2] += sums[8]
+        particles.energy[i, 3] += sums[9]
+    particles.contacts[i] += sums[10]

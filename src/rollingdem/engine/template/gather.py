@@ -13,7 +13,7 @@ from rollingdem.engine.integrator import kick_drift_one, next_drift_bound
 from rollingdem.engine.neighbors import minimum_image
 from rollingdem.engine.wall_candidates import mark_moved_walls
 from rollingdem.physics.bonds import BOND_INTACT, parallel_bond
-from rollingdem.engine.template.contact import BONDED_PAIRS, GATHER_RUN, MESHES, TRACK_ENERGY  # @@PART
+from rollingdem.engine.template.contact import BONDED_PAIRS, GATHER_RUN, MESHES, add_energies_and_count  # @@PART
 from rollingdem.engine.template.walls import mesh_contacts, wall_contacts  # @@PART
 
 
@@ -42,12 +42,7 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
     tx += wres[3]
     ty += wres[4]
     tz += wres[5]
-    if TRACK_ENERGY:
-        particles.energy[i, 0] += wres[6]
-        particles.energy[i, 1] += wres[7]
-        particles.energy[i, 2] += wres[8]
-        particles.energy[i, 3] += wres[9]
-    particles.contacts[i] += wres[10]
+    add_energies_and_count(i, particles, wres)
     stop = False
     if MESHES and walls.triangles.shape[0] > 0:
         mres = mesh_contacts(i, dt, particles, walls, pair_params, half_skin)
@@ -57,12 +52,7 @@ def gather_one(i, dt, kick, gravity, particles, walls, pair_params, half_skin):
         tx += mres[3]
         ty += mres[4]
         tz += mres[5]
-        if TRACK_ENERGY:
-            particles.energy[i, 0] += mres[6]
-            particles.energy[i, 1] += mres[7]
-            particles.energy[i, 2] += mres[8]
-            particles.energy[i, 3] += mres[9]
-        particles.contacts[i] += mres[10]
+        add_energies_and_count(i, particles, mres)
         stop = walls.mesh_error[i] != 0  # the step stops as for a particle too fast, and says why
     f[i, 0] = fx
     f[i, 1] = fy

@@ -7,7 +7,7 @@ A part of the step loop's template (``rollingdem.engine.template``).
 
 from numba import njit
 
-from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST, STATUS_TOO_FAST
+from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST, KICK_CLOSE, KICK_CLOSE_AND_DRIFT, KICK_NONE, STATUS_TOO_FAST
 from rollingdem.engine.integrator import kick_drift, move_steady, move_walls, undo_drift
 # the engine module's own names for its callers: the serial copy of the step loop calls
 # kick_drift_serial, the GPU's drift kernel kick_drift_range
@@ -33,32 +33,72 @@ def move_planes(dt, walls):
 
 
 # compiled once for every law, in a package module (a copy in each engine module cost its cold compile 2 s)
-_rebuild = rebuild_lists if MESHES else rebuild_lists_without_meshes
+rebuild = rebuild_lists if MESHES else rebuild_lists_without_meshes
+
+
+@njit(cache=True, inline="always")  # @@SERIAL_COPY
+def open_step(dt, gravity, particles, walls, lists, half_skin):
+    """The opening half of a step where the last step left none: the half kick and the drift of
+    particles and clumps, the walls' and meshes' move. Returns the count past skin/2."""
+    exceed = kick_drift(dt, particles, half_skin)
+    if CLUMPS and particles.clump_mass.shape[0] != 0:
+        exceed += clump_pass(dt, KICK_OPEN, gravity, particles, lists.box, half_skin)[0]
+    move_planes(dt, walls)
+    if MESHES:
+        exceed += move_meshes(dt, walls, half_skin)
+    return exceed
+
+
+@njit(cache=True, inline="always")  # @@SERIAL_COPY
+def close_step(dt, dt_bonds, kick, gravity, pair_params, particles, walls, lists, scratch, half_skin):
+    """The forces at the drifted positions (pairs, bonds advanced by ``dt_bonds``, walls, gravity,
+    clumps) and ``kick``: KICK_NONE, KICK_CLOSE (the closing half kick) or KICK_CLOSE_AND_DRIFT
+    (and the next step's opening half kick and drift, and, unless a particle is too fast, the
+    walls' move with it). Returns (the count past skin/2, the count too fast)."""
+    pair_forces(dt, pair_params, particles, lists, scratch)
+    if BONDED_PAIRS and particles.bond_pairs.shape[0] != 0:
+        bond_forces(0, particles.bond_pairs.shape[0], dt_bonds, particles, lists.box)
+    exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, scratch, half_skin)
+    if CLUMPS and particles.clump_mass.shape[0] != 0:
+        clump_exceed, clump_fast = clump_pass(dt, kick, gravity, particles, lists.box, half_skin)
+        exceed += clump_exceed
+        fast += clump_fast
+    if kick == KICK_CLOSE_AND_DRIFT and fast == 0:
+        move_planes(dt, walls)
+        if MESHES:
+            exceed += move_meshes(dt, walls, half_skin)
+    return exceed, fast
+
+
+@njit(cache=True, inline="always")
+def take_back_drift(dt, particles, lists):
+    """The drift of particles and clumps made with the last closing half, taken back (a particle
+    was too fast: the walls did not move)."""
+    undo_drift(dt, particles)
+    if CLUMPS and particles.clump_mass.shape[0] != 0:
+        clump_undo(dt, particles, lists.box)
 
 
 @njit(cache=True)  # @@SERIAL_COPY
 def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scratch, info):
     """Advance ``nsteps`` steps (``advance_serial``: the same loop with the ``*_serial`` passes, on the
     calling thread); stop early at a step boundary with info[I_STATUS] = STATUS_CAPACITY (grow the
-    list to info[I_NEEDED]) or STATUS_TOO_FAST (docs/architecture.md, the step)."""
+    list to info[I_NEEDED]) or STATUS_TOO_FAST (docs/architecture.md, the step).
+
+    The step's control, for every backend: the GPU runs this function's Python body on the host
+    with ``rebuild``, ``open_step``, ``close_step`` and ``take_back_drift`` bound to its kernel
+    launches (``rollingdem.engine.cuda.step_loop``)."""
     half_skin = 0.5 * skin
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:
         info[I_DRIFTED] = 0
-        if not _rebuild(particles, walls, lists, skin, info):
+        if not rebuild(particles, walls, lists, skin, info):
             return
-        # the pair pass and the gather are called here and in the loop, not through one function
-        # of their own, which would compile the whole engine module once more (1 s of a cold compile)
-        pair_forces(dt, pair_params, particles, lists, scratch)
-        if BONDED_PAIRS and particles.bond_pairs.shape[0] != 0:
-            # the bonds' load as it is: no motion in this evaluation to add (dt 0), so a fresh bond
-            # starts unloaded and a run resumed after a change of the scene adds nothing twice
-            bond_forces(0, particles.bond_pairs.shape[0], 0.0, particles, lists.box)
-        exceed, fast = gather(dt, 0.0, gravity, pair_params, particles, walls, lists, scratch, half_skin)
-        if CLUMPS and particles.clump_mass.shape[0] != 0:
-            fast += clump_pass(dt, 0.0, gravity, particles, lists.box, half_skin)[1]
-        info[I_TOO_FAST] = fast
+        # the bonds' load as it is: no motion in this evaluation to add (dt_bonds 0), so a fresh bond
+        # starts unloaded and a run resumed after a change of the scene adds nothing twice
+        info[I_TOO_FAST] = close_step(dt, 0.0, KICK_NONE, gravity, pair_params, particles, walls, lists, scratch,
+                                      half_skin)[1]
         info[I_NEED_REBUILD] = 0
         info[I_FORCES_VALID] = 1
     for step in range(nsteps):
@@ -67,40 +107,22 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
                 # even a list built now would not hold for this step: refuse rather than miss contacts
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
-            exceed = kick_drift(dt, particles, half_skin)
-            if CLUMPS and particles.clump_mass.shape[0] != 0:
-                exceed += clump_pass(dt, KICK_OPEN, gravity, particles, lists.box, half_skin)[0]
-            info[I_NEED_REBUILD] += exceed
-            move_planes(dt, walls)
-            if MESHES:
-                info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
+            info[I_NEED_REBUILD] += open_step(dt, gravity, particles, walls, lists, half_skin)
             info[I_DRIFTED] = 1
         if info[I_NEED_REBUILD] > 0:
-            if not _rebuild(particles, walls, lists, skin, info):
+            if not rebuild(particles, walls, lists, skin, info):
                 return  # drifted: the call after the arrays grow goes on from here
             info[I_NEED_REBUILD] = 0
         drift = step + 1 < nsteps
-        kick = 2.0 if drift else 1.0
-        pair_forces(dt, pair_params, particles, lists, scratch)
-        if BONDED_PAIRS and particles.bond_pairs.shape[0] != 0:
-            bond_forces(0, particles.bond_pairs.shape[0], dt, particles, lists.box)
-        exceed, fast = gather(dt, kick, gravity, pair_params, particles, walls, lists, scratch, half_skin)
-        if CLUMPS and particles.clump_mass.shape[0] != 0:
-            clump_exceed, clump_fast = clump_pass(dt, kick, gravity, particles, lists.box, half_skin)
-            exceed += clump_exceed
-            fast += clump_fast
+        exceed, fast = close_step(dt, dt, KICK_CLOSE_AND_DRIFT if drift else KICK_CLOSE, gravity, pair_params,
+                                  particles, walls, lists, scratch, half_skin)
         info[I_NEED_REBUILD] = exceed
         info[I_TOO_FAST] = fast
         info[I_STEPS_DONE] = step + 1
         info[I_DRIFTED] = 0
         if drift:
-            if info[I_TOO_FAST] > 0:
-                undo_drift(dt, particles)
-                if CLUMPS and particles.clump_mass.shape[0] != 0:
-                    clump_undo(dt, particles, lists.box)
+            if fast > 0:
+                take_back_drift(dt, particles, lists)
                 info[I_STATUS] = STATUS_TOO_FAST
                 return
-            move_planes(dt, walls)  # with the next step's drift, made in the gather
-            if MESHES:
-                info[I_NEED_REBUILD] += move_meshes(dt, walls, half_skin)
-            info[I_DRIFTED] = 1
+            info[I_DRIFTED] = 1  # with the walls' move, made in close_step

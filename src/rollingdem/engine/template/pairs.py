@@ -15,7 +15,7 @@ from rollingdem.engine.layout import BLOCK_SHIFT, CONTACT_BLOCK, LANE_HITS, PERI
 from rollingdem.engine.neighbors import POOL_GROUP, free_row, minimum_image, take_row
 from rollingdem.physics.bonds import BOND_INTACT
 from rollingdem.physics.contact.frame import SERIES_ANGLE, contact_frame_series, spin_angle, stored_normal
-from rollingdem.engine.template.contact import BLOCK_COLUMNS, BONDED_PAIRS, B_IN, B_OUT, B_SCALAR, CANDIDATE_SLACK, DETACH_AT, HISTORY_SIZE, INERTIA_R_FACTOR, TRACK_ENERGY, bonded_contact, contact, contact_in_frame  # @@PART
+from rollingdem.engine.template.contact import BLOCK_COLUMNS, BONDED_PAIRS, B_IN, B_OUT, B_SCALAR, CANDIDATE_SLACK, DETACH_AT, HISTORY_SIZE, INERTIA_R_FACTOR, NO_CONTACT, TRACK_ENERGY, add_contact, add_energies_and_count, bonded_contact, contact, contact_in_frame  # @@PART
 
 
 @njit(cache=True, inline="always")
@@ -214,10 +214,7 @@ def pair_row(i, dt, particles, lists, pair_params):
     """Row i of the half list, one contact at a time through the scalar ``contact`` (spheres of more
     than one material, see ``pair_rows``)."""
     f, t, mat, pool = particles.f, particles.t, particles.mat, lists.pool
-    fx = fy = fz = 0.0
-    tx = ty = tz = 0.0
-    en = et = er = etw = 0.0
-    ncontact = 0
+    sums = NO_CONTACT
     for k in range(lists.start[i], lists.start[i + 1]):
         touching, j, row, g = entry_inputs(i, k, particles, lists)
         if not touching:
@@ -226,32 +223,18 @@ def pair_row(i, dt, particles, lists, pair_params):
             res = bonded_contact(pool, np.int64(row), g, pair_params[mat[i], mat[j]], dt)
         else:
             res = contact(pool, np.int64(row), g, pair_params[mat[i], mat[j]], dt)
-        fx += res[0]
-        fy += res[1]
-        fz += res[2]
-        tx += res[3]
-        ty += res[4]
-        tz += res[5]
+        sums = add_contact(sums, res)
         for d in range(3):
             lists.pair_terms[row, d] = res[d]
             lists.pair_terms[row, 3 + d] = -res[6 + d]
-        en += res[9]
-        et += res[10]
-        er += res[11]
-        etw += res[12]
-        ncontact += 1
-    f[i, 0] = fx
-    f[i, 1] = fy
-    f[i, 2] = fz
-    t[i, 0] = tx
-    t[i, 1] = ty
-    t[i, 2] = tz
-    if TRACK_ENERGY:
-        particles.energy[i, 0] += en
-        particles.energy[i, 1] += et
-        particles.energy[i, 2] += er
-        particles.energy[i, 3] += etw
-    particles.contacts[i] = ncontact
+    f[i, 0] = sums[0]
+    f[i, 1] = sums[1]
+    f[i, 2] = sums[2]
+    t[i, 0] = sums[3]
+    t[i, 1] = sums[4]
+    t[i, 2] = sums[5]
+    particles.contacts[i] = 0
+    add_energies_and_count(i, particles, sums)
 
 
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})

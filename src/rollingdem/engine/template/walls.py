@@ -12,7 +12,7 @@ from rollingdem.physics.records import WALL_LOAD_SIZE
 from rollingdem.engine.layout import MESH_GRID as GR, MESH_MOTION as MO, MESH_SLOTS
 from rollingdem.engine.mesh_passes import match_mesh_contacts, surface_velocity
 from rollingdem.physics.walls import wall_contact_geometry
-from rollingdem.engine.template.contact import DETACH_AT, INERTIA_R_FACTOR, contact  # @@PART
+from rollingdem.engine.template.contact import DETACH_AT, INERTIA_R_FACTOR, NO_CONTACT, add_contact, contact  # @@PART
 
 
 @njit(cache=True, inline="always")
@@ -24,10 +24,7 @@ def wall_contacts(i, dt, particles, walls, pair_params):
     """
     x, v, w = particles.x, particles.v, particles.w
     wall_kind, wall_geom, whist, wtouch = walls.kind, walls.geometry, walls.history, walls.touching
-    fx = fy = fz = 0.0
-    tx = ty = tz = 0.0
-    en = et = er = etw = 0.0
-    ncontact = 0
+    sums = NO_CONTACT
     nwall = wall_kind.shape[0]
     ri = particles.radius[i]
     mi = particles.mass[i]
@@ -44,7 +41,7 @@ def wall_contacts(i, dt, particles, walls, pair_params):
         elif walls.near[k] != 0 or walls.moved[wl] != 0:
             need |= wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom)[0] > 0.0
     if not need:
-        return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+        return sums
     for wl in range(nwall):
         k = i * uint64(nwall) + uint64(wl)
         overlap, nx, ny, nz = wall_contact_geometry(i, wl, x, ri, wall_kind, wall_geom)
@@ -73,18 +70,8 @@ def wall_contacts(i, dt, particles, walls, pair_params):
                                            ri, mi, INERTIA_R_FACTOR * mi * ri * ri),
                       pair_params[particles.mat[i], walls.material[wl]], dt)
         wall_load(walls.load, k, res, x[i, 0] - lever * nx, x[i, 1] - lever * ny, x[i, 2] - lever * nz)
-        fx += res[0]
-        fy += res[1]
-        fz += res[2]
-        tx += res[3]
-        ty += res[4]
-        tz += res[5]
-        en += res[9]
-        et += res[10]
-        er += res[11]
-        etw += res[12]
-        ncontact += 1
-    return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+        sums = add_contact(sums, res)
+    return sums
 
 
 @njit(cache=True, inline="always")
@@ -109,10 +96,7 @@ def mesh_contacts(i, dt, particles, walls, pair_params, half_skin):
     cannot reach any: its gap to them at the build exceeds how far it has moved since (and a
     moving mesh's skin/2)."""
     x, v, w = particles.x, particles.v, particles.w
-    fx = fy = fz = 0.0
-    tx = ty = tz = 0.0
-    en = et = er = etw = 0.0
-    ncontact = 0
+    sums = NO_CONTACT
     lo = walls.candidate_start[i]
     gap = walls.candidate_gap[i]
     if lo == walls.candidate_start[i + 1] or gap > 0.0:
@@ -121,13 +105,13 @@ def mesh_contacts(i, dt, particles, walls, pair_params, half_skin):
             used |= walls.slot_triangle[i, s] >= 0
         if not used:  # no contact to end
             if lo == walls.candidate_start[i + 1]:
-                return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+                return sums
             ex = x[i, 0] - particles.x_ref[i, 0]
             ey = x[i, 1] - particles.x_ref[i, 1]
             ez = x[i, 2] - particles.x_ref[i, 2]
             reach = math.sqrt(ex * ex + ey * ey + ez * ez) + (half_skin if walls.grid[GR.moving] != 0.0 else 0.0)
             if gap > reach:
-                return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+                return sums
     px, py, pz = x[i, 0], x[i, 1], x[i, 2]
     ri = particles.radius[i]
     mi = particles.mass[i]
@@ -151,17 +135,7 @@ def mesh_contacts(i, dt, particles, walls, pair_params, half_skin):
                        INERTIA_R_FACTOR * mi * ri * ri),
                       pair_params[particles.mat[i], walls.mesh_material[m]], dt)
         wall_load(walls.mesh_load, k, res, qx, qy, qz)
-        fx += res[0]
-        fy += res[1]
-        fz += res[2]
-        tx += res[3]
-        ty += res[4]
-        tz += res[5]
-        en += res[9]
-        et += res[10]
-        er += res[11]
-        etw += res[12]
-        ncontact += 1
-    return fx, fy, fz, tx, ty, tz, en, et, er, etw, ncontact
+        sums = add_contact(sums, res)
+    return sums
 
 

@@ -9,14 +9,18 @@ import pytest
 from pydantic import ValidationError
 from typer.testing import CliRunner
 
+import rollingdem as rd
 from rollingdem.cli import app
 from rollingdem.errors import Declared
 from rollingdem.io.case_schema import spec_from
 from rollingdem.io.measurements import MassFlow, OutletTotals, Probe, WallLoad
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
-from rollingdem.scene.boundaries import Outlet
+from rollingdem.scene.bonds import ParallelBond
+from rollingdem.scene.boundaries import Inflow, Outlet
 from rollingdem.scene.conditions import Settled
+from rollingdem.scene.insertion import ROUGH_BASE_DECLARED
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
+from rollingdem.scene.particles import PARTICLE_DECLARED
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Rectangle
 from rollingdem.scene.size_distributions import Discrete, MassFractions, Normal, SieveCurve, Uniform
 from rollingdem.scene.walls import Cylinder, Plane
@@ -28,7 +32,8 @@ DECLARED_BLOCKS = {Plane: "PlaneSpec", Cylinder: "CylinderSpec", Oscillation: "O
                    Discrete: "DiscreteSpec", MassFractions: "MassFractionsSpec", SieveCurve: "SieveSpec",
                    MassFlow: "MassFlowSpec", OutletTotals: "OutletMeasurementSpec", WallLoad: "WallMeasurementSpec",
                    PileAngle: "ReposeMeasurementSpec", DrumAngle: "DrumMeasurementSpec", DrumFlow: "DrumFlowSpec",
-                   Outlet: "OutletSpec", Probe: "ProbeSpec", Settled: "SettledSpec"}
+                   Outlet: "OutletSpec", Probe: "ProbeSpec", Settled: "SettledSpec", Inflow: "InflowSpec",
+                   ParallelBond: "BondSpec"}
 
 
 class Nozzle:
@@ -69,6 +74,17 @@ def test_every_constructor_parameter_is_declared_once_and_every_declaration_is_a
     assert sorted(cls.declared) == sorted(parameters)
 
 
+@pytest.mark.parametrize("call", [rd.Simulation.add_particles, rd.Simulation.insert, rd.Simulation.add_clumps,
+                                  rd.Simulation.add_inflow])
+def test_the_particle_calls_take_declared_parameters_only(call):
+    """The particle blocks follow the calls that add particles: each of their parameters is one of
+    ``PARTICLE_DECLARED`` (an inflow's own ones, its ``declared``), and ``rough_base``'s are declared."""
+    parameters = [k for k in inspect.signature(call).parameters if k != "self"]
+    declared = Inflow.declared if call is rd.Simulation.add_inflow else PARTICLE_DECLARED
+    assert set(parameters) <= set(declared), set(parameters) - set(declared)
+    assert sorted(ROUGH_BASE_DECLARED) == sorted(inspect.signature(rd.rough_base).parameters)
+
+
 def test_the_declared_blocks_of_the_schema_carry_descriptions_and_units():
     """``rollingdem schema``: every key of a declared block (walls, motion programs, regions, inflow
     faces, size distributions, measurements) says what it is, and every number its unit."""
@@ -80,8 +96,31 @@ def test_the_declared_blocks_of_the_schema_carry_descriptions_and_units():
             if key in ("type", "distribution"):
                 continue
             assert prop.get("description"), (block, key)
-            kinds = {prop.get("type")} | {p.get("type") for p in prop.get("anyOf", [])}
-            if {"number", "array"} & kinds:
+            if _holds_numbers(prop):
                 assert prop.get("unit"), (block, key)
     assert defs["OscillateSpec"]["properties"]["phase"]["unit"] == "deg"  # the case file takes degrees
     assert defs["CylinderSpec"]["properties"]["radius"]["exclusiveMinimum"] == 0.0
+
+
+def _holds_numbers(prop) -> bool:
+    """Whether a property's JSON Schema takes a number anywhere (itself, an option, an item)."""
+    if prop.get("type") == "number":
+        return True
+    parts = [*prop.get("anyOf", []), *prop.get("prefixItems", [])] + ([prop["items"]] if isinstance(prop.get("items"), dict) else [])
+    return any(_holds_numbers(p) for p in parts)
+
+
+def test_every_key_of_the_case_file_says_what_it_is_and_every_number_its_unit():
+    """``rollingdem schema``, whole: every key of every block has a description, and every key that
+    takes a number (alone, in a vector, in a list) a unit ("-" for a ratio); a count or a seed is
+    a whole number and needs none."""
+    result = CliRunner().invoke(app, ["schema"])
+    assert result.exit_code == 0
+    schema = json.loads(result.output)
+    blocks = {**schema["$defs"], "CaseSpec": schema}
+    assert len(blocks) > 50
+    for block, spec in blocks.items():
+        for key, prop in spec.get("properties", {}).items():
+            assert prop.get("description"), (block, key)
+            if _holds_numbers(prop):
+                assert prop.get("unit"), (block, key)

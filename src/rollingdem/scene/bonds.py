@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 
 from rollingdem.errors import (
+    Declared,
     ParameterError,
     check_choice,
     check_finite,
@@ -47,6 +48,19 @@ class ParallelBond:
         "exclusive" (STAR-CCM+, LAMMPS): no contact while the bond holds, and a fresh one (no
         history: sliding and rolling springs from zero) once it broke.
     """
+
+    declared = {
+        "youngs_modulus": Declared("the cement's Young's modulus E: k_n = E / (R_i + R_j)", "Pa", low=0.0, low_open=True),
+        "stiffness_ratio": Declared("k_n / k_s", "-", low=0.0, low_open=True),
+        "radius_multiplier": Declared("the bond's radius over the smaller sphere's", "-", low=0.0, low_open=True),
+        "tensile_strength": Declared("tensile strength", "Pa", low=0.0, low_open=True),
+        "cohesion": Declared("shear strength without normal stress", "Pa", low=0.0, low_open=True),
+        "friction_angle": Declared("friction angle of the shear strength c - (F_n/A) tan phi", "deg", low=0.0,
+                                   high=90.0, high_open=True),
+        "moment_factor": Declared("the share of the moments in the peak stresses", "-", low=0.0, high=1.0),
+        "damping_ratio": Declared("damping ratio of the dashpots beside the bond's springs", "-", low=0.0),
+        "contact_while_bonded": Declared("parallel: the contact acts beside the bond (PFC); exclusive: no contact "
+                                         "while the bond holds (STAR-CCM+, LAMMPS)", kind="text")}
 
     def __init__(self, youngs_modulus: float, stiffness_ratio: float = 2.5, radius_multiplier: float = 1.0,
                  tensile_strength: float = 1e6, cohesion: float = 1e6, friction_angle: float = 0.0,

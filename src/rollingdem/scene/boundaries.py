@@ -21,7 +21,7 @@ from rollingdem.errors import Declared, ParameterError, check_integer, check_non
 from rollingdem.scene import periodic as periodic_box
 from rollingdem.scene.clumps import Clump, random_orientations
 from rollingdem.scene.mesh import MeshRegion, TriangleMesh
-from rollingdem.scene.particles import sphere_mass
+from rollingdem.scene.particles import PARTICLE_DECLARED, sphere_mass
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Face, FacePrism, MeshFace, Rectangle, Region
 from rollingdem.scene.schedule import INSERT, REMOVE, Operation
 from rollingdem.scene.size_distributions import (
@@ -265,6 +265,16 @@ class Inflow(Boundary):
     kind = "inflow"
     order = INSERT
     COLUMNS = ("count", "mass", "shortfall")
+    declared = {"region": Declared("the region the particles are inserted into, or a face they enter through "
+                                   "(disk, rectangle, mesh_face) at velocity", kind="region"),
+                **{key: PARTICLE_DECLARED[key] for key in ("radius", "material")},
+                "rate": Declared("particles inserted per second (or give mass_rate)", "1/s", low=0.0, low_open=True),
+                "mass_rate": Declared("mass inserted per second (instead of rate)", "kg/s", low=0.0, low_open=True),
+                "velocity": Declared("velocity of the particles inserted", "m/s", "vector"),
+                "seed": Declared("seed of the places and sizes drawn", kind="whole", low=0),
+                "name": Declared("label of the inflow in outputs and measurements", kind="text"),
+                "interval": Declared("time between its actions (default 1 ms)", "s", low=0.0, low_open=True),
+                "start": Declared("time of its first action (default: when it is added)", "s", low=0.0)}
 
     def __init__(self, region, radius, material, rate=None, mass_rate=None, velocity=None, seed=0, name=None,
                  interval=None, start=0.0):

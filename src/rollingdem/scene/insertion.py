@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_positive
+from rollingdem.errors import Declared, ParameterError, check_finite, check_non_negative, check_positive
 from rollingdem.physics.records import WALL_PLANE
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Region
 from rollingdem.scene.size_distributions import SizeDistribution, as_distribution
@@ -517,6 +517,17 @@ def _fill(region: Region, r_all: np.ndarray, rng, ex: np.ndarray, er: np.ndarray
 ROUGH_BASE_SPACING = 2.2
 """Default centre spacing of ``rough_base``, in radii: gaps of 0.2 R, too narrow for a sphere of the
 same size to sink in, wide enough for the default jitter."""
+
+
+#: ``rough_base``'s parameters (the case file's ``rough_base`` block follows them)
+ROUGH_BASE_DECLARED = {
+    "radius": Declared("radius of the base's spheres", "m", low=0.0, low_open=True),
+    "extent": Declared("((x_min, x_max), (y_min, y_max)): every sphere lies inside it", "m", "extent"),
+    "spacing": Declared("distance between neighbouring centres (default 2.2 radius)", "m", low=0.0, low_open=True),
+    "jitter": Declared("the largest random shift of a centre in the plane (default half the gap)", "m", low=0.0),
+    "seed": Declared("seed of the shifts", kind="whole", low=0),
+    "z": Declared("height of the plane the spheres rest on", "m"),
+}
 
 
 def rough_base(radius, extent, spacing=None, jitter=None, seed=0, z=0.0) -> np.ndarray:

@@ -10,7 +10,7 @@ import numpy as np
 from rollingdem.engine.layout import I_FORCES_VALID
 from rollingdem.engine.neighbors import spatial_order
 from rollingdem.engine.schema import PER_PARTICLE, SCHEMA
-from rollingdem.errors import ParameterError, check_finite, check_positive, short_repr
+from rollingdem.errors import Declared, ParameterError, check_finite, check_positive, short_repr
 from rollingdem.physics.records import ENERGY_CHANNELS
 from rollingdem.scene import periodic as periodic_box
 from rollingdem.scene.insertion import MAX_PACKING_FRACTION, check_count, fill_region
@@ -18,6 +18,29 @@ from rollingdem.scene.size_distributions import parcels_of, realised_line
 
 SOLID_SPHERE = 0.4
 """A solid sphere's moment of inertia over m R^2: I = 2/5 m R^2."""
+
+
+#: the parameters of the calls that add particles (``Simulation.add_particles``, ``insert``,
+#: ``add_clumps``, ``add_inflow``), written once: the case file's particle and inflow blocks follow them
+PARTICLE_DECLARED = {
+    "positions": Declared("centres of the spheres (of the clumps' centres of mass)", "m", "vectors"),
+    "radius": Declared("radius: one for all, one per sphere, or a size distribution", "m", "radius"),
+    "material": Declared("name of the material (or one per sphere)", kind="text"),
+    "velocity": Declared("initial velocity (one for all, or one per sphere)", "m/s", "velocities"),
+    "angular_velocity": Declared("initial angular velocity (one for all, or one per sphere)", "rad/s", "velocities"),
+    "allow_overlap": Declared("accept particles that overlap each other or a wall", kind="flag"),
+    "fixed": Declared("particles that never move: a rough base, an obstacle", kind="flag"),
+    "region": Declared("the region filled", kind="region"),
+    "count": Declared("how many (or give mass or fraction)", kind="whole", low=0),
+    "mass": Declared("their total mass (instead of count)", "kg", low=0.0, low_open=True),
+    "fraction": Declared("the share of the region's volume they fill (instead of count)", "-", low=0.0,
+                         high=MAX_PACKING_FRACTION, low_open=True),
+    "seed": Declared("seed of the random places, sizes and orientations", kind="whole", low=0),
+    "max_attempts": Declared("tries to place each sphere before the fill gives up", kind="whole", low=1),
+    "clump": Declared("the clump template of each rigid body", kind="clump"),
+    "orientations": Declared("unit quaternions w, x, y, z turning the template (default its own frame)", "-",
+                             "quaternions"),
+}
 
 
 def sphere_mass(density, radius):

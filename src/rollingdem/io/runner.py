@@ -182,8 +182,9 @@ class _Run:
                 raise TypeError(type(state).__name__)
         except Exception as err:  # noqa: BLE001 - a cut or foreign file: pickle raises many kinds
             raise ParameterError(f"--resume = {str(outdir)!r} is not allowed: its checkpoints/{RUN_STATE} cannot be "
-                                 f"read ({type(err).__name__}: the file is cut short or not a rollingdem run state); "
-                                 "the run cannot be resumed, run the case again") from None
+                                 f"read ({type(err).__name__}: the file is cut short, written by another version of "
+                                 "rollingdem, or not a run state); the run cannot be resumed, run the case "
+                                 "again") from None
         if case is not None:
             state.case, state.base = case, str(Path(case.base_directory).resolve())
             _relocate(state, outdir)

@@ -101,7 +101,7 @@ def check_case(case: CaseSpec, sim=None):
                                  f"(the case has {n} particles)")
     _check_first_time_step(sim, first_velocities)
     with InCase("contact"):
-        sim.time_step_policy.check_contact_reach()
+        sim.time_step_policy.check_contact_reach(sim.skin)
     try:
         sim.boundary_set.check_room()
     except ParameterError as err:  # an inflow's region, or an outlet's refill region

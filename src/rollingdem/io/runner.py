@@ -316,7 +316,7 @@ class _Run:
         if stage.bonds is not None:
             made = sim.add_bonds(stage.bonds.parallel_bond(), pairs=stage.bonds.pairs, gap=stage.bonds.gap)
             self.echo(f"  stage {stage.name!r}: {made} bonds")
-        sim.time_step_policy.choose()  # after the stage's changes: each stage starts at its own stable step
+        sim.choose_time_step()  # after the stage's changes: each stage starts at its own stable step
         for spec in self.case.measurements:  # windows from this stage's start
             if isinstance(spec.window, StageWindowSpec) and spec.window.stage == stage.name:
                 self.measurements[spec.name].window = stage_window(spec.window, stage, sim.time)

@@ -95,7 +95,8 @@ class Simulation:
         self.clump_set = ClumpSet(state, self.materials, self.periodic, self.particle_set, self.wall_set, changed)
         self.bond_set = BondSet(state, self.particle_set)
         self.boundary_set = Boundaries(state, self.schedule, self.materials, self.periodic, self.wall_set)
-        self.time_step_policy = TimeStepPolicy(self, state)
+        self.time_step_policy = TimeStepPolicy(state, self._contact, self.materials, self.wall_set,
+                                               self.boundary_set, self.bond_set)
         self.step, self.time = 0, 0.0
         # (time, step) where dt took over: time = t0 + (step - s0) dt, however the steps were cut
         self.time_origin, self._pair_params, self._modules = (0.0, 0), None, EngineModules()
@@ -357,7 +358,15 @@ class Simulation:
         return self.time_step_policy.stable()
 
     def check_time_step(self) -> None:  # refuse a dt above a stable limit (unless check_timestep is off), as run does
-        self.time_step_policy.check()
+        if self.check_timestep:
+            dt = self.time_step_policy.check(self.dt, self.dt_automatic, self.pair_parameters(), self.time,
+                                             self.hints["check_timestep"])
+            if dt != self.dt:  # an automatic dt, lowered: it stays automatic
+                self.dt, self.dt_automatic = dt, True
+
+    def choose_time_step(self) -> None:  # an automatic dt anew: the stable step now, raised or lowered; a given one stays
+        if self.dt_automatic and self.n_particles:
+            self.dt, self.dt_automatic = self.time_step_policy.stable(), True
 
     # --- running ---------------------------------------------------------------------------------
     def check_before_run(self) -> None:
@@ -365,8 +374,8 @@ class Simulation:
         self.schedule.check_finite_state(self)
         self.wall_set.check_scene()
         self.boundary_set.check_room()
-        self.time_step_policy.check()
-        self.time_step_policy.check_contact_reach()
+        self.check_time_step()
+        self.time_step_policy.check_contact_reach(self.skin)
         periodic_box_checks.check_scene(self)
 
     def run(self, duration: float | None = None, steps: int | None = None, observers=(),

@@ -15,25 +15,31 @@ from rollingdem.scene.particles import SOLID_SPHERE, sphere_mass
 
 
 class TimeStepPolicy:
-    """The time step of ``sim``: its limits, the largest stable step, and the run's checks.
-    ``passed``: (scene key, fastest speeds) when dt last passed ``check``."""
+    """The time step of a scene: its limits, the largest stable step, and the run's checks, on the
+    engine state, contact law, materials, walls, inflows and bonds it is given; the settings the
+    checks weigh (dt, whether it is automatic, the pair table, the clock, skin) are handed to each
+    call. ``passed``: (scene key, fastest speeds) when dt last passed ``check``."""
 
-    def __init__(self, sim, state):
-        self.sim = sim
+    def __init__(self, state, contact, materials, wall_set, boundaries, bond_set):
         self.state = state
+        self.contact = contact
+        self.materials = materials
+        self.wall_set = wall_set
+        self.boundaries = boundaries
+        self.bond_set = bond_set
         self.passed = None
 
     def limits(self, wall_speed: float | None = None) -> list[tuple[str, float]]:
         """``Simulation.time_step_limits``; with ``wall_speed`` (m/s), as if the fastest wall surface
         moved that fast (a stage's wall motion before it is set)."""
-        sim = self.sim
-        st, contact, materials, inflows = self.state, sim.contact, sim.materials, sim.inflows
+        st, contact, materials, inflows = self.state, self.contact, self.materials, self.boundaries.inflows
         if st.n == 0 and not inflows:
             return []
         limits = []
         normal = contact.normal
         # a sphere meets a wall at its own speed plus the wall surface's there
-        walls = max((w.peak_speed(st.x) for w in sim.walls), default=0.0) if wall_speed is None else wall_speed
+        walls = max((w.peak_speed(st.x) for w in self.wall_set.in_place()), default=0.0) if wall_speed is None \
+            else wall_speed
         for k, mat in enumerate(materials.materials):
             sel = st.mat == k
             # the spheres an inflow will insert count as if they were there
@@ -59,7 +65,7 @@ class TimeStepPolicy:
                     # worst case, centres held: omega^2 = k_rot (1/I_i + 1/I_j)
                     per = 2.0 * math.pi / math.sqrt(k_rot * 2.0 / inertia)
                     limits.append((f"{sub.slot} spring ({sub.name}) period {per:.4g} s / 10", SPRING_FRACTION * per))
-        limits += sim.bond_set.time_step_limits()
+        limits += self.bond_set.time_step_limits()
         return limits
 
     def stable(self) -> float:
@@ -69,55 +75,43 @@ class TimeStepPolicy:
             raise ParameterError("dt cannot be chosen automatically before particles are added: give dt")
         return min(v for _, v in limits)
 
-    def choose(self) -> None:
-        """An automatic dt chosen again, the largest stable step of the
-        state now, raised as well as lowered, so a stage that starts from rest is not held to the step
-        the fill's fall needed. A dt the user gave stays."""
-        sim = self.sim
-        if sim.dt_automatic and sim.n_particles:
-            sim.dt = self.stable()
-            sim.dt_automatic = True
-
-    def check(self) -> None:
-        """Refuse a dt above a stable limit, unless the simulation's ``check_timestep`` is off."""
-        sim = self.sim
-        if not sim.check_timestep:
-            return
+    def check(self, dt: float, automatic: bool, pair_table, time: float, hint: str) -> float:
+        """The dt to step with: ``dt``, or a smaller one where an ``automatic`` dt is above a stable
+        limit now (with a warning at the clock's ``time``); a given dt above one is refused (``hint``:
+        how the user turns the check off). ``pair_table``: the pair parameters dt was checked with."""
         # Between runs of an unchanged scene only the speeds change, and the one limit that depends
         # on them (the Hertz time at the impact speed) falls as they rise: while no material's
         # fastest sphere is faster than when dt last passed, it still passes, and a loop of short
         # runs (a trajectory sampled every 10 steps) skips the full check.
         speeds = self.fastest_per_material()
-        key = (sim.dt, sim.n_particles, len(sim.inflows), id(sim.contact), sim.pair_parameters())
+        key = (dt, self.state.n, len(self.boundaries.inflows), pair_table)
         seen = self.passed
-        if seen is not None and seen[0][:4] == key[:4] and seen[0][4] is key[4] and (speeds <= seen[1]).all():
-            return
+        if seen is not None and seen[0][:3] == key[:3] and seen[0][3] is key[3] and (speeds <= seen[1]).all():
+            return dt
         for label, limit in self.limits():
-            if sim.dt > limit * (1 + 1e-12) and sim.dt_automatic:
+            if dt > limit * (1 + 1e-12) and automatic:
                 # an automatic dt follows the scene: the speeds have grown since it was chosen
-                old, sim.dt = sim.dt, self.stable()
-                sim.dt_automatic = True
-                warnings.warn(f"at t = {sim.time:.6g} s dt is lowered from {old:.4g} s to {sim.dt:.4g} s, the stable "
+                old, dt = dt, self.stable()
+                warnings.warn(f"at t = {time:.6g} s dt is lowered from {old:.4g} s to {dt:.4g} s, the stable "
                               f"limit now ({label}): the speeds have grown since it was chosen", RuntimeWarning,
-                              stacklevel=4)
-                key = (sim.dt,) + key[1:]
+                              stacklevel=5)
+                key = (dt,) + key[1:]
                 break
-            if sim.dt > limit * (1 + 1e-12):
-                raise ParameterError(f"dt = {sim.dt:.4g} s exceeds the stable limit {limit:.4g} s "
-                                     f"({label}): choose dt <= {limit:.4g} s, or {sim.hints['check_timestep']} "
-                                     "to run anyway")
+            if dt > limit * (1 + 1e-12):
+                raise ParameterError(f"dt = {dt:.4g} s exceeds the stable limit {limit:.4g} s "
+                                     f"({label}): choose dt <= {limit:.4g} s, or {hint} to run anyway")
         self.passed = (key, speeds)
+        return dt
 
-    def check_contact_reach(self) -> None:
+    def check_contact_reach(self, skin: float) -> None:
         """A cohesion law whose contacts last past touching (``jkr``) needs the neighbor list to
-        reach that far: refuse a skin shorter than the largest pair's separation limit. A cohesion
+        reach that far: refuse a ``skin`` shorter than the largest pair's separation limit. A cohesion
         law whose parameter is 0 for every material pair is refused too: it would do nothing."""
-        sim = self.sim
-        cohesion = sim.contact.cohesion
+        cohesion, materials = self.contact.cohesion, self.materials
         st = self.state
-        n = len(sim.materials.materials)
+        n = len(materials.materials)
         if cohesion.name != "none" and n and not any(
-                any(v != 0.0 for v in cohesion.pair_values(sim.materials.pair(a, b))) for a in range(n) for b in range(n)):
+                any(v != 0.0 for v in cohesion.pair_values(materials.pair(a, b))) for a in range(n) for b in range(n)):
             what = "surface_energy (J/m^2)" if cohesion.name == "jkr" else "cohesion_energy_density (J/m^3)"
             raise ParameterError(f"cohesion = {cohesion.name!r} is not allowed here: every material pair's "
                                  f"{what.split(' ')[0]} is 0, so it would do nothing; give the materials (or a pair) "
@@ -125,17 +119,16 @@ class TimeStepPolicy:
         if cohesion.detach_slot is None or st.n == 0:
             return
         r_eff = 0.5 * float(st.radius.max())
-        n = len(sim.materials.materials)
-        reach = max(cohesion.separation_limit(sim.materials.pair(a, b), r_eff) for a in range(n) for b in range(n))
-        if reach > sim.skin:
-            raise ParameterError(f"skin = {sim.skin:.4g} m is not allowed with cohesion {cohesion.name!r}: its "
+        reach = max(cohesion.separation_limit(materials.pair(a, b), r_eff) for a in range(n) for b in range(n))
+        if reach > skin:
+            raise ParameterError(f"skin = {skin:.4g} m is not allowed with cohesion {cohesion.name!r}: its "
                                  f"contacts last until the spheres are {reach:.4g} m apart, and the neighbor list "
                                  f"must reach that far; give skin >= {reach:.4g} m")
 
     def fastest_per_material(self) -> np.ndarray:
         """Each material's largest finite particle speed squared (0 without particles of it)."""
         st = self.state
-        out = np.zeros(len(self.sim.materials.materials))
+        out = np.zeros(len(self.materials.materials))
         if st.n and len(out):
             speed2 = np.einsum("ij,ij->i", st.v, st.v)
             fastest = speed2.max()

@@ -418,3 +418,10 @@ def test_the_readme_coarse_graining_example_delivers_what_it_says(capsys):
     real.add_particles([[0, 0, 0.001]], 0.001, "sand")
     assert scope["sim"].time == pytest.approx(0.2, abs=sim.dt)
     assert sim.dt == pytest.approx(3 * real.dt, rel=1e-12)
+
+
+def test_the_fields_example_of_the_analysis_page_prints_the_virial(capsys):
+    """docs/analysis.md, "Continuum fields": the contact stress summed over the grid is f_x b_x =
+    2 N x 2 mm = 0.004 N m, as its comment says (1e-12)."""
+    exec(python_block(ROOT / "docs" / "analysis.md", "## Continuum fields"), {})
+    assert float(capsys.readouterr().out) == pytest.approx(0.004, rel=1e-12)

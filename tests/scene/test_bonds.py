@@ -542,3 +542,19 @@ def test_a_gap_that_bonds_nothing_says_so_once(table1):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert sim.add_bonds(bond, gap=0.002) == 1
+
+
+def test_a_bonds_load_is_among_the_contact_forces():
+    """``Simulation.contact_forces`` lists an intact bond as a force between its two spheres: a
+    bonded pair pulled apart and spun, no gravity, no contact: the listed force on each (+ on i,
+    - on j) is the force the engine summed for it (1e-12 of it), its branch the centres' difference."""
+    sim = bonded_pair(velocity=((0.01, 0.002, 0), (-0.01, 0, 0.001)), angular_velocity=((0, 0, 5), (3, 0, 0)))
+    sim.run(steps=200)
+    c = sim.contact_forces()
+    assert len(c["i"]) == 1 and c["j"][0] >= 0
+    total = np.zeros((2, 3))
+    total[c["i"][0]] += c["force"][0]
+    total[c["j"][0]] -= c["force"][0]
+    assert np.abs(sim.forces).max() > 0.0
+    np.testing.assert_allclose(total, sim.forces, rtol=0, atol=1e-12 * np.abs(sim.forces).max())
+    np.testing.assert_allclose(c["branch"][0], sim.positions[c["i"][0]] - sim.positions[c["j"][0]], rtol=1e-14)

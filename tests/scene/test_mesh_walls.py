@@ -539,3 +539,16 @@ def test_re_sorting_the_storage_slots_keeps_every_mesh_contact():
     sorted_.run(steps=1500)
     np.testing.assert_array_equal(sorted_.positions, plain.positions)
     np.testing.assert_array_equal(sorted_.angular_velocities, plain.angular_velocities)
+
+
+def test_contact_forces_refuse_a_scene_touching_a_mesh_in_one_line():
+    """``Simulation.contact_forces`` does not list mesh contacts (their contact points are not kept):
+    with a sphere on a mesh it is refused, rather than a list that silently lacks them."""
+    sim = rd.Simulation(gravity=(0, 0, 0), dt=1e-9, check_timestep=False)
+    sim.add_material(rd.Material("m", 1e7, 0.3, 1000.0, friction=0.5))
+    sim.add_wall(rd.MeshWall(*ridge()))
+    sim.add_particles([[0.1, 0.0, 0.009]], 0.01, "m", allow_overlap=True)
+    sim.run(steps=1)
+    assert sim.number_of_contacts() == 1
+    with pytest.raises(rd.SimulationError, match="not available while spheres touch a triangle-mesh wall"):
+        sim.contact_forces()

@@ -156,9 +156,11 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
     v = np.asarray(velocities, dtype=np.float64).reshape(-1, 3)
     if len(v) != len(x):
         raise ParameterError(f"velocities with {len(v)} rows is not allowed for {len(x)} positions: one per particle")
-    if kernel.cutoff < 0.5 * float(grid.spacing.max()):
+    half_diagonal = 0.5 * float(np.linalg.norm(grid.spacing))
+    if kernel.cutoff <= half_diagonal:  # a point in a cell's middle would reach no node
         raise ParameterError(f"kernel width = {kernel.width:g} m is not allowed on a grid of spacing "
-                             f"{float(grid.spacing.max()):g} m: its cutoff must reach at least half a cell")
+                             f"{', '.join(f'{h:g}' for h in grid.spacing)} m: its cutoff ({kernel.cutoff:g} m) must "
+                             f"exceed half a cell's diagonal, {half_diagonal:g} m")
     size = int(np.prod(grid.shape))
     flat, weight = _spread(grid, kernel, x)
     density = np.bincount(flat.ravel(), (m[:, None] * weight).ravel(), minlength=size)

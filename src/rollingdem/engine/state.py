@@ -24,6 +24,7 @@ from rollingdem.engine.layout import (
     LIST_MARGIN,
     MESH_SLOTS,
     MOTION_STEADY,
+    PERIODIC_BOX,
     PERIODIC_BOX_SIZE,
     STATUS_CAPACITY,
     STATUS_MESH_CAPACITY,
@@ -47,7 +48,9 @@ from rollingdem.engine.schema import (
 )
 from rollingdem.engine.threads import ThreadGovernor
 from rollingdem.errors import SimulationError
+from rollingdem.physics.bonds import BOND_INTACT
 from rollingdem.physics.records import ENERGY_CHANNELS, WALL_LOAD_SIZE
+from rollingdem.physics.walls import wall_contact_geometry
 
 MAX_ENTRIES = 2**31 - 1  # neighbor-list entries: nl_start, tr_start, tr_k and contact_row are int32
 # Re-sorting the slots in space pays once the state no longer fits in the cache; below that it
@@ -479,6 +482,50 @@ class EngineState:
                                    if isinstance(a, np.ndarray)),
                 "pair_contacts": pairs, "wall_contacts": int(self.contacts.sum()) - pairs,
                 "neighbor_pairs": int(cl.size) if n else 0}
+
+    def contact_forces(self) -> dict:
+        """The last step's contacts, as arrays: ``i`` (the particle the force acts on, by its index in
+        the order added, as ``by_id``), ``j`` (its partner's; -1 for a plane or cylinder), ``force`` (on i, N) and ``branch``
+        (m: from the partner's centre, its periodic image nearest i, or from the wall's contact
+        point, to i's centre), the pair contacts first, then intact bonds, then wall contacts. A
+        pair's force on j is -force (its moment parts are not here). Triangle-mesh contacts are not
+        listed: a scene whose spheres touch a mesh is refused."""
+        n, cl = self.n, self.contact_list
+        if n and self.meshes.n_triangles and (self.meshes.slot_triangle[:n] >= 0).any():
+            raise SimulationError("contact forces are not available while spheres touch a triangle-mesh wall: "
+                                  "their contact points are not kept")
+        total = int(cl.start[n]) if n else 0
+        rows = cl.contact_row[:total]
+        k = np.flatnonzero(rows >= 0)
+        i = np.repeat(np.arange(n), np.diff(cl.start[: n + 1]))[k] if n else np.zeros(0, dtype=np.int64)
+        j = cl.j[k].astype(np.int64)
+        force = cl.pair_terms[rows[k], 0:3].copy()
+        intact = np.flatnonzero(self.bond_status == BOND_INTACT) if len(self.bond_status) else np.zeros(0, np.int64)
+        i = np.concatenate([i, self.bond_pairs[intact, 0]]).astype(np.int64)
+        j = np.concatenate([j, self.bond_pairs[intact, 1]]).astype(np.int64)
+        force = np.concatenate([force, self.bond_load[intact, 0:3]])
+        branch = self.x[i] - self.x[j]
+        box = cl.box
+        if box.shape[0]:
+            for a in range(3):
+                length = box[PERIODIC_BOX.lx + a]
+                if length > 0.0:
+                    branch[:, a] -= length * np.round(branch[:, a] / length)
+        walls = self.n_walls
+        touching = np.flatnonzero(self.wtouch[: n * walls]) if walls else np.zeros(0, np.int64)
+        wall_i, wall_of = touching // max(walls, 1), touching % max(walls, 1)
+        wall_branch = np.zeros((len(touching), 3))
+        for c, (q, wl) in enumerate(zip(wall_i, wall_of)):
+            overlap, nx, ny, nz = wall_contact_geometry(q, wl, self.x, self.radius[q], self.wall_kind, self.wall_geom)
+            wall_branch[c] = (self.radius[q] - overlap) * np.array([nx, ny, nz])
+        i, j = np.concatenate([i, wall_i]), np.concatenate([j, np.full(len(touching), -1)])
+        if self._slots is not None:  # slots to the order the particles were added (``by_id``)
+            order = np.empty(n, dtype=np.int64)
+            order[self._slots] = np.arange(n)
+            i, j = order[i], np.where(j >= 0, order[np.maximum(j, 0)], -1)
+        return {"i": i, "j": j,
+                "force": np.concatenate([force, -self.wall_load.reshape(-1, WALL_LOAD_SIZE)[touching, 0:3]]),
+                "branch": np.concatenate([branch, wall_branch])}
 
     def governor(self):
         """The thread governor of this state's runs (``rollingdem.engine.threads``), made when first used."""

@@ -345,6 +345,9 @@ class Simulation:
     def number_of_contacts(self) -> int:
         return int(self._state.contacts.sum())
 
+    def contact_forces(self) -> dict:  # the last step's contacts: i, j (-1: a wall), force on i (N), branch j to i (m)
+        return self._state.contact_forces()
+
     def engine_statistics(self) -> dict:
         """What the engine counts (``EngineState.statistics``): neighbor-list rebuilds, steps on each
         thread count, bytes of the state, pair and wall contacts, neighbor pairs."""

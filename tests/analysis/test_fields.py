@@ -34,7 +34,7 @@ def random_scene(seed, n=40, m=25):
     walls = rng.integers(0, n, 5)
     contacts = (np.concatenate([x[i], x[walls]]),
                 np.concatenate([x[i] - x[j], np.column_stack([np.zeros(5), np.zeros(5), rng.uniform(1e-3, 2e-3, 5)])]),
-                np.concatenate([force, rng.normal(0.0, 1e-3, (5, 3))]))
+                np.concatenate([force, rng.normal(0.0, 1e-3, (5, 3))]), rng.normal(0.0, 1e-6, (len(i) + 5, 3)))
     return x, mass, v, contacts
 
 
@@ -43,7 +43,7 @@ def random_scene(seed, n=40, m=25):
 def test_the_fields_sum_to_the_mass_momentum_and_virial(kernel, periodic):
     """Sum over the grid times a cell's volume: the density gives the particles' mass, the
     momentum theirs, the contact stress the virial sum of f (x) b over the contacts (pairs and
-    walls), all to 1e-12 of their scale, whether the kernels reach past a side (non-periodic: the
+    walls), the couple stress that of M (x) b, all to 1e-12 of their scale, whether the kernels reach past a side (non-periodic: the
     weight stays inside) or wrap (periodic)."""
     x, mass, v, contacts = random_scene(3)
     grid = Grid((0.0, 0.0, 0.0), (0.01, 0.01, 0.01), (10, 12, 9), periodic=(periodic,) * 3)
@@ -52,10 +52,10 @@ def test_the_fields_sum_to_the_mass_momentum_and_virial(kernel, periodic):
     assert fields.density.sum() * dv == pytest.approx(mass.sum(), rel=1e-12)
     np.testing.assert_allclose(fields.momentum.sum(axis=(0, 1, 2)) * dv, (mass[:, None] * v).sum(0),
                                rtol=0, atol=1e-12 * np.abs(mass[:, None] * v).sum())
-    xi, branch, force = contacts
-    virial = np.einsum("ca,cb->ab", force, branch)
-    np.testing.assert_allclose(fields.contact_stress.sum(axis=(0, 1, 2)) * dv, virial, rtol=0,
-                               atol=1e-12 * np.abs(force[:, :, None] * branch[:, None, :]).sum())
+    xi, branch, force, moment = contacts
+    for field, load in ((fields.contact_stress, force), (fields.couple_stress, moment)):
+        np.testing.assert_allclose(field.sum(axis=(0, 1, 2)) * dv, np.einsum("ca,cb->ab", load, branch), rtol=0,
+                                   atol=1e-12 * np.abs(load[:, :, None] * branch[:, None, :]).sum())
 
 
 def test_a_lattice_has_its_mean_density_everywhere_and_a_moving_one_no_kinetic_stress():
@@ -145,8 +145,8 @@ def test_bad_grids_kernels_and_arrays_are_one_line_each():
 
 @pytest.fixture(scope="module")
 def settled_bed():
-    """500 glass spheres (radius 0.9-1.1 mm) settled on a floor in a box periodic along x and y, 16 mm
-    wide; the engine's slots re-sorted every 1,000 steps (as a scene of 50,000 spheres is), so that
+    """500 glass spheres (radius 0.9-1.1 mm, EPSD rolling resistance mu_r 0.2) settled on a floor in
+    a box periodic along x and y, 16 mm wide; the engine's slots re-sorted every 1,000 steps (as a scene of 50,000 spheres is), so that
     the contacts' indices must be mapped back to the order the spheres were added."""
     import rollingdem as rd
     from rollingdem.engine import state as engine_state
@@ -154,9 +154,9 @@ def settled_bed():
     saved = engine_state.SORT_ABOVE
     engine_state.SORT_ABOVE = 10
     try:
-        sim = rd.Simulation(contact=rd.ContactModel(), periodic={"x": (0.0, 0.016), "y": (0.0, 0.016)})
+        sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), periodic={"x": (0.0, 0.016), "y": (0.0, 0.016)})
         sim.add_material(rd.Material("glass", youngs_modulus=5e6, poisson_ratio=0.3, density=2500.0, restitution=0.3,
-                                     friction=0.5))
+                                     friction=0.5, rolling_friction=0.2))
         sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
         sim.insert(rd.BoxRegion((0, 0, 0), (0.016, 0.016, 0.03)), count=500, radius=rd.Uniform(0.0009, 0.0011),
                    material="glass", seed=1)
@@ -185,6 +185,29 @@ def test_the_contact_forces_and_the_weight_sum_to_each_spheres_force(settled_bed
     floor = c["branch"][~pairs]
     assert len(floor) > 20 and (floor[:, 2] > 0).all() and np.abs(floor[:, :2]).max() == 0.0
     np.testing.assert_allclose(sim.positions[c["i"][~pairs], 2], floor[:, 2], rtol=1e-12)  # the plane is z = 0
+
+
+def test_the_contact_moments_and_levers_sum_to_each_spheres_torque(settled_bed):
+    """The listed pure moments: with n = b/|b|, levers R - overlap/2 (a wall's R - overlap/2 on the
+    sphere's side, 0 on its own) and c = n x F, -lever_i c + M on i and -lever_j c - M on j, summed
+    over each sphere's contacts, give the torque the engine summed for it (1e-9 of the largest);
+    rolling resistance makes the moments a share of it (EPSD, mu_r 0.2)."""
+    sim = settled_bed
+    c = sim.contact_forces()
+    r = sim.radii
+    pairs = c["j"] >= 0
+    length = np.linalg.norm(c["branch"], axis=1)
+    n = c["branch"] / length[:, None]
+    overlap = np.where(pairs, r[c["i"]] + r[np.maximum(c["j"], 0)] - length, r[c["i"]] - length)
+    lever_i = r[c["i"]] - 0.5 * overlap
+    lever_j = r[np.maximum(c["j"], 0)] - 0.5 * overlap
+    cross = np.cross(n, c["force"])
+    torque = np.zeros((sim.n_particles, 3))
+    np.add.at(torque, c["i"], -lever_i[:, None] * cross + c["moment"])
+    np.add.at(torque, c["j"][pairs], -lever_j[pairs, None] * cross[pairs] - c["moment"][pairs])
+    scale = np.abs(sim.torques).max()
+    np.testing.assert_allclose(torque, sim.torques, rtol=0, atol=1e-9 * scale)
+    assert np.abs(c["moment"]).max() > 1e-3 * scale
 
 
 def test_a_settled_beds_vertical_stress_is_the_weight_above(settled_bed):

@@ -547,7 +547,8 @@ def test_a_gap_that_bonds_nothing_says_so_once(table1):
 def test_a_bonds_load_is_among_the_contact_forces():
     """``Simulation.contact_forces`` lists an intact bond as a force between its two spheres: a
     bonded pair pulled apart and spun, no gravity, no contact: the listed force on each (+ on i,
-    - on j) is the force the engine summed for it (1e-12 of it), its branch the centres' difference."""
+    - on j) is the force the engine summed for it (1e-12 of it), its branch the centres' difference,
+    and its moment with the levers gives each sphere's torque."""
     sim = bonded_pair(velocity=((0.01, 0.002, 0), (-0.01, 0, 0.001)), angular_velocity=((0, 0, 5), (3, 0, 0)))
     sim.run(steps=200)
     c = sim.contact_forces()
@@ -558,3 +559,11 @@ def test_a_bonds_load_is_among_the_contact_forces():
     assert np.abs(sim.forces).max() > 0.0
     np.testing.assert_allclose(total, sim.forces, rtol=0, atol=1e-12 * np.abs(sim.forces).max())
     np.testing.assert_allclose(c["branch"][0], sim.positions[c["i"][0]] - sim.positions[c["j"][0]], rtol=1e-14)
+    # the bond's pure moment (bending, twisting) and the shear force's levers R - overlap/2 give each torque
+    b = c["branch"][0]
+    n, overlap = b / np.linalg.norm(b), 2 * R - np.linalg.norm(b)
+    lever_torque = -(R - 0.5 * overlap) * np.cross(n, c["force"][0])
+    torque = np.zeros((2, 3))
+    torque[c["i"][0]], torque[c["j"][0]] = lever_torque + c["moment"][0], lever_torque - c["moment"][0]
+    assert np.abs(c["moment"][0]).max() > 0.0
+    np.testing.assert_allclose(torque, sim.torques, rtol=0, atol=1e-12 * np.abs(sim.torques).max())

@@ -1,6 +1,7 @@
 """Continuum fields of a particle system by coarse graining (Goldhirsch 2010, Granular Matter 12:239;
 Weinhart et al. 2012, Granular Matter 14:289), on a regular grid: mass density, velocity,
-kinetic stress and contact stress (numpy arrays in, SI units; stresses compressive positive).
+kinetic stress, contact stress and couple stress (numpy arrays in, SI units; stresses
+compressive positive).
 
 A particle's mass and momentum are spread over the grid's nodes with the weights of a kernel
 ``phi`` of width ``w`` about its centre; a contact's force f (on particle i, from j) times its
@@ -11,6 +12,10 @@ branch, at Gauss-Legendre points s in [0, 1] of x_i - s b:
     rho V(r)     = sum_i m_i v_i phi(r - x_i)
     sigma_k(r)   = sum_i m_i v'_i v'_i phi(r - x_i),     v'_i = v_i - V(r)
     sigma_c(r)   = sum_c f_c b_c  int_0^1 phi(r - x_i + s b_c) ds
+    mu(r)        = sum_c M_c b_c  int_0^1 phi(r - x_i + s b_c) ds
+
+with M_c the contact's pure moment on i (rolling and twisting resistance): the couple stress that
+rolling resistance carries (components mu_ab = M_a b_b, N/m).
 
 On the grid the weights of each point are scaled to sum to one over the nodes it reaches, so the
 fields' sums over the grid (times a cell's volume) are the particles' mass and momentum and the
@@ -100,7 +105,8 @@ class Grid:
 class Fields:
     """Fields on a grid's nodes, arrays of the grid's shape (then the components): ``density``
     (kg/m^3), ``momentum`` (kg/m^2/s), ``velocity`` (m/s, 0 where there is no mass),
-    ``kinetic_stress`` and ``contact_stress`` (Pa, 3 x 3, compressive positive)."""
+    ``kinetic_stress`` and ``contact_stress`` (Pa, 3 x 3, compressive positive), ``couple_stress``
+    (N/m, 3 x 3: mu_ab = sum M_a b_b ..., zero without contact moments)."""
 
     grid: Grid
     density: np.ndarray
@@ -108,6 +114,7 @@ class Fields:
     velocity: np.ndarray
     kinetic_stress: np.ndarray
     contact_stress: np.ndarray
+    couple_stress: np.ndarray
 
     @property
     def stress(self) -> np.ndarray:
@@ -150,7 +157,8 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
     (m/s) on ``grid``, with ``kernel`` (``Gaussian`` or ``Lucy``), and of ``contacts``: (x_i, b,
     f) arrays (M x 3 each: the centre of the particle the force acts on, the branch vector from
     the other particle's centre or the wall's contact point to it, the force on it), their line
-    integral by Gauss-Legendre with ``quadrature`` points."""
+    integral by Gauss-Legendre with ``quadrature`` points; a fourth array, the contacts' pure
+    moments on i (M x 3, N m: ``Simulation.contact_forces``' ``moment``), gives the couple stress."""
     x = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     m = np.broadcast_to(np.asarray(masses, dtype=np.float64), (len(x),))
     v = np.asarray(velocities, dtype=np.float64).reshape(-1, 3)
@@ -175,17 +183,18 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
             kinetic[:, a, b] = np.bincount(flat.ravel(), (m[:, None] * fluct[..., a] * fluct[..., b] * weight).ravel(),
                                            minlength=size)
             kinetic[:, b, a] = kinetic[:, a, b]
-    contact = np.zeros((size, 3, 3))
+    contact, couple = np.zeros((size, 3, 3)), np.zeros((size, 3, 3))
     if contacts is not None:
-        xi, branch, force = (np.asarray(c, dtype=np.float64).reshape(-1, 3) for c in contacts)
+        xi, branch, force, *moment = (np.asarray(c, dtype=np.float64).reshape(-1, 3) for c in contacts)
         s, ws = np.polynomial.legendre.leggauss(int(quadrature))
         s, ws = 0.5 * (s + 1.0), 0.5 * ws  # on [0, 1]
         for sq, wq in zip(s, ws):
             cflat, cweight = _spread(grid, kernel, xi - sq * branch)
-            for a in range(3):
-                for b in range(3):
-                    contact[:, a, b] += np.bincount(cflat.ravel(), (wq * force[:, a:a + 1] * branch[:, b:b + 1]
-                                                                    * cweight).ravel(), minlength=size)
+            for field, load in ((contact, force), *((couple, m) for m in moment)):
+                for a in range(3):
+                    for b in range(3):
+                        field[:, a, b] += np.bincount(cflat.ravel(), (wq * load[:, a:a + 1] * branch[:, b:b + 1]
+                                                                      * cweight).ravel(), minlength=size)
     shape = tuple(grid.shape)
     return Fields(grid, density.reshape(shape), momentum.reshape(shape + (3,)), velocity.reshape(shape + (3,)),
-                  kinetic.reshape(shape + (3, 3)), contact.reshape(shape + (3, 3)))
+                  kinetic.reshape(shape + (3, 3)), contact.reshape(shape + (3, 3)), couple.reshape(shape + (3, 3)))

@@ -487,9 +487,11 @@ class EngineState:
         """The last step's contacts, as arrays: ``i`` (the particle the force acts on, by its index in
         the order added, as ``by_id``), ``j`` (its partner's; -1 for a plane or cylinder), ``force`` (on i, N) and ``branch``
         (m: from the partner's centre, its periodic image nearest i, or from the wall's contact
-        point, to i's centre), the pair contacts first, then intact bonds, then wall contacts. A
-        pair's force on j is -force (its moment parts are not here). Triangle-mesh contacts are not
-        listed: a scene whose spheres touch a mesh is refused."""
+        point, to i's centre), ``moment`` (N m: the pure moment on i, rolling and twisting
+        resistance or a bond's bending and twisting), the pair contacts first, then intact bonds,
+        then wall contacts. On j: -force and -moment. With n = b/|b|, levers R - overlap/2 and
+        c = n x F, the torque on i is -lever_i c + moment and on j -lever_j c - moment (a wall's
+        lever 0). Triangle-mesh contacts are not listed: a scene whose spheres touch a mesh is refused."""
         n, cl = self.n, self.contact_list
         if n and self.meshes.n_triangles and (self.meshes.slot_triangle[:n] >= 0).any():
             raise SimulationError("contact forces are not available while spheres touch a triangle-mesh wall: "
@@ -500,10 +502,12 @@ class EngineState:
         i = np.repeat(np.arange(n), np.diff(cl.start[: n + 1]))[k] if n else np.zeros(0, dtype=np.int64)
         j = cl.j[k].astype(np.int64)
         force = cl.pair_terms[rows[k], 0:3].copy()
+        torque_j = -cl.pair_terms[rows[k], 3:6]  # the pair pass keeps -T_j
         intact = np.flatnonzero(self.bond_status == BOND_INTACT) if len(self.bond_status) else np.zeros(0, np.int64)
         i = np.concatenate([i, self.bond_pairs[intact, 0]]).astype(np.int64)
         j = np.concatenate([j, self.bond_pairs[intact, 1]]).astype(np.int64)
         force = np.concatenate([force, self.bond_load[intact, 0:3]])
+        torque_j = np.concatenate([torque_j, self.bond_load[intact, 6:9]])
         branch = self.x[i] - self.x[j]
         box = cl.box
         if box.shape[0]:
@@ -511,6 +515,9 @@ class EngineState:
                 length = box[PERIODIC_BOX.lx + a]
                 if length > 0.0:
                     branch[:, a] -= length * np.round(branch[:, a] / length)
+        distance = np.linalg.norm(branch, axis=1, keepdims=True)
+        lever_j = self.radius[j][:, None] - 0.5 * (self.radius[i][:, None] + self.radius[j][:, None] - distance)
+        moment = -torque_j - lever_j * np.cross(branch / np.where(distance > 0.0, distance, 1.0), force)
         walls = self.n_walls
         touching = np.flatnonzero(self.wtouch[: n * walls]) if walls else np.zeros(0, np.int64)
         wall_i, wall_of = touching // max(walls, 1), touching % max(walls, 1)
@@ -518,14 +525,16 @@ class EngineState:
         for c, (q, wl) in enumerate(zip(wall_i, wall_of)):
             overlap, nx, ny, nz = wall_contact_geometry(q, wl, self.x, self.radius[q], self.wall_kind, self.wall_geom)
             wall_branch[c] = (self.radius[q] - overlap) * np.array([nx, ny, nz])
+        # a wall's load row: -F and its moment about the origin, point x (-F) + the torque on the wall
+        load = self.wall_load.reshape(-1, WALL_LOAD_SIZE)[touching]
+        wall_moment = -(load[:, 3:6] - np.cross(self.x[wall_i] - wall_branch, load[:, 0:3]))
         i, j = np.concatenate([i, wall_i]), np.concatenate([j, np.full(len(touching), -1)])
         if self._slots is not None:  # slots to the order the particles were added (``by_id``)
             order = np.empty(n, dtype=np.int64)
             order[self._slots] = np.arange(n)
             i, j = order[i], np.where(j >= 0, order[np.maximum(j, 0)], -1)
-        return {"i": i, "j": j,
-                "force": np.concatenate([force, -self.wall_load.reshape(-1, WALL_LOAD_SIZE)[touching, 0:3]]),
-                "branch": np.concatenate([branch, wall_branch])}
+        return {"i": i, "j": j, "force": np.concatenate([force, -load[:, 0:3]]),
+                "branch": np.concatenate([branch, wall_branch]), "moment": np.concatenate([moment, wall_moment])}
 
     def governor(self):
         """The thread governor of this state's runs (``rollingdem.engine.threads``), made when first used."""

@@ -33,7 +33,7 @@ import numpy as np
 
 from rollingdem.errors import ParameterError, check_positive
 
-__all__ = ["Gaussian", "Lucy", "Grid", "Fields", "coarse_grain"]
+__all__ = ["Gaussian", "Lucy", "Grid", "Fields", "coarse_grain", "profile"]
 
 
 class Gaussian:
@@ -158,7 +158,9 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
     f) arrays (M x 3 each: the centre of the particle the force acts on, the branch vector from
     the other particle's centre or the wall's contact point to it, the force on it), their line
     integral by Gauss-Legendre with ``quadrature`` points; a fourth array, the contacts' pure
-    moments on i (M x 3, N m: ``Simulation.contact_forces``' ``moment``), gives the couple stress."""
+    moments on i (M x 3, N m), gives the couple stress. ``contacts`` may also be the mapping
+    ``Simulation.contact_forces`` returns (``i`` indexing ``positions``, ``branch``, ``force``,
+    ``moment``)."""
     x = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     m = np.broadcast_to(np.asarray(masses, dtype=np.float64), (len(x),))
     v = np.asarray(velocities, dtype=np.float64).reshape(-1, 3)
@@ -184,6 +186,9 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
                                            minlength=size)
             kinetic[:, b, a] = kinetic[:, a, b]
     contact, couple = np.zeros((size, 3, 3)), np.zeros((size, 3, 3))
+    if isinstance(contacts, dict):
+        contacts = (x[np.asarray(contacts["i"], dtype=np.int64)], contacts["branch"], contacts["force"],
+                    *([contacts["moment"]] if "moment" in contacts else []))
     if contacts is not None:
         xi, branch, force, *moment = (np.asarray(c, dtype=np.float64).reshape(-1, 3) for c in contacts)
         s, ws = np.polynomial.legendre.leggauss(int(quadrature))
@@ -198,3 +203,37 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
     shape = tuple(grid.shape)
     return Fields(grid, density.reshape(shape), momentum.reshape(shape + (3,)), velocity.reshape(shape + (3,)),
                   kinetic.reshape(shape + (3, 3)), contact.reshape(shape + (3, 3)), couple.reshape(shape + (3, 3)))
+
+
+#: the columns of ``profile``: name, unit, and the field and component they take
+PROFILE_COLUMNS = (("density", "kg/m^3"), ("velocity_x", "m/s"), ("velocity_y", "m/s"), ("velocity_z", "m/s"),
+                   *((f"stress_{a}{b}", "Pa") for a, b in ("xx", "yy", "zz", "xy", "xz", "yz")),
+                   *((f"kinetic_stress_{a}{b}", "Pa") for a, b in ("xx", "yy", "zz")),
+                   *((f"couple_stress_{a}{b}", "N/m") for a, b in ("xx", "yy", "zz", "xy", "yx", "xz", "zx", "yz",
+                                                                  "zy")))
+
+
+def profile(fields: Fields, axis: str) -> dict:
+    """The fields averaged over the grid's two other axes, along ``axis`` ("x", "y" or "z"): a
+    mapping of column names with their units ("z (m)", "density (kg/m^3)", "stress_zz (Pa)", ...;
+    ``PROFILE_COLUMNS``) to arrays, one value per node. The velocity is the averaged momentum over
+    the averaged density (the mass-weighted mean)."""
+    if axis not in ("x", "y", "z"):
+        raise ParameterError(f"profile axis = {axis!r} is not allowed: must be 'x', 'y' or 'z'")
+    a = "xyz".index(axis)
+    others = tuple(k for k in range(3) if k != a)
+
+    def mean(field):
+        return field.mean(axis=others)
+
+    density, momentum = mean(fields.density), mean(fields.momentum)
+    velocity = np.divide(momentum, density[:, None], out=np.zeros_like(momentum), where=density[:, None] > 0.0)
+    stress, kinetic, couple = mean(fields.stress), mean(fields.kinetic_stress), mean(fields.couple_stress)
+    index = {c: k for k, c in enumerate("xyz")}
+    values = {"density": density, **{f"velocity_{c}": velocity[:, index[c]] for c in "xyz"}}
+    for name, unit in PROFILE_COLUMNS:
+        if "_stress_" in name or name.startswith("stress_"):
+            source = {"stress": stress, "kinetic_stress": kinetic, "couple_stress": couple}[name.rsplit("_", 1)[0]]
+            values[name] = source[:, index[name[-2]], index[name[-1]]]
+    return {f"{axis} (m)": fields.grid.axes()[a],
+            **{f"{name} ({unit})": values[name] for name, unit in PROFILE_COLUMNS}}

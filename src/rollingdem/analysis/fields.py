@@ -31,12 +31,111 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from numba import njit
+
 from rollingdem.errors import ParameterError, check_positive
 
 __all__ = ["Gaussian", "Lucy", "Grid", "Fields", "coarse_grain", "profile"]
 
 
-class Gaussian:
+GAUSSIAN, LUCY = 0, 1
+
+
+@njit(cache=True, inline="always")
+def _kernel(kind, factor, length, cutoff, r):
+    """The value at distance r of the kernel ``compiled()`` describes."""
+    if r >= cutoff:
+        return 0.0
+    if kind == GAUSSIAN:
+        return factor * math.exp(-0.5 * (r / length) ** 2)
+    u = r / length
+    return factor * (1.0 + 3.0 * u) * (1.0 - u) ** 3
+
+
+@njit(cache=True)
+def _spread_add(points, values, lower, spacing, shape, periodic, reach, kernel, out, mean_velocity):
+    """Add each point's row of ``values`` to the nodes its kernel reaches, with weights summing to
+    1 / cell volume over them (the nodes of a non-periodic side's far side left out); with a
+    ``mean_velocity`` per node (rows: nodes), ``values`` are (m, vx, vy, vz) and the six
+    components m v'v' with v' = v - V(node) are added instead. Returns the index of a point that
+    reaches no node, or -1."""
+    kind, factor, length, cutoff = kernel
+    volume = spacing[0] * spacing[1] * spacing[2]
+    kinetic = mean_velocity.shape[0] != 0
+    base = np.empty(3, dtype=np.int64)
+    window = (2 * reach[0] + 1) * (2 * reach[1] + 1) * (2 * reach[2] + 1)
+    nodes = np.empty(window, dtype=np.int64)  # the nodes a point reaches and their weights
+    weights = np.empty(window)
+    for q in range(points.shape[0]):
+        for a in range(3):
+            base[a] = int(math.floor((points[q, a] - lower[a]) / spacing[a] - 0.5))
+        found = 0
+        total = 0.0
+        for i in range(base[0] - reach[0], base[0] + reach[0] + 1):
+            if not periodic[0] and (i < 0 or i >= shape[0]):
+                continue
+            dx = lower[0] + (i + 0.5) * spacing[0] - points[q, 0]
+            for j in range(base[1] - reach[1], base[1] + reach[1] + 1):
+                if not periodic[1] and (j < 0 or j >= shape[1]):
+                    continue
+                dy = lower[1] + (j + 0.5) * spacing[1] - points[q, 1]
+                for k in range(base[2] - reach[2], base[2] + reach[2] + 1):
+                    if not periodic[2] and (k < 0 or k >= shape[2]):
+                        continue
+                    dz = lower[2] + (k + 0.5) * spacing[2] - points[q, 2]
+                    w = _kernel(kind, factor, length, cutoff, math.sqrt(dx * dx + dy * dy + dz * dz))
+                    if w > 0.0:
+                        nodes[found] = ((i % shape[0]) * shape[1] + j % shape[1]) * shape[2] + k % shape[2]
+                        weights[found] = w
+                        total += w
+                        found += 1
+        if found == 0:
+            return q
+        for f in range(found):
+            node = nodes[f]
+            w = weights[f] / (total * volume)
+            if kinetic:
+                m = values[q, 0]
+                ux = values[q, 1] - mean_velocity[node, 0]
+                uy = values[q, 2] - mean_velocity[node, 1]
+                uz = values[q, 3] - mean_velocity[node, 2]
+                out[node, 0] += w * m * ux * ux
+                out[node, 1] += w * m * uy * uy
+                out[node, 2] += w * m * uz * uz
+                out[node, 3] += w * m * ux * uy
+                out[node, 4] += w * m * ux * uz
+                out[node, 5] += w * m * uy * uz
+            else:
+                for c in range(values.shape[1]):
+                    out[node, c] += w * values[q, c]
+    return -1
+
+
+@njit(cache=True)
+def _kernel_values(kind, factor, length, cutoff, r, out):
+    for q in range(r.shape[0]):
+        out[q] = _kernel(kind, factor, length, cutoff, r[q])
+
+
+class Kernel:
+    """A kernel of width ``width`` (m) that vanishes from ``cutoff`` on; called with distances (m),
+    its values (1/m^3)."""
+
+    width: float
+    cutoff: float
+
+    def __call__(self, r) -> np.ndarray:
+        r = np.asarray(r, dtype=np.float64)
+        out = np.empty(r.size)
+        _kernel_values(*self.compiled(), np.ascontiguousarray(r.ravel()), out)
+        return out.reshape(r.shape)
+
+    def compiled(self) -> tuple[int, float, float, float]:
+        """(kind, factor, length, cutoff) for ``_kernel``."""
+        raise NotImplementedError
+
+
+class Gaussian(Kernel):
     """phi(r) = exp(-r^2 / 2 w^2), cut at 3 w, normalised over the ball it is cut to (a coordinate's
     standard deviation is then 0.97 w)."""
 
@@ -49,12 +148,11 @@ class Gaussian:
         inside = math.erf(3.0 / math.sqrt(2.0)) - math.sqrt(2.0 / math.pi) * 3.0 * math.exp(-4.5)
         self._norm = 1.0 / ((2.0 * math.pi * self.width ** 2) ** 1.5 * inside)
 
-    def __call__(self, r: np.ndarray) -> np.ndarray:
-        r = np.asarray(r, dtype=np.float64)
-        return np.where(r < self.cutoff, self._norm * np.exp(-0.5 * (r / self.width) ** 2), 0.0)
+    def compiled(self) -> tuple[int, float, float, float]:
+        return GAUSSIAN, self._norm, self.width, self.cutoff
 
 
-class Lucy:
+class Lucy(Kernel):
     """Lucy's polynomial, phi(r) = 105 / (16 pi c^3) (1 + 3 r/c) (1 - r/c)^3 for r < c, with the
     cutoff c = 2 w (a coordinate's standard deviation c / sqrt 12 = 0.58 w)."""
 
@@ -64,9 +162,8 @@ class Lucy:
         self.width = check_positive("kernel width", width, "m")
         self.cutoff = 2.0 * self.width
 
-    def __call__(self, r: np.ndarray) -> np.ndarray:
-        u = np.asarray(r, dtype=np.float64) / self.cutoff
-        return np.where(u < 1.0, 105.0 / (16.0 * math.pi * self.cutoff ** 3) * (1.0 + 3.0 * u) * (1.0 - u) ** 3, 0.0)
+    def compiled(self) -> tuple[int, float, float, float]:
+        return LUCY, 105.0 / (16.0 * math.pi * self.cutoff ** 3), self.cutoff, self.cutoff
 
 
 @dataclass(frozen=True)
@@ -122,34 +219,17 @@ class Fields:
         return self.kinetic_stress + self.contact_stress
 
 
-def _spread(grid: Grid, kernel, points: np.ndarray):
-    """For each point, the flat indices of the nodes its kernel reaches and their weights, each
-    point's weights summing to 1 / cell volume: arrays (points, nodes) of index and weight."""
+def _spread(grid: Grid, kernel, points: np.ndarray, values: np.ndarray, out: np.ndarray, mean_velocity=None):
+    """``_spread_add`` on ``grid`` (refusing a point that reaches no node)."""
     h = grid.spacing
-    shape = np.asarray(grid.shape)
-    reach = np.ceil(kernel.cutoff / h).astype(int)
-    offsets = np.stack(np.meshgrid(*[np.arange(-r, r + 1) for r in reach], indexing="ij"), -1).reshape(-1, 3)
-    lower = np.asarray(grid.lower, float)
-    base = np.floor((points - lower) / h - 0.5).astype(np.int64)  # the node just below each point
-    nodes = base[:, None, :] + offsets[None, :, :]
-    centre = lower + (nodes + 0.5) * h
-    distance = np.linalg.norm(centre - points[:, None, :], axis=2)
-    weight = kernel(distance)
-    inside = np.ones(weight.shape, dtype=bool)
-    for axis in range(3):
-        if grid.periodic[axis]:
-            nodes[..., axis] %= shape[axis]
-        else:
-            inside &= (nodes[..., axis] >= 0) & (nodes[..., axis] < shape[axis])
-    weight = np.where(inside, weight, 0.0)
-    total = weight.sum(axis=1, keepdims=True)
-    if (total <= 0.0).any():
-        k = int(np.nonzero(total[:, 0] <= 0.0)[0][0])
-        raise ParameterError(f"a point at {points[k].tolist()} m reaches no node of the grid: the grid must cover "
+    reach = np.ceil(kernel.cutoff / h).astype(np.int64)
+    missed = _spread_add(np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(values, dtype=np.float64),
+                         np.asarray(grid.lower, float), h, np.asarray(grid.shape, dtype=np.int64),
+                         np.asarray(grid.periodic, dtype=np.bool_), reach, kernel.compiled(), out,
+                         np.zeros((0, 3)) if mean_velocity is None else mean_velocity)
+    if missed >= 0:
+        raise ParameterError(f"a point at {points[missed].tolist()} m reaches no node of the grid: the grid must cover "
                              "the particles and contacts (or widen the kernel)")
-    weight /= total * grid.cell_volume
-    flat = np.ravel_multi_index(tuple(np.clip(nodes, 0, shape - 1).transpose(2, 0, 1)), grid.shape)
-    return flat, weight
 
 
 def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=None, quadrature: int = 4) -> Fields:
@@ -172,34 +252,27 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
                              f"{', '.join(f'{h:g}' for h in grid.spacing)} m: its cutoff ({kernel.cutoff:g} m) must "
                              f"exceed half a cell's diagonal, {half_diagonal:g} m")
     size = int(np.prod(grid.shape))
-    flat, weight = _spread(grid, kernel, x)
-    density = np.bincount(flat.ravel(), (m[:, None] * weight).ravel(), minlength=size)
-    momentum = np.stack([np.bincount(flat.ravel(), (m[:, None] * v[:, d:d + 1] * weight).ravel(), minlength=size)
-                         for d in range(3)], -1)
+    mass_momentum = np.zeros((size, 4))
+    _spread(grid, kernel, x, np.column_stack([m, m[:, None] * v]), mass_momentum)
+    density, momentum = mass_momentum[:, 0], mass_momentum[:, 1:]
     velocity = np.divide(momentum, density[:, None], out=np.zeros_like(momentum), where=density[:, None] > 0.0)
-    # v' at each node a particle reaches: its velocity less the node's mean velocity
-    fluct = v[:, None, :] - velocity[flat]
-    kinetic = np.zeros((size, 3, 3))
-    for a in range(3):
-        for b in range(a, 3):
-            kinetic[:, a, b] = np.bincount(flat.ravel(), (m[:, None] * fluct[..., a] * fluct[..., b] * weight).ravel(),
-                                           minlength=size)
-            kinetic[:, b, a] = kinetic[:, a, b]
-    contact, couple = np.zeros((size, 3, 3)), np.zeros((size, 3, 3))
+    six = np.zeros((size, 6))  # xx, yy, zz, xy, xz, yz of m v'v', v' about each node's mean velocity
+    _spread(grid, kernel, x, np.column_stack([m, v]), six, velocity)
+    kinetic = six[:, [[0, 3, 4], [3, 1, 5], [4, 5, 2]]]
     if isinstance(contacts, dict):
         contacts = (x[np.asarray(contacts["i"], dtype=np.int64)], contacts["branch"], contacts["force"],
                     *([contacts["moment"]] if "moment" in contacts else []))
+    loads = np.zeros((size, 18))  # f_a b_b, then M_a b_b
     if contacts is not None:
         xi, branch, force, *moment = (np.asarray(c, dtype=np.float64).reshape(-1, 3) for c in contacts)
+        products = np.concatenate([(force[:, :, None] * branch[:, None, :]).reshape(-1, 9),
+                                   (moment[0][:, :, None] * branch[:, None, :]).reshape(-1, 9) if moment
+                                   else np.zeros((len(force), 9))], axis=1)
         s, ws = np.polynomial.legendre.leggauss(int(quadrature))
         s, ws = 0.5 * (s + 1.0), 0.5 * ws  # on [0, 1]
         for sq, wq in zip(s, ws):
-            cflat, cweight = _spread(grid, kernel, xi - sq * branch)
-            for field, load in ((contact, force), *((couple, m) for m in moment)):
-                for a in range(3):
-                    for b in range(3):
-                        field[:, a, b] += np.bincount(cflat.ravel(), (wq * load[:, a:a + 1] * branch[:, b:b + 1]
-                                                                      * cweight).ravel(), minlength=size)
+            _spread(grid, kernel, xi - sq * branch, wq * products, loads)
+    contact, couple = loads[:, :9].reshape(size, 3, 3), loads[:, 9:].reshape(size, 3, 3)
     shape = tuple(grid.shape)
     return Fields(grid, density.reshape(shape), momentum.reshape(shape + (3,)), velocity.reshape(shape + (3,)),
                   kinetic.reshape(shape + (3, 3)), contact.reshape(shape + (3, 3)), couple.reshape(shape + (3, 3)))

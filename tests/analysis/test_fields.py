@@ -253,3 +253,19 @@ def test_a_profile_averages_the_other_two_axes_with_its_units():
     np.testing.assert_allclose(along["couple_stress_yx (N/m)"], fields.couple_stress[..., 1, 0].mean(axis=(0, 2)),
                                rtol=1e-14)
     assert not np.allclose(along["couple_stress_yx (N/m)"], along["couple_stress_xy (N/m)"])
+
+
+def test_a_periodic_grid_wraps_what_crosses_its_side():
+    """On a grid periodic along x, a particle and a contact whose branch crosses the side x = 0
+    give the fields of the same shifted 5 mm into the box, moved back by 5 mm (rolled by 10 nodes
+    of 0.5 mm): nothing of them is lost or bent at the side (1e-12)."""
+    grid = Grid((0.0, 0.0, 0.0), (0.01, 0.01, 0.01), (20, 20, 20), periodic=(True, False, False))
+    kernel = Lucy(0.0012)
+    xi, b = np.array([0.0005, 0.005, 0.005]), np.array([0.002, 0.0004, -0.0003])
+    shift = np.array([0.005, 0.0, 0.0])
+    near, far = (coarse_grain(grid, kernel, [xi + d], 2e-6, [[0.1, 0.0, 0.0]], ([xi + d], [b], [[1.0, 0.5, 0.0]],
+                                                                                [[0.0, 0.0, 1e-4]]))
+                 for d in (np.zeros(3), shift))
+    for field in ("density", "momentum", "contact_stress", "couple_stress"):
+        a, c = getattr(near, field), np.roll(getattr(far, field), -10, axis=0)
+        np.testing.assert_allclose(a, c, rtol=0, atol=1e-12 * np.abs(a).max())

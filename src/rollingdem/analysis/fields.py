@@ -60,6 +60,7 @@ def _spread_add(points, values, lower, spacing, shape, periodic, reach, kernel, 
     components m v'v' with v' = v - V(node) are added instead. Returns the index of a point that
     reaches no node, or -1."""
     kind, factor, length, cutoff = kernel
+    cutoff2 = cutoff * cutoff  # nodes this far or farther get nothing: skipped before the root
     volume = spacing[0] * spacing[1] * spacing[2]
     kinetic = mean_velocity.shape[0] != 0
     base = np.empty(3, dtype=np.int64)
@@ -72,18 +73,19 @@ def _spread_add(points, values, lower, spacing, shape, periodic, reach, kernel, 
         found = 0
         total = 0.0
         for i in range(base[0] - reach[0], base[0] + reach[0] + 1):
-            if not periodic[0] and (i < 0 or i >= shape[0]):
-                continue
             dx = lower[0] + (i + 0.5) * spacing[0] - points[q, 0]
+            if dx * dx >= cutoff2 or (not periodic[0] and (i < 0 or i >= shape[0])):
+                continue
             for j in range(base[1] - reach[1], base[1] + reach[1] + 1):
-                if not periodic[1] and (j < 0 or j >= shape[1]):
-                    continue
                 dy = lower[1] + (j + 0.5) * spacing[1] - points[q, 1]
+                if dx * dx + dy * dy >= cutoff2 or (not periodic[1] and (j < 0 or j >= shape[1])):
+                    continue
                 for k in range(base[2] - reach[2], base[2] + reach[2] + 1):
-                    if not periodic[2] and (k < 0 or k >= shape[2]):
-                        continue
                     dz = lower[2] + (k + 0.5) * spacing[2] - points[q, 2]
-                    w = _kernel(kind, factor, length, cutoff, math.sqrt(dx * dx + dy * dy + dz * dz))
+                    r2 = dx * dx + dy * dy + dz * dz
+                    if r2 >= cutoff2 or (not periodic[2] and (k < 0 or k >= shape[2])):
+                        continue
+                    w = _kernel(kind, factor, length, cutoff, math.sqrt(r2))
                     if w > 0.0:
                         nodes[found] = ((i % shape[0]) * shape[1] + j % shape[1]) * shape[2] + k % shape[2]
                         weights[found] = w

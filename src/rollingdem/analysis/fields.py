@@ -21,7 +21,9 @@ On the grid the weights of each point are scaled to sum to one over the nodes it
 fields' sums over the grid (times a cell's volume) are the particles' mass and momentum and the
 contacts' virial sum sum_c f_c b_c exactly, for any kernel and grid spacing; a point whose kernel
 reaches past a non-periodic side of the grid puts all of its weight inside it, so the grid should
-reach a kernel's cutoff beyond the material (or be periodic there).
+reach a kernel's cutoff beyond the material (or be periodic there). The points are spread on
+Numba's threads in contiguous chunks, each into a grid of its own, summed in order: the fields
+depend on the thread count at round-off only.
 """
 
 from __future__ import annotations
@@ -31,7 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from numba import njit
+import numba
+from numba import njit, prange
 
 from rollingdem.errors import ParameterError, check_positive
 
@@ -53,12 +56,12 @@ def _kernel(kind, factor, length, cutoff, r):
 
 
 @njit(cache=True)
-def _spread_add(points, values, lower, spacing, shape, periodic, reach, kernel, out, mean_velocity):
-    """Add each point's row of ``values`` to the nodes its kernel reaches, with weights summing to
-    1 / cell volume over them (the nodes of a non-periodic side's far side left out); with a
-    ``mean_velocity`` per node (rows: nodes), ``values`` are (m, vx, vy, vz) and the six
-    components m v'v' with v' = v - V(node) are added instead. Returns the index of a point that
-    reaches no node, or -1."""
+def _spread_add(lo, hi, points, values, lower, spacing, shape, periodic, reach, kernel, out, mean_velocity):
+    """Add the row of ``values`` of each point lo..hi-1 to the nodes its kernel reaches, with
+    weights summing to 1 / cell volume over them (the nodes of a non-periodic side's far side left
+    out); with a ``mean_velocity`` per node (rows: nodes), ``values`` are (m, vx, vy, vz) and the
+    six components m v'v' with v' = v - V(node) are added instead. Returns the index of a point
+    that reaches no node, or -1."""
     kind, factor, length, cutoff = kernel
     cutoff2 = cutoff * cutoff  # nodes this far or farther get nothing: skipped before the root
     volume = spacing[0] * spacing[1] * spacing[2]
@@ -67,7 +70,7 @@ def _spread_add(points, values, lower, spacing, shape, periodic, reach, kernel, 
     window = (2 * reach[0] + 1) * (2 * reach[1] + 1) * (2 * reach[2] + 1)
     nodes = np.empty(window, dtype=np.int64)  # the nodes a point reaches and their weights
     weights = np.empty(window)
-    for q in range(points.shape[0]):
+    for q in range(lo, hi):
         for a in range(3):
             base[a] = int(math.floor((points[q, a] - lower[a]) / spacing[a] - 0.5))
         found = 0
@@ -111,6 +114,17 @@ def _spread_add(points, values, lower, spacing, shape, periodic, reach, kernel, 
                 for c in range(values.shape[1]):
                     out[node, c] += w * values[q, c]
     return -1
+
+
+@njit(cache=True, parallel=True)
+def _spread_chunks(points, values, lower, spacing, shape, periodic, reach, kernel, outs, mean_velocity, missed):
+    """``_spread_add`` on as many contiguous chunks of the points as ``outs`` has buffers, in
+    parallel, each into its own buffer (summed in order afterwards: no two threads add to one
+    node); ``missed[chunk]``: its point that reaches no node, or -1."""
+    n, chunks = points.shape[0], outs.shape[0]
+    for c in prange(chunks):
+        missed[c] = _spread_add(c * n // chunks, (c + 1) * n // chunks, points, values, lower, spacing, shape,
+                                periodic, reach, kernel, outs[c], mean_velocity)
 
 
 @njit(cache=True)
@@ -225,13 +239,19 @@ def _spread(grid: Grid, kernel, points: np.ndarray, values: np.ndarray, out: np.
     """``_spread_add`` on ``grid`` (refusing a point that reaches no node)."""
     h = grid.spacing
     reach = np.ceil(kernel.cutoff / h).astype(np.int64)
-    missed = _spread_add(np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(values, dtype=np.float64),
-                         np.asarray(grid.lower, float), h, np.asarray(grid.shape, dtype=np.int64),
-                         np.asarray(grid.periodic, dtype=np.bool_), reach, kernel.compiled(), out,
-                         np.zeros((0, 3)) if mean_velocity is None else mean_velocity)
-    if missed >= 0:
-        raise ParameterError(f"a point at {points[missed].tolist()} m reaches no node of the grid: the grid must cover "
+    chunks = max(1, min(numba.get_num_threads(), len(points) // 64))
+    outs = np.zeros((chunks,) + out.shape)
+    missed = np.full(chunks, -1, dtype=np.int64)
+    _spread_chunks(np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(values, dtype=np.float64),
+                   np.asarray(grid.lower, float), h, np.asarray(grid.shape, dtype=np.int64),
+                   np.asarray(grid.periodic, dtype=np.bool_), reach, kernel.compiled(), outs,
+                   np.zeros((0, 3)) if mean_velocity is None else mean_velocity, missed)
+    if (missed >= 0).any():
+        k = int(missed[missed >= 0][0])
+        raise ParameterError(f"a point at {points[k].tolist()} m reaches no node of the grid: the grid must cover "
                              "the particles and contacts (or widen the kernel)")
+    for chunk in outs:  # in order: the same sums for the same thread count
+        out += chunk
 
 
 def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=None, quadrature: int = 4) -> Fields:

@@ -18,7 +18,7 @@ import pytest
 
 import rollingdem as rd
 from rollingdem.physics.contact.frame import contact_frame
-from rollingdem.physics.contact.base import _REGISTRIES
+from rollingdem.physics.contact.base import REGISTRIES
 from rollingdem.physics.records import contact_inputs
 
 ALPHA = 2.0
@@ -114,7 +114,7 @@ def test_every_built_in_sub_model_is_in_a_chain():
     """The chains above hold every registered built-in sub-model: a new one needs its rule tested."""
     used = {(slot, rd.ContactModel(**kw).submodels[i].name) for kw in CHAINS.values()
             for i, slot in enumerate(("normal", "tangential", "rolling", "twisting", "cohesion"))}
-    built_in = {(slot, name) for slot, reg in _REGISTRIES.items() for name, cls in reg.items()
+    built_in = {(slot, name) for slot, reg in REGISTRIES.items() for name, cls in reg.items()
                 if cls.__module__.startswith("rollingdem.")}
     assert built_in <= used, sorted(built_in - used)
 

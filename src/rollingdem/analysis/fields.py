@@ -323,12 +323,11 @@ def profile(fields: Fields, axis: str) -> dict:
 
     density, momentum = mean(fields.density), mean(fields.momentum)
     velocity = np.divide(momentum, density[:, None], out=np.zeros_like(momentum), where=density[:, None] > 0.0)
-    stress, kinetic, couple = mean(fields.stress), mean(fields.kinetic_stress), mean(fields.couple_stress)
-    index = {c: k for k, c in enumerate("xyz")}
-    values = {"density": density, **{f"velocity_{c}": velocity[:, index[c]] for c in "xyz"}}
-    for name, unit in PROFILE_COLUMNS:
-        if "_stress_" in name or name.startswith("stress_"):
-            source = {"stress": stress, "kinetic_stress": kinetic, "couple_stress": couple}[name.rsplit("_", 1)[0]]
-            values[name] = source[:, index[name[-2]], index[name[-1]]]
+    tensors = {"stress": mean(fields.stress), "kinetic_stress": mean(fields.kinetic_stress),
+               "couple_stress": mean(fields.couple_stress)}
+    values = {"density": density, **{f"velocity_{c}": velocity[:, k] for k, c in enumerate("xyz")}}
+    for name, _ in PROFILE_COLUMNS[len(values):]:
+        tensor, (row, column) = name.rsplit("_", 1)
+        values[name] = tensors[tensor][:, "xyz".index(row), "xyz".index(column)]
     return {f"{axis} (m)": fields.grid.axes()[a],
             **{f"{name} ({unit})": values[name] for name, unit in PROFILE_COLUMNS}}

@@ -18,7 +18,7 @@ from typing import Any
 from rollingdem.errors import ParameterError, check_choice, check_finite
 from rollingdem.experiments.single_sphere import validation_models
 from rollingdem.physics.contact import ROLLING_MODELS
-from rollingdem.physics.contact.base import _REGISTRIES, make_submodel
+from rollingdem.physics.contact.base import REGISTRIES, make_submodel
 
 EXPERIMENTS: dict[str, "Experiment"] = {}
 """Every experiment by name, in the order they were defined."""
@@ -53,7 +53,7 @@ class Parameter:
             if self.choice == "rolling":
                 resolve_rolling(value, self.name)
             else:
-                check_choice(self.name, value, _REGISTRIES[self.choice])
+                check_choice(self.name, value, REGISTRIES[self.choice])
                 try:
                     make_submodel(self.choice, value)
                 except ParameterError as err:  # a model that needs parameters of its own (sds)

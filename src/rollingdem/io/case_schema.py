@@ -21,8 +21,7 @@ from pydantic import (
     create_model,
 )
 
-from rollingdem.physics.contact.base import (COHESION_MODELS, NORMAL_MODELS, ROLLING_MODELS, TANGENTIAL_MODELS,
-                                             TWISTING_MODELS)
+from rollingdem.physics.contact.base import REGISTRIES
 from rollingdem.physics.contact.model import ContactModel
 from rollingdem.physics.contact.properties import MATERIAL_PROPERTIES
 from rollingdem.scene.bonds import ParallelBond
@@ -138,13 +137,10 @@ def kind_tag(tag: str, what: str):
     return described(Literal[tag], ..., f"{tag}: {what}")
 
 
-#: each slot's built-in sub-models, by name
-_SUBMODELS = {"normal": NORMAL_MODELS, "tangential": TANGENTIAL_MODELS, "rolling": ROLLING_MODELS,
-              "twisting": TWISTING_MODELS, "cohesion": COHESION_MODELS}
 ContactSpec = create_model(
     "ContactSpec", __base__=_Strict, __doc__="The contact law: one sub-model per slot (rollingdem.ContactModel, "
                                             "docs/models.md)",
-    **{slot: described(Any, parameter.default, f"the {slot} sub-model: a name ({', '.join(sorted(_SUBMODELS[slot]))}"
+    **{slot: described(Any, parameter.default, f"the {slot} sub-model: a name ({', '.join(sorted(REGISTRIES[slot]))}"
                        f") or {{model: NAME, parameter: value, ...}}")
        for slot, parameter in inspect.signature(ContactModel).parameters.items()})
 

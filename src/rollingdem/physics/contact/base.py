@@ -31,8 +31,10 @@ TANGENTIAL_MODELS: dict[str, type] = {}
 ROLLING_MODELS: dict[str, type] = {}
 TWISTING_MODELS: dict[str, type] = {}
 COHESION_MODELS: dict[str, type] = {}
-_REGISTRIES = {"normal": NORMAL_MODELS, "tangential": TANGENTIAL_MODELS, "rolling": ROLLING_MODELS,
-               "twisting": TWISTING_MODELS, "cohesion": COHESION_MODELS}
+#: each slot's sub-models by name (defining a class registers it): what ``make_submodel``, the case
+#: file's contact block and the experiments' choices take
+REGISTRIES = {"normal": NORMAL_MODELS, "tangential": TANGENTIAL_MODELS, "rolling": ROLLING_MODELS,
+              "twisting": TWISTING_MODELS, "cohesion": COHESION_MODELS}
 
 
 NO_SLOTS = slots()
@@ -73,7 +75,7 @@ class SubModel:
             if cls.function is None:
                 raise TypeError(f"{cls.__name__}: a {cls.slot} sub-model needs its compiled function "
                                 "(function = staticmethod(...))")
-            _REGISTRIES[cls.slot][cls.name] = cls
+            REGISTRIES[cls.slot][cls.name] = cls
 
     @classmethod
     def compiled_function(cls) -> tuple[str, str]:
@@ -96,7 +98,7 @@ class SubModel:
     def check_coarse_graining(self, alpha: float) -> None:
         """Refuse coarse graining (``alpha`` > 1) with a sub-model that declares no rule for it."""
         if alpha != 1.0 and self.coarse_graining_exponents() is None:
-            known = ", ".join(sorted(k for k, c in _REGISTRIES[self.slot].items() if _has_rule(c)))
+            known = ", ".join(sorted(k for k, c in REGISTRIES[self.slot].items() if _has_rule(c)))
             raise ParameterError(f"coarse_graining = {alpha:g} is not allowed with {self.slot} model {self.name!r}: "
                                  f"how its parameters scale with the parcel is not known; {self.slot} models with a "
                                  f"rule are {known}")
@@ -179,7 +181,7 @@ def make_submodel(slot: str, spec) -> SubModel:
     Every mistake is a ``ParameterError`` naming the slot, the model and the parameter: an unknown
     model or parameter, a required parameter left out, a value of the wrong kind.
     """
-    registry = _REGISTRIES[slot]
+    registry = REGISTRIES[slot]
     if isinstance(spec, SubModel):
         if spec.slot != slot:
             raise ParameterError(f"{slot} model = {spec!r} is not allowed: it is a {spec.slot} model")

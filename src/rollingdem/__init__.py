@@ -11,6 +11,9 @@ _numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 # quiet cores, and a spinning thread gives its core back sooner to another process (the figures:
 # docs/performance.md). A user's own setting wins; set before libgomp is loaded.
 _os.environ.setdefault("GOMP_SPINCOUNT", "30000")
+# the inliner's copy of a callee made once, not once per block: about a tenth of an engine module's
+# compile (rollingdem.engine.numba_inlining)
+from rollingdem.engine import numba_inlining as _numba_inlining  # noqa: E402,F401
 
 from rollingdem.physics import contact as _contact  # noqa: E402
 from rollingdem.scene import convert  # noqa: E402

@@ -80,13 +80,16 @@ def contact_of(hist, k, g, p, dt, moments):
     return contact_in_frame(hist, k, frame, g, p, dt, moments)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+# ``no_cpython_wrapper``: a function only compiled code calls has no Python entry (its Python entry
+# costs compile time; called from Python, such a function crashes: the CUDA simulator's kernels call
+# ``gather_rows`` and ``pair_rows_scalar`` from Python, so those keep theirs)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def contact(hist, k, g, p, dt):
     """``contact_of`` with every moment."""
     return contact_of(hist, k, g, p, dt, True)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def bonded_contact(hist, k, g, p, dt):
     """The contact of a pair held by an intact ``parallel`` bond: no rolling or twisting moment (the
     bond's bending and twisting springs resist that motion, docs/models.md §1.7), and their

@@ -11,6 +11,7 @@ from numba import njit, prange, uint32, uint64
 from rollingdem.engine.layout import PERIODIC_BOX as PB
 from rollingdem.engine.integrator import kick_drift_one, next_drift_bound
 from rollingdem.engine.neighbors import minimum_image
+from rollingdem.engine.step_records import StepRecords
 from rollingdem.engine.wall_candidates import mark_moved_walls
 from rollingdem.physics.bonds import BOND_INTACT, parallel_bond
 from rollingdem.engine.template.contact import BONDED_PAIRS, GATHER_RUN, MESHES, add_energies_and_count  # @@PART
@@ -189,33 +190,50 @@ def free_run_bound(fixed, nruns, target):
     return nruns
 
 
+@njit(cache=True, no_cpython_wrapper=True, error_model="numpy", fastmath={"contract"})
+def gather_chunk(c, nthreads, free, dt, kick, gravity, held, pair_params, half_skin):
+    """Thread c's share of ``gather`` (of ``nthreads``; ``free`` free particles in all): a contiguous
+    range of runs holding an equal share of the free particles, each run through ``gather_rows``;
+    returns the counts of its two flags."""
+    particles, walls, lists = held.particles, held.walls, held.lists  # once: each read counts references
+    n = particles.x.shape[0]
+    nruns = (n + GATHER_RUN - 1) // GATHER_RUN
+    fixed = particles.fixed
+    if fixed.shape[0] == 0:
+        lo, hi = c * nruns // nthreads, (c + 1) * nruns // nthreads
+    else:
+        lo = free_run_bound(fixed, nruns, c * free / nthreads)
+        hi = free_run_bound(fixed, nruns, (c + 1) * free / nthreads)
+        if c == nthreads - 1:
+            hi = nruns
+    nexceed = 0
+    nfast = 0
+    for b in range(lo, hi):
+        exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, particles,
+                                   walls, lists, pair_params, half_skin)
+        nexceed += exceed
+        nfast += fast
+    return nexceed, nfast
+
+
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def gather(dt, kick, gravity, pair_params, particles, walls, lists, scratch, half_skin):
     """``gather_rows`` on runs of ``GATHER_RUN`` particles, each thread (``scratch`` has a block per
-    thread) a contiguous range of runs holding an equal share of the free particles."""
-    n = particles.x.shape[0]
+    thread) a contiguous range of runs holding an equal share of the free particles
+    (``gather_chunk``). The threads get the records behind one reference (``StepRecords``)."""
     nexceed = 0
     nfast = 0
     mark_moved_walls(walls)
-    nruns = (n + GATHER_RUN - 1) // GATHER_RUN
     nthreads = scratch.lanes.shape[0]
     fixed = particles.fixed
     free = 0
     for q in range(fixed.shape[0]):
         free += fixed[q] == 0
+    held = StepRecords(particles, walls, lists)
     for c in prange(nthreads):
-        if fixed.shape[0] == 0:
-            lo, hi = c * nruns // nthreads, (c + 1) * nruns // nthreads
-        else:
-            lo = free_run_bound(fixed, nruns, c * free / nthreads)
-            hi = free_run_bound(fixed, nruns, (c + 1) * free / nthreads)
-            if c == nthreads - 1:
-                hi = nruns
-        for b in range(lo, hi):
-            exceed, fast = gather_rows(b * GATHER_RUN, min((b + 1) * GATHER_RUN, n), dt, kick, gravity, particles,
-                                       walls, lists, pair_params, half_skin)
-            nexceed += exceed
-            nfast += fast
+        exceed, fast = gather_chunk(np.int64(c), nthreads, free, dt, kick, gravity, held, pair_params, half_skin)
+        nexceed += exceed
+        nfast += fast
     return nexceed, nfast
 
 

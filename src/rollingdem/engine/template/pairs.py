@@ -13,6 +13,7 @@ from numba.np.arrayobj import reshape_unchecked
 from rollingdem.physics.records import BOND_PARAMETERS, CONTACT_INPUTS as IN, N_INPUTS, N_RESULTS
 from rollingdem.engine.layout import BLOCK_SHIFT, CONTACT_BLOCK, LANE_HITS, PERIODIC_BOX as PB
 from rollingdem.engine.neighbors import POOL_GROUP, free_row, minimum_image, take_row
+from rollingdem.engine.step_records import PairRecords
 from rollingdem.physics.bonds import BOND_INTACT
 from rollingdem.physics.contact.frame import SERIES_ANGLE, contact_frame_series, spin_angle, stored_normal
 from rollingdem.engine.template.contact import BLOCK_COLUMNS, BONDED_PAIRS, B_IN, B_OUT, B_SCALAR, CANDIDATE_SLACK, DETACH_AT, HISTORY_SIZE, INERTIA_R_FACTOR, NO_CONTACT, TRACK_ENERGY, add_contact, add_energies_and_count, bonded_contact, contact, contact_in_frame  # @@PART
@@ -24,7 +25,7 @@ def lane_columns(block):
     return reshape_unchecked(block, (CONTACT_BLOCK, BLOCK_COLUMNS), (8, 8 * CONTACT_BLOCK))
 
 
-@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def block_contacts(block, p, dt):
     """All ``CONTACT_BLOCK`` lanes of a block buffer through the contact law, one contact per lane:
     ``contact`` for a spin angle below ``SERIES_ANGLE``, with selects instead of branches and the
@@ -47,7 +48,7 @@ def block_contacts(block, p, dt):
             col[n, B_OUT + c] = res[c]
 
 
-@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def flush_block(count, block, lanes, dt, f, t, p, pool, pair_terms, energy, contacts):
     """Compute a block of ``count`` contacts (material pair parameters ``p``) and scatter the results:
     history back to each contact's pool row, F and T_j to the same row of ``pair_terms``, F and T
@@ -246,7 +247,7 @@ def pair_rows_scalar(lo, hi, dt, particles, lists, pair_params):
         pair_row(i, dt, particles, lists, pair_params)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False, error_model="numpy", fastmath={"contract"})
 def pair_rows(lo, hi, dt, particles, lists, pair_params, block, lanes):
     """Rows lo..hi-1 of the half list (whole groups of the pool): F and T on i summed over the row,
     F and T_j kept per contact. The contacts a tile's distance tests find are queued into
@@ -306,16 +307,25 @@ def pair_rows(lo, hi, dt, particles, lists, pair_params, block, lanes):
         flush_block(count, block, lanes, dt, f, t, p, pool, lists.pair_terms, particles.energy, contacts)
 
 
+@njit(cache=True, no_cpython_wrapper=True, error_model="numpy", fastmath={"contract"})
+def pair_chunk(b, nblock, dt, pair_params, held):
+    """Thread b's share of ``pair_forces`` (of ``nblock``): a contiguous range of whole pool groups,
+    with its own block buffer."""
+    particles, scratch = held.particles, held.scratch
+    n = particles.x.shape[0]
+    ngroups = (n + POOL_GROUP - 1) // POOL_GROUP
+    pair_rows(min(b * ngroups // nblock * POOL_GROUP, n), min((b + 1) * ngroups // nblock * POOL_GROUP, n), dt,
+              particles, held.lists, pair_params, scratch.blocks[b], scratch.lanes[b])
+
+
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
 def pair_forces(dt, pair_params, particles, lists, scratch):
-    """Pair contacts: each thread a contiguous range of whole pool groups, with its own block buffer."""
-    n = particles.x.shape[0]
-    blocks, lanes = scratch.blocks, scratch.lanes
-    nblock = blocks.shape[0]
-    ngroups = (n + POOL_GROUP - 1) // POOL_GROUP
+    """Pair contacts: each thread a contiguous range of whole pool groups, with its own block buffer
+    (``pair_chunk``; the records behind one reference, ``PairRecords``)."""
+    nblock = scratch.blocks.shape[0]
+    held = PairRecords(particles, lists, scratch)
     for b in prange(nblock):
-        pair_rows(min(b * ngroups // nblock * POOL_GROUP, n), min((b + 1) * ngroups // nblock * POOL_GROUP, n), dt,
-                  particles, lists, pair_params, blocks[b], lanes[b])
+        pair_chunk(np.int64(b), nblock, dt, pair_params, held)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})

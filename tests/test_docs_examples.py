@@ -425,3 +425,15 @@ def test_the_fields_example_of_the_analysis_page_prints_the_virial(capsys):
     2 N x 2 mm = 0.004 N m, as its comment says (1e-12)."""
     exec(python_block(ROOT / "docs" / "analysis.md", "## Continuum fields"), {})
     assert float(capsys.readouterr().out) == pytest.approx(0.004, rel=1e-12)
+
+
+def test_the_analysis_doc_fields_measurement_example_writes_what_it_lists(tmp_path, monkeypatch, capsys):
+    """docs/analysis.md, "Continuum fields", the measurement: six samples (0 to 0.05 s every 10 ms),
+    their .vti files, the series and the profile; the summary line names what it says."""
+    monkeypatch.chdir(tmp_path)
+    exec(python_block(ROOT / "docs" / "analysis.md", "During a run, the `fields` measurement"), {})
+    line = capsys.readouterr().out
+    assert line.startswith("bed (continuum fields") and "solid_fraction" in line and "Pa" in line
+    assert sorted(p.name for p in (tmp_path / "fields" / "bed").glob("*.vti")) == [f"bed_{k:05d}.vti" for k in range(6)]
+    for name in ("bed.csv", "bed_profile.csv", "bed.pvd"):
+        assert (tmp_path / "fields" / name).exists()

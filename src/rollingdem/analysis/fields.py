@@ -9,6 +9,7 @@ branch vector b = x_i - x_j (or, for a wall contact, from the contact point to x
 branch, at Gauss-Legendre points s in [0, 1] of x_i - s b:
 
     rho(r)       = sum_i m_i phi(r - x_i)
+    phi_s(r)     = sum_i V_i phi(r - x_i)                (solid fraction, with volumes V_i)
     rho V(r)     = sum_i m_i v_i phi(r - x_i)
     sigma_k(r)   = sum_i m_i v'_i v'_i phi(r - x_i),     v'_i = v_i - V(r)
     sigma_c(r)   = sum_c f_c b_c  int_0^1 phi(r - x_i + s b_c) ds
@@ -219,7 +220,8 @@ class Fields:
     """Fields on a grid's nodes, arrays of the grid's shape (then the components): ``density``
     (kg/m^3), ``momentum`` (kg/m^2/s), ``velocity`` (m/s, 0 where there is no mass),
     ``kinetic_stress`` and ``contact_stress`` (Pa, 3 x 3, compressive positive), ``couple_stress``
-    (N/m, 3 x 3: mu_ab = sum M_a b_b ..., zero without contact moments)."""
+    (N/m, 3 x 3: mu_ab = sum M_a b_b ..., zero without contact moments), ``solid_fraction`` (1,
+    None without the particles' volumes)."""
 
     grid: Grid
     density: np.ndarray
@@ -228,6 +230,7 @@ class Fields:
     kinetic_stress: np.ndarray
     contact_stress: np.ndarray
     couple_stress: np.ndarray
+    solid_fraction: np.ndarray | None = None
 
     @property
     def stress(self) -> np.ndarray:
@@ -254,7 +257,8 @@ def _spread(grid: Grid, kernel, points: np.ndarray, values: np.ndarray, out: np.
         out += chunk
 
 
-def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=None, quadrature: int = 4) -> Fields:
+def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=None, quadrature: int = 4,
+                 volumes=None) -> Fields:
     """The fields of particles at ``positions`` (N x 3, m) with ``masses`` (kg) and ``velocities``
     (m/s) on ``grid``, with ``kernel`` (``Gaussian`` or ``Lucy``), and of ``contacts``: (x_i, b,
     f) arrays (M x 3 each: the centre of the particle the force acts on, the branch vector from
@@ -262,7 +266,7 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
     integral by Gauss-Legendre with ``quadrature`` points; a fourth array, the contacts' pure
     moments on i (M x 3, N m), gives the couple stress. ``contacts`` may also be the mapping
     ``Simulation.contact_forces`` returns (``i`` indexing ``positions``, ``branch``, ``force``,
-    ``moment``)."""
+    ``moment``). With the particles' ``volumes`` (m^3), the solid fraction too."""
     x = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     m = np.broadcast_to(np.asarray(masses, dtype=np.float64), (len(x),))
     v = np.asarray(velocities, dtype=np.float64).reshape(-1, 3)
@@ -274,9 +278,11 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
                              f"{', '.join(f'{h:g}' for h in grid.spacing)} m: its cutoff ({kernel.cutoff:g} m) must "
                              f"exceed half a cell's diagonal, {half_diagonal:g} m")
     size = int(np.prod(grid.shape))
-    mass_momentum = np.zeros((size, 4))
-    _spread(grid, kernel, x, np.column_stack([m, m[:, None] * v]), mass_momentum)
-    density, momentum = mass_momentum[:, 0], mass_momentum[:, 1:]
+    spread = [m, m[:, None] * v] + ([np.broadcast_to(np.asarray(volumes, dtype=np.float64), (len(x),))]
+                                     if volumes is not None else [])
+    mass_momentum = np.zeros((size, 4 + (volumes is not None)))
+    _spread(grid, kernel, x, np.column_stack(spread), mass_momentum)
+    density, momentum = mass_momentum[:, 0], mass_momentum[:, 1:4]
     velocity = np.divide(momentum, density[:, None], out=np.zeros_like(momentum), where=density[:, None] > 0.0)
     six = np.zeros((size, 6))  # xx, yy, zz, xy, xz, yz of m v'v', v' about each node's mean velocity
     _spread(grid, kernel, x, np.column_stack([m, v]), six, velocity)
@@ -297,7 +303,8 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
     contact, couple = loads[:, :9].reshape(size, 3, 3), loads[:, 9:].reshape(size, 3, 3)
     shape = tuple(grid.shape)
     return Fields(grid, density.reshape(shape), momentum.reshape(shape + (3,)), velocity.reshape(shape + (3,)),
-                  kinetic.reshape(shape + (3, 3)), contact.reshape(shape + (3, 3)), couple.reshape(shape + (3, 3)))
+                  kinetic.reshape(shape + (3, 3)), contact.reshape(shape + (3, 3)), couple.reshape(shape + (3, 3)),
+                  mass_momentum[:, 4].reshape(shape) if volumes is not None else None)
 
 
 #: the columns of ``profile``: name, unit, and the field and component they take
@@ -312,7 +319,7 @@ def profile(fields: Fields, axis: str) -> dict:
     """The fields averaged over the grid's two other axes, along ``axis`` ("x", "y" or "z"): a
     mapping of column names with their units ("z (m)", "density (kg/m^3)", "stress_zz (Pa)", ...;
     ``PROFILE_COLUMNS``) to arrays, one value per node. The velocity is the averaged momentum over
-    the averaged density (the mass-weighted mean)."""
+    the averaged density (the mass-weighted mean). With a solid fraction, its column follows the axis."""
     if axis not in ("x", "y", "z"):
         raise ParameterError(f"profile axis = {axis!r} is not allowed: must be 'x', 'y' or 'z'")
     a = "xyz".index(axis)
@@ -329,5 +336,6 @@ def profile(fields: Fields, axis: str) -> dict:
     for name, _ in PROFILE_COLUMNS[len(values):]:
         tensor, (row, column) = name.rsplit("_", 1)
         values[name] = tensors[tensor][:, "xyz".index(row), "xyz".index(column)]
-    return {f"{axis} (m)": fields.grid.axes()[a],
+    solid = {} if fields.solid_fraction is None else {"solid_fraction (1)": mean(fields.solid_fraction)}
+    return {f"{axis} (m)": fields.grid.axes()[a], **solid,
             **{f"{name} ({unit})": values[name] for name, unit in PROFILE_COLUMNS}}

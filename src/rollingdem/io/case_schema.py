@@ -32,6 +32,7 @@ from rollingdem.scene.materials import OWN_PROPERTIES
 from rollingdem.scene.particles import PARTICLE_DECLARED
 from rollingdem.io.measurements import MassFlow, OutletTotals, Probe, WallLoad
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
+from rollingdem.io.field_measurements import ContinuumFields
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Rectangle
 from rollingdem.scene.simulation import Simulation
@@ -416,6 +417,10 @@ DrumFlowSpec = _measurement(DrumFlow, "DrumFlowSpec", "drum_flow",
                             "rollingdem.DrumFlow: the flowing layer's depth and the bed's turn with the drum")
 
 
+FieldsSpec = _measurement(ContinuumFields, "FieldsSpec", "fields",
+                         "rollingdem.ContinuumFields: coarse-grained continuum fields on a grid (docs/analysis.md)")
+
+
 class MeshFlowSpec(_MeasurementBase, _MeshSource):
     """``rollingdem.MeshFlow``: through a triangle mesh surface, counted along its triangles' normals."""
     type: Literal["mesh_flow"] = about(..., "mesh_flow: the flow through a triangle mesh surface")
@@ -434,7 +439,7 @@ class ProfileSpec(_MeasurementBase):
 
 MeasurementSpec = Annotated[Union[MassFlowSpec, ProbeSpec, OutletMeasurementSpec, WallMeasurementSpec,
                                   ReposeMeasurementSpec, DrumMeasurementSpec, DrumFlowSpec, ProfileSpec,
-                                  MeshFlowSpec],
+                                  MeshFlowSpec, FieldsSpec],
                             Field(discriminator="type")]
 
 

@@ -20,6 +20,7 @@ from rollingdem.errors import ParameterError, check_finite, check_positive, chec
 from rollingdem.io import case_schema
 from rollingdem.io import measurements as ms
 from rollingdem.io import rig_measurements as rig
+from rollingdem.io.field_measurements import ContinuumFields
 from rollingdem.io.case_errors import InCase, format_validation_error
 from rollingdem.io.case_schema import (
     CaseSpec,
@@ -375,6 +376,9 @@ def build_measurements(case: CaseSpec, sim) -> dict:
                 made[m.name] = ms.MeshFlow(mesh=_sensor_mesh(m, case.base_directory), **common)
             elif m.type == "drum_angle":
                 made[m.name] = rig.DrumAngle(center=m.center, axis=m.axis, extent=m.extent, **common)
+            elif m.type == "fields":
+                made[m.name] = ContinuumFields(width=m.width, kernel=m.kernel, cells=m.cells, lower=m.lower,
+                                               upper=m.upper, axis=m.axis, vtk=m.vtk, **common)
             elif m.type == "drum_flow":
                 made[m.name] = rig.DrumFlow(center=m.center, axis=m.axis, radius=m.radius, wall=m.wall, extent=m.extent,
                                            **common)

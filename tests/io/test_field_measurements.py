@@ -2,7 +2,6 @@
 volume averages of what the particles and contacts hold, its time-averaged profile keeps the
 momentum balance of a bed at rest, its .vti files hold the fields, and bad input is one line."""
 
-import base64
 import math
 import re
 
@@ -76,28 +75,34 @@ def test_the_mean_profile_holds_the_weight_above(measured_bed):
     assert 0.5 < df["solid_fraction (1)"][inside].mean() < 0.66  # a random packing of spheres
 
 
-def _vti_array(text: str, name: str) -> np.ndarray:
-    data = re.search(rf'Name="{name}" NumberOfComponents="(\d+)" format="binary">([^<]+)<', text)
-    raw = base64.b64decode(data.group(2))
-    assert int(np.frombuffer(raw[:4], "<u4")[0]) == len(raw) - 4  # VTK's byte-count header
-    return np.frombuffer(raw[4:], "<f8").reshape(-1, int(data.group(1)))
+def _vti_array(data: bytes, name: str) -> np.ndarray:
+    """An array of a .vti file with raw appended data, read as VTK reads it: its offset after the
+    "_" that opens the appended data, a UInt32 byte count, then little-endian float32 values."""
+    head = re.search(rb'Name="' + name.encode() + rb'" NumberOfComponents="(\d+)" format="appended" offset="(\d+)"',
+                     data)
+    start = data.index(b'<AppendedData encoding="raw">\n_') + len(b'<AppendedData encoding="raw">\n_') + int(head.group(2))
+    count = int(np.frombuffer(data[start:start + 4], "<u4")[0])
+    return np.frombuffer(data[start + 4:start + 4 + count], "<f4").reshape(-1, int(head.group(1)))
 
 
 def test_each_sample_is_a_vti_file_in_a_pvd_series(measured_bed):
-    """Four samples (steps 0, 100, 200, 300), four .vti files listed with their times in bed.pvd; a file's density, in
-    VTK's order (x fastest), is the fields' density now, and its extent and spacing the grid's."""
+    """Four samples (steps 0, 100, 200, 300), four .vti files listed with their times in bed.pvd; a
+    file's density and stress, in VTK's order (x fastest), are the fields' now as 32-bit floats, its
+    extent the grid's."""
     sim, m, folder = measured_bed
     pvd = (folder / "bed.pvd").read_text()
     files = re.findall(r'timestep="([^"]+)" group="" part="0" file="([^"]+)"', pvd)
     assert [f for _, f in files] == [f"bed/bed_{k:05d}.vti" for k in range(4)]
     assert [float(t) for t, _ in files] == pytest.approx(list(m.series()["time"]))
-    last = (folder / files[-1][1]).read_text()
+    last = (folder / files[-1][1]).read_bytes()
     nx, ny, nz = m.grid.shape
-    assert f'WholeExtent="0 {nx - 1} 0 {ny - 1} 0 {nz - 1}"' in last
+    assert f'WholeExtent="0 {nx - 1} 0 {ny - 1} 0 {nz - 1}"'.encode() in last
     f = m.fields(sim)
-    np.testing.assert_array_equal(_vti_array(last, "density")[:, 0], f.density.transpose(2, 1, 0).ravel())
+    np.testing.assert_array_equal(_vti_array(last, "density")[:, 0],
+                                  f.density.transpose(2, 1, 0).ravel().astype(np.float32))
     np.testing.assert_array_equal(_vti_array(last, "stress").reshape(nz, ny, nx, 3, 3),
-                                  f.stress.transpose(2, 1, 0, 3, 4))
+                                  f.stress.transpose(2, 1, 0, 3, 4).astype(np.float32))
+    assert last.endswith(b"</AppendedData>\n</VTKFile>\n")
 
 
 def test_the_summary_carries_the_grid_and_the_profile(measured_bed):

@@ -298,8 +298,9 @@ def coarse_grain(grid: Grid, kernel, positions, masses, velocities, contacts=Non
                                    else np.zeros((len(force), 9))], axis=1)
         s, ws = np.polynomial.legendre.leggauss(int(quadrature))
         s, ws = 0.5 * (s + 1.0), 0.5 * ws  # on [0, 1]
-        for sq, wq in zip(s, ws):
-            _spread(grid, kernel, xi - sq * branch, wq * products, loads)
+        # every quadrature point in one spread: one grid per thread to clear and sum, not one per point
+        _spread(grid, kernel, (xi[None, :, :] - s[:, None, None] * branch[None, :, :]).reshape(-1, 3),
+                (ws[:, None, None] * products[None, :, :]).reshape(-1, 18), loads)
     contact, couple = loads[:, :9].reshape(size, 3, 3), loads[:, 9:].reshape(size, 3, 3)
     shape = tuple(grid.shape)
     return Fields(grid, density.reshape(shape), momentum.reshape(shape + (3,)), velocity.reshape(shape + (3,)),

@@ -32,12 +32,12 @@ _PREPARED: set[tuple[str, bool]] = set()
 def plans(serial: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """(the helper's functions, this process's functions), each list in the order compiled."""
     sfx = "_serial" if serial else ""
-    # about half the work each (docs/performance.md): the neighbor rebuild and the drift passes,
-    # which the step loop alone calls, go to the helper, which has them done while this process
-    # compiles the pair pass and the gather
-    helper = ("contact", "gather_rows", "rebuild", "kick_drift" + sfx, "undo_drift")
+    # about half the work each (docs/performance.md): the neighbor rebuild, which the step loop alone
+    # calls, goes to the helper, which has it done while this process compiles the pair pass, the
+    # gather and the drift passes
+    helper = ("contact", "gather_rows", "rebuild")
     # the contact block first: it needs nothing of the helper's, which is still starting
-    main = ("block_contacts", "pair_forces" + sfx, "gather" + sfx)
+    main = ("block_contacts", "pair_forces" + sfx, "gather" + sfx, "kick_drift" + sfx, "undo_drift")
     return helper, main
 
 

@@ -190,7 +190,7 @@ def free_run_bound(fixed, nruns, target):
     return nruns
 
 
-@njit(cache=True, no_cpython_wrapper=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, inline="always")
 def gather_chunk(c, nthreads, free, dt, kick, gravity, held, pair_params, half_skin):
     """Thread c's share of ``gather`` (of ``nthreads``; ``free`` free particles in all): a contiguous
     range of runs holding an equal share of the free particles, each run through ``gather_rows``;

@@ -307,7 +307,7 @@ def pair_rows(lo, hi, dt, particles, lists, pair_params, block, lanes):
         flush_block(count, block, lanes, dt, f, t, p, pool, lists.pair_terms, particles.energy, contacts)
 
 
-@njit(cache=True, no_cpython_wrapper=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, inline="always")
 def pair_chunk(b, nblock, dt, pair_params, held):
     """Thread b's share of ``pair_forces`` (of ``nblock``): a contiguous range of whole pool groups,
     with its own block buffer."""

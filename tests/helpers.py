@@ -119,3 +119,20 @@ def cluster(table1, n_side=5, rolling="cdt", seed=1, gravity=(0, 0, 0), speed=0.
         spin[::3] *= fast_spin / np.linalg.norm(spin[::3], axis=1)[:, None]
     sim.add_particles(x, radii, "m", velocity=rng.normal(0, speed, x.shape), angular_velocity=spin)
     return sim
+
+
+# --- a settled bed ---------------------------------------------------------------------
+
+
+def settled_glass_bed(side: float, height: float, count: int, seed: int):
+    """``count`` glass spheres (radius 0.9-1.1 mm, EPSD rolling resistance mu_r 0.2, E = 5 MPa)
+    inserted in a box ``side`` wide, periodic along x and y, and ``height`` high over a floor, then
+    settled (``rd.Settled``)."""
+    sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), periodic={"x": (0.0, side), "y": (0.0, side)})
+    sim.add_material(rd.Material("glass", youngs_modulus=5e6, poisson_ratio=0.3, density=2500.0, restitution=0.3,
+                                 friction=0.5, rolling_friction=0.2))
+    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
+    sim.insert(rd.BoxRegion((0, 0, 0), (side, side, height)), count=count, radius=rd.Uniform(0.0009, 0.0011),
+               material="glass", seed=seed)
+    assert sim.run(1.0, until=rd.Settled()).startswith("settled")
+    return sim

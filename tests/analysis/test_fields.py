@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
+from helpers import settled_glass_bed
 from rollingdem.analysis.fields import PROFILE_COLUMNS, Gaussian, Grid, Lucy, coarse_grain, profile
 from rollingdem.errors import ParameterError
 
@@ -151,19 +152,12 @@ def settled_bed():
     """500 glass spheres (radius 0.9-1.1 mm, EPSD rolling resistance mu_r 0.2) settled on a floor in
     a box periodic along x and y, 16 mm wide; the engine's slots re-sorted every 1,000 steps (as a scene of 50,000 spheres is), so that
     the contacts' indices must be mapped back to the order the spheres were added."""
-    import rollingdem as rd
     from rollingdem.engine import state as engine_state
 
     saved = engine_state.SORT_ABOVE
     engine_state.SORT_ABOVE = 10
     try:
-        sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), periodic={"x": (0.0, 0.016), "y": (0.0, 0.016)})
-        sim.add_material(rd.Material("glass", youngs_modulus=5e6, poisson_ratio=0.3, density=2500.0, restitution=0.3,
-                                     friction=0.5, rolling_friction=0.2))
-        sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
-        sim.insert(rd.BoxRegion((0, 0, 0), (0.016, 0.016, 0.03)), count=500, radius=rd.Uniform(0.0009, 0.0011),
-                   material="glass", seed=1)
-        assert sim.run(1.0, until=rd.Settled()).startswith("settled")
+        sim = settled_glass_bed(0.016, 0.03, 500, seed=1)
     finally:
         engine_state.SORT_ABOVE = saved
     return sim

@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 import rollingdem as rd
+from helpers import settled_glass_bed
 from rollingdem.io.field_measurements import ContinuumFields, stress_invariants
 
 
@@ -18,13 +19,7 @@ def measured_bed(tmp_path_factory):
     """400 glass spheres (radius 0.9-1.1 mm, EPSD rolling resistance mu_r 0.2) settled on a floor in a
     box periodic along x and y, 14 mm wide, then 300 steps with the fields sampled every 100 steps
     (Lucy, w = 1.2 mm, written to a folder)."""
-    sim = rd.Simulation(contact=rd.ContactModel(rolling="epsd"), periodic={"x": (0.0, 0.014), "y": (0.0, 0.014)})
-    sim.add_material(rd.Material("glass", youngs_modulus=5e6, poisson_ratio=0.3, density=2500.0, restitution=0.3,
-                                 friction=0.5, rolling_friction=0.2))
-    sim.add_wall(rd.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
-    sim.insert(rd.BoxRegion((0, 0, 0), (0.014, 0.014, 0.04)), count=400, radius=rd.Uniform(0.0009, 0.0011),
-               material="glass", seed=3)
-    assert sim.run(1.0, until=rd.Settled()).startswith("settled")
+    sim = settled_glass_bed(0.014, 0.04, 400, seed=3)
     folder = tmp_path_factory.mktemp("fields")
     m = ContinuumFields("bed", width=0.0012, interval=100 * sim.dt).write_to(folder)
     sim.run(steps=300, observers=[m])

@@ -435,5 +435,5 @@ def test_the_analysis_doc_fields_measurement_example_writes_what_it_lists(tmp_pa
     line = capsys.readouterr().out
     assert line.startswith("bed (continuum fields") and "solid_fraction" in line and "Pa" in line
     assert sorted(p.name for p in (tmp_path / "fields" / "bed").glob("*.vti")) == [f"bed_{k:05d}.vti" for k in range(6)]
-    for name in ("bed.csv", "bed_profile.csv", "bed.pvd"):
+    for name in ("bed.csv", "bed_profile.csv", "bed_mean.vti", "bed.pvd"):
         assert (tmp_path / "fields" / name).exists()

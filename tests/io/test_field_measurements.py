@@ -11,7 +11,7 @@ import pytest
 
 import rollingdem as rd
 from helpers import settled_glass_bed
-from rollingdem.io.field_measurements import ContinuumFields, stress_invariants
+from rollingdem.io.field_measurements import ContinuumFields, read_vti, stress_invariants
 
 
 @pytest.fixture(scope="module")
@@ -98,6 +98,19 @@ def test_each_sample_is_a_vti_file_in_a_pvd_series(measured_bed):
     np.testing.assert_array_equal(_vti_array(last, "stress").reshape(nz, ny, nx, 3, 3),
                                   f.stress.transpose(2, 1, 0, 3, 4).astype(np.float32))
     assert last.endswith(b"</AppendedData>\n</VTKFile>\n")
+
+
+def test_the_mean_grid_averages_the_windows_samples(measured_bed):
+    """bed_mean.vti: the samples in the window (the second half of the samples' span: the last two of
+    four) averaged node by node, each array; the arrays read back as VTK reads them."""
+    _, m, folder = measured_bed
+    window = [f"bed/bed_{k:05d}.vti" for k in (2, 3)]
+    mean = (folder / "bed_mean.vti").read_bytes()
+    for name in ("density", "solid_fraction", "velocity", "stress", "couple_stress"):
+        expected = np.mean([_vti_array((folder / f).read_bytes(), name).astype(np.float64) for f in window], axis=0)
+        np.testing.assert_allclose(_vti_array(mean, name), expected, rtol=1e-6, atol=1e-6 * np.abs(expected).max())
+    assert read_vti(folder / window[0]).keys() == {"density", "solid_fraction", "velocity", "stress",
+                                                   "kinetic_stress", "contact_stress", "couple_stress"}
 
 
 def test_the_summary_carries_the_grid_and_the_profile(measured_bed):

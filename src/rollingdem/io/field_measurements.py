@@ -2,14 +2,16 @@
 (``rollingdem.analysis.fields``), as MercuryDPM's MercuryCG or LIGGGHTS's ``fix ave/euler``.
 
 Each sample's grid is written as ParaView ImageData (``{name}/{name}_NNNNN.vti``, listed with its
-time in ``{name}.pvd``); the profile along one axis, averaged over the window, as
-``{name}_profile.csv`` (columns with their units); and per sample the grid's volume averages as the
-measurement's quantities (``{name}.csv``, the summary and the report)."""
+time in ``{name}.pvd``) and the window's samples averaged node by node as ``{name}_mean.vti``; the
+profile along one axis, averaged over the window, as ``{name}_profile.csv`` (columns with their
+units); and per sample the grid's volume averages as the measurement's quantities (``{name}.csv``,
+the summary and the report)."""
 
 from __future__ import annotations
 
 import csv
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -183,6 +185,21 @@ class ContinuumFields(Measurement):
                 writer.writerow(list(mean))
                 for row in zip(*mean.values()):
                     writer.writerow([repr(float(v)) for v in row])
+            self._write_mean_grid()
+
+    def _write_mean_grid(self) -> None:
+        """``NAME_mean.vti``: the grids of the window's samples (their .vti files) averaged node by node."""
+        keep = self._inwindow_of()[2]
+        files = [self.directory / name for (_, name), k in zip(self._series, keep) if k]
+        if not files:
+            return
+        total = None
+        for path in files:
+            arrays = read_vti(path)
+            total = {k: v.astype(np.float64) for k, v in arrays.items()} if total is None else \
+                {k: total[k] + arrays[k] for k in total}
+        write_vti_arrays(self.directory / f"{self.name}_mean.vti", self.grid,
+                         {k: v / len(files) for k, v in total.items()})
 
     def summary(self) -> dict:
         out = super().summary()
@@ -203,26 +220,31 @@ VTI_ARRAYS = (("density", "density", 1), ("solid_fraction", "solid_fraction", 1)
 
 
 def write_vti(path: Path, f) -> None:
-    """The fields ``f`` as VTK ImageData, nodes at the cells' centres, in VTK's order (x fastest), as
-    32-bit floats appended raw after the XML (each array a UInt32 byte count, then its bytes)."""
-    g = f.grid
-    nx, ny, nz = g.shape
-    origin = np.asarray(g.lower, float) + 0.5 * g.spacing
+    """The fields ``f`` as VTK ImageData (``write_vti_arrays``)."""
+    nx, ny, nz = f.grid.shape
+    arrays = {name: getattr(f, attribute).reshape(nx, ny, nz, components).transpose(2, 1, 0, 3).reshape(-1, components)
+              for name, attribute, components in VTI_ARRAYS if getattr(f, attribute) is not None}
+    write_vti_arrays(path, f.grid, arrays)
+
+
+def write_vti_arrays(path: Path, grid: Grid, arrays: dict) -> None:
+    """Arrays (nodes x components, nodes in VTK's order: x fastest) on ``grid`` as VTK ImageData,
+    nodes at the cells' centres, as 32-bit floats appended raw after the XML (each array a UInt32
+    byte count, then its bytes)."""
+    nx, ny, nz = grid.shape
+    origin = np.asarray(grid.lower, float) + 0.5 * grid.spacing
     heads, blocks, offset = [], [], 0
-    for name, attribute, components in VTI_ARRAYS:
-        a = getattr(f, attribute)
-        if a is None:
-            continue
-        raw = np.ascontiguousarray(a.reshape(nx, ny, nz, components).transpose(2, 1, 0, 3), dtype="<f4").tobytes()
-        heads.append(f'<DataArray type="Float32" Name="{name}" NumberOfComponents="{components}" format="appended" '
-                     f'offset="{offset}"/>')
+    for name, values in arrays.items():
+        raw = np.ascontiguousarray(values, dtype="<f4").tobytes()
+        heads.append(f'<DataArray type="Float32" Name="{name}" NumberOfComponents="{values.shape[1]}" '
+                     f'format="appended" offset="{offset}"/>')
         blocks += [np.uint32(len(raw)).astype("<u4").tobytes(), raw]
         offset += 4 + len(raw)
     extent = f"0 {nx - 1} 0 {ny - 1} 0 {nz - 1}"
     xml = ('<?xml version="1.0"?>\n<VTKFile type="ImageData" version="0.1" byte_order="LittleEndian" '
            'header_type="UInt32">\n'
            f'<ImageData WholeExtent="{extent}" Origin="{" ".join(map(repr, origin.tolist()))}" '
-           f'Spacing="{" ".join(map(repr, g.spacing.tolist()))}">\n<Piece Extent="{extent}">\n'
+           f'Spacing="{" ".join(map(repr, grid.spacing.tolist()))}">\n<Piece Extent="{extent}">\n'
            '<PointData Scalars="density">\n' + "\n".join(heads) + "\n</PointData>\n</Piece>\n</ImageData>\n"
            '<AppendedData encoding="raw">\n_')
     with open(path, "wb") as out:
@@ -232,6 +254,21 @@ def write_vti(path: Path, f) -> None:
         out.write(b"\n</AppendedData>\n</VTKFile>\n")
 
 
+def read_vti(path: Path) -> dict:
+    """The point arrays of a .vti file ``write_vti_arrays`` wrote, by name (nodes x components,
+    float32, VTK's order)."""
+    data = Path(path).read_bytes()
+    mark = b'<AppendedData encoding="raw">\n_'
+    start = data.index(mark) + len(mark)
+    out = {}
+    for name, components, offset in re.findall(rb'Name="([^"]+)" NumberOfComponents="(\d+)" format="appended" '
+                                                rb'offset="(\d+)"', data[:start]):
+        at = start + int(offset)
+        count = int(np.frombuffer(data[at:at + 4], "<u4")[0])
+        out[name.decode()] = np.frombuffer(data[at + 4:at + 4 + count], "<f4").reshape(-1, int(components))
+    return out
+
+
 def write_pvd(path: Path, series) -> None:
     """A ParaView collection of (time, file) pairs."""
     rows = "\n".join(f'<DataSet timestep="{t!r}" group="" part="0" file="{name}"/>' for t, name in series)
@@ -239,4 +276,4 @@ def write_pvd(path: Path, series) -> None:
                     f"{rows}\n</Collection>\n</VTKFile>\n")
 
 
-__all__ = ["ContinuumFields", "stress_invariants", "write_pvd", "write_vti"]
+__all__ = ["ContinuumFields", "read_vti", "stress_invariants", "write_pvd", "write_vti", "write_vti_arrays"]

@@ -126,10 +126,6 @@ class ContinuumFields(Measurement):
         cells = self.cells or tuple(max(1, int(round(e / self.kernel.width))) for e in extent)
         return Grid(tuple(lo), tuple(hi), cells, tuple(periodic))
 
-    def start(self, sim) -> None:
-        self.check(sim)
-        super().start(sim)
-
     # --- a sample ----------------------------------------------------------------------------------
     def fields(self, sim):
         """The fields now (``rollingdem.analysis.fields.Fields``) on this measurement's grid."""
@@ -165,13 +161,16 @@ class ContinuumFields(Measurement):
     def mean_profile(self) -> dict:
         """The profile along ``axis`` averaged over the samples in the window ({column (unit): array});
         empty without samples there."""
-        if not self._rows:
-            return {}
-        keep = self._inwindow_of()[2]
-        chosen = [p for p, k in zip(self._profiles, keep) if k]
+        chosen = self._in_window(self._profiles)
         if not chosen:
             return {}
         return {column: np.mean([p[column] for p in chosen], axis=0) for column in chosen[0]}
+
+    def _in_window(self, per_sample: list) -> list:
+        """The entries of ``per_sample`` (one per sample) of the samples in the summary's window."""
+        if not self._rows:
+            return []
+        return [item for item, inside in zip(per_sample, self._inwindow_of()[2]) if inside]
 
     def finish(self, sim, failure=None) -> None:
         super().finish(sim, failure)
@@ -189,15 +188,13 @@ class ContinuumFields(Measurement):
 
     def _write_mean_grid(self) -> None:
         """``NAME_mean.vti``: the grids of the window's samples (their .vti files) averaged node by node."""
-        keep = self._inwindow_of()[2]
-        files = [self.directory / name for (_, name), k in zip(self._series, keep) if k]
+        files = [self.directory / name for _, name in self._in_window(self._series)]
         if not files:
             return
-        total = None
-        for path in files:
-            arrays = read_vti(path)
-            total = {k: v.astype(np.float64) for k, v in arrays.items()} if total is None else \
-                {k: total[k] + arrays[k] for k in total}
+        total = {}
+        for path in files:  # one file at a time: a long run's samples need not fit in memory together
+            for name, values in read_vti(path).items():
+                total[name] = total.get(name, 0.0) + values.astype(np.float64)
         write_vti_arrays(self.directory / f"{self.name}_mean.vti", self.grid,
                          {k: v / len(files) for k, v in total.items()})
 

@@ -151,6 +151,10 @@ CATALOGUE = [
      "stage 's': wall_motion wall = 'roof' is not allowed: no wall in place has that name"),
     ("periodic length below two cutoffs", edit("walls:", "periodic: {y: [-0.005, 0.005]}\nwalls:"),
      "periodic y length = 0.01 m is not allowed: must be at least 2 (2 R_max + skin)"),
+    ("a shear rate along an axis that is not periodic",
+     edit("walls:", "periodic: {x: [-0.1, 0.1], shear_rate: 10.0}\nwalls:"),
+     "periodic: lees_edwards = LeesEdwards(shear_rate=10.0, gradient='z', shear_velocity=None) is not allowed: the flow "
+     "axis x and the gradient axis z must be periodic, and z is not"),
     ("periodic axis that does not exist", edit("walls:", "periodic: {w: [0, 1]}\nwalls:"),
      "key 'periodic.w': not a known key"),
     ("unknown backend", edit("walls:", "backend: gpu\nwalls:"),

@@ -34,13 +34,14 @@ from rollingdem.scene.schedule import Callback, Observer  # noqa: E402
 from rollingdem.scene.simulation import Simulation, __version__  # noqa: E402
 from rollingdem.physics.timestep import hertz_contact_time, rayleigh_time_step  # noqa: E402
 from rollingdem.scene.walls import Cylinder, Plane  # noqa: E402
+from rollingdem.scene.periodic import LeesEdwards  # noqa: E402
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo  # noqa: E402
 from rollingdem.scene.clumps import Clump, equivalent_rolling_friction, onset_angle, random_orientations, stand_in_rolling_friction  # noqa: E402
 
 globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (rd.EPSD, rd.Hertz, ...)
 
 __all__ = [
-    "convert", "Simulation", "ContactModel", "ParallelBond", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "Oscillation", "MotionTable", "Servo", "Clump", "equivalent_rolling_friction", "onset_angle", "random_orientations", "stand_in_rolling_friction", "MeshRegion", "TriangleMesh", "TimeSeries",
+    "convert", "Simulation", "LeesEdwards", "ContactModel", "ParallelBond", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "Oscillation", "MotionTable", "Servo", "Clump", "equivalent_rolling_friction", "onset_angle", "random_orientations", "stand_in_rolling_friction", "MeshRegion", "TriangleMesh", "TimeSeries",
     "VTKSnapshots", "Checkpoints", "Callback", "Observer", "MassFlow", "MeshFlow", "Probe", "ContinuumFields", "OutletTotals", "WallLoad",
     "PileAngle", "DrumAngle", "DrumFlow", "SurfaceProfile", "Function", "Settled", "Reaches", "Known", "Empty", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "MassFractions", "SieveCurve", "Disk", "Rectangle", "MeshFace",
     "Discrete", "rough_base", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",

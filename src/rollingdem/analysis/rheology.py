@@ -21,7 +21,7 @@ import numpy as np
 
 from rollingdem.errors import ParameterError, check_positive
 
-__all__ = ["inertial_number", "mu_of_i", "fit_mu_of_i", "fit_phi_of_i", "local_rheology"]
+__all__ = ["inertial_number", "mu_of_i", "fit_mu_of_i", "fit_phi_of_i", "local_rheology", "box_stress"]
 
 
 def inertial_number(shear_rate, pressure, diameter: float, density: float):
@@ -119,3 +119,22 @@ def local_rheology(profile: dict, flow: str, gradient: str, diameter: float, den
     if "solid_fraction (1)" in profile:
         out["solid_fraction (1)"] = np.asarray(profile["solid_fraction (1)"], dtype=float)
     return out
+
+
+def box_stress(forces, branches, masses, velocities, volume: float, streaming=None):
+    """The stress of everything in a box of ``volume`` (m^3), compressive positive (Pa): the contacts'
+    virial and the particles' kinetic stress about the ``streaming`` velocities (one row per
+    particle; None: at rest),
+
+        sigma = (sum_c f_c (x) b_c + sum_p m_p v'_p (x) v'_p) / V,   v' = v - streaming,
+
+    with f_c the force on a contact's particle i and b_c the branch from its partner (or its wall's
+    contact point) to i (``Simulation.contact_forces``). The volume average of Weinhart et al.'s
+    (2012) coarse-grained stress over a periodic box, and Lees & Edwards' (1972) pressure tensor."""
+    volume = check_positive("volume", volume, "m^3")
+    f, b = np.asarray(forces, dtype=float).reshape(-1, 3), np.asarray(branches, dtype=float).reshape(-1, 3)
+    v = np.asarray(velocities, dtype=float).reshape(-1, 3)
+    if streaming is not None:
+        v = v - np.asarray(streaming, dtype=float).reshape(-1, 3)
+    m = np.asarray(masses, dtype=float).ravel()
+    return (f.T @ b + (m[:, None] * v).T @ v) / volume

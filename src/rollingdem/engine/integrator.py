@@ -7,7 +7,8 @@ import warnings
 from numba import njit, prange
 from numba.core.errors import NumbaPerformanceWarning
 
-from rollingdem.engine.layout import MESH_MOTION as MO, MOTION_SERVO, MOTION_STEADY
+from rollingdem.engine.layout import MESH_MOTION as MO, MOTION_SERVO, MOTION_STEADY, PERIODIC_BOX as PB, PERIODIC_BOX_SIZE, \
+    SHEARED_DRIFT_SHARE
 from rollingdem.engine.wall_motion import plane_loads, step_program
 
 # The ``*_serial`` passes are compiled with parallel=True but use range, not prange: no threads
@@ -105,6 +106,21 @@ def undo_drift(dt, particles):
         v[i, 0] = vx
         v[i, 1] = vy
         v[i, 2] = vz
+
+
+@njit(cache=True, inline="always")
+def move_images(dt, box, half_skin):
+    """The images across a sheared box's gradient end moved by dt: the shift advances by the shear
+    velocity times dt, put back into [0, lx). Returns 1 once it has moved the skin less twice the
+    particles' drift limit ``half_skin`` since the list was built (``layout.SHEARED_DRIFT_SHARE``),
+    else 0 (and 0 in any other box)."""
+    if box.shape[0] <= PERIODIC_BOX_SIZE:
+        return 0
+    move = dt * box[PB.shear_velocity]
+    shift = box[PB.shift] + move
+    box[PB.shift] = shift - box[PB.lx] * math.floor(shift * box[PB.inv_lx])
+    box[PB.shift_since_build] += abs(move)
+    return 0 if box[PB.shift_since_build] < (1.0 / SHEARED_DRIFT_SHARE - 2.0) * half_skin else 1
 
 
 @njit(cache=True, inline="always")

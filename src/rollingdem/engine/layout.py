@@ -89,9 +89,19 @@ ListArrays = collections.namedtuple("ListArrays", (  # rollingdem.engine.neighbo
 #: the periodic box (``ListArrays.box``): per axis its low end (m), its length L (m) and 1/L, L and
 #: 1/L 0.0 along an axis that is not periodic (the minimum image d - L rint(d / L) is then d, exactly).
 #: A scene without a periodic axis has an empty box: the loops test its length, which the compiler
-#: hoists out of them
-PERIODIC_BOX = slots("lox", "loy", "loz", "lx", "ly", "lz", "inv_lx", "inv_ly", "inv_lz")
-PERIODIC_BOX_SIZE = len(PERIODIC_BOX)
+#: hoists out of them. A sheared box (Lees-Edwards, flow along x) has SHEARED_BOX_SIZE slots: the
+#: image across the gradient axis (unit vector (0, gradient_y, gradient_z), length lg) is displaced
+#: by ``shift`` (m, in [0, lx)) along x and moves at ``shear_velocity`` (m/s) along x;
+#: ``shift_since_build`` is how far the shift has moved since the neighbor list was built (m)
+PERIODIC_BOX = slots("lox", "loy", "loz", "lx", "ly", "lz", "inv_lx", "inv_ly", "inv_lz",
+                     "shift", "shear_velocity", "gradient_y", "gradient_z", "lg", "inv_lg", "shift_since_build")
+PERIODIC_BOX_SIZE = 9
+SHEARED_BOX_SIZE = len(PERIODIC_BOX)
+#: how far a particle may drift from where the list was built, as a share of the skin: a half; in a
+#: sheared box a quarter, as the images across its gradient end may move by half the skin before
+#: the list is built again (``integrator.move_images``), and two spheres then come at most a quarter
+#: + a quarter + a half of the skin closer
+DRIFT_SHARE, SHEARED_DRIFT_SHARE = 0.5, 0.25
 Scratch = collections.namedtuple("Scratch", (
     "blocks",  # (threads, BLOCK columns x CONTACT_BLOCK) float64 block buffers of the pair pass
     "lanes",   # (threads, LANE_HITS + TILE_ROWS, CONTACT_BLOCK) int64 their lane indices

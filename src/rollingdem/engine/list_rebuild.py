@@ -17,7 +17,7 @@ from rollingdem.engine.wall_candidates import build_wall_candidates
 @njit(cache=True, inline="always")
 def _neighbors(particles, lists, skin, info):
     """The neighbor list; False (info says how much room it needs) where its arrays are too small."""
-    total = rebuild_neighbor_list(particles.x, particles.radius, skin, particles.ids, particles.fixed, particles.clump,
+    total = rebuild_neighbor_list(particles.x, particles.v, particles.radius, skin, particles.ids, particles.fixed, particles.clump,
                                   particles.image, particles.x_ref, lists)
     if total < 0:
         info[I_STATUS] = STATUS_CAPACITY

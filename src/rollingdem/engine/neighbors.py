@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit, prange, uint32, uint64
 
-from rollingdem.engine.layout import PERIODIC_BOX as PB, ListArrays
+from rollingdem.engine.layout import PERIODIC_BOX as PB, PERIODIC_BOX_SIZE, ListArrays
 
 POOL_GROUP = 256  # list rows per group of the contact pool (the pair pass's threads take whole groups)
 PAIR_TERMS = 6  # columns of an entry's pair terms: F_ij (force on i) and T_j (torque on j) of the step
@@ -149,18 +149,28 @@ def _axis_cells(span, periodic, cell, first):
 
 
 @njit(cache=True)
-def wrap_positions(x, image, box):
+def wrap_positions(x, v, image, box):
     """Put every centre back into the periodic box along its periodic axes, counting the lengths it
-    moved in ``image`` (the unwrapped position is x + image L)."""
+    moved in ``image`` (the unwrapped position is x + image L; in a sheared box, not along x)."""
     if box.shape[0] == 0:
         return
     for i in range(x.shape[0]):
-        wrap_one(i, x, image, box)
+        wrap_one(i, x, v, image, box)
 
 
 @njit(cache=True, inline="always")
-def wrap_one(i, x, image, box):
-    """``wrap_positions`` for particle i (a periodic ``box``)."""
+def wrap_one(i, x, v, image, box):
+    """``wrap_positions`` for particle i (a periodic ``box``). In a sheared box a centre that crosses
+    the gradient axis's end k times (k = +1: the upper end) becomes the image k lengths back: x
+    less k times the shift and v_x less k times the shear velocity (Lees & Edwards 1972)."""
+    if box.shape[0] > PERIODIC_BOX_SIZE:
+        g = 1 if box[PB.gradient_y] != 0.0 else 2
+        s = math.floor((x[i, g] - box[PB.lox + g]) * box[PB.inv_lg])
+        if s != 0.0:
+            x[i, g] -= s * box[PB.lg]
+            x[i, 0] -= s * box[PB.shift]
+            v[i, 0] -= s * box[PB.shear_velocity]
+            image[i, g] += np.int32(s)
     for d in range(3):
         length = box[PB.lx + d]
         if length == 0.0:
@@ -175,6 +185,16 @@ def wrap_one(i, x, image, box):
 def minimum_image(d, length, inv_length):
     """The shortest of d + k L over whole k (d itself, exactly, where L = 1/L = 0)."""
     return d - length * round(d * inv_length)
+
+
+@njit(cache=True, inline="always")
+def sheared_image(dx, dy, dz, box):
+    """(dx, dy, dz, k): x_i - x_j taken to the image of j k gradient lengths away that is nearest
+    along the gradient axis (a sheared ``box``), before the minimum image of every axis: that image
+    lies k lg along the gradient and k shift along x, and moves k shear velocities faster along x."""
+    gy, gz = box[PB.gradient_y], box[PB.gradient_z]
+    k = round((dy * gy + dz * gz) * box[PB.inv_lg])
+    return dx - k * box[PB.shift], dy - k * box[PB.lg] * gy, dz - k * box[PB.lg] * gz, k
 
 
 @njit(cache=True, parallel=True)
@@ -198,6 +218,8 @@ def scan_row(i, x, radius, skin, ids, fixed, clump, box, dims, cell_start, cell_
     at least twice the cutoff); with 2, the cells on either side are the same one and are visited
     once."""
     periodic = box.shape[0] != 0
+    sheared = box.shape[0] > PERIODIC_BOX_SIZE
+    gradient = (1 if box[PB.gradient_y] != 0.0 else 2) if sheared else -1
     lx = box[PB.lx] if periodic else 0.0
     ly = box[PB.ly] if periodic else 0.0
     lz = box[PB.lz] if periodic else 0.0
@@ -220,13 +242,15 @@ def scan_row(i, x, radius, skin, ids, fixed, clump, box, dims, cell_start, cell_
     clump_i = clump[i] if clump.shape[0] != 0 else -1
     for dz in range(-1, 2):
         z = cz + dz
-        if z < 0 or z >= dims[2]:
+        across_z = z < 0 or z >= dims[2]
+        if across_z:
             if lz == 0.0 or dims[2] < 3:
                 continue
             z = (z + dims[2]) % dims[2]
         for dy in range(-1, 2):
             y = cy + dy
-            if y < 0 or y >= dims[1]:
+            across_y = y < 0 or y >= dims[1]
+            if across_y:
                 if ly == 0.0 or dims[1] < 3:
                     continue
                 y = (y + dims[1]) % dims[1]
@@ -236,6 +260,12 @@ def scan_row(i, x, radius, skin, ids, fixed, clump, box, dims, cell_start, cell_
             first = cell_start[row + max(cx - 1, 0)]
             last = cell_start[row + min(cx + 1, dims[0] - 1) + 1]
             parts = 2 if wrap_x and (cx == 0 or cx == dims[0] - 1) else 1
+            # across a sheared end, the image row is displaced along x by the shift: the whole row
+            # (and with fewer than 3 cells along the gradient, its one row serves both sides)
+            if sheared and ((across_y or dims[1] < 3) if gradient == 1 else (across_z or dims[2] < 3)):
+                first = cell_start[row]
+                last = cell_start[row + dims[0]]
+                parts = 1
             for part in range(parts):
                 if part == 1:
                     across = row + dims[0] - 1 if cx == 0 else row
@@ -247,6 +277,8 @@ def scan_row(i, x, radius, skin, ids, fixed, clump, box, dims, cell_start, cell_
                     ddx = xi - x[j, 0]
                     ddy = yi - x[j, 1]
                     ddz = zi - x[j, 2]
+                    if sheared:
+                        ddx, ddy, ddz, _ = sheared_image(ddx, ddy, ddz, box)
                     if periodic:
                         ddx = minimum_image(ddx, lx, ilx)
                         ddy = minimum_image(ddy, ly, ily)
@@ -387,7 +419,7 @@ def list_rows(n, nl_start, nl_i):
 
 
 @njit(cache=True)
-def rebuild_neighbor_list(x, radius, skin, ids, fixed, clump, image, x_ref, lists):
+def rebuild_neighbor_list(x, v, radius, skin, ids, fixed, clump, image, x_ref, lists):
     """Rebuild the half list (``lists``, a ``layout.ListArrays``) at the current positions,
     carrying contact history over (pairs of two fixed particles, and of two members of one clump, are
     left out); the centres are first
@@ -410,7 +442,9 @@ def rebuild_neighbor_list(x, radius, skin, ids, fixed, clump, image, x_ref, list
         tr_start[0] = 0
         return 0
     box = lists.box
-    wrap_positions(x, image, box)
+    wrap_positions(x, v, image, box)
+    if box.shape[0] > PERIODIC_BOX_SIZE:
+        box[PB.shift_since_build] = 0.0
     max_cells = cell_start.shape[0] - 1
     lo, dims, cells = _grid(x, radius, skin, max_cells, box)
     _bin_particles(x, cells, lo, dims, cell_start, cell_items, cell_of)
@@ -535,11 +569,11 @@ class ContactList:
         return int(self.start[-1]) if self.start.size else 0
 
     # --- building --------------------------------------------------------------------------
-    def rebuild(self, x, radius, skin, ids, fixed, clump, image, x_ref, grow) -> int:
+    def rebuild(self, x, v, radius, skin, ids, fixed, clump, image, x_ref, grow) -> int:
         """Rebuild at the present positions, carrying the contacts over; ``grow(needed)`` is called
         while the arrays are too short. Returns the number of entries."""
         while True:
-            total = rebuild_neighbor_list(x, radius, skin, ids, fixed, clump, image, x_ref, self.arrays())
+            total = rebuild_neighbor_list(x, v, radius, skin, ids, fixed, clump, image, x_ref, self.arrays())
             if total >= 0:
                 list_rows(self.rows, self.start, self.i)
                 return total

@@ -48,7 +48,7 @@ class Passes:
         self.kick = lambda: kick_drift(0.0, particles, 0.5 * skin)
         clump_pass = module.clump_pass_serial if serial else module.clump_pass
         self.clumps = lambda: clump_pass(dt, KICK_NONE, gravity, particles, lists.box, 0.5 * skin)
-        self.rebuild = lambda: rebuild_neighbor_list(st.x, st.radius, skin, st.ids, st.fixed, st.clump, st.image, st.x_ref, lists)
+        self.rebuild = lambda: rebuild_neighbor_list(st.x, st.v, st.radius, skin, st.ids, st.fixed, st.clump, st.image, st.x_ref, lists)
         self.mesh_candidates = lambda: build_mesh_candidates(st.x, st.radius, skin, walls)
 
     def restore(self) -> None:

@@ -74,7 +74,7 @@ def signatures(module) -> dict:
     args = {
         "contact": (lists.pool, 0, (0.0,) * N_INPUTS, pp[0, 0], dt),
         "block_contacts": (scratch.blocks[0], pp[0, 0], dt),
-        "rebuild_neighbor_list": (st.x, st.radius, skin, st.ids, st.fixed, st.clump, st.image, st.x_ref, lists),
+        "rebuild_neighbor_list": (st.x, st.v, st.radius, skin, st.ids, st.fixed, st.clump, st.image, st.x_ref, lists),
         "rebuild": (particles, walls, lists, skin, st.info),
         "pair_forces": (dt, pp, particles, lists, scratch), "pair_forces_serial": (dt, pp, particles, lists, scratch),
         "gather_rows": (0, 1, dt, kick, np.zeros(3), particles, walls, lists, pp, half_skin),

@@ -26,6 +26,7 @@ from rollingdem.engine.layout import (
     MOTION_STEADY,
     PERIODIC_BOX,
     PERIODIC_BOX_SIZE,
+    SHEARED_BOX_SIZE,
     STATUS_CAPACITY,
     STATUS_MESH_CAPACITY,
     STATUS_MESH_GRID_CAPACITY,
@@ -59,14 +60,37 @@ SORT_ABOVE = 50_000  # particles
 SORT_EVERY = 1000  # steps (LIGGGHTS's and LAMMPS's default sort interval)
 
 
-def periodic_box(periodic: dict) -> np.ndarray:
+def periodic_box(periodic: dict, gradient: str | None = None, shear_velocity: float = 0.0) -> np.ndarray:
     """The step loop's periodic box (``layout.PERIODIC_BOX``) of ``{"x": (lo, hi), ...}``: empty
-    without a periodic axis."""
-    box = np.zeros(PERIODIC_BOX_SIZE if periodic else 0)
+    without a periodic axis. With a ``gradient`` axis ("y" or "z"; x and it periodic) a sheared box
+    (Lees-Edwards, flow along x): the image across the gradient end moves at ``shear_velocity``
+    (m/s) along x, from a shift of 0."""
+    box = np.zeros(0 if not periodic else SHEARED_BOX_SIZE if gradient else PERIODIC_BOX_SIZE)
     for axis, (lo, hi) in periodic.items():
         a = "xyz".index(axis)
         box[a], box[3 + a], box[6 + a] = lo, hi - lo, 1.0 / (hi - lo)
+    if gradient:
+        g = "xyz".index(gradient)
+        box[PERIODIC_BOX.gradient_y], box[PERIODIC_BOX.gradient_z] = float(g == 1), float(g == 2)
+        box[PERIODIC_BOX.lg], box[PERIODIC_BOX.inv_lg] = box[3 + g], box[6 + g]
+        box[PERIODIC_BOX.shear_velocity] = shear_velocity
     return box
+
+
+def minimum_image_branch(branch: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """``branch`` (x_i - x_j, one row per pair) taken to the nearest image of j, in place: across a
+    sheared box's gradient end first (``neighbors.sheared_image``), then along each periodic axis."""
+    if box.shape[0] > PERIODIC_BOX_SIZE:
+        gradient = np.array([0.0, box[PERIODIC_BOX.gradient_y], box[PERIODIC_BOX.gradient_z]])
+        k = np.round(branch @ gradient * box[PERIODIC_BOX.inv_lg])
+        branch[:, 0] -= k * box[PERIODIC_BOX.shift]
+        branch -= (k * box[PERIODIC_BOX.lg])[:, None] * gradient
+    if box.shape[0]:
+        for a in range(3):
+            length = box[PERIODIC_BOX.lx + a]
+            if length > 0.0:
+                branch[:, a] -= length * np.round(branch[:, a] / length)
+    return branch
 
 
 class EngineState:
@@ -110,8 +134,8 @@ class EngineState:
     def rebuild_list(self, skin: float) -> int:
         """Rebuild the neighbor list at the present positions, carrying the contacts over (the
         arrays grow as needed); returns its number of entries."""
-        return self.contact_list.rebuild(self.x, self.radius, skin, self.ids, self.fixed, self.clump, self.image, self.x_ref,
-                                         self.grow)
+        return self.contact_list.rebuild(self.x, self.v, self.radius, skin, self.ids, self.fixed, self.clump, self.image,
+                                         self.x_ref, self.grow)
 
     def derive_wall_touch(self):
         """``wtouch[i * n_walls + w]``: whether particle i touched wall w at the last step (it keeps a
@@ -508,13 +532,7 @@ class EngineState:
         j = np.concatenate([j, self.bond_pairs[intact, 1]]).astype(np.int64)
         force = np.concatenate([force, self.bond_load[intact, 0:3]])
         torque_j = np.concatenate([torque_j, self.bond_load[intact, 6:9]])
-        branch = self.x[i] - self.x[j]
-        box = cl.box
-        if box.shape[0]:
-            for a in range(3):
-                length = box[PERIODIC_BOX.lx + a]
-                if length > 0.0:
-                    branch[:, a] -= length * np.round(branch[:, a] / length)
+        branch = minimum_image_branch(self.x[i] - self.x[j], cl.box)
         distance = np.linalg.norm(branch, axis=1, keepdims=True)
         lever_j = self.radius[j][:, None] - 0.5 * (self.radius[i][:, None] + self.radius[j][:, None] - distance)
         moment = -torque_j - lever_j * np.cross(branch / np.where(distance > 0.0, distance, 1.0), force)

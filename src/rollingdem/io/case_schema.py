@@ -448,6 +448,11 @@ class PeriodicSpec(_Strict):
     x: Optional[tuple[Number, Number]] = about(None, "(low, high) of the periodic box along x", "m")
     y: Optional[tuple[Number, Number]] = about(None, "(low, high) of the periodic box along y", "m")
     z: Optional[tuple[Number, Number]] = about(None, "(low, high) of the periodic box along z", "m")
+    shear_rate: Optional[Number] = about(None, "Lees-Edwards shear: the box sheared at this rate, flow along x, "
+                                               "its gradient along `gradient` (x and it periodic)", "1/s")
+    shear_velocity: Optional[Number] = about(None, "Lees-Edwards shear given as the velocity jump across the "
+                                                   "gradient's ends instead of the rate", "m/s")
+    gradient: Optional[str] = about(None, "the sheared box's gradient axis, y or z (default z)")
 
 
 class SetVelocitySpec(_Strict):

@@ -45,6 +45,7 @@ from rollingdem.scene.conditions import Empty, Known, Reaches, Settled
 from rollingdem.scene.insertion import rough_base
 from rollingdem.scene.materials import Material
 from rollingdem.scene.mesh import MeshRegion, MeshWall
+from rollingdem.scene.periodic import LeesEdwards
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, MeshFace, Rectangle
 from rollingdem.scene.simulation import Simulation
@@ -148,12 +149,14 @@ def build_simulation(case: CaseSpec):
     with where("contact"):
         contact = ContactModel(**case.contact.model_dump())
     periodic = {k: v for k, v in case.periodic.model_dump().items() if v is not None} if case.periodic else None
+    shear = {k: (periodic or {}).pop(k) for k in ("shear_rate", "shear_velocity", "gradient") if k in (periodic or {})}
+    lees_edwards = LeesEdwards(**shear) if shear else None
     for key in ("dt", "skin"):  # top-level keys: refused in their own name, before the periodic block's checks
         if getattr(case, key) is not None:
             check_positive(key, getattr(case, key), "s" if key == "dt" else "m")
     with where("periodic"):
         sim = Simulation(contact=contact, gravity=case.gravity, dt=case.dt, skin=case.skin,
-                         check_timestep=case.check_timestep, periodic=periodic)
+                         check_timestep=case.check_timestep, periodic=periodic, lees_edwards=lees_edwards)
     if case.backend is not None:
         with where("backend"):
             sim.backend = case.backend

@@ -16,6 +16,7 @@ import numpy as np
 from rollingdem.engine.state import EngineState
 from rollingdem.errors import ParameterError
 from rollingdem.physics.contact.model import ContactModel
+from rollingdem.scene.periodic import LeesEdwards
 
 VERSION = "0.1.0"
 """The package version a checkpoint records."""
@@ -47,6 +48,7 @@ def write(sim, path, state) -> Path:
         "time_origin": list(sim.time_origin),
         "walls": sim.wall_set.describe(),
         "periodic": {axis: list(ends) for axis, ends in sim.periodic.items()},
+        "lees_edwards": sim.shear.lees_edwards.to_dict() if sim.shear.active else None,
         **sim.boundary_set.describe(),
     }
     arrays = state.to_arrays()
@@ -97,7 +99,8 @@ def restore(simulation_class, path, backend: str | None = None):
     contact = ContactModel.from_dict(meta["contact"])
     sim = simulation_class(contact=contact, gravity=meta["gravity"], dt=meta["dt"], skin=meta["skin"],
                            check_timestep=meta["check_timestep"], track_energy=meta.get("track_energy", True),
-                           periodic=meta.get("periodic"), backend=backend)
+                           periodic=meta.get("periodic"), backend=backend,
+                           lees_edwards=LeesEdwards(**meta["lees_edwards"]) if meta.get("lees_edwards") else None)
     sim.materials.load(meta["materials"])
     try:
         sim.particle_set.state.take_over(EngineState.from_arrays(arrays, contact.history_size))

@@ -5,10 +5,13 @@ itself (``rollingdem.engine.state.periodic_box``)."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from rollingdem.errors import ParameterError, short_repr
+from rollingdem.engine.layout import I_FORCES_VALID, PERIODIC_BOX as PB, PERIODIC_BOX_SIZE
+from rollingdem.engine.state import periodic_box
+from rollingdem.errors import ParameterError, check_choice, check_finite, short_repr
 from rollingdem.physics.records import WALL_PLANE
 
 
@@ -34,6 +37,137 @@ def check_periodic(periodic) -> dict:
     return {axis: out[axis] for axis in "xyz" if axis in out}
 
 
+@dataclass(frozen=True)
+class LeesEdwards:
+    """Lees-Edwards boundaries (Lees & Edwards 1972) on a periodic box: steady simple shear with flow
+    along x and its gradient along ``gradient`` ("y" or "z"; both axes periodic). The image of the
+    box across the gradient axis's upper end is displaced along x by a shift that grows at the shear
+    velocity U = ``shear_rate`` x L_gradient (1/s, positive: v_x grows along the gradient), so a
+    sphere leaving through that end comes back at the other with x less the shift and v_x less U;
+    pairs across it are ordinary contacts of the shifted image, their history kept. Give
+    ``shear_rate`` or ``shear_velocity`` (U, m/s). The spheres keep their whole velocity (streaming
+    included); a run starts from the velocities given (an affine profile v_x = shear_rate (g - g_mid)
+    starts the flow at once). LAMMPS's ``fix deform`` with ``remap v`` on an xy or xz tilt."""
+    shear_rate: float | None = None
+    gradient: str = "z"
+    shear_velocity: float | None = None
+
+    def to_dict(self) -> dict:
+        return {"shear_rate": self.shear_rate, "gradient": self.gradient, "shear_velocity": self.shear_velocity}
+
+
+class ShearedBox:
+    """The periodic box of a scene and its Lees-Edwards shear, if any (``Simulation.shear``): the
+    engine's box made from ``periodic`` and ``lees_edwards``, the shear rate to read or set between
+    runs, and the shift."""
+
+    def __init__(self, state, periodic: dict, lees_edwards):
+        self.state, self.periodic, self.lees_edwards = state, periodic, check_lees_edwards(lees_edwards, periodic)
+        le = self.lees_edwards
+        if le is None:
+            state.contact_list.box = periodic_box(periodic)
+            return
+        lo, hi = periodic[le.gradient]
+        velocity = le.shear_velocity if le.shear_velocity is not None else le.shear_rate * (hi - lo)
+        state.contact_list.box = periodic_box(periodic, le.gradient, velocity)
+
+    @property
+    def active(self) -> bool:
+        return self.lees_edwards is not None
+
+    def _box(self):
+        box = self.state.contact_list.box
+        if box.shape[0] <= PERIODIC_BOX_SIZE:
+            raise ParameterError("shear is not allowed: this simulation has no Lees-Edwards boundaries; pass "
+                                 "lees_edwards=rd.LeesEdwards(...) with a periodic box")
+        return box
+
+    @property
+    def shear_velocity(self) -> float:
+        """U (m/s): how fast the image across the gradient end moves along x."""
+        return float(self._box()[PB.shear_velocity])
+
+    @property
+    def shear_rate(self) -> float:
+        """U / L_gradient (1/s); may be set between runs."""
+        box = self._box()
+        return float(box[PB.shear_velocity] * box[PB.inv_lg])
+
+    @shear_rate.setter
+    def shear_rate(self, value):
+        box = self._box()
+        box[PB.shear_velocity] = check_finite("shear_rate", value) * box[PB.lg]
+
+    @property
+    def shift(self) -> float:
+        """How far (m) the image across the gradient's upper end is displaced along x, in [0, L_x)."""
+        return float(self._box()[PB.shift])
+
+    def set_length(self, axis: str, length: float) -> None:
+        """Make the box ``length`` (m) long along the periodic ``axis``, moving every centre affinely
+        about its low end (velocities, spins and contact history kept; LAMMPS's ``change_box`` with
+        ``remap``): a volume or pressure control. The shear rate is kept (the shear velocity scales
+        with the gradient's length) and so is the shift's fraction of L_x. Spheres only: fixed
+        spheres, walls, clumps and bonds are refused; the forces are evaluated anew at the next step."""
+        if axis not in self.periodic:
+            raise ParameterError(f"axis = {axis!r} is not allowed: the box is periodic along "
+                                 f"{', '.join(self.periodic) or 'no axis'}")
+        length = check_finite("length", length)
+        if length <= 0.0:
+            raise ParameterError(f"length = {length!r} is not allowed: must be positive (m)")
+        st, a = self.state, "xyz".index(axis)
+        if st.n_walls or (st.n and st.is_fixed.any()) or any(self.state.features()[:3]):
+            raise ParameterError(f"set_length along {axis} is not allowed: the box holds walls, fixed spheres, "
+                                 "clumps, bonds or meshes, which would not move with it; only free spheres")
+        box = st.contact_list.box
+        lo, factor = box[a], length / box[3 + a]
+        st.x[:, a] = lo + (st.x[:, a] - lo) * factor
+        box[3 + a], box[6 + a] = length, 1.0 / length
+        if box.shape[0] > PERIODIC_BOX_SIZE:
+            if box[PB.lg] != box[3 + a] and a != 0:  # the gradient axis
+                box[PB.shear_velocity] *= factor
+                box[PB.lg], box[PB.inv_lg] = length, 1.0 / length
+            if a == 0:
+                box[PB.shift] *= factor
+        self.periodic[axis] = (lo, lo + length)
+        st.info[I_FORCES_VALID] = 0
+
+    def check_scene(self, walls, backend: str) -> None:
+        """Refuse what a sheared box cannot hold: walls other than planes across the third axis
+        (checked with the periodic ones), bonds, clumps, triangle meshes; the GPU's step loop."""
+        if not self.active:
+            return
+        bonds, meshes, clumps, _ = self.state.features()
+        what = ("a triangle-mesh wall" if meshes else "clumps" if clumps else "bonds" if bonds else
+                "a cylinder wall" if any(w.kind != WALL_PLANE for w in walls) else
+                "the cuda backend" if backend == "cuda" else None)
+        if what:
+            raise ParameterError(f"lees_edwards = {self.lees_edwards!r} is not allowed with {what}: a sheared box "
+                                 "holds spheres and planes parallel to the flow and the gradient, stepped on the cpu "
+                                 "backend")
+
+
+def check_lees_edwards(value, periodic: dict):
+    """``value`` (None or a ``LeesEdwards``) checked against the periodic box."""
+    if value is None:
+        return None
+    if not isinstance(value, LeesEdwards):
+        raise ParameterError(f"lees_edwards = {short_repr(value)} is not allowed: must be rd.LeesEdwards(shear_rate=..., "
+                             "gradient='y' or 'z')")
+    check_choice("lees_edwards gradient", value.gradient, ("y", "z"))
+    if (value.shear_rate is None) == (value.shear_velocity is None):
+        raise ParameterError(f"lees_edwards = {value!r} is not allowed: give one of shear_rate (1/s) or "
+                             "shear_velocity (m/s)")
+    check_finite("lees_edwards shear_rate" if value.shear_rate is not None else "lees_edwards shear_velocity",
+                 value.shear_rate if value.shear_rate is not None else value.shear_velocity)
+    for axis in ("x", value.gradient):
+        if axis not in periodic:
+            raise ParameterError(f"lees_edwards = {value!r} is not allowed: the flow axis x and the gradient axis "
+                                 f"{value.gradient} must be periodic, and {axis} is not (periodic = "
+                                 f"{ {a: list(e) for a, e in periodic.items()} })")
+    return value
+
+
 def check_length(periodic: dict, largest_radius: float, skin: float) -> None:
     """Each periodic length holds at least two neighbor-list cutoffs, 2 (2 R_max + skin): a pair
     within the cutoff then has one image within it, the one the minimum image finds."""
@@ -51,6 +185,7 @@ def check_scene(sim) -> None:
     wrong side of it: the wall is not periodic)."""
     if sim.periodic and sim.n_particles:
         check_length(sim.periodic, sim.particle_set.largest_radius(sim.inflows), sim.skin)
+    sim.shear.check_scene(sim.walls, sim.backend)
     for wall in sim.walls:
         if wall.kind != WALL_PLANE:
             continue

@@ -21,7 +21,7 @@ from rollingdem.engine.backends import backend as find_backend, default_backend
 from rollingdem.engine.codegen import EngineModules
 from rollingdem.engine.layout import I_FORCES_VALID
 from rollingdem.engine.phases import Passes
-from rollingdem.engine.state import EngineState, periodic_box
+from rollingdem.engine.state import EngineState
 from rollingdem.errors import ParameterError, check_positive, check_vector
 from rollingdem.physics.contact.model import ContactModel
 from rollingdem.scene import checkpoint, periodic as periodic_box_checks
@@ -59,6 +59,8 @@ class Simulation:
         contacts (the minimum image); each length must be at least 2 (2 R_max + skin). Walls may
         coexist (a chute floor under an x-periodic flow). ``positions`` are put back into the box
         at each neighbor-list build; ``unwrapped_positions`` count the lengths crossed.
+    lees_edwards: ``rd.LeesEdwards(shear_rate=..., gradient="z")``: the periodic box sheared (flow
+        along x); ``shear`` reads and sets its rate and shift (``rollingdem.scene.periodic``).
     track_energy: sum the energy dissipated in the contacts (``dissipated_energy``), by normal
         damping, sliding, rolling and twisting. Off by default, as in LIGGGHTS and LAMMPS: the
         bookkeeping costs about 12 % of the contact forces. A ``TimeSeries`` observer turns it on
@@ -70,7 +72,7 @@ class Simulation:
 
     def __init__(self, contact: ContactModel | None = None, gravity=(0.0, 0.0, -9.81), dt: float | None = None,
                  skin: float | None = None, check_timestep: bool = True, track_energy: bool = False,
-                 periodic: dict | None = None, backend: str | None = None):
+                 periodic: dict | None = None, backend: str | None = None, lees_edwards=None):
         self._contact = contact if contact is not None else ContactModel()
         if not isinstance(self._contact, ContactModel):
             raise ParameterError(f"contact = {contact!r} is not allowed: must be a rollingdem.ContactModel")
@@ -84,7 +86,7 @@ class Simulation:
         self._state = EngineState(self._contact.history_size)
         self.backend = default_backend() if backend is None else backend
         self.periodic = periodic_box_checks.check_periodic(periodic)
-        self._state.contact_list.box = periodic_box(self.periodic)
+        self.shear = periodic_box_checks.ShearedBox(self._state, self.periodic, lees_edwards)
         # how a user turns a check off, as the refusal tells it; a case file names its own keys
         self.hints = {"check_timestep": "pass check_timestep=False to the Simulation",
                       "allow_overlap": "pass allow_overlap=True"}

@@ -74,7 +74,7 @@ def kernel_bodies(module) -> dict:
                 rebuild.bounds[3 + d] = -math.inf
             rebuild.bounds[6] = 0.0
         if i < particles.x.shape[0] and lists.box.shape[0] != 0:
-            wrap_one(i, particles.x, particles.image, lists.box)
+            wrap_one(i, particles.x, particles.v, particles.image, lists.box)
 
     def bounds(particles, rebuild):
         """The centres' bounding box and R_max: a stride of particles per thread, then atomics."""

@@ -7,8 +7,8 @@ A part of the step loop's template (``rollingdem.engine.template``).
 
 from numba import njit
 
-from rollingdem.engine.layout import I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST, KICK_CLOSE, KICK_CLOSE_AND_DRIFT, KICK_NONE, STATUS_TOO_FAST
-from rollingdem.engine.integrator import kick_drift, move_steady, move_walls, undo_drift
+from rollingdem.engine.layout import DRIFT_SHARE, PERIODIC_BOX_SIZE, SHEARED_DRIFT_SHARE, I_DRIFTED, I_FORCES_VALID, I_NEED_REBUILD, I_STATUS, I_STEPS_DONE, I_TOO_FAST, KICK_CLOSE, KICK_CLOSE_AND_DRIFT, KICK_NONE, STATUS_TOO_FAST
+from rollingdem.engine.integrator import kick_drift, move_images, move_steady, move_walls, undo_drift
 # the engine module's own names for its callers: the serial copy of the step loop calls
 # kick_drift_serial, the GPU's drift kernel kick_drift_range
 from rollingdem.engine.integrator import kick_drift_range, kick_drift_serial  # noqa: F401
@@ -39,11 +39,13 @@ rebuild = rebuild_lists if MESHES else rebuild_lists_without_meshes
 @njit(cache=True, inline="always")  # @@SERIAL_COPY
 def open_step(dt, gravity, particles, walls, lists, half_skin):
     """The opening half of a step where the last step left none: the half kick and the drift of
-    particles and clumps, the walls' and meshes' move. Returns the count past skin/2."""
+    particles and clumps, the walls' and meshes' move, a sheared box's images' move. Returns the
+    count past the drift limit."""
     exceed = kick_drift(dt, particles, half_skin)
     if CLUMPS and particles.clump_mass.shape[0] != 0:
         exceed += clump_pass(dt, KICK_OPEN, gravity, particles, lists.box, half_skin)[0]
     move_planes(dt, walls)
+    exceed += move_images(dt, lists.box, half_skin)
     if MESHES:
         exceed += move_meshes(dt, walls, half_skin)
     return exceed
@@ -65,6 +67,7 @@ def close_step(dt, dt_bonds, kick, gravity, pair_params, particles, walls, lists
         fast += clump_fast
     if kick == KICK_CLOSE_AND_DRIFT and fast == 0:
         move_planes(dt, walls)
+        exceed += move_images(dt, lists.box, half_skin)
         if MESHES:
             exceed += move_meshes(dt, walls, half_skin)
     return exceed, fast
@@ -88,7 +91,7 @@ def advance(nsteps, dt, gravity, skin, pair_params, particles, walls, lists, scr
     The step's control, for every backend: the GPU runs this function's Python body on the host
     with ``rebuild``, ``open_step``, ``close_step`` and ``take_back_drift`` bound to its kernel
     launches (``rollingdem.engine.cuda.step_loop``)."""
-    half_skin = 0.5 * skin
+    half_skin = skin * (DRIFT_SHARE if lists.box.shape[0] <= PERIODIC_BOX_SIZE else SHEARED_DRIFT_SHARE)
     info[I_STATUS] = 0
     info[I_STEPS_DONE] = 0
     if info[I_FORCES_VALID] == 0:

@@ -11,8 +11,8 @@ from numba import njit, prange, uint32, uint64
 from numba.np.arrayobj import reshape_unchecked
 
 from rollingdem.physics.records import BOND_PARAMETERS, CONTACT_INPUTS as IN, N_INPUTS, N_RESULTS
-from rollingdem.engine.layout import BLOCK_SHIFT, CONTACT_BLOCK, LANE_HITS, PERIODIC_BOX as PB
-from rollingdem.engine.neighbors import POOL_GROUP, free_row, minimum_image, take_row
+from rollingdem.engine.layout import BLOCK_SHIFT, CONTACT_BLOCK, LANE_HITS, PERIODIC_BOX as PB, PERIODIC_BOX_SIZE
+from rollingdem.engine.neighbors import POOL_GROUP, free_row, minimum_image, sheared_image, take_row
 from rollingdem.engine.step_records import PairRecords
 from rollingdem.physics.bonds import BOND_INTACT
 from rollingdem.physics.contact.frame import SERIES_ANGLE, contact_frame_series, spin_angle, stored_normal
@@ -101,6 +101,10 @@ def entry_inputs(i, k, particles, lists):
     dy = x[i, 1] - x[j, 1]
     dz = x[i, 2] - x[j, 2]
     box = lists.box
+    jump = 0.0  # the partner's image's velocity along x, relative to the partner (a sheared box)
+    if box.shape[0] > PERIODIC_BOX_SIZE:
+        dx, dy, dz, lengths = sheared_image(dx, dy, dz, box)
+        jump = lengths * box[PB.shear_velocity]
     if box.shape[0] != 0:
         dx = minimum_image(dx, box[PB.lx], box[PB.inv_lx])
         dy = minimum_image(dy, box[PB.ly], box[PB.inv_ly])
@@ -147,7 +151,7 @@ def entry_inputs(i, k, particles, lists):
         m_eff = mass[free]
         inertia_r = INERTIA_R_FACTOR * mass[free] * radius[free] * radius[free]
     return True, j, row, (dx * inv_dist, dy * inv_dist, dz * inv_dist, overlap,
-                          v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
+                          v[i, 0] - v[j, 0] - jump, v[i, 1] - v[j, 1], v[i, 2] - v[j, 2],
                           w[i, 0], w[i, 1], w[i, 2], w[j, 0], w[j, 1], w[j, 2],
                           ri - 0.5 * overlap, rj - 0.5 * overlap, ri * rj / reach, m_eff, inertia_r)
 
@@ -181,8 +185,24 @@ def candidate_entries(k0, k1, x, radius, nl_j, nl_i, contact_row, lanes, box):
     the rows ``LANE_HITS..`` of ``lanes``; returns their count. One flat loop without branches over
     the entries of many rows (a loop per row mispredicts its exit once per row). The test is looser
     than ``entry_inputs``' by a relative 1e-12: an entry on the edge is left to it to decide. In a
-    periodic box, a loop of its own with the minimum image."""
+    periodic box, a loop of its own with the minimum image (and in a sheared box, another with its
+    images)."""
     nhit = uint64(0)
+    if box.shape[0] > PERIODIC_BOX_SIZE:
+        lx, ly, lz = box[PB.lx], box[PB.ly], box[PB.lz]
+        ilx, ily, ilz = box[PB.inv_lx], box[PB.inv_ly], box[PB.inv_lz]
+        for kk in range(k0, k1):
+            k = uint64(kk)
+            i = uint32(nl_i[k])
+            j = uint32(nl_j[k])
+            dx, dy, dz, _ = sheared_image(x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2], box)
+            dx = minimum_image(dx, lx, ilx)
+            dy = minimum_image(dy, ly, ily)
+            dz = minimum_image(dz, lz, ilz)
+            reach = radius[i] + radius[j]
+            lanes[uint64(LANE_HITS) + (nhit >> uint64(BLOCK_SHIFT)), nhit & uint64(CONTACT_BLOCK - 1)] = kk
+            nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (contact_row[k] >= 0))
+        return np.int64(nhit)
     if box.shape[0] != 0:
         lx, ly, lz = box[PB.lx], box[PB.ly], box[PB.lz]
         ilx, ily, ilz = box[PB.inv_lx], box[PB.inv_ly], box[PB.inv_lz]

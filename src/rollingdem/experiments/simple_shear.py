@@ -1,0 +1,214 @@
+"""``simple-shear``: steady simple shear of a polydisperse sphere packing between Lees-Edwards
+boundaries at a constant normal stress, and what it gives: the friction mu = tau / P and the solid
+fraction phi against the inertial number I = gamma_dot d / sqrt(P / rho) (GDR MiDi 2004; da Cruz et
+al. 2005), with and without rolling resistance.
+
+The scene: ``count`` spheres, radii uniform in R (1 +- ``polydispersity``), gravity off, in a box
+periodic along x, y and z and sheared along x, its gradient along z (``rollingdem.LeesEdwards``).
+It is made by a random insertion at a solid fraction of 0.3 and an isotropic compression to the
+pressure P (the three lengths scaled together by a servo, ``BoxServo``), then sheared at
+gamma_dot = I d / sqrt(P / rho) from the affine velocity profile, the gradient's length servoed to
+hold sigma_zz = P (the pressure-controlled shear of da Cruz et al. 2005). Past a transient strain
+the samples give mu = -sigma_xz / sigma_zz, phi and the I they were taken at (the stress: the
+contacts' virial and the kinetic stress about the affine profile, over the box's volume,
+``rollingdem.analysis.rheology.box_stress``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+
+import numpy as np
+
+from rollingdem.analysis.rheology import box_stress
+from rollingdem.errors import ParameterError
+from rollingdem.experiments.registry import BedExperiment, Parameter, resolve_rolling
+from rollingdem.io.measurements import batch_standard_error
+from rollingdem.physics.contact.model import ContactModel
+from rollingdem.scene.materials import Material
+from rollingdem.scene.periodic import LeesEdwards
+from rollingdem.scene.regions import BoxRegion
+from rollingdem.scene.simulation import Simulation
+from rollingdem.scene.size_distributions import Uniform
+
+#: the solid fraction the spheres are inserted at, before the compression
+INSERTED_FRACTION = 0.3
+#: steps between two moves of the servo while compressing; while shearing, samples of the stress
+#: (each a move of the servo) per unit of strain, at most one per step and at least one per ``CHUNK``
+CHUNK, SAMPLES_PER_STRAIN = 100, 200
+#: the largest relative change of a box length at one move of the servo
+MAX_STRAIN_PER_MOVE = 2e-3
+#: the compression ends when the pressure is within this of P and the kinetic energy per sphere
+#: below ``REST_ENERGY`` P d^3 (the packing is at rest under P)
+PRESSURE_WITHIN, REST_ENERGY = 0.02, 1e-6
+
+
+class BoxServo:
+    """Holds the stress of a periodic box at ``pressure`` P (Pa) by moving its lengths between runs
+    of its steps: each move scales the lengths along ``axes`` by 1 + g (sigma - P) / P, with sigma
+    the mean normal stress along them and the gain g = ``gain`` (P / E*)^(2/3) (a Hertz packing's
+    stiffness under P is of order (E* / P)^(2/3) P), at most ``MAX_STRAIN_PER_MOVE``. ``sim``'s box must
+    be periodic along ``axes``."""
+
+    def __init__(self, sim: Simulation, pressure: float, axes: str, effective_modulus: float, gain: float = 0.5):
+        self.sim, self.pressure, self.axes = sim, pressure, axes
+        self.gain = gain * (pressure / effective_modulus) ** (2.0 / 3.0)
+
+    def volume(self) -> float:
+        return math.prod(hi - lo for lo, hi in self.sim.periodic.values())
+
+    def stress(self, shear_rate: float = 0.0, contacts=None) -> np.ndarray:
+        """The box's stress now (Pa, compressive positive), kinetic part about v_x = shear_rate (z - z_mid)."""
+        sim = self.sim
+        c = sim.contact_forces() if contacts is None else contacts
+        x = sim.positions
+        lo, hi = sim.periodic["z"]
+        streaming = np.zeros_like(x)
+        streaming[:, 0] = shear_rate * (x[:, 2] - 0.5 * (lo + hi))
+        return box_stress(c["force"], c["branch"], sim.masses, sim.velocities, self.volume(), streaming)
+
+    def move(self, sigma: np.ndarray) -> float:
+        """Scale the lengths towards P; returns the mean normal stress along the axes that was read."""
+        normal = float(np.mean([sigma["xyz".index(a), "xyz".index(a)] for a in self.axes]))
+        strain = float(np.clip(self.gain * (normal - self.pressure) / self.pressure, -MAX_STRAIN_PER_MOVE,
+                               MAX_STRAIN_PER_MOVE))
+        for a in self.axes:
+            lo, hi = self.sim.periodic[a]
+            self.sim.shear.set_length(a, (hi - lo) * (1.0 + strain))
+        return normal
+
+
+def plane_traction(contacts, positions, plane: float, length: float, area: float) -> np.ndarray:
+    """The contact traction (Pa) across the plane z = ``plane`` of a box ``length`` long along z (the
+    plane and its images k ``length`` away): the force the contacts straddling it exert on their lower
+    member, over the plane's ``area`` (the method of planes; Todd, Evans & Daivis 1995). In steady
+    homogeneous shear its x component is the shear stress tau = -sigma_xz, its z component the normal
+    stress sigma_zz, less their kinetic parts (the momentum particles carry across)."""
+    i, force, branch = contacts["i"], contacts["force"], contacts["branch"]
+    zi = positions[i, 2]  # the pair: i at z_i, its partner's nearest image at z_i - b_z
+    zj = zi - branch[:, 2]
+    low, high = np.minimum(zi, zj), np.maximum(zi, zj)
+    k = np.floor((high - plane) / length)  # the image of the plane at or just below the higher member
+    across = low < plane + k * length
+    on_lower = np.where((zi < zj)[:, None], force, -force)  # the force on i, or on its partner
+    return on_lower[across].sum(axis=0) / area
+
+
+def effective_modulus(youngs_modulus: float, poisson_ratio: float) -> float:
+    """E* of two like spheres, E / (2 (1 - nu^2)) (Hertz)."""
+    return youngs_modulus / (2.0 * (1.0 - poisson_ratio ** 2))
+
+
+def shear_scene(p: dict) -> tuple[Simulation, BoxServo, float]:
+    """The packing of ``p``'s spheres compressed isotropically to P at rest: (simulation, its servo,
+    mean diameter)."""
+    d = 2.0 * p["radius"]
+    solid = p["count"] * math.pi / 6.0 * d ** 3 * (1.0 + p["polydispersity"] ** 2)  # <r^3> of the uniform radii
+    side = (solid / INSERTED_FRACTION) ** (1.0 / 3.0)
+    rate = p["inertial_number"] * math.sqrt(p["pressure"] / p["density"]) / d
+    sim = Simulation(contact=ContactModel("hertz", rolling=resolve_rolling(p["model"])), gravity=(0.0, 0.0, 0.0),
+                     periodic={a: (0.0, side) for a in "xyz"},
+                     lees_edwards=LeesEdwards(shear_rate=0.0, gradient="z"))
+    sim.add_material(Material("spheres", youngs_modulus=p["youngs_modulus"], poisson_ratio=p["poisson_ratio"],
+                              density=p["density"], friction=p["mu"], rolling_friction=p["mur"], restitution=p["e"],
+                              rolling_damping=p["eta_r"]))
+    radius = Uniform(p["radius"] * (1.0 - p["polydispersity"]), p["radius"] * (1.0 + p["polydispersity"]))
+    sim.insert(BoxRegion((0.0, 0.0, 0.0), (side, side, side)), p["count"], radius, "spheres", seed=p["seed"],
+               max_attempts=2000)
+    if sim.n_particles < p["count"]:
+        raise ParameterError(f"count = {p['count']} is not allowed: only {sim.n_particles} spheres found room at a "
+                             f"solid fraction of {INSERTED_FRACTION}")
+    servo = BoxServo(sim, p["pressure"], "xyz", effective_modulus(p["youngs_modulus"], p["poisson_ratio"]))
+    rest = REST_ENERGY * p["pressure"] * d ** 3
+    for _ in range(p["max_moves"]):
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=".*dt is lowered")
+            sim.run(steps=CHUNK)
+        pressure = servo.move(servo.stress())
+        if abs(pressure - p["pressure"]) < PRESSURE_WITHIN * p["pressure"] and \
+                sum(sim.kinetic_energy()) < rest * sim.n_particles:
+            break
+    sim.shear.shear_rate = rate
+    return sim, servo, d
+
+
+def shear_run(p: dict) -> dict:
+    """The compressed packing sheared at the shear rate of ``inertial_number`` to ``strain``, the
+    first ``transient`` of it left out: mu, phi, I (means over the samples) and their standard errors."""
+    start = time.perf_counter()
+    sim, servo, d = shear_scene(p)
+    rate = sim.shear.shear_rate
+    x = sim.positions
+    lo, hi = sim.periodic["z"]
+    v = sim.velocities
+    v[:, 0] = rate * (x[:, 2] - 0.5 * (lo + hi))  # the affine profile: steady shear from the start
+    sim.set_velocities(np.arange(sim.n_particles), velocity=v)
+    z_servo = BoxServo(sim, p["pressure"], "z", effective_modulus(p["youngs_modulus"], p["poisson_ratio"]))
+    solid = float(np.sum(4.0 / 3.0 * math.pi * sim.radii ** 3))
+    chunk = int(np.clip(round(1.0 / (rate * sim.dt * SAMPLES_PER_STRAIN)), 1, CHUNK))
+    moves = max(1, int(round(p["strain"] / (rate * sim.dt * chunk))))
+    first = int(round(p["transient"] / p["strain"] * moves))
+    rows = []
+    for k in range(moves):
+        with warnings.catch_warnings():  # the shear's speeds lower the automatic dt a little: not news here
+            warnings.filterwarnings("ignore", message=".*dt is lowered")
+            sim.run(steps=chunk)
+        contacts = sim.contact_forces()
+        sigma = z_servo.stress(rate, contacts)
+        if k >= first:
+            (lo, hi), area = sim.periodic["z"], z_servo.volume() / (sim.periodic["z"][1] - sim.periodic["z"][0])
+            end = plane_traction(contacts, sim.positions, lo, hi - lo, area)
+            contact_part = box_stress(contacts["force"], contacts["branch"], [], [], z_servo.volume())
+            rows.append((-sigma[0, 2] / sigma[2, 2], solid / z_servo.volume(), sigma[2, 2], end[0], -contact_part[0, 2]))
+        z_servo.move(sigma)
+    mu, phi, normal, end_tau, tau = (np.array(c) for c in zip(*rows))
+    inertial = rate * d / np.sqrt(np.maximum(normal, 1e-300) / p["density"])
+    return {"friction": float(mu.mean()), "friction_error": batch_standard_error(mu),
+            "solid_fraction": float(phi.mean()), "solid_fraction_error": batch_standard_error(phi),
+            "inertial_number": float(inertial.mean()), "normal_stress": float(normal.mean()),
+            "end_traction_ratio": float(end_tau.mean() / tau.mean()),
+            "end_traction_error": batch_standard_error(end_tau / tau.mean()),
+            "shear_rate": rate, "samples": len(rows), "steps": moves * chunk, "wall_time": time.perf_counter() - start}
+
+
+class SimpleShear(BedExperiment):
+    """Steady simple shear at a constant normal stress between Lees-Edwards boundaries."""
+
+    name = "simple-shear"
+    description = ("steady simple shear of a polydisperse sphere packing between Lees-Edwards boundaries at a constant "
+                   "normal stress: the friction mu = tau / P and the solid fraction against the inertial number")
+    parameters = (Parameter("model", "epsd", "rolling resistance model", choice="rolling"),
+                  Parameter("mu", 0.5, "sliding friction coefficient", low=0.0, calibration_range=(0.0, 1.0)),
+                  Parameter("mur", 0.0, "rolling friction coefficient", low=0.0, calibration_range=(0.0, 0.6)),
+                  Parameter("eta_r", 0.3, "rolling viscous damping ratio", low=0.0, high=1.0),
+                  Parameter("e", 0.5, "coefficient of restitution", low=0.0, high=1.0, low_open=True),
+                  Parameter("inertial_number", 0.01, "the inertial number I the shear rate is set by: "
+                                                     "gamma_dot = I d / sqrt(P / rho)", low=0.0, low_open=True, high=1.0),
+                  Parameter("pressure", 1000.0, "the normal stress P held on the shear plane", "Pa", low=0.0,
+                            low_open=True),
+                  Parameter("count", 500, "spheres", low=50, integer=True),
+                  Parameter("radius", 5e-4, "mean sphere radius R", "m", low=0.0, low_open=True),
+                  Parameter("polydispersity", 0.2, "radii uniform in R (1 +- p)", low=0.0, high=0.5),
+                  Parameter("youngs_modulus", 1e7, "Young's modulus", "Pa", low=0.0, low_open=True),
+                  Parameter("poisson_ratio", 0.25, "Poisson's ratio", low=0.0, high=0.5),
+                  Parameter("density", 2500.0, "the spheres' density rho", "kg/m^3", low=0.0, low_open=True),
+                  Parameter("strain", 3.0, "shear strain run", low=0.0, low_open=True),
+                  Parameter("transient", 1.0, "shear strain left out before the samples", low=0.0),
+                  Parameter("max_moves", 3000, "most servo moves of the compression", low=1, integer=True),
+                  Parameter("seed", 1, "random seed (insertion)", low=0, integer=True))
+    observables = {"friction": "-: tau / P, the macroscopic friction in steady shear",
+                   "solid_fraction": "-: the packing's solid fraction in steady shear",
+                   "inertial_number": "-: I = gamma_dot d / sqrt(P / rho) at the measured normal stress"}
+    default_observable = "friction"
+    targets = {"friction": (0.0, 2.0), "solid_fraction": (0.3, 0.74)}
+
+    def check(self, params: dict) -> None:
+        if params["transient"] >= params["strain"]:
+            raise ParameterError(f"transient = {params['transient']!r} is not allowed: must be below strain = "
+                                 f"{params['strain']!r}")
+
+    def observe(self, params: dict) -> dict:
+        self.check(params)
+        return shear_run(params)

@@ -225,3 +225,13 @@ def test_a_case_file_shears_its_periodic_box(tmp_path):
     assert sim.shear.lees_edwards == rd.LeesEdwards(shear_rate=50.0, gradient="z")
     step_move = 50.0 * 0.03 * sim.dt
     assert min(sim.shear.shift, 0.03 - sim.shear.shift) < step_move + 1e-12
+
+
+def test_fields_in_a_sheared_box_are_refused(table1):
+    """The fields' kernels would wrap across the gradient's ends without the images' shift and
+    velocity jump: refused, naming the measurement."""
+    sim = rd.Simulation(periodic={"x": (0, 0.1), "z": (0, 0.1)}, lees_edwards=rd.LeesEdwards(shear_rate=1.0))
+    sim.add_material(table1())
+    sim.add_particles([[0.05, 0.0, 0.05]], R, "m")
+    with pytest.raises(ParameterError, match="fields 'f' is not allowed in a sheared"):
+        sim.run(steps=1, observers=[rd.ContinuumFields("f", width=0.01)])

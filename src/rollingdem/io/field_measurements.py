@@ -96,6 +96,10 @@ class ContinuumFields(Measurement):
 
     # --- the grid ----------------------------------------------------------------------------------
     def check(self, sim) -> None:
+        if sim.shear.active:
+            raise ParameterError(f"fields {self.name!r} is not allowed in a sheared (Lees-Edwards) box: its kernels "
+                                 "wrap across the gradient's ends without the images' shift and velocity jump; "
+                                 "rollingdem.analysis.rheology.box_stress gives the box's mean stress")
         if sim.mesh_walls():
             raise ParameterError(f"fields {self.name!r} is not allowed in a scene with triangle-mesh walls: their "
                                  "contact points are not kept, so their contact stress cannot be spread")

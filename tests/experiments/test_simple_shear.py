@@ -1,0 +1,86 @@
+"""The simple-shear rig's parts on known inputs: the box's stress, the traction across a plane of a
+periodic box (the method of planes) and the pressure servo; and a short sheared run that holds its
+normal stress and gives the traction across the sheared end equal to the box's mean shear stress."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rollingdem.analysis.rheology import box_stress
+from rollingdem.experiments.simple_shear import MAX_STRAIN_PER_MOVE, BoxServo, SimpleShear, plane_traction
+
+
+def test_the_box_stress_is_the_virial_and_the_kinetic_stress_over_the_volume():
+    """One contact, force f on i along its branch b (a repulsion): sigma = f (x) b / V, compressive
+    positive; two particles moving at +-u along x about a streaming v_x = 0.5 u add m u^2 / V to
+    sigma_xx for the one at rest relative to nothing... each m (v - s)^2 / V."""
+    f, b = np.array([[2.0, 0.0, 1.0]]), np.array([[0.004, 0.0, 0.002]])
+    sigma = box_stress(f, b, [], [], 1e-6)
+    np.testing.assert_allclose(sigma, np.outer(f[0], b[0]) / 1e-6, rtol=1e-15)
+    assert sigma[0, 0] > 0.0  # a repulsion is compressive: positive
+    m, u = np.array([1e-3, 2e-3]), 0.3
+    v = np.array([[u, 0.0, 0.0], [-u, 0.0, 0.0]])
+    streaming = np.array([[0.5 * u, 0.0, 0.0], [0.5 * u, 0.0, 0.0]])
+    kinetic = box_stress(np.zeros((0, 3)), np.zeros((0, 3)), m, v, 2e-6, streaming)
+    assert kinetic[0, 0] == pytest.approx((1e-3 * (0.5 * u) ** 2 + 2e-3 * (1.5 * u) ** 2) / 2e-6, rel=1e-14)
+    assert kinetic[0, 2] == 0.0 and kinetic[2, 2] == 0.0
+
+
+def test_the_plane_traction_counts_the_contacts_across_the_plane_and_its_images():
+    """Three contacts in a box 1 m long along z, the plane z = 0 (and its images at +-1 m): i at
+    z = 0.05 with its partner's image at -0.05 (branch +0.1: across; force on i, the upper one, so
+    the lower takes -f), i at 0.97 with its partner at 1.03 (across the image at z = 1: i is the lower
+    one), i at 0.5 with its partner at 0.4 (across nothing). Traction = the forces on the lower
+    members over the area."""
+    positions = np.array([[0, 0, 0.05], [0, 0, 0.97], [0, 0, 0.5]])
+    contacts = {"i": np.array([0, 1, 2]), "force": np.array([[1.0, 0, 2.0], [3.0, 0, -4.0], [7.0, 0, 7.0]]),
+                "branch": np.array([[0, 0, 0.1], [0, 0, -0.06], [0, 0, 0.1]])}
+    t = plane_traction(contacts, positions, 0.0, 1.0, 2.0)
+    np.testing.assert_allclose(t, (-np.array([1.0, 0, 2.0]) + np.array([3.0, 0, -4.0])) / 2.0, rtol=1e-15)
+    assert np.all(plane_traction(contacts, positions, 0.7, 1.0, 2.0) == 0.0)  # no contact crosses z = 0.7
+
+
+class _Box:
+    """A stand-in simulation with a periodic box whose set_length the servo calls."""
+
+    def __init__(self):
+        self.periodic = {"x": (0.0, 1.0), "y": (0.0, 1.0), "z": (0.0, 2.0)}
+        shear = self
+
+        class Shear:
+            @staticmethod
+            def set_length(axis, length):
+                lo, _ = shear.periodic[axis]
+                shear.periodic[axis] = (lo, lo + length)
+        self.shear = Shear()
+
+
+def test_the_servo_moves_the_lengths_towards_the_pressure():
+    """Above P the box grows by gain (sigma - P) / P, below it shrinks; at most MAX_STRAIN_PER_MOVE a
+    move; the other lengths stay."""
+    sim = _Box()
+    servo = BoxServo(sim, 1000.0, "z", effective_modulus=1e9, gain=0.5)
+    gain = 0.5 * (1000.0 / 1e9) ** (2 / 3)
+    sigma = np.diag([0.0, 0.0, 1000.0 * (1 + 0.1)])
+    servo.move(sigma)
+    assert sim.periodic["z"][1] == pytest.approx(2.0 * (1 + gain * 0.1), rel=1e-14)
+    servo.move(np.diag([0.0, 0.0, 0.9 * 1000.0]))  # below: shrink
+    assert sim.periodic["z"][1] == pytest.approx(2.0 * (1 + gain * 0.1) * (1 - gain * 0.1), rel=1e-14)
+    servo.move(np.diag([0.0, 0.0, 1000.0 * (1 + 10.0 / gain)]))  # far above: grow by the cap
+    assert sim.periodic["z"][1] == pytest.approx(2.0 * (1 - (gain * 0.1) ** 2) * (1 + MAX_STRAIN_PER_MOVE), rel=1e-14)
+    assert sim.periodic["x"] == (0.0, 1.0)
+
+
+def test_a_short_shear_holds_its_normal_stress_and_its_sheared_end_carries_the_shear_stress():
+    """200 spheres compressed to 1 kPa and sheared at I = 0.01 to a strain of 1 (the first 0.5 left
+    out): the servo holds sigma_zz within 5 % of P; the contacts across the sheared end carry the
+    box's mean contact shear stress within 4 standard errors; the friction lies between the
+    frictionless spheres' (about 0.1) and the bulk friction of any sphere packing (below 0.7)."""
+    e = SimpleShear()
+    out = e.observe(e.resolve({"count": 200, "inertial_number": 0.01, "strain": 1.0, "transient": 0.5}))
+    assert out["normal_stress"] == pytest.approx(1000.0, rel=0.05)
+    assert abs(out["end_traction_ratio"] - 1.0) < 4 * out["end_traction_error"]
+    assert 0.2 < out["friction"] < 0.7
+    assert out["inertial_number"] == pytest.approx(0.01, rel=0.05)
+    assert 0.55 < out["solid_fraction"] < 0.64 and math.isfinite(out["friction_error"])

@@ -29,6 +29,7 @@ from rollingdem.io.observers import Checkpoints, TimeSeries, VTKSnapshots  # noq
 from rollingdem.io.measurements import Function, MassFlow, MeshFlow, OutletTotals, Probe, WallLoad  # noqa: E402
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle, SurfaceProfile  # noqa: E402
 from rollingdem.io.field_measurements import ContinuumFields  # noqa: E402
+from rollingdem.io.box_measurements import BoxStress  # noqa: E402
 from rollingdem.scene.conditions import Empty, Known, Reaches, Settled  # noqa: E402
 from rollingdem.scene.schedule import Callback, Observer  # noqa: E402
 from rollingdem.scene.simulation import Simulation, __version__  # noqa: E402
@@ -42,7 +43,7 @@ globals().update(_contact.SUBMODELS)  # every contact sub-model class by name (r
 
 __all__ = [
     "convert", "Simulation", "LeesEdwards", "ContactModel", "ParallelBond", "Material", "MaterialTable", "Plane", "Cylinder", "MeshWall", "Oscillation", "MotionTable", "Servo", "Clump", "equivalent_rolling_friction", "onset_angle", "random_orientations", "stand_in_rolling_friction", "MeshRegion", "TriangleMesh", "TimeSeries",
-    "VTKSnapshots", "Checkpoints", "Callback", "Observer", "MassFlow", "MeshFlow", "Probe", "ContinuumFields", "OutletTotals", "WallLoad",
+    "VTKSnapshots", "Checkpoints", "Callback", "Observer", "MassFlow", "MeshFlow", "Probe", "ContinuumFields", "BoxStress", "OutletTotals", "WallLoad",
     "PileAngle", "DrumAngle", "DrumFlow", "SurfaceProfile", "Function", "Settled", "Reaches", "Known", "Empty", "BoxRegion", "CylinderRegion", "Uniform", "Normal", "MassFractions", "SieveCurve", "Disk", "Rectangle", "MeshFace",
     "Discrete", "rough_base", "ParameterError", "SimulationError", "rayleigh_time_step", "hertz_contact_time", "__version__",
     *_contact.SUBMODELS,

@@ -76,3 +76,13 @@ def test_bad_input_is_one_line(call, message):
     with pytest.raises(ParameterError, match=re.escape(message)) as refused:
         call()
     assert "\n" not in str(refused.value)
+
+
+def test_a_friction_that_does_not_rise_is_fitted_flat_at_its_level():
+    """Points that scatter about a level (no rise with I) give mu_s = mu_2 = about their mean: the
+    fit keeps mu_2 >= mu_s, so that mu_s cannot run off to its bound with mu_2 below it."""
+    i = np.array([0.001, 0.003, 0.01, 0.03, 0.1, 0.3])
+    mu = np.array([0.638, 0.567, 0.582, 0.625, 0.528, 0.602])
+    fit = fit_mu_of_i(i, mu)
+    assert fit["mu_2"] >= fit["mu_s"]
+    assert fit["mu_s"] == pytest.approx(mu.mean(), abs=2 * fit["mu_s_error"])

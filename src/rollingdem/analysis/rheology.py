@@ -52,8 +52,9 @@ def _points(inertial, values, what: str) -> tuple[np.ndarray, np.ndarray]:
 def fit_mu_of_i(inertial, mu) -> dict:
     """Least-squares fit of ``mu_of_i`` to points (I, mu): {mu_s, mu_2, i_0, their standard errors
     (``mu_s_error``, ...: from the fit's covariance, scaled by the residuals), rms (the residuals' root
-    mean square), points}. At least four points with I > 0 and spanning a factor 3 in I are needed
-    (the three parameters and the curve's bend)."""
+    mean square), points}, with mu_2 >= mu_s (points that do not rise give mu_2 = mu_s, their
+    level). At least four points with I > 0 and spanning a factor 3 in I are needed (the three
+    parameters and the curve's bend)."""
     from scipy.optimize import curve_fit  # deferred: slow to load
 
     i, m = _points(inertial, mu, "mu(I) fit")
@@ -62,13 +63,17 @@ def fit_mu_of_i(inertial, mu) -> dict:
                              f"{i.max() if len(i) else math.nan:.3g} is not allowed: needs at least 4 points with "
                              "I > 0, spanning a factor 3 in I")
     geometric = float(np.exp(np.mean(np.log(i))))
-    start = (float(m.min()), float(m.max()) + 0.05, geometric)
-    try:
-        (mu_s, mu_2, i_0), cov = curve_fit(mu_of_i, i, m, p0=start, bounds=([0.0, 0.0, 1e-9], [10.0, 10.0, 1e3]),
-                                           maxfev=20000)
+    start = (float(m.min()), float(np.ptp(m)) + 0.05, geometric)
+    try:  # in mu_s and mu_2 - mu_s >= 0: the friction does not fall as the flow gets faster
+        (mu_s, rise, i_0), cov = curve_fit(lambda x, a, b, c: mu_of_i(x, a, a + b, c), i, m, p0=start,
+                                           bounds=([0.0, 0.0, 1e-9], [10.0, 10.0, 1e3]), maxfev=20000)
     except RuntimeError as err:  # no convergence
         raise ParameterError(f"mu(I) fit of {len(i)} points is not allowed: the fit did not converge ({err})") from None
-    errors = np.sqrt(np.maximum(np.diag(cov), 0.0)) if np.all(np.isfinite(cov)) else np.full(3, math.nan)
+    if np.all(np.isfinite(cov)):
+        errors = np.sqrt(np.maximum([cov[0, 0], cov[0, 0] + cov[1, 1] + 2.0 * cov[0, 1], cov[2, 2]], 0.0))
+    else:
+        errors = np.full(3, math.nan)
+    mu_2 = mu_s + rise
     residuals = m - mu_of_i(i, mu_s, mu_2, i_0)
     return {"mu_s": float(mu_s), "mu_2": float(mu_2), "i_0": float(i_0), "mu_s_error": float(errors[0]),
             "mu_2_error": float(errors[1]), "i_0_error": float(errors[2]),

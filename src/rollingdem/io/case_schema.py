@@ -32,6 +32,7 @@ from rollingdem.scene.materials import OWN_PROPERTIES
 from rollingdem.scene.particles import PARTICLE_DECLARED
 from rollingdem.io.measurements import MassFlow, OutletTotals, Probe, WallLoad
 from rollingdem.io.rig_measurements import DrumAngle, DrumFlow, PileAngle
+from rollingdem.io.box_measurements import BoxStress
 from rollingdem.io.field_measurements import ContinuumFields
 from rollingdem.scene.motion import MotionTable, Oscillation, Servo
 from rollingdem.scene.regions import BoxRegion, CylinderRegion, Disk, Rectangle
@@ -421,6 +422,11 @@ FieldsSpec = _measurement(ContinuumFields, "FieldsSpec", "fields",
                          "rollingdem.ContinuumFields: coarse-grained continuum fields on a grid (docs/analysis.md)")
 
 
+BoxStressSpec = _measurement(BoxStress, "BoxStressSpec", "box_stress",
+                             "rollingdem.BoxStress: a periodic box's stress and shear, with an optional pressure "
+                             "control (docs/measurements.md)")
+
+
 class MeshFlowSpec(_MeasurementBase, _MeshSource):
     """``rollingdem.MeshFlow``: through a triangle mesh surface, counted along its triangles' normals."""
     type: Literal["mesh_flow"] = about(..., "mesh_flow: the flow through a triangle mesh surface")
@@ -439,7 +445,7 @@ class ProfileSpec(_MeasurementBase):
 
 MeasurementSpec = Annotated[Union[MassFlowSpec, ProbeSpec, OutletMeasurementSpec, WallMeasurementSpec,
                                   ReposeMeasurementSpec, DrumMeasurementSpec, DrumFlowSpec, ProfileSpec,
-                                  MeshFlowSpec, FieldsSpec],
+                                  MeshFlowSpec, FieldsSpec, BoxStressSpec],
                             Field(discriminator="type")]
 
 

@@ -20,6 +20,7 @@ from rollingdem.errors import ParameterError, check_finite, check_positive, chec
 from rollingdem.io import case_schema
 from rollingdem.io import measurements as ms
 from rollingdem.io import rig_measurements as rig
+from rollingdem.io.box_measurements import BoxStress
 from rollingdem.io.field_measurements import ContinuumFields
 from rollingdem.io.case_errors import InCase, format_validation_error
 from rollingdem.io.case_schema import (
@@ -382,6 +383,8 @@ def build_measurements(case: CaseSpec, sim) -> dict:
             elif m.type == "fields":
                 made[m.name] = ContinuumFields(width=m.width, kernel=m.kernel, cells=m.cells, lower=m.lower,
                                                upper=m.upper, axis=m.axis, vtk=m.vtk, **common)
+            elif m.type == "box_stress":
+                made[m.name] = BoxStress(pressure_control=m.pressure_control, axes=m.axes, **common)
             elif m.type == "drum_flow":
                 made[m.name] = rig.DrumFlow(center=m.center, axis=m.axis, radius=m.radius, wall=m.wall, extent=m.extent,
                                            **common)

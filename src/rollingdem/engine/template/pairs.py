@@ -180,42 +180,38 @@ def queue_inputs(col, n, g):
 
 
 @njit(cache=True, inline="always")
+def queue_candidate(lanes, nhit, kk, dx, dy, dz, reach, row):
+    """Entry kk written at place ``nhit`` of the hits; the count of hits after it: one more if its
+    spheres, ``reach`` = R_i + R_j apart at separation (dx, dy, dz), may touch, or touched at the
+    last step (its pool ``row`` >= 0). Written whatever the test: no branch."""
+    lanes[uint64(LANE_HITS) + (nhit >> uint64(BLOCK_SHIFT)), nhit & uint64(CONTACT_BLOCK - 1)] = kk
+    return nhit + uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (row >= 0))
+
+
+@njit(cache=True, inline="always")
 def candidate_entries(k0, k1, x, radius, nl_j, nl_i, contact_row, lanes, box):
     """Entries k0..k1-1 whose spheres may touch now or touched at the last step, in ascending k, into
     the rows ``LANE_HITS..`` of ``lanes``; returns their count. One flat loop without branches over
     the entries of many rows (a loop per row mispredicts its exit once per row). The test is looser
     than ``entry_inputs``' by a relative 1e-12: an entry on the edge is left to it to decide. In a
-    periodic box, a loop of its own with the minimum image (and in a sheared box, another with its
-    images)."""
+    periodic box, a loop of its own with the minimum image (in a sheared box, of the image across
+    the gradient first)."""
     nhit = uint64(0)
-    if box.shape[0] > PERIODIC_BOX_SIZE:
+    if box.shape[0] != 0:
+        sheared = box.shape[0] > PERIODIC_BOX_SIZE
         lx, ly, lz = box[PB.lx], box[PB.ly], box[PB.lz]
         ilx, ily, ilz = box[PB.inv_lx], box[PB.inv_ly], box[PB.inv_lz]
         for kk in range(k0, k1):
             k = uint64(kk)
             i = uint32(nl_i[k])
             j = uint32(nl_j[k])
-            dx, dy, dz, _ = sheared_image(x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2], box)
+            dx, dy, dz = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
+            if sheared:  # the same for every entry: predicted
+                dx, dy, dz, _ = sheared_image(dx, dy, dz, box)
             dx = minimum_image(dx, lx, ilx)
             dy = minimum_image(dy, ly, ily)
             dz = minimum_image(dz, lz, ilz)
-            reach = radius[i] + radius[j]
-            lanes[uint64(LANE_HITS) + (nhit >> uint64(BLOCK_SHIFT)), nhit & uint64(CONTACT_BLOCK - 1)] = kk
-            nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (contact_row[k] >= 0))
-        return np.int64(nhit)
-    if box.shape[0] != 0:
-        lx, ly, lz = box[PB.lx], box[PB.ly], box[PB.lz]
-        ilx, ily, ilz = box[PB.inv_lx], box[PB.inv_ly], box[PB.inv_lz]
-        for kk in range(k0, k1):
-            k = uint64(kk)
-            i = uint32(nl_i[k])
-            j = uint32(nl_j[k])
-            dx = minimum_image(x[i, 0] - x[j, 0], lx, ilx)
-            dy = minimum_image(x[i, 1] - x[j, 1], ly, ily)
-            dz = minimum_image(x[i, 2] - x[j, 2], lz, ilz)
-            reach = radius[i] + radius[j]
-            lanes[uint64(LANE_HITS) + (nhit >> uint64(BLOCK_SHIFT)), nhit & uint64(CONTACT_BLOCK - 1)] = kk
-            nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (contact_row[k] >= 0))
+            nhit = queue_candidate(lanes, nhit, kk, dx, dy, dz, radius[i] + radius[j], contact_row[k])
         return np.int64(nhit)
     for kk in range(k0, k1):
         k = uint64(kk)
@@ -224,9 +220,7 @@ def candidate_entries(k0, k1, x, radius, nl_j, nl_i, contact_row, lanes, box):
         dx = x[i, 0] - x[j, 0]
         dy = x[i, 1] - x[j, 1]
         dz = x[i, 2] - x[j, 2]
-        reach = radius[i] + radius[j]
-        lanes[uint64(LANE_HITS) + (nhit >> uint64(BLOCK_SHIFT)), nhit & uint64(CONTACT_BLOCK - 1)] = kk
-        nhit += uint64((dx * dx + dy * dy + dz * dz < CANDIDATE_SLACK * reach * reach) | (contact_row[k] >= 0))
+        nhit = queue_candidate(lanes, nhit, kk, dx, dy, dz, radius[i] + radius[j], contact_row[k])
     return np.int64(nhit)
 
 

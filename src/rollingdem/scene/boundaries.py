@@ -427,7 +427,7 @@ def free_places(sim, region, radii: np.ndarray, largest: float, rng) -> np.ndarr
     st = sim.particle_set.state
     walls = sim.walls
     reach = 2.0 * float(max(st.radius.max(initial=0.0), largest))
-    near_x, near_r, _ = periodic_box.with_images(sim.periodic, st.x, st.radius, reach)
+    near_x, near_r, _ = periodic_box.with_images(sim.periodic, st.x, st.radius, reach, st.contact_list.box)
     return place_spheres(region, radii, near_x, near_r, walls, rng)
 
 

@@ -165,7 +165,8 @@ class Particles:
         first = st.n
         allx = np.concatenate([st.x, x])
         allr = np.concatenate([st.radius, r])
-        imgx, imgr, source = periodic_box.with_images(self.periodic, allx, allr, 2.0 * float(allr.max()))
+        imgx, imgr, source = periodic_box.with_images(self.periodic, allx, allr, 2.0 * float(allr.max()),
+                                                      st.contact_list.box)
         tree = cKDTree(imgx)
         # each new sphere against every sphere (or periodic image) before it within its radius plus
         # the largest radius

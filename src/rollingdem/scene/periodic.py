@@ -219,16 +219,24 @@ def check_region_inside(periodic: dict, what: str, region) -> None:
                                  "lie inside it")
 
 
-def with_images(periodic: dict, x: np.ndarray, r: np.ndarray, reach: float):
+def with_images(periodic: dict, x: np.ndarray, r: np.ndarray, reach: float, box=None):
     """``x``, ``r`` and the periodic images of those within ``reach`` of a periodic end;
-    returns (positions, radii, index of each one's original)."""
+    returns (positions, radii, index of each one's original). With the engine's ``box``, sheared:
+    the images across the gradient's ends are displaced along x by the shift, first, so that the x
+    ends then image them too."""
     source = np.arange(len(x))
-    for axis, (lo, hi) in periodic.items():
-        a, length = "xyz".index(axis), hi - lo
+    sheared = box is not None and box.shape[0] > PERIODIC_BOX_SIZE
+    gradient = ("y" if box[PB.gradient_y] != 0.0 else "z") if sheared else None
+    for axis in sorted(periodic, key=lambda a: a != gradient):
+        (lo, hi), a = periodic[axis], "xyz".index(axis)
+        length = hi - lo
         low, high = x[:, a] < lo + reach, x[:, a] > hi - reach
         up, down = x[low].copy(), x[high].copy()
         up[:, a] += length
         down[:, a] -= length
+        if axis == gradient:  # the image above is displaced by +shift along x, the one below by -shift
+            up[:, 0] += box[PB.shift]
+            down[:, 0] -= box[PB.shift]
         x = np.concatenate([x, up, down])
         r = np.concatenate([r, r[low], r[high]])
         source = np.concatenate([source, source[low], source[high]])

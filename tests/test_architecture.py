@@ -301,7 +301,7 @@ def test_experiments_share_one_registry_and_no_public_name():
     assert set(EXPERIMENTS) <= set(validate.available_experiments())
     assert {n for n, e in EXPERIMENTS.items() if e.observable} == {
         "inclined-wall", "rolling-flat", "angle-of-repose", "repose-rough-base", "rotating-drum", "silo-discharge",
-        "clump-stand-in", "coarse-graining", "simple-shear"}
+        "clump-stand-in", "coarse-graining", "simple-shear", "inclined-plane"}
     defined = {}
     for path in sorted((SOURCE / "experiments").glob("*.py")):
         for node in ast.parse(path.read_text()).body:

@@ -11,7 +11,8 @@ its scene, all in one registry, ``EXPERIMENTS``, that ``rollingdem validate``, `
 - ``clumps``: clumps against rigid-body statics and dynamics; ``clump_stand_in``: a pile of clumps
   against one of the spheres with the mu_r that stands in for them; ``coarse_graining``: parcels
   against the real particles they stand for; ``simple_shear``: steady simple shear between
-  Lees-Edwards boundaries, mu(I) and phi(I) with and without rolling resistance.
+  Lees-Edwards boundaries, mu(I) and phi(I) with and without rolling resistance;
+  ``inclined_plane``: a layer flowing steadily down a rough incline, against the same mu(I).
 
 Importing this package defines, and so registers, every one. The PFC repose-angle study, a sweep
 of the pile, is a study (``rollingdem.studies.repose_study``); ``default.yaml`` is the case file
@@ -29,6 +30,7 @@ from rollingdem.experiments import clump_stand_in  # noqa: F401
 from rollingdem.experiments import coarse_graining  # noqa: F401
 from rollingdem.experiments import chung_ooi  # noqa: F401
 from rollingdem.experiments import simple_shear  # noqa: F401
+from rollingdem.experiments import inclined_plane  # noqa: F401
 from rollingdem.experiments import case_file  # noqa: F401  (get_experiment takes a case file's path)
 from rollingdem.experiments.registry import EXPERIMENTS, Experiment, Parameter, get_experiment
 from rollingdem.experiments.results import ValidationResult, Check

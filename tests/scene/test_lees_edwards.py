@@ -251,3 +251,25 @@ def test_a_new_sphere_is_checked_against_the_shifted_images(table1):
     with pytest.raises(ParameterError, match="overlap"):
         sim.add_particles([[0.05 - shift, 0.0, 0.003]], R, "m")
     sim.add_particles([[0.05, 0.0, 0.003]], R, "m")
+
+
+@pytest.mark.parametrize("gradient", ["y", "z"])
+def test_set_length_moves_the_gradient_only_along_the_gradient(gradient):
+    """Changing the length across the flow and the gradient leaves the shear alone; changing the
+    gradient's length moves the image's length with it and keeps the rate (U scales); x's scales the
+    shift with it. Positions move affinely about the low end."""
+    from rollingdem.engine.layout import PERIODIC_BOX as PB
+
+    other = "y" if gradient == "z" else "z"
+    sim = rd.Simulation(periodic={a: (0.0, 0.1) for a in "xyz"},
+                        lees_edwards=rd.LeesEdwards(shear_rate=2.0, gradient=gradient))
+    box = sim._state.contact_list.box
+    sim.shear.set_length(other, 0.08)
+    assert box[PB.lg] == 0.1 and sim.shear.shear_velocity == pytest.approx(0.2, rel=1e-15)
+    sim.shear.set_length(gradient, 0.125)
+    assert box[PB.lg] == 0.125 and box[PB.inv_lg] == 1 / 0.125
+    assert sim.shear.shear_rate == pytest.approx(2.0, rel=1e-15)
+    box[PB.shift] = 0.04
+    sim.shear.set_length("x", 0.05)
+    assert sim.shear.shift == pytest.approx(0.02, rel=1e-15)
+    assert sim.periodic == {"x": (0.0, 0.05), gradient: (0.0, 0.125), other: (0.0, 0.08)}

@@ -124,7 +124,7 @@ class ShearedBox:
         st.x[:, a] = lo + (st.x[:, a] - lo) * factor
         box[3 + a], box[6 + a] = length, 1.0 / length
         if box.shape[0] > PERIODIC_BOX_SIZE:
-            if box[PB.lg] != box[3 + a] and a != 0:  # the gradient axis
+            if a == "xyz".index(self.lees_edwards.gradient):
                 box[PB.shear_velocity] *= factor
                 box[PB.lg], box[PB.inv_lg] = length, 1.0 / length
             if a == 0:

@@ -273,3 +273,37 @@ def test_set_length_moves_the_gradient_only_along_the_gradient(gradient):
     sim.shear.set_length("x", 0.05)
     assert sim.shear.shift == pytest.approx(0.02, rel=1e-15)
     assert sim.periodic == {"x": (0.0, 0.05), gradient: (0.0, 0.125), other: (0.0, 0.08)}
+
+
+def test_the_probes_coordination_counts_pairs_across_the_shifted_end(table1):
+    """Two spheres touching across the sheared end through the shifted image (the only pair): each
+    touches one, as the engine's contact says; unshifted images would find none."""
+    from rollingdem.io.measurements import coordination
+
+    sim = rd.Simulation(gravity=(0, 0, 0), periodic={"x": (0.0, 0.1), "z": (0.0, 0.1)},
+                        lees_edwards=rd.LeesEdwards(shear_velocity=1.0))
+    sim.add_material(table1())
+    sim.add_particles([[0.05, 0.0, 0.0955]], R, "m")
+    sim.run(steps=int(round(0.01 / sim.dt)))
+    shift = sim.shear.shift
+    sim.add_particles([[0.05 - shift, 0.0, 0.0035]], R, "m", allow_overlap=True)  # 8 mm from its image below
+    sim.run(steps=1)
+    assert len(sim.contact_forces()["i"]) == 1
+    assert coordination(sim, np.ones(2, dtype=bool)) == 1.0
+
+
+def test_timing_the_passes_leaves_the_sheared_box_as_it_was(table1):
+    """``Simulation.passes`` times a rebuild, which puts centres back into the box (images, shift,
+    velocity jump) and zeroes the shift moved since the list was built: ``restore`` puts the box and
+    the images back with the rest, so that the next run knows when to build the list again."""
+    from rollingdem.engine.layout import PERIODIC_BOX as PB
+
+    sim, _ = _sheared_gas(table1, 200.0, 7)
+    box, image = sim._state.contact_list.box.copy(), sim._state.image.copy()
+    assert box[PB.shift_since_build] > 0.0
+    passes = sim.passes()
+    passes.rebuild()
+    assert sim._state.contact_list.box[PB.shift_since_build] == 0.0
+    passes.restore()
+    np.testing.assert_array_equal(sim._state.contact_list.box, box)
+    np.testing.assert_array_equal(sim._state.image, image)

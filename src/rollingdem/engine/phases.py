@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from rollingdem.engine.layout import KICK_NONE
+from rollingdem.engine.layout import DRIFT_SHARE, KICK_NONE, PERIODIC_BOX_SIZE, SHEARED_DRIFT_SHARE
 from rollingdem.engine.mesh_passes import build_mesh_candidates
 from rollingdem.engine.neighbors import rebuild_neighbor_list
 
@@ -29,11 +29,11 @@ class Passes:
         particles, walls, lists, scratch = st.records()
         self.saved = [(owner, name, getattr(owner, name).copy())
                       for owner, names in ((st, ("whist", "wtouch", "wall_load", "energy", "f", "t", "contacts",
-                                                 "x_ref", "x", "v", "w", "clump_f", "clump_t")),
+                                                 "x_ref", "x", "v", "w", "clump_f", "clump_t", "image")),
                                            (st.meshes, ("slot_triangle", "history", "load", "candidate_start",
                                                         "candidates", "candidate_gap", "built")),
                                            (st.contact_list, ("pool", "contact_row", "groups", "start", "j", "i",
-                                                              "tr_start", "tr_k")))
+                                                              "tr_start", "tr_k", "box")))
                       for name in names]
         serial = st.serial()
         pair_forces = module.pair_forces_serial if serial else module.pair_forces
@@ -42,12 +42,12 @@ class Passes:
         no_walls = walls._make(a[:0] for a in walls)
 
         self.pair = lambda: pair_forces(dt, pp, particles, lists, scratch)
-        self.gather_walls = lambda: gather(dt, KICK_NONE, gravity, pp, particles, walls, lists, scratch, 0.5 * skin)
-        self.gather_plain = lambda: gather(dt, KICK_NONE, gravity, pp, particles, no_walls, lists, scratch,
-                                            0.5 * skin)
-        self.kick = lambda: kick_drift(0.0, particles, 0.5 * skin)
+        half = skin * (DRIFT_SHARE if lists.box.shape[0] <= PERIODIC_BOX_SIZE else SHEARED_DRIFT_SHARE)
+        self.gather_walls = lambda: gather(dt, KICK_NONE, gravity, pp, particles, walls, lists, scratch, half)
+        self.gather_plain = lambda: gather(dt, KICK_NONE, gravity, pp, particles, no_walls, lists, scratch, half)
+        self.kick = lambda: kick_drift(0.0, particles, half)
         clump_pass = module.clump_pass_serial if serial else module.clump_pass
-        self.clumps = lambda: clump_pass(dt, KICK_NONE, gravity, particles, lists.box, 0.5 * skin)
+        self.clumps = lambda: clump_pass(dt, KICK_NONE, gravity, particles, lists.box, half)
         self.rebuild = lambda: rebuild_neighbor_list(st.x, st.v, st.radius, skin, st.ids, st.fixed, st.clump, st.image, st.x_ref, lists)
         self.mesh_candidates = lambda: build_mesh_candidates(st.x, st.radius, skin, walls)
 

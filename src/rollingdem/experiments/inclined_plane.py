@@ -23,6 +23,7 @@ import warnings
 
 import numpy as np
 import pandas as pd
+from scipy.integrate import trapezoid
 
 from rollingdem.errors import ParameterError
 from rollingdem.experiments.registry import BedExperiment, Parameter, resolve_rolling
@@ -97,7 +98,7 @@ def profile_measures(profile: dict, base: float, d: float, density: float, theta
     (slip, amplitude), *_ = np.linalg.lstsq(design, u[bulk], rcond=None)
     surface_speed = slip + amplitude * h ** 1.5
     bagnold = float(np.max(np.abs(u[bulk] - design @ (slip, amplitude))) / surface_speed)
-    weight = np.array([density * G * math.cos(theta) * np.trapezoid(phi[(z >= zk)], z[(z >= zk)]) for zk in z])
+    weight = np.array([density * G * math.cos(theta) * trapezoid(phi[(z >= zk)], z[(z >= zk)]) for zk in z])
     rate = np.gradient(u, z)
     inertial = rate[bulk] * d / np.sqrt(szz[bulk] / density)
     return {"depth": h / d, "surface_speed": float(surface_speed), "slip_speed": float(slip),
@@ -107,8 +108,8 @@ def profile_measures(profile: dict, base: float, d: float, density: float, theta
             "weight_ratio": float(szz[bulk].sum() / weight[bulk].sum()),
             "inertial_number": float(inertial.mean()),
             "inertial_spread": float(np.max(np.abs(inertial - inertial.mean())) / inertial.mean()),
-            "froude": float(np.trapezoid(u[inside & (z <= top)] * phi[inside & (z <= top)], z[inside & (z <= top)])
-                            / np.trapezoid(phi[inside & (z <= top)], z[inside & (z <= top)])
+            "froude": float(trapezoid(u[inside & (z <= top)] * phi[inside & (z <= top)], z[inside & (z <= top)])
+                            / trapezoid(phi[inside & (z <= top)], z[inside & (z <= top)])
                             / math.sqrt(G * h * math.cos(theta)))}
 
 

@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from rollingdem.errors import Declared, ParameterError, check_finite, check_positive, check_vector
-from rollingdem.scene.periodic import with_images
 from rollingdem.scene.schedule import Observer
 
 #: Batches of the batch-means standard error.
@@ -489,7 +488,7 @@ def coordination(sim, which) -> float:
     if not which.any():
         return math.nan
     reach = 2.0 * float(sim.radii.max())
-    x, r, source = with_images(sim.periodic or {}, sim.positions, sim.radii, reach)
+    x, r, source = sim.shear.with_images(sim.positions, sim.radii, reach)
     pairs = cKDTree(x).query_pairs(reach, output_type="ndarray")
     d = x[pairs[:, 0]] - x[pairs[:, 1]]
     touching = source[pairs[np.einsum("ij,ij->i", d, d) < (r[pairs[:, 0]] + r[pairs[:, 1]]) ** 2]]

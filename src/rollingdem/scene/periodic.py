@@ -132,6 +132,10 @@ class ShearedBox:
         self.periodic[axis] = (lo, lo + length)
         st.info[I_FORCES_VALID] = 0
 
+    def with_images(self, x: np.ndarray, r: np.ndarray, reach: float):
+        """``with_images`` of this box (the images across a sheared end displaced by the shift)."""
+        return with_images(self.periodic, x, r, reach, self.state.contact_list.box)
+
     def check_scene(self, walls, backend: str) -> None:
         """Refuse what a sheared box cannot hold: walls other than planes across the third axis
         (checked with the periodic ones), bonds, clumps, triangle meshes; the GPU's step loop."""

@@ -43,13 +43,16 @@ G = 9.81
 POURED_FRACTION = 0.3
 #: diameters left out of the bulk at the base and under the surface
 EDGE = 3.0
+#: a layer has stopped when its spheres' mean speed is below this times sqrt(g d)
+STOPPED = 1e-2
+#: the stop angle's search: from 23 deg down in steps of 0.5 deg, 0.5 s each
+STOP_START, STOP_STEP, STOP_SETTLE = 23.0, 0.5, 0.5
 #: the fields' kernel width in mean diameters, and their samples over the run
 KERNEL_WIDTH, SAMPLES = 0.6, 300
 
 
-def chute_run(p: dict) -> dict:
-    """One layer flowing at ``p``'s angle: the profile's measures (see the module) and the profile."""
-    start = time.perf_counter()
+def chute_scene(p: dict) -> Simulation:
+    """The base and the layer of ``p``, poured, gravity at ``p``'s angle."""
     R, d = p["radius"], 2.0 * p["radius"]
     length, width = p["length"] * d, p["width"] * d
     theta = math.radians(p["angle"])
@@ -65,13 +68,47 @@ def chute_run(p: dict) -> dict:
     sim.insert(BoxRegion((0.0, 0.0, 2.0 * R), (length, width, 2.0 * R + poured)), count,
                Uniform(R * (1.0 - p["polydispersity"]), R * (1.0 + p["polydispersity"])), "spheres", seed=p["seed"],
                max_attempts=2000)
+    return sim
+
+
+def tilt(sim, angle: float) -> None:
+    """Gravity at ``angle`` (deg) to -z, about y: the incline's slope."""
+    theta = math.radians(angle)
+    sim.gravity = (G * math.sin(theta), 0.0, -G * math.cos(theta))
+
+
+def stop_angle(p: dict, start: float, step: float, settle: float) -> tuple[float, float]:
+    """(the lowest angle at which ``p``'s layer still flowed, the angle at which it stopped): the
+    layer flows at ``start`` deg for ``settle`` s, then the slope is lowered by ``step`` deg after
+    each ``settle`` s until the spheres' mean speed falls below STOPPED sqrt(g d) (Pouliquen 1999's
+    theta_stop(h), found by lowering the slope)."""
+    sim = chute_scene(dict(p, angle=start))
+    speed_scale = math.sqrt(G * 2.0 * p["radius"])
+    angle = start
+    free = ~sim.fixed
+    while angle > 0.0:
+        tilt(sim, angle)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=".*dt is lowered")
+            sim.run(settle)
+        if np.linalg.norm(sim.velocities[free], axis=1).mean() < STOPPED * speed_scale:
+            return angle + step, angle
+        angle -= step
+    return step, 0.0
+
+
+def chute_run(p: dict) -> dict:
+    """One layer flowing at ``p``'s angle: the profile's measures (see the module) and the profile."""
+    start = time.perf_counter()
+    sim = chute_scene(p)
+    d, theta = 2.0 * p["radius"], math.radians(p["angle"])
     fields = ContinuumFields("profile", width=KERNEL_WIDTH * d, axis="z", interval=p["duration"] / SAMPLES,
                              window=(0.5 * p["duration"], p["duration"]), vtk=False)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*dt is lowered")
         sim.run(p["duration"], observers=[fields])
-    return dict(profile_measures(fields.mean_profile(), 2.0 * R, d, p["density"], theta),
-                count=count, wall_time=time.perf_counter() - start)
+    return dict(profile_measures(fields.mean_profile(), d, d, p["density"], theta),
+                count=int((~sim.fixed).sum()), wall_time=time.perf_counter() - start)
 
 
 def profile_measures(profile: dict, base: float, d: float, density: float, theta: float) -> dict:
@@ -153,9 +190,12 @@ class InclinedPlane(BedExperiment):
         inertial number uniform within 10 % (what tells Bagnold's profile from a straight one over the
         bulk); the solid fraction uniform within 0.01; steady flow: -sigma_xz / sigma_zz = tan(theta)
         within 2 %; mu(I) of the shear rig at the layer's I = tan(theta) within 2 of its standard errors
-        and 0.02 (the layer's I spread). sigma_zz against the weight above is reported: the profile's
-        kinetic stress is about each sample's mean velocity, so a layer that breathes adds the mean
-        flow's vertical momentum flux, which the window's average does not hold."""
+        and 0.02 (the layer's I spread). The slope lowered from 23 deg by 0.5 deg every 0.5 s until the
+        layer stops: the shear rig's mu at I = 0.001 lies below the tangent of the angle where it last
+        flowed (an upper bound, two standard errors): a thin layer stops above it. sigma_zz against
+        the weight above is reported: the profile's kinetic stress is about each sample's mean
+        velocity, so a layer that breathes adds the mean flow's vertical momentum flux, which the
+        window's average does not hold."""
         tic = time.perf_counter()
         base = {"model": model, **self.sizes["quick" if quick else "full"]}
         angles = (23.0, 25.0, 27.0)
@@ -164,9 +204,12 @@ class InclinedPlane(BedExperiment):
         size = shear.sizes["quick" if quick else "full"]
         points = [shear.resolve(dict(size, model=model, mu=0.5, mur=0.0, inertial_number=min(max(i, 1e-3), 0.9)))
                   for i in runs["inertial_number"]]
+        points.append(shear.resolve(dict(size, model=model, mu=0.5, mur=0.0, inertial_number=1e-3)))
         sheared = run_points(shear, points, [1], runner, progress)
-        runs["shear_friction"] = sheared["friction"].to_numpy()
-        runs["shear_friction_error"] = sheared["friction_error"].to_numpy()
+        runs["shear_friction"] = sheared["friction"].to_numpy()[:-1]
+        runs["shear_friction_error"] = sheared["friction_error"].to_numpy()[:-1]
+        slow, slow_error = float(sheared["friction"].iloc[-1]), float(sheared["friction_error"].iloc[-1])
+        flowed, stopped = stop_angle(self.resolve(base), STOP_START, STOP_STEP, STOP_SETTLE)
         runs["tan_theta"] = np.tan(np.radians(runs["angle"]))
         checks = []
         name = self.name
@@ -190,9 +233,17 @@ class InclinedPlane(BedExperiment):
                       2.0 * r["shear_friction_error"] + 0.02, relative=False,
                       source="one rheology, two rigs (GDR MiDi 2004; Jop et al. 2006); tolerance: the shear point's "
                              "two standard errors and 0.02 for I's spread over the layer")]
+        checks.append(Check(name, model, f"the simple-shear rig's mu at I = 0.001 (+-{slow_error:.3f}) against "
+                            f"tan of the last slope the layer flowed at ({flowed:g} deg; it stopped at {stopped:g} deg, "
+                            "lowered from 23 deg)", slow, math.tan(math.radians(flowed)) + 2.0 * slow_error, 0.0,
+                            bound="upper", source="a layer flows only where tan theta exceeds its quasi-static "
+                                                  "friction, and a thin one stops above it (h_stop: Pouliquen 1999); "
+                                                  "bound: two standard errors"))
+        runs["stop_angle"], runs["quasi_static_friction"] = stopped, slow
         table = runs[["angle", "depth", "surface_speed", "slip_speed", "froude", "bulk_solid_fraction", "inertial_number",
                       "stress_ratio", "tan_theta", "shear_friction", "weight_ratio", "bagnold_deviation",
-                      "solid_fraction_spread", "wall_time"]]
+                      "solid_fraction_spread", "inertial_spread", "stop_angle", "quasi_static_friction",
+                      "wall_time"]]
         result = ValidationResult(name, f"Inclined plane ({model}{', quick' if quick else ''})", pd.DataFrame(table),
                                   checks, notes=[f"A layer {base['depth']:g} d deep on a rough base of fixed spheres, "
                                                  f"periodic over {base['length']:g} d x {base['width']:g} d, mu = 0.5, "

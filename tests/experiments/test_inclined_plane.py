@@ -51,3 +51,12 @@ def test_an_exact_bagnold_layer_reads_as_one():
     assert m["inertial_spread"] < 5e-3
     straight = profile_measures(_bagnold_layer(theta, h, d, linear=True)[0], base, d, 2500.0, theta)
     assert straight["bagnold_deviation"] > 0.01 and straight["inertial_spread"] > 0.15
+
+
+def test_a_layer_below_its_friction_angle_stops_at_the_first_slope():
+    """A layer 6 d deep poured on a 10 deg slope (well below the 20 deg its friction holds) is at rest
+    after 0.3 s: the search ends at its first slope, having flowed last at 10 + step deg."""
+    from rollingdem.experiments.inclined_plane import InclinedPlane, stop_angle
+
+    e = InclinedPlane()
+    assert stop_angle(e.resolve({"depth": 6.0, "length": 5.0, "width": 5.0}), 10.0, 5.0, 0.3) == (15.0, 10.0)

@@ -237,16 +237,22 @@ def test_fields_in_a_sheared_box_are_refused(table1):
         sim.run(steps=1, observers=[rd.ContinuumFields("f", width=0.01)])
 
 
+def _one_near_the_upper_end(table1, z):
+    """One sphere at (0.05, 0, z) in a box sheared at U = 1 m/s (gradient z, 0.1 m), after 0.01 s:
+    (the simulation, the shift)."""
+    sim = rd.Simulation(gravity=(0, 0, 0), periodic={"x": (0.0, 0.1), "z": (0.0, 0.1)},
+                        lees_edwards=rd.LeesEdwards(shear_velocity=1.0))
+    sim.add_material(table1())
+    sim.add_particles([[0.05, 0.0, z]], R, "m")
+    sim.run(steps=int(round(0.01 / sim.dt)))
+    return sim, sim.shear.shift
+
+
 def test_a_new_sphere_is_checked_against_the_shifted_images(table1):
     """After 0.01 s at U = 1 m/s the image of a sphere near the upper end lies 0.01 m along x from
     where an unsheared box would put it: a sphere added under that image overlaps it and is
     refused; one under the unshifted place (clear of the image by 2.8 mm) is accepted."""
-    sim = rd.Simulation(gravity=(0, 0, 0), periodic={"x": (0.0, 0.1), "z": (0.0, 0.1)},
-                        lees_edwards=rd.LeesEdwards(shear_velocity=1.0))
-    sim.add_material(table1())
-    sim.add_particles([[0.05, 0.0, 0.095]], R, "m")
-    sim.run(steps=int(round(0.01 / sim.dt)))
-    shift = sim.shear.shift
+    sim, shift = _one_near_the_upper_end(table1, 0.095)
     assert shift == pytest.approx(0.01, rel=0.01)
     with pytest.raises(ParameterError, match="overlap"):
         sim.add_particles([[0.05 - shift, 0.0, 0.003]], R, "m")
@@ -280,12 +286,7 @@ def test_the_probes_coordination_counts_pairs_across_the_shifted_end(table1):
     touches one, as the engine's contact says; unshifted images would find none."""
     from rollingdem.io.measurements import coordination
 
-    sim = rd.Simulation(gravity=(0, 0, 0), periodic={"x": (0.0, 0.1), "z": (0.0, 0.1)},
-                        lees_edwards=rd.LeesEdwards(shear_velocity=1.0))
-    sim.add_material(table1())
-    sim.add_particles([[0.05, 0.0, 0.0955]], R, "m")
-    sim.run(steps=int(round(0.01 / sim.dt)))
-    shift = sim.shear.shift
+    sim, shift = _one_near_the_upper_end(table1, 0.0955)
     sim.add_particles([[0.05 - shift, 0.0, 0.0035]], R, "m", allow_overlap=True)  # 8 mm from its image below
     sim.run(steps=1)
     assert len(sim.contact_forces()["i"]) == 1

@@ -28,7 +28,7 @@ from scipy.integrate import trapezoid
 from rollingdem.errors import ParameterError
 from rollingdem.experiments.registry import BedExperiment, Parameter, resolve_rolling
 from rollingdem.experiments.results import Check, ValidationResult, pyplot, run_points
-from rollingdem.experiments.simple_shear import SimpleShear
+from rollingdem.experiments.simple_shear import SimpleShear, flow_parameters
 from rollingdem.io.field_measurements import ContinuumFields
 from rollingdem.physics.contact.model import ContactModel
 from rollingdem.scene.insertion import rough_base
@@ -156,11 +156,7 @@ class InclinedPlane(BedExperiment):
     name = "inclined-plane"
     description = ("a layer of spheres flowing steadily down a rough incline, periodic along and across the flow "
                    "(GDR MiDi 2004): Bagnold's profile, the solid fraction, tan(theta) against mu(I)")
-    parameters = (Parameter("model", "epsd", "rolling resistance model", choice="rolling"),
-                  Parameter("mu", 0.5, "sliding friction coefficient", low=0.0, calibration_range=(0.1, 1.0)),
-                  Parameter("mur", 0.0, "rolling friction coefficient", low=0.0, calibration_range=(0.0, 0.6)),
-                  Parameter("eta_r", 0.3, "rolling viscous damping ratio", low=0.0, high=1.0),
-                  Parameter("e", 0.5, "coefficient of restitution", low=0.0, high=1.0, low_open=True),
+    parameters = flow_parameters() + (
                   Parameter("angle", 25.0, "the incline's angle theta", "deg", low=0.0, low_open=True, high=60.0),
                   Parameter("depth", 10.0, "the layer's depth, in mean diameters", low=2.0 * EDGE),
                   Parameter("length", 10.0, "the periodic length along the flow, in mean diameters", low=5.0),

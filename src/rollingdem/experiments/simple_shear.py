@@ -153,17 +153,22 @@ def shear_run(p: dict) -> dict:
             "shear_rate": rate, "samples": len(rows), "steps": moves * chunk, "wall_time": time.perf_counter() - start}
 
 
+def flow_parameters() -> tuple[Parameter, ...]:
+    """The rolling model and the contact coefficients of the rheology rigs (mu may be 0: frictionless)."""
+    return (Parameter("model", "epsd", "rolling resistance model", choice="rolling"),
+            Parameter("mu", 0.5, "sliding friction coefficient", low=0.0, calibration_range=(0.0, 1.0)),
+            Parameter("mur", 0.0, "rolling friction coefficient", low=0.0, calibration_range=(0.0, 0.6)),
+            Parameter("eta_r", 0.3, "rolling viscous damping ratio", low=0.0, high=1.0),
+            Parameter("e", 0.5, "coefficient of restitution", low=0.0, high=1.0, low_open=True))
+
+
 class SimpleShear(BedExperiment):
     """Steady simple shear at a constant normal stress between Lees-Edwards boundaries."""
 
     name = "simple-shear"
     description = ("steady simple shear of a polydisperse sphere packing between Lees-Edwards boundaries at a constant "
                    "normal stress: the friction mu = tau / P and the solid fraction against the inertial number")
-    parameters = (Parameter("model", "epsd", "rolling resistance model", choice="rolling"),
-                  Parameter("mu", 0.5, "sliding friction coefficient", low=0.0, calibration_range=(0.0, 1.0)),
-                  Parameter("mur", 0.0, "rolling friction coefficient", low=0.0, calibration_range=(0.0, 0.6)),
-                  Parameter("eta_r", 0.3, "rolling viscous damping ratio", low=0.0, high=1.0),
-                  Parameter("e", 0.5, "coefficient of restitution", low=0.0, high=1.0, low_open=True),
+    parameters = flow_parameters() + (
                   Parameter("inertial_number", 0.01, "the inertial number I the shear rate is set by: "
                                                      "gamma_dot = I d / sqrt(P / rho)", low=0.0, low_open=True, high=1.0),
                   Parameter("pressure", 1000.0, "the normal stress P held on the shear plane", "Pa", low=0.0,

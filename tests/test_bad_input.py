@@ -146,6 +146,9 @@ CATALOGUE = [
      edit("{type: plane, name: floor, material: m}", "{type: plane, name: floor, material: m, "
                                                      "angular_velocity: [1, 0, 0]}"),
      "walls.0: wall angular_velocity = [1.0, 0.0, 0.0] is not allowed for a plane: it must lie along its normal"),
+    ("a stage's shear rate in a box not sheared",
+     edit(STAGE, "  - {name: s, duration: 0.0002, shear_rate: 5.0}"),
+     "stage 's': shear_rate = 5.0 is not allowed: the box is not sheared"),
     ("wall_motion of a wall that is not there",
      edit(STAGE, "  - {name: s, duration: 0.0002, wall_motion: [{wall: roof, velocity: [0, 0, 1]}]}"),
      "stage 's': wall_motion wall = 'roof' is not allowed: no wall in place has that name"),

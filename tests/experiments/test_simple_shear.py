@@ -145,3 +145,24 @@ def test_the_validations_checks_on_a_known_rheology():
             all(words[key] in c.quantity for c in res.checks if not c.passed), key
     creeping = e.validate(quick=True, model="cdt", runner=_synthetic_runner(rising))
     assert len(creeping.checks) == 4 and any("reported, not checked" in n for n in creeping.notes)
+
+
+def test_the_shipped_shear_cell_case_file_gives_the_rigs_point(tmp_path):
+    """``rollingdem run`` on the shipped simple-shear case file (564 spheres pressed along z to 1 kPa,
+    then sheared at 20 /s: I = 0.031): the box's normal stress is 1 kPa within 2 % over the window,
+    its friction that of the rig at I = 0.03 (0.384 at the quick size) within 0.03 (the window's
+    standard error is about 0.01 and the sizes differ)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from rollingdem.cli import app
+    from rollingdem.experiments.case_file import shipped_cases
+
+    result = CliRunner().invoke(app, ["run", str(shipped_cases()["simple-shear"]), "--out", str(tmp_path / "o"),
+                                      "--no-progress"])
+    assert result.exit_code == 0, result.output
+    box = json.loads((tmp_path / "o" / "summary.json").read_text())["measurements"]["box"]
+    assert box["normal_stress"]["mean"] == pytest.approx(1000.0, rel=0.02)
+    assert box["inertial_number"]["mean"] == pytest.approx(0.0316, rel=0.05)
+    assert box["friction"]["mean"] == pytest.approx(0.384, abs=0.03)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from rollingdem.engine.layout import I_FORCES_VALID
-from rollingdem.errors import ParameterError, check_non_negative, check_positive, check_vector
+from rollingdem.errors import ParameterError, check_finite, check_non_negative, check_positive, check_vector
 from rollingdem.io.case_errors import InCase
 from rollingdem.io.case_schema import CaseSpec, StageWindowSpec
 from rollingdem.io.casefile import (build_measurements, build_simulation, motion_of, stage_conditions, stage_duration,
@@ -36,6 +36,12 @@ def check_case(case: CaseSpec, sim=None):
                            stage_duration(stage), "s")
         if stage.gravity is not None:
             check_vector(f"{where}: gravity", stage.gravity)
+        if stage.shear_rate is not None:
+            check_finite(f"{where}: shear_rate", stage.shear_rate)
+            if not sim.shear.active:
+                raise ParameterError(f"{where}: shear_rate = {stage.shear_rate!r} is not allowed: the box is not "
+                                     "sheared; give the periodic block a shear_rate (0 to start at rest) and a "
+                                     "gradient")
         for name in stage.remove_walls:
             if name in removed:
                 raise ParameterError(f"{where}: remove_walls = {name!r} is not allowed: an earlier stage removed "

@@ -525,6 +525,8 @@ class StageSpec(_Strict):
                                                                  "measurement's quantity")
     max_duration: Optional[Number] = about(None, "the longest it may wait for its condition", "s")
     gravity: Optional[Vector] = about(None, "gravity from this stage on", "m/s^2")
+    shear_rate: Optional[Number] = about(None, "the sheared box's shear rate from this stage on (its periodic block "
+                                               "gives a shear_rate or shear_velocity)", "1/s")
     remove_walls: list[str] = about([], "names of the walls removed at its start")
     wall_motion: list[WallMotionSpec] = about([], "walls' motions from its start")
     set_velocity: Optional[SetVelocitySpec] = about(None, "velocities set at its start")

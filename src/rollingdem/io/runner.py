@@ -295,10 +295,13 @@ class _Run:
         return summary
 
     def _begin(self, stage) -> None:
-        """A stage's start actions: gravity, walls removed, wall motions, velocities set, bonds made."""
+        """A stage's start actions: gravity, the shear rate, walls removed, wall motions, velocities set,
+        bonds made."""
         sim = self.sim
         if stage.gravity is not None:
             sim.gravity = stage.gravity
+        if stage.shear_rate is not None:
+            sim.shear.shear_rate = stage.shear_rate
         walls = {w.name: w for w in sim.walls if w.name}
         for name in stage.remove_walls:  # check_case made sure each names a wall in place
             sim.remove_wall(walls.pop(name))

@@ -14,8 +14,8 @@ from rollingdem.io.box_measurements import MAX_STRAIN_PER_MOVE, BoxServo
 
 def test_the_box_stress_is_the_virial_and_the_kinetic_stress_over_the_volume():
     """One contact, force f on i along its branch b (a repulsion): sigma = f (x) b / V, compressive
-    positive; two particles moving at +-u along x about a streaming v_x = 0.5 u add m u^2 / V to
-    sigma_xx for the one at rest relative to nothing... each m (v - s)^2 / V."""
+    positive; two particles moving at +-u along x about a streaming v_x = 0.5 u each add
+    m (v_x - 0.5 u)^2 / V to sigma_xx and nothing to sigma_xz or sigma_zz."""
     f, b = np.array([[2.0, 0.0, 1.0]]), np.array([[0.004, 0.0, 0.002]])
     sigma = box_stress(f, b, [], [], 1e-6)
     np.testing.assert_allclose(sigma, np.outer(f[0], b[0]) / 1e-6, rtol=1e-15)

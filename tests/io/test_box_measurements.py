@@ -34,6 +34,16 @@ def test_the_kinetic_stress_of_free_spheres_about_the_shear_profile():
     sheared.set_velocities([0, 1], velocity=[[20.0 * (0.02 - 0.05), 0, 0], [20.0 * (0.08 - 0.05), 0, 0]])
     values = dict(zip(rd.BoxStress.QUANTITIES, rd.BoxStress("b").values(sheared)))
     assert values["pressure"] == 0.0 and values["shear_stress"] == 0.0
+    # on the profile plus v_z = +-w and v_x' = -+0.5 w: sigma_zz = sum m w^2 / V, tau = 0.5 sum m w^2 / V,
+    # and I = rate d / sqrt(sigma_zz / rho) with d = 4 mm and rho = 2500 kg/m^3
+    w = 0.2
+    sheared.set_velocities([0, 1], velocity=[[20.0 * (0.02 - 0.05) - 0.5 * w, 0, w],
+                                             [20.0 * (0.08 - 0.05) + 0.5 * w, 0, -w]])
+    values = dict(zip(rd.BoxStress.QUANTITIES, rd.BoxStress("b").values(sheared)))
+    normal = float(sheared.masses.sum()) * w ** 2 / 1e-3
+    assert values["normal_stress"] == pytest.approx(normal, rel=1e-12)
+    assert values["friction"] == pytest.approx(0.5, rel=1e-12)
+    assert values["inertial_number"] == pytest.approx(20.0 * 0.004 / math.sqrt(normal / 2500.0), rel=1e-12)
 
 
 PRESSED_CASE = """\

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 
 import numpy as np
 import pandas as pd
@@ -28,7 +27,7 @@ from scipy.integrate import trapezoid
 from rollingdem.errors import ParameterError
 from rollingdem.experiments.registry import BedExperiment, Parameter, resolve_rolling
 from rollingdem.experiments.results import Check, ValidationResult, pyplot, run_points
-from rollingdem.experiments.simple_shear import SimpleShear, flow_parameters
+from rollingdem.experiments.simple_shear import SimpleShear, flow_parameters, run_quietly
 from rollingdem.io.field_measurements import ContinuumFields
 from rollingdem.physics.contact.model import ContactModel
 from rollingdem.scene.insertion import rough_base
@@ -88,9 +87,7 @@ def stop_angle(p: dict, start: float, step: float, settle: float) -> tuple[float
     free = ~sim.fixed
     while angle > 0.0:
         tilt(sim, angle)
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=".*dt is lowered")
-            sim.run(settle)
+        run_quietly(sim, settle)
         if np.linalg.norm(sim.velocities[free], axis=1).mean() < STOPPED * speed_scale:
             return angle + step, angle
         angle -= step
@@ -104,9 +101,7 @@ def chute_run(p: dict) -> dict:
     d, theta = 2.0 * p["radius"], math.radians(p["angle"])
     fields = ContinuumFields("profile", width=KERNEL_WIDTH * d, axis="z", interval=p["duration"] / SAMPLES,
                              window=(0.5 * p["duration"], p["duration"]), vtk=False)
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*dt is lowered")
-        sim.run(p["duration"], observers=[fields])
+    run_quietly(sim, p["duration"], observers=[fields])
     return dict(profile_measures(fields.mean_profile(), d, d, p["density"], theta),
                 count=int((~sim.fixed).sum()), wall_time=time.perf_counter() - start)
 

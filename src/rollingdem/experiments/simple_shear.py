@@ -81,9 +81,16 @@ def rigid_limit_offset(soft: float, stiff: float, ratio: float) -> float:
     return soft - (k * stiff - soft) / (k - 1.0)
 
 
-def shear_scene(p: dict) -> tuple[Simulation, BoxServo, float]:
-    """The packing of ``p``'s spheres compressed isotropically to P at rest: (simulation, its servo,
-    mean diameter)."""
+def run_quietly(sim: Simulation, *args, **kwargs) -> None:
+    """``sim.run``, without the warning that the flow's speeds lowered the automatic dt a little."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*dt is lowered")
+        sim.run(*args, **kwargs)
+
+
+def shear_scene(p: dict) -> tuple[Simulation, float]:
+    """The packing of ``p``'s spheres compressed isotropically to P at rest: (simulation, mean
+    diameter)."""
     d = 2.0 * p["radius"]
     solid = p["count"] * math.pi / 6.0 * d ** 3 * (1.0 + p["polydispersity"] ** 2)  # <r^3> of the uniform radii
     side = (solid / INSERTED_FRACTION) ** (1.0 / 3.0)
@@ -103,22 +110,20 @@ def shear_scene(p: dict) -> tuple[Simulation, BoxServo, float]:
     servo = BoxServo(p["pressure"], "xyz", effective_modulus(sim))
     rest = REST_ENERGY * p["pressure"] * d ** 3
     for _ in range(p["max_moves"]):
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=".*dt is lowered")
-            sim.run(steps=CHUNK)
+        run_quietly(sim, steps=CHUNK)
         pressure = servo.move(sim, stress_now(sim))
         if abs(pressure - p["pressure"]) < PRESSURE_WITHIN * p["pressure"] and \
                 sum(sim.kinetic_energy()) < rest * sim.n_particles:
             break
     sim.shear.shear_rate = rate
-    return sim, servo, d
+    return sim, d
 
 
 def shear_run(p: dict) -> dict:
     """The compressed packing sheared at the shear rate of ``inertial_number`` to ``strain``, the
     first ``transient`` of it left out: mu, phi, I (means over the samples) and their standard errors."""
     start = time.perf_counter()
-    sim, servo, d = shear_scene(p)
+    sim, d = shear_scene(p)
     rate = sim.shear.shear_rate
     x = sim.positions
     lo, hi = sim.periodic["z"]
@@ -132,9 +137,7 @@ def shear_run(p: dict) -> dict:
     first = int(round(p["transient"] / p["strain"] * moves))
     rows = []
     for k in range(moves):
-        with warnings.catch_warnings():  # the shear's speeds lower the automatic dt a little: not news here
-            warnings.filterwarnings("ignore", message=".*dt is lowered")
-            sim.run(steps=chunk)
+        run_quietly(sim, steps=chunk)
         contacts = sim.contact_forces()
         sigma = stress_now(sim, contacts)
         if k >= first:
